@@ -1,0 +1,35 @@
+"""Atomic output: write beside the target, rename into place only once complete.
+
+An interrupted or failed command therefore never leaves a partial or corrupt file, and a
+failed overwrite leaves the old file intact.
+"""
+
+import contextlib
+import os
+import tempfile
+
+
+@contextlib.contextmanager
+def atomic_output(path):
+    """Yield a temporary path in the target's folder with the target's suffix.
+
+    The suffix is kept because USD and OpenEXR choose their encoding from the extension.
+    On success the temporary file is fsynced and renamed onto ``path``; on any exception it
+    is removed and the exception propagates.
+    """
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    base = os.path.basename(path)
+    stem, dot, ext = base.rpartition(".")
+    suffix = "." + ext if dot else ""
+    fd, tmp = tempfile.mkstemp(prefix=f".{stem or base}.", suffix=".tmp" + suffix, dir=folder)
+    os.close(fd)
+    try:
+        yield tmp
+        with open(tmp, "rb+") as handle:
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(tmp)
+        raise

@@ -1,0 +1,1 @@
+"""skinsynth.gpu."""
