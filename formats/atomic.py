@@ -24,6 +24,10 @@ def atomic_output(path):
     suffix = "." + ext if dot else ""
     fd, tmp = tempfile.mkstemp(prefix=f".{stem or base}.", suffix=".tmp" + suffix, dir=folder)
     os.close(fd)
+    # mkstemp makes the file private (0600); give it the permissions a plain open() would.
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
     try:
         yield tmp
         with open(tmp, "rb+") as handle:

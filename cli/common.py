@@ -1,0 +1,75 @@
+"""What every command shares: user-error handling, exit codes, progress, provenance."""
+
+import functools
+import sys
+from importlib.metadata import PackageNotFoundError, version
+
+import click
+
+from skinsynth.formats.errors import FormatError
+from skinsynth.pipeline.errors import OptionError
+
+EXIT_USER_ERROR = 2
+
+
+def tool_version():
+    try:
+        return version("skinsynth")
+    except PackageNotFoundError:  # running from a source tree without an install
+        return "0+unknown"
+
+
+def fail(message):
+    """Print one error line on stderr and exit with status 2."""
+    click.echo(f"skinsynth: error: {message}", err=True)
+    sys.exit(EXIT_USER_ERROR)
+
+
+def user_errors(command):
+    """Turn the errors a user can cause into one stderr line and exit 2 (never a traceback)."""
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        from skinsynth.gpu import DeviceError
+
+        try:
+            return command(*args, **kwargs)
+        except (FormatError, OptionError, DeviceError) as error:
+            fail(str(error))
+        except MemoryError:
+            fail("out of memory: the input is too large for this machine at these settings")
+        except KeyboardInterrupt:
+            click.echo("skinsynth: interrupted; no output written", err=True)
+            sys.exit(130)
+    return wrapper
+
+
+def check_output_path(path, suffixes):
+    """Refuse an output path whose extension this command cannot write, before any work."""
+    lower = str(path).lower()
+    if not any(lower.endswith(s) for s in suffixes):
+        fail(f"{path}: output must end in {', '.join(suffixes)}")
+
+
+def command_line():
+    return " ".join(["skinsynth"] + sys.argv[1:])
+
+
+class Progress:
+    """A click progress bar on stderr that shows the latest figure, or nothing when quiet."""
+
+    def __init__(self, length, label, quiet=False):
+        self.bar = None if quiet else click.progressbar(
+            length=length, label=label, file=sys.stderr, show_pos=True, item_show_func=lambda x: x)
+
+    def __enter__(self):
+        if self.bar is not None:
+            self.bar.__enter__()
+        return self
+
+    def update(self, steps, text=None):
+        if self.bar is not None:
+            self.bar.update(steps, text)
+
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.__exit__(*exc)

@@ -1,0 +1,62 @@
+"""``skinsynth export``: the animation a model file holds, as USD or an OpenEXR vertex-animation texture."""
+
+import click
+
+from .common import check_output_path, fail, user_errors
+
+USD_SUFFIXES = (".usd", ".usda", ".usdc")
+
+
+@click.command("export")
+@click.argument("path", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Output: .usd/.usda/.usdc, or .exr for a vertex-animation texture.")
+@click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
+              help="USD only: UsdSkel skeleton with joint weights (editable), or a baked time-sampled mesh.")
+@click.option("--device", default="auto", show_default=True, help="Where the skinning kernel runs: auto, cpu, cuda or cuda:N.")
+@click.option("--half", is_flag=True, help="EXR only: store 16-bit half floats instead of 32-bit.")
+@click.option("--max-width", default=8192, show_default=True, type=int, help="EXR only: texture width limit; vertices wrap to more rows.")
+@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default="Y", show_default=True, help="USD stage up axis.")
+@user_errors
+def export(path, output, kind, device, half, max_width, up_axis):
+    """Export the animation of a model file.
+
+    For a skin file this is the LBS reconstruction of the example frames: as UsdSkel (--as
+    skel: joints, bind/rest transforms, animation and joint weights, so animators get curves),
+    as a time-sampled mesh (--as points), or as an OpenEXR vertex-animation texture (.exr:
+    per-vertex offsets from the rest pose, one row block per frame, bounds in the header).
+
+    \b
+    Examples:
+      skinsynth export skin.h5 -o skin.usdc
+      skinsynth export skin.h5 -o skin.usda --as points
+      skinsynth export skin.h5 -o skin_vat.exr --half
+    """
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.gpu import lbs, resolve_device
+
+    check_output_path(output, USD_SUFFIXES + (".exr",))
+    if max_width < 1:
+        fail(f"--max-width must be at least 1 (got {max_width})")
+    device = resolve_device(device)
+    skin = read_skin(path)
+    to_exr = output.lower().endswith(".exr")
+    if kind == "skel" and not to_exr:
+        from skinsynth.formats.usd import write_skel_cache
+
+        write_skel_cache(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
+                         skin.rotations, skin.translations, skin.bone_rest_frames[:, :3, 3], skin.fps,
+                         up_axis=up_axis)
+    else:
+        frames = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
+                     skin.translations, device=device)
+        if to_exr:
+            from skinsynth.formats.exr import write_vat
+
+            write_vat(output, skin.rest_vertices, frames, skin.fps, max_width=max_width, half=half)
+        else:
+            from skinsynth.formats.usd import write_points_cache
+
+            write_points_cache(output, frames, skin.faces, skin.fps, up_axis=up_axis)
+    click.echo(f"wrote {output}: {skin.rotations.shape[0]} frames, {skin.rest_vertices.shape[0]} vertices"
+               + ("" if to_exr else f" ({'UsdSkel, ' + str(skin.bones) + ' joints' if kind == 'skel' else 'point cache'})"))

@@ -1,0 +1,55 @@
+"""``skinsynth inspect``: what a model file holds."""
+
+import json
+
+import click
+import numpy as np
+
+from .common import user_errors
+
+
+def _summary(path, model):
+    out = {"file": str(path), "stage": model["stage"], "format_version": model["format_version"]}
+    if "mesh" in model:
+        out["vertices"] = int(model["mesh"]["rest_vertices"].shape[0])
+        out["faces"] = int(model["mesh"]["faces"].shape[0])
+    if "examples" in model:
+        out["frames"] = int(model["examples"]["vertices"].shape[0])
+        out["fps"] = float(model["examples"].get("@fps", 0.0))
+        out["source"] = str(model["examples"].get("@source", ""))
+    if "skin" in model:
+        skin = model["skin"]
+        out["bones"] = int(skin["rotations"].shape[1])
+        out["max_influences"] = int(skin["bone_indices"].shape[1])
+        weights = skin["bone_weights"]
+        out["mean_influences"] = float(np.mean(np.sum(weights > 0.0, axis=1)))
+        for key in ("rmse", "rmse_over_diagonal", "iterations", "converged", "bones_without_weight"):
+            if f"@{key}" in skin:
+                value = skin[f"@{key}"]
+                out[key] = bool(value) if key == "converged" else (int(value) if key in ("iterations", "bones_without_weight") else float(value))
+    out["provenance"] = [{k: r.get(k) for k in ("stage", "command", "tool_version", "seed", "date")}
+                         for r in model["provenance"]]
+    return out
+
+
+@click.command("inspect")
+@click.argument("path", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
+@user_errors
+def inspect_file(path, as_json):
+    """Summarise a skinsynth model file: stage, version, counts, fit errors, provenance."""
+    from skinsynth.formats.model import read_model
+
+    summary = _summary(path, read_model(path))
+    if as_json:
+        click.echo(json.dumps(summary, sort_keys=True))
+        return
+    for key, value in summary.items():
+        if key == "provenance":
+            for record in value:
+                click.echo(f"provenance: {record['stage']} by skinsynth {record['tool_version']} on {record['date']}"
+                           f" (seed {record['seed']}): {record['command']}")
+        elif isinstance(value, float):
+            click.echo(f"{key}: {value:.6g}")
+        else:
+            click.echo(f"{key}: {value}")

@@ -1,0 +1,262 @@
+"""Example animations on disk: one mesh, fixed topology, vertex positions per frame.
+
+Accepted inputs: a folder of OBJ/PLY/OFF frame files, a glob of them, a USD file with a
+time-sampled mesh, or an ``.npz``/``.h5`` file holding ``vertices (F, V, 3)`` and
+``faces (T, 3)`` (optional scalar ``fps``).
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+import warnings
+import zipfile
+from dataclasses import dataclass
+
+import numpy as np
+
+from skinsynth.formats.errors import FormatError
+
+FRAME_EXTENSIONS = (".obj", ".ply", ".off")
+USD_EXTENSIONS = (".usd", ".usda", ".usdc")
+ARRAY_EXTENSIONS = (".npz", ".h5", ".hdf5")
+DEFAULT_FPS = 24.0
+
+
+@dataclass(frozen=True)
+class MeshSequence:
+    """vertices (F, V, 3) float64, faces (T, 3) int64 triangles, fps, and the input as given."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    fps: float
+    source: str
+
+
+def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = None) -> MeshSequence:
+    """Read an example animation from a folder, glob, USD file or array file.
+
+    ``prim`` picks the USD mesh (default: the first Mesh with time-sampled points); ``fps``
+    overrides the frame rate stored in the file (frame files and arrays without one: 24).
+    Bad input raises FormatError naming the file (for frame files, the first offending frame).
+    """
+    spec = os.fspath(spec)
+    if fps is not None and not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be a positive number, got {fps}")
+    ext = os.path.splitext(spec)[1].lower()
+    if prim is not None and ext not in USD_EXTENSIONS:
+        raise FormatError(spec, "a prim path applies only to USD input")
+
+    # An existing path wins over a glob reading, so folders named like "take[1]" still work.
+    if os.path.isdir(spec):
+        sequence = _read_frame_files(spec, _folder_frames(spec))
+    elif not os.path.exists(spec):
+        if not glob.has_magic(spec):
+            raise FormatError(spec, "no such file or folder")
+        sequence = _read_frame_files(spec, _glob_frames(spec))
+    elif ext in USD_EXTENSIONS:
+        # pxr takes a third of a second to import: pay for it only when reading USD.
+        from skinsynth.formats.usd import read_points_cache
+
+        sequence = sequence_from_arrays(spec, *read_points_cache(spec, prim))
+    elif ext == ".npz":
+        sequence = _read_npz(spec)
+    elif ext in (".h5", ".hdf5"):
+        sequence = _read_h5(spec)
+    elif ext in FRAME_EXTENSIONS:
+        raise FormatError(spec, "a single frame is not a sequence; give the folder or a glob of the frames")
+    else:
+        raise FormatError(spec, f"unknown extension {ext or '(none)'!r}; expected a folder, a glob, "
+                                f"{'/'.join(USD_EXTENSIONS + ARRAY_EXTENSIONS)}")
+
+    if fps is not None:
+        sequence = MeshSequence(sequence.vertices, sequence.faces, float(fps), sequence.source)
+    return sequence
+
+
+def sequence_from_arrays(source, vertices, faces, fps=None) -> MeshSequence:
+    """Validate vertices (F, V, 3) and faces (T, 3) read from ``source`` into a MeshSequence.
+
+    Raises FormatError for every defect a user's file can have; ``fps`` None means 24.
+    """
+    source = os.fspath(source)
+    vertices = np.asarray(vertices)
+    faces = np.asarray(faces)
+    if vertices.ndim != 3 or vertices.shape[2] != 3:
+        raise FormatError(source, f"vertices must have shape (frames, vertices, 3), got {vertices.shape}")
+    if not np.issubdtype(vertices.dtype, np.number) or np.iscomplexobj(vertices):
+        raise FormatError(source, f"vertices must be real numbers, got dtype {vertices.dtype}")
+    frames, count = vertices.shape[:2]
+    if frames < 2:
+        raise FormatError(source, f"{frames} frame(s); an animation needs at least 2")
+    if count == 0:
+        raise FormatError(source, "the mesh has no vertices")
+    vertices = vertices.astype(np.float64, copy=False)
+    finite = np.isfinite(vertices).all(axis=(1, 2))
+    if not finite.all():
+        raise FormatError(source, f"non-finite vertex coordinates (NaN or inf) in frame {int(np.argmin(finite))}")
+    if faces.ndim != 2 or faces.shape[1] != 3:
+        raise FormatError(source, f"faces must have shape (triangles, 3), got {faces.shape}")
+    if len(faces) == 0:
+        raise FormatError(source, "the mesh has no faces")
+    if not np.issubdtype(faces.dtype, np.integer):
+        raise FormatError(source, f"faces must be integers, got dtype {faces.dtype}")
+    if faces.min() < 0 or faces.max() >= count:
+        raise FormatError(source, f"face indices must lie in [0, {count}), found {faces.min()}..{faces.max()}")
+    if fps is None:
+        fps = DEFAULT_FPS
+    if not (np.isfinite(fps) and fps > 0):
+        raise FormatError(source, f"frame rate must be positive, got {fps}")
+    return MeshSequence(vertices, faces.astype(np.int64, copy=False), float(fps), source)
+
+
+def natural_key(path):
+    """Sort key putting frame2 before frame10: digit runs compare as numbers."""
+    name = os.path.basename(path)
+    # re.split with a group alternates text and digits, so the key's types line up position by position.
+    parts = re.split(r"(\d+)", name)
+    return [int(p) if p.isdigit() else p.lower() for p in parts], name
+
+
+def _glob_frames(pattern):
+    paths = sorted((p for p in glob.glob(pattern) if os.path.isfile(p)), key=natural_key)
+    if not paths:
+        raise FormatError(pattern, "the pattern matches no files")
+    for path in paths:
+        if os.path.splitext(path)[1].lower() not in FRAME_EXTENSIONS:
+            raise FormatError(path, f"not a frame file; expected {'/'.join(FRAME_EXTENSIONS)}")
+    return paths
+
+
+def _folder_frames(folder):
+    paths = [
+        entry.path
+        for entry in os.scandir(folder)
+        if entry.is_file()
+        and not entry.name.startswith(".")  # hidden and half-written temporary files
+        and os.path.splitext(entry.name)[1].lower() in FRAME_EXTENSIONS
+    ]
+    if not paths:
+        raise FormatError(folder, f"no {'/'.join(FRAME_EXTENSIONS)} frame files in the folder")
+    return sorted(paths, key=natural_key)
+
+
+def _read_frame_files(source, paths) -> MeshSequence:
+    first_vertices, faces = _read_frame(paths[0])
+    vertices = np.empty((len(paths), len(first_vertices), 3))
+    vertices[0] = first_vertices
+    for index, path in enumerate(paths[1:], start=1):
+        frame_vertices, frame_faces = _read_frame(path)
+        if len(frame_vertices) != len(first_vertices):
+            raise FormatError(path, f"{len(frame_vertices)} vertices, but the first frame "
+                                    f"{os.path.basename(paths[0])} has {len(first_vertices)}")
+        if not np.array_equal(frame_faces, faces):
+            raise FormatError(path, f"faces differ from the first frame {os.path.basename(paths[0])}")
+        vertices[index] = frame_vertices
+    return sequence_from_arrays(source, vertices, faces)
+
+
+def _read_frame(path):
+    """One frame file as vertices (V, 3) float64 in file order and faces (T, 3) int64."""
+    # trimesh takes a second to import: pay for it only when reading frame files.
+    import trimesh
+
+    ext = os.path.splitext(path)[1].lower()
+    options = {"process": False}
+    if ext == ".obj":
+        # maintain_order stops trimesh from splitting vertices at UV/normal seams, which would
+        # renumber them; materials are irrelevant and would only split the mesh further.
+        options.update(maintain_order=True, skip_materials=True)
+    try:
+        with warnings.catch_warnings():
+            # trimesh warns while guessing UVs of unreferenced vertices; UVs are not read here.
+            warnings.simplefilter("ignore", RuntimeWarning)
+            loaded = trimesh.load(path, file_type=ext[1:], **options)
+    except Exception as error:  # trimesh raises anything from parsing errors to IndexError
+        raise FormatError(path, f"cannot read as {ext[1:].upper()}: {error}") from None
+
+    vertices, faces = _merge_geometry(path, loaded)
+    if len(vertices) == 0:
+        raise FormatError(path, "the mesh has no vertices")
+    if len(faces) == 0:
+        raise FormatError(path, "the mesh has no faces")
+    if not np.isfinite(vertices).all():
+        raise FormatError(path, "non-finite vertex coordinates (NaN or inf)")
+    return vertices, faces
+
+
+def _merge_geometry(path, loaded):
+    """Vertices and faces from a trimesh result, which is a Scene when an OBJ has several materials.
+
+    With maintain_order, trimesh gives every OBJ part a prefix of the file's vertex list and
+    faces indexed into it, so the longest prefix is the file's vertex list and faces just
+    concatenate. (An OBJ's unreferenced trailing vertices may be dropped; earlier ones keep
+    their index.)
+    """
+    import trimesh
+
+    if isinstance(loaded, trimesh.Scene):
+        parts = [g for g in loaded.geometry.values() if isinstance(g, trimesh.Trimesh)]
+    elif isinstance(loaded, trimesh.Trimesh):
+        parts = [loaded]
+    else:
+        parts = []
+    if not parts:
+        raise FormatError(path, "no triangle mesh in the file")
+    vertices = np.asarray(max(parts, key=lambda g: len(g.vertices)).vertices, dtype=np.float64)
+    for part in parts:
+        part_vertices = np.asarray(part.vertices, dtype=np.float64)
+        if not np.array_equal(part_vertices, vertices[: len(part_vertices)], equal_nan=True):
+            raise FormatError(path, "the file holds several meshes whose vertex order cannot be kept")
+    faces = np.concatenate([np.asarray(part.faces, dtype=np.int64).reshape(-1, 3) for part in parts])
+    return vertices, faces
+
+
+def _read_npz(path) -> MeshSequence:
+    # np.load treats a non-zip file as a pickle and would blame pickling; say what is wrong.
+    if not zipfile.is_zipfile(path):
+        raise FormatError(path, "not an .npz file (not a zip archive)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in ("vertices", "faces", "fps") if name in data.files}
+    except Exception as error:  # zipfile, pickle and format errors all mean "not a usable npz"
+        raise FormatError(path, f"cannot read as .npz: {error}") from None
+    return _from_named_arrays(path, arrays)
+
+
+def _read_h5(path) -> MeshSequence:
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as data:
+            arrays = {name: data[name][()] for name in ("vertices", "faces", "fps")
+                      if isinstance(data.get(name), h5py.Dataset)}
+            if "fps" not in arrays and "fps" in data.attrs:
+                arrays["fps"] = data.attrs["fps"]
+    except OSError as error:
+        raise FormatError(path, f"cannot read as HDF5: {error}") from None
+    return _from_named_arrays(path, arrays)
+
+
+def _from_named_arrays(path, arrays) -> MeshSequence:
+    for name in ("vertices", "faces"):
+        if name not in arrays:
+            raise FormatError(path, f"no '{name}' array")
+    fps = arrays.get("fps")
+    if fps is not None:
+        fps = np.asarray(fps)
+        if fps.size != 1 or not np.issubdtype(fps.dtype, np.number):
+            raise FormatError(path, f"'fps' must be one number, got shape {fps.shape} {fps.dtype}")
+        fps = float(fps.reshape(()))
+    return sequence_from_arrays(path, arrays["vertices"], arrays["faces"], fps)
+
+
+def write_array_sequence(path, vertices, faces, fps):
+    """Write vertices (F, V, 3), faces (T, 3) and fps as an .npz that read_mesh_sequence reads back."""
+    from .atomic import atomic_output
+
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as handle:
+            np.savez_compressed(handle, vertices=np.asarray(vertices, dtype=np.float64),
+                                faces=np.asarray(faces, dtype=np.int64), fps=np.float64(fps))

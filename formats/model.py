@@ -1,0 +1,142 @@
+"""The skinsynth HDF5 model file (format version 1): one file per stage output.
+
+Layout (docs/format.md is the full reference):
+
+- root attributes ``format = "skinsynth"``, ``format_version``, ``stage``, ``tool_version``;
+- ``/provenance/NN_<stage>`` one group per stage that contributed, oldest first, with
+  attributes ``command``, ``parameters`` (JSON), ``inputs`` (JSON list of {path, sha256}),
+  ``tool_version``, ``seed``, ``date``;
+- one group per concept (``/mesh``, ``/examples``, ``/skin``, …) holding datasets; their
+  attributes hold scalars.
+
+Writers go through :func:`~skinsynth.formats.atomic.atomic_output`, so a failed command leaves
+no file. Datasets are written without timestamps and with fixed filters so that the same
+inputs and seed give byte-identical datasets.
+"""
+
+import json
+
+import h5py
+import numpy as np
+
+from .atomic import atomic_output
+from .errors import FormatError
+
+FORMAT_NAME = "skinsynth"
+FORMAT_VERSION = 1
+
+#: stage name -> the command that writes it, for error messages.
+STAGES = {
+    "skin": "fit-skin",
+    "controls": "select-controls",
+    "puppet": "train-kcca",
+    "graph": "build-graph",
+    "synthesis": "synthesize",
+}
+
+
+def _write_group(group, contents):
+    for name, value in contents.items():
+        if name.startswith("@"):
+            group.attrs[name[1:]] = value
+            continue
+        array = np.asarray(value)
+        if array.ndim == 0:
+            group.create_dataset(name, data=array, track_times=False)
+        elif array.dtype.kind in "fiub" and array.size >= 64:
+            group.create_dataset(name, data=array, compression="gzip", compression_opts=4,
+                                 shuffle=True, track_times=False)
+        else:
+            group.create_dataset(name, data=array, track_times=False)
+
+
+def write_model(path, stage, groups, provenance, tool_version):
+    """Write a model file atomically.
+
+    groups: {group name: {dataset name: array, "@attribute": scalar}}; provenance: list of
+    dicts with keys command, parameters (dict), inputs (list), tool_version, seed, date
+    (earlier stages first; the caller appends its own record).
+    """
+    if stage not in STAGES:
+        raise ValueError(f"unknown stage {stage!r}")
+    with atomic_output(path) as tmp:
+        with h5py.File(tmp, "w", track_order=True) as f:
+            f.attrs["format"] = FORMAT_NAME
+            f.attrs["format_version"] = FORMAT_VERSION
+            f.attrs["stage"] = stage
+            f.attrs["tool_version"] = tool_version
+            prov = f.create_group("provenance", track_order=True)
+            for number, record in enumerate(provenance):
+                g = prov.create_group(f"{number:02d}_{record['stage']}")
+                for key in ("stage", "command", "tool_version", "date"):
+                    g.attrs[key] = str(record.get(key, ""))
+                g.attrs["seed"] = -1 if record.get("seed") is None else int(record["seed"])
+                g.attrs["parameters"] = json.dumps(record.get("parameters", {}), sort_keys=True)
+                g.attrs["inputs"] = json.dumps(record.get("inputs", []))
+            for name, contents in groups.items():
+                _write_group(f.create_group(name, track_order=True), contents)
+
+
+def _read_group(group):
+    out = {f"@{k}": (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
+    for name, item in group.items():
+        if isinstance(item, h5py.Dataset):
+            out[name] = item[()]
+    return out
+
+
+def read_header(path):
+    """Return (stage, format_version) of a model file, refusing what is not one."""
+    try:
+        f = h5py.File(path, "r")
+    except FileNotFoundError:
+        raise FormatError(path, "no such file") from None
+    except OSError:
+        raise FormatError(path, "not an HDF5 file (or unreadable)") from None
+    with f:
+        if f.attrs.get("format") != FORMAT_NAME:
+            raise FormatError(path, "not a skinsynth model file (no format = 'skinsynth' attribute)")
+        version = int(f.attrs.get("format_version", -1))
+        stage = str(f.attrs.get("stage", ""))
+    if version > FORMAT_VERSION:
+        raise FormatError(path, f"format_version {version} is newer than this skinsynth reads "
+                                f"({FORMAT_VERSION}); upgrade skinsynth")
+    if version < 1:
+        raise FormatError(path, f"invalid format_version {version}")
+    return stage, version
+
+
+def read_model(path, stages=None):
+    """Read a whole model file into nested dicts.
+
+    stages: the stages the caller accepts (None = any). Returns {"stage", "format_version",
+    "provenance": [records], group name: {dataset: array, "@attr": value}}.
+    """
+    stage, version = read_header(path)
+    if stages is not None and stage not in stages:
+        wanted = " or ".join(f"a '{s}' file (from {STAGES[s]})" for s in stages)
+        made = STAGES.get(stage, "an unknown command")
+        raise FormatError(path, f"is a '{stage}' file (from {made}); this command needs {wanted}")
+    model = {"stage": stage, "format_version": version, "provenance": []}
+    try:
+        with h5py.File(path, "r") as f:
+            for _, g in f.get("provenance", {}).items():
+                record = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
+                record["parameters"] = json.loads(record.get("parameters", "{}"))
+                record["inputs"] = json.loads(record.get("inputs", "[]"))
+                record["seed"] = None if int(record.get("seed", -1)) < 0 else int(record["seed"])
+                model["provenance"].append(record)
+            for name, item in f.items():
+                if name != "provenance" and isinstance(item, h5py.Group):
+                    model[name] = _read_group(item)
+    except (OSError, KeyError, ValueError) as exc:
+        raise FormatError(path, f"damaged model file ({exc})") from None
+    return model
+
+
+def require(model, path, group, names):
+    """Check that ``model[group]`` holds every dataset in ``names``; FormatError otherwise."""
+    missing = [n for n in names if n not in model.get(group, {})]
+    if missing:
+        raise FormatError(path, f"/{group} lacks {', '.join(missing)}: the file is incomplete")
+    return model[group]

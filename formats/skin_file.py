@@ -1,0 +1,100 @@
+"""The ``skin`` stage file written by ``fit-skin``: mesh, examples and the fitted LBS model.
+
+Groups (all arrays float64 unless noted; conventions in docs/format.md):
+
+- ``/mesh``: ``rest_vertices (V, 3)``, ``faces (T, 3)`` int64; ``@rest_frame``.
+- ``/examples``: ``vertices (F, V, 3)``; ``@fps``, ``@source``.
+- ``/skin``: ``bone_indices (V, K)`` int32, ``bone_weights (V, K)`` (≥ 0, rows sum to 1, sorted
+  decreasing, unused slots 0), ``rotations (F, B, 3, 3)``, ``translations (F, B, 3)``,
+  ``dual_quaternions (F, B, 8)`` (real then dual part, each (w, x, y, z), hemisphere-consistent
+  over time), ``bone_rest_frames (B, 4, 4)`` (world-from-bone at rest: identity rotation, origin
+  at the bone's weighted vertex centroid), ``error_history (iterations,)``,
+  ``frame_rmse (F,)``, ``initial_labels (V,)`` int32; attributes ``@rmse``, ``@rmse_over_diagonal``,
+  ``@diagonal``, ``@bones``, ``@max_influences``, ``@iterations``, ``@converged``,
+  ``@bones_without_weight``.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import FormatError
+from .model import read_model, require
+
+
+@dataclass
+class SkinModel:
+    """What a ``skin`` file holds, as plain arrays (see the module docstring for shapes)."""
+
+    rest_vertices: np.ndarray
+    faces: np.ndarray
+    rest_frame: int
+    examples: np.ndarray
+    fps: float
+    source: str
+    bone_indices: np.ndarray
+    bone_weights: np.ndarray
+    rotations: np.ndarray
+    translations: np.ndarray
+    dual_quaternions: np.ndarray
+    bone_rest_frames: np.ndarray
+    rmse: float
+    rmse_over_diagonal: float
+    provenance: list
+
+    @property
+    def bones(self):
+        return self.rotations.shape[1]
+
+
+def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, frame_rmse, diagonal):
+    """The HDF5 groups of a skin file, from a MeshSequence and a pipeline SkinFit."""
+    return {
+        "mesh": {"rest_vertices": fit.rest_vertices, "faces": sequence.faces.astype(np.int64),
+                 "@rest_frame": int(rest_frame)},
+        "examples": {"vertices": sequence.vertices, "@fps": float(sequence.fps), "@source": sequence.source},
+        "skin": {
+            "bone_indices": fit.bone_indices.astype(np.int32),
+            "bone_weights": fit.bone_weights,
+            "rotations": fit.rotations,
+            "translations": fit.translations,
+            "dual_quaternions": dual_quaternions,
+            "bone_rest_frames": bone_rest_frames,
+            "error_history": np.asarray(fit.error_history),
+            "frame_rmse": frame_rmse,
+            "initial_labels": fit.labels.astype(np.int32),
+            "@rmse": float(fit.rmse),
+            "@rmse_over_diagonal": float(fit.rmse / diagonal),
+            "@diagonal": float(diagonal),
+            "@bones": int(fit.rotations.shape[1]),
+            "@max_influences": int(fit.bone_indices.shape[1]),
+            "@iterations": int(fit.iterations),
+            "@converged": bool(fit.converged),
+            "@bones_without_weight": int(fit.bones_without_weight),
+        },
+    }
+
+
+_SKIN_DATASETS = ("bone_indices", "bone_weights", "rotations", "translations", "dual_quaternions",
+                  "bone_rest_frames")
+
+
+def read_skin(path, model=None):
+    """Read the LBS model of a file that carries one (a skin file or any later stage's file)."""
+    model = read_model(path) if model is None else model
+    if "skin" not in model:
+        raise FormatError(path, f"is a '{model['stage']}' file without a skin fit (/skin); run fit-skin first")
+    mesh = require(model, path, "mesh", ("rest_vertices", "faces"))
+    examples = require(model, path, "examples", ("vertices",))
+    skin = require(model, path, "skin", _SKIN_DATASETS)
+    frames, bones = skin["rotations"].shape[:2]
+    count = mesh["rest_vertices"].shape[0]
+    if skin["bone_indices"].shape[0] != count or examples["vertices"].shape[:2] != (frames, count):
+        raise FormatError(path, "inconsistent array shapes between /mesh, /examples and /skin")
+    return SkinModel(
+        rest_vertices=mesh["rest_vertices"], faces=mesh["faces"], rest_frame=int(mesh.get("@rest_frame", 0)),
+        examples=examples["vertices"], fps=float(examples.get("@fps", 24.0)), source=str(examples.get("@source", "")),
+        bone_indices=skin["bone_indices"], bone_weights=skin["bone_weights"], rotations=skin["rotations"],
+        translations=skin["translations"], dual_quaternions=skin["dual_quaternions"],
+        bone_rest_frames=skin["bone_rest_frames"], rmse=float(skin.get("@rmse", np.nan)),
+        rmse_over_diagonal=float(skin.get("@rmse_over_diagonal", np.nan)), provenance=model["provenance"])

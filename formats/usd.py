@@ -1,0 +1,356 @@
+"""USD animation caches: baked point caches and UsdSkel skeletons, and reading them back.
+
+Skinning convention of skinsynth (column vectors): for vertex i with influences k,
+``v_i(t) = sum_k w_ik (R_b(t) @ rest_i + t_b(t))``, b = bone_indices[i, k].
+"""
+
+from __future__ import annotations
+
+import os
+import re
+
+import numpy as np
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+
+from skinsynth.formats.atomic import atomic_output
+from skinsynth.formats.errors import FormatError
+from skinsynth.formats.meshseq import USD_EXTENSIONS
+
+METERS_PER_UNIT = 1.0  # example sequences carry no unit; DCCs then import them at the size they have
+
+
+# ---------------------------------------------------------------- writing
+
+
+def write_points_cache(path, vertices, faces, fps, prim_name="mesh", up_axis="Y") -> None:
+    """Write vertices (F, V, 3) and faces (T, 3) as a Mesh ``/<prim_name>`` with points at time codes 0..F-1.
+
+    The encoding (.usda text, .usdc/.usd binary) follows the extension. Raises ValueError for
+    malformed arrays; nothing is left on disk when writing fails.
+    """
+    vertices = _float_array("vertices", vertices, (None, None, 3))
+    frames, count = vertices.shape[:2]
+    faces = _faces("faces", faces, count)
+    _check_common(path, fps, prim_name, up_axis, frames)
+
+    with atomic_output(path) as tmp:
+        stage = _new_stage(tmp, fps, frames, up_axis)
+        mesh = _define_mesh(stage, Sdf.Path("/" + prim_name), faces)
+        stage.SetDefaultPrim(mesh.GetPrim())
+        # One attribute at a time: interleaving Sets on two attributes is ~4x slower in pxr 26.
+        points = mesh.GetPointsAttr()
+        for frame in range(frames):
+            points.Set(Vt.Vec3fArray.FromNumpy(vertices[frame].astype(np.float32)), Usd.TimeCode(frame))
+        extent = mesh.GetExtentAttr()
+        for frame in range(frames):
+            extent.Set(_extent(vertices[frame]), Usd.TimeCode(frame))
+        stage.GetRootLayer().Save()
+        del stage  # release the layer before the file is renamed under it
+
+
+def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
+                     bind_centers, fps, prim_name="mesh", up_axis="Y") -> None:
+    """Write a rigid-bone LBS animation as UsdSkel so that UsdSkel's skinning reproduces skinsynth's.
+
+    rest_vertices (V, 3); faces (T, 3); bone_indices (V, K) int and bone_weights (V, K)
+    (non-negative, rows summing to 1; written as given, K = elementSize); rotations (F, B, 3, 3)
+    and translations (F, B, 3), the per-frame bone transforms; bind_centers (B, 3), each bone's
+    joint in the rest pose. Layout: SkelRoot ``/<prim_name>`` holding ``Skeleton`` (B root
+    joints ``bone_000``...), ``Skeleton/Animation`` and the bound ``Mesh``.
+
+    Each joint's bind transform is a translation to its centre c. In Gf's row-vector form the
+    skinning transform is inverse(bind) * joint, and it must equal our A(t) = [R^T 0; t 1]; so
+    joint = bind * A(t) = [R^T 0; c R^T + t 1]: the joint turns by R and sits at R c + t.
+    """
+    rest = _float_array("rest_vertices", rest_vertices, (None, 3))
+    count = len(rest)
+    faces = _faces("faces", faces, count)
+    rotations = _float_array("rotations", rotations, (None, None, 3, 3))
+    frames, bones = rotations.shape[:2]
+    translations = _float_array("translations", translations, (frames, bones, 3))
+    centers = _float_array("bind_centers", bind_centers, (bones, 3))
+    indices, weights = _influences(bone_indices, bone_weights, count, bones)
+    _check_rotations(rotations)
+    _check_common(path, fps, prim_name, up_axis, frames)
+
+    joint_translations = np.einsum("fbij,bj->fbi", rotations, centers) + translations
+    joint_matrices = np.zeros((frames * bones, 4, 4))
+    joint_matrices[:, :3, :3] = rotations.reshape(-1, 3, 3).transpose(0, 2, 1)  # row-vector form
+    joint_matrices[:, 3, 3] = 1.0
+    # UsdSkel's own decomposition gives quaternions in its conventions, in one C++ call.
+    _, quats, _ = UsdSkel.DecomposeTransforms(Vt.Matrix4dArray.FromNumpy(joint_matrices))
+    quats = np.asarray(quats, dtype=np.float32).reshape(frames, bones, 4)  # x, y, z, w
+
+    joints = Vt.TokenArray([f"bone_{b:03d}" for b in range(bones)])
+    bind = np.tile(np.eye(4), (bones, 1, 1))
+    bind[:, 3, :3] = centers
+    bind = Vt.Matrix4dArray.FromNumpy(bind)
+    ones = Vt.Vec3hArray.FromNumpy(np.ones((bones, 3), dtype=np.float16))
+
+    with atomic_output(path) as tmp:
+        stage = _new_stage(tmp, fps, frames, up_axis)
+        root_path = Sdf.Path("/" + prim_name)
+        root = UsdSkel.Root.Define(stage, root_path)
+        stage.SetDefaultPrim(root.GetPrim())
+
+        skeleton = UsdSkel.Skeleton.Define(stage, root_path.AppendChild("Skeleton"))
+        skeleton.CreateJointsAttr(joints)
+        skeleton.CreateJointNamesAttr(joints)
+        skeleton.CreateBindTransformsAttr(bind)
+        skeleton.CreateRestTransformsAttr(bind)  # flat skeleton: parent-local equals world
+
+        animation = UsdSkel.Animation.Define(stage, skeleton.GetPath().AppendChild("Animation"))
+        animation.CreateJointsAttr(joints)
+        anim_translations = animation.CreateTranslationsAttr()
+        anim_rotations = animation.CreateRotationsAttr()
+        animation.CreateScalesAttr(ones)  # without scales DCCs ignore the animation
+        for frame in range(frames):  # one attribute at a time, as in write_points_cache
+            anim_translations.Set(Vt.Vec3fArray.FromNumpy(joint_translations[frame].astype(np.float32)),
+                                  Usd.TimeCode(frame))
+        for frame in range(frames):
+            anim_rotations.Set(Vt.QuatfArray.FromNumpy(quats[frame]), Usd.TimeCode(frame))
+        UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets(
+            [animation.GetPath()])
+
+        mesh = _define_mesh(stage, root_path.AppendChild("Mesh"), faces)
+        mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(rest.astype(np.float32)))
+        mesh.GetExtentAttr().Set(_extent(rest))
+        binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
+        binding.CreateSkeletonRel().SetTargets([skeleton.GetPath()])
+        element_size = indices.shape[1]
+        binding.CreateJointIndicesPrimvar(False, element_size).Set(Vt.IntArray.FromNumpy(indices.ravel()))
+        binding.CreateJointWeightsPrimvar(False, element_size).Set(Vt.FloatArray.FromNumpy(weights.ravel()))
+        binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
+
+        stage.GetRootLayer().Save()
+        del stage, root, skeleton, animation, mesh, binding
+
+
+def _new_stage(tmp, fps, frames, up_axis):
+    stage = Usd.Stage.CreateNew(tmp)
+    stage.SetTimeCodesPerSecond(fps)
+    stage.SetFramesPerSecond(fps)
+    stage.SetStartTimeCode(0)
+    stage.SetEndTimeCode(frames - 1)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis == "Y" else UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, METERS_PER_UNIT)
+    return stage
+
+
+def _define_mesh(stage, path, faces):
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)  # else DCCs subdivide the cage
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, dtype=np.int32)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.astype(np.int32).ravel()))
+    mesh.CreatePointsAttr()
+    mesh.CreateExtentAttr()
+    return mesh
+
+
+def _extent(points):
+    return Vt.Vec3fArray.FromNumpy(np.stack([points.min(axis=0), points.max(axis=0)]).astype(np.float32))
+
+
+# ---------------------------------------------------------------- argument checks (programming errors)
+
+
+def _float_array(name, values, shape):
+    array = np.asarray(values, dtype=np.float64)
+    if array.ndim != len(shape) or any(want is not None and got != want for got, want in zip(array.shape, shape)):
+        wanted = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
+        raise ValueError(f"{name} must have shape {wanted}, got {array.shape}")
+    if not np.isfinite(array).all():
+        raise ValueError(f"{name} contains NaN or inf")
+    return array
+
+
+def _faces(name, faces, count):
+    faces = np.asarray(faces)
+    if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
+        raise ValueError(f"{name} must be integers of shape (T, 3), got {faces.dtype} {faces.shape}")
+    if faces.size and (faces.min() < 0 or faces.max() >= count):
+        raise ValueError(f"{name} index outside [0, {count})")
+    return faces
+
+
+def _influences(bone_indices, bone_weights, count, bones):
+    indices = np.asarray(bone_indices)
+    weights = np.asarray(bone_weights, dtype=np.float64)
+    if indices.ndim != 2 or indices.shape[0] != count or not np.issubdtype(indices.dtype, np.integer):
+        raise ValueError(f"bone_indices must be integers of shape ({count}, K), got {indices.dtype} {indices.shape}")
+    if weights.shape != indices.shape:
+        raise ValueError(f"bone_weights must have the shape of bone_indices {indices.shape}, got {weights.shape}")
+    if indices.min() < 0 or indices.max() >= bones:
+        raise ValueError(f"bone_indices outside [0, {bones})")
+    if not np.isfinite(weights).all() or weights.min() < 0:
+        raise ValueError("bone_weights must be finite and non-negative")
+    if not np.allclose(weights.sum(axis=1), 1.0, atol=1e-5):
+        raise ValueError("bone_weights rows must sum to 1 (UsdSkel does not normalise them)")
+    return indices.astype(np.int32), weights.astype(np.float32)
+
+
+def _check_rotations(rotations):
+    gram = np.einsum("fbki,fbkj->fbij", rotations, rotations)
+    if not np.allclose(gram, np.eye(3), atol=1e-4) or (np.linalg.det(rotations) <= 0).any():
+        raise ValueError("rotations must be proper rotation matrices (UsdSkel joints are rigid); "
+                         "write affine bones as a points cache")
+
+
+def _check_common(path, fps, prim_name, up_axis, frames):
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if ext not in USD_EXTENSIONS:
+        raise FormatError(path, f"a USD file must end in {'/'.join(USD_EXTENSIONS)}, not {ext or '(none)'!r}")
+    if frames < 1:
+        raise ValueError("at least one frame is needed")
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be positive, got {fps}")
+    if not Sdf.Path.IsValidIdentifier(prim_name):
+        raise ValueError(f"prim_name {prim_name!r} is not a valid USD identifier")
+    if up_axis not in ("Y", "Z"):
+        raise ValueError(f"up_axis must be 'Y' or 'Z', got {up_axis!r}")
+
+
+# ---------------------------------------------------------------- reading
+
+
+def read_points_cache(path, prim=None) -> tuple[np.ndarray, np.ndarray, float]:
+    """Read a time-sampled mesh: (vertices (F, V, 3) float64 world space, faces (T, 3) int64, fps).
+
+    ``prim`` is the mesh's path; by default the first Mesh in traversal with time-sampled points.
+    Points are read at every authored time sample; fps is timeCodesPerSecond (24 when unset)
+    divided by the sample spacing. Polygons are fan-triangulated. Raises FormatError.
+    """
+    from skinsynth.formats.meshseq import sequence_from_arrays
+
+    stage = _open(path)
+    mesh = _find_mesh(path, stage, prim)
+    where = mesh.GetPath()
+    times = mesh.GetPointsAttr().GetTimeSamples()
+    if len(times) < 2:
+        raise FormatError(path, f"{where}: {len(times)} time sample(s) of points; an animation needs at least 2")
+    steps = np.diff(times)
+    if not np.allclose(steps, steps[0], rtol=1e-6):
+        raise FormatError(path, f"{where}: points are sampled at uneven time codes; resample to a fixed frame rate")
+    fps = stage.GetTimeCodesPerSecond() / steps[0]
+
+    faces = _triangles(path, mesh, Usd.TimeCode(times[0]))
+    if mesh.GetFaceVertexIndicesAttr().ValueMightBeTimeVarying() or \
+            mesh.GetFaceVertexCountsAttr().ValueMightBeTimeVarying():
+        for time in times[1:]:
+            if not np.array_equal(_triangles(path, mesh, Usd.TimeCode(time)), faces):
+                raise FormatError(path, f"{where}: topology changes at time code {time:g}")
+
+    vertices = None
+    for frame, time in enumerate(times):
+        code = Usd.TimeCode(time)
+        points = mesh.GetPointsAttr().Get(code)
+        if points is None:  # a value block
+            raise FormatError(path, f"{where}: no points at time code {time:g}")
+        points = np.asarray(points, dtype=np.float64)
+        if vertices is None:
+            vertices = np.empty((len(times),) + points.shape)
+        if points.shape != vertices.shape[1:]:
+            raise FormatError(path, f"{where}: {len(points)} points at time code {time:g}, "
+                                    f"{len(vertices[0])} at the first")
+        # Caches from DCCs often sit under animated transforms: report what a viewer shows.
+        world = np.array(mesh.ComputeLocalToWorldTransform(code))
+        vertices[frame] = points @ world[:3, :3] + world[3, :3]
+    return sequence_from_arrays(path, vertices, faces, fps).vertices, faces, float(fps)
+
+
+def read_skel_points(path) -> np.ndarray:
+    """Vertices (F, V, 3) as UsdSkel itself skins the first skinned mesh, at time codes start..end.
+
+    The oracle that a DCC playing the file shows the same positions as skinsynth computed.
+    """
+    stage = _open(path)
+    cache = UsdSkel.Cache()
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdSkel.Root):
+            continue
+        root = UsdSkel.Root(prim)
+        cache.Populate(root, Usd.PrimDefaultPredicate)
+        for binding in cache.ComputeSkelBindings(root, Usd.PrimDefaultPredicate):
+            skeleton = cache.GetSkelQuery(binding.GetSkeleton())
+            for target in binding.GetSkinningTargets():
+                if target.GetPrim().IsA(UsdGeom.Mesh):
+                    return _skin_all_frames(stage, skeleton, target)
+    raise FormatError(path, "no skinned mesh under a SkelRoot")
+
+
+def _skin_all_frames(stage, skeleton, target):
+    rest_points = UsdGeom.Mesh(target.GetPrim()).GetPointsAttr()
+    start, end = stage.GetStartTimeCode(), stage.GetEndTimeCode()
+    frames = []
+    for time in np.arange(start, end + 0.5):
+        code = Usd.TimeCode(float(time))
+        points = rest_points.Get(code)
+        transforms = skeleton.ComputeSkinningTransforms(code)
+        if transforms is None or not target.ComputeSkinnedPoints(transforms, points, code):
+            raise FormatError(stage.GetRootLayer().realPath, f"UsdSkel cannot skin {target.GetPrim().GetPath()}")
+        frames.append(np.asarray(points, dtype=np.float64))
+    return np.stack(frames)
+
+
+def _open(path):
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise FormatError(path, "no such file")
+    try:
+        stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
+    except Exception as error:  # pxr.Tf.ErrorException
+        raise FormatError(path, f"cannot open as USD: {_usd_reason(error)}") from None
+    if stage is None:
+        raise FormatError(path, "cannot open as USD")
+    return stage
+
+
+def _usd_reason(error):
+    """The first diagnostic of a Tf error, without C++ source locations and namespaces."""
+    messages = re.findall(r" : '(.*?)'\s*(?=\n\tError|$)", str(error), flags=re.DOTALL)
+    reason = messages[0] if messages else str(error)
+    reason = re.sub(r"pxrInternal_\w+?__pxrReserved__::", "", reason)
+    return " ".join(reason.split()) or "not a USD file"
+
+
+def _find_mesh(path, stage, prim):
+    if prim is not None:
+        if not Sdf.Path.IsValidPathString(prim) or not Sdf.Path(prim).IsAbsolutePath():
+            raise FormatError(path, f"{prim!r} is not an absolute prim path")
+        found = stage.GetPrimAtPath(prim)
+        if not found.IsValid():
+            raise FormatError(path, f"no prim at {prim}")
+        if not found.IsA(UsdGeom.Mesh):
+            raise FormatError(path, f"{prim} is a {found.GetTypeName() or 'typeless prim'}, not a Mesh")
+        return UsdGeom.Mesh(found)
+    static = 0
+    for candidate in stage.Traverse():
+        if candidate.IsA(UsdGeom.Mesh):
+            mesh = UsdGeom.Mesh(candidate)
+            if mesh.GetPointsAttr().GetNumTimeSamples() > 0:
+                return mesh
+            static += 1
+    if static:
+        raise FormatError(path, f"no Mesh with time-sampled points ({static} static mesh(es); "
+                                "skeletal animation must be baked to points)")
+    raise FormatError(path, "no Mesh prim in the stage")
+
+
+def _triangles(path, mesh, time):
+    """Fan-triangulate the mesh's polygons, in polygon order: faces (T, 3) int64."""
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(time) or [], dtype=np.int64)
+    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(time) or [], dtype=np.int64)
+    if counts.sum() != len(indices):
+        raise FormatError(path, f"{mesh.GetPath()}: faceVertexCounts sum to {counts.sum()} "
+                                f"but there are {len(indices)} faceVertexIndices")
+    if (counts < 3).any():
+        raise FormatError(path, f"{mesh.GetPath()}: a face has fewer than 3 vertices")
+    starts = np.cumsum(counts) - counts
+    fans = counts - 2
+    polygon = np.repeat(np.arange(len(counts)), fans)
+    corner = np.arange(fans.sum()) - np.repeat(np.cumsum(fans) - fans, fans) + 1  # 1..n-2 within a polygon
+    first = starts[polygon]
+    triangles = np.stack([indices[first], indices[first + corner], indices[first + corner + 1]], axis=1)
+    if mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
+        triangles = triangles[:, [0, 2, 1]]  # keep outward normals right-handed like the other readers
+    return triangles

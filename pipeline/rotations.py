@@ -1,0 +1,106 @@
+"""Rotation helpers used everywhere: polar decomposition, quaternions, dual quaternions, axis-angle.
+
+Conventions (the whole project uses them, and docs/format.md states them):
+- rotation matrices act on column vectors, ``p' = R @ p + t``;
+- quaternions are stored scalar first, ``(w, x, y, z)``; conversion to warp's ``(x, y, z, w)``
+  happens only inside ``gpu/``;
+- a dual quaternion is 8 numbers, the real quaternion then the dual one, both ``(w, x, y, z)``:
+  ``q0 + eps * qe`` with ``qe = 0.5 * (0, t) * q0`` (Kavan et al. 2007, used by Feng §4.3).
+"""
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+def polar_rotation(matrices):
+    """Nearest proper rotation to each matrix (the orthogonal polar factor, det = +1).
+
+    matrices (..., 3, 3) -> rotations (..., 3, 3). This is the weighted-Procrustes solution
+    when ``matrices`` is a cross-covariance ``sum w (target - mean)(source - mean)^T``.
+    """
+    u, _, vt = np.linalg.svd(matrices)
+    # Flip the last singular direction where the plain product would be a reflection.
+    det = np.linalg.det(u @ vt)
+    u = u.copy()
+    u[..., :, 2] *= np.where(det < 0.0, -1.0, 1.0)[..., None]
+    return u @ vt
+
+
+def matrix_to_quaternion(rotations):
+    """rotations (..., 3, 3) -> quaternions (..., 4), (w, x, y, z), w >= 0."""
+    shape = rotations.shape[:-2]
+    xyzw = Rotation.from_matrix(rotations.reshape(-1, 3, 3)).as_quat()
+    wxyz = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
+    wxyz *= np.where(wxyz[:, :1] < 0.0, -1.0, 1.0)
+    return wxyz.reshape(shape + (4,))
+
+
+def quaternion_to_matrix(quaternions):
+    """quaternions (..., 4), (w, x, y, z), any non-zero length -> rotations (..., 3, 3)."""
+    shape = quaternions.shape[:-1]
+    q = quaternions.reshape(-1, 4)
+    xyzw = np.concatenate([q[:, 1:], q[:, :1]], axis=1)
+    return Rotation.from_quat(xyzw).as_matrix().reshape(shape + (3, 3))
+
+
+def quaternion_multiply(a, b):
+    """Hamilton product of (..., 4) quaternions in (w, x, y, z) order."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ], axis=-1)
+
+
+def rigid_to_dual_quaternion(rotations, translations):
+    """rotations (..., 3, 3), translations (..., 3) -> dual quaternions (..., 8)."""
+    q0 = matrix_to_quaternion(rotations)
+    pure_t = np.concatenate([np.zeros(translations.shape[:-1] + (1,)), translations], axis=-1)
+    qe = 0.5 * quaternion_multiply(pure_t, q0)
+    return np.concatenate([q0, qe], axis=-1)
+
+
+def dual_quaternion_to_rigid(dual_quaternions):
+    """dual quaternions (..., 8), not necessarily unit -> (rotations (..., 3, 3), translations (..., 3)).
+
+    The dual quaternion is normalised first (divide both parts by ``|q0|``), as blending
+    and regression leave it off the unit sphere.
+    """
+    q0 = dual_quaternions[..., :4]
+    qe = dual_quaternions[..., 4:]
+    norm = np.linalg.norm(q0, axis=-1, keepdims=True)
+    q0 = q0 / norm
+    qe = qe / norm
+    conj = q0 * np.array([1.0, -1.0, -1.0, -1.0])
+    t = 2.0 * quaternion_multiply(qe, conj)[..., 1:]
+    return quaternion_to_matrix(q0), t
+
+
+def align_hemispheres(quaternions, axis=0):
+    """Flip signs along ``axis`` so consecutive quaternions lie in the same hemisphere.
+
+    quaternions (..., 4) or dual quaternions (..., 8): q and -q are the same rotation, but
+    regression and blending need one continuous branch (Feng §4.3, Kavan et al. 2007). Each
+    element is compared with its already-aligned predecessor along ``axis``; the sign of the
+    real part's dot product decides, and a dual quaternion flips as a whole.
+    """
+    q = np.moveaxis(np.array(quaternions, dtype=np.float64, copy=True), axis, 0)
+    for i in range(1, q.shape[0]):
+        dot = np.sum(q[i, ..., :4] * q[i - 1, ..., :4], axis=-1)
+        q[i] *= np.where(dot < 0.0, -1.0, 1.0)[..., None]
+    return np.moveaxis(q, 0, axis)
+
+
+def rotation_log(rotations):
+    """rotations (..., 3, 3) -> axis-angle vectors (..., 3) (the matrix logarithm, Zheng eq. 3)."""
+    shape = rotations.shape[:-2]
+    return Rotation.from_matrix(rotations.reshape(-1, 3, 3)).as_rotvec().reshape(shape + (3,))
+
+
+def rotation_exp(axis_angles):
+    """axis-angle vectors (..., 3) -> rotations (..., 3, 3)."""
+    shape = axis_angles.shape[:-1]
+    return Rotation.from_rotvec(axis_angles.reshape(-1, 3)).as_matrix().reshape(shape + (3, 3))

@@ -1,0 +1,156 @@
+"""Smooth skinning decomposition with rigid bones (Le & Deng 2012, as used by Zheng §3.1).
+
+Given example frames ``vertices (F, V, 3)`` of one mesh, find B rigid bone transforms per frame
+and sparse convex weights so that ``v_i(t) ≈ Σ_j w_ij (R_j(t) ū_i + t_j(t))`` (Zheng eq. 1),
+ū being the rest pose (one of the frames). Alternates the per-bone weighted Procrustes update
+(:mod:`.bone_transforms`) and the per-vertex constrained weight solve (:mod:`.skin_weights`)
+from a clustering initialisation (:mod:`.skin_init`) until the error stops improving.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .bone_transforms import (Trajectories, fit_cluster_transforms, refine_bone_transforms,
+                              update_bone_transforms, weighted_sums)
+from .errors import OptionError
+from .skin_init import initial_clusters
+from .skin_weights import update_weights
+
+
+@dataclass
+class SkinFit:
+    """A fitted LBS model.
+
+    rest_vertices (V, 3); bone_indices (V, K) int32; bone_weights (V, K) (≥ 0, rows sum to 1,
+    sorted decreasing); rotations (F, B, 3, 3) proper; translations (F, B, 3); rmse over all
+    frames and vertices; error_history: RMSE after each iteration; labels (V,) the initial
+    clusters; bones_without_weight: bones that no vertex uses at the end (normally 0).
+    """
+
+    rest_vertices: np.ndarray
+    bone_indices: np.ndarray
+    bone_weights: np.ndarray
+    rotations: np.ndarray
+    translations: np.ndarray
+    rmse: float
+    error_history: list = field(default_factory=list)
+    iterations: int = 0
+    converged: bool = False
+    labels: np.ndarray | None = None
+    bones_without_weight: int = 0
+
+
+def validate_fit_options(frame_count, vertex_count, bones, max_influences, iterations, rest_frame):
+    """Raise OptionError for option values no fit can honour."""
+    if bones < 1:
+        raise OptionError(f"--bones must be at least 1 (got {bones})")
+    if bones > vertex_count:
+        raise OptionError(f"--bones {bones} is more than the mesh's {vertex_count} vertices: "
+                          "each bone needs at least one vertex of its own")
+    if max_influences < 1:
+        raise OptionError(f"--max-influences must be at least 1 (got {max_influences})")
+    if iterations < 1:
+        raise OptionError(f"--iterations must be at least 1 (got {iterations})")
+    if not -frame_count <= rest_frame < frame_count:
+        raise OptionError(f"--rest-frame {rest_frame} is outside the {frame_count} frames")
+
+
+def _reseed_unused_bones(transforms, weights_total, vertex_error, rest, data):
+    """Give bones that lost all weight a fresh transform where the fit is worst.
+
+    Each unused bone takes the rigid fit of the rest-pose neighbourhood (V/B nearest vertices)
+    of a badly reconstructed vertex, so the next weight update can use it: the bone count
+    asked for stays the bone count delivered.
+    """
+    unused = np.flatnonzero(weights_total <= 0.0)
+    if unused.size == 0:
+        return transforms
+    frames, bones = transforms.shape[:2]
+    size = max(3, data.count // bones)
+    taken = np.zeros(data.count, dtype=bool)
+    labels = np.full(data.count, unused.size, dtype=np.int64)
+    for slot in range(unused.size):
+        worst = np.argmax(np.where(taken, -np.inf, vertex_error))
+        near = np.argsort(np.linalg.norm(rest - rest[worst], axis=1), kind="stable")[:size]
+        near = near[~taken[near]]
+        labels[near] = slot
+        taken[near] = True
+    fitted = fit_cluster_transforms(labels, unused.size + 1, data)
+    transforms = transforms.copy()
+    transforms[:, unused] = fitted[:, : unused.size]
+    return transforms
+
+
+def fit_skin(vertices, bones, max_influences=4, iterations=30, rest_frame=0, seed=0,
+             tolerance=1e-3, patience=3, candidates=None, sweeps=1, joint_steps=0, joint_max_bones=64, progress=None):
+    """Fit an LBS model with ``bones`` rigid bones to ``vertices (F, V, 3)``.
+
+    Stops after ``iterations`` or once the RMSE has improved by less than ``tolerance``
+    (relative) for ``patience`` iterations in a row (Dem Bones' rule). ``candidates`` bones are
+    considered per vertex in the weight solve (default 2·max_influences). ``progress`` is
+    called as ``progress(iteration, rmse)`` after each iteration. Returns :class:`SkinFit`.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    frames, count = vertices.shape[:2]
+    validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
+    rest = vertices[rest_frame]
+    data = Trajectories(vertices, rest)
+    labels = initial_clusters(data, rest, bones, seed=seed)
+    transforms = fit_cluster_transforms(labels, bones, data)
+    bone_indices = labels[:, None].astype(np.int32)
+    bone_weights = np.ones((count, 1))
+
+    history, quiet, converged = [], 0, False
+    for iteration in range(1, iterations + 1):
+        weights = np.zeros((count, bones))
+        np.put_along_axis(weights, bone_indices, bone_weights, axis=1)
+        p, q = weighted_sums(weights, data)
+        for _ in range(sweeps):
+            transforms = update_bone_transforms(transforms, p, q)
+        if joint_steps and bones <= joint_max_bones:
+            transforms = refine_bone_transforms(transforms, p, q, steps=joint_steps)
+        bone_indices, bone_weights, vertex_error = update_weights(
+            transforms, data, bone_indices, bone_weights, max_influences, candidates)
+        rmse = float(np.sqrt(vertex_error.sum() / (frames * count)))
+        history.append(rmse)
+        if progress is not None:
+            progress(iteration, rmse)
+        totals = np.bincount(bone_indices.ravel(), weights=bone_weights.ravel(), minlength=bones)
+        if iteration < iterations and (totals <= 0.0).any():
+            transforms = _reseed_unused_bones(transforms, totals, vertex_error, rest, data)
+            quiet = 0
+            continue
+        if len(history) > 1 and history[-2] - rmse <= tolerance * history[-2]:
+            quiet += 1
+            if quiet >= patience:
+                converged = True
+                break
+        else:
+            quiet = 0
+    totals = np.bincount(bone_indices.ravel(), weights=bone_weights.ravel(), minlength=bones)
+    return SkinFit(
+        rest_vertices=rest.copy(), bone_indices=bone_indices, bone_weights=bone_weights,
+        rotations=transforms[..., :3], translations=transforms[..., 3], rmse=history[-1],
+        error_history=history, iterations=len(history), converged=converged, labels=labels,
+        bones_without_weight=int((totals <= 0.0).sum()))
+
+
+def bone_rest_frames(rest_vertices, bone_indices, bone_weights, bones):
+    """frames (B, 4, 4): world-from-bone rest transforms for a skeleton export.
+
+    Identity rotation, origin at the weighted centroid of the bone's vertices (the rest-pose
+    centre of what it moves); a bone without weight sits at the mesh centroid.
+    """
+    mass = np.bincount(bone_indices.ravel(), weights=bone_weights.ravel(), minlength=bones)
+    centre = np.stack([np.bincount(bone_indices.ravel(), weights=(bone_weights * rest_vertices[:, a, None]).ravel(),
+                                   minlength=bones) for a in range(3)], axis=1)
+    centre = np.where(mass[:, None] > 0.0, centre / np.maximum(mass, 1e-300)[:, None], rest_vertices.mean(axis=0))
+    frames = np.tile(np.eye(4), (bones, 1, 1))
+    frames[:, :3, 3] = centre
+    return frames
+
+
+def bounding_box_diagonal(points):
+    """Length of the axis-aligned bounding-box diagonal of points (N, 3)."""
+    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))

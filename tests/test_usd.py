@@ -1,0 +1,222 @@
+"""USD caches: point caches round-trip, and UsdSkel's own skinning replays skinsynth's LBS."""
+
+import os
+
+import numpy as np
+import pytest
+from pxr import Usd, UsdGeom, UsdSkel
+
+from skinsynth.formats.errors import FormatError
+from skinsynth.formats.usd import read_points_cache, read_skel_points, write_points_cache, write_skel_cache
+
+
+def random_rotations(rng, count):
+    """(count, 3, 3) uniformly random rotation matrices, from unit quaternions."""
+    w, x, y, z = rng.normal(size=(count, 4)).T
+    norm = np.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def lbs(rest, indices, weights, rotations, translations):
+    """skinsynth's convention: v_i(t) = sum_k w_ik (R_b(t) rest_i + t_b(t)); vertices (F, V, 3)."""
+    rotated = np.einsum("fvkij,vj->fvki", rotations[:, indices], rest)
+    return np.einsum("vk,fvki->fvi", weights, rotated + translations[:, indices])
+
+
+@pytest.fixture
+def rig():
+    rng = np.random.default_rng(7)
+    frames, count, bones, influences = 6, 200, 5, 4
+    rest = rng.uniform(-1, 1, size=(count, 3)) * [1.0, 2.0, 0.5] + [3.0, 0.0, -1.0]
+    faces = rng.integers(0, count, size=(300, 3))
+    indices = np.stack([rng.permutation(bones)[:influences] for _ in range(count)])
+    weights = rng.random((count, influences)) * (rng.random((count, influences)) < 0.6)  # sparse
+    weights[:, 0] += 0.05
+    weights /= weights.sum(axis=1, keepdims=True)
+    rotations = random_rotations(rng, frames * bones).reshape(frames, bones, 3, 3)
+    translations = rng.normal(scale=2.0, size=(frames, bones, 3))
+    centers = rest[rng.choice(count, bones, replace=False)]
+    return dict(rest=rest, faces=faces, indices=indices, weights=weights, rotations=rotations,
+                translations=translations, centers=centers)
+
+
+def write_rig(path, rig, **kwargs):
+    write_skel_cache(path, rig["rest"], rig["faces"], rig["indices"], rig["weights"], rig["rotations"],
+                     rig["translations"], rig["centers"], kwargs.pop("fps", 30.0), **kwargs)
+
+
+# ---------------------------------------------------------------- point caches
+
+
+@pytest.mark.parametrize("ext", ["usda", "usdc", "usd"])
+def test_points_cache_round_trip(tmp_path, ext, rig):
+    vertices = lbs(rig["rest"], rig["indices"], rig["weights"], rig["rotations"], rig["translations"])
+    path = tmp_path / f"anim.{ext}"
+
+    write_points_cache(path, vertices, rig["faces"], 29.97, prim_name="horse", up_axis="Z")
+    got_vertices, got_faces, fps = read_points_cache(path)
+
+    np.testing.assert_allclose(got_vertices, vertices, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(got_faces, rig["faces"])
+    assert fps == pytest.approx(29.97)
+    assert os.listdir(tmp_path) == [f"anim.{ext}"]
+
+    stage = Usd.Stage.Open(str(path))
+    assert stage.GetDefaultPrim().GetPath() == "/horse"
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0, len(vertices) - 1)
+    assert stage.GetFramesPerSecond() == pytest.approx(29.97)
+    assert UsdGeom.GetStageUpAxis(stage) == "Z" and UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/horse"))
+    assert mesh.GetSubdivisionSchemeAttr().Get() == "none"
+    extent = np.array(mesh.GetExtentAttr().Get(3))
+    np.testing.assert_allclose(extent, [vertices[3].min(0), vertices[3].max(0)], atol=1e-6)
+
+
+def test_points_cache_overwrite_reads_new_contents(tmp_path):
+    """The file is replaced by rename: readers must not be served a stale cached layer."""
+    path = tmp_path / "a.usdc"
+    faces = np.array([[0, 1, 2]])
+    first = np.zeros((2, 3, 3))
+    write_points_cache(path, first, faces, 24)
+    read_points_cache(path)
+    write_points_cache(path, first + 1, faces, 24)
+    np.testing.assert_array_equal(read_points_cache(path)[0], first + 1)
+
+
+def test_read_points_cache_picks_prim(tmp_path):
+    path = tmp_path / "b.usda"
+    write_points_cache(path, np.zeros((3, 3, 3)), [[0, 1, 2]], 10, prim_name="body")
+    assert read_points_cache(path, prim="/body")[0].shape == (3, 3, 3)
+    with pytest.raises(FormatError, match="no prim at /cloth"):
+        read_points_cache(path, prim="/cloth")
+
+
+# ---------------------------------------------------------------- UsdSkel
+
+
+@pytest.mark.parametrize("ext", ["usda", "usdc"])
+def test_skel_cache_matches_numpy_lbs_through_usdskel(tmp_path, ext, rig):
+    path = tmp_path / f"skel.{ext}"
+    write_rig(path, rig)
+
+    expected = lbs(rig["rest"], rig["indices"], rig["weights"], rig["rotations"], rig["translations"])
+    skinned = read_skel_points(path)
+
+    assert skinned.shape == expected.shape
+    diagonal = np.linalg.norm(np.ptp(expected.reshape(-1, 3), axis=0))
+    error = np.abs(skinned - expected).max() / diagonal
+    assert error < 1e-5, error
+    assert os.listdir(tmp_path) == [f"skel.{ext}"]
+
+
+def test_skel_cache_layout_for_dccs(tmp_path, rig):
+    path = tmp_path / "skel.usda"
+    write_rig(path, rig, fps=25.0, prim_name="horse")
+    stage = Usd.Stage.Open(str(path))
+    assert stage.GetDefaultPrim().IsA(UsdSkel.Root)
+    assert stage.GetTimeCodesPerSecond() == 25.0 and stage.GetEndTimeCode() == 5
+    skeleton = UsdSkel.Skeleton(stage.GetPrimAtPath("/horse/Skeleton"))
+    assert list(skeleton.GetJointsAttr().Get()) == [f"bone_{b:03d}" for b in range(5)]
+    animation = UsdSkel.Animation(stage.GetPrimAtPath("/horse/Skeleton/Animation"))
+    assert len(animation.GetScalesAttr().Get()) == 5  # DCCs drop animations without scales
+    assert animation.GetRotationsAttr().GetNumTimeSamples() == 6
+    binding = UsdSkel.BindingAPI(stage.GetPrimAtPath("/horse/Mesh"))
+    assert binding.GetJointIndicesPrimvar().GetElementSize() == 4
+    assert binding.GetJointWeightsPrimvar().GetInterpolation() == "vertex"
+    assert UsdGeom.Mesh(stage.GetPrimAtPath("/horse/Mesh")).GetSubdivisionSchemeAttr().Get() == "none"
+
+
+def test_skel_cache_identity_transforms_give_rest_pose(tmp_path, rig):
+    rig["rotations"][:] = np.eye(3)
+    rig["translations"][:] = 0
+    write_rig(tmp_path / "rest.usdc", rig)
+    np.testing.assert_allclose(read_skel_points(tmp_path / "rest.usdc"),
+                               np.broadcast_to(rig["rest"], (6, 200, 3)), atol=1e-5)
+
+
+def test_read_skel_points_needs_a_skeleton(tmp_path):
+    path = tmp_path / "points.usda"
+    write_points_cache(path, np.zeros((2, 3, 3)), [[0, 1, 2]], 24)
+    with pytest.raises(FormatError, match="no skinned mesh"):
+        read_skel_points(path)
+
+
+# ---------------------------------------------------------------- failures leave nothing behind
+
+
+def _bad_points(kind):
+    vertices, faces = np.zeros((3, 4, 3)), np.array([[0, 1, 2]])
+    if kind == "vertex shape":
+        vertices = np.zeros((3, 4, 2))
+    elif kind == "face index":
+        faces = np.array([[0, 1, 4]])
+    elif kind == "nan":
+        vertices[1, 2, 0] = np.nan
+    return vertices, faces
+
+
+@pytest.mark.parametrize("kind", ["vertex shape", "face index", "nan"])
+def test_points_writer_failure_leaves_no_file(tmp_path, kind):
+    vertices, faces = _bad_points(kind)
+    with pytest.raises(ValueError):
+        write_points_cache(tmp_path / "x.usdc", vertices, faces, 24)
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("change", ["weights shape", "weights sum", "bone index", "not rigid", "rotation shape",
+                                    "prim name"])
+def test_skel_writer_failure_leaves_no_file(tmp_path, rig, change):
+    kwargs = {}
+    if change == "weights shape":
+        rig["weights"] = rig["weights"][:, :3]
+    elif change == "weights sum":
+        rig["weights"] = rig["weights"] * 2
+    elif change == "bone index":
+        rig["indices"] = rig["indices"] + 1
+    elif change == "not rigid":
+        rig["rotations"] = rig["rotations"] * 1.1
+    elif change == "rotation shape":
+        rig["rotations"] = rig["rotations"][:, :, :2]
+    elif change == "prim name":
+        kwargs["prim_name"] = "not a name"
+    with pytest.raises(ValueError):
+        write_rig(tmp_path / "x.usda", rig, **kwargs)
+    assert os.listdir(tmp_path) == []
+
+
+def test_failure_while_writing_removes_the_temporary_file(tmp_path, monkeypatch):
+    import skinsynth.formats.usd as usd
+
+    calls = []
+
+    def failing_extent(points):
+        calls.append(1)
+        if len(calls) == 2:  # the stage exists on disk by now
+            raise RuntimeError("disk full")
+        return original(points)
+
+    original = usd._extent
+    monkeypatch.setattr(usd, "_extent", failing_extent)
+    with pytest.raises(RuntimeError):
+        write_points_cache(tmp_path / "x.usda", np.zeros((3, 3, 3)), [[0, 1, 2]], 24)
+    assert os.listdir(tmp_path) == []
+
+
+def test_failed_overwrite_keeps_old_file(tmp_path):
+    path = tmp_path / "keep.usdc"
+    write_points_cache(path, np.ones((2, 3, 3)), [[0, 1, 2]], 24)
+    with pytest.raises(ValueError):
+        write_points_cache(path, np.ones((2, 3, 2)), [[0, 1, 2]], 24)
+    assert os.listdir(tmp_path) == ["keep.usdc"]
+    np.testing.assert_array_equal(read_points_cache(path)[0], np.ones((2, 3, 3)))
+
+
+def test_writer_rejects_non_usd_extension(tmp_path):
+    with pytest.raises(FormatError, match="must end in .usd"):
+        write_points_cache(tmp_path / "x.abc", np.zeros((2, 3, 3)), [[0, 1, 2]], 24)
+    assert os.listdir(tmp_path) == []
