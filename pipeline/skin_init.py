@@ -6,7 +6,7 @@ can stop short of the bone count asked for. Here clusters are split until there 
 
 1. start with one cluster holding every vertex;
 2. each round, split the clusters that explain their vertices worst (at most as many as bones are
-   still missing): a new bone takes the half of the cluster nearest (in the rest pose) to a seed
+   still missing): a new bone takes the quarter of the cluster nearest (in the rest pose) to a seed
    vertex drawn with probability proportional to its error (k-means++ style; the only random
    choice, driven by ``seed``);
 3. refine by a few k-means steps in transform space: fit one rigid transform per cluster and
@@ -21,7 +21,7 @@ import numpy as np
 from .bone_transforms import fit_cluster_transforms, single_bone_errors
 
 
-def _split(labels, n_clusters, errors, order, rest, rng):
+def _split(labels, n_clusters, errors, order, rest, rng, neighbourhood=4):
     """Split the clusters listed in ``order``; return the new labels and cluster count."""
     labels = labels.copy()
     for cluster in order:
@@ -33,7 +33,7 @@ def _split(labels, n_clusters, errors, order, rest, rng):
         seed_vertex = members[rng.choice(members.size, p=prob)]
         distance = np.linalg.norm(rest[members] - rest[seed_vertex], axis=1)
         # Stable sort: ties broken by vertex order, so the split is deterministic given the seed.
-        nearest = members[np.argsort(distance, kind="stable")[: members.size // 2]]
+        nearest = members[np.argsort(distance, kind="stable")[: max(1, members.size // neighbourhood)]]
         labels[nearest] = n_clusters
         n_clusters += 1
     return labels, n_clusters

@@ -1,0 +1,21 @@
+"""Shared test set-up: warp's kernel cache in a per-run folder, and where the real data lives."""
+
+import os
+import pathlib
+
+import pytest
+
+SHARED_DATA = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+def pytest_configure(config):
+    # Before any test imports warp: keep compiled kernels out of the user's cache folder.
+    os.environ.setdefault("SKINSYNTH_CACHE_DIR", str(pathlib.Path(config.rootpath) / "build" / "test-warp-cache"))
+
+
+@pytest.fixture(scope="session")
+def shared_data():
+    """The real sequences in ../shared/data; skips the test when they are not there."""
+    if not SHARED_DATA.is_dir() or not any(SHARED_DATA.iterdir()):
+        pytest.skip(f"real data not found at {SHARED_DATA} (read-only folder beside the checkout)")
+    return SHARED_DATA

@@ -1,0 +1,67 @@
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from skinsynth.pipeline.rotations import (align_hemispheres, dual_quaternion_to_rigid, matrix_to_quaternion,
+                                          polar_rotation, quaternion_multiply, quaternion_to_matrix,
+                                          rigid_to_dual_quaternion, rotation_exp, rotation_log)
+
+
+@pytest.fixture
+def rotations():
+    return Rotation.random(50, random_state=3).as_matrix()
+
+
+def test_polar_rotation_is_nearest_proper_rotation(rotations):
+    rng = np.random.default_rng(0)
+    noisy = rotations + 0.05 * rng.normal(size=rotations.shape)
+    r = polar_rotation(noisy)
+    assert np.allclose(r @ np.swapaxes(r, -1, -2), np.eye(3), atol=1e-12)
+    assert np.allclose(np.linalg.det(r), 1.0)
+    # Reflections are turned into the closest proper rotation, not returned.
+    reflected = rotations @ np.diag([1.0, 1.0, -1.0])
+    assert np.all(np.linalg.det(polar_rotation(reflected)) > 0)
+    # Brute force: no random rotation is closer in Frobenius norm than the polar factor.
+    candidates = Rotation.random(2000, random_state=1).as_matrix()
+    best = np.linalg.norm(candidates - noisy[0], axis=(1, 2)).min()
+    assert np.linalg.norm(r[0] - noisy[0]) <= best + 1e-12
+
+
+def test_quaternion_round_trip_and_product(rotations):
+    q = matrix_to_quaternion(rotations)
+    assert np.all(q[:, 0] >= 0)
+    assert np.allclose(quaternion_to_matrix(q), rotations)
+    # The Hamilton product composes rotations: R(a*b) = R(a) R(b).
+    ab = quaternion_multiply(q[:25], q[25:])
+    assert np.allclose(quaternion_to_matrix(ab), rotations[:25] @ rotations[25:])
+
+
+def test_dual_quaternion_round_trip_transforms_points(rotations):
+    rng = np.random.default_rng(1)
+    t = rng.normal(size=(50, 3))
+    dq = rigid_to_dual_quaternion(rotations, t)
+    r2, t2 = dual_quaternion_to_rigid(3.0 * dq)  # not unit: normalised on the way back
+    assert np.allclose(r2, rotations) and np.allclose(t2, t)
+    # Acting on a point as q0 p q0* + 2 qe q0* matches R p + t.
+    p = rng.normal(size=(50, 3))
+    q0, qe = dq[:, :4], dq[:, 4:]
+    conj = q0 * np.array([1, -1, -1, -1])
+    pure = np.concatenate([np.zeros((50, 1)), p], axis=1)
+    moved = quaternion_multiply(quaternion_multiply(q0, pure), conj)[:, 1:] + 2 * quaternion_multiply(qe, conj)[:, 1:]
+    assert np.allclose(moved, np.einsum("nab,nb->na", rotations, p) + t)
+
+
+def test_align_hemispheres_gives_continuous_signs():
+    angles = np.linspace(0, 6.0, 40)
+    r = rotation_exp(angles[:, None] * np.array([0.0, 0.0, 1.0]))
+    q = matrix_to_quaternion(r)  # w >= 0 forces a jump once the angle passes pi
+    assert np.max(np.abs(np.diff(q, axis=0))) > 1.0
+    aligned = align_hemispheres(q[:, None, :], axis=0)[:, 0]
+    assert np.max(np.abs(np.diff(aligned, axis=0))) < 0.1
+    assert np.allclose(quaternion_to_matrix(aligned), r)
+
+
+def test_log_exp_inverse(rotations):
+    assert np.allclose(rotation_exp(rotation_log(rotations)), rotations)
+    small = np.random.default_rng(2).uniform(-1, 1, size=(20, 3))
+    assert np.allclose(rotation_log(rotation_exp(small)), small)
