@@ -34,6 +34,15 @@ def _gram(products, rest_h, bones, chunk_elements=1 << 24):
     return gram
 
 
+def _select(columns, chosen, weights, linear, gram):
+    """Per-vertex column selection/reordering (V, C') of the candidate arrays and their Gram blocks."""
+    def pick(a):
+        return np.take_along_axis(a, columns, axis=1)
+
+    gram = np.take_along_axis(np.take_along_axis(gram, columns[:, :, None], axis=1), columns[:, None, :], axis=2)
+    return pick(chosen), pick(weights), pick(linear), gram
+
+
 def update_weights(transforms, data, bone_indices, bone_weights, max_influences, candidates=None):
     """New sparse weights for fixed transforms.
 
@@ -56,23 +65,18 @@ def update_weights(transforms, data, bone_indices, bone_weights, max_influences,
     current[rows, bone_indices] = bone_weights
     start = current[rows, chosen]
     start = np.where(start.sum(axis=1, keepdims=True) > 0.0, start, 1.0 / c)
-    weights = solve_simplex_qp(_gram(products, data.homogeneous, chosen), projections[rows, chosen],
-                               start=start / start.sum(axis=1, keepdims=True))
+    gram = _gram(products, data.homogeneous, chosen)
+    linear = projections[rows, chosen]
+    weights = solve_simplex_qp(gram, linear, start=start / start.sum(axis=1, keepdims=True))
+    # Keep the K largest (all of them when C == K), re-solve on those, sorted by decreasing weight.
+    keep = np.argsort(-weights, axis=1, kind="stable")[:, :k]
+    chosen, weights, linear, gram = _select(keep, chosen, weights, linear, gram)
     if c > k:
-        keep = np.argsort(-weights, axis=1, kind="stable")[:, :k]
-        chosen = np.take_along_axis(chosen, keep, axis=1)
-        start = np.take_along_axis(weights, keep, axis=1)
-        start = np.where(start.sum(axis=1, keepdims=True) > 0.0, start, 1.0 / k)
-        gram = _gram(products, data.homogeneous, chosen)
-        weights = solve_simplex_qp(gram, projections[rows, chosen],
-                                   start=start / start.sum(axis=1, keepdims=True))
-    else:
-        gram = _gram(products, data.homogeneous, chosen)
-    order = np.argsort(-weights, axis=1, kind="stable")
-    chosen = np.take_along_axis(chosen, order, axis=1)
-    weights = np.take_along_axis(weights, order, axis=1)
-    gram = np.take_along_axis(np.take_along_axis(gram, order[:, :, None], axis=1), order[:, None, :], axis=2)
+        start = np.where(weights.sum(axis=1, keepdims=True) > 0.0, weights, 1.0 / k)
+        weights = solve_simplex_qp(gram, linear, start=start / start.sum(axis=1, keepdims=True))
+        order = np.argsort(-weights, axis=1, kind="stable")
+        chosen, weights, linear, gram = _select(order, chosen, weights, linear, gram)
     # Squared error Σ_t |v̂ − v|² = wᵀGw − 2 bᵀw + Σ_t |v|², from quantities already at hand.
     error = (np.einsum("ij,ijk,ik->i", weights, gram, weights)
-             - 2.0 * np.einsum("ij,ij->i", weights, projections[rows, chosen]) + data.squared_norm)
+             - 2.0 * np.einsum("ij,ij->i", weights, linear) + data.squared_norm)
     return chosen.astype(np.int32), weights, np.maximum(error, 0.0)
