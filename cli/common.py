@@ -1,6 +1,7 @@
 """What every command shares: user-error handling, exit codes, progress, provenance."""
 
 import functools
+import os
 import sys
 from importlib.metadata import PackageNotFoundError, version
 
@@ -10,6 +11,8 @@ from skinsynth.formats.errors import FormatError
 from skinsynth.pipeline.errors import OptionError
 
 EXIT_USER_ERROR = 2
+#: The command line as the user typed it (set by the group's main), for provenance records.
+INVOCATION = []
 
 
 def tool_version():
@@ -48,10 +51,15 @@ def check_output_path(path, suffixes):
     lower = str(path).lower()
     if not any(lower.endswith(s) for s in suffixes):
         fail(f"{path}: output must end in {', '.join(suffixes)}")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        fail(f"{path}: cannot write here: the folder {folder} does not exist")
 
 
 def command_line():
-    return " ".join(["skinsynth"] + sys.argv[1:])
+    import shlex
+
+    return shlex.join(INVOCATION or ["skinsynth"] + sys.argv[1:])
 
 
 class Progress:

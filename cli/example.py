@@ -20,6 +20,11 @@ def example(name, output, frames, rings, segments, fps):
 
     bending-bar: a capped cylinder that bends into an arc and twists over one cycle, the kind of
     example of Feng et al. 2008 Table 1; its deformation is smooth but not itself skinned.
+
+    \b
+    Example:
+      skinsynth example bending-bar -o bar.npz --frames 120
+      skinsynth fit-skin bar.npz -o bar.skin.h5 --bones 8
     """
     from skinsynth.formats.meshseq import write_array_sequence
     from skinsynth.pipeline.examples import bending_bar

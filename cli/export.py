@@ -51,7 +51,10 @@ def export(path, output, kind, device, half, max_width, up_axis):
         frames = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
                      skin.translations, device=device)
         if to_exr:
-            from skinsynth.formats.exr import write_vat
+            from skinsynth.formats.exr import HALF_MAX, write_vat
+
+            if half and abs(frames - skin.rest_vertices).max() > HALF_MAX:
+                fail(f"{output}: offsets from the rest pose exceed the half-float range ({HALF_MAX:g}); drop --half")
 
             write_vat(output, skin.rest_vertices, frames, skin.fps, max_width=max_width, half=half)
         else:

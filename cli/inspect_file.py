@@ -9,16 +9,20 @@ from .common import user_errors
 
 
 def _summary(path, model):
+    from skinsynth.formats.model import require
+
     out = {"file": str(path), "stage": model["stage"], "format_version": model["format_version"]}
     if "mesh" in model:
-        out["vertices"] = int(model["mesh"]["rest_vertices"].shape[0])
-        out["faces"] = int(model["mesh"]["faces"].shape[0])
+        mesh = require(model, path, "mesh", ("rest_vertices", "faces"))
+        out["vertices"] = int(mesh["rest_vertices"].shape[0])
+        out["faces"] = int(mesh["faces"].shape[0])
     if "examples" in model:
-        out["frames"] = int(model["examples"]["vertices"].shape[0])
-        out["fps"] = float(model["examples"].get("@fps", 0.0))
-        out["source"] = str(model["examples"].get("@source", ""))
+        examples = require(model, path, "examples", ("vertices",))
+        out["frames"] = int(examples["vertices"].shape[0])
+        out["fps"] = float(examples.get("@fps", 0.0))
+        out["source"] = str(examples.get("@source", ""))
     if "skin" in model:
-        skin = model["skin"]
+        skin = require(model, path, "skin", ("rotations", "bone_indices", "bone_weights"))
         out["bones"] = int(skin["rotations"].shape[1])
         out["max_influences"] = int(skin["bone_indices"].shape[1])
         weights = skin["bone_weights"]
@@ -37,7 +41,13 @@ def _summary(path, model):
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
 @user_errors
 def inspect_file(path, as_json):
-    """Summarise a skinsynth model file: stage, version, counts, fit errors, provenance."""
+    """Summarise a skinsynth model file: stage, version, counts, fit errors, provenance.
+
+    \b
+    Examples:
+      skinsynth inspect horse.skin.h5
+      skinsynth inspect horse.skin.h5 --json | jq .rmse_over_diagonal
+    """
     from skinsynth.formats.model import read_model
 
     summary = _summary(path, read_model(path))

@@ -1,16 +1,38 @@
 """The ``skinsynth`` command: one click group, one module per subcommand."""
 
+import sys
+
 import click
 
-from .common import tool_version
+from . import common
 from .example import example
 from .export import export
 from .fit_skin import fit_skin
 from .inspect_file import inspect_file
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
-@click.version_option(tool_version(), prog_name="skinsynth")
+class SkinsynthGroup(click.Group):
+    """A click group whose usage errors are one line on stderr (exit 2), like every other user error."""
+
+    def main(self, args=None, prog_name=None, **extra):
+        args = list(sys.argv[1:] if args is None else args)
+        common.INVOCATION[:] = ["skinsynth"] + [str(a) for a in args]
+        try:
+            return super().main(args, prog_name=prog_name or "skinsynth", standalone_mode=False, **extra)
+        except click.exceptions.Exit as done:  # --help, --version
+            sys.exit(done.exit_code)
+        except click.exceptions.Abort:
+            click.echo("skinsynth: interrupted; no output written", err=True)
+            sys.exit(130)
+        except click.ClickException as error:
+            ctx = getattr(error, "ctx", None)
+            hint = f" (see '{ctx.command_path} --help')" if isinstance(error, click.UsageError) and ctx else ""
+            click.echo(f"skinsynth: error: {error.format_message()}{hint}", err=True)
+            sys.exit(error.exit_code)
+
+
+@click.group(cls=SkinsynthGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(common.tool_version(), prog_name="skinsynth")
 def main():
     """Example-based mesh animation: fit a skinned model to a mesh sequence, then export it.
 

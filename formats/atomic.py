@@ -8,6 +8,8 @@ import contextlib
 import os
 import tempfile
 
+from .errors import FormatError
+
 
 @contextlib.contextmanager
 def atomic_output(path):
@@ -22,7 +24,12 @@ def atomic_output(path):
     base = os.path.basename(path)
     stem, dot, ext = base.rpartition(".")
     suffix = "." + ext if dot else ""
-    fd, tmp = tempfile.mkstemp(prefix=f".{stem or base}.", suffix=".tmp" + suffix, dir=folder)
+    if not os.path.isdir(folder):
+        raise FormatError(path, f"cannot write here: the folder {folder} does not exist")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{stem or base}.", suffix=".tmp" + suffix, dir=folder)
+    except OSError as error:
+        raise FormatError(path, f"cannot write here: {error.strerror}") from None
     os.close(fd)
     # mkstemp makes the file private (0600); give it the permissions a plain open() would.
     umask = os.umask(0)

@@ -173,6 +173,9 @@ def _read_frame(path):
             # trimesh warns while guessing UVs of unreferenced vertices; UVs are not read here.
             warnings.simplefilter("ignore", RuntimeWarning)
             loaded = trimesh.load(path, file_type=ext[1:], **options)
+    except (ImportError, UnicodeDecodeError):
+        # trimesh falls back to an optional text-encoding detector for bytes that are not UTF-8.
+        raise FormatError(path, f"cannot read as {ext[1:].upper()}: not a text file in a known encoding") from None
     except Exception as error:  # trimesh raises anything from parsing errors to IndexError
         raise FormatError(path, f"cannot read as {ext[1:].upper()}: {error}") from None
 

@@ -96,8 +96,12 @@ def read_header(path):
     with f:
         if f.attrs.get("format") != FORMAT_NAME:
             raise FormatError(path, "not a skinsynth model file (no format = 'skinsynth' attribute)")
-        version = int(f.attrs.get("format_version", -1))
-        stage = str(f.attrs.get("stage", ""))
+        try:
+            version = int(f.attrs.get("format_version", -1))
+        except (TypeError, ValueError):
+            raise FormatError(path, f"invalid format_version {f.attrs.get('format_version')!r}") from None
+        stage = f.attrs.get("stage", "")
+        stage = stage.decode() if isinstance(stage, bytes) else str(stage)
     if version > FORMAT_VERSION:
         raise FormatError(path, f"format_version {version} is newer than this skinsynth reads "
                                 f"({FORMAT_VERSION}); upgrade skinsynth")
