@@ -9,6 +9,7 @@ from .example import example
 from .export import export
 from .fit_skin import fit_skin
 from .inspect_file import inspect_file
+from .select_controls import select_controls
 
 
 class SkinsynthGroup(click.Group):
@@ -50,3 +51,4 @@ main.add_command(fit_skin)
 main.add_command(inspect_file)
 main.add_command(export)
 main.add_command(example)
+main.add_command(select_controls)

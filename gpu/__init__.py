@@ -1,7 +1,7 @@
 """skinsynth.gpu: warp kernels with numpy references, and the device choice.
 
 Public API (resolved lazily, so importing this package neither imports nor initialises warp):
-lbs, lbs_reference, resolve_device, available_devices, DeviceError.
+lbs, lbs_reference, dqs_reference, resolve_device, available_devices, DeviceError.
 """
 
 import importlib
@@ -9,6 +9,7 @@ import importlib
 _EXPORTS = {
     "lbs": "skinning",
     "lbs_reference": "skinning",
+    "dqs_reference": "skinning",
     "resolve_device": "runtime",
     "available_devices": "runtime",
     "DeviceError": "runtime",

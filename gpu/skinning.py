@@ -60,6 +60,35 @@ def lbs_reference(rest_vertices, bone_indices, bone_weights, rotations, translat
     return out
 
 
+def dqs_reference(rest_vertices, bone_indices, bone_weights, dual_quaternions) -> np.ndarray:
+    """Dual-quaternion skinning (Kavan et al. 2007; Feng §6.3) in numpy: vertices (F, V, 3) float64.
+
+    dual_quaternions (F, B, 8): per bone, real then dual part, each (w, x, y, z), mapping rest
+    positions to posed ones (need not be unit: the blend is normalised). Per vertex the weighted
+    dual quaternions are summed after flipping those whose real part points away from the
+    vertex's largest-weight bone (the pivot; OpenUSD's _SkinPointsDQS does the same), then
+    normalised and applied: ``p' = p + 2 v0 × (v0 × p + w0 p) + 2 (w0 ve − we v0 + v0 × ve)``.
+    """
+    rest, idx, w, _, _ = _checked(rest_vertices, bone_indices, bone_weights,
+                                  np.zeros(dual_quaternions.shape[:2] + (3, 3)), np.zeros(dual_quaternions.shape[:2] + (3,)))
+    dq = np.asarray(dual_quaternions, dtype=np.float64)
+    frames, verts = dq.shape[0], rest.shape[0]
+    out = np.empty((frames, verts, 3))
+    pivot = idx[np.arange(verts), np.argmax(w, axis=1)]
+    step = max(1, _REFERENCE_CHUNK // max(1, 8 * verts * idx.shape[1]))
+    for f0 in range(0, frames, step):
+        d = dq[f0 : f0 + step]
+        gathered = d[:, idx]  # (f, V, K, 8)
+        sign = np.sign(np.einsum("fvkc,fvc->fvk", gathered[..., :4], d[:, pivot, :4]))
+        sign[sign == 0.0] = 1.0
+        blend = np.einsum("fvk,fvkc->fvc", sign * w, gathered)
+        blend /= np.linalg.norm(blend[..., :4], axis=-1, keepdims=True)
+        w0, v0, we, ve = blend[..., :1], blend[..., 1:4], blend[..., 4:5], blend[..., 5:8]
+        translation = 2.0 * (w0 * ve - we * v0 + np.cross(v0, ve))
+        out[f0 : f0 + step] = rest + 2.0 * np.cross(v0, np.cross(v0, rest) + w0 * rest) + translation
+    return out
+
+
 @functools.cache
 def _kernel(influences: int):
     # Built on first use so that importing this module does not import warp. K is a compile-time

@@ -1,0 +1,81 @@
+"""``skinsynth select-controls``: choose the control points of a puppet (Feng et al. 2008 §3)."""
+
+import click
+
+from .common import Progress, check_output_path, command_line, tool_version, user_errors
+
+
+@click.command("select-controls")
+@click.argument("input_path", metavar="SKIN", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Controls file to write (.h5).")
+@click.option("--count", "-n", default=None, type=int,
+              help="Number of control points n_c  [default: 8, or as many as --vertices gives].")
+@click.option("--vertices", "vertex_list", default=None, metavar="I,J,...",
+              help="Use these vertex ids (comma-separated, 0-based) instead of the automatic choice.")
+@click.option("--components", "-k", default=None, type=int,
+              help="Number of PCA bases K  [default: smallest explaining 99% of the in-place variance, "
+                   "at least ceil(n_c/2), at most min(frames-1, 3 x vertices)].")
+@click.option("--min-spacing", default=0.05, show_default=True, type=float,
+              help="Automatic rule: skip candidates closer than this fraction of the rest bounding-box "
+                   "diagonal to a chosen control.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar, control list or summary (warnings still show).")
+@user_errors
+def select_controls(input_path, output, count, vertex_list, components, min_spacing, quiet):
+    """Choose control points from a skin file's examples (Feng et al. 2008 §3).
+
+    PCA of the example vertex positions (each frame first brought in place by a rigid fit onto
+    the rest pose), varimax rotation of the K retained bases, and two representative vertices
+    per rotated basis: the vertex the basis moves most, and the vertex whose motion differs
+    most from it. From these 2K candidates n_c are chosen by a fixed rule instead of the
+    paper's manual pick: bases by variance share, largest first; first the top vertex of each
+    basis, then the second ones; a candidate within --min-spacing of a chosen control is
+    skipped; any shortfall is filled farthest-point first. The rule uses no randomness, so the
+    same input always gives the same controls. --vertices takes your own choice instead.
+
+    Prints one line per control: vertex id, basis, its variance share, and why it was chosen.
+
+    \b
+    Examples:
+      skinsynth select-controls face.skin.h5 -o face.controls.h5
+      skinsynth select-controls face.skin.h5 -o face.controls.h5 --count 12 --components 10
+      skinsynth select-controls face.skin.h5 -o face.controls.h5 --vertices 120,455,873,1021
+    """
+    from skinsynth.formats.controls_file import controls_groups
+    from skinsynth.formats.model import read_model, write_model
+    from skinsynth.formats.provenance import provenance_record
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.controls import select_controls as select
+    from skinsynth.pipeline.errors import OptionError
+
+    check_output_path(output, (".h5", ".hdf5"))
+    user = None
+    if vertex_list is not None:
+        try:
+            user = [int(item) for item in vertex_list.replace(" ", "").split(",") if item != ""]
+        except ValueError:
+            raise OptionError(f"--vertices takes comma-separated integer vertex ids (got {vertex_list!r})") from None
+        if not user:
+            raise OptionError("--vertices needs at least one vertex id")
+    model = read_model(input_path, stages=("skin",))
+    skin = read_skin(input_path, model)
+
+    with Progress(1, "select-controls", quiet) as bar:
+        selection = select(skin.examples, skin.rest_vertices, count=count, components=components,
+                           user_vertices=user, min_spacing_fraction=min_spacing)
+        bar.update(1, f"{len(selection.indices)} controls")
+
+    parameters = dict(count=len(selection.indices), vertices=user, components=selection.components,
+                      components_option=components, min_spacing=min_spacing, method=selection.method)
+    record = provenance_record("controls", command_line(), parameters, [input_path], tool_version(), None)
+    write_model(output, "controls", controls_groups(selection, model), model["provenance"] + [record],
+                tool_version())
+    for warning in selection.warnings:
+        click.echo(f"warning: {warning}", err=True)
+    if not quiet:
+        for number, (vertex, basis, reason) in enumerate(zip(selection.indices, selection.control_basis,
+                                                             selection.reasons)):
+            share = 100.0 * selection.basis_variance[basis]
+            click.echo(f"control {number}: vertex {vertex}, basis {basis} ({share:.1f}% of variance): {reason}")
+        click.echo(f"wrote {output}: {len(selection.indices)} control points ({selection.method}) from "
+                   f"{len(set(selection.candidates.tolist()))} candidates of {selection.components} rotated PCA "
+                   f"bases explaining {100.0 * selection.explained:.1f}% of the in-place variance")

@@ -1,0 +1,82 @@
+"""The ``puppet`` stage file written by ``train-kcca``.
+
+Copies forward ``/mesh``, ``/examples``, ``/skin`` and ``/controls`` and adds:
+
+- ``/training``: ``train_frames (n_p,)``, ``test_frames (n_t,)`` int64 (example frames held out),
+  ``reference_controls (n_c, 3)`` (rest-frame control positions defining "in place");
+  ``@global_motion`` ("control-frame" | "world").
+- ``/kcca``: ``predictor (8B, n_p)`` the concatenated M of Feng §6.1 (rows bone-major: bone b
+  owns rows 8b..8b+7, its dual quaternion (w, x, y, z, w_e, x_e, y_e, z_e)), ``bias (8B,)``,
+  ``training_controls (n_p, 3 n_c)`` standardised, ``control_mean (3 n_c,)``,
+  ``correlations (B, n_f)``, ``regularization (B,)``; ``@kernel``, ``@scale``, ``@offset``,
+  ``@degree``, ``@bases``, ``@regularization_mode``. At run time ``d = M ξ(x) + bias`` with
+  ``x = (c − control_mean) / scale`` and ξ_j = k(x, training_controls[j]).
+- ``/poisson`` (when trained with the translation solver): ``rotation_operator (B, B, 3)``,
+  ``control_operator (B, n_c)``, ``prior_operator (B, B)``; ``@beta``. Translations are
+  ``t_b = Σ_b' R_b' Γ[b, b'] + Σ_l Q[b, l] c_l + Σ_b' Π[b, b'] t̂_b'``.
+"""
+
+import numpy as np
+
+from .controls_file import read_controls
+from .errors import FormatError
+from .model import read_model, require
+from .skin_file import read_skin
+
+
+def puppet_groups(model, puppet, test_frames, regularization_mode):
+    """All groups of a puppet file: the controls file's groups forwarded, plus the puppet's."""
+    from skinsynth.pipeline.kcca import ControlKernel  # noqa: F401  (documents the type)
+
+    bones = puppet.regression.predictor.shape[0]
+    groups = {name: model[name] for name in ("mesh", "examples", "skin", "controls")}
+    groups["training"] = {"train_frames": puppet.train_frames.astype(np.int64),
+                          "test_frames": np.asarray(test_frames, dtype=np.int64),
+                          "reference_controls": puppet.reference_controls,
+                          "@global_motion": puppet.global_motion}
+    k = puppet.kernel
+    groups["kcca"] = {"predictor": puppet.regression.predictor.reshape(bones * 8, -1),
+                      "bias": puppet.regression.bias.reshape(-1),
+                      "training_controls": puppet.training_controls, "control_mean": k.mean,
+                      "correlations": puppet.regression.correlations,
+                      "regularization": puppet.regression.regularization,
+                      "@kernel": k.kind, "@scale": float(k.scale), "@offset": float(k.offset),
+                      "@degree": int(k.degree), "@bases": int(puppet.regression.correlations.shape[1]),
+                      "@regularization_mode": str(regularization_mode)}
+    if puppet.translations is not None:
+        op = puppet.translations
+        groups["poisson"] = {"rotation_operator": op.rotation_operator, "control_operator": op.control_operator,
+                             "prior_operator": op.prior_operator, "@beta": float(puppet.beta)}
+    return groups
+
+
+def read_puppet(path):
+    """(Puppet, test_frames (n_t,), skin: SkinModel) from a puppet file; FormatError if not one."""
+    from skinsynth.pipeline.kcca import ControlKernel, KccaRegression
+    from skinsynth.pipeline.poisson import TranslationOperator
+    from skinsynth.pipeline.puppet import Puppet
+
+    model = read_model(path, stages=("puppet",))
+    skin = read_skin(path, model)
+    controls = read_controls(path, model)
+    training = require(model, path, "training", ("train_frames", "test_frames", "reference_controls"))
+    kcca = require(model, path, "kcca", ("predictor", "bias", "training_controls", "control_mean",
+                                         "correlations", "regularization"))
+    bones = skin.bones
+    if kcca["predictor"].shape[0] != 8 * bones:
+        raise FormatError(path, f"/kcca/predictor has {kcca['predictor'].shape[0]} rows, expected 8 × {bones} bones")
+    kernel = ControlKernel(kind=str(kcca["@kernel"]), mean=kcca["control_mean"], scale=float(kcca["@scale"]),
+                           offset=float(kcca["@offset"]), degree=int(kcca["@degree"]))
+    regression = KccaRegression(predictor=kcca["predictor"].reshape(bones, 8, -1), bias=kcca["bias"].reshape(bones, 8),
+                                correlations=kcca["correlations"], regularization=kcca["regularization"])
+    operator, beta = None, float("nan")
+    if "poisson" in model:
+        pois = require(model, path, "poisson", ("rotation_operator", "control_operator", "prior_operator"))
+        operator = TranslationOperator(pois["rotation_operator"], pois["control_operator"], pois["prior_operator"])
+        beta = float(pois.get("@beta", np.nan))
+    puppet = Puppet(rest_vertices=skin.rest_vertices, bone_indices=skin.bone_indices, bone_weights=skin.bone_weights,
+                    control_indices=np.asarray(controls.vertex_indices), reference_controls=training["reference_controls"],
+                    global_motion=str(training.get("@global_motion", "control-frame")), kernel=kernel,
+                    training_controls=kcca["training_controls"], regression=regression, translations=operator,
+                    beta=beta, train_frames=training["train_frames"])
+    return puppet, training["test_frames"], skin

@@ -1,0 +1,128 @@
+"""Poisson translation solver (Feng §5, §6.2): bone translations from rotations and control points.
+
+Edges are skinned like vertices (eq. 10: per-edge bone weights fitted to the examples), then
+the bone translations minimise the mismatch between skinned edge vectors and differences of
+skinned vertices, plus β times the control-point mismatch (eq. 11). The problem is linear least
+squares in t with a matrix that does not change at run time, so its solution is a fixed linear
+map of (rotations, control positions): ``t = Γ·R + Q·c`` (+ a tiny prior term, below), which is
+all that is stored and all that runs per frame.
+
+Choices the paper leaves open:
+- Edge weights (eq. 10) are fitted over the bones of the edge's two end vertices (≤ 2K), by
+  least squares with a small ridge (``edge_ridge``, relative to the mean diagonal) towards the
+  mean of the two vertices' weights, so edges whose rotated copies are nearly parallel still
+  get a stable answer.
+- Each mesh component needs a control point to pin its position; where one has none, the
+  normal matrix is singular. A tiny prior (``prior``, relative to the mean diagonal) towards the
+  regression's own predicted translations fixes that null space without pulling on determined
+  translations.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+
+def mesh_edges(faces):
+    """Unique undirected edges (E, 2), lower index first, of triangles faces (T, 3)."""
+    pairs = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    return np.unique(np.sort(pairs, axis=1), axis=0)
+
+
+def fit_edge_weights(rest, edges, bone_indices, bone_weights, rotations, edge_vectors, edge_ridge=1e-6):
+    """Edge skinning weights by Feng eq. 10.
+
+    rest (V, 3); edges (E, 2); bone_indices/bone_weights (V, K); rotations (F, B, 3, 3) and
+    edge_vectors (F, E, 3) = v_k0 − v_k1 over the training frames. Returns (edge_bones (E, S),
+    edge_weights (E, S)); S = 2K slots, a bone repeated in a row has weight only in its first slot.
+    """
+    frames, bones = rotations.shape[:2]
+    e0 = rest[edges[:, 0]] - rest[edges[:, 1]]
+    support = np.concatenate([bone_indices[edges[:, 0]], bone_indices[edges[:, 1]]], axis=1)
+    prior = 0.5 * np.concatenate([bone_weights[edges[:, 0]], bone_weights[edges[:, 1]]], axis=1)
+    first = _first_occurrence(support)
+    prior = _fold_duplicates(support, prior, first)
+    # Normal equations: G[s, s'] = e0ᵀ (Σ_j R_sᵀ R_s') e0, r[s] = e0ᵀ Σ_j R_sᵀ e_j.
+    h = np.einsum("fbac,fkad->bkcd", rotations, rotations, optimize=True)
+    gram = np.einsum("ec,eskcd,ed->esk", e0, h[support[:, :, None], support[:, None, :]], e0, optimize=True)
+    stacked = rotations.transpose(0, 2, 1, 3).reshape(frames * 3, bones * 3)  # rows (f, a), cols (b, c)
+    flat = edge_vectors.transpose(1, 0, 2).reshape(-1, frames * 3)
+    rt_e = (flat @ stacked).reshape(-1, bones, 3)  # Σ_j R_bᵀ e_j per bone
+    rhs = np.einsum("esc,ec->es", np.take_along_axis(rt_e, support[:, :, None], axis=1), e0)
+    # Duplicated bones: keep only the first slot as an unknown (others pinned at zero).
+    slots = support.shape[1]
+    mask = first[:, :, None] & first[:, None, :]
+    gram = np.where(mask, gram, 0.0)
+    diag = np.arange(slots)
+    scale = np.maximum(np.einsum("ess->e", gram) / slots, np.finfo(float).tiny)
+    ridge = edge_ridge * scale
+    gram[:, diag, diag] = np.where(first, gram[:, diag, diag] + ridge[:, None], 1.0)
+    rhs = np.where(first, rhs + ridge[:, None] * prior, 0.0)
+    weights = np.linalg.solve(gram, rhs[..., None])[..., 0]
+    return support, weights
+
+
+def _first_occurrence(support):
+    """(E, S) bool: True where the bone is not repeated earlier in the row."""
+    same = support[:, :, None] == support[:, None, :]
+    earlier = np.tril(np.ones(support.shape[1], dtype=bool), k=-1)
+    return ~np.any(same & earlier[None], axis=2)
+
+
+def _fold_duplicates(support, weights, first):
+    """Sum each row's weights of repeated bones into the bone's first slot."""
+    same = support[:, :, None] == support[:, None, :]
+    return np.where(first, np.einsum("est,et->es", same.astype(float), weights), 0.0)
+
+
+@dataclass
+class TranslationOperator:
+    """``t[b] = Σ_b' R_b' Γ[b, b'] + Σ_l Q[b, l] c_l + Π[b] t̂`` (Feng §5 eq. 11, §6.2 ``t = P·T``).
+
+    rotation_operator Γ (B, B, 3); control_operator Q (B, n_c); prior_operator Π (B, B).
+    """
+
+    rotation_operator: np.ndarray
+    control_operator: np.ndarray
+    prior_operator: np.ndarray
+
+
+def translation_operator(rest, edges, bone_indices, bone_weights, edge_bones, edge_weights, control_indices,
+                         beta=100.0, prior=1e-6):
+    """Precompute the linear map from (rotations, controls, predicted translations) to translations."""
+    count = rest.shape[0]
+    bones = int(max(bone_indices.max(), edge_bones.max())) + 1
+    w = sp.csr_matrix((bone_weights.ravel(), (np.repeat(np.arange(count), bone_weights.shape[1]),
+                                              bone_indices.ravel())), shape=(count, bones))
+    n_e = edges.shape[0]
+    # Rows of ΔW: w_k0 − w_k1 (the translation part of a skinned edge difference).
+    incidence = sp.csr_matrix((np.r_[np.ones(n_e), -np.ones(n_e)], (np.r_[np.arange(n_e), np.arange(n_e)],
+                                                                     np.r_[edges[:, 0], edges[:, 1]])), shape=(n_e, count))
+    dw = incidence @ w
+    wc = w[control_indices]
+    normal = (dw.T @ dw + beta * (wc.T @ wc)).toarray()
+    gamma = prior * max(np.trace(normal) / bones, np.finfo(float).tiny)
+    normal += gamma * np.eye(bones)
+
+    # Rotation part of each residual: Σ_b R_b g_kb with g_kb = ŵ_kb e0_k − w_k0b v_k0 + w_k1b v_k1.
+    e0 = rest[edges[:, 0]] - rest[edges[:, 1]]
+    rows = np.repeat(np.arange(n_e), edge_bones.shape[1])
+    g_hat = sp.csr_matrix((edge_weights.ravel(), (rows, edge_bones.ravel())), shape=(n_e, bones))
+    blocks = []
+    for c in range(3):  # x, y, z components of g
+        g_c = g_hat.multiply(e0[:, c:c + 1]) - incidence.multiply(rest[:, c][None, :]) @ w
+        # Control rows: −√β w_l v_l, paired with their √β weights in the normal equations → −β.
+        g_ctrl = -beta * (wc.multiply(rest[control_indices, c][:, None]))
+        blocks.append((dw.T @ g_c + wc.T @ g_ctrl).toarray())
+    gamma_op = np.linalg.solve(normal, np.stack(blocks, axis=-1).reshape(bones, -1)).reshape(bones, bones, 3)
+    control_op = np.linalg.solve(normal, beta * wc.T.toarray())
+    prior_op = gamma * np.linalg.inv(normal)
+    return TranslationOperator(rotation_operator=gamma_op, control_operator=control_op, prior_operator=prior_op)
+
+
+def solve_translations(operator, rotations, controls, predicted_translations):
+    """rotations (F, B, 3, 3), controls (F, n_c, 3), predicted_translations (F, B, 3) -> (F, B, 3)."""
+    return (np.einsum("bkc,fkac->fba", operator.rotation_operator, rotations, optimize=True)
+            + np.einsum("bl,fla->fba", operator.control_operator, controls)
+            + np.einsum("bk,fka->fba", operator.prior_operator, predicted_translations))

@@ -1,0 +1,185 @@
+"""The trained puppet (Feng et al. 2008): control points in, every vertex out.
+
+Training (:func:`train_puppet`): bring the training examples in place (a rigid frame fitted to
+the control points, :mod:`.alignment`), express each bone's pose in that frame as a dual
+quaternion with consistent signs, fit per-bone kernel CCA regression (:mod:`.kcca`), and
+precompute the Poisson translation operator (:mod:`.poisson`).
+
+Run time (:func:`predict_vertices`, the numpy reference of the whole path): align the controls,
+kernel vector ξ, ``d = M ξ + m`` for all bones, normalise each dual quaternion and take its
+rotation, recompute translations with ``t = Γ·R + Q·c`` (optional), dual-quaternion skinning,
+and carry the result back to the world with the inverse control frame.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .alignment import apply_frames, control_frames, invert_frames
+from .errors import OptionError
+from .kcca import ControlKernel, KccaRegression, choose_regularization, control_kernel, fit_kcca, predict
+from .poisson import TranslationOperator, fit_edge_weights, mesh_edges, solve_translations, translation_operator
+from .rotations import (align_hemispheres, dual_quaternion_to_rigid, matrix_to_quaternion, quaternion_multiply,
+                        rigid_to_dual_quaternion)
+
+GLOBAL_MOTION = ("control-frame", "world")
+
+
+@dataclass
+class Puppet:
+    """Everything the run time needs (shapes: V vertices, B bones, n_c controls, n_p examples).
+
+    rest_vertices (V, 3); bone_indices, bone_weights (V, K); control_indices (n_c,);
+    reference_controls (n_c, 3) rest-frame control positions that define "in place";
+    global_motion "control-frame" | "world"; kernel: ControlKernel; training_controls (n_p, 3 n_c)
+    standardised; regression: KccaRegression (predictor (B, 8, n_p), bias (B, 8));
+    translations: TranslationOperator or None; beta; train_frames (n_p,).
+    """
+
+    rest_vertices: np.ndarray
+    bone_indices: np.ndarray
+    bone_weights: np.ndarray
+    control_indices: np.ndarray
+    reference_controls: np.ndarray
+    global_motion: str
+    kernel: ControlKernel
+    training_controls: np.ndarray
+    regression: KccaRegression
+    translations: TranslationOperator | None
+    beta: float
+    train_frames: np.ndarray
+
+
+def parse_frame_spec(spec, frames):
+    """Training frames from a spec: ``every:N`` (0, N, 2N…), ``first:N``, ``all``, or a list
+    ``0,4,10-20`` (ranges inclusive). Returns sorted unique indices; OptionError if invalid."""
+    spec = spec.strip()
+    try:
+        if spec == "all":
+            chosen = np.arange(frames)
+        elif spec.startswith("every:"):
+            step = int(spec[6:])
+            if step < 1:
+                raise ValueError
+            chosen = np.arange(0, frames, step)
+        elif spec.startswith("first:"):
+            chosen = np.arange(min(int(spec[6:]), frames))
+        else:
+            parts = []
+            for item in spec.split(","):
+                lo, _, hi = item.partition("-")
+                parts.append(np.arange(int(lo), int(hi or lo) + 1))
+            chosen = np.unique(np.concatenate(parts))
+    except ValueError:
+        raise OptionError(f"--train-frames {spec!r}: expected every:N, first:N, all or a list like 0,4,10-20") from None
+    if chosen.size and (chosen.min() < 0 or chosen.max() >= frames):
+        raise OptionError(f"--train-frames {spec!r}: frames must lie in 0..{frames - 1}")
+    return chosen
+
+
+def in_place(controls, reference, global_motion):
+    """Rigid frames (R (F,3,3), t (F,3)) bringing controls (F, n_c, 3) in place."""
+    if global_motion == "world":
+        frames = controls.shape[0]
+        return np.tile(np.eye(3), (frames, 1, 1)), np.zeros((frames, 3))
+    return control_frames(controls, reference)
+
+
+def _bone_dual_quaternions(rotations, translations):
+    """Dual quaternions (F, B, 8) with one sign branch per bone over the frames (Feng §4.3).
+
+    Signs follow the bone's mean real part (not time order: training frames may be sparse)."""
+    dq = rigid_to_dual_quaternion(rotations, translations)
+    for _ in range(2):
+        mean = dq[..., :4].mean(axis=0)
+        dq *= np.where(np.einsum("fbc,bc->fb", dq[..., :4], mean) < 0.0, -1.0, 1.0)[..., None]
+    return dq
+
+
+def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, translations, control_indices,
+                 train_frames, kernel="gaussian", bases=8, regularization="auto", translation_solver=True,
+                 beta=100.0, global_motion="control-frame"):
+    """Train a puppet from a skin fit. examples (F, V, 3); rotations (F, B, 3, 3), translations
+    (F, B, 3) the fitted bones; control_indices (n_c,); train_frames (n_p,). Returns Puppet."""
+    if global_motion not in GLOBAL_MOTION:
+        raise OptionError(f"--global-motion must be one of {', '.join(GLOBAL_MOTION)}")
+    if len(train_frames) < 4:
+        raise OptionError(f"only {len(train_frames)} training frames; kernel CCA needs at least 4")
+    if bases < 1:
+        raise OptionError(f"--bases must be at least 1 (got {bases})")
+    if not beta > 0.0:
+        raise OptionError(f"--beta must be positive (got {beta})")
+    control_indices = np.asarray(control_indices)
+    if control_indices.size == 0 or control_indices.min() < 0 or control_indices.max() >= rest.shape[0]:
+        raise OptionError(f"control vertex ids must lie in 0..{rest.shape[0] - 1}")
+    reference = rest[control_indices]
+    controls = examples[train_frames][:, control_indices]
+    frame_r, frame_t = in_place(controls, reference, global_motion)
+    placed_controls = apply_frames(frame_r, frame_t, controls)
+    rot = np.einsum("fac,fbcd->fbad", frame_r, rotations[train_frames])
+    trans = np.einsum("fac,fbc->fba", frame_r, translations[train_frames]) + frame_t[:, None, :]
+
+    kern = control_kernel(kernel, placed_controls.reshape(len(train_frames), -1))
+    x = kern.standardise(placed_controls.reshape(len(train_frames), -1))
+    targets = np.swapaxes(_bone_dual_quaternions(rot, trans), 0, 1)  # (B, n_p, 8)
+    if regularization == "auto":
+        kappa = choose_regularization(kern, x, targets, bases=bases)
+    else:
+        kappa = float(regularization)
+        if not kappa >= 0.0:
+            raise OptionError(f"--regularization must be a non-negative number or 'auto' (got {regularization})")
+    regression = fit_kcca(kern.matrix(x, x), targets, bases=bases, regularization=kappa)
+
+    operator = None
+    if translation_solver:
+        edges = mesh_edges(faces)
+        placed = apply_frames(frame_r, frame_t, examples[train_frames])
+        edge_vectors = placed[:, edges[:, 0]] - placed[:, edges[:, 1]]
+        edge_bones, edge_weights = fit_edge_weights(rest, edges, bone_indices, bone_weights, rot, edge_vectors)
+        operator = translation_operator(rest, edges, bone_indices, bone_weights, edge_bones, edge_weights,
+                                        control_indices, beta=beta)
+    return Puppet(rest_vertices=rest, bone_indices=bone_indices, bone_weights=bone_weights,
+                  control_indices=np.asarray(control_indices), reference_controls=reference,
+                  global_motion=global_motion, kernel=kern, training_controls=x, regression=regression,
+                  translations=operator, beta=float(beta), train_frames=np.asarray(train_frames))
+
+
+def predict_bones(puppet, controls, translation_solver=True):
+    """controls (F, n_c, 3) world -> (dual quaternions (F, B, 8) in place, frame_r, frame_t).
+
+    The dual quaternions are unit and, with the solver, carry its translations."""
+    frames = controls.shape[0]
+    frame_r, frame_t = in_place(controls, puppet.reference_controls, puppet.global_motion)
+    placed = apply_frames(frame_r, frame_t, controls)
+    x = puppet.kernel.standardise(placed.reshape(frames, -1))
+    xi = puppet.kernel.matrix(x, puppet.training_controls)  # kernel vector ξ (F, n_p)   (Feng §6.1)
+    d = predict(puppet.regression, xi)  # d = M ξ + m, all bones at once
+    d = d / np.linalg.norm(d[..., :4], axis=-1, keepdims=True)
+    if translation_solver and puppet.translations is not None:
+        rot, trans = dual_quaternion_to_rigid(d)
+        trans = solve_translations(puppet.translations, rot, placed, trans)  # t = P·T   (Feng §6.2)
+        pure = np.concatenate([np.zeros(trans.shape[:-1] + (1,)), trans], axis=-1)
+        d = np.concatenate([d[..., :4], 0.5 * quaternion_multiply(pure, d[..., :4])], axis=-1)
+    return d, frame_r, frame_t
+
+
+SKINNING = ("dual-quaternion", "linear")
+
+
+def predict_vertices(puppet, controls, translation_solver=True, skinning="dual-quaternion"):
+    """The whole run-time prediction in numpy: controls (F, n_c, 3) -> vertices (F, V, 3).
+
+    ``skinning``: "dual-quaternion" as Feng §6.3 (no candy-wrapper collapse), or "linear", the
+    model the skin weights were fitted for (exact on LBS data; see ``skinsynth evaluate``)."""
+    from skinsynth.gpu import dqs_reference, lbs_reference
+
+    if skinning not in SKINNING:
+        raise OptionError(f"skinning must be one of {', '.join(SKINNING)}")
+    d, frame_r, frame_t = predict_bones(puppet, controls, translation_solver)
+    if skinning == "linear":
+        rot, trans = dual_quaternion_to_rigid(d)
+        placed = lbs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, rot, trans)
+    else:
+        placed = dqs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, d)  # Feng §6.3
+    inv_r, inv_t = invert_frames(frame_r, frame_t)
+    return apply_frames(inv_r, inv_t, placed)
