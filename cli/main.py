@@ -10,6 +10,8 @@ from .export import export
 from .fit_skin import fit_skin
 from .inspect_file import inspect_file
 from .select_controls import select_controls
+from .train_kcca import train_kcca
+from .evaluate import evaluate
 
 
 class SkinsynthGroup(click.Group):
@@ -52,3 +54,5 @@ main.add_command(inspect_file)
 main.add_command(export)
 main.add_command(example)
 main.add_command(select_controls)
+main.add_command(train_kcca)
+main.add_command(evaluate)

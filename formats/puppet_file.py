@@ -26,8 +26,6 @@ from .skin_file import read_skin
 
 def puppet_groups(model, puppet, test_frames, regularization_mode):
     """All groups of a puppet file: the controls file's groups forwarded, plus the puppet's."""
-    from skinsynth.pipeline.kcca import ControlKernel  # noqa: F401  (documents the type)
-
     bones = puppet.regression.predictor.shape[0]
     groups = {name: model[name] for name in ("mesh", "examples", "skin", "controls")}
     groups["training"] = {"train_frames": puppet.train_frames.astype(np.int64),

@@ -93,3 +93,39 @@ def synthetic_lbs(bones=6, frames=30, max_influences=4, rings=48, segments=12, s
     vertices = np.einsum("fvka,vk->fva", moved, weights)
     return dict(vertices=vertices, faces=faces, rest=rest, bone_indices=indices.astype(np.int32),
                 bone_weights=weights, rotations=rotations, translations=translations)
+
+
+def articulated_tube(frames=160, rings=120, segments=12, joints=4, length=8.0, radius=0.35, amplitude=0.9,
+                     joint_width=0.25, seed=0):
+    """A tube that bends at ``joints`` soft joints, each swinging in two planes at its own rate.
+
+    Joint j at arclength s_j swings by ``amplitude`` radians (about z and about y, with
+    incommensurate frequencies and random phases); the bend is spread over ``joint_width`` of
+    arclength by a logistic ramp, so the deformation is smooth and not itself an LBS model. The
+    centre line is integrated from the rotation field along the tube. Many nonlinear degrees of
+    freedom sampled sparsely: the setting where puppet regression has to generalise. Returns
+    (vertices (F, V, 3), faces (T, 3)).
+    """
+    rng = np.random.default_rng(seed)
+    rest, faces = cylinder_mesh(rings, segments, length, radius)
+    s = rest[:, 0]
+    ring_s = np.linspace(0.0, length, rings)
+    centres = (np.arange(joints) + 1.0) * length / (joints + 1.0)
+    time = np.arange(frames)[:, None]
+    rate = 2.0 * np.pi * rng.uniform(0.6, 1.7, size=(2, joints)) / 40.0
+    phase = rng.uniform(0.0, 2.0 * np.pi, size=(2, joints))
+    angle_z = amplitude * np.sin(rate[0] * time + phase[0])  # (F, J)
+    angle_y = 0.6 * amplitude * np.sin(rate[1] * time + phase[1])
+    ramp = 1.0 / (1.0 + np.exp(-(ring_s[:, None] - centres[None]) / (joint_width / 4.0)))  # (rings, J)
+    phi_z = angle_z @ ramp.T  # (F, rings)
+    phi_y = angle_y @ ramp.T
+    frame = rotation_exp(np.stack([np.zeros_like(phi_z), np.zeros_like(phi_z), phi_z], -1)) @ \
+        rotation_exp(np.stack([np.zeros_like(phi_y), phi_y, np.zeros_like(phi_y)], -1))  # (F, rings, 3, 3)
+    step = np.diff(ring_s, prepend=0.0)
+    tangent = frame[..., :, 0]
+    centre_line = np.cumsum(tangent * step[None, :, None], axis=1)
+    ring_of = np.clip(np.round(s / length * (rings - 1)).astype(int), 0, rings - 1)
+    offset = rest.copy()
+    offset[:, 0] = 0.0
+    vertices = centre_line[:, ring_of] + np.einsum("fvab,vb->fva", frame[:, ring_of], offset)
+    return vertices, faces

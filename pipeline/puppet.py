@@ -19,8 +19,7 @@ from .alignment import apply_frames, control_frames, invert_frames
 from .errors import OptionError
 from .kcca import ControlKernel, KccaRegression, choose_regularization, control_kernel, fit_kcca, predict
 from .poisson import TranslationOperator, fit_edge_weights, mesh_edges, solve_translations, translation_operator
-from .rotations import (align_hemispheres, dual_quaternion_to_rigid, matrix_to_quaternion, quaternion_multiply,
-                        rigid_to_dual_quaternion)
+from .rotations import dual_quaternion_to_rigid, quaternion_multiply, rigid_to_dual_quaternion
 
 GLOBAL_MOTION = ("control-frame", "world")
 

@@ -13,14 +13,11 @@ import os
 import shutil
 import subprocess
 import sys
-import traceback
 
 import h5py
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from skinsynth.cli.main import main
 from skinsynth.formats.exr import read_vat
 from skinsynth.formats.meshseq import write_array_sequence
 from skinsynth.formats.model import FORMAT_VERSION, write_model
@@ -28,6 +25,8 @@ from skinsynth.formats.skin_file import read_skin
 from skinsynth.formats.usd import read_points_cache, read_skel_points
 from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.examples import bending_bar
+
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
 
 FRAMES, RINGS, SEGMENTS = 12, 8, 6
 VERTICES = RINGS * SEGMENTS + 2  # 50: the rings plus one centre vertex per cap
@@ -37,41 +36,6 @@ SCRIPT = os.path.join(os.path.dirname(sys.executable), "skinsynth")
 
 
 # ---------------------------------------------------------------- helpers
-
-
-def cli(*args):
-    """Run ``skinsynth ARGS`` in-process; stdout and stderr come back separately."""
-    return CliRunner().invoke(main, [str(a) for a in args], prog_name="skinsynth")
-
-
-def assert_ok(result):
-    assert result.exit_code == 0, f"exit {result.exit_code}\nstdout: {result.stdout}\nstderr: {result.stderr}" + (
-        "" if result.exc_info is None or isinstance(result.exception, SystemExit)
-        else "\n" + "".join(traceback.format_exception(*result.exc_info)))
-    return result
-
-
-def assert_user_error(result, *needles, folder=None, keep=()):
-    """Exit 2, exactly one stderr line holding every needle, no traceback, nothing new in ``folder``."""
-    detail = f"exit {result.exit_code}\nstdout: {result.stdout!r}\nstderr: {result.stderr!r}"
-    # An exception escaping the command would be caught by CliRunner (exit 1) instead of printed.
-    assert isinstance(result.exception, SystemExit), detail + f"\nexception: {result.exception!r}"
-    assert result.exit_code == 2, detail
-    lines = result.stderr.splitlines()
-    assert len(lines) == 1, detail
-    assert "Traceback" not in result.output, detail
-    assert lines[0].startswith("skinsynth: error: "), detail
-    for needle in needles:
-        assert needle in lines[0], f"{needle!r} not in {lines[0]!r}"
-    assert result.stdout == "", detail
-    if folder is not None:
-        assert_folder_holds(folder, keep)
-    return lines[0]
-
-
-def assert_folder_holds(folder, names=()):
-    """The folder holds exactly ``names``: no output, and no ``.*.tmp*`` file left by a writer."""
-    assert sorted(os.listdir(folder)) == sorted(names)
 
 
 def write_obj(path, vertices, faces):

@@ -1,0 +1,68 @@
+"""select-controls → train-kcca → evaluate from the command line, and their bad inputs."""
+
+import json
+
+import h5py
+import pytest
+
+from skinsynth.formats.meshseq import write_array_sequence
+from skinsynth.pipeline.examples import bending_bar
+
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    root = tmp_path_factory.mktemp("puppet")
+    vertices, faces = bending_bar(frames=24, rings=10, segments=8)
+    write_array_sequence(root / "bar.npz", vertices, faces, 24.0)
+    assert_ok(cli("fit-skin", root / "bar.npz", "-o", root / "skin.h5", "--bones", 4, "--iterations", 8, "-q"))
+    assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 6))
+    assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5", "-q"))
+    return root
+
+
+def test_pipeline_and_evaluate_json(files, tmp_path):
+    result = json.loads(assert_ok(cli("evaluate", files / "puppet.h5", "--json", "--plot", tmp_path / "e.png")).stdout)
+    for key in ("kcca", "kcca_no_translation_solver", "pca_blendshape", "rbf", "test_frames", "global_motion"):
+        assert key in result
+    assert result["test_frames"] == [f for f in range(24) if f % 4]
+    assert all(0.0 <= result[k] < 0.05 for k in ("kcca", "pca_blendshape", "rbf"))
+    assert (tmp_path / "e.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    text = assert_ok(cli("evaluate", files / "puppet.h5")).stdout
+    assert "control-frame" in text and "kcca" in text
+    summary = json.loads(assert_ok(cli("inspect", files / "puppet.h5", "--json")).stdout)
+    assert summary["stage"] == "puppet" and [p["stage"] for p in summary["provenance"]] == ["skin", "controls", "puppet"]
+
+
+def test_train_kcca_is_deterministic(files, tmp_path):
+    assert_ok(cli("train-kcca", files / "controls.h5", "-o", tmp_path / "again.h5", "-q"))
+    with h5py.File(files / "puppet.h5") as a, h5py.File(tmp_path / "again.h5") as b:
+        for name in ("kcca/predictor", "kcca/bias", "poisson/rotation_operator", "poisson/control_operator"):
+            assert a[name][()].tobytes() == b[name][()].tobytes()
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["--kernel", "cubic"], ["--kernel", "cubic"]),
+    (["--train-frames", "first:3"], ["3 training frames"]),
+    (["--train-frames", "every:0"], ["--train-frames"]),
+    (["--regularization", "lots"], ["--regularization"]),
+    (["--bases", "0"], ["--bases"]),
+    (["--beta", "0"], ["--beta"]),
+], ids=["kernel", "too-few-frames", "bad-spec", "regularization", "bases", "beta"])
+def test_train_kcca_bad_options(files, tmp_path, args, needles):
+    assert_user_error(cli("train-kcca", files / "controls.h5", "-o", tmp_path / "p.h5", *args), *needles,
+                      folder=tmp_path)
+
+
+def test_train_kcca_refuses_a_skin_file(files, tmp_path):
+    assert_user_error(cli("train-kcca", files / "skin.h5", "-o", tmp_path / "p.h5"), "skin.h5", "'skin'",
+                      "select-controls", folder=tmp_path)
+
+
+def test_evaluate_refuses_other_stages_and_all_training(files, tmp_path):
+    assert_user_error(cli("evaluate", files / "controls.h5"), "controls.h5", "train-kcca")
+    assert_ok(cli("train-kcca", files / "controls.h5", "-o", tmp_path / "all.h5", "--train-frames", "all", "-q"))
+    assert_user_error(cli("evaluate", tmp_path / "all.h5"), "no held-out frames")
+    assert_user_error(cli("evaluate", files / "puppet.h5", "--plot", tmp_path / "e.pdf"), ".png")
+    assert_folder_holds(tmp_path, ["all.h5"])
