@@ -2,7 +2,7 @@
 
 import click
 
-from .common import Progress, check_output_path, command_line, tool_version, user_errors
+from .common import check_output_path, command_line, tool_version, user_errors
 
 
 @click.command("select-controls")
@@ -18,7 +18,7 @@ from .common import Progress, check_output_path, command_line, tool_version, use
 @click.option("--min-spacing", default=0.05, show_default=True, type=float,
               help="Automatic rule: skip candidates closer than this fraction of the rest bounding-box "
                    "diagonal to a chosen control.")
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar, control list or summary (warnings still show).")
+@click.option("--quiet", "-q", is_flag=True, help="No control list or summary (warnings still show).")
 @user_errors
 def select_controls(input_path, output, count, vertex_list, components, min_spacing, quiet):
     """Choose control points from a skin file's examples (Feng et al. 2008 §3).
@@ -59,10 +59,9 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
     model = read_model(input_path, stages=("skin",))
     skin = read_skin(input_path, model)
 
-    with Progress(1, "select-controls", quiet) as bar:
-        selection = select(skin.examples, skin.rest_vertices, count=count, components=components,
-                           user_vertices=user, min_spacing_fraction=min_spacing)
-        bar.update(1, f"{len(selection.indices)} controls")
+    # No progress bar: one SVD of F x 3V and a K x K varimax take seconds even on large meshes.
+    selection = select(skin.examples, skin.rest_vertices, count=count, components=components,
+                       user_vertices=user, min_spacing_fraction=min_spacing)
 
     parameters = dict(count=len(selection.indices), vertices=user, components=selection.components,
                       components_option=components, min_spacing=min_spacing, method=selection.method)

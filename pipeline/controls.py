@@ -16,7 +16,9 @@ The steps, as built:
 2. **PCA** of the in-place positions, each frame a 3V vector, centred over frames
    (:func:`pca_bases`). Default number of bases K: the smallest explaining ≥ 99 % of the
    in-place variance, raised to ceil(n_c / 2) so there are enough candidates, capped to
-   [1, min(F − 1, 3V)] and to the numerical rank of the data.
+   [1, min(F − 1, 3V)] and to the numerical rank of the data. In the automatic mode without
+   ``--components``, K then grows one basis at a time until the candidates hold n_c distinct
+   vertices (several bases can share a representative, e.g. the free end of a bending bar).
 3. **Varimax** (raw, no Kaiser normalisation; :mod:`skinsynth.pipeline.varimax`) of the K
    orthonormal bases (3V × K). The rotated bases are still orthonormal and span the same
    subspace; the variance share of rotated basis j is Σ_i share_i R_ij² (it sums to the
@@ -48,6 +50,8 @@ DEFAULT_COUNT = 8
 EXPLAINED_TARGET = 0.99
 #: Singular directions with a smaller variance share than this are numerically absent.
 RANK_SHARE = 1e-14
+#: In-place RMS motion below this fraction of the bounding-box diagonal counts as no deformation.
+NO_MOTION = 1e-9
 
 
 @dataclass
@@ -95,7 +99,10 @@ def _pca(in_place):
     _, singular, vt = np.linalg.svd(centred, full_matrices=False)
     power = singular ** 2
     total = float(power.sum())
-    if not total > 0.0:
+    # "No deformation" is relative to the mesh's size: an RMS in-place motion below 1e-9 of the
+    # bounding-box diagonal is round-off of the rigid alignment.
+    floor = (NO_MOTION * bounding_box_diagonal(in_place.mean(axis=0))) ** 2 * data.size
+    if not total > floor:
         raise OptionError("the examples do not deform once global rigid motion is removed: "
                           "there is nothing to select control points from")
     return vt, power / total
@@ -104,6 +111,27 @@ def _pca(in_place):
 def max_components(frames, vertices):
     """Largest K PCA can give: min(F − 1, 3V) (centring over frames costs one dimension)."""
     return max(0, min(frames - 1, 3 * vertices))
+
+
+def _check_component_range(components, frames, count):
+    limit = max_components(frames, count)
+    if components is not None and not 1 <= components <= limit:
+        raise OptionError(f"--components {components} is out of range: between 1 and {limit} for {frames} "
+                          f"frames of {count} vertices (at most min(frames - 1, 3 x vertices))")
+    return limit
+
+
+def _component_count(share, frames, count, components, min_components):
+    """(K, largest usable K) from the options and the full variance shares (see :func:`pca_bases`)."""
+    limit = _check_component_range(components, frames, count)
+    rank = int(np.count_nonzero(share > RANK_SHARE))
+    if components is None:
+        needed = int(np.searchsorted(np.cumsum(share), EXPLAINED_TARGET - 1e-12) + 1)
+        return max(1, min(max(needed, min_components), limit, rank)), min(limit, rank)
+    if components > rank:
+        raise OptionError(f"--components {components} is more than the {rank} independent directions the "
+                          "in-place examples span; lower --components")
+    return components, min(limit, rank)
 
 
 def pca_bases(in_place, components=None, min_components=1):
@@ -116,20 +144,10 @@ def pca_bases(in_place, components=None, min_components=1):
     """
     in_place = np.asarray(in_place, dtype=np.float64)
     frames, count = in_place.shape[:2]
-    limit = max_components(frames, count)
-    if components is not None and not 1 <= components <= limit:
-        raise OptionError(f"--components {components} is out of range: between 1 and {limit} for {frames} "
-                          f"frames of {count} vertices (at most min(frames - 1, 3 x vertices))")
+    _check_component_range(components, frames, count)
     vt, share = _pca(in_place)
-    rank = int(np.count_nonzero(share > RANK_SHARE))
-    if components is None:
-        needed = int(np.searchsorted(np.cumsum(share), EXPLAINED_TARGET - 1e-12) + 1)
-        components = max(1, min(max(needed, min_components), limit, rank))
-    elif components > rank:
-        raise OptionError(f"--components {components} is more than the {rank} independent directions the "
-                          "in-place examples span; lower --components")
-    share = share[:components]
-    return vt[:components].reshape(components, count, 3), share, float(share.sum())
+    k, _ = _component_count(share, frames, count, components, min_components)
+    return vt[:k].reshape(k, count, 3), share[:k], float(share[:k].sum())
 
 
 def representative_vertices(rotated):
@@ -158,6 +176,16 @@ def _nearest(rest, chosen, points):
     return np.linalg.norm(diff, axis=2).min(axis=1)
 
 
+def _rotate(bases, share):
+    """Varimax of the bases (K, V, 3) as a 3V x K matrix; rotated bases renumbered by variance share."""
+    k, vertex_count = bases.shape[:2]
+    rotated, rotation = varimax(bases.reshape(k, -1).T)
+    rotated_share = (share[:, None] * rotation ** 2).sum(axis=0)
+    order = np.argsort(-rotated_share, kind="stable")
+    rotated = rotated[:, order].T.reshape(k, vertex_count, 3)
+    return (rotated, rotated_share[order]) + representative_vertices(rotated)
+
+
 def choose_controls(candidates, basis_of, variance_share, rest, count, min_spacing):
     """Choose ``count`` of the candidate vertices by a deterministic rule spread over bases and surface.
 
@@ -174,6 +202,12 @@ def choose_controls(candidates, basis_of, variance_share, rest, count, min_spaci
     No randomness: the same inputs give the same choice. Returns (indices (count,) int64,
     reasons: one sentence per chosen control).
     """
+    positions, reasons = _choose(candidates, basis_of, variance_share, rest, count, min_spacing)
+    return np.asarray(candidates, dtype=np.int64)[positions], reasons
+
+
+def _choose(candidates, basis_of, variance_share, rest, count, min_spacing):
+    """:func:`choose_controls`, returning positions in ``candidates`` (so each control keeps its basis)."""
     candidates = np.asarray(candidates, dtype=np.int64)
     basis_of = np.asarray(basis_of)
     variance_share = np.asarray(variance_share, dtype=np.float64)
@@ -193,7 +227,7 @@ def choose_controls(candidates, basis_of, variance_share, rest, count, min_spaci
         slot[position] = np.count_nonzero(basis_of[:position] == basis_of[position])
     visit = np.lexsort((np.arange(len(candidates)), rank_of_basis[basis_of], slot))
 
-    chosen, reasons = [], []
+    chosen, picked, reasons = [], [], []
     for position in visit:
         if len(chosen) == count:
             break
@@ -203,29 +237,33 @@ def choose_controls(candidates, basis_of, variance_share, rest, count, min_spaci
         gap = _nearest(rest, chosen, [vertex])[0]
         if gap < min_spacing:
             continue
-        share = 100.0 * variance_share[basis]
         if slot[position] == 0:
-            what = f"largest motion in basis {basis} ({share:.1f}% of variance)"
+            what = f"round 1 (first representatives): the vertex basis {basis} moves most"
         else:
             partner = candidates[(basis_of == basis) & (slot == 0)]
-            what = (f"moves most differently from vertex {int(partner[0])} in basis {basis} "
-                    f"({share:.1f}% of variance)")
-        where = "" if not chosen else f"; {gap:.3g} from the nearest control"
-        reasons.append(f"{what}; round {int(slot[position]) + 1} of the round-robin over bases{where}")
+            what = (f"round {int(slot[position]) + 1} (second representatives): moves most differently "
+                    f"from vertex {int(partner[0])} under basis {basis}")
+        reasons.append(what + ("" if not chosen else f"; {gap:.3g} from the nearest control"))
         chosen.append(vertex)
+        picked.append(int(position))
 
     remaining = np.setdiff1d(distinct, chosen)                     # sorted by vertex id
+    first_visit = {}
+    for position in visit[::-1]:                                   # earliest visit of each vertex wins
+        first_visit[int(candidates[position])] = int(position)
     while len(chosen) < count:
         gaps = _nearest(rest, chosen, remaining)
         pick = int(np.argmax(gaps))                                # first maximum = lowest id
         vertex = int(remaining[pick])
-        basis = int(basis_of[np.flatnonzero(candidates == vertex)[0]])
-        reasons.append(f"farthest-point fill (round-robin ran out under the spacing rule): candidate of "
-                       f"basis {basis} ({100.0 * variance_share[basis]:.1f}% of variance), "
-                       f"{gaps[pick]:.3g} from the nearest control")
+        position = first_visit[vertex]
+        basis = int(basis_of[position])
+        kind = f"the vertex basis {basis} moves most" if slot[position] == 0 else f"second representative of basis {basis}"
+        reasons.append(f"farthest-point fill (the round-robin skipped candidates within {min_spacing:.3g} of a "
+                       f"control): {kind}, {gaps[pick]:.3g} from the nearest control")
         chosen.append(vertex)
+        picked.append(position)
         remaining = np.delete(remaining, pick)
-    return np.asarray(chosen, dtype=np.int64), reasons
+    return np.asarray(picked, dtype=np.int64), reasons
 
 
 def _check_user_vertices(user_vertices, count, vertex_count):
@@ -288,16 +326,20 @@ def select_controls(vertices, rest, count=None, components=None, user_vertices=N
         if count < 1:
             raise OptionError(f"--count must be at least 1 (got {count})")
 
+    _check_component_range(components, frames, vertex_count)
     in_place, _, _ = align_in_place(vertices, rest)
+    vt, all_share = _pca(in_place)
     minimum = 1 if user is not None else math.ceil(count / 2)
-    bases, share, explained = pca_bases(in_place, components, min_components=minimum)
-    k = bases.shape[0]
-    rotated, rotation = varimax(bases.reshape(k, -1).T)
-    rotated_share = (share[:, None] * rotation ** 2).sum(axis=0)
-    order = np.argsort(-rotated_share, kind="stable")
-    rotated_share = rotated_share[order]
-    rotated = rotated[:, order].T.reshape(k, vertex_count, 3)
-    candidates, basis_of, loading = representative_vertices(rotated)
+    k, limit = _component_count(all_share, frames, vertex_count, components, minimum)
+    while True:
+        share = all_share[:k]
+        rotated, rotated_share, candidates, basis_of, loading = _rotate(vt[:k].reshape(k, vertex_count, 3), share)
+        # Default K in the automatic mode: add bases until the candidates hold enough distinct
+        # vertices (several bases can share a representative, e.g. the free end of a bent bar).
+        if user is not None or components is not None or k >= limit or np.unique(candidates).size >= count:
+            break
+        k += 1
+    explained = float(share.sum())
 
     diagonal = bounding_box_diagonal(rest)
     spacing = float(min_spacing_fraction * diagonal)
@@ -305,11 +347,11 @@ def select_controls(vertices, rest, count=None, components=None, user_vertices=N
     if user is None:
         distinct = np.unique(candidates).size
         if count > distinct:
-            hint = ("lower --count or raise --components" if k < max_components(frames, vertex_count)
-                    else f"lower --count (--components is already at its maximum {k} for {frames} frames)")
+            hint = ("lower --count or raise --components" if k < limit
+                    else f"lower --count (K = {k} bases is already the most these {frames} frames allow)")
             raise OptionError(f"--count {count} but only {distinct} candidate vertices; {hint}")
-        indices, reasons = choose_controls(candidates, basis_of, rotated_share, rest, count, spacing)
-        control_basis = np.array([basis_of[np.flatnonzero(candidates == v)[0]] for v in indices], dtype=np.int32)
+        positions, reasons = _choose(candidates, basis_of, rotated_share, rest, count, spacing)
+        indices, control_basis = candidates[positions], basis_of[positions].astype(np.int32)
         method = "auto"
     else:
         indices = user
@@ -317,10 +359,9 @@ def select_controls(vertices, rest, count=None, components=None, user_vertices=N
         reasons = []
         for vertex, basis in zip(indices.tolist(), control_basis.tolist()):
             hits = np.flatnonzero(candidates == vertex)
-            note = (f"a representative of basis {int(basis_of[hits[0]])}" if hits.size
-                    else "not a representative vertex")
-            reasons.append(f"given by --vertices; {note}; moves most in basis {basis} "
-                           f"({100.0 * rotated_share[basis]:.1f}% of variance)")
+            note = (f"also a representative of basis {int(basis_of[hits[0]])}" if hits.size
+                    else "not one of the representative vertices")
+            reasons.append(f"given by --vertices; {note}; basis {basis} is the one that moves it most")
         method = "user"
     warnings = [w for w in [collinearity_warning(rest, indices, diagonal)] if w]
     return ControlSelection(indices=np.asarray(indices, dtype=np.int64), reasons=reasons,
