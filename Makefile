@@ -22,12 +22,18 @@ demo: setup
 	$(BIN)/skinsynth export $(DEMO)/skin.h5 -o $(DEMO)/bar_skel.usda --as skel
 	$(BIN)/skinsynth export $(DEMO)/skin.h5 -o $(DEMO)/bar_points.usdc --as points
 	$(BIN)/skinsynth export $(DEMO)/skin.h5 -o $(DEMO)/bar_vat.exr
+	$(BIN)/skinsynth select-controls $(DEMO)/skin.h5 -o $(DEMO)/controls.h5
+	$(BIN)/skinsynth train-kcca $(DEMO)/controls.h5 -o $(DEMO)/puppet.h5
+	$(BIN)/skinsynth evaluate $(DEMO)/puppet.h5 --plot $(DEMO)/puppet_errors.png
 	@echo
 	@echo "demo results in $(DEMO)/:"
 	@echo "  skin.h5          fitted skin model (skinsynth inspect $(DEMO)/skin.h5)"
 	@echo "  bar_skel.usda    UsdSkel rig + animation (open in usdview, Blender, Houdini, Maya)"
 	@echo "  bar_points.usdc  baked point cache of the same animation"
 	@echo "  bar_vat.exr      vertex-animation texture for game engines"
+	@echo "  controls.h5      8 control vertices chosen by PCA + varimax"
+	@echo "  puppet.h5        kernel-CCA puppet driven by those controls"
+	@echo "  puppet_errors.png held-out error of the puppet vs PCA blendshapes and RBF"
 
 test: setup
 	$(BIN)/python -m pytest -q
@@ -38,6 +44,7 @@ test-fast: setup
 # Benchmarks print JSON lines; py-dem-bones is compared side by side when installed (pip install -e ".[bench]").
 bench: setup
 	$(BIN)/python benchmarks/fit_skin.py
+	$(BIN)/python benchmarks/puppet.py
 	$(BIN)/python benchmarks/lbs.py
 
 clean:
