@@ -63,7 +63,7 @@ def _evaluate(name, vertices, faces, bones):
     line = {"dataset": name, "frames": int(vertices.shape[0]), "vertices": int(vertices.shape[1]), "bones": bones,
             "controls": [int(c) for c in controls], "train_frames": int(train.size), "test_frames": int(test.size),
             "fit_skin_seconds": round(fit_seconds, 2)}
-    for mode in ("control-frame", "world"):
+    for mode in ("auto", "control-frame", "world"):
         for kernel in ("gaussian", "polynomial"):
             started = time.perf_counter()
             puppet = train_puppet(vertices, fit.rest_vertices, faces, fit.bone_indices, fit.bone_weights,
@@ -75,6 +75,8 @@ def _evaluate(name, vertices, faces, bones):
                          "pca_components": result.notes["pca_components"]}
             line[key]["kcca_over_pca"] = round(result.overall["kcca"] / result.overall["pca_blendshape"], 3)
             line[key]["lowest"] = min(result.overall, key=result.overall.get)
+            if mode == "auto":
+                line[key]["chosen"] = puppet.global_motion
     return line
 
 

@@ -55,7 +55,8 @@ def evaluate(path, as_json, plot, skinning, pca_components):
         click.echo(json.dumps(payload, sort_keys=True))
         return
     click.echo(f"{path}: {len(result.test_frames)} held-out frames, {len(puppet.train_frames)} training; "
-               f"global motion: {result.notes['global_motion']}; {skinning} skinning; "
+               f"global motion: {result.notes['global_motion']} ({result.notes['global_motion_reason']}); "
+               f"{skinning} skinning; "
                f"kernel {result.notes['kernel']}; PCA baseline with {result.notes['pca_components']} blendshapes")
     best = min(result.overall, key=result.overall.get)
     for name, label in METHODS.items():

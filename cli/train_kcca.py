@@ -21,9 +21,10 @@ from .common import check_output_path, command_line, tool_version, user_errors
 @click.option("--beta", default=100.0, show_default=True, type=float, help="Weight of the control-point constraints in the Poisson solve.")
 @click.option("--train-frames", default="every:4", show_default=True,
               help="Example frames to train on: every:N, first:N, all, or a list like 0,4,10-20; the rest are held out.")
-@click.option("--global-motion", type=click.Choice(["control-frame", "world"]), default="control-frame", show_default=True,
+@click.option("--global-motion", type=click.Choice(["auto", "control-frame", "world"]), default="auto", show_default=True,
               help="control-frame: train and run in a rigid frame fitted to the control points (for travelling "
-                   "or turning examples); world: use positions as they are.")
+                   "or turning examples); world: use positions as they are; auto: control-frame when the "
+                   "examples move as a whole and the controls fix a frame well, else world (the choice is printed).")
 @click.option("--quiet", "-q", is_flag=True, help="No summary.")
 @user_errors
 def train_kcca(path, output, kernel, bases, regularization, translation_solver, beta, train_frames, global_motion, quiet):
@@ -79,4 +80,5 @@ def train_kcca(path, output, kernel, bases, regularization, translation_solver, 
         click.echo(f"wrote {output}: {skin.bones} bones, {len(controls.vertex_indices)} controls, "
                    f"{len(train)} training / {len(test)} held-out frames, {kernel} kernel, "
                    f"{corr.shape[1]} bases (mean first correlation {corr[:, 0].mean():.3f}), "
-                   f"translation solver {'on' if translation_solver else 'off'}, {global_motion}; {seconds:.1f} s")
+                   f"translation solver {'on' if translation_solver else 'off'}; {seconds:.1f} s")
+        click.echo(f"global motion: {puppet.global_motion} ({puppet.global_motion_reason})")

@@ -4,7 +4,7 @@ Copies forward ``/mesh``, ``/examples``, ``/skin`` and ``/controls`` and adds:
 
 - ``/training``: ``train_frames (n_p,)``, ``test_frames (n_t,)`` int64 (example frames held out),
   ``reference_controls (n_c, 3)`` (rest-frame control positions defining "in place");
-  ``@global_motion`` ("control-frame" | "world").
+  ``@global_motion`` ("control-frame" | "world"), ``@global_motion_reason`` (why, for auto).
 - ``/kcca``: ``predictor (8B, n_p)`` the concatenated M of Feng §6.1 (rows bone-major: bone b
   owns rows 8b..8b+7, its dual quaternion (w, x, y, z, w_e, x_e, y_e, z_e)), ``bias (8B,)``,
   ``training_controls (n_p, 3 n_c)`` standardised, ``control_mean (3 n_c,)``,
@@ -31,7 +31,8 @@ def puppet_groups(model, puppet, test_frames, regularization_mode):
     groups["training"] = {"train_frames": puppet.train_frames.astype(np.int64),
                           "test_frames": np.asarray(test_frames, dtype=np.int64),
                           "reference_controls": puppet.reference_controls,
-                          "@global_motion": puppet.global_motion}
+                          "@global_motion": puppet.global_motion,
+                          "@global_motion_reason": puppet.global_motion_reason}
     k = puppet.kernel
     groups["kcca"] = {"predictor": puppet.regression.predictor.reshape(bones * 8, -1),
                       "bias": puppet.regression.bias.reshape(-1),
@@ -76,5 +77,6 @@ def read_puppet(path):
                     control_indices=np.asarray(controls.vertex_indices), reference_controls=training["reference_controls"],
                     global_motion=str(training.get("@global_motion", "control-frame")), kernel=kernel,
                     training_controls=kcca["training_controls"], regression=regression, translations=operator,
-                    beta=beta, train_frames=training["train_frames"])
+                    beta=beta, train_frames=training["train_frames"],
+                    global_motion_reason=str(training.get("@global_motion_reason", "")))
     return puppet, training["test_frames"], skin

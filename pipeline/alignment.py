@@ -11,17 +11,20 @@ import numpy as np
 from .rotations import polar_rotation
 
 
-def control_frames(controls, reference):
+def control_frames(controls, reference, weights=None):
     """Rigid transforms taking each frame's control points onto the reference.
 
-    controls (F, n, 3), reference (n, 3) -> (rotations (F, 3, 3), translations (F, 3)) with
-    ``reference ≈ controls[f] @ R[f].T + t[f]``. Needs n ≥ 3 non-collinear points for a unique
-    rotation (with fewer, the nearest rotation of a rank-deficient covariance is returned).
+    controls (F, n, 3), reference (n, 3), weights (n,) or None (equal) -> (rotations (F, 3, 3),
+    translations (F, 3)) minimising ``Σ_l w_l |R c_l + t − r_l|²``. Needs n ≥ 3 non-collinear
+    points of non-zero weight for a unique rotation (with fewer, the nearest rotation of a
+    rank-deficient covariance is returned).
     """
     controls = np.asarray(controls, dtype=np.float64)
-    mean_c = controls.mean(axis=1)
-    mean_r = reference.mean(axis=0)
-    cross = np.einsum("na,fnb->fab", reference - mean_r, controls - mean_c[:, None])
+    n = controls.shape[1]
+    w = np.full(n, 1.0 / n) if weights is None else np.asarray(weights, dtype=np.float64) / np.sum(weights)
+    mean_c = np.einsum("n,fna->fa", w, controls)
+    mean_r = w @ reference
+    cross = np.einsum("n,na,fnb->fab", w, reference - mean_r, controls - mean_c[:, None])
     rotations = polar_rotation(cross)
     translations = mean_r - np.einsum("fab,fb->fa", rotations, mean_c)
     return rotations, translations
@@ -36,3 +39,17 @@ def invert_frames(rotations, translations):
     """Inverse rigid transforms: (Rᵀ, −Rᵀ t)."""
     inverse = np.swapaxes(rotations, -1, -2)
     return inverse, -np.einsum("fab,fb->fa", inverse, translations)
+
+
+def frame_conditioning(controls):
+    """How well control points (F, n, 3) fix a rotation: min over frames of s₂/s₁.
+
+    s₁ ≥ s₂ are the two largest singular values of the centred points; a rotation is determined
+    when the points are not collinear (s₂ > 0), and is unstable (it can flip by up to 180°
+    between similar frames) when s₂ is small next to s₁."""
+    centred = controls - controls.mean(axis=1, keepdims=True)
+    singular = np.linalg.svd(centred, compute_uv=False)
+    if singular.shape[1] < 2:
+        return 0.0
+    return float(np.min(singular[:, 1] / np.maximum(singular[:, 0], np.finfo(float).tiny)))
+

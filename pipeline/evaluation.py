@@ -65,7 +65,8 @@ def evaluate_puppet(puppet, examples, test_frames, skinning="dual-quaternion", p
     per_frame, overall = {}, {}
     for name in ("kcca", "kcca_no_translation_solver", "pca_blendshape", "rbf"):
         per_frame[name], overall[name] = relative_errors(predictions[name], truth, scale)
-    notes = {"global_motion": puppet.global_motion, "skinning": skinning,
+    notes = {"global_motion": puppet.global_motion, "global_motion_reason": puppet.global_motion_reason,
+             "skinning": skinning,
              "translation_solver": puppet.translations is not None, "pca_components": int(pca.components),
              "kernel": puppet.kernel.kind}
     return Evaluation(per_frame=per_frame, overall=overall, test_frames=test_frames, scale=scale, notes=notes)

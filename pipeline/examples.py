@@ -96,7 +96,7 @@ def synthetic_lbs(bones=6, frames=30, max_influences=4, rings=48, segments=12, s
 
 
 def articulated_tube(frames=160, rings=120, segments=12, joints=4, length=8.0, radius=0.35, amplitude=0.9,
-                     joint_width=0.25, seed=0):
+                     joint_width=0.25, period=(60.0, 150.0), seed=0):
     """A tube that bends at ``joints`` soft joints, each swinging in two planes at its own rate.
 
     Joint j at arclength s_j swings by ``amplitude`` radians (about z and about y, with
@@ -112,7 +112,7 @@ def articulated_tube(frames=160, rings=120, segments=12, joints=4, length=8.0, r
     ring_s = np.linspace(0.0, length, rings)
     centres = (np.arange(joints) + 1.0) * length / (joints + 1.0)
     time = np.arange(frames)[:, None]
-    rate = 2.0 * np.pi * rng.uniform(0.6, 1.7, size=(2, joints)) / 40.0
+    rate = 2.0 * np.pi / rng.uniform(period[0], period[1], size=(2, joints))
     phase = rng.uniform(0.0, 2.0 * np.pi, size=(2, joints))
     angle_z = amplitude * np.sin(rate[0] * time + phase[0])  # (F, J)
     angle_y = 0.6 * amplitude * np.sin(rate[1] * time + phase[1])

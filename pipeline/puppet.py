@@ -15,13 +15,51 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .alignment import apply_frames, control_frames, invert_frames
+from .alignment import apply_frames, control_frames, frame_conditioning, invert_frames
 from .errors import OptionError
 from .kcca import ControlKernel, KccaRegression, choose_regularization, control_kernel, fit_kcca, predict
 from .poisson import TranslationOperator, fit_edge_weights, mesh_edges, solve_translations, translation_operator
 from .rotations import dual_quaternion_to_rigid, quaternion_multiply, rigid_to_dual_quaternion
 
-GLOBAL_MOTION = ("control-frame", "world")
+GLOBAL_MOTION = ("auto", "control-frame", "world")
+#: A frame fitted to the controls is trusted only above this conditioning (s₂/s₁, every frame).
+FRAME_CONDITIONING = 0.15
+
+
+def choose_global_motion(examples, rest, faces, bone_indices, bone_weights, rotations, translations,
+                         control_indices, train_frames, kernel, folds=4):
+    """("control-frame" | "world", reason) for ``--global-motion auto``.
+
+    A frame fitted to the controls removes travel and turns, but it also adds a nonlinear
+    function of the controls to every bone's pose, and it flips when the controls are nearly
+    collinear (a tube with controls along it). Which helps depends on the data, so: if the
+    controls fix a rotation poorly in some training frame (conditioning ≤ FRAME_CONDITIONING),
+    world; otherwise the mode with the lower vertex error in ``folds``-fold cross-validation over
+    the training frames (interleaved folds; fixed κ = 1e-2 and no translation solver, to keep
+    it cheap).
+    """
+    conditioning = frame_conditioning(examples[train_frames][:, control_indices])
+    if conditioning <= FRAME_CONDITIONING:
+        return "world", (f"the controls are nearly collinear (conditioning {conditioning:.2f}): a frame fitted "
+                         "to them would be unstable; spread the controls in 3D to allow control-frame")
+    if len(train_frames) < 4 + -(-len(train_frames) // folds):
+        return "control-frame", (f"too few training frames to cross-validate; the controls fix a frame well "
+                                 f"(conditioning {conditioning:.2f})")
+    errors = {}
+    for mode in ("control-frame", "world"):
+        total = 0.0
+        for fold in range(folds):
+            test = train_frames[fold::folds]
+            train = np.setdiff1d(train_frames, test)
+            puppet = train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, translations,
+                                  control_indices, train, kernel=kernel, regularization=1e-2,
+                                  translation_solver=False, global_motion=mode)
+            pred = predict_vertices(puppet, examples[test][:, control_indices], translation_solver=False)
+            total += float(np.sum((pred - examples[test]) ** 2))
+        errors[mode] = np.sqrt(total / (len(train_frames) * rest.shape[0]))
+    chosen = min(errors, key=errors.get)
+    return chosen, (f"cross-validated RMS error {errors['control-frame']:.4g} in the control frame vs "
+                    f"{errors['world']:.4g} in world space (controls' frame conditioning {conditioning:.2f})")
 
 
 @dataclass
@@ -30,7 +68,7 @@ class Puppet:
 
     rest_vertices (V, 3); bone_indices, bone_weights (V, K); control_indices (n_c,);
     reference_controls (n_c, 3) rest-frame control positions that define "in place";
-    global_motion "control-frame" | "world"; kernel: ControlKernel; training_controls (n_p, 3 n_c)
+    global_motion "control-frame" | "world" (and why: global_motion_reason); kernel: ControlKernel; training_controls (n_p, 3 n_c)
     standardised; regression: KccaRegression (predictor (B, 8, n_p), bias (B, 8));
     translations: TranslationOperator or None; beta; train_frames (n_p,).
     """
@@ -47,6 +85,7 @@ class Puppet:
     translations: TranslationOperator | None
     beta: float
     train_frames: np.ndarray
+    global_motion_reason: str = ""
 
 
 def parse_frame_spec(spec, frames):
@@ -97,7 +136,7 @@ def _bone_dual_quaternions(rotations, translations):
 
 def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, translations, control_indices,
                  train_frames, kernel="gaussian", bases=8, regularization="auto", translation_solver=True,
-                 beta=100.0, global_motion="control-frame"):
+                 beta=100.0, global_motion="auto"):
     """Train a puppet from a skin fit. examples (F, V, 3); rotations (F, B, 3, 3), translations
     (F, B, 3) the fitted bones; control_indices (n_c,); train_frames (n_p,). Returns Puppet."""
     if global_motion not in GLOBAL_MOTION:
@@ -111,6 +150,10 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
     control_indices = np.asarray(control_indices)
     if control_indices.size == 0 or control_indices.min() < 0 or control_indices.max() >= rest.shape[0]:
         raise OptionError(f"control vertex ids must lie in 0..{rest.shape[0] - 1}")
+    reason = f"chosen by the user (--global-motion {global_motion})"
+    if global_motion == "auto":
+        global_motion, reason = choose_global_motion(examples, rest, faces, bone_indices, bone_weights, rotations,
+                                                     translations, control_indices, np.asarray(train_frames), kernel)
     reference = rest[control_indices]
     controls = examples[train_frames][:, control_indices]
     frame_r, frame_t = in_place(controls, reference, global_motion)
@@ -140,7 +183,8 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
     return Puppet(rest_vertices=rest, bone_indices=bone_indices, bone_weights=bone_weights,
                   control_indices=np.asarray(control_indices), reference_controls=reference,
                   global_motion=global_motion, kernel=kern, training_controls=x, regression=regression,
-                  translations=operator, beta=float(beta), train_frames=np.asarray(train_frames))
+                  translations=operator, beta=float(beta), train_frames=np.asarray(train_frames),
+                  global_motion_reason=reason)
 
 
 def predict_bones(puppet, controls, translation_solver=True):
