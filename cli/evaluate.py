@@ -4,7 +4,7 @@ import json
 
 import click
 
-from .common import check_output_path, user_errors
+from .common import check_output_path, fail, user_errors
 
 METHODS = {
     "kcca": "kernel CCA + Poisson translation solver",
@@ -41,6 +41,9 @@ def evaluate(path, as_json, plot, skinning, pca_components):
     if plot is not None:
         check_output_path(plot, (".png",))
     puppet, test_frames, skin = read_puppet(path)
+    if len(test_frames) == 0:
+        fail(f"{path}: no held-out frames (trained with --train-frames covering every example); "
+             "retrain leaving some out, e.g. --train-frames every:4")
     result = evaluate_puppet(puppet, skin.examples, test_frames, skinning=skinning, pca_components=pca_components)
     if plot is not None:
         from skinsynth.formats.plots import write_error_plot

@@ -29,57 +29,88 @@ def write_points_cache(path, vertices, faces, fps, prim_name="mesh", up_axis="Y"
     malformed arrays; nothing is left on disk when writing fails.
     """
     vertices = _float_array("vertices", vertices, (None, None, 3))
-    frames, count = vertices.shape[:2]
+    write_points_characters(path, vertices[None], faces, fps, names=[prim_name], up_axis=up_axis, group=None)
+
+
+def write_points_characters(path, vertices, faces, fps, names=None, up_axis="Y", group="characters") -> None:
+    """Several baked characters: vertices (C, F, V, 3) as Meshes ``/<group>/<name>`` (or ``/<name>``)."""
+    vertices = _float_array("vertices", vertices, (None, None, None, 3))
+    characters, frames, count = vertices.shape[:3]
     faces = _faces("faces", faces, count)
-    _check_common(path, fps, prim_name, up_axis, frames)
+    names = [f"character_{c:03d}" for c in range(characters)] if names is None else list(names)
+    if len(names) != characters or not all(Sdf.Path.IsValidIdentifier(n) for n in names):
+        raise ValueError(f"need {characters} valid USD identifiers as names, got {names!r}")
+    _check_common(path, fps, group or names[0], up_axis, frames)
 
     with atomic_output(path) as tmp:
         stage = _new_stage(tmp, fps, frames, up_axis)
-        mesh = _define_mesh(stage, Sdf.Path("/" + prim_name), faces)
-        stage.SetDefaultPrim(mesh.GetPrim())
-        # One attribute at a time: interleaving Sets on two attributes is ~4x slower in pxr 26.
-        points = mesh.GetPointsAttr()
-        for frame in range(frames):
-            points.Set(Vt.Vec3fArray.FromNumpy(vertices[frame].astype(np.float32)), Usd.TimeCode(frame))
-        extent = mesh.GetExtentAttr()
-        for frame in range(frames):
-            extent.Set(_extent(vertices[frame]), Usd.TimeCode(frame))
+        if group is None:
+            parent = Sdf.Path.absoluteRootPath
+        else:
+            parent = Sdf.Path("/" + group)
+            stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, parent).GetPrim())
+        for c, name in enumerate(names):
+            mesh = _define_mesh(stage, parent.AppendChild(name), faces)
+            if group is None and c == 0:
+                stage.SetDefaultPrim(mesh.GetPrim())
+            # One attribute at a time: interleaving Sets on two attributes is ~4x slower in pxr 26.
+            points = mesh.GetPointsAttr()
+            for frame in range(frames):
+                points.Set(Vt.Vec3fArray.FromNumpy(vertices[c, frame].astype(np.float32)), Usd.TimeCode(frame))
+            extent = mesh.GetExtentAttr()
+            for frame in range(frames):
+                extent.Set(_extent(vertices[c, frame]), Usd.TimeCode(frame))
         stage.GetRootLayer().Save()
         del stage  # release the layer before the file is renamed under it
 
 
 def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
-                     bind_centers, fps, prim_name="mesh", up_axis="Y") -> None:
-    """Write a rigid-bone LBS animation as UsdSkel so that UsdSkel's skinning reproduces skinsynth's.
+                     bind_centers, fps, prim_name="mesh", up_axis="Y", skinning="linear") -> None:
+    """Write a rigid-bone animation as UsdSkel so that UsdSkel's skinning reproduces skinsynth's.
 
     rest_vertices (V, 3); faces (T, 3); bone_indices (V, K) int and bone_weights (V, K)
     (non-negative, rows summing to 1; written as given, K = elementSize); rotations (F, B, 3, 3)
     and translations (F, B, 3), the per-frame bone transforms; bind_centers (B, 3), each bone's
-    joint in the rest pose. Layout: SkelRoot ``/<prim_name>`` holding ``Skeleton`` (B root
-    joints ``bone_000``...), ``Skeleton/Animation`` and the bound ``Mesh``.
+    joint in the rest pose; skinning "linear" (classicLinear) or "dual-quaternion". Layout:
+    SkelRoot ``/<prim_name>`` holding ``Skeleton`` (B root joints ``bone_000``...),
+    ``Skeleton/Animation`` and the bound ``Mesh``.
 
     Each joint's bind transform is a translation to its centre c. In Gf's row-vector form the
     skinning transform is inverse(bind) * joint, and it must equal our A(t) = [R^T 0; t 1]; so
     joint = bind * A(t) = [R^T 0; c R^T + t 1]: the joint turns by R and sits at R c + t.
     """
+    rotations = _float_array("rotations", rotations, (None, None, 3, 3))
+    write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations[None],
+                          np.asarray(translations)[None], bind_centers, fps, names=[prim_name], up_axis=up_axis,
+                          skinning=skinning, group=None)
+
+
+SKINNING_METHODS = {"linear": "classicLinear", "dual-quaternion": "dualQuaternion"}
+
+
+def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
+                          bind_centers, fps, names=None, up_axis="Y", skinning="linear", group="characters") -> None:
+    """Several characters sharing one rig, each with its own bone animation, as UsdSkel.
+
+    rotations (C, F, B, 3, 3), translations (C, F, B, 3); the rest as :func:`write_skel_cache`.
+    Each character is a SkelRoot ``/<group>/<name>`` (``/<name>`` when group is None; names
+    default to character_000...). World placement is part of the bone transforms.
+    """
     rest = _float_array("rest_vertices", rest_vertices, (None, 3))
     count = len(rest)
     faces = _faces("faces", faces, count)
-    rotations = _float_array("rotations", rotations, (None, None, 3, 3))
-    frames, bones = rotations.shape[:2]
-    translations = _float_array("translations", translations, (frames, bones, 3))
+    rotations = _float_array("rotations", rotations, (None, None, None, 3, 3))
+    characters, frames, bones = rotations.shape[:3]
+    translations = _float_array("translations", translations, (characters, frames, bones, 3))
     centers = _float_array("bind_centers", bind_centers, (bones, 3))
     indices, weights = _influences(bone_indices, bone_weights, count, bones)
-    _check_rotations(rotations)
-    _check_common(path, fps, prim_name, up_axis, frames)
-
-    joint_translations = np.einsum("fbij,bj->fbi", rotations, centers) + translations
-    joint_matrices = np.zeros((frames * bones, 4, 4))
-    joint_matrices[:, :3, :3] = rotations.reshape(-1, 3, 3).transpose(0, 2, 1)  # row-vector form
-    joint_matrices[:, 3, 3] = 1.0
-    # UsdSkel's own decomposition gives quaternions in its conventions, in one C++ call.
-    _, quats, _ = UsdSkel.DecomposeTransforms(Vt.Matrix4dArray.FromNumpy(joint_matrices))
-    quats = np.asarray(quats, dtype=np.float32).reshape(frames, bones, 4)  # x, y, z, w
+    _check_rotations(rotations.reshape(-1, bones, 3, 3))
+    names = [f"character_{c:03d}" for c in range(characters)] if names is None else list(names)
+    if len(names) != characters or not all(Sdf.Path.IsValidIdentifier(n) for n in names):
+        raise ValueError(f"need {characters} valid USD identifiers as names, got {names!r}")
+    if skinning not in SKINNING_METHODS:
+        raise ValueError(f"skinning must be one of {', '.join(SKINNING_METHODS)}, got {skinning!r}")
+    _check_common(path, fps, group or names[0], up_axis, frames)
 
     joints = Vt.TokenArray([f"bone_{b:03d}" for b in range(bones)])
     bind = np.tile(np.eye(4), (bones, 1, 1))
@@ -89,41 +120,59 @@ def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rot
 
     with atomic_output(path) as tmp:
         stage = _new_stage(tmp, fps, frames, up_axis)
-        root_path = Sdf.Path("/" + prim_name)
-        root = UsdSkel.Root.Define(stage, root_path)
-        stage.SetDefaultPrim(root.GetPrim())
-
-        skeleton = UsdSkel.Skeleton.Define(stage, root_path.AppendChild("Skeleton"))
-        skeleton.CreateJointsAttr(joints)
-        skeleton.CreateJointNamesAttr(joints)
-        skeleton.CreateBindTransformsAttr(bind)
-        skeleton.CreateRestTransformsAttr(bind)  # flat skeleton: parent-local equals world
-
-        animation = UsdSkel.Animation.Define(stage, skeleton.GetPath().AppendChild("Animation"))
-        animation.CreateJointsAttr(joints)
-        anim_translations = animation.CreateTranslationsAttr()
-        anim_rotations = animation.CreateRotationsAttr()
-        animation.CreateScalesAttr(ones)  # without scales DCCs ignore the animation
-        for frame in range(frames):  # one attribute at a time, as in write_points_cache
-            anim_translations.Set(Vt.Vec3fArray.FromNumpy(joint_translations[frame].astype(np.float32)),
-                                  Usd.TimeCode(frame))
-        for frame in range(frames):
-            anim_rotations.Set(Vt.QuatfArray.FromNumpy(quats[frame]), Usd.TimeCode(frame))
-        UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets(
-            [animation.GetPath()])
-
-        mesh = _define_mesh(stage, root_path.AppendChild("Mesh"), faces)
-        mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(rest.astype(np.float32)))
-        mesh.GetExtentAttr().Set(_extent(rest))
-        binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
-        binding.CreateSkeletonRel().SetTargets([skeleton.GetPath()])
-        element_size = indices.shape[1]
-        binding.CreateJointIndicesPrimvar(False, element_size).Set(Vt.IntArray.FromNumpy(indices.ravel()))
-        binding.CreateJointWeightsPrimvar(False, element_size).Set(Vt.FloatArray.FromNumpy(weights.ravel()))
-        binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
-
+        if group is None:
+            parent = Sdf.Path.absoluteRootPath
+        else:
+            parent = Sdf.Path("/" + group)
+            stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, parent).GetPrim())
+        for c, name in enumerate(names):
+            root_path = parent.AppendChild(name)
+            root = UsdSkel.Root.Define(stage, root_path)
+            if group is None and c == 0:
+                stage.SetDefaultPrim(root.GetPrim())
+            _define_skeleton(stage, root_path, joints, bind, ones, rotations[c], translations[c], centers)
+            mesh = _define_mesh(stage, root_path.AppendChild("Mesh"), faces)
+            mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(rest.astype(np.float32)))
+            mesh.GetExtentAttr().Set(_extent(rest))
+            binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
+            binding.CreateSkeletonRel().SetTargets([root_path.AppendChild("Skeleton")])
+            element_size = indices.shape[1]
+            binding.CreateJointIndicesPrimvar(False, element_size).Set(Vt.IntArray.FromNumpy(indices.ravel()))
+            binding.CreateJointWeightsPrimvar(False, element_size).Set(Vt.FloatArray.FromNumpy(weights.ravel()))
+            binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
+            binding.CreateSkinningMethodAttr(SKINNING_METHODS[skinning])
         stage.GetRootLayer().Save()
-        del stage, root, skeleton, animation, mesh, binding
+        del stage
+
+
+def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translations, centers):
+    """Skeleton and Animation of one character: rotations (F, B, 3, 3), translations (F, B, 3)."""
+    frames, bones = rotations.shape[:2]
+    joint_translations = np.einsum("fbij,bj->fbi", rotations, centers) + translations
+    joint_matrices = np.zeros((frames * bones, 4, 4))
+    joint_matrices[:, :3, :3] = rotations.reshape(-1, 3, 3).transpose(0, 2, 1)  # row-vector form
+    joint_matrices[:, 3, 3] = 1.0
+    # UsdSkel's own decomposition gives quaternions in its conventions, in one C++ call.
+    _, quats, _ = UsdSkel.DecomposeTransforms(Vt.Matrix4dArray.FromNumpy(joint_matrices))
+    quats = np.asarray(quats, dtype=np.float32).reshape(frames, bones, 4)  # x, y, z, w
+
+    skeleton = UsdSkel.Skeleton.Define(stage, root_path.AppendChild("Skeleton"))
+    skeleton.CreateJointsAttr(joints)
+    skeleton.CreateJointNamesAttr(joints)
+    skeleton.CreateBindTransformsAttr(bind)
+    skeleton.CreateRestTransformsAttr(bind)  # flat skeleton: parent-local equals world
+
+    animation = UsdSkel.Animation.Define(stage, skeleton.GetPath().AppendChild("Animation"))
+    animation.CreateJointsAttr(joints)
+    anim_translations = animation.CreateTranslationsAttr()
+    anim_rotations = animation.CreateRotationsAttr()
+    animation.CreateScalesAttr(ones)  # without scales DCCs ignore the animation
+    for frame in range(frames):  # one attribute at a time, as in write_points_cache
+        anim_translations.Set(Vt.Vec3fArray.FromNumpy(joint_translations[frame].astype(np.float32)),
+                              Usd.TimeCode(frame))
+    for frame in range(frames):
+        anim_rotations.Set(Vt.QuatfArray.FromNumpy(quats[frame]), Usd.TimeCode(frame))
+    UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
 
 
 def _new_stage(tmp, fps, frames, up_axis):
@@ -276,6 +325,25 @@ def read_skel_points(path) -> np.ndarray:
                 if target.GetPrim().IsA(UsdGeom.Mesh):
                     return _skin_all_frames(stage, skeleton, target)
     raise FormatError(path, "no skinned mesh under a SkelRoot")
+
+
+def read_skel_characters(path) -> list:
+    """[(mesh prim path, vertices (F, V, 3))] for every skinned mesh, as UsdSkel itself skins them."""
+    stage = _open(path)
+    cache = UsdSkel.Cache()
+    out = []
+    for prim in stage.Traverse():
+        if prim.IsA(UsdSkel.Root):
+            root = UsdSkel.Root(prim)
+            cache.Populate(root, Usd.PrimDefaultPredicate)
+            for binding in cache.ComputeSkelBindings(root, Usd.PrimDefaultPredicate):
+                skeleton = cache.GetSkelQuery(binding.GetSkeleton())
+                for target in binding.GetSkinningTargets():
+                    if target.GetPrim().IsA(UsdGeom.Mesh):
+                        out.append((str(target.GetPrim().GetPath()), _skin_all_frames(stage, skeleton, target)))
+    if not out:
+        raise FormatError(path, "no skinned mesh under a SkelRoot")
+    return out
 
 
 def _skin_all_frames(stage, skeleton, target):

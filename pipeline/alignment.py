@@ -11,20 +11,17 @@ import numpy as np
 from .rotations import polar_rotation
 
 
-def control_frames(controls, reference, weights=None):
+def control_frames(controls, reference):
     """Rigid transforms taking each frame's control points onto the reference.
 
-    controls (F, n, 3), reference (n, 3), weights (n,) or None (equal) -> (rotations (F, 3, 3),
-    translations (F, 3)) minimising ``Σ_l w_l |R c_l + t − r_l|²``. Needs n ≥ 3 non-collinear
-    points of non-zero weight for a unique rotation (with fewer, the nearest rotation of a
-    rank-deficient covariance is returned).
+    controls (F, n, 3), reference (n, 3) -> (rotations (F, 3, 3), translations (F, 3))
+    minimising ``Σ_l |R c_l + t − r_l|²``. Needs n ≥ 3 non-collinear points for a unique
+    rotation (with fewer, the nearest rotation of a rank-deficient covariance is returned).
     """
     controls = np.asarray(controls, dtype=np.float64)
-    n = controls.shape[1]
-    w = np.full(n, 1.0 / n) if weights is None else np.asarray(weights, dtype=np.float64) / np.sum(weights)
-    mean_c = np.einsum("n,fna->fa", w, controls)
-    mean_r = w @ reference
-    cross = np.einsum("n,na,fnb->fab", w, reference - mean_r, controls - mean_c[:, None])
+    mean_c = controls.mean(axis=1)
+    mean_r = reference.mean(axis=0)
+    cross = np.einsum("na,fnb->fab", reference - mean_r, controls - mean_c[:, None])
     rotations = polar_rotation(cross)
     translations = mean_r - np.einsum("fab,fb->fa", rotations, mean_c)
     return rotations, translations
