@@ -37,18 +37,12 @@ def write_points_characters(path, vertices, faces, fps, names=None, up_axis="Y",
     vertices = _float_array("vertices", vertices, (None, None, None, 3))
     characters, frames, count = vertices.shape[:3]
     faces = _faces("faces", faces, count)
-    names = [f"character_{c:03d}" for c in range(characters)] if names is None else list(names)
-    if len(names) != characters or not all(Sdf.Path.IsValidIdentifier(n) for n in names):
-        raise ValueError(f"need {characters} valid USD identifiers as names, got {names!r}")
+    names = _character_names(names, characters)
     _check_common(path, fps, group or names[0], up_axis, frames)
 
     with atomic_output(path) as tmp:
         stage = _new_stage(tmp, fps, frames, up_axis)
-        if group is None:
-            parent = Sdf.Path.absoluteRootPath
-        else:
-            parent = Sdf.Path("/" + group)
-            stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, parent).GetPrim())
+        parent = _group_parent(stage, group)
         for c, name in enumerate(names):
             mesh = _define_mesh(stage, parent.AppendChild(name), faces)
             if group is None and c == 0:
@@ -105,9 +99,7 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
     centers = _float_array("bind_centers", bind_centers, (bones, 3))
     indices, weights = _influences(bone_indices, bone_weights, count, bones)
     _check_rotations(rotations.reshape(-1, bones, 3, 3))
-    names = [f"character_{c:03d}" for c in range(characters)] if names is None else list(names)
-    if len(names) != characters or not all(Sdf.Path.IsValidIdentifier(n) for n in names):
-        raise ValueError(f"need {characters} valid USD identifiers as names, got {names!r}")
+    names = _character_names(names, characters)
     if skinning not in SKINNING_METHODS:
         raise ValueError(f"skinning must be one of {', '.join(SKINNING_METHODS)}, got {skinning!r}")
     _check_common(path, fps, group or names[0], up_axis, frames)
@@ -120,11 +112,7 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
 
     with atomic_output(path) as tmp:
         stage = _new_stage(tmp, fps, frames, up_axis)
-        if group is None:
-            parent = Sdf.Path.absoluteRootPath
-        else:
-            parent = Sdf.Path("/" + group)
-            stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, parent).GetPrim())
+        parent = _group_parent(stage, group)
         for c, name in enumerate(names):
             root_path = parent.AppendChild(name)
             root = UsdSkel.Root.Define(stage, root_path)
@@ -173,6 +161,22 @@ def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translatio
     for frame in range(frames):
         anim_rotations.Set(Vt.QuatfArray.FromNumpy(quats[frame]), Usd.TimeCode(frame))
     UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
+
+
+def _character_names(names, characters):
+    names = [f"character_{c:03d}" for c in range(characters)] if names is None else list(names)
+    if len(names) != characters or not all(Sdf.Path.IsValidIdentifier(n) for n in names):
+        raise ValueError(f"need {characters} valid USD identifiers as names, got {names!r}")
+    return names
+
+
+def _group_parent(stage, group):
+    """Where characters go: the pseudo-root, or a default-prim Xform ``/<group>``."""
+    if group is None:
+        return Sdf.Path.absoluteRootPath
+    parent = Sdf.Path("/" + group)
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, parent).GetPrim())
+    return parent
 
 
 def _new_stage(tmp, fps, frames, up_axis):
@@ -312,19 +316,7 @@ def read_skel_points(path) -> np.ndarray:
 
     The oracle that a DCC playing the file shows the same positions as skinsynth computed.
     """
-    stage = _open(path)
-    cache = UsdSkel.Cache()
-    for prim in stage.Traverse():
-        if not prim.IsA(UsdSkel.Root):
-            continue
-        root = UsdSkel.Root(prim)
-        cache.Populate(root, Usd.PrimDefaultPredicate)
-        for binding in cache.ComputeSkelBindings(root, Usd.PrimDefaultPredicate):
-            skeleton = cache.GetSkelQuery(binding.GetSkeleton())
-            for target in binding.GetSkinningTargets():
-                if target.GetPrim().IsA(UsdGeom.Mesh):
-                    return _skin_all_frames(stage, skeleton, target)
-    raise FormatError(path, "no skinned mesh under a SkelRoot")
+    return read_skel_characters(path)[0][1]
 
 
 def read_skel_characters(path) -> list:

@@ -8,14 +8,11 @@ compared with statsmodels run on the row-normalised matrix.
 
 import json
 import os
-import traceback
 
 import h5py
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from skinsynth.cli.main import main
 from skinsynth.formats.controls_file import controls_groups, read_controls
 from skinsynth.formats.errors import FormatError
 from skinsynth.formats.model import read_model, write_model
@@ -23,6 +20,8 @@ from skinsynth.pipeline.controls import (align_in_place, choose_controls, pca_ba
                                          select_controls)
 from skinsynth.pipeline.errors import OptionError
 from skinsynth.pipeline.rotations import rotation_exp
+
+from cli_helpers import assert_ok, cli
 from skinsynth.pipeline.varimax import varimax
 
 statsmodels_rotation = pytest.importorskip("statsmodels.multivariate.factor_rotation")
@@ -284,17 +283,6 @@ def test_controls_file_round_trip_with_utf8_reasons(tmp_path):
 
 
 # ---------------------------------------------------------------- the command line
-
-
-def cli(*args):
-    return CliRunner().invoke(main, [str(a) for a in args], prog_name="skinsynth")
-
-
-def assert_ok(result):
-    assert result.exit_code == 0, f"exit {result.exit_code}\nstdout: {result.stdout}\nstderr: {result.stderr}" + (
-        "" if result.exc_info is None or isinstance(result.exception, SystemExit)
-        else "\n" + "".join(traceback.format_exception(*result.exc_info)))
-    return result
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,52 @@
+"""Many characters from one puppet: their control trajectories, placement, and world-space bones.
+
+``play`` drives C characters over F frames. Characters come from several control files (one
+each) or from ``--instances N`` copies of one trajectory, copy i starting i·F/N frames later
+(cyclically) so a crowd does not move in lock-step. Characters are laid out on a grid on the
+ground plane after prediction — the controls themselves are not moved, so a world-space puppet
+stays inside the region it was trained on.
+"""
+
+import numpy as np
+
+from .alignment import invert_frames
+from .errors import OptionError
+from .puppet import predict_bones
+from .rotations import dual_quaternion_to_rigid
+
+
+def instance_trajectories(trajectories, instances=1):
+    """controls (C, F, n_c, 3) from a list of (F, n_c, 3) trajectories, or N shifted copies of one."""
+    if instances < 1:
+        raise OptionError(f"--instances must be at least 1 (got {instances})")
+    if len(trajectories) > 1:
+        if instances != 1:
+            raise OptionError("--instances applies to a single --controls file; give one file per character instead")
+        lengths = {t.shape[0] for t in trajectories}
+        if len(lengths) != 1:
+            raise OptionError(f"control files have different frame counts ({sorted(lengths)}); they must match")
+        return np.stack(trajectories)
+    base = trajectories[0]
+    frames = base.shape[0]
+    shifts = (np.arange(instances) * frames) // instances
+    order = (np.arange(frames)[None, :] + shifts[:, None]) % frames
+    return base[order]
+
+
+def grid_offsets(characters, spacing, up_axis="Y"):
+    """offsets (C, 3): a near-square grid on the ground plane (x–z for Y-up, x–y for Z-up)."""
+    columns = int(np.ceil(np.sqrt(characters)))
+    index = np.arange(characters)
+    offsets = np.zeros((characters, 3))
+    offsets[:, 0] = (index % columns) * spacing
+    offsets[:, 2 if up_axis == "Y" else 1] = (index // columns) * spacing
+    return offsets
+
+
+def world_bones(puppet, controls, translation_solver=True):
+    """Bone transforms in the world: controls (N, n_c, 3) -> (rotations (N, B, 3, 3), translations (N, B, 3))."""
+    d, frame_r, frame_t = predict_bones(puppet, controls, translation_solver)
+    rotations, translations = dual_quaternion_to_rigid(d)
+    inv_r, inv_t = invert_frames(frame_r, frame_t)
+    return (np.einsum("nac,nbcd->nbad", inv_r, rotations),
+            np.einsum("nac,nbc->nba", inv_r, translations) + inv_t[:, None, :])
