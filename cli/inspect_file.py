@@ -31,6 +31,13 @@ def _summary(path, model):
             if f"@{key}" in skin:
                 value = skin[f"@{key}"]
                 out[key] = bool(value) if key == "converged" else (int(value) if key in ("iterations", "bones_without_weight") else float(value))
+    if "graph" in model:
+        graph = model["graph"]
+        out["components"] = int(graph.get("@components", 0))
+        out["transitions"] = int(graph.get("@transitions", 0))
+        out["cut_nodes"] = [int(b) for b in graph.get("cut_nodes", [])]
+        out["transitions_per_component"] = [int(len(graph[k]["transitions"])) for k in sorted(graph)
+                                            if k.startswith("component_") and "transitions" in graph[k]]
     out["provenance"] = [{k: r.get(k) for k in ("stage", "command", "tool_version", "seed", "date")}
                          for r in model["provenance"]]
     return out

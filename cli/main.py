@@ -12,6 +12,7 @@ from .inspect_file import inspect_file
 from .select_controls import select_controls
 from .train_kcca import train_kcca
 from .evaluate import evaluate
+from .build_graph import build_graph
 
 
 class SkinsynthGroup(click.Group):
@@ -56,3 +57,4 @@ main.add_command(example)
 main.add_command(select_controls)
 main.add_command(train_kcca)
 main.add_command(evaluate)
+main.add_command(build_graph)

@@ -6,8 +6,8 @@ Layout (docs/format.md is the full reference):
 - ``/provenance/NN_<stage>`` one group per stage that contributed, oldest first, with
   attributes ``command``, ``parameters`` (JSON), ``inputs`` (JSON list of {path, sha256}),
   ``tool_version``, ``seed``, ``date``;
-- one group per concept (``/mesh``, ``/examples``, ``/skin``, …) holding datasets; their
-  attributes hold scalars.
+- one group per concept (``/mesh``, ``/examples``, ``/skin``, …) holding datasets (and, where a
+  concept repeats, subgroups such as ``/graph/component_000``); their attributes hold scalars.
 
 Writers go through :func:`~skinsynth.formats.atomic.atomic_output`, so a failed command leaves
 no file. Datasets are written without timestamps and with fixed filters so that the same
@@ -39,6 +39,9 @@ def _write_group(group, contents):
     for name, value in contents.items():
         if name.startswith("@"):
             group.attrs[name[1:]] = value
+            continue
+        if isinstance(value, dict):  # a nested group, e.g. /graph/component_000
+            _write_group(group.create_group(name, track_order=True), value)
             continue
         array = np.asarray(value)
         if array.ndim == 0:
@@ -82,6 +85,8 @@ def _read_group(group):
     for name, item in group.items():
         if isinstance(item, h5py.Dataset):
             out[name] = item[()]
+        elif isinstance(item, h5py.Group):
+            out[name] = _read_group(item)
     return out
 
 

@@ -1,0 +1,86 @@
+"""The ``graph`` stage file written by ``build-graph`` (Zheng §3.2, §3.3, §4.1).
+
+Copies forward ``/mesh``, ``/examples`` and ``/skin`` and adds ``/graph``:
+
+- ``weights (B, B)`` bone-graph edge weights d_ij (eq. 11); ``kept_edges (E, 2)`` the edges left
+  after pruning; ``cut_nodes (n,)``; attributes ``@components``, ``@transitions`` (total),
+  ``@threshold_scale``, ``@threshold_reference``, ``@edge_threshold``, ``@svd_threshold``,
+  ``@min_gap``, ``@min_bones``, ``@single_component``.
+- ``/graph/component_NNN`` per component: ``bones (b,)``; ``local_bones (b−1,)`` (the
+  non-reference bones, in the order of the reduced-coordinate basis and of eq. 9's unknowns);
+  ``reduced_coordinates (F, r)``, ``basis (6(b−1), r)``, ``singular (r,)`` (eq. 3–4);
+  ``reference_motion (F, 6)`` (eq. 6); ``costs (F, F)`` D(i, j) (eq. 5); ``transitions (M, 2)``
+  candidate (i, j) pairs by increasing cost and ``transition_costs (M,)``; ``key_vertices (n,)``,
+  ``key_bones (n, K')`` (−1 padding), ``key_weights (n, K')``, ``weight_gradients (n, K', 3)``
+  (Appendix A); ``rotation_strain (F, n, 9)`` (axis-angle of U then S's upper triangle s00 s01
+  s02 s11 s12 s22 of the local-frame deformation gradient D = U S, eq. 8); ``operator (3n, 4(b−1))``
+  G₀, the row-separable block of eq. 9's G, ``operator_constant (9n,)`` (the reference bone's
+  contribution), ``operator_factor (4(b−1), 4(b−1))`` the lower Cholesky factor of G₀ᵀG₀ + λI;
+  attributes ``@reference``, ``@threshold``, ``@alpha``, ``@beta``, ``@lambda``, ``@ridge``. Key-vertex data use the component's own weights, renormalised over
+  its bones (the component is synthesised as if it were the whole mesh).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import FormatError
+from .model import read_model, require
+from .skin_file import read_skin
+
+_COMPONENT_DATASETS = ("bones", "local_bones", "reduced_coordinates", "costs", "transitions", "transition_costs",
+                       "key_vertices", "key_bones", "key_weights", "weight_gradients", "rotation_strain")
+
+
+def graph_groups(model, analysis):
+    """The groups of a graph file: the skin file's groups forwarded plus ``/graph``."""
+    groups = {name: model[name] for name in ("mesh", "examples", "skin")}
+    options = analysis.options
+    graph = {"weights": analysis.weights, "kept_edges": analysis.kept_edges,
+             "cut_nodes": np.asarray(analysis.cut_nodes, dtype=np.int64),
+             "@components": len(analysis.components), "@transitions": analysis.transition_count,
+             "@threshold_scale": float(options["threshold_scale"]),
+             "@threshold_reference": str(options["threshold_reference"]),
+             "@edge_threshold": float(options["edge_threshold"]), "@svd_threshold": float(options["svd_threshold"]),
+             "@min_gap": int(options["min_gap"]), "@min_bones": int(options["min_bones"]),
+             "@single_component": bool(options["single_component"])}
+    for number, c in enumerate(analysis.components):
+        t, op = c.transitions, c.operator
+        graph[f"component_{number:03d}"] = {
+            "bones": np.asarray(c.bones, dtype=np.int64), "local_bones": np.asarray(t.local_bones, dtype=np.int64),
+            "reduced_coordinates": t.q, "basis": t.basis, "singular": t.singular, "reference_motion": t.r,
+            "costs": t.D, "transitions": np.asarray(t.pairs, dtype=np.int64).reshape(-1, 2),
+            "transition_costs": np.asarray(t.costs, dtype=np.float64),
+            "key_vertices": c.key.astype(np.int64), "key_bones": c.key_bones.astype(np.int64),
+            "key_weights": c.key_weights, "weight_gradients": c.key_gradients, "rotation_strain": c.strain,
+            "operator": op.reduced, "operator_constant": op.constant, "operator_factor": np.tril(op.factor[0]),
+            "@reference": int(t.reference), "@threshold": float(t.threshold), "@alpha": float(t.alpha),
+            "@beta": float(t.beta), "@lambda": float(op.lam), "@ridge": float(op.ridge)}
+    groups["graph"] = graph
+    return groups
+
+
+@dataclass
+class GraphFile:
+    """A graph file as read: skin (SkinModel), graph (the /graph dict), components (list of dicts)."""
+
+    skin: object
+    graph: dict
+    components: list
+
+
+def read_graph(path):
+    """GraphFile of a graph stage file; FormatError if it is not one or is incomplete."""
+    model = read_model(path, stages=("graph",))
+    skin = read_skin(path, model)
+    graph = require(model, path, "graph", ("weights", "kept_edges", "cut_nodes"))
+    names = sorted(k for k in graph if k.startswith("component_"))
+    if not names:
+        raise FormatError(path, "/graph has no components: the file is incomplete")
+    components = []
+    for name in names:
+        missing = [d for d in _COMPONENT_DATASETS if d not in graph[name]]
+        if missing:
+            raise FormatError(path, f"/graph/{name} lacks {', '.join(missing)}: the file is incomplete")
+        components.append(graph[name])
+    return GraphFile(skin=skin, graph=graph, components=components)

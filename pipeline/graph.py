@@ -1,0 +1,118 @@
+"""build-graph: everything synthesis needs from one clip (Zheng §3.2, §3.3, §4.1).
+
+Per bone component (the whole mesh, or the weakly coupled parts separated by cut nodes of the
+bone graph): its reference bone and candidate transitions (:mod:`.transitions`), its key
+vertices with weight gradients (:mod:`.key_vertices`), the rotation–strain series of the
+deformation gradients at those vertices over the clip, and the factorised operator of eq. 9
+that turns blended gradients back into local-frame bone positions
+(:mod:`.deformation_gradients`).
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .bone_graph import bone_components
+from .deformation_gradients import deformation_gradients, gradient_operator, rotation_strain
+from .errors import OptionError
+from .key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
+from .transitions import find_transitions, local_frame_positions
+
+
+@dataclass
+class ComponentAnalysis:
+    """One bone component: bones (sorted ids), transitions (Transitions), key (key vertex ids
+    (n,)), key_bones (n, K') (−1 padding), key_weights (n, K'), key_gradients (n, K', 3),
+    strain (F, n, 9) rotation–strain coordinates of the local-frame deformation gradients,
+    operator (GradientOperator); key data use the component's own weights (renormalised over
+    its bones)."""
+
+    bones: list
+    transitions: object
+    key: np.ndarray
+    key_bones: np.ndarray
+    key_weights: np.ndarray
+    key_gradients: np.ndarray
+    strain: np.ndarray
+    operator: object
+
+
+@dataclass
+class GraphAnalysis:
+    """d (B, B) bone-graph weights (eq. 11); kept_edges (E, 2); cut_nodes; components; options."""
+
+    weights: np.ndarray
+    kept_edges: np.ndarray
+    cut_nodes: list
+    components: list
+    options: dict = field(default_factory=dict)
+
+    @property
+    def transition_count(self):
+        return int(sum(len(c.transitions.pairs) for c in self.components))
+
+
+def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshold, min_gap):
+    if frames < 3:
+        raise OptionError(f"the clip has {frames} frames; transitions need at least 3")
+    for name, value in (("--threshold-scale", threshold_scale), ("--edge-threshold", edge_threshold),
+                        ("--svd-threshold", svd_threshold)):
+        if not value > 0.0:
+            raise OptionError(f"{name} must be positive (got {value})")
+    if min_gap < 1:
+        raise OptionError(f"--min-gap must be at least 1 (got {min_gap})")
+
+
+def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotations, translations, options):
+    """ComponentAnalysis of one bone component (sorted bone ids)."""
+    total = rotations.shape[1]
+    transitions = find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=bones,
+                                   svd_threshold=options["svd_threshold"], threshold_scale=options["threshold_scale"],
+                                   threshold_reference=options["threshold_reference"], min_gap=options["min_gap"])
+    # The component is synthesised as if it were the whole mesh: its key vertices see only its
+    # own bones, weights renormalised over them, so eq. 8 needs no bone from another component
+    # and the unit-sum and eq. 15 properties still hold.
+    own_weights = np.where(np.isin(bone_indices, bones), bone_weights, 0.0)
+    mass = own_weights.sum(axis=1, keepdims=True)
+    own_weights = np.divide(own_weights, mass, out=np.zeros_like(own_weights), where=mass > 0.0)
+    key = key_vertices(bone_indices, own_weights, total, subset=bones).vertices
+    key_bones, gradients = weight_gradients(rest, neighbours, bone_indices, own_weights, key)
+    weights = gather_weights(bone_indices, own_weights, key, key_bones)
+    r_local, t_local, local_ids = local_frame_positions(rotations, translations, transitions.reference, bones)
+    grads = deformation_gradients(r_local, t_local, local_ids, transitions.reference, rest, key, key_bones,
+                                  weights, gradients)  # Zheng eq. 8, (F, n, 3, 3)
+    operator = gradient_operator(local_ids, transitions.reference, rest, key, key_bones, weights, gradients)
+    return ComponentAnalysis(bones=list(bones), transitions=transitions, key=key, key_bones=key_bones,
+                             key_weights=weights, key_gradients=gradients, strain=rotation_strain(grads),
+                             operator=operator)
+
+
+def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations, threshold_scale=3.0,
+                threshold_reference="median-step", edge_threshold=0.1, single_component=False,
+                svd_threshold=0.005, min_gap=2, min_bones=3):
+    """Analyse a skin fit for synthesis. rest (V, 3); faces (T, 3); bone_indices/bone_weights
+    (V, K); rotations (F, B, 3, 3); translations (F, B, 3). Returns GraphAnalysis."""
+    validate_graph_options(rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap)
+    bones = rotations.shape[1]
+    weights, graph, decomposition = bone_components(bone_indices, bone_weights, bones, edge_threshold=edge_threshold,
+                                                    single_component=single_component, min_bones=min_bones)
+    neighbours = vertex_neighbours(faces, rest.shape[0])
+    options = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
+                   edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
+                   min_gap=min_gap, min_bones=min_bones)
+    components = [analyse_component([int(b) for b in members], rest, neighbours, bone_indices, bone_weights, rotations,
+                                    translations, options) for members in decomposition.components]
+    edges = np.array(sorted(graph.edges()), dtype=np.int64).reshape(-1, 2)
+    return GraphAnalysis(weights=weights, kept_edges=edges, cut_nodes=list(decomposition.cut_nodes),
+                         components=components, options=options)
+
+
+def bone_layout(rest, bone_indices, bone_weights, bones):
+    """2-D positions (B, 2) for drawing the bone graph: each bone's weighted rest centroid,
+    projected on the rest pose's two principal axes."""
+    mass = np.bincount(bone_indices.ravel(), weights=bone_weights.ravel(), minlength=bones)
+    centre = np.stack([np.bincount(bone_indices.ravel(), weights=(bone_weights * rest[:, a, None]).ravel(),
+                                   minlength=bones) for a in range(3)], axis=1) / np.maximum(mass, 1e-300)[:, None]
+    centred = rest - rest.mean(axis=0)
+    axes = np.linalg.svd(centred, full_matrices=False)[2][:2]
+    return (centre - rest.mean(axis=0)) @ axes.T

@@ -1,0 +1,319 @@
+"""Transition candidates of one clip from its fitted LBS model (Zheng §3.2).
+
+Inputs are a fitted LBS model: ``bone_indices (V, K)`` int, ``bone_weights (V, K)`` (≥ 0, rows sum
+to 1, zero padding), ``rotations (F, B, 3, 3)`` and ``translations (F, B, 3)`` acting on column
+vectors, ``v = Σ_k w_k (R_k ū + t_k)`` (Zheng eq. 1).
+
+Steps, each a function here:
+
+1. :func:`reference_bone`: the most influential bone b_r (largest Σ_v w_vb).
+2. :func:`local_frame_positions`: every other bone in b_r's frame (eq. 2); this removes any rigid
+   transform of the whole mesh, per frame.
+3. :func:`reduced_coordinates`: per bone ``p = [t; Φ(R)]`` (eq. 3), stacked into A_r (6B' × F),
+   truncated SVD (eq. 4), one reduced vector q_i per frame.
+4. :func:`reference_motion`: b_r's own frame-to-frame motion r_i in its local frame (eq. 6).
+5. :func:`transition_costs`: D(i, j) for all pairs of frames (eq. 5).
+6. :func:`transition_threshold` and :func:`candidate_transitions`: T_c, and the pairs below it
+   that are local minima of D.
+
+:func:`find_transitions` runs them all. Choices the paper leaves open, made here:
+
+- SVD truncation "thresholded at 0.005" is read as a *relative* cut: keep singular values
+  σ_k ≥ 0.005 σ_1 (an absolute cut would depend on the units of the translations).
+- α in eq. 5 is printed as max‖q‖²/max‖q‖² (= 1, a typo); the stated intent is to balance the
+  terms, so α = max‖q_i‖² / max‖q̇_i‖² and β = max‖q_i‖² / max‖r_i‖².
+- q̇_0 and r_0 need frame −1: q̇_0 := q̇_1 and r_0 := r_1 (frame 0 is never a transition end
+  anyway; :func:`candidate_transitions` requires i, j ≥ 1).
+- T_c defaults to 3 × the *median* of the steps D(i, i−1), not Zheng's 40 × their max (see
+  :func:`transition_threshold`).
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.ndimage import minimum_filter
+
+from .errors import OptionError
+from .rotations import rotation_log
+
+THRESHOLD_REFERENCES = ("median-step", "max-step")
+
+
+def reference_bone(bone_indices, bone_weights, bones, subset=None):
+    """The bone with the largest weight sum Σ_v w_vb (Zheng §3.2, "most influential bone").
+
+    bone_indices (V, K) int, bone_weights (V, K), bones: B. ``subset``: optional iterable of bone
+    ids to choose from (a component of the bone graph). Ties go to the lowest id. Returns an int.
+    """
+    totals = weight_sums(bone_indices, bone_weights, bones)
+    candidates = np.arange(bones) if subset is None else _bone_ids(subset, bones)
+    if candidates.size == 0:
+        raise OptionError("cannot choose a reference bone from an empty set of bones")
+    # argmax returns the first maximum; candidates are sorted, so ties go to the lowest id.
+    return int(candidates[np.argmax(totals[candidates])])
+
+
+def weight_sums(bone_indices, bone_weights, bones):
+    """Σ_v w_vb per bone: bone_indices (V, K), bone_weights (V, K) -> (B,)."""
+    return np.bincount(np.asarray(bone_indices).ravel(), weights=np.asarray(bone_weights, float).ravel(),
+                       minlength=bones)[:bones]
+
+
+def local_frame_positions(rotations, translations, reference, bones_subset=None):
+    """Non-reference bones in the reference bone's local frame (Zheng eq. 2).
+
+    rotations (F, B, 3, 3), translations (F, B, 3), reference: b_r. ``bones_subset``: bone ids
+    to use (default all B); it must contain ``reference``. Returns ``(R_local (F, B', 3, 3),
+    t_local (F, B', 3), bone_ids)`` where bone_ids lists the B' bones of the subset other than
+    b_r in increasing order (the order of R_local/t_local and of the rows of A_r):
+    ``R_{i→r} = R_rᵀ R_i``, ``t_{i→r} = R_rᵀ (t_i − t_r)``.
+    """
+    rotations = np.asarray(rotations, dtype=np.float64)
+    translations = np.asarray(translations, dtype=np.float64)
+    bones = rotations.shape[1]
+    subset = np.arange(bones) if bones_subset is None else _bone_ids(bones_subset, bones)
+    if reference not in subset:
+        raise OptionError(f"reference bone {reference} is not in the bone subset {subset.tolist()}")
+    ids = subset[subset != reference]
+    r_ref_t = np.swapaxes(rotations[:, reference], -1, -2)  # (F, 3, 3) = R_rᵀ
+    # Zheng eq. 2
+    r_local = r_ref_t[:, None] @ rotations[:, ids]
+    t_local = np.einsum("fab,fkb->fka", r_ref_t, translations[:, ids] - translations[:, reference, None])
+    return r_local, t_local, ids.tolist()
+
+
+def bone_coordinate_matrix(R_local, t_local):
+    """A_r of Zheng eq. 3: R_local (F, B', 3, 3), t_local (F, B', 3) -> A (6B', F).
+
+    Column j stacks ``p_i^j = [t_{i→r}(j); Φ(R_{i→r}(j))]`` for the B' bones, Φ the axis-angle
+    vector (rotation angle in [0, π]; rotations that cross π jump across the branch cut, a
+    limitation of Φ the paper shares).
+    """
+    frames, count = np.shape(t_local)[:2]
+    p = np.concatenate([np.asarray(t_local, np.float64), rotation_log(np.asarray(R_local, np.float64))],
+                       axis=-1)  # (F, B', 6), Zheng eq. 3
+    return p.reshape(frames, 6 * count).T
+
+
+def reduced_coordinates(R_local, t_local, svd_threshold=0.005):
+    """Reduced bone coordinates by truncated SVD of A_r (Zheng eq. 3–4).
+
+    R_local (F, B', 3, 3), t_local (F, B', 3). Returns ``(q (F, r), basis (6B', r), singular (r,))``
+    with ``A_r ≈ basis @ diag(singular) @ Vᵀ = basis @ q.T``. "Thresholded at 0.005" is read as
+    relative: the kept singular values are those ≥ ``svd_threshold`` × the largest (0 keeps all
+    non-zero ones). The squared Frobenius error of the reconstruction is the sum of the dropped
+    σ². q_i, the i-th column of Q_r = S_r V_rᵀ, is computed as ``U_rᵀ a_i`` (the same thing), so
+    identical frames get bit-identical q. No mean is removed (the paper does not; D only uses
+    differences, which the projection preserves inside the kept subspace).
+    """
+    a = bone_coordinate_matrix(R_local, t_local)
+    frames = a.shape[1]
+    if a.shape[0] == 0:  # a one-bone subset: no non-reference bones, q is empty
+        return np.zeros((frames, 0)), np.zeros((0, 0)), np.zeros(0)
+    u, s, _ = np.linalg.svd(a, full_matrices=False)  # Zheng eq. 4
+    keep = (s > 0.0) & (s >= svd_threshold * s[0]) if s.size and s[0] > 0.0 else np.zeros(s.size, bool)
+    rank = int(np.count_nonzero(keep))
+    basis = u[:, :rank]
+    return a.T @ basis, basis, s[:rank]
+
+
+def reference_motion(rotations, translations, reference):
+    """Frame-to-frame motion of the reference bone in its own frame (Zheng eq. 6) -> r (F, 6).
+
+    ``r_i = [R_r(i)ᵀ (t_r(i−1) − t_r(i)); Φ(R_r(i)ᵀ R_r(i−1))]`` for i ≥ 1, and r_0 := r_1 (there
+    is no frame −1). A single frame gives r = 0. r is unchanged by one rigid transform applied
+    to the whole clip, but not by a rigid transform that varies per frame.
+    """
+    r_ref = np.asarray(rotations, np.float64)[:, reference]
+    t_ref = np.asarray(translations, np.float64)[:, reference]
+    frames = r_ref.shape[0]
+    out = np.zeros((frames, 6))
+    if frames < 2:
+        return out
+    r_t = np.swapaxes(r_ref[1:], -1, -2)  # R_r(i)ᵀ, i = 1..F−1
+    # Zheng eq. 6
+    out[1:, :3] = np.einsum("fab,fb->fa", r_t, t_ref[:-1] - t_ref[1:])
+    out[1:, 3:] = rotation_log(r_t @ r_ref[:-1])
+    out[0] = out[1]
+    return out
+
+
+def velocities(q):
+    """Finite-difference velocities q̇_i = q_i − q_{i−1} (Zheng §3.2), q̇_0 := q̇_1: (F, r) -> (F, r)."""
+    q = np.asarray(q, np.float64)
+    qdot = np.zeros_like(q)
+    if q.shape[0] >= 2:
+        qdot[1:] = q[1:] - q[:-1]
+        qdot[0] = qdot[1]
+    return qdot
+
+
+def pairwise_squared_distances(x):
+    """‖x_i − x_j‖² for all rows of x (F, n) -> (F, F), by one matrix product.
+
+    Exactly symmetric with a zero diagonal; round-off negatives are clipped to 0.
+    """
+    x = np.asarray(x, np.float64)
+    norms = np.einsum("fn,fn->f", x, x)
+    d = norms[:, None] + norms[None, :] - 2.0 * (x @ x.T)
+    d = 0.5 * (d + d.T)
+    np.fill_diagonal(d, 0.0)
+    return np.maximum(d, 0.0)
+
+
+def transition_costs(q, r, alpha=None, beta=None):
+    """Transition cost between every pair of frames (Zheng eq. 5).
+
+    q (F, r) reduced coordinates, r (F, 6) reference motion. Returns ``(D (F, F), alpha, beta)``
+    with ``D(i, j) = ‖q_i − q_j‖² + α ‖q̇_i − q̇_j‖² + β ‖r_i − r_j‖²``, q̇_i = q_i − q_{i−1}
+    (q̇_0 := q̇_1). Unless given, α = max‖q_i‖² / max‖q̇_i‖² and β = max‖q_i‖² / max‖r_i‖²
+    (the paper's α formula has a typo; both weights balance a term against ‖q‖²). Guards: a
+    zero denominator gives weight 1 (its term is identically 0 then); a zero numerator (no
+    non-reference motion, e.g. a one-bone component) is replaced by 1, so the other terms are
+    normalised to a unit maximum instead of vanishing.
+    """
+    q = np.asarray(q, np.float64)
+    r = np.asarray(r, np.float64)
+    qdot = velocities(q)
+    scale = _max_squared_norm(q)
+    scale = scale if scale > 0.0 else 1.0
+    if alpha is None:
+        alpha = _ratio(scale, _max_squared_norm(qdot))
+    if beta is None:
+        beta = _ratio(scale, _max_squared_norm(r))
+    # Zheng eq. 5
+    d = pairwise_squared_distances(q) + alpha * pairwise_squared_distances(qdot) \
+        + beta * pairwise_squared_distances(r)
+    return d, float(alpha), float(beta)
+
+
+def transition_threshold(D, scale=3.0, reference="median-step"):
+    """T_c = ``scale`` × (median or max) of the playback steps D(i, i−1), i = 1..F−1.
+
+    ``reference="max-step"`` with ``scale=40`` is Zheng's literal rule (§3.2, "T_c = 40 max
+    D(i, i−1)"). It does not transfer: on a 201-frame, 27-bone dancer fit (shared/NOTES.md) the
+    steps have median 3.3 but max 55 (one outlier dominated by the velocity term), so 40 × max
+    admits 39,402 of ~40,000 frame pairs (702 local minima), splices between unlike poses, while
+    the off-diagonal D has its 1st percentile at 9.4. The max of the steps is one outlier's
+    value; the median is robust, and 2–4 × the median step gave 12–24 local-minimum transitions
+    there (Zheng report 58 for that dancer). Hence the default: 3 × the median step. Requires at
+    least 2 frames.
+    """
+    D = np.asarray(D, np.float64)
+    if D.shape[0] < 2:
+        raise OptionError(f"a transition threshold needs at least 2 frames (got {D.shape[0]})")
+    steps = np.diagonal(D, offset=-1)  # D(i, i−1)
+    if reference == "median-step":
+        base = np.median(steps)
+    elif reference == "max-step":
+        base = np.max(steps)
+    else:
+        raise OptionError(f"unknown threshold reference {reference!r}; choose one of {THRESHOLD_REFERENCES}")
+    return float(scale * base)
+
+
+def candidate_transitions(D, threshold, min_gap=2):
+    """Candidate transitions: local minima of D below the threshold (Zheng §3.2).
+
+    D (F, F). Keeps pairs (i, j) with D(i, j) < ``threshold``, |i − j| ≥ ``min_gap`` (a jump of
+    one frame is just playback), i, j ≥ 1 (the velocity terms need a previous frame), that are
+    minima of D over their 3×3 neighbourhood (so one good transition is not listed ten times).
+    The neighbourhood test runs on the full D, diagonal included: pairs on the slope of the
+    trivial D(i, i) = 0 valley are never minima. Values within 1e-9 × max|D| of the
+    neighbourhood minimum count as minima, so a flat valley (an exact loop: D(i, i+P) = 0 for
+    every i) lists each of its pairs rather than whichever round-off happens to favour.
+    Both (i, j) and (j, i) may appear. Returns ``(pairs (M, 2) int, costs (M,))`` sorted by cost
+    (ties by i, then j).
+    """
+    D = np.asarray(D, np.float64)
+    frames = D.shape[0]
+    if frames == 0:
+        return np.zeros((0, 2), np.int64), np.zeros(0)
+    finite = np.isfinite(D)
+    tolerance = 1e-9 * (np.max(np.abs(D[finite])) if finite.any() else 0.0)
+    neighbourhood_min = minimum_filter(np.where(finite, D, np.inf), size=3, mode="constant", cval=np.inf)
+    i, j = np.indices(D.shape)
+    keep = ((D < threshold) & (np.abs(i - j) >= min_gap) & (i >= 1) & (j >= 1)
+            & (D <= neighbourhood_min + tolerance))
+    pairs = np.stack([i[keep], j[keep]], axis=1).astype(np.int64)
+    costs = D[keep]
+    order = np.lexsort((pairs[:, 1], pairs[:, 0], costs))
+    return pairs[order], costs[order]
+
+
+@dataclass
+class Transitions:
+    """Everything :func:`find_transitions` computed for one clip (or one bone component).
+
+    reference: b_r; bones: the bones considered, sorted (b_r included); local_bones: the
+    non-reference bones, in the order of A_r's rows (6 per bone); q (F, r) reduced coordinates;
+    basis (6B', r); singular (r,) kept singular values; r (F, 6) reference motion (eq. 6);
+    alpha, beta: eq. 5 weights; D (F, F) costs; threshold: T_c; pairs (M, 2) and costs (M,):
+    the candidate transitions, by increasing cost; plus the options used.
+    """
+
+    reference: int
+    bones: list
+    local_bones: list
+    q: np.ndarray
+    basis: np.ndarray
+    singular: np.ndarray
+    r: np.ndarray
+    alpha: float
+    beta: float
+    D: np.ndarray
+    threshold: float
+    pairs: np.ndarray
+    costs: np.ndarray
+    options: dict = field(default_factory=dict)
+
+    @property
+    def steps(self):
+        """The playback steps D(i, i−1), i = 1..F−1."""
+        return np.diagonal(self.D, offset=-1).copy()
+
+
+def find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=None, svd_threshold=0.005,
+                     threshold_scale=3.0, threshold_reference="median-step", min_gap=2):
+    """Zheng §3.2 end to end: reference bone, eq. 2–6, threshold, candidate transitions.
+
+    rotations (F, B, 3, 3), translations (F, B, 3), bone_indices (V, K), bone_weights (V, K);
+    ``bones_subset``: restrict everything (reference choice included) to these bones, e.g. a
+    component of the bone graph. Returns a :class:`Transitions`.
+    """
+    rotations = np.asarray(rotations, np.float64)
+    translations = np.asarray(translations, np.float64)
+    frames, bones = rotations.shape[:2]
+    if rotations.shape != (frames, bones, 3, 3) or translations.shape != (frames, bones, 3):
+        raise ValueError(f"rotations {rotations.shape} and translations {translations.shape} do not match "
+                         "(F, B, 3, 3) and (F, B, 3)")
+    if frames < 2:
+        raise OptionError(f"finding transitions needs at least 2 frames (got {frames})")
+    subset = np.arange(bones) if bones_subset is None else _bone_ids(bones_subset, bones)
+    reference = reference_bone(bone_indices, bone_weights, bones, subset)
+    r_local, t_local, local_bones = local_frame_positions(rotations, translations, reference, subset)
+    q, basis, singular = reduced_coordinates(r_local, t_local, svd_threshold)
+    r = reference_motion(rotations, translations, reference)
+    D, alpha, beta = transition_costs(q, r)
+    threshold = transition_threshold(D, threshold_scale, threshold_reference)
+    pairs, costs = candidate_transitions(D, threshold, min_gap)
+    options = dict(svd_threshold=svd_threshold, threshold_scale=threshold_scale,
+                   threshold_reference=threshold_reference, min_gap=min_gap)
+    return Transitions(reference=reference, bones=subset.tolist(), local_bones=local_bones, q=q, basis=basis,
+                       singular=singular, r=r, alpha=alpha, beta=beta, D=D, threshold=threshold, pairs=pairs,
+                       costs=costs, options=options)
+
+
+def _bone_ids(subset, bones):
+    ids = np.unique(np.asarray(list(subset), dtype=np.int64))
+    if ids.size and (ids[0] < 0 or ids[-1] >= bones):
+        raise OptionError(f"bone ids {ids.tolist()} are outside 0..{bones - 1}")
+    return ids
+
+
+def _max_squared_norm(x):
+    return float(np.max(np.einsum("fn,fn->f", x, x))) if x.size else 0.0
+
+
+def _ratio(numerator, denominator):
+    return numerator / denominator if denominator > 0.0 else 1.0

@@ -1,0 +1,80 @@
+"""build-graph from the command line: outputs, inspect summary, plots, determinism, bad input."""
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from skinsynth.formats.graph_file import read_graph
+from skinsynth.formats.meshseq import write_array_sequence
+from skinsynth.pipeline.examples import bending_bar
+
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    root = tmp_path_factory.mktemp("graph")
+    cycle, faces = bending_bar(frames=20, rings=10, segments=8)
+    write_array_sequence(root / "loop.npz", np.concatenate([cycle, cycle, cycle[:6]]), faces, 24.0)
+    assert_ok(cli("fit-skin", root / "loop.npz", "-o", root / "skin.h5", "--bones", 5, "--iterations", 8, "-q"))
+    write_array_sequence(root / "two.npz", cycle[:2], faces, 24.0)
+    assert_ok(cli("fit-skin", root / "two.npz", "-o", root / "two.h5", "--bones", 2, "--iterations", 2, "-q"))
+    return root
+
+
+def test_build_graph_finds_the_loop_and_summarises(files, tmp_path):
+    out = assert_ok(cli("build-graph", files / "skin.h5", "-o", tmp_path / "g.h5", "--plot", tmp_path / "plots")).stdout
+    assert "component" in out and "transitions" in out
+    summary = json.loads(assert_ok(cli("inspect", tmp_path / "g.h5", "--json")).stdout)
+    assert summary["stage"] == "graph" and summary["components"] >= 1 and summary["transitions"] > 0
+    graph = read_graph(tmp_path / "g.h5")
+    for component in graph.components:
+        pairs = component["transitions"]
+        # Two exact cycles of 20 frames: frames 20 apart are the same state.
+        assert np.all(np.abs(pairs[:, 0] - pairs[:, 1]) % 20 == 0)
+    pngs = sorted(p.name for p in (tmp_path / "plots").iterdir())
+    assert "bone_graph.png" in pngs and any(p.startswith("costs_component_") for p in pngs)
+    assert all((tmp_path / "plots" / p).read_bytes()[:4] == b"\x89PNG" for p in pngs)
+
+
+def test_build_graph_is_deterministic(files, tmp_path):
+    for name in ("a.h5", "b.h5"):
+        assert_ok(cli("build-graph", files / "skin.h5", "-o", tmp_path / name, "-q"))
+    with h5py.File(tmp_path / "a.h5") as a, h5py.File(tmp_path / "b.h5") as b:
+        def datasets(group, prefix=""):
+            for name, item in group.items():
+                if isinstance(item, h5py.Dataset):
+                    yield prefix + name
+                else:
+                    yield from datasets(item, prefix + name + "/")
+        names = list(datasets(a["graph"]))
+        assert names and names == list(datasets(b["graph"]))
+        for name in names:
+            assert a["graph"][name][()].tobytes() == b["graph"][name][()].tobytes(), name
+
+
+def test_single_component(files, tmp_path):
+    assert_ok(cli("build-graph", files / "skin.h5", "-o", tmp_path / "g.h5", "--single-component", "-q"))
+    summary = json.loads(assert_ok(cli("inspect", tmp_path / "g.h5", "--json")).stdout)
+    assert summary["components"] == 1 and summary["cut_nodes"] == []
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["--threshold-scale", "0"], ["--threshold-scale"]),
+    (["--edge-threshold", "-1"], ["--edge-threshold"]),
+    (["--svd-threshold", "0"], ["--svd-threshold"]),
+    (["--min-gap", "0"], ["--min-gap"]),
+])
+def test_bad_options(files, tmp_path, args, needles):
+    assert_user_error(cli("build-graph", files / "skin.h5", "-o", tmp_path / "g.h5", *args), *needles, folder=tmp_path)
+
+
+def test_bad_inputs(files, tmp_path):
+    assert_user_error(cli("build-graph", files / "two.h5", "-o", tmp_path / "g.h5"), "2 frames", "at least 3",
+                      folder=tmp_path)
+    assert_user_error(cli("build-graph", files / "loop.npz", "-o", tmp_path / "g.h5"), "loop.npz", folder=tmp_path)
+    (tmp_path / "not.h5").write_bytes(b"nothing")
+    assert_user_error(cli("build-graph", tmp_path / "not.h5", "-o", tmp_path / "g.h5"), "not.h5")
+    assert_folder_holds(tmp_path, ["not.h5"])
