@@ -96,15 +96,16 @@ def synthetic_lbs(bones=6, frames=30, max_influences=4, rings=48, segments=12, s
 
 
 def articulated_tube(frames=160, rings=120, segments=12, joints=4, length=8.0, radius=0.35, amplitude=0.9,
-                     joint_width=0.25, period=(60.0, 150.0), seed=0):
+                     joint_width=0.25, period=(60.0, 150.0), periods=None, seed=0):
     """A tube that bends at ``joints`` soft joints, each swinging in two planes at its own rate.
 
     Joint j at arclength s_j swings by ``amplitude`` radians (about z and about y, with
     incommensurate frequencies and random phases); the bend is spread over ``joint_width`` of
     arclength by a logistic ramp, so the deformation is smooth and not itself an LBS model. The
     centre line is integrated from the rotation field along the tube. Many nonlinear degrees of
-    freedom sampled sparsely: the setting where puppet regression has to generalise. Returns
-    (vertices (F, V, 3), faces (T, 3)).
+    freedom sampled sparsely: the setting where puppet regression has to generalise. ``periods``
+    (2, joints) in frames overrides the random ones (drawn from ``period``), e.g. to make a body
+    exactly periodic while a tail swings at its own rate. Returns (vertices (F, V, 3), faces (T, 3)).
     """
     rng = np.random.default_rng(seed)
     rest, faces = cylinder_mesh(rings, segments, length, radius)
@@ -112,7 +113,8 @@ def articulated_tube(frames=160, rings=120, segments=12, joints=4, length=8.0, r
     ring_s = np.linspace(0.0, length, rings)
     centres = (np.arange(joints) + 1.0) * length / (joints + 1.0)
     time = np.arange(frames)[:, None]
-    rate = 2.0 * np.pi / rng.uniform(period[0], period[1], size=(2, joints))
+    drawn = rng.uniform(period[0], period[1], size=(2, joints))
+    rate = 2.0 * np.pi / (drawn if periods is None else np.broadcast_to(np.asarray(periods, dtype=float), (2, joints)))
     phase = rng.uniform(0.0, 2.0 * np.pi, size=(2, joints))
     angle_z = amplitude * np.sin(rate[0] * time + phase[0])  # (F, J)
     angle_y = 0.6 * amplitude * np.sin(rate[1] * time + phase[1])
