@@ -3,7 +3,9 @@
 Copies forward ``/mesh``, ``/examples`` and ``/skin`` and adds ``/graph``:
 
 - ``weights (B, B)`` bone-graph edge weights d_ij (eq. 11); ``kept_edges (E, 2)`` the edges left
-  after pruning; ``cut_nodes (n,)``; attributes ``@components``, ``@transitions`` (total),
+  after pruning; ``cut_nodes (n,)`` the bones shared by two or more components (where Alg. 1
+  merges them); ``articulation_points (m,)`` every cut node of the pruned graph (blocks smaller
+  than ``@min_bones`` are merged, so some lie inside one component); attributes ``@components``, ``@transitions`` (total),
   ``@threshold_scale``, ``@threshold_reference``, ``@edge_threshold``, ``@svd_threshold``,
   ``@min_gap``, ``@min_bones``, ``@single_component``.
 - ``/graph/component_NNN`` per component: ``bones (b,)``; ``local_bones (b−1,)`` (the
@@ -38,6 +40,7 @@ def graph_groups(model, analysis):
     options = analysis.options
     graph = {"weights": analysis.weights, "kept_edges": analysis.kept_edges,
              "cut_nodes": np.asarray(analysis.cut_nodes, dtype=np.int64),
+             "articulation_points": np.asarray(analysis.articulation_points, dtype=np.int64),
              "@components": len(analysis.components), "@transitions": analysis.transition_count,
              "@threshold_scale": float(options["threshold_scale"]),
              "@threshold_reference": str(options["threshold_reference"]),

@@ -39,11 +39,14 @@ class ComponentAnalysis:
 
 @dataclass
 class GraphAnalysis:
-    """d (B, B) bone-graph weights (eq. 11); kept_edges (E, 2); cut_nodes; components; options."""
+    """d (B, B) bone-graph weights (eq. 11); kept_edges (E, 2); cut_nodes: the bones shared by two
+    or more components; articulation_points: every cut node of the pruned graph (some end up
+    inside a merged component); components; options."""
 
     weights: np.ndarray
     kept_edges: np.ndarray
     cut_nodes: list
+    articulation_points: list
     components: list
     options: dict = field(default_factory=dict)
 
@@ -103,8 +106,12 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
     components = [analyse_component([int(b) for b in members], rest, neighbours, bone_indices, bone_weights, rotations,
                                     translations, options) for members in decomposition.components]
     edges = np.array(sorted(graph.edges()), dtype=np.int64).reshape(-1, 2)
-    return GraphAnalysis(weights=weights, kept_edges=edges, cut_nodes=list(decomposition.cut_nodes),
-                         components=components, options=options)
+    # Only articulation points that still join components matter to synthesis (Alg. 1);
+    # others ended up inside a merged block.
+    joining = sorted(int(b) for b in decomposition.component_of_cut)
+    return GraphAnalysis(weights=weights, kept_edges=edges, cut_nodes=joining,
+                         articulation_points=[int(b) for b in decomposition.cut_nodes], components=components,
+                         options=options)
 
 
 def bone_layout(rest, bone_indices, bone_weights, bones):
