@@ -16,7 +16,7 @@ $(VENV)/.installed: pyproject.toml
 
 demo: setup
 	@mkdir -p $(DEMO)
-	$(BIN)/skinsynth example bending-bar -o $(DEMO)/bar.npz
+	$(BIN)/skinsynth example bending-bar -o $(DEMO)/bar.npz --frames 96 --cycles 2
 	$(BIN)/skinsynth fit-skin $(DEMO)/bar.npz -o $(DEMO)/skin.h5 --bones 8 --seed 0
 	$(BIN)/skinsynth inspect $(DEMO)/skin.h5
 	$(BIN)/skinsynth export $(DEMO)/skin.h5 -o $(DEMO)/bar_skel.usda --as skel
@@ -25,6 +25,7 @@ demo: setup
 	$(BIN)/skinsynth select-controls $(DEMO)/skin.h5 -o $(DEMO)/controls.h5
 	$(BIN)/skinsynth train-kcca $(DEMO)/controls.h5 -o $(DEMO)/puppet.h5
 	$(BIN)/skinsynth evaluate $(DEMO)/puppet.h5 --plot $(DEMO)/puppet_errors.png
+	$(BIN)/skinsynth build-graph $(DEMO)/skin.h5 -o $(DEMO)/graph.h5 --plot $(DEMO)/graph_plots
 	@echo
 	@echo "demo results in $(DEMO)/:"
 	@echo "  skin.h5          fitted skin model (skinsynth inspect $(DEMO)/skin.h5)"
@@ -34,6 +35,7 @@ demo: setup
 	@echo "  controls.h5      8 control vertices chosen by PCA + varimax"
 	@echo "  puppet.h5        kernel-CCA puppet driven by those controls"
 	@echo "  puppet_errors.png held-out error of the puppet vs PCA blendshapes and RBF"
+	@echo "  graph.h5         transitions, bone graph and splicing operators (plots in graph_plots/)"
 
 test: setup
 	$(BIN)/python -m pytest -q
@@ -45,6 +47,7 @@ test-fast: setup
 bench: setup
 	$(BIN)/python benchmarks/fit_skin.py
 	$(BIN)/python benchmarks/puppet.py
+	$(BIN)/python benchmarks/graph.py
 	$(BIN)/python benchmarks/lbs.py
 
 clean:

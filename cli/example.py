@@ -10,12 +10,13 @@ EXAMPLES = ("bending-bar",)
 @click.command("example")
 @click.argument("name", type=click.Choice(EXAMPLES))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Sequence file to write (.npz).")
-@click.option("--frames", default=60, show_default=True, type=int, help="Number of frames (one bend-and-twist cycle).")
+@click.option("--frames", default=60, show_default=True, type=int, help="Number of frames.")
 @click.option("--rings", default=40, show_default=True, type=int, help="Vertex rings along the bar.")
 @click.option("--segments", default=16, show_default=True, type=int, help="Vertices around each ring.")
+@click.option("--cycles", default=1, show_default=True, type=int, help="Bend-and-twist cycles over the frames.")
 @click.option("--fps", default=24.0, show_default=True, type=float, help="Frame rate stored with the sequence.")
 @user_errors
-def example(name, output, frames, rings, segments, fps):
+def example(name, output, frames, rings, segments, cycles, fps):
     """Write a built-in example mesh sequence (no download needed).
 
     bending-bar: a capped cylinder that bends into an arc and twists over one cycle, the kind of
@@ -30,8 +31,8 @@ def example(name, output, frames, rings, segments, fps):
     from skinsynth.pipeline.examples import bending_bar
 
     check_output_path(output, (".npz",))
-    if frames < 2 or rings < 2 or segments < 3 or not fps > 0:
-        fail("--frames and --rings must be at least 2, --segments at least 3, --fps positive")
-    vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments)
+    if frames < 2 or rings < 2 or segments < 3 or cycles < 1 or not fps > 0:
+        fail("--frames and --rings must be at least 2, --segments at least 3, --cycles at least 1, --fps positive")
+    vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
     write_array_sequence(output, vertices, faces, fps)
     click.echo(f"wrote {output}: {name}, {frames} frames, {vertices.shape[1]} vertices")

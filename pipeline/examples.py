@@ -37,15 +37,16 @@ def cylinder_mesh(rings=40, segments=16, length=4.0, radius=0.5):
     return rest, np.concatenate([quads, cap0, cap1]).astype(np.int64)
 
 
-def bending_bar(frames=60, rings=40, segments=16, length=4.0, radius=0.5, bend=1.6, twist=0.8):
-    """A cylinder whose centre line bends into a circular arc and twists, over one cycle.
+def bending_bar(frames=60, rings=40, segments=16, length=4.0, radius=0.5, bend=1.6, twist=0.8, cycles=1):
+    """A cylinder whose centre line bends into a circular arc and twists, over ``cycles`` cycles.
 
-    Returns (vertices (F, V, 3), faces (T, 3)). Frame 0 is the straight rest pose; the bend
-    angle follows ``bend · sin²(πt)`` and the twist ``twist · sin(2πt)`` (radians, end to end).
+    Returns (vertices (F, V, 3), faces (T, 3)). Frame 0 is the straight rest pose; over a cycle
+    (phase t from 0 to 1) the bend angle follows ``bend · sin²(πt)`` and the twist
+    ``twist · sin(2πt)`` (radians, end to end).
     """
     rest, faces = cylinder_mesh(rings, segments, length, radius)
     s = rest[:, 0] / length
-    phase = np.arange(frames) / frames
+    phase = cycles * np.arange(frames) / frames
     total_bend = bend * np.sin(np.pi * phase) ** 2
     total_twist = twist * np.sin(2.0 * np.pi * phase)
     out = np.empty((frames, rest.shape[0], 3))
