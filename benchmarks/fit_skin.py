@@ -123,11 +123,9 @@ def main():
     # Procedural stand-ins at the sizes of the table: horse (8.4k vertices, 48 frames, 22
     # bones) and samba (10k vertices, 175 frames, 30 bones).
     cases += [("bending_bar_small", [], 8), ("bending_bar_horse_size", [], 22), ("bending_bar_samba_size", [], 30)]
-    try:
-        import py_dem_bones  # noqa: F401
-        have_dembones = not args.no_dembones
-    except ImportError:
-        have_dembones = False
+    import importlib.util
+
+    have_dembones = importlib.util.find_spec("py_dem_bones") is not None and not args.no_dembones
     for name, specs, bones in cases:
         if args.only and name != args.only:
             continue

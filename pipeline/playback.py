@@ -9,9 +9,9 @@ stays inside the region it was trained on.
 
 import numpy as np
 
-from .alignment import invert_frames
+from .alignment import apply_frames, invert_frames
 from .errors import OptionError
-from .puppet import predict_bones
+from .puppet import in_place, predict_bones
 from .rotations import dual_quaternion_to_rigid
 
 
@@ -50,3 +50,22 @@ def world_bones(puppet, controls, translation_solver=True):
     inv_r, inv_t = invert_frames(frame_r, frame_t)
     return (np.einsum("nac,nbcd->nbad", inv_r, rotations),
             np.einsum("nac,nbc->nba", inv_r, translations) + inv_t[:, None, :])
+
+
+def host_inputs(puppet, controls):
+    """Host side of the run time for a ``pipeline.puppet.Puppet``: world controls (N, n_c, 3) ->
+    (standardised_controls (N, d), controls_in_place (N, n_c, 3), world_frames (N, 4, 4)).
+
+    world_frames are the inverse control frames (``pipeline.alignment``) as column-vector
+    homogeneous transforms: in-place positions -> world.
+    """
+    controls = np.asarray(controls, dtype=np.float64)
+    frame_r, frame_t = in_place(controls, puppet.reference_controls, puppet.global_motion)
+    placed = apply_frames(frame_r, frame_t, controls)
+    standardised = puppet.kernel.standardise(placed.reshape(controls.shape[0], -1))
+    inv_r, inv_t = invert_frames(frame_r, frame_t)
+    frames = np.zeros((controls.shape[0], 4, 4))
+    frames[:, :3, :3] = inv_r
+    frames[:, :3, 3] = inv_t
+    frames[:, 3, 3] = 1.0
+    return standardised, placed, frames

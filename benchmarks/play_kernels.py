@@ -1,0 +1,162 @@
+"""Benchmark the puppet's run-time path (gpu.puppet_kernels): numpy reference vs warp on the CPU
+(1 and 2 Python threads) and on CUDA when present, per stage and end to end.
+
+One JSON line per (model, layout, solver). Models: "face" (V=23,728, B=260, n_c=8, n_p=38,
+K=4) and "horse" (V=8,431, B=150, n_c=8, n_p=27, K=4), random but well-formed (unit dual
+quaternions around which M ξ + m varies, weights summing to 1, Gaussian kernel). Layouts: 1000
+frames × 1 character and 100 frames × 100 characters (N = samples = frames × characters).
+
+Timings are seconds for all N samples, median of --repeats runs after one warm-up (kernel
+compile / cache load excluded). `frames_per_s` is samples per second end to end: standardised
+controls, in-place controls and world frames in (numpy), skinned world vertices out (numpy,
+float32 `out` buffer, written in place on the CPU; `f64_frames_per_s`: with the default float64
+result, first layout only). `stages` synchronises after each stage (so sums slightly exceed the
+end-to-end time). The numpy reference runs on at most --numpy-samples samples and is scaled.
+
+    python benchmarks/play_kernels.py [--repeats 3] [--only face] [--numpy-samples 200]
+"""
+
+import argparse
+import json
+import statistics
+import time
+
+import numpy as np
+
+from skinsynth.gpu import available_devices
+from skinsynth.gpu import puppet_kernels as pk
+from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
+
+MODELS = {
+    "face": dict(verts=23728, bones=260, controls=8, examples=38, influences=4),
+    "horse": dict(verts=8431, bones=150, controls=8, examples=27, influences=4),
+}
+LAYOUTS = [(1000, 1), (100, 100)]
+
+
+def rotations(rng, shape, angle=1.0):
+    from skinsynth.pipeline.rotations import rotation_exp
+
+    return rotation_exp(rng.uniform(-angle, angle, size=shape + (3,)))
+
+
+def random_puppet(rng, verts, bones, controls, examples, influences):
+    rest = rng.normal(size=(verts, 3))
+    idx = np.stack([rng.choice(bones, influences, replace=False) for _ in range(verts)])
+    w = rng.random((verts, influences)) ** 2
+    w /= w.sum(axis=1, keepdims=True)
+    base = rigid_to_dual_quaternion(rotations(rng, (bones,)), rng.normal(size=(bones, 3))).reshape(-1)
+    return pk.PuppetArrays(
+        rest_vertices=rest, bone_indices=idx, bone_weights=w,
+        training_controls=rng.normal(size=(examples, 3 * controls)) / np.sqrt(3 * controls), kernel="gaussian",
+        predictor=rng.normal(size=(8 * bones, examples)) * 0.05, bias=base,
+        rotation_operator=rng.normal(size=(bones, bones, 3)) * 0.05, control_operator=rng.normal(size=(bones, controls)) * 0.1,
+        prior_operator=rng.normal(size=(bones, bones)) * 1e-6)
+
+
+def random_inputs(rng, samples, puppet):
+    d = puppet.training_controls.shape[1]
+    x = rng.normal(size=(samples, d)) / np.sqrt(d)
+    c = rng.normal(size=(samples, d // 3, 3))
+    frames = np.zeros((samples, 4, 4))
+    frames[:, :3, :3] = rotations(rng, (samples,))
+    frames[:, :3, 3] = rng.normal(size=(samples, 3)) * 3.0
+    frames[:, 3, 3] = 1.0
+    return x, c, frames
+
+
+def median_seconds(fn, repeats):
+    fn()  # warm-up
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def numpy_reference(puppet, x, c, frames, solver):
+    """Stage seconds of the numpy reference (composing the stage references)."""
+    from skinsynth.gpu.skinning import dqs_reference
+    from skinsynth.pipeline.rotations import quaternion_multiply
+
+    stages, t0 = {}, time.perf_counter()
+
+    def mark(name):
+        nonlocal t0
+        now = time.perf_counter()
+        stages[name] = now - t0
+        t0 = now
+
+    xi = pk.kernel_vectors_reference(x, puppet.training_controls, puppet.kernel)
+    mark("kernel_vectors")
+    d = pk.predict_dual_quaternions_reference(xi, puppet.predictor, puppet.bias)
+    mark("predict")
+    d, rot, trans = pk.normalise_dual_quaternions_reference(d)
+    mark("normalise")
+    if solver:
+        trans = pk.solve_translations_reference(rot, c, trans, puppet.rotation_operator, puppet.control_operator,
+                                                puppet.prior_operator)
+        mark("solve_translations")
+        pure = np.concatenate([np.zeros(trans.shape[:-1] + (1,)), trans], axis=-1)
+        d = np.concatenate([d[..., :4], 0.5 * quaternion_multiply(pure, d[..., :4])], axis=-1)
+        mark("compose")
+    placed = dqs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, d)
+    mark("skin")
+    np.einsum("nab,nvb->nva", frames[:, :3, :3], placed) + frames[:, None, :3, 3]
+    mark("world_frames")
+    return stages
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", choices=sorted(MODELS))
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--numpy-samples", type=int, default=100)
+    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    opts = parser.parse_args()
+    devices = [d for d in available_devices() if d in ("cpu", "cuda:0")]
+    rng = np.random.default_rng(0)
+    for name, size in MODELS.items():
+        if opts.only and name != opts.only:
+            continue
+        puppet = random_puppet(rng, **size)
+        on_device = {device: pk.DevicePuppet(puppet, device) for device in devices}
+        for layout_index, (frames_per_character, characters) in enumerate(LAYOUTS):
+            samples = frames_per_character * characters
+            x, c, frames = random_inputs(rng, samples, puppet)
+            out = np.empty((samples, size["verts"], 3), dtype=np.float32)
+            for solver in (True, False):
+                record = {"model": name, **size, "frames": frames_per_character, "characters": characters,
+                          "samples": samples, "translation_solver": solver}
+                m = min(samples, opts.numpy_samples)
+                t0 = time.perf_counter()
+                stages = numpy_reference(puppet, x[:m], c[:m], frames[:m], solver)
+                seconds = (time.perf_counter() - t0) * samples / m
+                record["numpy"] = {"measured_samples": m, "seconds": seconds, "frames_per_s": samples / seconds,
+                                   "stages": {k: v * samples / m for k, v in stages.items()}}
+                check = pk.reference_run_puppet(puppet, x[:8], c[:8], frames[:8], translation_solver=solver)
+                scale = np.abs(check).max()
+                for device, dev_puppet in on_device.items():
+                    for threads in (opts.threads if device == "cpu" else [1]):
+                        run = lambda: pk.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out,
+                                                    threads=threads)
+                        seconds = median_seconds(run, opts.repeats)
+                        err = float(np.abs(out[:8] - check).max() / scale)
+                        entry = {"seconds": seconds, "frames_per_s": samples / seconds, "max_rel_error": err}
+                        if threads == 1:
+                            timings = {}
+                            pk.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out,
+                                          timings=timings)
+                            entry["stages"] = timings
+                            if layout_index == 0:
+                                s64 = median_seconds(lambda: pk.run_puppet(dev_puppet, x, c, frames,
+                                                                           translation_solver=solver), 1)
+                                entry["f64_frames_per_s"] = samples / s64
+                        label = "warp-cpu" if device == "cpu" else "warp-cuda"
+                        record[label if threads == 1 else f"{label}-{threads}threads"] = entry
+                print(json.dumps(record), flush=True)
+
+
+if __name__ == "__main__":
+    main()

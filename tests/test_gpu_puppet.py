@@ -1,0 +1,225 @@
+"""skinsynth.gpu.puppet_kernels: each run-time stage on warp's CPU device against its numpy
+reference, and the whole path against pipeline.puppet.predict_vertices for a trained puppet."""
+
+import numpy as np
+import pytest
+
+from skinsynth.gpu import puppet_kernels as pk
+from skinsynth.pipeline.playback import host_inputs
+from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
+
+TOL = 1e-5
+
+
+def relative_error(got, expected):
+    """Largest absolute difference over the data's scale (its largest absolute value)."""
+    assert got.shape == expected.shape and got.dtype == np.float64
+    return np.abs(got - expected).max() / max(np.abs(expected).max(), 1e-30)
+
+
+def random_rotations(rng, shape):
+    q, r = np.linalg.qr(rng.normal(size=shape + (3, 3)))
+    q = q * np.sign(np.diagonal(r, axis1=-2, axis2=-1))[..., None, :]
+    return q * np.sign(np.linalg.det(q))[..., None, None]
+
+
+def random_dual_quaternions(rng, samples, bones, flip=True, scale=1.0):
+    """Unit dual quaternions scaled by `scale` (the skinning normalises), half of them negated."""
+    dq = rigid_to_dual_quaternion(random_rotations(rng, (samples, bones)), rng.normal(size=(samples, bones, 3)) * 2)
+    if flip:
+        dq *= np.where(rng.random((samples, bones, 1)) < 0.5, -1.0, 1.0)
+    return dq * scale
+
+
+def random_skin(rng, verts, bones, influences):
+    rest = rng.normal(size=(verts, 3)) * [1.0, 2.0, 0.5] + 1.0
+    idx = np.stack([rng.permutation(bones)[:influences] for _ in range(verts)])
+    w = rng.random((verts, influences))
+    if influences > 1:  # padding slots: zero weight, an index that must be ignored
+        pad = rng.random((verts, influences)) < 0.3
+        pad[:, 0] = False
+        w[pad] = 0.0
+        idx[pad] = -1
+    return rest, idx, w / w.sum(axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize("kind", pk.KERNEL_KINDS)
+@pytest.mark.parametrize("samples", [1, 7, 50])
+def test_kernel_vectors(kind, samples):
+    rng = np.random.default_rng(samples)
+    x, training = rng.normal(size=(samples, 24)) * 0.2, rng.normal(size=(38, 24)) * 0.2
+    expected = pk.kernel_vectors_reference(x, training, kind, offset=0.3, degree=5)
+    got = pk.kernel_vectors(x, training, kind, offset=0.3, degree=5, device="cpu")
+    assert relative_error(got, expected) < TOL
+
+
+def test_kernel_vectors_other_degree():
+    rng = np.random.default_rng(3)
+    x, training = rng.normal(size=(5, 6)) * 0.3, rng.normal(size=(9, 6)) * 0.3
+    got = pk.kernel_vectors(x, training, "polynomial", offset=0.1, degree=3)
+    assert relative_error(got, (x @ training.T + 0.1) ** 3) < TOL
+
+
+@pytest.mark.parametrize("samples", [1, 13, 100])
+def test_predict_dual_quaternions(samples):
+    rng = np.random.default_rng(samples)
+    bones, n_p = 11, 27
+    xi, predictor, bias = rng.random((samples, n_p)), rng.normal(size=(8 * bones, n_p)), rng.normal(size=8 * bones)
+    got = pk.predict_dual_quaternions(xi, predictor, bias)
+    assert got.shape == (samples, bones, 8)
+    assert relative_error(got, pk.predict_dual_quaternions_reference(xi, predictor, bias)) < TOL
+    # row b·8 + m of M is bone b's m-th number
+    assert np.allclose(got[0, 3, 5], predictor[29] @ xi[0] + bias[29], rtol=1e-5)
+
+
+@pytest.mark.parametrize("samples", [1, 40])
+def test_normalise_dual_quaternions(samples):
+    rng = np.random.default_rng(samples)
+    d = random_dual_quaternions(rng, samples, 9) * rng.uniform(0.5, 2.0, size=(samples, 9, 1))
+    got = pk.normalise_dual_quaternions(d)
+    expected = pk.normalise_dual_quaternions_reference(d)
+    for g, e in zip(got, expected):
+        assert relative_error(g, e) < TOL
+
+
+@pytest.mark.parametrize("samples", [1, 17])
+def test_solve_translations(samples):
+    rng = np.random.default_rng(samples)
+    bones, n_c = 12, 5
+    args = (random_rotations(rng, (samples, bones)), rng.normal(size=(samples, n_c, 3)),
+            rng.normal(size=(samples, bones, 3)), rng.normal(size=(bones, bones, 3)), rng.normal(size=(bones, n_c)),
+            rng.normal(size=(bones, bones)) * 1e-3)
+    got = pk.solve_translations(*args)
+    assert relative_error(got, pk.solve_translations_reference(*args)) < TOL
+    # the index convention, spelled out for one entry
+    rot, c, t_hat, gamma, q, prior = args
+    n, b, a = samples - 1, 7, 2
+    entry = (sum(gamma[b, k, cc] * rot[n, k, a, cc] for k in range(bones) for cc in range(3))
+             + q[b] @ c[n, :, a] + prior[b] @ t_hat[n, :, a])
+    assert np.isclose(got[n, b, a], entry, rtol=1e-4, atol=1e-5 * np.abs(got).max())
+
+
+@pytest.mark.parametrize("influences", [1, 2, 3, 4])
+@pytest.mark.parametrize("samples", [1, 6])
+def test_dq_skin(influences, samples):
+    rng = np.random.default_rng(10 * influences + samples)
+    rest, idx, w = random_skin(rng, 500, 13, influences)
+    dq = random_dual_quaternions(rng, samples, 13, scale=1.7)  # non-unit and sign-flipped
+    expected = pk.dqs_reference(rest, idx, w, dq)
+    got = pk.dq_skin(rest, idx, w, dq, device="cpu")
+    assert relative_error(got, expected) < TOL
+
+
+def test_dq_skin_hemisphere_rule_matters():
+    # Two bones with nearly the same rotation but opposite signs: without the sign rule the blend
+    # cancels. The kernel must agree with the reference (and be rigid when both bones agree).
+    rng = np.random.default_rng(1)
+    rest, idx, w = random_skin(rng, 200, 2, 2)
+    idx[:] = [0, 1]
+    one = random_dual_quaternions(rng, 1, 1, flip=False)
+    dq = np.concatenate([one, -one], axis=1)
+    got = pk.dq_skin(rest, idx, w, dq)
+    rigid = pk.dq_skin(rest, idx[:, :1], np.ones((200, 1)), one)
+    assert relative_error(got, rigid) < TOL
+
+
+def test_dq_skin_chunks(monkeypatch):
+    monkeypatch.setattr(pk, "_DEVICE_CHUNK", 1000)  # 3 samples per launch over 300 vertices
+    rng = np.random.default_rng(5)
+    rest, idx, w = random_skin(rng, 300, 7, 3)
+    dq = random_dual_quaternions(rng, 10, 7)
+    assert relative_error(pk.dq_skin(rest, idx, w, dq), pk.dqs_reference(rest, idx, w, dq)) < TOL
+
+
+def random_rigid_frames(rng, samples):
+    frames = np.zeros((samples, 4, 4))
+    frames[:, :3, :3] = random_rotations(rng, (samples,))
+    frames[:, :3, 3] = rng.normal(size=(samples, 3)) * 5.0
+    frames[:, 3, 3] = 1.0
+    return frames
+
+
+def random_puppet(rng, kind, influences=4, verts=400, bones=10, n_p=15, n_c=4, solver=True):
+    rest, idx, w = random_skin(rng, verts, bones, influences)
+    # M, m around a unit dual quaternion per bone, so predictions stay away from |q0| = 0
+    base = random_dual_quaternions(rng, 1, bones)[0].reshape(-1)
+    return pk.PuppetArrays(
+        rest_vertices=rest, bone_indices=idx, bone_weights=w, training_controls=rng.normal(size=(n_p, 3 * n_c)) * 0.3,
+        kernel=kind, offset=0.2, degree=5, predictor=rng.normal(size=(8 * bones, n_p)) * 0.05, bias=base,
+        rotation_operator=rng.normal(size=(bones, bones, 3)) * 0.1 if solver else None,
+        control_operator=rng.normal(size=(bones, n_c)) * 0.2 if solver else None,
+        prior_operator=rng.normal(size=(bones, bones)) * 1e-4 if solver else None)
+
+
+@pytest.mark.parametrize("kind", pk.KERNEL_KINDS)
+@pytest.mark.parametrize("solver", [True, False])
+@pytest.mark.parametrize("framed", [True, False])
+def test_run_puppet_matches_reference(kind, solver, framed):
+    rng = np.random.default_rng(len(kind) + 2 * solver + 4 * framed)
+    puppet = random_puppet(rng, kind)
+    samples = 9
+    x = rng.normal(size=(samples, 12)) * 0.3
+    c = rng.normal(size=(samples, 4, 3))
+    frames = random_rigid_frames(rng, samples) if framed else None
+    expected = pk.reference_run_puppet(puppet, x, c, frames, translation_solver=solver)
+    got = pk.run_puppet(puppet, x, c, frames, translation_solver=solver, device="cpu")
+    assert relative_error(got, expected) < TOL
+
+
+def test_run_puppet_chunks_threads_and_out(monkeypatch):
+    rng = np.random.default_rng(7)
+    puppet = random_puppet(rng, "gaussian", influences=3)
+    samples = 23
+    x, c, frames = rng.normal(size=(samples, 12)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
+    expected = pk.reference_run_puppet(puppet, x, c, frames)
+    device_puppet = pk.DevicePuppet(puppet, "cpu")
+    monkeypatch.setattr(pk, "_DEVICE_CHUNK", 2000)  # 5 samples per chunk over 400 vertices
+    for threads in (1, 2, 3):
+        assert relative_error(pk.run_puppet(device_puppet, x, c, frames, threads=threads), expected) < TOL
+    out = np.zeros((samples, 400, 3), dtype=np.float32)
+    timings = {}
+    assert pk.run_puppet(device_puppet, x, c, frames, out=out, timings=timings) is out
+    assert relative_error(out.astype(np.float64), expected) < TOL
+    assert {"kernel_vectors", "predict", "solve_translations", "skin"} <= set(timings)
+
+
+def test_run_puppet_rejects_bad_input():
+    rng = np.random.default_rng(2)
+    puppet = random_puppet(rng, "linear", solver=False)
+    x = rng.normal(size=(3, 12))
+    with pytest.raises(ValueError, match="translation operator"):
+        pk.run_puppet(puppet, x, None, translation_solver=True)
+    with pytest.raises(ValueError, match="world_frames"):
+        pk.run_puppet(puppet, x, None, np.eye(4)[None], translation_solver=False)
+    with pytest.raises(ValueError, match="standardised_controls"):
+        pk.run_puppet(puppet, x[:, :5], None, translation_solver=False)
+
+
+@pytest.fixture(scope="module")
+def trained_puppet():
+    from skinsynth.pipeline.examples import synthetic_lbs
+    from skinsynth.pipeline.puppet import train_puppet
+
+    data = synthetic_lbs(bones=5, frames=24, rings=16, segments=8)
+    return data, train_puppet(data["vertices"], data["rest"], data["faces"], data["bone_indices"],
+                              data["bone_weights"], data["rotations"], data["translations"], [3, 30, 60, 90, 110, 125],
+                              np.arange(24), global_motion="control-frame")
+
+
+@pytest.mark.parametrize("solver", [True, False])
+def test_run_puppet_matches_predict_vertices(trained_puppet, solver):
+    from skinsynth.pipeline.puppet import predict_vertices
+
+    data, puppet = trained_puppet
+    rng = np.random.default_rng(0)
+    # the training frames, and the same motions carried elsewhere (the world frames matter)
+    controls = data["vertices"][:, puppet.control_indices]
+    turn = random_rotations(rng, (controls.shape[0],))
+    moved = np.einsum("fab,fnb->fna", turn, controls) + rng.normal(size=(controls.shape[0], 1, 3)) * 3.0
+    controls = np.concatenate([controls, moved])
+    expected = predict_vertices(puppet, controls, translation_solver=solver)
+    x, placed, frames = host_inputs(puppet, controls)
+    got = pk.run_puppet(puppet, x, placed, frames, translation_solver=solver, device="cpu")
+    assert relative_error(got, expected) < TOL
+    reference = pk.reference_run_puppet(puppet, x, placed, frames, translation_solver=solver)
+    assert relative_error(reference, expected) < 1e-10
