@@ -25,6 +25,7 @@ demo: setup
 	$(BIN)/skinsynth select-controls $(DEMO)/skin.h5 -o $(DEMO)/controls.h5
 	$(BIN)/skinsynth train-kcca $(DEMO)/controls.h5 -o $(DEMO)/puppet.h5
 	$(BIN)/skinsynth evaluate $(DEMO)/puppet.h5 --plot $(DEMO)/puppet_errors.png
+	$(BIN)/skinsynth play $(DEMO)/puppet.h5 --controls $(DEMO)/bar.npz --instances 16 -o $(DEMO)/crowd.usdc
 	$(BIN)/skinsynth build-graph $(DEMO)/skin.h5 -o $(DEMO)/graph.h5 --plot $(DEMO)/graph_plots
 	@echo
 	@echo "demo results in $(DEMO)/:"
@@ -35,6 +36,7 @@ demo: setup
 	@echo "  controls.h5      8 control vertices chosen by PCA + varimax"
 	@echo "  puppet.h5        kernel-CCA puppet driven by those controls"
 	@echo "  puppet_errors.png held-out error of the puppet vs PCA blendshapes and RBF"
+	@echo "  crowd.usdc       16 puppets played from the example's control points (UsdSkel, dual-quaternion)"
 	@echo "  graph.h5         transitions, bone graph and splicing operators (plots in graph_plots/)"
 
 test: setup
@@ -48,6 +50,7 @@ bench: setup
 	$(BIN)/python benchmarks/fit_skin.py
 	$(BIN)/python benchmarks/puppet.py
 	$(BIN)/python benchmarks/graph.py
+	$(BIN)/python benchmarks/play.py
 	$(BIN)/python benchmarks/lbs.py
 
 clean:

@@ -13,6 +13,7 @@ from .select_controls import select_controls
 from .train_kcca import train_kcca
 from .evaluate import evaluate
 from .build_graph import build_graph
+from .play import play
 
 
 class SkinsynthGroup(click.Group):
@@ -57,4 +58,5 @@ main.add_command(example)
 main.add_command(select_controls)
 main.add_command(train_kcca)
 main.add_command(evaluate)
+main.add_command(play)
 main.add_command(build_graph)

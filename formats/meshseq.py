@@ -263,3 +263,23 @@ def write_array_sequence(path, vertices, faces, fps):
         with open(tmp, "wb") as handle:
             np.savez_compressed(handle, vertices=np.asarray(vertices, dtype=np.float64),
                                 faces=np.asarray(faces, dtype=np.int64), fps=np.float64(fps))
+
+
+def write_vertex_animation(path, vertices, faces, fps, names=None):
+    """Write played characters as HDF5: ``vertices (C, F, V, 3)`` float32, ``faces (T, 3)``, ``@fps``,
+    ``names (C,)``. A single character's file is also a sequence ``read_mesh_sequence`` reads
+    back (it then holds ``vertices (F, V, 3)``)."""
+    import h5py
+
+    from .atomic import atomic_output
+
+    vertices = np.asarray(vertices, dtype=np.float32)
+    with atomic_output(path) as tmp:
+        with h5py.File(tmp, "w") as f:
+            data = vertices[0] if vertices.shape[0] == 1 else vertices
+            f.create_dataset("vertices", data=data, compression="gzip", compression_opts=4, shuffle=True,
+                             track_times=False)
+            f.create_dataset("faces", data=np.asarray(faces, dtype=np.int64), track_times=False)
+            f.attrs["fps"] = float(fps)
+            if names is not None:
+                f.create_dataset("names", data=np.array(names, dtype=h5py.string_dtype()), track_times=False)

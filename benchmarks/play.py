@@ -13,7 +13,7 @@ float32 `out` buffer, written in place on the CPU; `f64_frames_per_s`: with the 
 result, first layout only). `stages` synchronises after each stage (so sums slightly exceed the
 end-to-end time). The numpy reference runs on at most --numpy-samples samples and is scaled.
 
-    python benchmarks/play_kernels.py [--repeats 3] [--only face] [--numpy-samples 200]
+    python benchmarks/play.py [--repeats 3] [--only face] [--numpy-samples 200]
 """
 
 import argparse
