@@ -14,6 +14,7 @@ from .train_kcca import train_kcca
 from .evaluate import evaluate
 from .build_graph import build_graph
 from .play import play
+from .synthesize import synthesize
 
 
 class SkinsynthGroup(click.Group):
@@ -60,3 +61,4 @@ main.add_command(train_kcca)
 main.add_command(evaluate)
 main.add_command(play)
 main.add_command(build_graph)
+main.add_command(synthesize)

@@ -35,6 +35,13 @@ STAGES = {
 }
 
 
+class Uncompressed:
+    """Marks a large dataset to be written without compression (gzip would dominate the write)."""
+
+    def __init__(self, array):
+        self.array = np.asarray(array)
+
+
 def _write_group(group, contents):
     for name, value in contents.items():
         if name.startswith("@"):
@@ -42,6 +49,9 @@ def _write_group(group, contents):
             continue
         if isinstance(value, dict):  # a nested group, e.g. /graph/component_000
             _write_group(group.create_group(name, track_order=True), value)
+            continue
+        if isinstance(value, Uncompressed):
+            group.create_dataset(name, data=value.array, track_times=False)
             continue
         array = np.asarray(value)
         if array.ndim == 0:

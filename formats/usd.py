@@ -33,9 +33,17 @@ def write_points_cache(path, vertices, faces, fps, prim_name="mesh", up_axis="Y"
 
 
 def write_points_characters(path, vertices, faces, fps, names=None, up_axis="Y", group="characters") -> None:
-    """Several baked characters: vertices (C, F, V, 3) as Meshes ``/<group>/<name>`` (or ``/<name>``)."""
-    vertices = _float_array("vertices", vertices, (None, None, None, 3))
-    characters, frames, count = vertices.shape[:3]
+    """Several baked characters as Meshes ``/<group>/<name>`` (or ``/<name>``).
+
+    vertices: an array (C, F, V, 3), or any sequence whose item c is character c's (F, V, 3) —
+    e.g. a lazy one that skins each character only when it is written, so a crowd never has to
+    fit in memory at once.
+    """
+    if isinstance(vertices, np.ndarray) or not hasattr(vertices, "__getitem__"):
+        vertices = _float_array("vertices", vertices, (None, None, None, 3))
+    characters = len(vertices)
+    first = _float_array("vertices[0]", vertices[0], (None, None, 3))
+    frames, count = first.shape[:2]
     faces = _faces("faces", faces, count)
     names = _character_names(names, characters)
     _check_common(path, fps, group or names[0], up_axis, frames)
@@ -44,16 +52,17 @@ def write_points_characters(path, vertices, faces, fps, names=None, up_axis="Y",
         stage = _new_stage(tmp, fps, frames, up_axis)
         parent = _group_parent(stage, group)
         for c, name in enumerate(names):
+            character = first if c == 0 else _float_array(f"vertices[{c}]", vertices[c], (frames, count, 3))
             mesh = _define_mesh(stage, parent.AppendChild(name), faces)
             if group is None and c == 0:
                 stage.SetDefaultPrim(mesh.GetPrim())
             # One attribute at a time: interleaving Sets on two attributes is ~4x slower in pxr 26.
             points = mesh.GetPointsAttr()
             for frame in range(frames):
-                points.Set(Vt.Vec3fArray.FromNumpy(vertices[c, frame].astype(np.float32)), Usd.TimeCode(frame))
+                points.Set(Vt.Vec3fArray.FromNumpy(character[frame].astype(np.float32)), Usd.TimeCode(frame))
             extent = mesh.GetExtentAttr()
             for frame in range(frames):
-                extent.Set(_extent(vertices[c, frame]), Usd.TimeCode(frame))
+                extent.Set(_extent(character[frame]), Usd.TimeCode(frame))
         stage.GetRootLayer().Save()
         del stage  # release the layer before the file is renamed under it
 

@@ -1,0 +1,207 @@
+"""``skinsynth synthesize``: one clip in, many different animations out (Zheng 2013)."""
+
+import json
+import os
+import time
+
+import click
+import numpy as np
+
+from .common import Progress, check_output_path, command_line, tool_version, user_errors
+
+
+def _target(text):
+    frame, sep, when = text.partition("@")
+    try:
+        if not sep:
+            raise ValueError
+        return int(frame), int(when)
+    except ValueError:
+        raise click.BadParameter(f"{text!r}: expected FRAME@TIME, e.g. 12@100") from None
+
+
+class _LazyCrowd:
+    """Each animation's vertices (M, V, 3), skinned by the warp LBS kernel only when asked for."""
+
+    def __init__(self, skin, F, t, offsets, device):
+        self.skin, self.F, self.t, self.offsets, self.device = skin, F, t, offsets, device
+
+    def __len__(self):
+        return self.F.shape[0]
+
+    def __getitem__(self, a):
+        from skinsynth.gpu import lbs
+
+        s = self.skin
+        return lbs(s.rest_vertices, s.bone_indices, s.bone_weights, self.F[a], self.t[a], device=self.device) \
+            + self.offsets[a]
+
+
+@click.command("synthesize")
+@click.argument("path", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Bone motions file to write (.h5).")
+@click.option("--count", "-n", required=True, type=int, help="Number of animations.")
+@click.option("--frames", "-m", required=True, type=int, help="Frames per animation.")
+@click.option("--seed", default=0, show_default=True, type=int, help="Seed of every random choice.")
+@click.option("--start-frame", type=int, default=None, help="Input frame every animation starts with.")
+@click.option("--end-frame", type=int, default=None, help="Input frame every animation ends with.")
+@click.option("--target", "targets", multiple=True, type=_target, metavar="FRAME@TIME",
+              help="Input FRAME must appear at output TIME (repeatable).")
+@click.option("--obstacle", "obstacles", multiple=True, type=click.Path(dir_okay=False),
+              help="A mesh (OBJ/PLY/OFF/STL…) no frame may penetrate (repeatable).")
+@click.option("--ground-plane", is_flag=True, help="No vertex may go below the input clip's lowest point.")
+@click.option("--min-difference", default=0.0, show_default=True, type=float,
+              help="Drop an animation that shares more than 1 − X of its frames (same input frame at the same time) with an earlier one.")
+@click.option("--single-component", is_flag=True, help="Synthesise the whole rig as one component, ignoring cut nodes.")
+@click.option("--window", default=8, show_default=True, type=int, help="Frames blended on each side of a transition.")
+@click.option("--usd", "usd_dir", type=click.Path(file_okay=False), default=None, help="Also write one USD point cache per animation here.")
+@click.option("--crowd", type=click.Path(dir_okay=False), default=None, help="Also write one USD stage with every animation on a grid.")
+@click.option("--exr", "exr_dir", type=click.Path(file_okay=False), default=None, help="Also write one vertex-animation texture per animation here.")
+@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default="Y", show_default=True, help="Up axis (ground plane, crowd grid, USD).")
+@click.option("--device", default="auto", show_default=True, help="Where vertex caches are skinned: auto, cpu, cuda or cuda:N.")
+@click.option("--jobs", "-j", default=1, show_default=True, type=int, help="Worker processes (the result does not depend on it).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@user_errors
+def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
+               min_difference, single_component, window, usd_dir, crowd, exr_dir, up_axis, device, jobs, as_json, quiet):
+    """Synthesise many different animations from the clip analysed in a graph file.
+
+    Random walks over the motion graph (or walks through targeted frames), splicing at the
+    candidate transitions with deformation-gradient blending at key vertices (Zheng §3.3),
+    independent synthesis of the bone components and their merge through cut nodes (§4.2),
+    collision avoidance against obstacle meshes and a diversity filter (§3.4).
+
+    \b
+    Examples:
+      skinsynth synthesize horse.graph.h5 -o herd.h5 --count 1000 --frames 600 --seed 7
+      skinsynth synthesize dancer.graph.h5 -o d.h5 -n 20 -m 300 --start-frame 0 --end-frame 0 --crowd dancers.usdc
+      skinsynth synthesize cloth.graph.h5 -o c.h5 -n 60 -m 480 --obstacle sphere.obj --usd cloths/
+    """
+    from skinsynth.formats.graph_file import read_graph
+    from skinsynth.formats.model import read_model, write_model
+    from skinsynth.formats.provenance import provenance_record
+    from skinsynth.formats.synthesis_file import synthesis_groups
+    from skinsynth.gpu import resolve_device
+    from skinsynth.pipeline.collisions import build_obstacles, colliding, vertex_subset
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.graph import build_graph
+    from skinsynth.pipeline.synthesis import Request, component_from_file, synthesize as make, validate_request
+
+    check_output_path(output, (".h5", ".hdf5"))
+    if crowd is not None:
+        check_output_path(crowd, (".usd", ".usda", ".usdc"))
+    if jobs < 1 or window < 0:
+        raise OptionError("--jobs must be at least 1 and --window at least 0")
+    device = resolve_device(device) if (usd_dir or crowd or exr_dir) else None
+    graph_file = read_graph(path)
+    skin = graph_file.skin
+    request = Request(count=count, frames=frames, seed=seed, targets=list(targets), start=start_frame, end=end_frame,
+                      min_difference=min_difference, window=window)
+    validate_request(request, skin.rotations.shape[0])
+    up = 1 if up_axis == "Y" else 2
+    if obstacles or ground_plane:
+        meshes = [_read_obstacle(o) for o in obstacles]
+        ground = (up, float(skin.examples[..., up].min())) if ground_plane else None
+        request.obstacles = build_obstacles(meshes, ground=ground, tolerance=1e-6 * float(np.ptp(skin.rest_vertices)))
+        subset = vertex_subset(skin.rest_vertices.shape[0])
+        request.forbidden = colliding(request.obstacles, skin.examples[:, subset])
+    if single_component and len(graph_file.components) > 1:
+        analysis = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
+                               skin.translations, single_component=True,
+                               **_graph_options(graph_file.graph))
+        components = analysis.components
+    else:
+        components = [component_from_file(c, skin.rest_vertices) for c in graph_file.components]
+
+    started = time.perf_counter()
+    with Progress(count, "synthesize", quiet or as_json) as bar:
+        done = [0]
+
+        def progress(finished):
+            bar.update(finished - done[0], f"{finished}/{count} animations")
+            done[0] = finished
+
+        result = make(components, skin.rotations, skin.translations, skin.rest_vertices, skin.bone_indices,
+                      skin.bone_weights, request, jobs=jobs, progress=progress)
+    seconds = time.perf_counter() - started
+    parameters = dict(count=count, frames=frames, seed=seed, start_frame=start_frame, end_frame=end_frame,
+                      targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,
+                      min_difference=min_difference, single_component=single_component, window=window)
+    record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(), seed)
+    model = read_model(path)
+    write_model(output, "synthesis", synthesis_groups(model, result, components, request, skin.fps),
+                model["provenance"] + [record], tool_version())
+    written = [output]
+    if usd_dir or crowd or exr_dir:
+        written += _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device)
+    report = {"animations": int(result.F.shape[0]), "frames": int(frames), "seconds": round(seconds, 3),
+              "distinct": result.distinct, "transitions_used": int(np.sum(result.seams_used)),
+              "components": len(components), "rejected": result.rejected, "outputs": written}
+    if as_json:
+        click.echo(json.dumps(report))
+    else:
+        click.echo(f"wrote {output}: {report['animations']} animations × {frames} frames from {len(components)} "
+                   f"component(s), {result.distinct} distinct, {report['transitions_used']} transitions used; "
+                   f"{seconds:.1f} s" + (f"; replaced {result.rejected}" if any(result.rejected.values()) else ""))
+        if len(written) > 1:
+            click.echo(f"caches: {', '.join(written[1:]) if len(written) < 6 else written[1] + ' …'}")
+
+
+def _graph_options(graph):
+    return dict(threshold_scale=float(graph.get("@threshold_scale", 3.0)),
+                threshold_reference=str(graph.get("@threshold_reference", "median-step")),
+                edge_threshold=float(graph.get("@edge_threshold", 0.1)), svd_threshold=float(graph.get("@svd_threshold", 0.005)),
+                min_gap=int(graph.get("@min_gap", 2)))
+
+
+def _read_obstacle(path):
+    import trimesh
+
+    from skinsynth.formats.errors import FormatError
+
+    if not os.path.isfile(path):
+        raise FormatError(path, "no such obstacle file")
+    try:
+        mesh = trimesh.load(path, force="mesh", process=True)
+    except Exception as error:  # trimesh raises anything from parsing errors to ValueError
+        raise FormatError(path, f"cannot load the obstacle mesh: {error}") from None
+    if len(getattr(mesh, "faces", [])) == 0:
+        raise FormatError(path, "the obstacle has no faces")
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
+
+
+def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device):
+    from skinsynth.pipeline.evaluation import largest_side
+    from skinsynth.pipeline.playback import grid_offsets
+
+    count = result.F.shape[0]
+    none = np.zeros((count, 3))
+    written = []
+    if usd_dir or exr_dir:
+        frames = _LazyCrowd(skin, result.F, result.t, none, device)
+        for folder in (usd_dir, exr_dir):
+            if folder:
+                os.makedirs(folder, exist_ok=True)
+        for a in range(count):
+            vertices = frames[a]
+            if usd_dir:
+                from skinsynth.formats.usd import write_points_cache
+
+                target = os.path.join(usd_dir, f"animation_{a:04d}.usdc")
+                write_points_cache(target, vertices, skin.faces, skin.fps, up_axis=up_axis)
+                written.append(target)
+            if exr_dir:
+                from skinsynth.formats.exr import write_vat
+
+                target = os.path.join(exr_dir, f"animation_{a:04d}.exr")
+                write_vat(target, skin.rest_vertices, vertices, skin.fps)
+                written.append(target)
+    if crowd:
+        from skinsynth.formats.usd import write_points_characters
+
+        offsets = grid_offsets(count, 1.5 * largest_side(skin.rest_vertices), up_axis)
+        write_points_characters(crowd, _LazyCrowd(skin, result.F, result.t, offsets, device), skin.faces, skin.fps,
+                                names=[f"animation_{a:04d}" for a in range(count)], up_axis=up_axis)
+        written.append(crowd)
+    return written

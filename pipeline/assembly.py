@@ -1,0 +1,109 @@
+"""Multi-component assembly (Zheng §4.2, Alg. 1, eq. 12–14): merge bone components through cut nodes.
+
+Each component is synthesised on its own (its own walk, its own reference bone), so two
+components that share a cut node b_c each produce a motion of b_c. They can be put together when
+b_c's stretch agrees (eq. 12: D_C = Σ_t ‖S_c,i(t) − S_c,j(t)‖²_F below T_c = 0.05 · max_t ‖S‖²_F,
+F = U S polar), by carrying all of C_j rigidly onto C_i's cut node (eq. 13, 14).
+
+Choices Alg. 1 leaves open: components are merged in breadth-first order of the block–cut tree
+from the component with the most bones (the anchor); for output animation a the anchor uses its
+own walk a, and each further component tries ``tries`` of its synthesised animations in a
+seeded random order, taking the first that passes eq. 12 (or the closest one, counted as a
+rejection, when none does, so every requested animation exists). Components that share no bone
+with the rest are independent pieces of the mesh and are copied as they are.
+"""
+
+from collections import deque
+
+import numpy as np
+
+from .rotations import polar_rotation
+
+
+def polar(F):
+    """F (..., 3, 3) -> (U (..., 3, 3) proper rotation, S (..., 3, 3) symmetric) with F = U S."""
+    U = polar_rotation(F)
+    S = np.swapaxes(U, -1, -2) @ F
+    return U, 0.5 * (S + np.swapaxes(S, -1, -2))
+
+
+def stretch_difference(S_a, S_b):
+    """Eq. 12 and its threshold for stretch series (..., M, 3, 3): (D_C (...,), T_c (...,))."""
+    difference = np.sum((S_a - S_b) ** 2, axis=(-1, -2, -3))
+    largest = np.maximum(np.max(np.sum(S_a ** 2, axis=(-1, -2)), axis=-1), np.max(np.sum(S_b ** 2, axis=(-1, -2)), axis=-1))
+    return difference, 0.05 * largest
+
+
+def merge_into(F, t, cut, F_j, t_j, bones_j):
+    """Carry component j onto the assembled bones through cut node ``cut`` (eq. 13–14), in place.
+
+    F (M, B, 3, 3), t (M, B, 3): the assembled animation (cut already set); F_j (M, b_j, 3, 3),
+    t_j (M, b_j, 3): component j's animation of its bones ``bones_j`` (sorted ids, cut among them).
+    """
+    where = list(bones_j).index(cut)
+    U_i, S_i = polar(F[:, cut])
+    U_j, S_j = polar(F_j[:, where])
+    turn = U_i @ np.swapaxes(U_j, -1, -2)  # (M, 3, 3)
+    anchor_t = t[:, cut].copy()
+    for k, b in enumerate(bones_j):
+        if b == cut:
+            continue
+        F[:, b] = turn @ F_j[:, k]  # eq. 14
+        t[:, b] = np.einsum("mab,mb->ma", turn, t_j[:, k] - t_j[:, where]) + anchor_t
+    F[:, cut] = 0.5 * U_i @ (S_i + S_j)  # eq. 13 (translation stays C_i's)
+
+
+def merge_order(components):
+    """[(component index, shared cut node or None)] in breadth-first order from the largest."""
+    sets = [set(c) for c in components]
+    start = max(range(len(components)), key=lambda c: (len(components[c]), -c))
+    order, seen, queue = [(start, None)], {start}, deque([start])
+    while queue:
+        here = queue.popleft()
+        for other in range(len(components)):
+            if other not in seen:
+                shared = sets[here] & sets[other]
+                if shared:
+                    seen.add(other)
+                    order.append((other, min(shared)))
+                    queue.append(other)
+    order += [(c, None) for c in range(len(components)) if c not in seen]
+    return order
+
+
+def assemble(components, animations, bones, rng, tries=32):
+    """Merge per-component animations into whole-rig animations.
+
+    components: list of sorted bone-id lists; animations: list of (F (N, M, b, 3, 3), t (N, M, b, 3))
+    per component; bones: B. Returns (F (N, M, B, 3, 3), t (N, M, B, 3), choice (N, C) the
+    animation used from each component, rejected (int): merges that fell back to the closest).
+    """
+    count, frames = animations[0][0].shape[:2]
+    F = np.zeros((count, frames, bones, 3, 3))
+    t = np.zeros((count, frames, bones, 3))
+    order = merge_order(components)
+    choice = np.zeros((count, len(components)), dtype=np.int64)
+    rejected = 0
+    first = order[0][0]
+    ids = np.asarray(components[first])
+    F[:, :, ids], t[:, :, ids] = animations[first]
+    choice[:, first] = np.arange(count)
+    for c, cut in order[1:]:
+        F_c, t_c = animations[c]
+        ids = np.asarray(components[c])
+        if cut is None:  # an independent piece of the mesh
+            F[:, :, ids], t[:, :, ids] = F_c, t_c
+            choice[:, c] = np.arange(count)
+            continue
+        where = int(np.searchsorted(ids, cut))
+        _, S_c = polar(F_c[:, :, where])  # (N, M, 3, 3) stretch of the cut node in component c
+        for a in range(count):
+            _, S_a = polar(F[a, :, cut])
+            candidates = rng.permutation(count)[:tries]
+            difference, threshold = stretch_difference(S_a[None], S_c[candidates])
+            passing = np.flatnonzero(difference < threshold)
+            pick = candidates[passing[0]] if passing.size else candidates[np.argmin(difference)]
+            rejected += int(passing.size == 0)
+            choice[a, c] = pick
+            merge_into(F[a], t[a], cut, F_c[pick], t_c[pick], ids)
+    return F, t, choice, rejected

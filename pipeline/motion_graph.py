@@ -1,0 +1,519 @@
+"""Motion graph over the frames of one clip, random and constrained walks (Zheng §3.4).
+
+Walk semantics (fixed by the team). An input clip has F frames. A candidate transition (i, j)
+(:func:`.transitions.candidate_transitions`) means: after playing frame i, frame j is identified
+with frame i and playback continues at j + 1. The frame graph therefore has the edges
+``i → i+1`` (playback, i < F−1) and ``i → j+1`` for each transition (i, j) with j + 1 < F. An
+output animation of M frames is ``source (M,)``: the input frame shown at each output frame,
+consecutive entries joined by an edge. Seams are the output indices k with
+``source[k] ≠ source[k−1] + 1``; the transition used there is ``(source[k−1], source[k] − 1)``.
+
+Contents:
+
+- :class:`MotionGraph`: the graph, forbidden frames removed, and the *usable* frames (those from
+  which an arbitrarily long walk exists), as CSR arrays.
+- :func:`random_walks`: many walks at once, vectorised over walks (a loop over output frames).
+- :func:`constrained_walks`: targeted frames (Zheng §3.4: input frame f at output time T), by
+  exact-length reachability between consecutive targets.
+- :func:`overlap`, :func:`diversity_filter`: Zheng's "compare the current path with existing
+  results" test, as a greedy filter.
+- :func:`seams`: seam indices and the transitions used, per walk.
+
+Choices the paper leaves open, made here:
+
+- Only played frames matter: a transition (i, j) plays i then j + 1; frame j itself is never
+  shown, so forbidding j does not remove the transition (forbidding i or j + 1 does). Duplicate
+  transitions and (i, i) (= playback) are dropped; (i, j) with j = F − 1 has no edge (playback
+  would continue past the clip's end).
+- Walk policy: at each step a walk that has played at least ``min_segment`` frames since its
+  last seam (the first output frame starts a segment) takes a transition with probability
+  ``transition_probability`` if one is allowed, uniformly among the allowed ones; otherwise it
+  plays on, unless playing on is not allowed, in which case it must take a transition.
+- "Allowed" moves come from exact-length reachability: a move is allowed only if the walk can
+  still be completed from the new state within the remaining output frames (and, for a
+  constrained interval, end on its target at its time). The search runs on states
+  (frame, frames played in the current segment, capped at ``min_segment``), so ``min_segment``
+  is a hard constraint whenever it can be met (*strict* walks); a walk in a state from which it
+  cannot be met (e.g. it starts two frames before a dead end) follows the plain frame graph
+  (*relaxed*), still preferring to play on while its segment is short, and becomes strict again
+  as soon as its state allows. So segments shorter than ``min_segment`` occur only where no walk
+  can avoid them.
+- This is not uniform sampling over paths: within the set of states that lie on some valid
+  path the walk makes the same local random choices as an unconstrained walk. Zheng's
+  multi-start bidirectional search is realised as backward sets from the end (which decide the
+  moves) and forward sets from the start (which only serve to explain failures: at which output
+  times the target *could* be reached).
+- :func:`random_walks` stays inside the usable frames. :func:`constrained_walks` by default may
+  pass through non-forbidden frames outside the usable set (dead-end tails, e.g. the clip's
+  last frames) when the exact-length search shows the walk still completes, so a target can be
+  e.g. the clip's last frame; ``usable_only=True`` restricts it to the usable frames too.
+- An interval with a free start (output frames before the first target) starts uniformly among
+  the frames from which the first target can be reached on time (preferring strict ones); an
+  interval with a free end (after the last target) is a random walk of the remaining length.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import OptionError
+
+NO_CYCLE_MESSAGE = ("the clip has no repeated states at this threshold: no transition leads back; "
+                    "try a larger --threshold-scale")
+
+
+@dataclass
+class _Moves:
+    """Frame-level moves of the non-forbidden graph: playback ``play_ok (F,)`` (i+1 < F, both
+    allowed) and transitions in CSR form ``t_indptr (F+1,)``, ``t_target (E,)`` = j + 1,
+    ``t_pairs (E, 2)`` = (i, j), sorted by (i, j)."""
+
+    play_ok: np.ndarray
+    t_indptr: np.ndarray
+    t_target: np.ndarray
+    t_pairs: np.ndarray
+
+
+class MotionGraph:
+    """The frame graph of one clip (see the module docstring for the walk semantics).
+
+    ``MotionGraph(frames, transitions, forbidden=None)``: frames F; transitions (T, 2) int pairs
+    (i, j) (candidate transitions); forbidden (F,) bool, frames never to be shown (removed with
+    their edges). Raises :class:`OptionError` when no arbitrarily long walk exists.
+
+    Attributes: ``frames`` F; ``transitions`` (T', 2) the distinct transitions whose played
+    frames i, j + 1 are in range and not forbidden, sorted; ``forbidden`` (F,) bool;
+    ``usable`` (F,) bool, the frames from which an arbitrarily long walk exists (they can reach
+    a cycle); ``dead_ends`` (F,) bool, non-forbidden frames that are not usable;
+    ``indptr (F+1,)``, ``indices`` the successors of each frame in the usable subgraph (CSR,
+    empty rows for unusable frames; each usable frame has at least one successor).
+    """
+
+    def __init__(self, frames, transitions, forbidden=None):
+        frames = int(frames)
+        if frames < 1:
+            raise OptionError(f"a motion graph needs at least one frame (got {frames})")
+        pairs = np.asarray(transitions, dtype=np.int64).reshape(-1, 2) if np.size(transitions) else \
+            np.zeros((0, 2), np.int64)
+        if pairs.size and (pairs.min() < 0 or pairs.max() >= frames):
+            raise OptionError(f"transitions must pair frames in 0..{frames - 1}")
+        if forbidden is None:
+            forbidden = np.zeros(frames, bool)
+        forbidden = np.asarray(forbidden, dtype=bool)
+        if forbidden.shape != (frames,):
+            raise ValueError(f"forbidden must have shape ({frames},), got {forbidden.shape}")
+        self.frames = frames
+        self.forbidden = forbidden.copy()
+        allowed = ~forbidden
+
+        # transitions i → j+1 between shown frames; drop (i, i) (= playback) and j = F−1
+        pairs = np.unique(pairs, axis=0)
+        keep = (pairs[:, 1] + 1 < frames) & (pairs[:, 0] != pairs[:, 1])
+        pairs = pairs[keep]
+        pairs = pairs[allowed[pairs[:, 0]] & allowed[pairs[:, 1] + 1]]
+        self.transitions = pairs  # np.unique sorted them by (i, j)
+        self._moves = _Moves(
+            play_ok=np.concatenate([allowed[:-1] & allowed[1:], [False]]),
+            t_indptr=np.searchsorted(pairs[:, 0], np.arange(frames + 1)).astype(np.int64),
+            t_target=pairs[:, 1] + 1,
+            t_pairs=pairs)
+
+        src, dst = self._edges(allowed)
+        self.usable = _infinite_walk_nodes(frames, src, dst) & allowed
+        self.dead_ends = allowed & ~self.usable
+        if not self.usable.any():
+            detail = f" ({frames} frames, {len(pairs)} transitions"
+            if forbidden.any():
+                detail += f", {int(forbidden.sum())} forbidden frames"
+            raise OptionError(NO_CYCLE_MESSAGE + detail + ")")
+        src, dst = self._edges(self.usable)
+        self.indptr, self.indices = _csr(frames, src, dst)
+        self._state_cache = {}
+
+    @classmethod
+    def from_transitions(cls, result, forbidden=None):
+        """From a :class:`.transitions.Transitions` result (F from its D, its candidate pairs)."""
+        return cls(result.D.shape[0], result.pairs, forbidden)
+
+    @property
+    def usable_count(self):
+        """How many frames are usable."""
+        return int(self.usable.sum())
+
+    @property
+    def usable_frames(self):
+        """The usable frame ids, increasing."""
+        return np.flatnonzero(self.usable)
+
+    def describe(self):
+        """One line for logs: frames, transitions, usable frames and why the others are not."""
+        text = f"{self.frames} frames, {len(self.transitions)} transition(s): {self.usable_count} usable"
+        extra = []
+        if self.forbidden.any():
+            extra.append(f"{int(self.forbidden.sum())} forbidden")
+        if self.dead_ends.any():
+            extra.append(f"{int(self.dead_ends.sum())} dead ends that cannot reach a cycle")
+        return text + (f" ({', '.join(extra)})" if extra else "")
+
+    def successors(self, frame):
+        """Successors of ``frame`` in the usable subgraph (sorted)."""
+        return self.indices[self.indptr[frame]:self.indptr[frame + 1]]
+
+    def has_edges(self, a, b, usable_only=False):
+        """Whether a → b is an edge, elementwise over integer arrays a, b (any equal shapes).
+
+        Edges of the non-forbidden frame graph (``usable_only``: of the usable subgraph)."""
+        a = np.asarray(a, np.int64)
+        b = np.asarray(b, np.int64)
+        inside = (a >= 0) & (a < self.frames) & (b >= 0) & (b < self.frames)
+        ac, bc = np.where(inside, a, 0), np.where(inside, b, 0)
+        mask = self.usable if usable_only else ~self.forbidden
+        ok = inside & mask[ac] & mask[bc]
+        play = (bc == ac + 1) & self._moves.play_ok[ac]
+        keys = self._moves.t_pairs[:, 0] * self.frames + self._moves.t_target
+        pos = np.searchsorted(keys, ac * self.frames + bc)  # keys are sorted: pairs sorted by (i, j)
+        trans = (pos < keys.size) & (keys[np.minimum(pos, max(keys.size - 1, 0))] == ac * self.frames + bc) \
+            if keys.size else np.zeros(ac.shape, bool)
+        return ok & (play | trans)
+
+    def _edges(self, mask):
+        """(src, dst) of all edges between frames in ``mask``."""
+        m = self._moves
+        play = np.flatnonzero(m.play_ok & mask & np.roll(mask, -1))
+        t_src = m.t_pairs[:, 0]
+        use = mask[t_src] & mask[m.t_target]
+        return (np.concatenate([play, t_src[use]]), np.concatenate([play + 1, m.t_target[use]]))
+
+    def _state_matrix(self, usable_only, segment):
+        """Sparse adjacency (n, n), n = F · segment, of the (frame, segment-position) states.
+
+        State (v, s), s = min(frames played in the current segment, segment) − 1. Playback:
+        (v, s) → (v+1, min(s+1, segment−1)); transitions only from s = segment−1, to (w, 0).
+        Restricted to usable or non-forbidden frames. Returns (matrix, allowed states (n,))."""
+        key = (bool(usable_only), int(segment))
+        if key not in self._state_cache:
+            mask = self.usable if usable_only else ~self.forbidden
+            m, F = self._moves, self.frames
+            play = np.flatnonzero(m.play_ok & mask & np.roll(mask, -1))
+            s = np.arange(segment)
+            p_src = (play[:, None] * segment + s).ravel()
+            p_dst = ((play[:, None] + 1) * segment + np.minimum(s + 1, segment - 1)).ravel()
+            use = mask[m.t_pairs[:, 0]] & mask[m.t_target]
+            t_src = m.t_pairs[use, 0] * segment + segment - 1
+            t_dst = m.t_target[use] * segment
+            n = F * segment
+            matrix = sp.csr_matrix((np.ones(p_src.size + t_src.size, np.float32),
+                                    (np.concatenate([p_src, t_src]), np.concatenate([p_dst, t_dst]))),
+                                   shape=(n, n))
+            self._state_cache[key] = (matrix, np.repeat(mask, segment))
+        return self._state_cache[key]
+
+
+def random_walks(graph, count, frames, rng, start=None, transition_probability=0.5, min_segment=4):
+    """``count`` random walks of ``frames`` output frames -> sources (count, frames) int64.
+
+    Walks stay inside ``graph.usable``. start: a usable frame where every walk starts, or None
+    for starts drawn uniformly over the usable frames. rng: a numpy Generator (same state, same
+    walks). See the module docstring for the policy (``transition_probability``,
+    ``min_segment``). Vectorised over walks: one numpy step per output frame.
+    """
+    count, frames = _check_sizes(count, frames)
+    segment = max(1, int(min_segment))
+    if start is not None:
+        start = _check_frame(graph, start, "start frame", usable_only=True)
+        first = np.full(count, start, np.int64)
+    else:
+        first = rng.choice(graph.usable_frames, size=count)
+    path, _ = _walk_interval(graph, True, first, np.zeros(count, np.int64), None, frames - 1, rng,
+                             transition_probability, segment, None, None)
+    return path
+
+
+def constrained_walks(graph, count, frames, targets, rng, start=None, end=None, transition_probability=0.5,
+                      min_segment=4, usable_only=False):
+    """``count`` walks of ``frames`` output frames through targeted frames (Zheng §3.4).
+
+    targets: iterable of ``(input_frame, output_time)``: input frame f must be shown at output
+    time T (0 ≤ T < frames). start / end: shorthand for the targets (start, 0) and
+    (end, frames − 1). The output time axis is split at the targets; each interval between two
+    targets is filled by exact-length reachability (backward sets over (frame, time) states,
+    O(length · edges)) and a forward random walk restricted to states on some valid path; before
+    the first target the start frame is free, after the last the end is free. Raises
+    :class:`OptionError` naming the target when it cannot be reached in time, when two targets
+    ask different frames at one time, or when a target is forbidden (or, with ``usable_only``,
+    a dead end). Returns sources (count, frames) int64.
+    """
+    count, frames = _check_sizes(count, frames)
+    segment = max(1, int(min_segment))
+    wanted = [(f, t) for f, t in targets] if targets is not None else []
+    if start is not None:
+        wanted.append((start, 0))
+    if end is not None:
+        wanted.append((end, frames - 1))
+    by_time = {}
+    for f, t in wanted:
+        t = int(t)
+        if not 0 <= t < frames:
+            raise OptionError(f"target output time {t} is outside 0..{frames - 1}")
+        f = _check_frame(graph, f, "target input frame", usable_only, f" at output time {t}")
+        if by_time.setdefault(t, f) != f:
+            raise OptionError(f"output time {t} is targeted at two input frames, {by_time[t]} and {f}")
+    fixed = sorted((t, f) for t, f in by_time.items())
+
+    sources = np.empty((count, frames), np.int64)
+    since = np.zeros(count, np.int64)
+    if not fixed:  # no targets: free start and free end
+        path, _ = _walk_interval(graph, usable_only, None, since, None, frames - 1, rng, transition_probability,
+                                 segment, None, None)
+        return path
+    t0, f0 = fixed[0]
+    if t0 > 0:  # free start, fixed end
+        path, since = _walk_interval(graph, usable_only, None, since, f0, t0, rng, transition_probability,
+                                     segment, None, (f0, t0))
+        sources[:, :t0 + 1] = path
+    else:
+        sources[:, 0] = f0
+    for (ta, fa), (tb, fb) in zip(fixed[:-1], fixed[1:]):
+        path, since = _walk_interval(graph, usable_only, sources[:, ta], since, fb, tb - ta, rng,
+                                     transition_probability, segment, (fa, ta), (fb, tb))
+        sources[:, ta:tb + 1] = path
+    tl, fl = fixed[-1]
+    if tl < frames - 1:  # fixed start, free end
+        path, since = _walk_interval(graph, usable_only, sources[:, tl], since, None, frames - 1 - tl, rng,
+                                     transition_probability, segment, (fl, tl), None)
+        sources[:, tl:] = path
+    return sources
+
+
+def overlap(a, b):
+    """The fraction of output frames at which walks a (M,) and b (M,) show the same input frame."""
+    a, b = np.asarray(a), np.asarray(b)
+    if a.shape != b.shape or a.ndim != 1:
+        raise ValueError(f"walks must be equal-length 1-D arrays, got {a.shape} and {b.shape}")
+    return float(np.mean(a == b)) if a.size else 1.0
+
+
+def diversity_filter(sources, min_difference, block_elements=1 << 24):
+    """Greedy diversity filter -> keep mask (N,) bool.
+
+    sources (N, M). Walks are visited in order; walk n is kept unless its :func:`overlap` with an
+    earlier *kept* walk exceeds ``1 − min_difference`` (so ``min_difference = 0`` keeps all,
+    ``1`` keeps only walks that never show the same frame at the same time as a kept one).
+    Pairwise equality counts are computed in blocks of rows against all kept rows (about
+    ``block_elements`` comparisons per block), then resolved greedily inside the block.
+    """
+    sources = np.asarray(sources)
+    if sources.ndim != 2:
+        raise ValueError(f"sources must be (N, M), got {sources.shape}")
+    if not 0.0 <= min_difference <= 1.0:
+        raise OptionError(f"min_difference must lie in [0, 1] (got {min_difference})")
+    n, m = sources.shape
+    keep = np.zeros(n, bool)
+    if n == 0:
+        return keep
+    # overlap > 1 − d  ⇔  equal count > (1 − d) M; compare integers to avoid round-off
+    limit = (1.0 - min_difference) * m
+    kept_rows = np.zeros((0, m), sources.dtype)
+    start = 0
+    while start < n:
+        block = max(1, min(n - start, block_elements // max(1, (kept_rows.shape[0] + 64) * m)))
+        rows = sources[start:start + block]
+        if kept_rows.shape[0]:
+            eq_prev = (rows[:, None, :] == kept_rows[None, :, :]).sum(axis=2)  # (b, K)
+            alive = ~(eq_prev > limit).any(axis=1)
+        else:
+            alive = np.ones(len(rows), bool)
+        eq_in = (rows[:, None, :] == rows[None, :, :]).sum(axis=2)  # (b, b)
+        block_keep = np.zeros(len(rows), bool)
+        for r in range(len(rows)):
+            if alive[r] and not (eq_in[r, :r][block_keep[:r]] > limit).any():
+                block_keep[r] = True
+        keep[start:start + len(rows)] = block_keep
+        kept_rows = np.concatenate([kept_rows, rows[block_keep]])
+        start += len(rows)
+    return keep
+
+
+def seams(sources):
+    """Seams of walks: for sources (M,) a tuple ``(indices (S,), pairs (S, 2))``, the output
+    indices k with source[k] ≠ source[k−1] + 1 and the transitions (source[k−1], source[k] − 1)
+    used there; for sources (N, M) a list of such tuples, one per walk."""
+    sources = np.asarray(sources, np.int64)
+    if sources.ndim == 1:
+        return seams(sources[None])[0]
+    out = []
+    for row in sources:
+        k = np.flatnonzero(row[1:] != row[:-1] + 1) + 1
+        out.append((k, np.stack([row[k - 1], row[k] - 1], axis=1)))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# internals
+
+
+def _check_sizes(count, frames):
+    count, frames = int(count), int(frames)
+    if count < 0 or frames < 1:
+        raise OptionError(f"need count ≥ 0 walks of at least 1 frame (got {count} × {frames})")
+    return count, frames
+
+
+def _check_frame(graph, frame, what, usable_only, where=""):
+    frame = int(frame)
+    if not 0 <= frame < graph.frames:
+        raise OptionError(f"{what} {frame}{where} is outside the clip's frames 0..{graph.frames - 1}")
+    if graph.forbidden[frame]:
+        raise OptionError(f"{what} {frame}{where} is a forbidden frame")
+    if usable_only and not graph.usable[frame]:
+        raise OptionError(f"{what} {frame}{where} is a dead end: no arbitrarily long walk leaves it "
+                          f"({graph.describe()})" + ("; constrained walks accept it with usable_only=False"
+                                                     if what.startswith("target") else ""))
+    return frame
+
+
+def _csr(n, src, dst):
+    order = np.lexsort((dst, src))
+    src, dst = src[order], dst[order]
+    return np.searchsorted(src, np.arange(n + 1)).astype(np.int64), dst.astype(np.int64)
+
+
+def _infinite_walk_nodes(n, src, dst):
+    """Nodes with an infinite walk (they reach a cycle): iterated pruning of dead ends, O(n + e)."""
+    out_degree = np.bincount(src, minlength=n)
+    r_indptr, r_indices = _csr(n, dst, src)  # predecessors
+    alive = np.ones(n, bool)
+    stack = list(np.flatnonzero(out_degree == 0))
+    while stack:
+        v = stack.pop()
+        alive[v] = False
+        for u in r_indices[r_indptr[v]:r_indptr[v + 1]]:
+            out_degree[u] -= 1
+            if out_degree[u] == 0:
+                stack.append(u)
+    return alive
+
+
+def _backward_sets(matrix, allowed, end_states, length):
+    """B (length+1, n) bool: B[t] = states from which ``end_states`` is reached in exactly
+    length − t steps through allowed states."""
+    b = np.empty((length + 1, matrix.shape[0]), bool)
+    b[length] = end_states & allowed
+    for t in range(length - 1, -1, -1):
+        b[t] = (matrix @ b[t + 1].astype(np.float32) > 0) & allowed
+    return b
+
+
+def _reachable_times(matrix, allowed, start_states, target_states, horizon):
+    """Output offsets 0..horizon at which some walk from ``start_states`` is in ``target_states``."""
+    x = start_states & allowed
+    transpose = matrix.T.tocsr()
+    times = []
+    for t in range(horizon + 1):
+        if (x & target_states).any():
+            times.append(t)
+        x = (transpose @ x.astype(np.float32) > 0) & allowed
+    return times
+
+
+def _unreachable_message(graph, usable_only, begin, finish, length):
+    """Why no walk joins ``begin`` (frame, time) or a free start to ``finish`` or a free end."""
+    matrix, allowed = graph._state_matrix(usable_only, 1)
+    where = "among the usable frames" if usable_only else "avoiding forbidden frames" if graph.forbidden.any() \
+        else ""
+    if finish is None:
+        fa, ta = begin
+        return (f"no walk of {length} more output frames continues from input frame {fa} at output time {ta}"
+                f"{' ' + where if where else ''}: every path runs into a dead end ({graph.describe()})")
+    fb, tb = finish
+    if begin is None:
+        origin, start_states, t_origin = "any start frame at output time 0", allowed.copy(), 0
+    else:
+        fa, ta = begin
+        origin, start_states, t_origin = f"input frame {fa} at output time {ta}", np.zeros(graph.frames, bool), ta
+        start_states[fa] = True
+    target = np.zeros(graph.frames, bool)
+    target[fb] = True
+    horizon = length + 2 * graph.frames
+    times = [t_origin + t for t in _reachable_times(matrix, allowed, start_states, target, horizon)]
+    if times:
+        shown = ", ".join(str(t) for t in times[:8]) + (", ..." if len(times) > 8 else "")
+        hint = f"from there it can be shown at output times {shown}"
+    else:
+        hint = f"it is never reachable from there (within {horizon} frames)"
+    return (f"input frame {fb} cannot be reached at output time {tb} from {origin}"
+            f"{' ' + where if where else ''} ({length} frames later); {hint}")
+
+
+def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, segment, begin, finish):
+    """Walks over one interval of ``length`` steps -> (path (count, length+1), since (count,)).
+
+    first: start frames (count,) or None (free start, drawn here); since: per walk, the segment
+    position s (frames played in the current segment − 1, ≥ 0) at the first frame; end_frame: the
+    frame required after ``length`` steps or None (free end). begin / finish: (frame, time) of
+    the targets, for error messages."""
+    F = graph.frames
+    moves = graph._moves
+    plain_m, allowed1 = graph._state_matrix(usable_only, 1)
+    end1 = allowed1.copy() if end_frame is None else np.arange(F) == end_frame
+    plain = _backward_sets(plain_m, allowed1, end1, length)  # (L+1, F)
+    if segment > 1:
+        strict_m, allowed_s = graph._state_matrix(usable_only, segment)
+        strict = _backward_sets(strict_m, allowed_s, np.repeat(end1, segment), length).reshape(length + 1, F, segment)
+    else:
+        strict = plain.reshape(length + 1, F, 1)
+
+    if first is None:
+        count = since.size
+        candidates = np.flatnonzero(strict[0, :, 0])
+        if candidates.size == 0:
+            candidates = np.flatnonzero(plain[0])
+        if candidates.size == 0:
+            raise OptionError(_unreachable_message(graph, usable_only, begin, finish, length))
+        first = rng.choice(candidates, size=count)
+        since = np.zeros(count, np.int64)
+    else:
+        first = np.asarray(first, np.int64)
+        if not plain[0, first].all():
+            raise OptionError(_unreachable_message(graph, usable_only, begin, finish, length))
+    count = first.size
+    cur = first.copy()
+    s = np.minimum(since, segment - 1)
+    path = np.empty((count, length + 1), np.int64)
+    path[:, 0] = cur
+    last = segment - 1
+    t_indptr, t_target = moves.t_indptr, moves.t_target
+    play_ok = moves.play_ok
+    for t in range(length):
+        strict_next, plain_next = strict[t + 1], plain[t + 1]
+        relaxed = np.flatnonzero(~strict[t, cur, s])  # usually empty: handled on the side
+        nxt_play = np.minimum(cur + 1, F - 1)
+        s_play = np.minimum(s + 1, last)
+        can_play = play_ok[cur] & strict_next[nxt_play, s_play]
+        lo, hi = t_indptr[cur], t_indptr[cur + 1]
+        # valid transition edges as running counts over the edge list: strict walks may only
+        # transition at the end of a full segment and must land where a full segment still fits
+        cs_s = np.concatenate([[0], np.cumsum(strict_next[t_target, 0])])
+        cnt = np.where(s == last, cs_s[hi] - cs_s[lo], 0)
+        if relaxed.size:
+            cs_p = np.concatenate([[0], np.cumsum(plain_next[t_target])])
+            can_play[relaxed] = play_ok[cur[relaxed]] & plain_next[nxt_play[relaxed]]
+            cnt[relaxed] = cs_p[hi[relaxed]] - cs_p[lo[relaxed]]
+        u = rng.random((2, count))
+        take = ((cnt > 0) & (s == last) & (u[0] < p)) | ~can_play
+        movers = np.flatnonzero(take)
+        if movers.size:
+            if (cnt[movers] == 0).any():  # cannot happen: every state in the sets has a valid move
+                raise RuntimeError("internal error: a walk has no valid move")
+            rank = np.minimum((u[1, movers] * cnt[movers]).astype(np.int64), cnt[movers] - 1)
+            edge = np.searchsorted(cs_s, cs_s[lo[movers]] + rank + 1) - 1  # the rank-th valid edge
+            if relaxed.size:
+                loose = ~strict[t, cur[movers], s[movers]]
+                if loose.any():
+                    edge[loose] = np.searchsorted(cs_p, cs_p[lo[movers[loose]]] + rank[loose] + 1) - 1
+            nxt_play[movers] = t_target[edge]
+            s_play[movers] = 0
+        cur, s = nxt_play, s_play
+        path[:, t + 1] = cur
+    return path, s

@@ -1,0 +1,356 @@
+"""Splicing walks of one bone component into output bone positions (Zheng §3.3, eq. 7–10).
+
+A walk is ``source (M,)``: the input frame played at each output frame. Consecutive output
+frames either follow playback (``source[k] = source[k−1] + 1``) or take a transition (i, j):
+``source[k−1] = i``, ``source[k] = j + 1`` — frame j is identified with frame i (Zheng's
+S_{a→i} then S_{j→b}) and playback goes on after j. A *seam* is an output index k with
+``source[k] ≠ source[k−1] + 1``; ``source[0]`` may be any frame. :func:`splice` turns A walks of
+the same length into world bone positions, all at once:
+
+1. Reference bone (eq. 7, :func:`reference_alignment`): each segment of the walk is the input
+   reference-bone motion moved by one rigid transform G, the identity before the first seam; at
+   a seam G ← G ∘ P(i) ∘ P(j)⁻¹ (P(f) the input reference pose of frame f), so frame j's pose
+   lands on the output pose of frame i and the output goes on with the input's own step j → j+1.
+   The compositions along the walk are a prefix product over output frames, done for all
+   animations at once by a log-depth (Hillis–Steele) scan: ⌈log₂ M⌉ batched 3×3 products.
+   The reference bone stays rigid (a product of rotations).
+2. Non-reference bones away from seams: their local-frame positions (eq. 2) are the source
+   frame's, exactly.
+3. Around each seam (:func:`seam_windows`, :func:`blend_rotation_strain`): the rotation-strain
+   coordinates d of every key vertex are re-solved over a window by the 1D Poisson equation
+   d̃(m−1) − 2 d̃(m) + d̃(m+1) = g(m) at each free frame m, g(m) the second difference of the input
+   series at source[m] with *its own* input neighbours (so the jump itself is never a second
+   difference), and Dirichlet values at the two frames just outside the free run: d̃ = d(source)
+   there (those frames keep their exact positions). The matrix is the same for all 9n
+   coordinates, so every window of every animation is one diagonal block of one symmetric
+   positive-definite tridiagonal system (the negated Laplacian, zero couplings between windows)
+   with 9n right-hand sides: one ``scipy.linalg.solveh_banded`` call (LAPACK ptsv, O(L·9n)) for
+   all windows, or one per group of whole windows when they hold more than ``block_frames``
+   frames (memory bound; the blocks are independent, so the result is the same).
+4. Blended d̃ → D̃ (:func:`rotation_strain_to_matrix`) → eq. 9 for the local positions of the
+   non-reference bones at every free frame, one :meth:`GradientOperator.solve` per block. By
+   default (``anchored=True``) eq. 9 is solved for the *change*: p̃ = p(source) + G⁺(D̃ − D(source)),
+   D(source) the input gradients of the source frame. With G of full column rank this is the
+   plain least-squares solution of G p = d̃ − c (to rounding); where G is rank-deficient (a
+   bone direction the key vertices do not see, e.g. hard weights), the plain solve would set
+   the unseen directions to 0 inside the windows and jump back to the input values outside;
+   the anchored solve keeps the source's values there, so the window edges stay continuous and
+   an unchanged d̃ gives back the source positions exactly. ``anchored=False`` is the plain
+   solve. From here on local positions are general affine 3×3 (Zheng eq. 9).
+5. World positions (eq. 10): F_b = R̃_r F_b→r, t_b = R̃_r t_b→r + t̃_r; the reference bone is
+   F = R̃_r, t = t̃_r.
+
+Windows (:func:`seam_windows`): seam k blends the ``window`` output frames before it
+(k−window … k−1) and the ``window`` frames from it on (k … k+window−1); the Dirichlet frames are
+L = k−window−1 and R = k+window. Clipping:
+
+- at the animation ends, L ≥ 0 and R ≤ M−1 (frame 0 and frame M−1 stay fixed, so a seam at
+  k = 1 blends only its right side and one at k = M−1 only its left side);
+- between two seams k₁ < k₂ whose windows would overlap or touch (gap g = k₂ − k₁ ≤ 2·window),
+  the two windows share one Dirichlet frame k₁ + ⌊g/2⌋: seam k₁ gets ⌊g/2⌋ frames on its right,
+  seam k₂ gets g − 1 − ⌊g/2⌋ on its left. So every window is bounded by fixed frames and no
+  frame belongs to two windows; with seams one frame apart (g = 1) the shared fixed frame is the
+  one-frame segment itself and each seam blends on its outer side only. ``window=0`` blends
+  nothing (eq. 7 only; the local positions jump at each seam).
+
+Input-clip ends: g at input frame 0 or F−1 has no neighbour on one side; it uses the second
+difference of frame 1 or F−2 (the nearest complete one). With fewer than 3 input frames g = 0.
+
+Branch cut: d's rotation part is an axis-angle vector (angle in [0, π]); a key vertex whose
+local rotation crosses π flips its vector, and the blend sees that as a jump (the limitation
+:func:`.transitions.bone_coordinate_matrix` shares). Local-frame key-vertex rotations are
+normally far from π.
+
+Memory, dtype: the outputs F (A, M, b, 3, 3) and t (A, M, b, 3) take A·M·b·96 bytes in float64
+(``dtype=np.float32``: half; all arithmetic stays float64 and is rounded once when stored).
+Float64 intermediates: the reference poses and their prefix scan (≈ A·M·300 bytes), the input
+local positions (F·b·96 bytes), ``animation_block`` animations' gathered local and world
+positions at a time (≈ animation_block·M·b·200 bytes), and per block of about
+``block_frames`` window frames ≈ block_frames·n·360 bytes (n key vertices: Poisson right-hand
+side, d̃, D̃, D(source), the solve's transposes) plus block_frames·b·300 bytes of solved
+positions: with the defaults ≈ 3 MB per key vertex, ~130 MB for n = 43. Windows are never split
+across blocks, and blocks, like animation blocks, change nothing but rounding. Measured: A = 100,
+M = 600, b = 22 (n = 43), 38k window frames: 91 MiB of float64 output, peak RSS ~0.5 GB for the
+whole process.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from .deformation_gradients import rotation_strain_to_matrix
+from .transitions import local_frame_positions
+
+
+def walk_sources(sources, frames):
+    """Validate walks: ``sources`` (A, M) or (M,) ints in [0, frames) -> int64 (A, M).
+
+    Every seam must land on a frame ≥ 1 (a seam k plays source[k] = j + 1 after identifying j
+    with source[k−1], so j = source[k] − 1 must exist).
+    """
+    sources = np.asarray(sources)
+    if sources.ndim == 1:
+        sources = sources[None]
+    if sources.ndim != 2 or sources.shape[1] == 0:
+        raise ValueError(f"sources must be (A, M) with M ≥ 1, got shape {sources.shape}")
+    if not np.issubdtype(sources.dtype, np.integer):
+        raise ValueError(f"sources must be integers, got {sources.dtype}")
+    sources = sources.astype(np.int64)
+    if sources.size and (sources.min() < 0 or sources.max() >= frames):
+        raise ValueError(f"sources must lie in 0..{frames - 1}, got {sources.min()}..{sources.max()}")
+    seam = sources[:, 1:] != sources[:, :-1] + 1
+    if np.any(seam & (sources[:, 1:] == 0)):
+        a, k = np.argwhere(seam & (sources[:, 1:] == 0))[0]
+        raise ValueError(f"animation {a} jumps to input frame 0 at output frame {k + 1}: a transition (i, j) "
+                         "continues at j + 1 ≥ 1")
+    return sources
+
+
+def walk_seams(sources):
+    """Seams of walks (A, M): ``(animation (S,), k (S,))``, sorted by animation then k."""
+    sources = np.asarray(sources)
+    animation, k = np.nonzero(sources[:, 1:] != sources[:, :-1] + 1)
+    return animation.astype(np.int64), (k + 1).astype(np.int64)
+
+
+@dataclass
+class SeamWindows:
+    """Blend windows of all seams (module notes): per seam s, ``animation[s]``, the seam's output
+    index ``seam[s]`` and its Dirichlet frames ``left[s] < seam[s] ≤ right[s]``; the free (blended)
+    frames are left+1 … right−1 (none when right = left + 1)."""
+
+    animation: np.ndarray
+    seam: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+
+    @property
+    def counts(self):
+        """Free frames per window (S,)."""
+        return self.right - self.left - 1
+
+    def frames(self, select=None):
+        """Free frames of the windows ``select`` (default all), stacked window by window:
+        ``(animation (L,), frame (L,), owner (L,) index into the windows, first (L,), last (L,))``."""
+        index = np.arange(self.seam.size) if select is None else np.asarray(select, dtype=np.int64)
+        count = self.counts[index]
+        owner = np.repeat(index, count)
+        start = np.repeat(np.cumsum(count) - count, count)
+        offset = np.arange(owner.size) - start
+        frame = self.left[owner] + 1 + offset
+        return (self.animation[owner], frame, owner, offset == 0, offset == self.counts[owner] - 1)
+
+
+def seam_windows(sources, window=8):
+    """Windows around every seam of walks (A, M), clipped as in the module notes -> SeamWindows."""
+    sources = np.asarray(sources)
+    if int(window) != window or window < 0:
+        raise ValueError(f"window must be a non-negative integer, got {window}")
+    window = int(window)
+    frames = sources.shape[1]
+    animation, k = walk_seams(sources)
+    count = k.size
+    first = np.ones(count, bool)
+    first[1:] = animation[1:] != animation[:-1]
+    last = np.ones(count, bool)
+    last[:-1] = animation[:-1] != animation[1:]
+    gap_before = np.zeros(count, np.int64)
+    gap_before[1:] = k[1:] - k[:-1]
+    gap_after = np.zeros(count, np.int64)
+    gap_after[:-1] = k[1:] - k[:-1]
+    wide = 2 * window + 1  # a segment of ≥ wide frames keeps both half-windows whole
+    left = np.where(first, np.maximum(k - window - 1, 0),
+                    np.where(gap_before >= wide, k - window - 1, k - gap_before + gap_before // 2))
+    right = np.where(last, np.minimum(k + window, frames - 1),
+                     np.where(gap_after >= wide, k + window, k + gap_after // 2))
+    return SeamWindows(animation=animation, seam=k, left=left.astype(np.int64), right=right.astype(np.int64))
+
+
+def compose_prefix(R, t):
+    """Prefix compositions along axis 1: out[:, k] = H[:, 0] ∘ H[:, 1] ∘ … ∘ H[:, k].
+
+    R (A, M, 3, 3), t (A, M, 3) rigid (or affine) maps x ↦ R x + t. Hillis–Steele scan,
+    ⌈log₂ M⌉ batched products; returns new arrays.
+    """
+    R = np.array(R, dtype=np.float64)
+    t = np.array(t, dtype=np.float64)
+    step = 1
+    while step < R.shape[1]:
+        earlier_R, earlier_t = R[:, :-step], t[:, :-step]
+        new_t = np.einsum("amij,amj->ami", earlier_R, t[:, step:]) + earlier_t
+        new_R = earlier_R @ R[:, step:]
+        R[:, step:] = new_R
+        t[:, step:] = new_t
+        step *= 2
+    return R, t
+
+
+def reference_alignment(R_ref, t_ref, sources):
+    """Output reference-bone poses along walks by Zheng eq. 7.
+
+    R_ref (F, 3, 3), t_ref (F, 3): the input reference bone; sources (A, M) validated walks.
+    Returns (R̃ (A, M, 3, 3), t̃ (A, M, 3)) = G_k ∘ P(source[k]), G the accumulated rigid offsets
+    (identity before the first seam; at a seam k with i = source[k−1], j = source[k] − 1,
+    G ← G ∘ P(i) ∘ P(j)⁻¹).
+    """
+    R_ref = np.asarray(R_ref, dtype=np.float64)
+    t_ref = np.asarray(t_ref, dtype=np.float64)
+    count, frames = sources.shape
+    H_R = np.broadcast_to(np.eye(3), (count, frames, 3, 3)).copy()
+    H_t = np.zeros((count, frames, 3))
+    animation, k = walk_seams(sources)
+    if k.size:
+        i = sources[animation, k - 1]
+        j = sources[animation, k] - 1
+        # P(i) ∘ P(j)⁻¹ = (R_i R_jᵀ, t_i − R_i R_jᵀ t_j): Zheng eq. 7's fixed rigid transform.
+        rel = R_ref[i] @ np.swapaxes(R_ref[j], -1, -2)
+        H_R[animation, k] = rel
+        H_t[animation, k] = t_ref[i] - np.einsum("sab,sb->sa", rel, t_ref[j])
+    G_R, G_t = compose_prefix(H_R, H_t)
+    R_out = G_R @ R_ref[sources]
+    t_out = np.einsum("amij,amj->ami", G_R, t_ref[sources]) + G_t
+    return R_out, t_out
+
+
+def strain_second_differences(strain):
+    """g of the module notes: strain (F, n, 9) -> (F, n, 9) second differences d(f−1) − 2d(f) +
+    d(f+1), frames 0 and F−1 copying frames 1 and F−2; zero with fewer than 3 frames."""
+    strain = np.asarray(strain, dtype=np.float64)
+    g = np.zeros_like(strain)
+    if strain.shape[0] >= 3:
+        g[1:-1] = strain[:-2] - 2.0 * strain[1:-1] + strain[2:]
+        g[0] = g[1]
+        g[-1] = g[-2]
+    return g
+
+
+def blend_rotation_strain(strain, sources, windows, select=None, second=None):
+    """Poisson-blended rotation-strain coordinates at the free frames of windows (step 3).
+
+    strain (F, n, 9) the input series; sources (A, M); windows a :class:`SeamWindows`;
+    ``select`` the windows to solve (default all); ``second`` precomputed
+    :func:`strain_second_differences` (optional). Returns ``(animation (L,), frame (L,),
+    d̃ (L, n, 9))`` in :meth:`SeamWindows.frames` order. One banded Cholesky solve
+    (``solveh_banded``) of the stacked block-tridiagonal system −Δ d̃ = −g + boundary values, with
+    all n·9 coordinates as right-hand sides.
+    """
+    strain = np.asarray(strain, dtype=np.float64)
+    second = strain_second_differences(strain) if second is None else second
+    animation, frame, owner, first, last = windows.frames(select)
+    size, shape = frame.size, strain.shape[1:]
+    if size == 0:
+        return animation, frame, np.zeros((0,) + shape)
+    # −Δ: 2 on the diagonal, −1 between consecutive free frames of one window (upper form).
+    bands = np.empty((2, size))
+    bands[1] = 2.0
+    bands[0] = np.where(first, 0.0, -1.0)
+    rhs = -second[sources[animation, frame]]
+    # Dirichlet ends: the fixed frames keep the input values of their source frames.
+    rhs[first] += strain[sources[windows.animation[owner[first]], windows.left[owner[first]]]]
+    rhs[last] += strain[sources[windows.animation[owner[last]], windows.right[owner[last]]]]
+    if size == 1:  # LAPACK ptsv refuses an empty off-diagonal
+        solved = rhs.reshape(1, -1) / 2.0
+    else:
+        solved = scipy.linalg.solveh_banded(bands, rhs.reshape(size, -1), lower=False, check_finite=False)
+    return animation, frame, solved.reshape((size,) + shape)
+
+
+def _window_blocks(counts, block_frames):
+    """Group the windows (in order) that have free frames by where their first frame falls:
+    ⌊offset / block_frames⌋ over the stacked free frames, so a group holds at most block_frames
+    frames plus one window's."""
+    start = np.cumsum(counts) - counts
+    keep = np.flatnonzero(counts > 0)
+    group = start[keep] // block_frames
+    cuts = np.flatnonzero(np.diff(group)) + 1
+    return np.split(keep, cuts) if keep.size else []
+
+
+def splice(component, rotations, translations, sources, window=8, dtype=np.float64, anchored=True,
+           block_frames=8192, animation_block=16):
+    """World bone positions of A walks of one bone component (Zheng §3.3; module notes).
+
+    component: a :class:`.graph.ComponentAnalysis` (bones, transitions.reference,
+    transitions.local_bones, strain (F, n, 9), operator); rotations (F, B, 3, 3), translations
+    (F, B, 3): the input skin fit (all B bones; the component's are used); sources (A, M) (or (M,),
+    taken as A = 1) input frame per output frame; window: blend frames on each side of a seam;
+    dtype of the outputs; anchored: eq. 9 solved for the change from the source positions
+    (default) or plainly; block_frames / animation_block: memory bounds (module notes).
+
+    Returns ``(F_world (A, M, b, 3, 3), t_world (A, M, b, 3))`` in the order of
+    ``component.bones``; the reference bone's F is a rotation, the others' general affine
+    matrices inside windows and the source's rotations elsewhere.
+    """
+    bones = np.asarray(component.bones, dtype=np.int64)
+    reference = int(component.transitions.reference)
+    local_bones = np.asarray(component.transitions.local_bones, dtype=np.int64)
+    operator = component.operator
+    strain = np.asarray(component.strain, dtype=np.float64)
+    rotations = np.asarray(rotations, dtype=np.float64)
+    translations = np.asarray(translations, dtype=np.float64)
+    frames = rotations.shape[0]
+    if rotations.shape[2:] != (3, 3) or translations.shape != rotations.shape[:2] + (3,):
+        raise ValueError(f"rotations {rotations.shape} and translations {translations.shape} do not match "
+                         "(F, B, 3, 3) and (F, B, 3)")
+    if strain.shape[0] != frames:
+        raise ValueError(f"the component's strain series has {strain.shape[0]} frames, the fit {frames}")
+    if operator is None:
+        raise ValueError("the component has no eq. 9 operator")
+    if not np.array_equal(np.asarray(operator.bone_ids), local_bones):
+        raise ValueError("the operator's bones differ from the component's local bones")
+    sources = walk_sources(sources, frames)
+    windows = seam_windows(sources, window)
+    count, length = sources.shape
+    b = bones.size
+
+    R_ref, t_ref = reference_alignment(rotations[:, reference], translations[:, reference], sources)  # eq. 7
+    F_in, t_in, ids = local_frame_positions(rotations, translations, reference, bones)  # eq. 2, (F, b−1, …)
+    if not np.array_equal(np.asarray(ids), local_bones):
+        raise ValueError("the component's local bones are not its bones without the reference")
+    at_local = np.searchsorted(bones, local_bones)
+    # All b bones in the reference frame, the reference itself at (I, 0): eq. 10 then gives it
+    # F = R̃_r, t = t̃_r exactly (products with 0 and 1 are exact).
+    F_all = np.broadcast_to(np.eye(3), (frames, b, 3, 3)).copy()
+    t_all = np.zeros((frames, b, 3))
+    F_all[:, at_local] = F_in
+    t_all[:, at_local] = t_in
+
+    F_out = np.empty((count, length, b, 3, 3), dtype=dtype)
+    t_out = np.empty((count, length, b, 3), dtype=dtype)
+    # Step 2 + eq. 10 everywhere: the source frames' local positions (windows overwritten below).
+    step = max(1, int(animation_block))
+    for a0 in range(0, count, step):
+        block = slice(a0, min(count, a0 + step))
+        src = sources[block]
+        F_out[block], t_out[block] = _world(R_ref[block], t_ref[block], F_all[src], t_all[src])
+
+    # Steps 3–5 at the window frames.
+    if local_bones.size == 0 or windows.counts.sum() == 0:
+        return F_out, t_out
+    second = strain_second_differences(strain)
+    D_in = rotation_strain_to_matrix(strain)  # (F, n, 3, 3): the input gradients, as the strain has them
+    constant = operator.constant.reshape(-1, 3, 3)
+    for select in _window_blocks(windows.counts, max(1, int(block_frames))):
+        animation, frame, d_tilde = blend_rotation_strain(strain, sources, windows, select, second)
+        D_tilde = rotation_strain_to_matrix(d_tilde)  # (L, n, 3, 3)
+        src = sources[animation, frame]
+        if anchored:
+            D_tilde -= D_in[src]
+            D_tilde += constant
+            dF, dt = operator.solve(D_tilde)  # G⁺(D̃ − D(source))
+            F_local, t_local = F_in[src] + dF, t_in[src] + dt
+        else:
+            F_local, t_local = operator.solve(D_tilde)  # Zheng eq. 9
+        F_world, t_world = _world(R_ref[animation, frame], t_ref[animation, frame], F_local, t_local)
+        F_out[animation[:, None], frame[:, None], at_local[None, :]] = F_world
+        t_out[animation[:, None], frame[:, None], at_local[None, :]] = t_world
+    return F_out, t_out
+
+
+def _world(R_ref, t_ref, F_local, t_local):
+    """Zheng eq. 10: R_ref (..., 3, 3), t_ref (..., 3), F_local (..., K, 3, 3), t_local (..., K, 3)
+    -> (R_ref F_local, R_ref t_local + t_ref)."""
+    F_world = R_ref[..., None, :, :] @ F_local
+    t_world = np.swapaxes(R_ref @ np.swapaxes(t_local, -1, -2), -1, -2) + t_ref[..., None, :]
+    return F_world, t_world

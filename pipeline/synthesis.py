@@ -1,0 +1,204 @@
+"""One clip in, many animations out (Zheng §3.3, §3.4, §4.2): walks, splicing, assembly, checks.
+
+Per bone component: a motion graph over the input frames (:mod:`.motion_graph`) with frames that
+collide with the obstacles removed; walks (random, or through targeted frames); splicing
+(:mod:`.splicing`). Several components are merged through their cut nodes (:mod:`.assembly`).
+Animations whose frames collide after splicing, or that repeat an earlier one more than
+``min_difference`` allows, are replaced by fresh walks.
+
+Animations are made in batches of ``BATCH`` with their own random streams
+``default_rng([seed, batch])``, so the result depends on the seed alone — not on ``jobs`` or on
+how the work is split — and batches can run in parallel worker processes.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .assembly import assemble
+from .collisions import colliding, vertex_subset
+from .deformation_gradients import gradient_operator
+from .errors import OptionError
+from .graph import ComponentAnalysis
+from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks
+from .splicing import splice
+from .transitions import Transitions
+
+BATCH = 50
+MAX_ROUNDS = 20
+
+
+def component_from_file(data, rest):
+    """ComponentAnalysis from a graph file's /graph/component_NNN dict (the eq. 9 operator is
+    rebuilt from the stored key-vertex data: cheap and exactly what build-graph computed)."""
+    local = np.asarray(data["local_bones"], dtype=np.int64)
+    reference = int(data["@reference"])
+    operator = gradient_operator(local, reference, rest, data["key_vertices"], data["key_bones"], data["key_weights"],
+                                 data["weight_gradients"], ridge=float(data.get("@ridge", 1e-9)))
+    transitions = Transitions(reference=reference, bones=[int(b) for b in data["bones"]],
+                              local_bones=[int(b) for b in local], q=data["reduced_coordinates"],
+                              basis=data.get("basis"), singular=data.get("singular"), r=data.get("reference_motion"),
+                              alpha=float(data.get("@alpha", 1.0)), beta=float(data.get("@beta", 1.0)),
+                              D=data["costs"], threshold=float(data.get("@threshold", 0.0)),
+                              pairs=np.asarray(data["transitions"], dtype=np.int64).reshape(-1, 2),
+                              costs=data["transition_costs"])
+    return ComponentAnalysis(bones=[int(b) for b in data["bones"]], transitions=transitions,
+                             key=np.asarray(data["key_vertices"]), key_bones=np.asarray(data["key_bones"]),
+                             key_weights=np.asarray(data["key_weights"]),
+                             key_gradients=np.asarray(data["weight_gradients"]),
+                             strain=np.asarray(data["rotation_strain"]), operator=operator)
+
+
+@dataclass
+class Request:
+    """What to make: count animations of ``frames`` frames; targets [(input frame, output time)],
+    start/end frames; obstacles (collisions.Obstacles or None) with the input frames that collide
+    (forbidden (F,) bool); min_difference; window; transition_probability; min_segment; seed."""
+
+    count: int
+    frames: int
+    seed: int = 0
+    targets: list = field(default_factory=list)
+    start: int | None = None
+    end: int | None = None
+    obstacles: object = None
+    forbidden: np.ndarray | None = None
+    min_difference: float = 0.0
+    window: int = 8
+    transition_probability: float = 0.5
+    min_segment: int = 4
+
+
+@dataclass
+class Synthesis:
+    """F (N, M, B, 3, 3), t (N, M, B, 3) world bone positions (float32); sources (C, N, M) the
+    input frame played per component (the walks each animation was assembled from); choice (N, C)
+    bookkeeping of the assembly; seams_used (N,) transitions per animation;
+    distinct: animations whose walks differ from every other; rejected: counts of animations
+    replaced (collisions, too similar, failed merges)."""
+
+    F: np.ndarray
+    t: np.ndarray
+    sources: np.ndarray
+    choice: np.ndarray
+    seams_used: np.ndarray
+    distinct: int
+    rejected: dict
+
+
+def validate_request(request, input_frames):
+    if request.count < 1:
+        raise OptionError(f"--count must be at least 1 (got {request.count})")
+    if request.frames < 1:
+        raise OptionError(f"--frames must be at least 1 (got {request.frames})")
+    if not 0.0 <= request.min_difference <= 1.0:
+        raise OptionError(f"--min-difference must lie in [0, 1] (got {request.min_difference})")
+    for frame, time in request.targets:
+        if not 0 <= frame < input_frames:
+            raise OptionError(f"--target {frame}@{time}: the clip has frames 0..{input_frames - 1}")
+        if not 0 <= time < request.frames:
+            raise OptionError(f"--target {frame}@{time}: output times are 0..{request.frames - 1}")
+    for name, frame in (("--start-frame", request.start), ("--end-frame", request.end)):
+        if frame is not None and not 0 <= frame < input_frames:
+            raise OptionError(f"{name} {frame}: the clip has frames 0..{input_frames - 1}")
+
+
+def _walks(graph, request, count, rng):
+    if request.targets or request.start is not None or request.end is not None:
+        return constrained_walks(graph, count, request.frames, request.targets, rng, start=request.start,
+                                 end=request.end, transition_probability=request.transition_probability,
+                                 min_segment=request.min_segment)
+    return random_walks(graph, count, request.frames, rng, transition_probability=request.transition_probability,
+                        min_segment=request.min_segment)
+
+
+def make_batch(components, graphs, rotations, translations, rest, bone_indices, bone_weights, request, batch, count):
+    """``count`` animations of one batch: (F, t, sources (C, count, M), choice, rejected dict)."""
+    rng = np.random.default_rng([request.seed, batch])
+    bones = rotations.shape[1]
+    subset = vertex_subset(rest.shape[0])
+    kept_F, kept_t, kept_src, kept_choice = [], [], [], []
+    rejected = {"collisions": 0, "too_similar": 0, "merges": 0}
+    need, rounds = count, 0
+    while need > 0:
+        rounds += 1
+        if rounds > MAX_ROUNDS:
+            raise OptionError(f"could not make {count} acceptable animations in {MAX_ROUNDS} rounds "
+                              f"({rejected}); relax --min-difference or the obstacles")
+        tries = need if rounds == 1 else 2 * need
+        sources = np.stack([_walks(g, request, tries, rng) for g in graphs])  # (C, tries, M)
+        parts = [splice(c, rotations, translations, sources[k], window=request.window, dtype=np.float32)
+                 for k, c in enumerate(components)]
+        if len(components) == 1:
+            F, t = parts[0]
+            choice = np.arange(tries)[:, None]
+        else:
+            F, t, choice, failed = assemble([c.bones for c in components], parts, bones, rng)
+            rejected["merges"] += failed
+            # Output a uses walk choice[a, c] of component c: keep the walks actually used.
+            sources = np.stack([sources[k, choice[:, k]] for k in range(len(components))])
+        ok = np.ones(tries, dtype=bool)
+        if request.obstacles:
+            from skinsynth.gpu import lbs_reference
+
+            for a in range(tries):
+                points = lbs_reference(rest[subset], bone_indices[subset], bone_weights[subset], F[a], t[a])
+                ok[a] = not colliding(request.obstacles, points).any()
+            rejected["collisions"] += int((~ok).sum())
+        F, t, choice, sources = F[ok], t[ok], choice[ok], sources[:, ok]
+        previous = np.concatenate(kept_src, axis=1) if kept_src else np.zeros((len(graphs), 0, request.frames), int)
+        if request.min_difference > 0.0 and F.shape[0]:
+            stacked = np.concatenate([previous, sources], axis=1)
+            joint = stacked.transpose(1, 0, 2).reshape(stacked.shape[1], -1)
+            keep = diversity_filter(joint, request.min_difference)[previous.shape[1]:]
+            rejected["too_similar"] += int((~keep).sum())
+            F, t, choice, sources = F[keep], t[keep], choice[keep], sources[:, keep]
+        take = min(need, F.shape[0])
+        kept_F.append(F[:take])
+        kept_t.append(t[:take])
+        kept_src.append(sources[:, :take])
+        kept_choice.append(choice[:take])
+        need -= take
+    return (np.concatenate(kept_F), np.concatenate(kept_t), np.concatenate(kept_src, axis=1),
+            np.concatenate(kept_choice), rejected)
+
+
+def motion_graphs(components, input_frames, forbidden=None):
+    """One MotionGraph per component from its candidate transitions (OptionError if a component
+    has no infinite walk)."""
+    return [MotionGraph(input_frames, c.transitions.pairs, forbidden=forbidden) for c in components]
+
+
+def synthesize(components, rotations, translations, rest, bone_indices, bone_weights, request, jobs=1, progress=None):
+    """Make ``request.count`` animations. components: list of ComponentAnalysis. Returns Synthesis.
+
+    ``progress(done)`` is called with the number of animations finished after each batch."""
+    validate_request(request, rotations.shape[0])
+    graphs = motion_graphs(components, rotations.shape[0], request.forbidden)
+    batches = [(b, min(BATCH, request.count - b * BATCH)) for b in range(-(-request.count // BATCH))]
+    args = (components, graphs, rotations, translations, rest, bone_indices, bone_weights, request)
+    results = []
+    if jobs > 1 and len(batches) > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            futures = [pool.submit(make_batch, *args, b, n) for b, n in batches]
+            for future in futures:
+                results.append(future.result())
+                if progress is not None:
+                    progress(sum(r[0].shape[0] for r in results))
+    else:
+        for b, n in batches:
+            results.append(make_batch(*args, b, n))
+            if progress is not None:
+                progress(sum(r[0].shape[0] for r in results))
+    F = np.concatenate([r[0] for r in results])
+    t = np.concatenate([r[1] for r in results])
+    sources = np.concatenate([r[2] for r in results], axis=1)
+    choice = np.concatenate([r[3] for r in results])
+    rejected = {key: sum(r[4][key] for r in results) for key in results[0][4]}
+    seams_used = np.sum(sources[..., 1:] != sources[..., :-1] + 1, axis=(0, 2))
+    joint = sources.transpose(1, 0, 2).reshape(sources.shape[1], -1)
+    distinct = int(np.unique(joint, axis=0).shape[0])
+    return Synthesis(F=F, t=t, sources=sources, choice=choice, seams_used=seams_used, distinct=distinct,
+                     rejected=rejected)

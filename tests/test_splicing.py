@@ -1,0 +1,286 @@
+import numpy as np
+import pytest
+
+from skinsynth.gpu.skinning import lbs_reference
+from skinsynth.pipeline.alignment import control_frames
+from skinsynth.pipeline.examples import bending_bar, synthetic_lbs
+from skinsynth.pipeline.graph import build_graph
+from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.skin_fit import fit_skin
+from skinsynth.pipeline.splicing import (blend_rotation_strain, seam_windows, splice, strain_second_differences,
+                                         walk_sources)
+
+
+def chain_clip(bones=6, frames=60, period=20.0, second=None, drift=0.0, seed=0, max_influences=4):
+    """An exact LBS chain (synthetic_lbs's tube and weights): joints swing sinusoidally with
+    ``period`` (plus a ``second`` incommensurate one: no frame repeats), rooted at the most
+    weighted bone (the reference bone), which moves rigidly by ``drift`` (0: it stays put)."""
+    model = synthetic_lbs(bones=bones, frames=1, rings=24, segments=8, seed=seed, max_influences=max_influences)
+    idx, w = model["bone_indices"], model["bone_weights"]
+    root = int(np.argmax(np.bincount(idx.ravel(), weights=w.ravel(), minlength=bones)))
+    rng = np.random.default_rng(seed)
+    amp = rng.uniform(0.15, 0.4, size=(bones, 3))
+    phase = rng.uniform(0, 2 * np.pi, size=(bones, 3))
+    f = np.arange(frames, dtype=float)
+    theta = amp * np.sin(2 * np.pi * f[:, None, None] / period + phase)
+    if second is not None:
+        theta = theta + 0.3 * amp * np.sin(2 * np.pi * f[:, None, None] / second + 2 * phase)
+    joint = rotation_exp(theta)
+    centres = (np.arange(bones) + 0.5) * 4.0 / bones
+    R = np.empty((frames, bones, 3, 3))
+    t = np.empty((frames, bones, 3))
+    R[:, root] = rotation_exp(np.stack([0.02 * drift * f, 0.5 * drift * np.sin(f / 13), 0.01 * drift * f], -1))
+    t[:, root] = np.stack([0.05 * drift * f, 0.02 * drift * f, np.zeros_like(f)], -1)
+    for b in sorted(range(bones), key=lambda b: abs(b - root))[1:]:
+        parent = b + 1 if b < root else b - 1
+        p = np.array([(centres[b] + centres[parent]) / 2, 0.0, 0.0])
+        R[:, b] = R[:, parent] @ joint[:, b]
+        t[:, b] = np.einsum("fij,fj->fi", R[:, parent], p - joint[:, b] @ p) + t[:, parent]
+    clip = dict(rest=model["rest"], faces=model["faces"], bone_indices=idx, bone_weights=w, rotations=R,
+                translations=t)
+    graph = build_graph(clip["rest"], clip["faces"], idx, w, R, t, single_component=True)
+    clip["component"] = graph.components[0]
+    assert clip["component"].transitions.reference == root
+    return clip
+
+
+@pytest.fixture(scope="module")
+def loop_clip():
+    return chain_clip(frames=60, period=20.0)  # three identical 20-frame cycles
+
+
+@pytest.fixture(scope="module")
+def drifting_loop_clip():
+    return chain_clip(frames=60, period=20.0, drift=1.0)
+
+
+@pytest.fixture(scope="module")
+def real_clip():
+    return chain_clip(frames=120, period=20.0, second=33.0)  # no frame repeats
+
+
+@pytest.fixture(scope="module")
+def drifting_real_clip():
+    return chain_clip(frames=120, period=20.0, second=33.0, drift=1.0)
+
+
+def skin(clip, F, t):
+    return lbs_reference(clip["rest"], clip["bone_indices"], clip["bone_weights"], F, t)
+
+
+def splice_clip(clip, sources, **kwargs):
+    return splice(clip["component"], clip["rotations"], clip["translations"], sources, **kwargs)
+
+
+def walk(*pieces):
+    """Concatenate playback pieces (start, stop) into a source walk."""
+    return np.concatenate([np.arange(a, b) for a, b in pieces])
+
+
+def second_differences(vertices):
+    """Max vertex second-difference norm per interior frame: (F, V, 3) -> (F − 2,)."""
+    return np.linalg.norm(vertices[:-2] - 2 * vertices[1:-1] + vertices[2:], axis=-1).max(axis=-1)
+
+
+def rigid_fits(meshes, targets):
+    """Per frame the rigid transform taking meshes[f] onto targets[f], and the moved meshes."""
+    fits = [control_frames(m[None], r) for m, r in zip(meshes, targets)]
+    rot = np.concatenate([f[0] for f in fits])
+    trans = np.concatenate([f[1] for f in fits])
+    return rot, trans, np.einsum("fab,fvb->fva", rot, meshes) + trans[:, None]
+
+
+def free_frames(sources, window):
+    animation, frame = seam_windows(np.atleast_2d(sources), window).frames()[:2]
+    mask = np.zeros(np.atleast_2d(sources).shape, bool)
+    mask[animation, frame] = True
+    return mask
+
+
+def test_seam_windows_are_clipped_at_neighbours_and_ends():
+    # Seams at k = 3, 10, 12, 30 of a 40-frame walk, window 4 (a whole window spans 2·4 + 2 frames).
+    sources = walk((50, 53), (7, 14), (20, 22), (60, 78), (5, 15))
+    assert sources.size == 40
+    w = seam_windows(sources[None], 4)
+    assert w.seam.tolist() == [3, 10, 12, 30]
+    # first seam: left clipped at frame 0; gap 7 ≤ 8 to the next seam: shared fixed frame 3 + 3
+    # gap 2: shared fixed frame 10 + 1; gap 18: both half-windows whole; last seam: whole.
+    assert w.left.tolist() == [0, 6, 11, 25]
+    assert w.right.tolist() == [6, 11, 16, 34]
+    animation, frame, owner, first, last = w.frames()
+    assert np.unique(frame).size == frame.size  # no frame blended twice
+    assert not np.isin(frame, np.concatenate([w.left, w.right])).any()  # fixed frames are not free
+    assert w.counts.tolist() == [5, 4, 4, 8]
+    # A seam at k = 1 and one at M − 1: their windows lie on one side only.
+    edge = walk((30, 31), (10, 20), (40, 41))
+    w = seam_windows(edge[None], 4)
+    assert w.seam.tolist() == [1, 11] and w.left.tolist() == [0, 6] and w.right.tolist() == [5, 11]
+    # window 0: nothing is blended.
+    assert seam_windows(sources[None], 0).counts.sum() == 0
+
+
+def test_walk_validation():
+    with pytest.raises(ValueError, match="frame 0"):
+        walk_sources([[5, 6, 0, 1]], 10)
+    with pytest.raises(ValueError, match="lie in"):
+        walk_sources([[5, 6, 7, 10]], 10)
+    assert walk_sources([0, 1, 2, 7], 10).shape == (1, 4)
+
+
+def test_poisson_blend_solves_the_discrete_equation(real_clip):
+    strain = real_clip["component"].strain
+    sources = np.stack([walk((10, 40), (71, 101)), walk((30, 35), (50, 53), (80, 102), (11, 41))])
+    windows = seam_windows(sources, 6)
+    animation, frame, blended = blend_rotation_strain(strain, sources, windows)
+    g = strain_second_differences(strain)
+    for s in range(windows.seam.size):
+        a, left, right = windows.animation[s], windows.left[s], windows.right[s]
+        inside = (animation == a) & (frame > left) & (frame < right)
+        series = np.concatenate([strain[sources[a, left]][None], blended[inside], strain[sources[a, right]][None]])
+        residual = series[:-2] - 2 * series[1:-1] + series[2:] - g[sources[a, left + 1:right]]
+        assert np.abs(residual).max() < 1e-10
+
+
+@pytest.mark.parametrize("clip_name", ["real_clip", "drifting_real_clip"])
+def test_walk_without_seams_reproduces_the_input(clip_name, request):
+    clip = request.getfixturevalue(clip_name)
+    sources = np.stack([np.arange(5, 65), np.arange(50, 110)])
+    F, t = splice_clip(clip, sources)
+    bones = clip["component"].bones
+    assert F.shape == (2, 60, len(bones), 3, 3) and t.shape == (2, 60, len(bones), 3) and F.dtype == np.float64
+    assert np.abs(F - clip["rotations"][sources][:, :, bones]).max() < 1e-10
+    assert np.abs(t - clip["translations"][sources][:, :, bones]).max() < 1e-10
+
+
+def test_away_from_seams_each_segment_is_the_input_moved_rigidly(drifting_real_clip):
+    clip = drifting_real_clip
+    window = 5
+    # Three transitions (any (i, j) will do here), segments long enough to have frames outside
+    # the windows.
+    sources = walk((3, 25), (61, 80), (11, 30), (90, 110))
+    F, t = splice_clip(clip, sources[None], window=window)
+    out = skin(clip, F[0], t[0])
+    reference = skin(clip, clip["rotations"], clip["translations"])[sources]
+    blended = free_frames(sources, window)[0]
+    seams = np.flatnonzero(sources[1:] != sources[:-1] + 1) + 1
+    assert seams.size == 3 and blended.sum() == 3 * 2 * window
+    segment = np.searchsorted(seams, np.arange(sources.size), side="right")
+    for s in range(seams.size + 1):
+        frames = np.flatnonzero((segment == s) & ~blended)
+        rot, trans, moved = rigid_fits(out[frames], reference[frames])
+        assert np.abs(moved - reference[frames]).max() < 1e-9  # input mesh, rigidly moved ...
+        assert np.abs(rot - rot[0]).max() < 1e-9 and np.abs(trans - trans[0]).max() < 1e-9  # ... one per segment
+        if s == 0:
+            assert np.abs(rot[0] - np.eye(3)).max() < 1e-12 and np.abs(trans[0]).max() < 1e-12
+
+
+def test_exact_loop_transitions_are_seamless(loop_clip):
+    clip = loop_clip
+    # Frames f and f + 20 are the same pose: i → j = i ∓ 20 continues the input exactly.
+    sources = walk((5, 45), (25, 55), (35, 51), (11, 30))
+    F, t = splice_clip(clip, sources[None])
+    bones = clip["component"].bones
+    assert np.abs(F[0] - clip["rotations"][sources][:, bones]).max() < 1e-8
+    assert np.abs(t[0] - clip["translations"][sources][:, bones]).max() < 1e-8
+
+
+def test_exact_loop_with_drift_continues_the_input_rigidly(drifting_loop_clip):
+    # Poses repeat in the reference bone's frame but the whole mesh drifts: the output is the
+    # input, each segment moved by the rigid transform that matches it up (eq. 7), windows included.
+    clip = drifting_loop_clip
+    sources = walk((5, 45), (25, 55), (35, 51))
+    F, t = splice_clip(clip, sources[None])
+    out = skin(clip, F[0], t[0])
+    reference = skin(clip, clip["rotations"], clip["translations"])[sources]
+    seams = np.flatnonzero(sources[1:] != sources[:-1] + 1) + 1
+    segment = np.searchsorted(seams, np.arange(sources.size), side="right")
+    for s in range(seams.size + 1):
+        frames = np.flatnonzero(segment == s)
+        rot, trans, moved = rigid_fits(out[frames], reference[frames])
+        assert np.abs(moved - reference[frames]).max() < 1e-8
+        assert np.abs(rot - rot[0]).max() < 1e-8
+    # No jump at the seams: the output is as smooth as the input.
+    assert second_differences(out).max() < 1.01 * second_differences(
+        skin(clip, clip["rotations"], clip["translations"])).max()
+
+
+def test_real_transitions_have_continuous_velocity(real_clip):
+    clip = real_clip
+    transitions = clip["component"].transitions
+    frames, half, window = clip["rotations"].shape[0], 20, 8
+    base = second_differences(skin(clip, clip["rotations"], clip["translations"])).max()
+    # The 12 best candidate transitions (i, j), then the same with j moved on by 3 frames (poor
+    # transitions): each in a walk of 20 frames up to i and 20 from j + 1.
+    for shift in (0, 3):
+        chosen = [(i, j + shift) for i, j in transitions.pairs if i >= half - 1 and j + shift + half < frames][:12]
+        assert len(chosen) == 12
+        sources = np.stack([walk((i - half + 1, i + 1), (j + 1, j + half + 1)) for i, j in chosen])
+        worst = {}
+        for w in (0, window):
+            F, t = splice_clip(clip, sources, window=w)
+            worst[w] = np.array([second_differences(skin(clip, F[a], t[a]))[half - w - 2:half + w].max()
+                                 for a in range(len(chosen))])
+        # Every blended transition is as smooth as the input's own motion (max over the whole
+        # window, seam included) ...
+        assert worst[window].max() < 1.5 * base
+        if shift:
+            # ... even where splicing without blending (eq. 7 alone, window 0) jumps visibly.
+            assert worst[0].min() > 2.0 * base
+
+
+def test_reference_bone_stays_rigid_and_batches_equal_single_walks(drifting_real_clip):
+    clip = drifting_real_clip
+    sources = np.stack([walk((10, 40), (71, 101)),
+                        walk((30, 31), (50, 53), (80, 102), (11, 45)),  # seams at k = 1, 4, 26
+                        walk((60, 119), (3, 4))])  # a seam at the last frame
+    F, t = splice_clip(clip, sources, window=6)
+    at = clip["component"].bones.index(clip["component"].transitions.reference)
+    ref = F[:, :, at]
+    assert np.abs(np.swapaxes(ref, -1, -2) @ ref - np.eye(3)).max() < 1e-12
+    assert np.abs(np.linalg.det(ref) - 1.0).max() < 1e-12
+    for a in range(3):
+        F1, t1 = splice_clip(clip, sources[a:a + 1], window=6)
+        assert np.abs(F1[0] - F[a]).max() < 1e-12 and np.abs(t1[0] - t[a]).max() < 1e-12
+    # Memory knobs and dtype change nothing beyond rounding.
+    F2, t2 = splice_clip(clip, sources, window=6, block_frames=7, animation_block=1)
+    assert np.abs(F2 - F).max() < 1e-12 and np.abs(t2 - t).max() < 1e-12
+    F3, t3 = splice_clip(clip, sources, window=6, dtype=np.float32)
+    assert F3.dtype == np.float32 and t3.dtype == np.float32
+    assert np.abs(F3 - F).max() < 1e-5 and np.abs(t3 - t).max() < 1e-5
+
+
+def test_anchored_solve_equals_plain_eq9_on_a_full_rank_operator(real_clip):
+    component = real_clip["component"]
+    assert component.operator.rank() == 12 * len(component.transitions.local_bones)
+    sources = np.stack([walk((10, 40), (71, 101)), walk((30, 35), (50, 53), (80, 102), (11, 41))])
+    anchored = splice_clip(real_clip, sources, anchored=True)
+    plain = splice_clip(real_clip, sources, anchored=False)
+    assert np.abs(anchored[0] - plain[0]).max() < 1e-7 and np.abs(anchored[1] - plain[1]).max() < 1e-7
+
+
+def test_anchored_solve_keeps_what_a_rank_deficient_operator_cannot_see():
+    # Hard weights (one influence): the key vertices do not determine every bone direction
+    # (rank G < 12 B'). Plain eq. 9 zeroes those directions inside the windows; the anchored
+    # solve keeps the source's, so an exact loop stays exact.
+    clip = chain_clip(frames=60, period=20.0, max_influences=1)
+    component = clip["component"]
+    assert component.operator.rank() < 12 * len(component.transitions.local_bones)
+    sources = walk((5, 45), (25, 55))
+    bones = component.bones
+    F, t = splice_clip(clip, sources[None])
+    assert np.abs(F[0] - clip["rotations"][sources][:, bones]).max() < 1e-8
+    assert np.abs(t[0] - clip["translations"][sources][:, bones]).max() < 1e-8
+    F, t = splice_clip(clip, sources[None], anchored=False)
+    assert np.abs(t[0] - clip["translations"][sources][:, bones]).max() > 1e-2
+
+
+def test_fitted_bending_bar_loop():
+    # The fitted-skin path: a two-cycle bending bar (frames f and f + 20 identical), 4 bones.
+    vertices, faces = bending_bar(frames=40, rings=12, segments=8, cycles=2)
+    fit = fit_skin(vertices, 4, iterations=10)
+    graph = build_graph(fit.rest_vertices, faces, fit.bone_indices, fit.bone_weights, fit.rotations,
+                        fit.translations, single_component=True)
+    sources = walk((2, 32), (12, 37))  # 31 → j = 11, the same pose
+    F, t = splice(graph.components[0], fit.rotations, fit.translations, sources[None])
+    assert np.abs(F[0] - fit.rotations[sources]).max() < 1e-8
+    assert np.abs(t[0] - fit.translations[sources]).max() < 1e-8
