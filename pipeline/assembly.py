@@ -17,14 +17,12 @@ from collections import deque
 
 import numpy as np
 
-from .rotations import polar_rotation
+from .rotations import polar_decomposition
 
 
 def polar(F):
     """F (..., 3, 3) -> (U (..., 3, 3) proper rotation, S (..., 3, 3) symmetric) with F = U S."""
-    U = polar_rotation(F)
-    S = np.swapaxes(U, -1, -2) @ F
-    return U, 0.5 * (S + np.swapaxes(S, -1, -2))
+    return polar_decomposition(F)
 
 
 def stretch_difference(S_a, S_b):
@@ -37,20 +35,20 @@ def stretch_difference(S_a, S_b):
 def merge_into(F, t, cut, F_j, t_j, bones_j):
     """Carry component j onto the assembled bones through cut node ``cut`` (eq. 13–14), in place.
 
-    F (M, B, 3, 3), t (M, B, 3): the assembled animation (cut already set); F_j (M, b_j, 3, 3),
-    t_j (M, b_j, 3): component j's animation of its bones ``bones_j`` (sorted ids, cut among them).
+    F (N, M, B, 3, 3), t (N, M, B, 3): the assembled animations (cut already set); F_j
+    (N, M, b_j, 3, 3), t_j (N, M, b_j, 3): the animations of component j chosen for them, over
+    its bones ``bones_j`` (sorted ids, cut among them). All animations and bones at once.
     """
-    where = list(bones_j).index(cut)
-    U_i, S_i = polar(F[:, cut])
-    U_j, S_j = polar(F_j[:, where])
-    turn = U_i @ np.swapaxes(U_j, -1, -2)  # (M, 3, 3)
-    anchor_t = t[:, cut].copy()
-    for k, b in enumerate(bones_j):
-        if b == cut:
-            continue
-        F[:, b] = turn @ F_j[:, k]  # eq. 14
-        t[:, b] = np.einsum("mab,mb->ma", turn, t_j[:, k] - t_j[:, where]) + anchor_t
-    F[:, cut] = 0.5 * U_i @ (S_i + S_j)  # eq. 13 (translation stays C_i's)
+    bones_j = np.asarray(bones_j)
+    where = int(np.searchsorted(bones_j, cut))
+    U_i, S_i = polar(F[:, :, cut])
+    U_j, S_j = polar(F_j[:, :, where])
+    turn = U_i @ np.swapaxes(U_j, -1, -2)  # (N, M, 3, 3)
+    others = np.flatnonzero(bones_j != cut)
+    F[:, :, bones_j[others]] = turn[:, :, None] @ F_j[:, :, others]  # eq. 14
+    t[:, :, bones_j[others]] = (np.einsum("nmab,nmkb->nmka", turn, t_j[:, :, others] - t_j[:, :, where, None])
+                                + t[:, :, cut, None])
+    F[:, :, cut] = 0.5 * U_i @ (S_i + S_j)  # eq. 13 (translation stays C_i's)
 
 
 def merge_order(components):
@@ -97,13 +95,23 @@ def assemble(components, animations, bones, rng, tries=32):
             continue
         where = int(np.searchsorted(ids, cut))
         _, S_c = polar(F_c[:, :, where])  # (N, M, 3, 3) stretch of the cut node in component c
-        for a in range(count):
-            _, S_a = polar(F[a, :, cut])
-            candidates = rng.permutation(count)[:tries]
-            difference, threshold = stretch_difference(S_a[None], S_c[candidates])
-            passing = np.flatnonzero(difference < threshold)
-            pick = candidates[passing[0]] if passing.size else candidates[np.argmin(difference)]
-            rejected += int(passing.size == 0)
-            choice[a, c] = pick
-            merge_into(F[a], t[a], cut, F_c[pick], t_c[pick], ids)
+        _, S_a = polar(F[:, :, cut])
+        candidates = np.argsort(rng.random((count, count)), axis=1)[:, :tries]  # a seeded order per animation
+        # Eq. 12 for every (a, candidate) pair from Gram matrices: ‖Sa−Sc‖² = ‖Sa‖² + ‖Sc‖² − 2⟨Sa, Sc⟩.
+        flat_a, flat_c = S_a.reshape(count, -1), S_c.reshape(count, -1)
+        inner = flat_a @ flat_c.T
+        norm_a, norm_c = np.sum(flat_a ** 2, axis=1), np.sum(flat_c ** 2, axis=1)
+        rows = np.arange(count)[:, None]
+        difference = np.maximum(norm_a[:, None] + norm_c[None, :] - 2.0 * inner, 0.0)[rows, candidates]
+        peak_a = np.max(np.sum(S_a ** 2, axis=(-1, -2)), axis=1)
+        peak_c = np.max(np.sum(S_c ** 2, axis=(-1, -2)), axis=1)
+        threshold = 0.05 * np.maximum(peak_a[:, None], peak_c[candidates])  # Zheng's T_c
+        passing = difference < threshold
+        first = np.argmax(passing, axis=1)
+        closest = np.argmin(difference, axis=1)
+        found = passing.any(axis=1)
+        pick = candidates[np.arange(count), np.where(found, first, closest)]
+        rejected += int((~found).sum())
+        choice[:, c] = pick
+        merge_into(F, t, cut, F_c[pick], t_c[pick], ids)
     return F, t, choice, rejected

@@ -103,8 +103,9 @@ def rotation_strain_to_matrix(d):
     """d (..., 9) rotation-strain coordinates -> D = exp(Φ) S (..., 3, 3)."""
     d = np.asarray(d, dtype=np.float64)
     s = np.empty(d.shape[:-1] + (3, 3))
-    s[..., _UPPER[0], _UPPER[1]] = d[..., 3:]
-    s[..., _UPPER[1], _UPPER[0]] = d[..., 3:]
+    for slot, (row, col) in enumerate(zip(*_UPPER)):  # six plain slices: fancy indexing is slow here
+        s[..., row, col] = d[..., 3 + slot]
+        s[..., col, row] = d[..., 3 + slot]
     return rotation_exp(d[..., :3]) @ s
 
 

