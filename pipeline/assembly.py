@@ -32,17 +32,18 @@ def stretch_difference(S_a, S_b):
     return difference, 0.05 * largest
 
 
-def merge_into(F, t, cut, F_j, t_j, bones_j):
+def merge_into(F, t, cut, F_j, t_j, bones_j, polar_i=None, polar_j=None):
     """Carry component j onto the assembled bones through cut node ``cut`` (eq. 13–14), in place.
 
     F (N, M, B, 3, 3), t (N, M, B, 3): the assembled animations (cut already set); F_j
     (N, M, b_j, 3, 3), t_j (N, M, b_j, 3): the animations of component j chosen for them, over
     its bones ``bones_j`` (sorted ids, cut among them). All animations and bones at once.
+    polar_i / polar_j: the cut node's (U, S) on each side when already known.
     """
     bones_j = np.asarray(bones_j)
     where = int(np.searchsorted(bones_j, cut))
-    U_i, S_i = polar(F[:, :, cut])
-    U_j, S_j = polar(F_j[:, :, where])
+    U_i, S_i = polar(F[:, :, cut]) if polar_i is None else polar_i
+    U_j, S_j = polar(F_j[:, :, where]) if polar_j is None else polar_j
     turn = U_i @ np.swapaxes(U_j, -1, -2)  # (N, M, 3, 3)
     others = np.flatnonzero(bones_j != cut)
     F[:, :, bones_j[others]] = turn[:, :, None] @ F_j[:, :, others]  # eq. 14
@@ -94,8 +95,8 @@ def assemble(components, animations, bones, rng, tries=32):
             choice[:, c] = np.arange(count)
             continue
         where = int(np.searchsorted(ids, cut))
-        _, S_c = polar(F_c[:, :, where])  # (N, M, 3, 3) stretch of the cut node in component c
-        _, S_a = polar(F[:, :, cut])
+        U_c, S_c = polar(F_c[:, :, where])  # (N, M, 3, 3) the cut node in component c
+        U_a, S_a = polar(F[:, :, cut])
         candidates = np.argsort(rng.random((count, count)), axis=1)[:, :tries]  # a seeded order per animation
         # Eq. 12 for every (a, candidate) pair from Gram matrices: ‖Sa−Sc‖² = ‖Sa‖² + ‖Sc‖² − 2⟨Sa, Sc⟩.
         flat_a, flat_c = S_a.reshape(count, -1), S_c.reshape(count, -1)
@@ -113,5 +114,5 @@ def assemble(components, animations, bones, rng, tries=32):
         pick = candidates[np.arange(count), np.where(found, first, closest)]
         rejected += int((~found).sum())
         choice[:, c] = pick
-        merge_into(F, t, cut, F_c[pick], t_c[pick], ids)
+        merge_into(F, t, cut, F_c[pick], t_c[pick], ids, (U_a, S_a), (U_c[pick], S_c[pick]))
     return F, t, choice, rejected

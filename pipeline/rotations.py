@@ -146,26 +146,21 @@ def rotation_log(rotations):
 def rotation_exp(axis_angles):
     """axis-angle vectors (..., 3) -> rotations (..., 3, 3), by Rodrigues' formula, vectorised.
 
-    R = I + a [k]× + b [k]×², a = sin θ / θ, b = (1 − cos θ) / θ², with the Taylor series near
-    θ = 0 so small angles keep full precision."""
+    R = I + a [w]× + b [w]×², a = sin θ / θ, b = (1 − cos θ) / θ², with [w]×² = w wᵀ − θ² I and
+    the Taylor series near θ = 0 so small angles keep full precision. Entry by entry on 1-D
+    arrays: no small-matrix products, which numpy does slowly one at a time."""
     w = np.asarray(axis_angles, dtype=np.float64)
-    theta2 = np.sum(w * w, axis=-1)
-    theta = np.sqrt(theta2)
+    x, y, z = w[..., 0], w[..., 1], w[..., 2]
+    theta2 = x * x + y * y + z * z
     small = theta2 < 1e-8
-    safe = np.where(small, 1.0, theta)
+    safe = np.where(small, 1.0, np.sqrt(theta2))
     a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
-    # [k]×² = k kᵀ − θ² I: no small-matrix products, which numpy does slowly one by one.
-    r = b[..., None, None] * (w[..., :, None] * w[..., None, :])
-    diagonal = 1.0 - b * theta2
-    r[..., 0, 0] += diagonal
-    r[..., 1, 1] += diagonal
-    r[..., 2, 2] += diagonal
-    aw = a[..., None] * w
-    r[..., 0, 1] -= aw[..., 2]
-    r[..., 1, 0] += aw[..., 2]
-    r[..., 0, 2] += aw[..., 1]
-    r[..., 2, 0] -= aw[..., 1]
-    r[..., 1, 2] -= aw[..., 0]
-    r[..., 2, 1] += aw[..., 0]
+    bx, by, bz = b * x, b * y, b * z
+    ax, ay, az = a * x, a * y, a * z
+    c = 1.0 - b * theta2
+    r = np.empty(w.shape[:-1] + (3, 3))
+    r[..., 0, 0], r[..., 0, 1], r[..., 0, 2] = bx * x + c, bx * y - az, bx * z + ay
+    r[..., 1, 0], r[..., 1, 1], r[..., 1, 2] = bx * y + az, by * y + c, by * z - ax
+    r[..., 2, 0], r[..., 2, 1], r[..., 2, 2] = bx * z - ay, by * z + ax, bz * z + c
     return r

@@ -11,8 +11,8 @@ the same length into world bone positions, all at once:
    reference-bone motion moved by one rigid transform G, the identity before the first seam; at
    a seam G ← G ∘ P(i) ∘ P(j)⁻¹ (P(f) the input reference pose of frame f), so frame j's pose
    lands on the output pose of frame i and the output goes on with the input's own step j → j+1.
-   The compositions along the walk are a prefix product over output frames, done for all
-   animations at once by a log-depth (Hillis–Steele) scan: ⌈log₂ M⌉ batched 3×3 products.
+   G only changes at seams, so it is composed once per seam (a loop over the seam rank, batched
+   over all animations) and looked up per frame by segment number.
    The reference bone stays rigid (a product of rotations).
 2. Non-reference bones away from seams: their local-frame positions (eq. 2) are the source
    frame's, exactly.
@@ -167,25 +167,6 @@ def seam_windows(sources, window=8):
     return SeamWindows(animation=animation, seam=k, left=left.astype(np.int64), right=right.astype(np.int64))
 
 
-def compose_prefix(R, t):
-    """Prefix compositions along axis 1: out[:, k] = H[:, 0] ∘ H[:, 1] ∘ … ∘ H[:, k].
-
-    R (A, M, 3, 3), t (A, M, 3) rigid (or affine) maps x ↦ R x + t. Hillis–Steele scan,
-    ⌈log₂ M⌉ batched products; returns new arrays.
-    """
-    R = np.array(R, dtype=np.float64)
-    t = np.array(t, dtype=np.float64)
-    step = 1
-    while step < R.shape[1]:
-        earlier_R, earlier_t = R[:, :-step], t[:, :-step]
-        new_t = np.einsum("amij,amj->ami", earlier_R, t[:, step:]) + earlier_t
-        new_R = earlier_R @ R[:, step:]
-        R[:, step:] = new_R
-        t[:, step:] = new_t
-        step *= 2
-    return R, t
-
-
 def reference_alignment(R_ref, t_ref, sources):
     """Output reference-bone poses along walks by Zheng eq. 7.
 
@@ -197,19 +178,32 @@ def reference_alignment(R_ref, t_ref, sources):
     R_ref = np.asarray(R_ref, dtype=np.float64)
     t_ref = np.asarray(t_ref, dtype=np.float64)
     count, frames = sources.shape
-    H_R = np.broadcast_to(np.eye(3), (count, frames, 3, 3)).copy()
-    H_t = np.zeros((count, frames, 3))
     animation, k = walk_seams(sources)
+    # G is constant between seams: compose it once per seam (a loop over the seam rank, batched
+    # over animations), then look it up per frame by segment number.
+    is_seam = np.zeros((count, frames), dtype=bool)
+    is_seam[animation, k] = True
+    segment = np.cumsum(is_seam, axis=1)  # (A, M) segment number of each output frame
+    segments = int(segment[:, -1].max()) if frames else 0
+    rel_R = np.broadcast_to(np.eye(3), (count, segments, 3, 3)).copy()
+    rel_t = np.zeros((count, segments, 3))
     if k.size:
         i = sources[animation, k - 1]
         j = sources[animation, k] - 1
         # P(i) ∘ P(j)⁻¹ = (R_i R_jᵀ, t_i − R_i R_jᵀ t_j): Zheng eq. 7's fixed rigid transform.
         rel = R_ref[i] @ np.swapaxes(R_ref[j], -1, -2)
-        H_R[animation, k] = rel
-        H_t[animation, k] = t_ref[i] - np.einsum("sab,sb->sa", rel, t_ref[j])
-    G_R, G_t = compose_prefix(H_R, H_t)
-    R_out = G_R @ R_ref[sources]
-    t_out = np.einsum("amij,amj->ami", G_R, t_ref[sources]) + G_t
+        rank = segment[animation, k] - 1
+        rel_R[animation, rank] = rel
+        rel_t[animation, rank] = t_ref[i] - np.einsum("sab,sb->sa", rel, t_ref[j])
+    G_R = np.empty((count, segments + 1, 3, 3))
+    G_t = np.empty((count, segments + 1, 3))
+    G_R[:, 0], G_t[:, 0] = np.eye(3), 0.0
+    for r in range(segments):
+        G_R[:, r + 1] = G_R[:, r] @ rel_R[:, r]
+        G_t[:, r + 1] = np.einsum("aij,aj->ai", G_R[:, r], rel_t[:, r]) + G_t[:, r]
+    rows = np.arange(count)[:, None]
+    R_out = G_R[rows, segment] @ R_ref[sources]
+    t_out = np.einsum("amij,amj->ami", G_R[rows, segment], t_ref[sources]) + G_t[rows, segment]
     return R_out, t_out
 
 

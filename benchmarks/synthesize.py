@@ -1,0 +1,116 @@
+"""synthesize benchmark: 1,000 animations × 600 frames, seconds, distinct walks, smoothness.
+
+One JSON line per (dataset, mode): every sequence under ../shared/data (when present) and two
+built-in clips — the demo's bending bar (two bend cycles) and a horse-sized tube whose body
+bends through two exact cycles while its tail swings at its own rate (see benchmarks/graph.py).
+
+Reported: seconds for the bone motions of all animations (--jobs 1 and 2), seconds to skin
+vertex caches with the warp LBS kernel (measured on 100 animations, scaled to all), distinct
+animations, transitions used, and smoothness = the largest per-vertex acceleration
+‖v(k+1) − 2 v(k) + v(k−1)‖ within a window of any splice, over the largest in the input clip
+(measured on 50 animations and a subset of ≤ 512 vertices). Goal: < 10 s on 2 cores, ratio ≤ 1.5.
+
+    python benchmarks/synthesize.py [--only NAME] [--count 1000] [--frames 600]
+"""
+
+import argparse
+import json
+import pathlib
+import time
+
+import numpy as np
+
+SHARED_DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
+BONES = {"horse_gallop": 22, "vlasic_samba": 30, "vellum_sheet": 30}
+
+
+def _datasets():
+    from skinsynth.formats.errors import FormatError
+    from skinsynth.formats.meshseq import read_mesh_sequence
+    from skinsynth.pipeline.examples import articulated_tube, bending_bar
+
+    if SHARED_DATA.is_dir():
+        for folder in sorted(p for p in SHARED_DATA.iterdir() if p.is_dir()):
+            for spec in [folder] + sorted(folder.rglob("*")):
+                if spec.is_dir() or spec.suffix.lower() in (".usd", ".usda", ".usdc", ".npz", ".h5"):
+                    try:
+                        seq = read_mesh_sequence(str(spec))
+                    except FormatError:
+                        continue
+                    yield folder.name, seq.vertices, seq.faces, BONES.get(folder.name, 20)
+                    break
+    else:
+        print(json.dumps({"dataset": "shared/data", "skipped": f"no real data at {SHARED_DATA}"}), flush=True)
+    yield ("bending_bar_two_cycles", *bending_bar(frames=96, cycles=2), 8)
+    periods = np.array([[24.0, 24.0, 24.0, 17.0, 17.0]] * 2)
+    yield ("tube_body_and_tail", *articulated_tube(frames=48, rings=350, segments=24, joints=5, periods=periods,
+                                                   seed=3), 22)
+
+
+def smoothness(result, skin_fit, input_vertices, window, animations=50):
+    """max acceleration near splices / max acceleration in the input (vertex subset)."""
+    from skinsynth.gpu import lbs_reference
+    from skinsynth.pipeline.collisions import vertex_subset
+
+    subset = vertex_subset(input_vertices.shape[1])
+    accel_in = np.linalg.norm(np.diff(input_vertices[:, subset], n=2, axis=0), axis=-1).max()
+    worst = 0.0
+    for a in range(min(animations, result.F.shape[0])):
+        v = lbs_reference(skin_fit.rest_vertices[subset], skin_fit.bone_indices[subset],
+                          skin_fit.bone_weights[subset], result.F[a], result.t[a])
+        accel = np.linalg.norm(np.diff(v, n=2, axis=0), axis=-1).max(axis=1)  # (M-2,) at frames 1..M-2
+        src = result.sources[:, a]
+        seam = np.any(src[:, 1:] != src[:, :-1] + 1, axis=0)  # (M-1,) seam at k+1
+        near = np.zeros(accel.shape[0], dtype=bool)
+        for k in np.flatnonzero(seam) + 1:
+            near[max(0, k - window - 2): k + window] = True
+        if near.any():
+            worst = max(worst, float(accel[near].max()))
+    return worst / accel_in
+
+
+def main():
+    from skinsynth.gpu import lbs
+    from skinsynth.pipeline.graph import build_graph
+    from skinsynth.pipeline.skin_fit import fit_skin
+    from skinsynth.pipeline.synthesis import Request, synthesize
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only")
+    parser.add_argument("--count", type=int, default=1000)
+    parser.add_argument("--frames", type=int, default=600)
+    args = parser.parse_args()
+    for name, vertices, faces, bones in _datasets():
+        if args.only and args.only != name:
+            continue
+        fit = fit_skin(vertices, bones, iterations=30)
+        for mode, single in (("multi_component", False), ("single_component", True)):
+            analysis = build_graph(fit.rest_vertices, faces, fit.bone_indices, fit.bone_weights, fit.rotations,
+                                   fit.translations, single_component=single)
+            line = {"dataset": name, "mode": mode, "vertices": int(vertices.shape[1]), "bones": bones,
+                    "components": len(analysis.components), "candidate_transitions": analysis.transition_count,
+                    "animations": args.count, "frames": args.frames}
+            request = Request(count=args.count, frames=args.frames, seed=0)
+            try:
+                for jobs in (1, 2):
+                    started = time.perf_counter()
+                    result = synthesize(analysis.components, fit.rotations, fit.translations, fit.rest_vertices,
+                                        fit.bone_indices, fit.bone_weights, request, jobs=jobs)
+                    line[f"seconds_jobs{jobs}"] = round(time.perf_counter() - started, 2)
+            except Exception as error:  # e.g. a component without an infinite walk
+                line["error"] = str(error)
+                print(json.dumps(line), flush=True)
+                continue
+            sample = min(100, args.count)
+            started = time.perf_counter()
+            for a in range(sample):
+                lbs(fit.rest_vertices, fit.bone_indices, fit.bone_weights, result.F[a], result.t[a], device="cpu")
+            line["vertex_cache_seconds_all"] = round((time.perf_counter() - started) * args.count / sample, 1)
+            line["distinct"] = result.distinct
+            line["transitions_used"] = int(result.seams_used.sum())
+            line["smoothness_ratio"] = round(smoothness(result, fit, vertices, request.window), 3)
+            print(json.dumps(line), flush=True)
+
+
+if __name__ == "__main__":
+    main()
