@@ -63,20 +63,27 @@ def command_line():
 
 
 class Progress:
-    """A click progress bar on stderr that shows the latest figure, or nothing when quiet."""
+    """A click progress bar on stderr that shows the latest figure, or nothing when quiet.
+
+    The bar appears on the first update, so an error raised before any work is done is still
+    the only line on stderr.
+    """
 
     def __init__(self, length, label, quiet=False):
-        self.bar = None if quiet else click.progressbar(
-            length=length, label=label, file=sys.stderr, show_pos=True, item_show_func=lambda x: x)
+        self.length, self.label, self.quiet = length, label, quiet
+        self.bar = None
 
     def __enter__(self):
-        if self.bar is not None:
-            self.bar.__enter__()
         return self
 
     def update(self, steps, text=None):
-        if self.bar is not None:
-            self.bar.update(steps, text)
+        if self.quiet:
+            return
+        if self.bar is None:
+            self.bar = click.progressbar(length=self.length, label=self.label, file=sys.stderr, show_pos=True,
+                                         item_show_func=lambda x: x)
+            self.bar.__enter__()
+        self.bar.update(steps, text)
 
     def __exit__(self, *exc):
         if self.bar is not None:

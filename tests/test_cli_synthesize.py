@@ -1,0 +1,135 @@
+"""synthesize from the command line: outputs, determinism, targets, obstacles, bad input."""
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+import trimesh
+
+from skinsynth.formats.meshseq import write_array_sequence
+from skinsynth.formats.usd import read_points_cache
+from skinsynth.gpu import lbs_reference
+from skinsynth.pipeline.examples import bending_bar
+
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    root = tmp_path_factory.mktemp("synth")
+    vertices, faces = bending_bar(frames=40, rings=10, segments=8, cycles=2)
+    write_array_sequence(root / "bar.npz", vertices, faces, 24.0)
+    assert_ok(cli("fit-skin", root / "bar.npz", "-o", root / "skin.h5", "--bones", 4, "--iterations", 10, "-q"))
+    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "-q"))
+    # A clip without repeated states: one bend, no return.
+    write_array_sequence(root / "once.npz", vertices[:12], faces, 24.0)
+    assert_ok(cli("fit-skin", root / "once.npz", "-o", root / "once_skin.h5", "--bones", 3, "--iterations", 4, "-q"))
+    assert_ok(cli("build-graph", root / "once_skin.h5", "-o", root / "once_graph.h5", "--threshold-scale", "0.01", "-q"))
+    return root
+
+
+def bones(path):
+    with h5py.File(path) as f:
+        return f["synthesis/bone_matrices"][()], f["synthesis/bone_translations"][()], f["synthesis/sources"][()]
+
+
+def skin_of(path):
+    with h5py.File(path) as f:
+        return (f["mesh/rest_vertices"][()], f["skin/bone_indices"][()], f["skin/bone_weights"][()],
+                f["examples/vertices"][()])
+
+
+def test_synthesize_json_and_caches(files, tmp_path):
+    report = json.loads(assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 4, "-m", 50,
+                                      "--seed", 1, "--crowd", tmp_path / "crowd.usda", "--exr", tmp_path / "vat",
+                                      "--json", "--device", "cpu")).stdout)
+    for key in ("animations", "frames", "seconds", "distinct", "transitions_used"):
+        assert key in report
+    assert report["animations"] == 4 and report["frames"] == 50
+    F, t, sources = bones(tmp_path / "b.h5")
+    assert F.shape[:2] == (4, 50) and sources.shape[1:] == (4, 50)
+    rest, idx, w, _ = skin_of(tmp_path / "b.h5")
+    vertices, _, _ = read_points_cache(tmp_path / "crowd.usda", prim="/characters/animation_0000")
+    expected = lbs_reference(rest, idx, w, F[0], t[0])
+    assert np.abs(vertices - expected).max() < 1e-3 * np.ptp(rest)
+    assert len(list((tmp_path / "vat").iterdir())) == 4
+    summary = json.loads(assert_ok(cli("inspect", tmp_path / "b.h5", "--json")).stdout)
+    assert summary["stage"] == "synthesis"
+
+
+def test_same_seed_same_output_and_input_reproduced_between_seams(files, tmp_path):
+    for name in ("a.h5", "b.h5"):
+        assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / name, "-n", 3, "-m", 60, "--seed", 5, "-q"))
+    first, second = bones(tmp_path / "a.h5"), bones(tmp_path / "b.h5")
+    for x, y in zip(first, second):
+        assert x.tobytes() == y.tobytes()
+    # Without seams an animation is the input clip played back (up to one rigid motion).
+    F, t, sources = first
+    rest, idx, w, examples = skin_of(tmp_path / "a.h5")
+    src = sources[0, 0]
+    seam = np.flatnonzero(src[1:] != src[:-1] + 1)
+    stop = seam[0] + 1 - 8 if seam.size else len(src)  # frames before the first blend window
+    if stop > 2:
+        out = lbs_reference(rest, idx, w, F[0, :stop], t[0, :stop])
+        fit = lbs_reference(rest, idx, w, *_input_bones(files))
+        assert np.abs(out - fit[src[:stop]]).max() < 1e-4 * np.ptp(rest)
+
+
+def _input_bones(files):
+    with h5py.File(files / "skin.h5") as f:
+        return f["skin/rotations"][()], f["skin/translations"][()]
+
+
+def test_targets_land_where_asked(files, tmp_path):
+    assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 3, "-m", 40, "--start-frame", 5,
+                  "--end-frame", 24, "--target", "12@27", "-q"))
+    _, _, sources = bones(tmp_path / "b.h5")
+    assert np.all(sources[:, :, 0] == 5) and np.all(sources[:, :, -1] == 24) and np.all(sources[:, :, 27] == 12)
+
+
+def test_ground_plane_and_obstacle_are_respected(files, tmp_path):
+    rest, idx, w, examples = skin_of(files / "graph.h5")
+    box = trimesh.creation.box(extents=[1.0, 1.0, 1.0])
+    box.apply_translation(examples.mean(axis=(0, 1)) + np.array([0.0, 6.0, 0.0]))
+    box.export(tmp_path / "box.obj")
+    assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 3, "-m", 40, "--ground-plane",
+                  "--obstacle", tmp_path / "box.obj", "-q"))
+    F, t, _ = bones(tmp_path / "b.h5")
+    lowest = examples[..., 1].min()
+    for a in range(3):
+        v = lbs_reference(rest, idx, w, F[a], t[a])
+        assert v[..., 1].min() >= lowest - 1e-5 * np.ptp(rest)
+        assert not box.contains(v.reshape(-1, 3)[::7]).any()
+
+
+def test_bad_inputs(files, tmp_path):
+    assert_user_error(cli("synthesize", files / "once_graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 30),
+                      "no repeated states", "--threshold-scale", folder=tmp_path)
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 30,
+                          "--start-frame", 0, "--target", "0@1"), "cannot be reached", folder=tmp_path)
+    (tmp_path / "bad.obj").write_text("this is not a mesh\n")
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 30,
+                          "--obstacle", tmp_path / "bad.obj"), "bad.obj", folder=tmp_path, keep=["bad.obj"])
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 0), "--frames")
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 5,
+                          "--target", "7"), "FRAME@TIME")
+    assert_user_error(cli("synthesize", files / "skin.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 5), "build-graph")
+    assert_folder_holds(tmp_path, ["bad.obj"])
+
+
+def test_multi_component_output_is_a_whole_animation(files, tmp_path):
+    assert_ok(cli("fit-skin", files / "bar.npz", "-o", tmp_path / "s6.h5", "--bones", 6, "--iterations", 10, "-q"))
+    assert_ok(cli("build-graph", tmp_path / "s6.h5", "-o", tmp_path / "g.h5", "--edge-threshold", "0.99", "-q"))
+    summary = json.loads(assert_ok(cli("inspect", tmp_path / "g.h5", "--json")).stdout)
+    assert summary["components"] >= 2
+    assert_ok(cli("synthesize", tmp_path / "g.h5", "-o", tmp_path / "b.h5", "-n", 3, "-m", 60, "-q"))
+    F, t, sources = bones(tmp_path / "b.h5")
+    assert sources.shape[0] == summary["components"]
+    assert np.isfinite(F).all() and np.isfinite(t).all()
+    assert np.all(np.abs(np.linalg.det(F)) > 0.5)  # every bone of the rig is animated, none left at zero
+    rest, idx, w, examples = skin_of(tmp_path / "b.h5")
+    v = lbs_reference(rest, idx, w, F[0], t[0])
+    # The merged mesh stays in one piece: no vertex jumps away from its neighbours between frames.
+    step = np.linalg.norm(np.diff(v, axis=0), axis=-1).max()
+    assert step < 3 * np.linalg.norm(np.diff(examples, axis=0), axis=-1).max()
