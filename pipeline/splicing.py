@@ -207,13 +207,31 @@ def reference_alignment(R_ref, t_ref, sources):
     return R_out, t_out
 
 
+def nearest_branch(w, reference):
+    """The axis-angle vector of the same rotation as w (…, 3) closest to ``reference`` (…, 3).
+
+    A rotation by θ about k is also one by θ − 2π about k (and θ + 2π): near θ = π the principal
+    vectors of two similar rotations can point in opposite directions, which a blend would read
+    as a jump of ~2π. Comparing the three representatives with a neighbour removes that."""
+    theta = np.linalg.norm(w, axis=-1, keepdims=True)
+    axis = np.divide(w, theta, out=np.zeros_like(w), where=theta > 0.0)
+    options = np.stack([w, w - 2.0 * np.pi * axis, w + 2.0 * np.pi * axis])  # (3, …, 3)
+    best = np.argmin(np.sum((options - reference) ** 2, axis=-1), axis=0)
+    return np.take_along_axis(options, best[None, ..., None], axis=0)[0]
+
+
 def strain_second_differences(strain):
     """g of the module notes: strain (F, n, 9) -> (F, n, 9) second differences d(f−1) − 2d(f) +
-    d(f+1), frames 0 and F−1 copying frames 1 and F−2; zero with fewer than 3 frames."""
+    d(f+1), frames 0 and F−1 copying frames 1 and F−2; zero with fewer than 3 frames. The
+    neighbours' rotation vectors are taken on the branch nearest to d(f)'s (:func:`nearest_branch`)."""
     strain = np.asarray(strain, dtype=np.float64)
     g = np.zeros_like(strain)
     if strain.shape[0] >= 3:
-        g[1:-1] = strain[:-2] - 2.0 * strain[1:-1] + strain[2:]
+        before = strain[:-2].copy()
+        after = strain[2:].copy()
+        before[..., :3] = nearest_branch(before[..., :3], strain[1:-1, ..., :3])
+        after[..., :3] = nearest_branch(after[..., :3], strain[1:-1, ..., :3])
+        g[1:-1] = before - 2.0 * strain[1:-1] + after
         g[0] = g[1]
         g[-1] = g[-2]
     return g
@@ -240,14 +258,34 @@ def blend_rotation_strain(strain, sources, windows, select=None, second=None):
     bands[1] = 2.0
     bands[0] = np.where(first, 0.0, -1.0)
     rhs = -second[sources[animation, frame]]
-    # Dirichlet ends: the fixed frames keep the input values of their source frames.
-    rhs[first] += strain[sources[windows.animation[owner[first]], windows.left[owner[first]]]]
-    rhs[last] += strain[sources[windows.animation[owner[last]], windows.right[owner[last]]]]
+    # Dirichlet ends: the fixed frames keep the input values of their source frames. The right
+    # end's rotation vectors are carried along the window's source frames onto the branch that
+    # continues the left end's, so a window never interpolates across a 2π wrap.
+    win = owner[first]
+    left_values = strain[sources[windows.animation[win], windows.left[win]]]  # (W, n, 9)
+    right_values = _continued(strain, sources, windows, win, left_values)
+    rhs[first] += left_values
+    rhs[last] += right_values[np.searchsorted(win, owner[last])]
     if size == 1:  # LAPACK ptsv refuses an empty off-diagonal
         solved = rhs.reshape(1, -1) / 2.0
     else:
         solved = scipy.linalg.solveh_banded(bands, rhs.reshape(size, -1), lower=False, check_finite=False)
     return animation, frame, solved.reshape((size,) + shape)
+
+
+def _continued(strain, sources, windows, win, left_values):
+    """Right-end values of windows ``win`` with rotation vectors unwrapped from the left end along
+    the source frames between them (a loop over the window length, batched over windows)."""
+    a, lo, hi = windows.animation[win], windows.left[win], windows.right[win]
+    current = left_values[..., :3].copy()
+    for offset in range(1, int((hi - lo).max()) + 1 if win.size else 0):
+        active = lo + offset <= hi
+        frame = np.minimum(lo + offset, hi)
+        step = strain[sources[a, frame]][..., :3]
+        current = np.where(active[:, None, None], nearest_branch(step, current), current)
+    out = strain[sources[a, hi]].copy()
+    out[..., :3] = current
+    return out
 
 
 def _window_blocks(counts, block_frames):

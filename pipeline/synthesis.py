@@ -66,7 +66,7 @@ class Request:
     obstacles: object = None
     forbidden: np.ndarray | None = None
     min_difference: float = 0.0
-    window: int = 8
+    window: int = 4
     transition_probability: float = 0.1
     min_segment: int = 8
 
