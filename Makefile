@@ -27,6 +27,8 @@ demo: setup
 	$(BIN)/skinsynth evaluate $(DEMO)/puppet.h5 --plot $(DEMO)/puppet_errors.png
 	$(BIN)/skinsynth play $(DEMO)/puppet.h5 --controls $(DEMO)/bar.npz --instances 16 -o $(DEMO)/crowd.usdc
 	$(BIN)/skinsynth build-graph $(DEMO)/skin.h5 -o $(DEMO)/graph.h5 --plot $(DEMO)/graph_plots
+	$(BIN)/skinsynth synthesize $(DEMO)/graph.h5 -o $(DEMO)/bones.h5 --count 16 --frames 240 --seed 0 \
+		--crowd $(DEMO)/synthesized_crowd.usdc
 	@echo
 	@echo "demo results in $(DEMO)/:"
 	@echo "  skin.h5          fitted skin model (skinsynth inspect $(DEMO)/skin.h5)"
@@ -38,6 +40,8 @@ demo: setup
 	@echo "  puppet_errors.png held-out error of the puppet vs PCA blendshapes and RBF"
 	@echo "  crowd.usdc       16 puppets played from the example's control points (UsdSkel, dual-quaternion)"
 	@echo "  graph.h5         transitions, bone graph and splicing operators (plots in graph_plots/)"
+	@echo "  bones.h5         16 new animations of 240 frames spliced from the example"
+	@echo "  synthesized_crowd.usdc  those 16 animations on a grid (USD point caches): open it in a DCC"
 
 test: setup
 	$(BIN)/python -m pytest -q
@@ -51,6 +55,7 @@ bench: setup
 	$(BIN)/python benchmarks/puppet.py
 	$(BIN)/python benchmarks/graph.py
 	$(BIN)/python benchmarks/play.py
+	$(BIN)/python benchmarks/synthesize.py
 	$(BIN)/python benchmarks/lbs.py
 
 clean:
