@@ -11,33 +11,18 @@ face-sized model (23,728 vertices, 260 bones, 38 examples, synthetic LBS).
 
 import argparse
 import json
-import pathlib
 import time
 
 import numpy as np
-
-SHARED_DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
+from datasets import shared_sequences
 
 
 def _datasets():
-    from skinsynth.formats.errors import FormatError
-    from skinsynth.formats.meshseq import read_mesh_sequence
     from skinsynth.pipeline.alignment import apply_frames
     from skinsynth.pipeline.examples import articulated_tube, bending_bar
     from skinsynth.pipeline.rotations import rotation_exp
 
-    if SHARED_DATA.is_dir():
-        for folder in sorted(p for p in SHARED_DATA.iterdir() if p.is_dir()):
-            for spec in [folder] + sorted(folder.rglob("*")):
-                if spec.is_dir() or spec.suffix.lower() in (".usd", ".usda", ".usdc", ".npz", ".h5"):
-                    try:
-                        seq = read_mesh_sequence(str(spec))
-                    except FormatError:
-                        continue
-                    yield folder.name, seq.vertices, seq.faces
-                    break
-    else:
-        print(json.dumps({"dataset": "shared/data", "skipped": f"no real data at {SHARED_DATA}"}), flush=True)
+    yield from shared_sequences()
     yield ("bending_bar", *bending_bar(frames=80))
     vertices, faces = articulated_tube()
     yield "articulated_tube", vertices, faces

@@ -15,32 +15,17 @@ animations, transitions used, and smoothness = the largest per-vertex accelerati
 
 import argparse
 import json
-import pathlib
 import time
 
 import numpy as np
-
-SHARED_DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
-BONES = {"horse_gallop": 22, "vlasic_samba": 30, "vellum_sheet": 30}
+from datasets import BONES, shared_sequences
 
 
 def _datasets():
-    from skinsynth.formats.errors import FormatError
-    from skinsynth.formats.meshseq import read_mesh_sequence
     from skinsynth.pipeline.examples import articulated_tube, bending_bar
 
-    if SHARED_DATA.is_dir():
-        for folder in sorted(p for p in SHARED_DATA.iterdir() if p.is_dir()):
-            for spec in [folder] + sorted(folder.rglob("*")):
-                if spec.is_dir() or spec.suffix.lower() in (".usd", ".usda", ".usdc", ".npz", ".h5"):
-                    try:
-                        seq = read_mesh_sequence(str(spec))
-                    except FormatError:
-                        continue
-                    yield folder.name, seq.vertices, seq.faces, BONES.get(folder.name, 20)
-                    break
-    else:
-        print(json.dumps({"dataset": "shared/data", "skipped": f"no real data at {SHARED_DATA}"}), flush=True)
+    for name, vertices, faces in shared_sequences():
+        yield name, vertices, faces, BONES.get(name, 20)
     yield ("bending_bar_two_cycles", *bending_bar(frames=96, cycles=2), 8)
     periods = np.array([[24.0, 24.0, 24.0, 17.0, 17.0]] * 2)
     yield ("tube_body_and_tail", *articulated_tube(frames=48, rings=350, segments=24, joints=5, periods=periods,
