@@ -161,8 +161,8 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
         kept_src.append(sources[:, :take])
         kept_choice.append(choice[:take])
         need -= take
-    return (np.concatenate(kept_F), np.concatenate(kept_t), np.concatenate(kept_src, axis=1),
-            np.concatenate(kept_choice), rejected)
+    return [np.concatenate(kept_F), np.concatenate(kept_t), np.concatenate(kept_src, axis=1),
+            np.concatenate(kept_choice), rejected]
 
 
 def motion_graphs(components, input_frames, forbidden=None):
@@ -171,14 +171,8 @@ def motion_graphs(components, input_frames, forbidden=None):
     return [MotionGraph(input_frames, c.transitions.pairs, forbidden=forbidden) for c in components]
 
 
-def synthesize(components, rotations, translations, rest, bone_indices, bone_weights, request, jobs=1, progress=None):
-    """Make ``request.count`` animations. components: list of ComponentAnalysis. Returns Synthesis.
-
-    ``progress(done)`` is called with the number of animations finished after each batch."""
-    validate_request(request, rotations.shape[0])
-    graphs = motion_graphs(components, rotations.shape[0], request.forbidden)
-    batches = [(b, min(BATCH, request.count - b * BATCH)) for b in range(-(-request.count // BATCH))]
-    args = (components, graphs, rotations, translations, rest, bone_indices, bone_weights, request)
+def _run_batches(args, batches, jobs, progress, done_before):
+    """make_batch over (batch id, count) pairs, in worker processes when jobs > 1."""
     results = []
     if jobs > 1 and len(batches) > 1:
         from concurrent.futures import ProcessPoolExecutor
@@ -188,12 +182,47 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
             for future in futures:
                 results.append(future.result())
                 if progress is not None:
-                    progress(sum(r[0].shape[0] for r in results))
+                    progress(done_before + sum(r[0].shape[0] for r in results))
     else:
         for b, n in batches:
             results.append(make_batch(*args, b, n))
             if progress is not None:
-                progress(sum(r[0].shape[0] for r in results))
+                progress(done_before + sum(r[0].shape[0] for r in results))
+    return results
+
+
+def synthesize(components, rotations, translations, rest, bone_indices, bone_weights, request, jobs=1, progress=None):
+    """Make ``request.count`` animations. components: list of ComponentAnalysis. Returns Synthesis.
+
+    The diversity filter runs within each batch and then once more over all animations kept
+    (earlier batches win); animations it drops are replaced by further batches with fresh
+    batch ids, so the outcome still depends on the seed alone. ``progress(done)`` is called with
+    the number of animations finished after each batch."""
+    validate_request(request, rotations.shape[0])
+    graphs = motion_graphs(components, rotations.shape[0], request.forbidden)
+    args = (components, graphs, rotations, translations, rest, bone_indices, bone_weights, request)
+    results, next_batch, need = [], 0, request.count
+    for _ in range(MAX_ROUNDS):
+        batches = [(next_batch + b, min(BATCH, need - b * BATCH)) for b in range(-(-need // BATCH))]
+        next_batch += len(batches)
+        results += _run_batches(args, batches, jobs, progress, request.count - need)
+        if request.min_difference <= 0.0:
+            break
+        joint = np.concatenate([r[2] for r in results], axis=1)
+        joint = joint.transpose(1, 0, 2).reshape(joint.shape[1], -1)
+        keep = diversity_filter(joint, request.min_difference)
+        need = int((~keep).sum())
+        if need == 0:
+            break
+        results[0][4]["too_similar"] += need
+        offset = 0
+        for r in results:  # drop the repeats batch by batch
+            mine = keep[offset:offset + r[0].shape[0]]
+            offset += r[0].shape[0]
+            r[0:4] = [r[0][mine], r[1][mine], r[2][:, mine], r[3][mine]]
+    else:
+        raise OptionError(f"could not make {request.count} animations that differ by --min-difference "
+                          f"{request.min_difference} in {MAX_ROUNDS} rounds; lower it")
     F = np.concatenate([r[0] for r in results])
     t = np.concatenate([r[1] for r in results])
     sources = np.concatenate([r[2] for r in results], axis=1)

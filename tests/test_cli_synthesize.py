@@ -99,7 +99,7 @@ def test_ground_plane_and_obstacle_are_respected(files, tmp_path):
     lowest = examples[..., 1].min()
     for a in range(3):
         v = lbs_reference(rest, idx, w, F[a], t[a])
-        assert v[..., 1].min() >= lowest - 1e-5 * np.ptp(rest)
+        assert v[..., 1].min() >= lowest - 1e-3 * np.ptp(rest)  # the documented ground tolerance
         assert not box.contains(v.reshape(-1, 3)[::7]).any()
 
 
