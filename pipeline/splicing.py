@@ -212,12 +212,13 @@ def nearest_branch(w, reference):
 
     A rotation by θ about k is also one by θ − 2π about k (and θ + 2π): near θ = π the principal
     vectors of two similar rotations can point in opposite directions, which a blend would read
-    as a jump of ~2π. Comparing the three representatives with a neighbour removes that."""
-    theta = np.linalg.norm(w, axis=-1, keepdims=True)
+    as a jump of ~2π. Of w and w ∓ 2π k, the closer to the reference is w − 2π k exactly when
+    k·(w − reference) > π (and w + 2π k when it is < −π): one dot product, no candidates stacked."""
+    theta = np.sqrt(np.sum(w * w, axis=-1, keepdims=True))
     axis = np.divide(w, theta, out=np.zeros_like(w), where=theta > 0.0)
-    options = np.stack([w, w - 2.0 * np.pi * axis, w + 2.0 * np.pi * axis])  # (3, …, 3)
-    best = np.argmin(np.sum((options - reference) ** 2, axis=-1), axis=0)
-    return np.take_along_axis(options, best[None, ..., None], axis=0)[0]
+    along = np.sum(axis * (w - reference), axis=-1, keepdims=True)
+    shift = np.where(along > np.pi, -2.0 * np.pi, np.where(along < -np.pi, 2.0 * np.pi, 0.0))
+    return w + shift * axis
 
 
 def strain_second_differences(strain):
