@@ -9,13 +9,12 @@ Prints one JSON line per mesh size. `seconds` is the median of --repeats calls a
 
 import argparse
 import json
-import statistics
-import time
 
 import numpy as np
 
 from skinsynth.gpu import available_devices, lbs, lbs_reference, skinning
 from skinsynth.gpu.runtime import warp
+from timing import median_seconds
 
 
 def random_rig(rng, verts, bones, frames, influences):
@@ -25,16 +24,6 @@ def random_rig(rng, verts, bones, frames, influences):
     w /= w.sum(axis=1, keepdims=True)
     q, _ = np.linalg.qr(rng.normal(size=(frames, bones, 3, 3)))
     return rest, idx, w, q, rng.normal(size=(frames, bones, 3))
-
-
-def median_seconds(fn, repeats):
-    fn()  # warm-up: compile or load the kernel, fault in memory
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def kernel_seconds(rig, device, repeats):

@@ -18,7 +18,6 @@ end-to-end time). The numpy reference runs on at most --numpy-samples samples an
 
 import argparse
 import json
-import statistics
 import time
 
 import numpy as np
@@ -26,6 +25,7 @@ import numpy as np
 from skinsynth.gpu import available_devices
 from skinsynth.gpu import puppet_kernels as pk
 from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
+from timing import median_seconds
 
 MODELS = {
     "face": dict(verts=23728, bones=260, controls=8, examples=38, influences=4),
@@ -63,16 +63,6 @@ def random_inputs(rng, samples, puppet):
     frames[:, :3, 3] = rng.normal(size=(samples, 3)) * 3.0
     frames[:, 3, 3] = 1.0
     return x, c, frames
-
-
-def median_seconds(fn, repeats):
-    fn()  # warm-up
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def numpy_reference(puppet, x, c, frames, solver):

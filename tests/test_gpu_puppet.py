@@ -8,6 +8,8 @@ from skinsynth.gpu import puppet_kernels as pk
 from skinsynth.pipeline.playback import host_inputs
 from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
 
+from rigs import random_skin
+
 TOL = 1e-5
 
 
@@ -29,18 +31,6 @@ def random_dual_quaternions(rng, samples, bones, flip=True, scale=1.0):
     if flip:
         dq *= np.where(rng.random((samples, bones, 1)) < 0.5, -1.0, 1.0)
     return dq * scale
-
-
-def random_skin(rng, verts, bones, influences):
-    rest = rng.normal(size=(verts, 3)) * [1.0, 2.0, 0.5] + 1.0
-    idx = np.stack([rng.permutation(bones)[:influences] for _ in range(verts)])
-    w = rng.random((verts, influences))
-    if influences > 1:  # padding slots: zero weight, an index that must be ignored
-        pad = rng.random((verts, influences)) < 0.3
-        pad[:, 0] = False
-        w[pad] = 0.0
-        idx[pad] = -1
-    return rest, idx, w / w.sum(axis=1, keepdims=True)
 
 
 @pytest.mark.parametrize("kind", pk.KERNEL_KINDS)

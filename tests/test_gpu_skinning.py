@@ -11,6 +11,8 @@ import pytest
 from skinsynth.gpu import DeviceError, available_devices, lbs, lbs_reference, resolve_device
 from skinsynth.gpu import runtime, skinning
 
+from rigs import random_skin
+
 
 @pytest.fixture(scope="session", autouse=True)
 def warp_cache(tmp_path_factory):
@@ -26,15 +28,7 @@ def warp_cache(tmp_path_factory):
 
 
 def random_rig(rng, verts, bones, frames, influences, rigid=True):
-    rest = rng.normal(size=(verts, 3)) * [1.0, 2.0, 0.5] + 3.0
-    idx = np.stack([rng.permutation(bones)[:influences] for _ in range(verts)])
-    w = rng.random((verts, influences))
-    if influences > 1:  # padding slots: zero weight, an index that must be ignored
-        pad = rng.random((verts, influences)) < 0.3
-        pad[:, 0] = False
-        w[pad] = 0.0
-        idx[pad] = -1
-    w /= w.sum(axis=1, keepdims=True)
+    rest, idx, w = random_skin(rng, verts, bones, influences, offset=3.0)
     mats = rng.normal(size=(frames, bones, 3, 3))
     if rigid:
         q, r = np.linalg.qr(mats)
