@@ -171,13 +171,20 @@ def motion_graphs(components, input_frames, forbidden=None):
     return [MotionGraph(input_frames, c.transitions.pairs, forbidden=forbidden) for c in components]
 
 
+def _one_blas_thread():
+    """Worker initialiser: each process already has a core; BLAS threads would oversubscribe."""
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1, user_api="blas")
+
+
 def _run_batches(args, batches, jobs, progress, done_before):
     """make_batch over (batch id, count) pairs, in worker processes when jobs > 1."""
     results = []
     if jobs > 1 and len(batches) > 1:
         from concurrent.futures import ProcessPoolExecutor
 
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
+        with ProcessPoolExecutor(max_workers=jobs, initializer=_one_blas_thread) as pool:
             futures = [pool.submit(make_batch, *args, b, n) for b, n in batches]
             for future in futures:
                 results.append(future.result())
