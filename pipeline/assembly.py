@@ -5,6 +5,10 @@ components that share a cut node b_c each produce a motion of b_c. They can be p
 b_c's stretch agrees (eq. 12: D_C = Σ_t ‖S_c,i(t) − S_c,j(t)‖²_F below T_c = 0.05 · max_t ‖S‖²_F,
 F = U S polar), by carrying all of C_j rigidly onto C_i's cut node (eq. 13, 14).
 
+Eq. 12 sums ‖S_c,i − S_c,j‖² over all M frames but compares it with T_c = 0.05 × one frame's
+‖S‖²; taken literally that rejects every pair of long animations (a difference of 1e-3 per
+frame adds up over 600 frames), so the mean over frames is compared instead.
+
 Choices Alg. 1 leaves open: components are merged in breadth-first order of the block–cut tree
 from the component with the most bones (the anchor); for output animation a the anchor uses its
 own walk a, and each further component tries ``tries`` of its synthesised animations in a
@@ -23,13 +27,6 @@ from .rotations import polar_decomposition
 def polar(F):
     """F (..., 3, 3) -> (U (..., 3, 3) proper rotation, S (..., 3, 3) symmetric) with F = U S."""
     return polar_decomposition(F)
-
-
-def stretch_difference(S_a, S_b):
-    """Eq. 12 and its threshold for stretch series (..., M, 3, 3): (D_C (...,), T_c (...,))."""
-    difference = np.sum((S_a - S_b) ** 2, axis=(-1, -2, -3))
-    largest = np.maximum(np.max(np.sum(S_a ** 2, axis=(-1, -2)), axis=-1), np.max(np.sum(S_b ** 2, axis=(-1, -2)), axis=-1))
-    return difference, 0.05 * largest
 
 
 def merge_into(F, t, cut, F_j, t_j, bones_j, polar_i=None, polar_j=None):
@@ -103,7 +100,9 @@ def assemble(components, animations, bones, rng, tries=32):
         inner = flat_a @ flat_c.T
         norm_a, norm_c = np.sum(flat_a ** 2, axis=1), np.sum(flat_c ** 2, axis=1)
         rows = np.arange(count)[:, None]
-        difference = np.maximum(norm_a[:, None] + norm_c[None, :] - 2.0 * inner, 0.0)[rows, candidates]
+        # Mean over frames: eq. 12 sums over the M frames but T_c is a single frame's ‖S‖², so taken
+        # literally it rejects every pair of long animations (documented in the module notes).
+        difference = np.maximum(norm_a[:, None] + norm_c[None, :] - 2.0 * inner, 0.0)[rows, candidates] / frames
         peak_a = np.max(np.sum(S_a ** 2, axis=(-1, -2)), axis=1)
         peak_c = np.max(np.sum(S_c ** 2, axis=(-1, -2)), axis=1)
         threshold = 0.05 * np.maximum(peak_a[:, None], peak_c[candidates])  # Zheng's T_c
