@@ -38,6 +38,13 @@ def _summary(path, model):
         out["cut_nodes"] = [int(b) for b in graph.get("cut_nodes", [])]
         out["transitions_per_component"] = [int(len(graph[k]["transitions"])) for k in sorted(graph)
                                             if k.startswith("component_") and "transitions" in graph[k]]
+    if "synthesis" in model:
+        synthesis = model["synthesis"]
+        for key in ("count", "frames", "seed", "distinct", "transitions_used", "rejected_collisions",
+                    "rejected_too_similar", "rejected_merges"):
+            if f"@{key}" in synthesis:
+                name = {"count": "animations", "frames": "animation_frames"}.get(key, key)
+                out[name] = int(synthesis[f"@{key}"])
     out["provenance"] = [{k: r.get(k) for k in ("stage", "command", "tool_version", "seed", "date")}
                          for r in model["provenance"]]
     return out

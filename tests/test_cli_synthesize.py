@@ -133,3 +133,10 @@ def test_multi_component_output_is_a_whole_animation(files, tmp_path):
     # The merged mesh stays in one piece: no vertex jumps away from its neighbours between frames.
     step = np.linalg.norm(np.diff(v, axis=0), axis=-1).max()
     assert step < 3 * np.linalg.norm(np.diff(examples, axis=0), axis=-1).max()
+
+
+def test_inspect_summarises_a_synthesis_file(files, tmp_path):
+    assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 30, "--seed", 4, "-q"))
+    summary = json.loads(assert_ok(cli("inspect", tmp_path / "b.h5", "--json")).stdout)
+    assert summary["stage"] == "synthesis" and summary["animations"] == 2 and summary["seed"] == 4
+    assert summary["distinct"] >= 1 and "transitions_used" in summary
