@@ -40,15 +40,21 @@ class SkinsynthGroup(click.Group):
 @click.group(cls=SkinsynthGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(common.tool_version(), prog_name="skinsynth")
 def main():
-    """Example-based mesh animation: fit a skinned model to a mesh sequence, then export it.
+    """Example-based mesh animation: skinning, puppetry and one-to-many synthesis.
 
     Stages read and write self-contained HDF5 model files, so they chain like Makefile rules:
 
     \b
-      skinsynth example bending-bar -o bar.npz
+      skinsynth example bending-bar -o bar.npz --frames 96 --cycles 2
       skinsynth fit-skin bar.npz -o skin.h5 --bones 8
-      skinsynth inspect skin.h5
       skinsynth export skin.h5 -o skin.usdc --as skel
+      skinsynth select-controls skin.h5 -o controls.h5
+      skinsynth train-kcca controls.h5 -o puppet.h5
+      skinsynth evaluate puppet.h5 --plot errors.png
+      skinsynth play puppet.h5 --controls bar.npz --instances 16 -o crowd.usdc
+      skinsynth build-graph skin.h5 -o graph.h5 --plot plots
+      skinsynth synthesize graph.h5 -o bones.h5 --count 100 --frames 600 --crowd synth.usdc
+      skinsynth inspect graph.h5
     """
 
 
