@@ -140,3 +140,11 @@ def test_inspect_summarises_a_synthesis_file(files, tmp_path):
     summary = json.loads(assert_ok(cli("inspect", tmp_path / "b.h5", "--json")).stdout)
     assert summary["stage"] == "synthesis" and summary["animations"] == 2 and summary["seed"] == 4
     assert summary["distinct"] >= 1 and "transitions_used" in summary
+
+
+def test_result_does_not_depend_on_jobs(files, tmp_path):
+    for name, jobs in (("one.h5", 1), ("two.h5", 2)):
+        assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / name, "-n", 260, "-m", 30, "--seed", 9,
+                      "--jobs", jobs, "--min-difference", 0.2, "-q"))
+    for x, y in zip(bones(tmp_path / "one.h5"), bones(tmp_path / "two.h5")):
+        assert x.tobytes() == y.tobytes()
