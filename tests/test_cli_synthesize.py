@@ -144,7 +144,7 @@ def test_inspect_summarises_a_synthesis_file(files, tmp_path):
 
 def test_result_does_not_depend_on_jobs(files, tmp_path):
     for name, jobs in (("one.h5", 1), ("two.h5", 2)):
-        assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / name, "-n", 260, "-m", 30, "--seed", 9,
-                      "--jobs", jobs, "--min-difference", 0.2, "-q"))
+        assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / name, "-n", 260, "-m", 60, "--seed", 9,
+                      "--jobs", jobs, "--min-difference", 0.05, "-q"))
     for x, y in zip(bones(tmp_path / "one.h5"), bones(tmp_path / "two.h5")):
         assert x.tobytes() == y.tobytes()
