@@ -18,8 +18,7 @@ import json
 
 import numpy as np
 
-from .errors import FormatError
-from .model import Uncompressed, read_model, require
+from .model import Uncompressed
 
 
 def synthesis_groups(model, result, components, request, fps):
@@ -41,11 +40,3 @@ def synthesis_groups(model, result, components, request, fps):
     groups["synthesis"] = synthesis
     return groups
 
-
-def read_synthesis(path):
-    """(model dict, /synthesis dict) of a synthesis file; FormatError if it is not one."""
-    model = read_model(path, stages=("synthesis",))
-    data = require(model, path, "synthesis", ("bone_matrices", "bone_translations", "sources"))
-    if data["bone_matrices"].shape[:2] != data["sources"].shape[1:]:
-        raise FormatError(path, "inconsistent /synthesis arrays")
-    return model, data

@@ -24,11 +24,6 @@ import numpy as np
 from .rotations import polar_decomposition
 
 
-def polar(F):
-    """F (..., 3, 3) -> (U (..., 3, 3) proper rotation, S (..., 3, 3) symmetric) with F = U S."""
-    return polar_decomposition(F)
-
-
 def merge_into(F, t, cut, F_j, t_j, bones_j, polar_i=None, polar_j=None):
     """Carry component j onto the assembled bones through cut node ``cut`` (eq. 13–14), in place.
 
@@ -39,8 +34,8 @@ def merge_into(F, t, cut, F_j, t_j, bones_j, polar_i=None, polar_j=None):
     """
     bones_j = np.asarray(bones_j)
     where = int(np.searchsorted(bones_j, cut))
-    U_i, S_i = polar(F[:, :, cut]) if polar_i is None else polar_i
-    U_j, S_j = polar(F_j[:, :, where]) if polar_j is None else polar_j
+    U_i, S_i = polar_decomposition(F[:, :, cut]) if polar_i is None else polar_i
+    U_j, S_j = polar_decomposition(F_j[:, :, where]) if polar_j is None else polar_j
     turn = U_i @ np.swapaxes(U_j, -1, -2)  # (N, M, 3, 3)
     others = np.flatnonzero(bones_j != cut)
     F[:, :, bones_j[others]] = turn[:, :, None] @ F_j[:, :, others]  # eq. 14
@@ -92,8 +87,8 @@ def assemble(components, animations, bones, rng, tries=32):
             choice[:, c] = np.arange(count)
             continue
         where = int(np.searchsorted(ids, cut))
-        U_c, S_c = polar(F_c[:, :, where])  # (N, M, 3, 3) the cut node in component c
-        U_a, S_a = polar(F[:, :, cut])
+        U_c, S_c = polar_decomposition(F_c[:, :, where])  # (N, M, 3, 3) the cut node in component c
+        U_a, S_a = polar_decomposition(F[:, :, cut])
         candidates = np.argsort(rng.random((count, count)), axis=1)[:, :tries]  # a seeded order per animation
         # Eq. 12 for every (a, candidate) pair from Gram matrices: ‖Sa−Sc‖² = ‖Sa‖² + ‖Sc‖² − 2⟨Sa, Sc⟩.
         flat_a, flat_c = S_a.reshape(count, -1), S_c.reshape(count, -1)

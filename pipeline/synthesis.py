@@ -165,10 +165,10 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             np.concatenate(kept_choice), rejected]
 
 
-def motion_graphs(components, input_frames, forbidden=None):
+def motion_graphs(components, forbidden=None):
     """One MotionGraph per component from its candidate transitions (OptionError if a component
     has no infinite walk)."""
-    return [MotionGraph(input_frames, c.transitions.pairs, forbidden=forbidden) for c in components]
+    return [MotionGraph.from_transitions(c.transitions, forbidden=forbidden) for c in components]
 
 
 def _one_blas_thread():
@@ -206,7 +206,7 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     batch ids, so the outcome still depends on the seed alone. ``progress(done)`` is called with
     the number of animations finished after each batch."""
     validate_request(request, rotations.shape[0])
-    graphs = motion_graphs(components, rotations.shape[0], request.forbidden)
+    graphs = motion_graphs(components, request.forbidden)
     args = (components, graphs, rotations, translations, rest, bone_indices, bone_weights, request)
     results, next_batch, need = [], 0, request.count
     for _ in range(MAX_ROUNDS):
