@@ -21,27 +21,35 @@ from collections import deque
 
 import numpy as np
 
-from .rotations import polar_decomposition
+from .rotations import polar_of_near_rotations
+from .splicing import apply_rigid_into
 
 
-def merge_into(F, t, cut, F_j, t_j, bones_j, polar_i=None, polar_j=None):
+def merge_into(F, t, cut, part, pick, bones_j, polar_i=None, polar_j=None, animation_block=16):
     """Carry component j onto the assembled bones through cut node ``cut`` (eq. 13–14), in place.
 
-    F (N, M, B, 3, 3), t (N, M, B, 3): the assembled animations (cut already set); F_j
-    (N, M, b_j, 3, 3), t_j (N, M, b_j, 3): the animations of component j chosen for them, over
-    its bones ``bones_j`` (sorted ids, cut among them). All animations and bones at once.
-    polar_i / polar_j: the cut node's (U, S) on each side when already known.
+    F (N, M, B, 3, 3), t (N, M, B, 3): the assembled animations (cut already set); part: the
+    :class:`.splicing.SplicedWalks` of component j over its bones ``bones_j`` (sorted ids, cut
+    among them), ``pick (N,)`` its walk used for each output animation. polar_i: the cut node's
+    (U, S) on the assembled side when already known, polar_j the same of the cut node's *local*
+    position in j's walks (all of them). All animations and bones at once.
+
+    With C = the cut's local position in j (polar U_c S), its world position is R_ref C, so the
+    eq. 14 turn U_i (R_ref U_c)ᵀ composed with j's own eq. 10 motion R_ref is U_i U_cᵀ: one rigid
+    motion takes j's local positions straight to the assembled world.
     """
     bones_j = np.asarray(bones_j)
     where = int(np.searchsorted(bones_j, cut))
-    U_i, S_i = polar_decomposition(F[:, :, cut]) if polar_i is None else polar_i
-    U_j, S_j = polar_decomposition(F_j[:, :, where]) if polar_j is None else polar_j
-    turn = U_i @ np.swapaxes(U_j, -1, -2)  # (N, M, 3, 3)
+    U_i, S_i = polar_of_near_rotations(F[:, :, cut]) if polar_i is None else polar_i
+    U_c, S_c = polar_of_near_rotations(part.F[:, :, where]) if polar_j is None else polar_j
+    U_c, S_c = U_c[pick], S_c[pick]
+    rotation = U_i @ np.swapaxes(U_c, -1, -2)  # (N, M, 3, 3)
+    # Eq. 14: t ← turn (t_j − t_j,cut) + t_cut, in local terms rotation (t − t_cut,local) + t_cut.
+    translation = t[:, :, cut] - np.einsum("nmab,nmb->nma", rotation, part.t[pick, :, where])
     others = np.flatnonzero(bones_j != cut)
-    F[:, :, bones_j[others]] = turn[:, :, None] @ F_j[:, :, others]  # eq. 14
-    t[:, :, bones_j[others]] = (np.einsum("nmab,nmkb->nmka", turn, t_j[:, :, others] - t_j[:, :, where, None])
-                                + t[:, :, cut, None])
-    F[:, :, cut] = 0.5 * U_i @ (S_i + S_j)  # eq. 13 (translation stays C_i's)
+    apply_rigid_into(F, t, bones_j[others], rotation, translation, part.F, part.t, rows=pick, bones=others,
+                     animation_block=animation_block)
+    F[:, :, cut] = 0.5 * U_i @ (S_i + S_c)  # eq. 13 (translation stays C_i's)
 
 
 def merge_order(components):
@@ -62,33 +70,31 @@ def merge_order(components):
     return order
 
 
-def assemble(components, animations, bones, rng, tries=32):
+def assemble(components, parts, bones, rng, tries=32, dtype=np.float32):
     """Merge per-component animations into whole-rig animations.
 
-    components: list of sorted bone-id lists; animations: list of (F (N, M, b, 3, 3), t (N, M, b, 3))
-    per component; bones: B. Returns (F (N, M, B, 3, 3), t (N, M, B, 3), choice (N, C) the
-    animation used from each component, rejected (int): merges that fell back to the closest).
+    components: list of sorted bone-id lists; parts: one :class:`.splicing.SplicedWalks` per
+    component (N walks each); bones: B; dtype of the outputs. Returns (F (N, M, B, 3, 3),
+    t (N, M, B, 3) (float64 arithmetic, stored in ``dtype``), choice (N, C) the walk used from
+    each component, rejected (int): merges that fell back to the closest).
     """
-    count, frames = animations[0][0].shape[:2]
-    F = np.zeros((count, frames, bones, 3, 3))
-    t = np.zeros((count, frames, bones, 3))
+    count, frames = parts[0].F.shape[:2]
+    F = np.zeros((count, frames, bones, 3, 3), dtype=dtype)
+    t = np.zeros((count, frames, bones, 3), dtype=dtype)
     order = merge_order(components)
     choice = np.zeros((count, len(components)), dtype=np.int64)
     rejected = 0
-    first = order[0][0]
-    ids = np.asarray(components[first])
-    F[:, :, ids], t[:, :, ids] = animations[first]
-    choice[:, first] = np.arange(count)
-    for c, cut in order[1:]:
-        F_c, t_c = animations[c]
+    for c, cut in order:
+        part = parts[c]
         ids = np.asarray(components[c])
-        if cut is None:  # an independent piece of the mesh
-            F[:, :, ids], t[:, :, ids] = F_c, t_c
+        if cut is None:  # the anchor, or an independent piece of the mesh: eq. 10 as it is
+            apply_rigid_into(F, t, ids, part.rotation, part.translation, part.F, part.t)
             choice[:, c] = np.arange(count)
             continue
         where = int(np.searchsorted(ids, cut))
-        U_c, S_c = polar_decomposition(F_c[:, :, where])  # (N, M, 3, 3) the cut node in component c
-        U_a, S_a = polar_decomposition(F[:, :, cut])
+        # (N, M, 3, 3): the cut node's local position in component c (S is the same in the world).
+        U_c, S_c = polar_of_near_rotations(part.F[:, :, where])
+        U_a, S_a = polar_of_near_rotations(F[:, :, cut])
         candidates = np.argsort(rng.random((count, count)), axis=1)[:, :tries]  # a seeded order per animation
         # Eq. 12 for every (a, candidate) pair from Gram matrices: ‖Sa−Sc‖² = ‖Sa‖² + ‖Sc‖² − 2⟨Sa, Sc⟩.
         flat_a, flat_c = S_a.reshape(count, -1), S_c.reshape(count, -1)
@@ -108,5 +114,5 @@ def assemble(components, animations, bones, rng, tries=32):
         pick = candidates[np.arange(count), np.where(found, first, closest)]
         rejected += int((~found).sum())
         choice[:, c] = pick
-        merge_into(F, t, cut, F_c[pick], t_c[pick], ids, (U_a, S_a), (U_c[pick], S_c[pick]))
+        merge_into(F, t, cut, part, pick, ids, (U_a, S_a), (U_c, S_c))
     return F, t, choice, rejected

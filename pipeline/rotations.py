@@ -27,46 +27,90 @@ def polar_rotation(matrices):
 
 
 def _inverse_transpose(m):
-    """(…, 3, 3) -> (m⁻ᵀ (…, 3, 3), det (…)) from cofactors: elementwise, no per-matrix LAPACK call."""
+    """(3, 3, N) component-major -> (m⁻ᵀ (3, 3, N), det (N,)) from cofactors: elementwise on
+    contiguous rows (about 5× faster than the same arithmetic on (N, 3, 3) slices)."""
     c = np.empty_like(m)
-    c[..., 0, 0] = m[..., 1, 1] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 1]
-    c[..., 0, 1] = m[..., 1, 2] * m[..., 2, 0] - m[..., 1, 0] * m[..., 2, 2]
-    c[..., 0, 2] = m[..., 1, 0] * m[..., 2, 1] - m[..., 1, 1] * m[..., 2, 0]
-    c[..., 1, 0] = m[..., 0, 2] * m[..., 2, 1] - m[..., 0, 1] * m[..., 2, 2]
-    c[..., 1, 1] = m[..., 0, 0] * m[..., 2, 2] - m[..., 0, 2] * m[..., 2, 0]
-    c[..., 1, 2] = m[..., 0, 1] * m[..., 2, 0] - m[..., 0, 0] * m[..., 2, 1]
-    c[..., 2, 0] = m[..., 0, 1] * m[..., 1, 2] - m[..., 0, 2] * m[..., 1, 1]
-    c[..., 2, 1] = m[..., 0, 2] * m[..., 1, 0] - m[..., 0, 0] * m[..., 1, 2]
-    c[..., 2, 2] = m[..., 0, 0] * m[..., 1, 1] - m[..., 0, 1] * m[..., 1, 0]
-    det = np.einsum("...j,...j->...", m[..., 0, :], c[..., 0, :])
+    c[0, 0] = m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1]
+    c[0, 1] = m[1, 2] * m[2, 0] - m[1, 0] * m[2, 2]
+    c[0, 2] = m[1, 0] * m[2, 1] - m[1, 1] * m[2, 0]
+    c[1, 0] = m[0, 2] * m[2, 1] - m[0, 1] * m[2, 2]
+    c[1, 1] = m[0, 0] * m[2, 2] - m[0, 2] * m[2, 0]
+    c[1, 2] = m[0, 1] * m[2, 0] - m[0, 0] * m[2, 1]
+    c[2, 0] = m[0, 1] * m[1, 2] - m[0, 2] * m[1, 1]
+    c[2, 1] = m[0, 2] * m[1, 0] - m[0, 0] * m[1, 2]
+    c[2, 2] = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]
+    det = m[0, 0] * c[0, 0] + m[0, 1] * c[0, 1] + m[0, 2] * c[0, 2]
     with np.errstate(divide="ignore", invalid="ignore"):  # singular ones are handled by the caller
-        return c / det[..., None, None], det
+        c /= det
+    return c, det
 
 
 def polar_decomposition(matrices, iterations=30, tolerance=1e-12):
     """F = U S for many 3×3 matrices with det > 0: (U (…, 3, 3) rotation, S (…, 3, 3) symmetric).
 
     Scaled Newton iteration U ← ½(γU + (γU)⁻ᵀ), γ = |det U|^(-1/3) (Higham 1986), vectorised over
-    all matrices with cofactor inverses: ~20× faster than a batched SVD for the near-rotations
-    of synthesised bones. Matrices that are singular or reflections (det ≤ 0) go through
+    all matrices with cofactor inverses in a component-major (3, 3, N) layout: ~20× faster than a
+    batched SVD for the near-rotations of synthesised bones. Each matrix stops once its own step
+    is below ``tolerance`` and the iteration goes on over the rest only (rotations stop after a
+    step or two). Matrices that are singular or reflections (det ≤ 0) go through
     :func:`polar_rotation` (SVD) instead.
     """
     m = np.asarray(matrices, dtype=np.float64)
-    u = m.copy()
+    shape = m.shape
+    flat = m.reshape(-1, 3, 3)
+    u = np.ascontiguousarray(flat.transpose(1, 2, 0))  # (3, 3, N)
     inverse_t, det = _inverse_transpose(u)
-    good = det > 1e-12 * np.maximum(np.sum(m * m, axis=(-1, -2)), np.finfo(float).tiny) ** 1.5
+    scale = np.maximum(np.sum(u * u, axis=(0, 1)), np.finfo(float).tiny) ** 1.5
+    good = det > 1e-12 * scale
+    active = np.flatnonzero(good)
+    current, inverse_t, det = u[:, :, active], inverse_t[:, :, active], det[active]
     for _ in range(iterations):
-        gamma = np.abs(np.where(good, det, 1.0)) ** (-1.0 / 3.0)
-        nxt = 0.5 * (gamma[..., None, None] * u + inverse_t / gamma[..., None, None])
-        change = np.max(np.abs(nxt - u))
-        u = np.where(good[..., None, None], nxt, u)
-        if change < tolerance:
+        if active.size == 0:
             break
-        inverse_t, det = _inverse_transpose(u)
+        gamma = np.abs(det) ** (-1.0 / 3.0)
+        nxt = 0.5 * (gamma * current + inverse_t / gamma)
+        u[:, :, active] = nxt
+        moving = np.max(np.abs(nxt - current), axis=(0, 1)) >= tolerance
+        active, current = active[moving], nxt[:, :, moving]
+        inverse_t, det = _inverse_transpose(current)
+    u = u.transpose(2, 0, 1)
     if not good.all():
-        u[~good] = polar_rotation(m[~good])
-    s = np.swapaxes(u, -1, -2) @ m
-    return u, 0.5 * (s + np.swapaxes(s, -1, -2))
+        u[~good] = polar_rotation(flat[~good])
+    s = np.swapaxes(u, -1, -2) @ flat
+    return u.reshape(shape), (0.5 * (s + np.swapaxes(s, -1, -2))).reshape(shape)
+
+
+def polar_of_near_rotations(matrices, tolerance=1e-6):
+    """:func:`polar_decomposition` that takes matrices already orthonormal to ``tolerance``
+    (max |FᵀF − I|) as they are: U = F, S = I, so only the others pay for the Newton iteration.
+
+    Spliced bones are rotations outside the blend windows, rounded to float32 (|FᵀF − I| ~ 1e-7),
+    and general affine matrices inside them; taking the former as exact rotations changes U and S
+    by at most ``tolerance`` there. matrices (…, 3, 3) -> (U, S), each (…, 3, 3) float64."""
+    m = np.asarray(matrices, dtype=np.float64)
+    flat = m.reshape(-1, 3, 3)
+    columns = np.ascontiguousarray(flat.transpose(1, 2, 0))  # (3, 3, N)
+    gram = np.einsum("kin,kjn->ijn", columns, columns)
+    gram[[0, 1, 2], [0, 1, 2]] -= 1.0
+    stretched = np.flatnonzero(np.max(np.abs(gram), axis=(0, 1)) > tolerance)
+    u = flat.copy()
+    s = np.broadcast_to(np.eye(3), flat.shape).copy()
+    if stretched.size:
+        u[stretched], s[stretched] = polar_decomposition(flat[stretched])
+    return u.reshape(m.shape), s.reshape(m.shape)
+
+
+def apply_rigid(rotation, translation, F, t):
+    """The rigid motion (rotation (N, 3, 3), translation (N, 3)) applied to K bone positions per
+    item, F (N, K, 3, 3), t (N, K, 3) -> (rotation F, rotation t + translation).
+
+    The K products of one item are one (3, 3) @ (3, 3K) product: numpy's stacked matmul is about
+    twice as fast on that shape as on K separate 3×3 products (same sums, same rounding)."""
+    count, bones = F.shape[:2]
+    side = np.ascontiguousarray(F.transpose(0, 2, 1, 3)).reshape(count, 3, 3 * bones)
+    F_out = (rotation @ side).reshape(count, 3, bones, 3).transpose(0, 2, 1, 3)
+    t_out = t @ np.swapaxes(rotation, -1, -2) + translation[:, None, :]
+    return F_out, t_out
 
 
 def matrix_to_quaternion(rotations):

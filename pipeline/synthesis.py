@@ -8,7 +8,9 @@ Animations whose frames collide after splicing, or that repeat an earlier one mo
 
 Animations are made in batches of ``BATCH`` with their own random streams
 ``default_rng([seed, batch])``, so the result depends on the seed alone — not on ``jobs`` or on
-how the work is split — and batches can run in parallel worker processes.
+how the work is split — and batches can run in parallel worker processes. Workers write their
+bone motions straight into one shared-memory block of the parent's (pickling ~600 MB of float32
+motions per thousand animations back through pipes cost more than a third of the run).
 """
 
 from dataclasses import dataclass, field
@@ -21,7 +23,7 @@ from .deformation_gradients import gradient_operator
 from .errors import OptionError
 from .graph import ComponentAnalysis
 from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks
-from .splicing import splice
+from .splicing import splice_local
 from .transitions import Transitions
 
 BATCH = 250
@@ -129,10 +131,10 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
                               f"({rejected}); relax --min-difference or the obstacles")
         tries = need if rounds == 1 else 2 * need
         sources = np.stack([_walks(g, request, tries, rng) for g in graphs])  # (C, tries, M)
-        parts = [splice(c, rotations, translations, sources[k], window=request.window, dtype=np.float32)
+        parts = [splice_local(c, rotations, translations, sources[k], window=request.window, dtype=np.float32)
                  for k, c in enumerate(components)]
         if len(components) == 1:
-            F, t = parts[0]
+            F, t = parts[0].world()
             choice = np.arange(tries)[:, None]
         else:
             F, t, choice, failed = assemble([c.bones for c in components], parts, bones, rng)
@@ -147,20 +149,24 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
                 points = lbs_reference(rest[subset], bone_indices[subset], bone_weights[subset], F[a], t[a])
                 ok[a] = not colliding(request.obstacles, points).any()
             rejected["collisions"] += int((~ok).sum())
-        F, t, choice, sources = F[ok], t[ok], choice[ok], sources[:, ok]
+        if not ok.all():  # fancy indexing copies F and t: only when something was dropped
+            F, t, choice, sources = F[ok], t[ok], choice[ok], sources[:, ok]
         previous = np.concatenate(kept_src, axis=1) if kept_src else np.zeros((len(graphs), 0, request.frames), int)
         if request.min_difference > 0.0 and F.shape[0]:
             stacked = np.concatenate([previous, sources], axis=1)
             joint = stacked.transpose(1, 0, 2).reshape(stacked.shape[1], -1)
             keep = diversity_filter(joint, request.min_difference)[previous.shape[1]:]
             rejected["too_similar"] += int((~keep).sum())
-            F, t, choice, sources = F[keep], t[keep], choice[keep], sources[:, keep]
+            if not keep.all():
+                F, t, choice, sources = F[keep], t[keep], choice[keep], sources[:, keep]
         take = min(need, F.shape[0])
         kept_F.append(F[:take])
         kept_t.append(t[:take])
         kept_src.append(sources[:, :take])
         kept_choice.append(choice[:take])
         need -= take
+    if len(kept_F) == 1:  # the usual case: no second round, no copy
+        return [kept_F[0], kept_t[0], kept_src[0], kept_choice[0], rejected]
     return [np.concatenate(kept_F), np.concatenate(kept_t), np.concatenate(kept_src, axis=1),
             np.concatenate(kept_choice), rejected]
 
@@ -178,24 +184,73 @@ def _one_blas_thread():
     threadpool_limits(limits=1, user_api="blas")
 
 
+def _shared_arrays(buffer, shapes):
+    """float32 arrays of ``shapes`` laid end to end in ``buffer``."""
+    arrays, at = [], 0
+    for shape in shapes:
+        size = int(np.prod(shape))
+        arrays.append(np.ndarray(shape, dtype=np.float32, buffer=buffer, offset=at * 4))
+        at += size
+    return arrays
+
+
+def _batch_into_shared(name, shapes, offset, args, batch, count):
+    """Worker: :func:`make_batch`, its F and t written into the parent's shared output block (the
+    bone motions are most of a batch's bytes; pickling them back costs more than making them)."""
+    from multiprocessing import shared_memory
+
+    F, t, *rest = make_batch(*args, batch, count)
+    block = shared_memory.SharedMemory(name=name)
+    try:
+        F_out, t_out = _shared_arrays(block.buf, shapes)
+        F_out[offset:offset + count], t_out[offset:offset + count] = F, t
+        del F_out, t_out
+    finally:
+        block.close()
+    return rest
+
+
 def _run_batches(args, batches, jobs, progress, done_before):
-    """make_batch over (batch id, count) pairs, in worker processes when jobs > 1."""
-    results = []
+    """make_batch over (batch id, count) pairs, in worker processes when jobs > 1.
+    Returns one round: [F, t, sources, choice, rejected] of all batches in order."""
+    total = sum(n for _, n in batches)
+    rotations, frames = args[2], args[-1].frames
+    shapes = [(total, frames, rotations.shape[1], 3, 3), (total, frames, rotations.shape[1], 3)]
+    rests, done = [], done_before
     if jobs > 1 and len(batches) > 1:
         from concurrent.futures import ProcessPoolExecutor
+        from multiprocessing import shared_memory
 
-        with ProcessPoolExecutor(max_workers=jobs, initializer=_one_blas_thread) as pool:
-            futures = [pool.submit(make_batch, *args, b, n) for b, n in batches]
-            for future in futures:
-                results.append(future.result())
-                if progress is not None:
-                    progress(done_before + sum(r[0].shape[0] for r in results))
+        block = shared_memory.SharedMemory(create=True, size=4 * sum(int(np.prod(s)) for s in shapes))
+        try:
+            offsets = np.cumsum([0] + [n for _, n in batches])
+            with ProcessPoolExecutor(max_workers=jobs, initializer=_one_blas_thread) as pool:
+                futures = [pool.submit(_batch_into_shared, block.name, shapes, int(offsets[i]), args, b, n)
+                           for i, (b, n) in enumerate(batches)]
+                for future, (_, n) in zip(futures, batches):
+                    rests.append(future.result())
+                    done += n
+                    if progress is not None:
+                        progress(done)
+            F, t = (np.array(a) for a in _shared_arrays(block.buf, shapes))  # out of the block before it goes
+        finally:
+            block.close()
+            block.unlink()
     else:
+        F, t = np.empty(shapes[0], np.float32), np.empty(shapes[1], np.float32)
+        at = 0
         for b, n in batches:
-            results.append(make_batch(*args, b, n))
+            F_b, t_b, *rest = make_batch(*args, b, n)
+            F[at:at + n], t[at:at + n] = F_b, t_b
+            at += n
+            rests.append(rest)
+            done += n
             if progress is not None:
-                progress(done_before + sum(r[0].shape[0] for r in results))
-    return results
+                progress(done)
+    sources = np.concatenate([r[0] for r in rests], axis=1)
+    choice = np.concatenate([r[1] for r in rests])
+    rejected = {key: sum(r[2][key] for r in rests) for key in rests[0][2]}
+    return [F, t, sources, choice, rejected]
 
 
 def synthesize(components, rotations, translations, rest, bone_indices, bone_weights, request, jobs=1, progress=None):
@@ -212,7 +267,7 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     for _ in range(MAX_ROUNDS):
         batches = [(next_batch + b, min(BATCH, need - b * BATCH)) for b in range(-(-need // BATCH))]
         next_batch += len(batches)
-        results += _run_batches(args, batches, jobs, progress, request.count - need)
+        results.append(_run_batches(args, batches, jobs, progress, request.count - need))
         if request.min_difference <= 0.0:
             break
         joint = np.concatenate([r[2] for r in results], axis=1)
@@ -230,8 +285,8 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     else:
         raise OptionError(f"could not make {request.count} animations that differ by --min-difference "
                           f"{request.min_difference} in {MAX_ROUNDS} rounds; lower it")
-    F = np.concatenate([r[0] for r in results])
-    t = np.concatenate([r[1] for r in results])
+    F = results[0][0] if len(results) == 1 else np.concatenate([r[0] for r in results])
+    t = results[0][1] if len(results) == 1 else np.concatenate([r[1] for r in results])
     sources = np.concatenate([r[2] for r in results], axis=1)
     choice = np.concatenate([r[3] for r in results])
     rejected = {key: sum(r[4][key] for r in results) for key in results[0][4]}

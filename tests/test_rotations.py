@@ -65,3 +65,34 @@ def test_log_exp_inverse(rotations):
     assert np.allclose(rotation_exp(rotation_log(rotations)), rotations)
     small = np.random.default_rng(2).uniform(-1, 1, size=(20, 3))
     assert np.allclose(rotation_log(rotation_exp(small)), small)
+
+
+def test_polar_decomposition_matches_scipy_and_near_rotations_shortcut(rotations):
+    import scipy.linalg
+
+    from skinsynth.pipeline.rotations import apply_rigid, polar_decomposition, polar_of_near_rotations
+
+    rng = np.random.default_rng(1)
+    stretched = rotations @ (np.eye(3) + 0.1 * rng.normal(size=(50, 3, 3)))
+    stretched = stretched[np.linalg.det(stretched) > 0]
+    U, S = polar_decomposition(stretched[None])  # any leading shape
+    U, S = U[0], S[0]
+    for m, u, s in zip(stretched, U, S):
+        u_ref, s_ref = scipy.linalg.polar(m)
+        assert np.abs(u - u_ref).max() < 1e-10 and np.abs(s - s_ref).max() < 1e-10
+    # Rotations rounded to float32 are taken as they are (U = F, S = I); stretched ones are solved.
+    mixed = np.concatenate([rotations.astype(np.float32), stretched.astype(np.float32)])
+    U, S = polar_of_near_rotations(mixed)
+    assert np.array_equal(U[:50], mixed[:50].astype(np.float64))
+    assert np.array_equal(S[:50], np.broadcast_to(np.eye(3), (50, 3, 3)))
+    U_ref, S_ref = polar_decomposition(mixed[50:])
+    assert np.array_equal(U[50:], U_ref) and np.array_equal(S[50:], S_ref)
+    # apply_rigid: R F and R t + c for K bones per item, against a plain loop.
+    F = rng.normal(size=(50, 4, 3, 3))
+    t = rng.normal(size=(50, 4, 3))
+    c = rng.normal(size=(50, 3))
+    F_out, t_out = apply_rigid(rotations, c, F, t)
+    for n in range(50):
+        for k in range(4):
+            assert np.allclose(F_out[n, k], rotations[n] @ F[n, k], atol=1e-14)
+            assert np.allclose(t_out[n, k], rotations[n] @ t[n, k] + c[n], atol=1e-14)

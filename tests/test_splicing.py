@@ -284,3 +284,34 @@ def test_fitted_bending_bar_loop():
     F, t = splice(graph.components[0], fit.rotations, fit.translations, sources[None])
     assert np.abs(F[0] - fit.rotations[sources]).max() < 1e-8
     assert np.abs(t[0] - fit.translations[sources]).max() < 1e-8
+
+
+def test_each_distinct_window_is_solved_once_and_matches_a_per_window_solve(drifting_real_clip):
+    from skinsynth.pipeline.deformation_gradients import rotation_strain_to_matrix
+    from skinsynth.pipeline.splicing import distinct_windows, reference_alignment
+    from skinsynth.pipeline.transitions import local_frame_positions
+
+    clip, window = drifting_real_clip, 4
+    component = clip["component"]
+    # The first two walks take the same three transitions with long segments (identical windows);
+    # the third has short segments (clipped windows) and one long-segment transition of the others.
+    sources = np.stack([walk((3, 25), (61, 80), (11, 30), (90, 110)), walk((10, 25), (61, 80), (11, 30), (90, 117)),
+                        walk((5, 25), (61, 66), (100, 104), (40, 80), (11, 22))])
+    windows = seam_windows(sources, window)
+    _, unique, inverse = distinct_windows(sources, windows)
+    assert windows.seam.size == 10 and unique.seam.size == 6 and inverse.max() == 5
+    F, t = splice_clip(clip, sources, window=window)
+    # Brute force: every window blended and solved on its own (eq. 9 anchored, eq. 10).
+    animation, frame, d_tilde = blend_rotation_strain(component.strain, sources, windows)
+    src = sources[animation, frame]
+    D = rotation_strain_to_matrix(d_tilde) - rotation_strain_to_matrix(component.strain)[src]
+    dF, dt = component.operator.solve(D + component.operator.constant.reshape(-1, 3, 3))
+    F_in, t_in, local = local_frame_positions(clip["rotations"], clip["translations"], component.transitions.reference,
+                                              component.bones)
+    R_ref, t_ref = reference_alignment(clip["rotations"][:, component.transitions.reference],
+                                       clip["translations"][:, component.transitions.reference], sources)
+    at = np.searchsorted(component.bones, local)
+    expected_F = R_ref[animation, frame][:, None] @ (F_in[src] + dF)
+    expected_t = np.einsum("lab,lkb->lka", R_ref[animation, frame], t_in[src] + dt) + t_ref[animation, frame][:, None]
+    assert np.abs(F[animation[:, None], frame[:, None], at] - expected_F).max() < 1e-12
+    assert np.abs(t[animation[:, None], frame[:, None], at] - expected_t).max() < 1e-12
