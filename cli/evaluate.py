@@ -60,7 +60,9 @@ def evaluate(path, as_json, plot, skinning, pca_components):
     click.echo(f"{path}: {len(result.test_frames)} held-out frames, {len(puppet.train_frames)} training; "
                f"global motion: {result.notes['global_motion']} ({result.notes['global_motion_reason']}); "
                f"{skinning} skinning; "
-               f"kernel {result.notes['kernel']}; PCA baseline with {result.notes['pca_components']} blendshapes")
+               f"kernel {result.notes['kernel']}; PCA baseline with {result.notes['pca_components']} blendshapes"
+               + (f"; translation prior {result.notes['translation_prior']:g}"
+                  if result.notes["translation_prior"] is not None else ""))
     best = min(result.overall, key=result.overall.get)
     for name, label in METHODS.items():
         if name == "kcca" and not result.notes["translation_solver"]:

@@ -19,6 +19,10 @@ from .common import check_output_path, command_line, tool_version, user_errors
 @click.option("--translation-solver/--no-translation-solver", default=True, show_default=True,
               help="Recompute bone translations by the Poisson solve of Feng §5.")
 @click.option("--beta", default=100.0, show_default=True, type=float, help="Weight of the control-point constraints in the Poisson solve.")
+@click.option("--translation-prior", default="auto", show_default=True,
+              help="Pull of the Poisson solve towards the regression's own translations, relative to its mean "
+                   "diagonal: 1e-6 is Feng's plain solve, 100 about the regression's translations; 'auto' "
+                   "picks from 1e-6…100 by cross-validation on the training frames (printed).")
 @click.option("--train-frames", default="every:4", show_default=True,
               help="Example frames to train on: every:N, first:N, all, or a list like 0,4,10-20; the rest are held out.")
 @click.option("--global-motion", type=click.Choice(["auto", "control-frame", "world"]), default="auto", show_default=True,
@@ -27,7 +31,8 @@ from .common import check_output_path, command_line, tool_version, user_errors
                    "examples move as a whole and the controls fix a frame well, else world (the choice is printed).")
 @click.option("--quiet", "-q", is_flag=True, help="No summary.")
 @user_errors
-def train_kcca(path, output, kernel, bases, regularization, translation_solver, beta, train_frames, global_motion, quiet):
+def train_kcca(path, output, kernel, bases, regularization, translation_solver, beta, translation_prior, train_frames,
+               global_motion, quiet):
     """Train the puppet: per-bone kernel CCA from control points to bone dual quaternions.
 
     PATH is a controls file from select-controls. The examples are brought in place by a rigid
@@ -57,6 +62,11 @@ def train_kcca(path, output, kernel, bases, regularization, translation_solver, 
             regularization = float(regularization)
         except ValueError:
             raise OptionError(f"--regularization must be a number or 'auto' (got {regularization!r})") from None
+    if translation_prior != "auto":
+        try:
+            translation_prior = float(translation_prior)
+        except ValueError:
+            raise OptionError(f"--translation-prior must be a number or 'auto' (got {translation_prior!r})") from None
     model = read_model(path, stages=("controls",))
     skin = read_skin(path, model)
     controls = read_controls(path, model)
@@ -68,10 +78,12 @@ def train_kcca(path, output, kernel, bases, regularization, translation_solver, 
     puppet = train_puppet(skin.examples, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
                           skin.rotations, skin.translations, np.asarray(controls.vertex_indices), train,
                           kernel=kernel, bases=bases, regularization=regularization,
-                          translation_solver=translation_solver, beta=beta, global_motion=global_motion)
+                          translation_solver=translation_solver, beta=beta, global_motion=global_motion,
+                          translation_prior=translation_prior)
     seconds = time.perf_counter() - started
     parameters = dict(kernel=kernel, bases=bases, regularization=regularization, translation_solver=translation_solver,
-                      beta=beta, train_frames=train_frames, global_motion=global_motion)
+                      beta=beta, translation_prior=translation_prior, train_frames=train_frames,
+                      global_motion=global_motion)
     record = provenance_record("puppet", command_line(), parameters, [path], tool_version())
     write_model(output, "puppet", puppet_groups(model, puppet, test, "auto" if regularization == "auto" else "fixed"),
                 model["provenance"] + [record], tool_version())
@@ -82,3 +94,5 @@ def train_kcca(path, output, kernel, bases, regularization, translation_solver, 
                    f"{corr.shape[1]} bases (mean first correlation {corr[:, 0].mean():.3f}), "
                    f"translation solver {'on' if translation_solver else 'off'}; {seconds:.1f} s")
         click.echo(f"global motion: {puppet.global_motion} ({puppet.global_motion_reason})")
+        if translation_solver:
+            click.echo(f"translation prior: {puppet.translation_prior:g} ({puppet.translation_prior_reason})")

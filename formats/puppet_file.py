@@ -12,8 +12,9 @@ Copies forward ``/mesh``, ``/examples``, ``/skin`` and ``/controls`` and adds:
   ``@degree``, ``@bases``, ``@regularization_mode``. At run time ``d = M ξ(x) + bias`` with
   ``x = (c − control_mean) / scale`` and ξ_j = k(x, training_controls[j]).
 - ``/poisson`` (when trained with the translation solver): ``rotation_operator (B, B, 3)``,
-  ``control_operator (B, n_c)``, ``prior_operator (B, B)``; ``@beta``. Translations are
-  ``t_b = Σ_b' R_b' Γ[b, b'] + Σ_l Q[b, l] c_l + Σ_b' Π[b, b'] t̂_b'``.
+  ``control_operator (B, n_c)``, ``prior_operator (B, B)``; ``@beta``, ``@prior`` (the relative
+  weight γ of the pull towards the regression's translations) and ``@prior_reason``. Translations
+  are ``t_b = Σ_b' R_b' Γ[b, b'] + Σ_l Q[b, l] c_l + Σ_b' Π[b, b'] t̂_b'``.
 """
 
 import numpy as np
@@ -45,7 +46,9 @@ def puppet_groups(model, puppet, test_frames, regularization_mode):
     if puppet.translations is not None:
         op = puppet.translations
         groups["poisson"] = {"rotation_operator": op.rotation_operator, "control_operator": op.control_operator,
-                             "prior_operator": op.prior_operator, "@beta": float(puppet.beta)}
+                             "prior_operator": op.prior_operator, "@beta": float(puppet.beta),
+                             "@prior": float(puppet.translation_prior),
+                             "@prior_reason": puppet.translation_prior_reason}
     return groups
 
 
@@ -68,15 +71,17 @@ def read_puppet(path):
                            offset=float(kcca["@offset"]), degree=int(kcca["@degree"]))
     regression = KccaRegression(predictor=kcca["predictor"].reshape(bones, 8, -1), bias=kcca["bias"].reshape(bones, 8),
                                 correlations=kcca["correlations"], regularization=kcca["regularization"])
-    operator, beta = None, float("nan")
+    operator, beta, prior, prior_reason = None, float("nan"), float("nan"), ""
     if "poisson" in model:
         pois = require(model, path, "poisson", ("rotation_operator", "control_operator", "prior_operator"))
         operator = TranslationOperator(pois["rotation_operator"], pois["control_operator"], pois["prior_operator"])
         beta = float(pois.get("@beta", np.nan))
+        prior, prior_reason = float(pois.get("@prior", np.nan)), str(pois.get("@prior_reason", ""))
     puppet = Puppet(rest_vertices=skin.rest_vertices, bone_indices=skin.bone_indices, bone_weights=skin.bone_weights,
                     control_indices=np.asarray(controls.vertex_indices), reference_controls=training["reference_controls"],
                     global_motion=str(training.get("@global_motion", "control-frame")), kernel=kernel,
                     training_controls=kcca["training_controls"], regression=regression, translations=operator,
                     beta=beta, train_frames=training["train_frames"],
-                    global_motion_reason=str(training.get("@global_motion_reason", "")))
+                    global_motion_reason=str(training.get("@global_motion_reason", "")),
+                    translation_prior=prior, translation_prior_reason=prior_reason)
     return puppet, training["test_frames"], skin

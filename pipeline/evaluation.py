@@ -68,5 +68,7 @@ def evaluate_puppet(puppet, examples, test_frames, skinning="dual-quaternion", p
     notes = {"global_motion": puppet.global_motion, "global_motion_reason": puppet.global_motion_reason,
              "skinning": skinning,
              "translation_solver": puppet.translations is not None, "pca_components": int(pca.components),
+             "translation_prior": (float(puppet.translation_prior) if puppet.translations is not None
+                                   and np.isfinite(puppet.translation_prior) else None),
              "kernel": puppet.kernel.kind}
     return Evaluation(per_frame=per_frame, overall=overall, test_frames=test_frames, scale=scale, notes=notes)

@@ -18,7 +18,8 @@ import numpy as np
 from .alignment import apply_frames, control_frames, frame_conditioning, invert_frames
 from .errors import OptionError
 from .kcca import ControlKernel, KccaRegression, choose_regularization, control_kernel, fit_kcca, predict
-from .poisson import TranslationOperator, fit_edge_weights, mesh_edges, solve_translations, translation_operator
+from .poisson import (TranslationOperator, choose_translation_prior, fit_edge_weights, mesh_edges, operator_from_system,
+                      solve_translations, translation_system)
 from .rotations import dual_quaternion_to_rigid, quaternion_multiply, rigid_to_dual_quaternion
 
 GLOBAL_MOTION = ("auto", "control-frame", "world")
@@ -70,7 +71,8 @@ class Puppet:
     reference_controls (n_c, 3) rest-frame control positions that define "in place";
     global_motion "control-frame" | "world" (and why: global_motion_reason); kernel: ControlKernel; training_controls (n_p, 3 n_c)
     standardised; regression: KccaRegression (predictor (B, 8, n_p), bias (B, 8));
-    translations: TranslationOperator or None; beta; train_frames (n_p,).
+    translations: TranslationOperator or None; beta; translation_prior (relative γ of
+    :mod:`.poisson`, and why: translation_prior_reason); train_frames (n_p,).
     """
 
     rest_vertices: np.ndarray
@@ -86,6 +88,8 @@ class Puppet:
     beta: float
     train_frames: np.ndarray
     global_motion_reason: str = ""
+    translation_prior: float = 1e-6
+    translation_prior_reason: str = ""
 
 
 def parse_frame_spec(spec, frames):
@@ -136,9 +140,11 @@ def _bone_dual_quaternions(rotations, translations):
 
 def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, translations, control_indices,
                  train_frames, kernel="gaussian", bases=8, regularization="auto", translation_solver=True,
-                 beta=100.0, global_motion="auto"):
+                 beta=100.0, global_motion="auto", translation_prior="auto"):
     """Train a puppet from a skin fit. examples (F, V, 3); rotations (F, B, 3, 3), translations
-    (F, B, 3) the fitted bones; control_indices (n_c,); train_frames (n_p,). Returns Puppet."""
+    (F, B, 3) the fitted bones; control_indices (n_c,); train_frames (n_p,); translation_prior:
+    the Poisson solve's pull towards the regression's translations (:mod:`.poisson`), a number or
+    "auto" (cross-validated). Returns Puppet."""
     if global_motion not in GLOBAL_MOTION:
         raise OptionError(f"--global-motion must be one of {', '.join(GLOBAL_MOTION)}")
     if len(train_frames) < 4:
@@ -172,19 +178,62 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
             raise OptionError(f"--regularization must be a non-negative number or 'auto' (got {regularization})")
     regression = fit_kcca(kern.matrix(x, x), targets, bases=bases, regularization=kappa)
 
-    operator = None
+    operator, prior, prior_reason = None, 1e-6, ""
+    if translation_prior != "auto" and not float(translation_prior) >= 0.0:
+        raise OptionError(f"--translation-prior must be a non-negative number or 'auto' (got {translation_prior})")
     if translation_solver:
         edges = mesh_edges(faces)
         placed = apply_frames(frame_r, frame_t, examples[train_frames])
         edge_vectors = placed[:, edges[:, 0]] - placed[:, edges[:, 1]]
         edge_bones, edge_weights = fit_edge_weights(rest, edges, bone_indices, bone_weights, rot, edge_vectors)
-        operator = translation_operator(rest, edges, bone_indices, bone_weights, edge_bones, edge_weights,
-                                        control_indices, beta=beta)
+        system = translation_system(rest, edges, bone_indices, bone_weights, edge_bones, edge_weights,
+                                    control_indices, beta=beta)
+        if translation_prior == "auto":
+            prior, prior_reason = _cross_validated_prior(system, kern, x, targets, bases, regression.regularization,
+                                                         placed, placed_controls, rest, bone_indices, bone_weights)
+        else:
+            prior, prior_reason = float(translation_prior), "chosen by the user (--translation-prior)"
+        operator = operator_from_system(system, prior)
     return Puppet(rest_vertices=rest, bone_indices=bone_indices, bone_weights=bone_weights,
                   control_indices=np.asarray(control_indices), reference_controls=reference,
                   global_motion=global_motion, kernel=kern, training_controls=x, regression=regression,
                   translations=operator, beta=float(beta), train_frames=np.asarray(train_frames),
-                  global_motion_reason=reason)
+                  global_motion_reason=reason, translation_prior=float(prior), translation_prior_reason=prior_reason)
+
+
+#: Vertices used to score the translation prior (evenly spaced; the whole mesh when smaller).
+PRIOR_VERTICES = 4096
+
+
+def _cross_validated_prior(system, kern, x, targets, bases, kappa, placed, placed_controls, rest, bone_indices,
+                           bone_weights, folds=5):
+    """(prior, reason): the Poisson prior with the lowest dual-quaternion-skinned vertex error of
+    out-of-fold predictions (interleaved folds over the training frames, the chosen κ per bone;
+    the edge weights and the kernel's parameters are the ones fitted on all training frames)."""
+    from skinsynth.gpu import dqs_reference
+
+    n = x.shape[0]
+    folds = max(2, min(folds, n))
+    d = np.empty((n,) + targets.shape[:1] + (8,))
+    for fold in range(folds):
+        test = np.arange(fold, n, folds)
+        train = np.setdiff1d(np.arange(n), test)
+        model = fit_kcca(kern.matrix(x[train], x[train]), targets[:, train], bases=bases, regularization=kappa)
+        d[test] = predict(model, kern.matrix(x[test], x[train]))
+    d /= np.linalg.norm(d[..., :4], axis=-1, keepdims=True)
+    rot, trans = dual_quaternion_to_rigid(d)
+    subset = np.unique(np.linspace(0, rest.shape[0] - 1, min(PRIOR_VERTICES, rest.shape[0])).astype(np.int64))
+
+    def vertex_error(rotations, translations):
+        skinned = dqs_reference(rest[subset], bone_indices[subset], bone_weights[subset],
+                                rigid_to_dual_quaternion(rotations, translations))
+        return np.sum((skinned - placed[:, subset]) ** 2)
+
+    prior, errors = choose_translation_prior(system, rot, placed_controls, trans, vertex_error)
+    rms = {p: np.sqrt(e / (n * subset.size)) for p, e in errors.items()}
+    return prior, (f"cross-validated RMS {rms[prior]:.4g} at prior {prior:g} (Feng's plain solve, prior 1e-06: "
+                   f"{rms[min(rms)]:.4g}; nearest the regression's translations, prior {max(rms):g}: "
+                   f"{rms[max(rms)]:.4g})")
 
 
 def predict_bones(puppet, controls, translation_solver=True):

@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from skinsynth.gpu.skinning import lbs_reference
 from skinsynth.pipeline.alignment import apply_frames, control_frames
 from skinsynth.pipeline.errors import OptionError
 from skinsynth.pipeline.examples import synthetic_lbs
@@ -90,6 +91,35 @@ def test_translation_solver_returns_true_translations_of_an_lbs_pose():
     wrong_prior = trans[None] + 5.0  # the tiny prior must not pull determined translations
     solved = solve_translations(op, rot[None], posed[controls][None], wrong_prior)[0]
     assert np.abs(solved - trans).max() < 1e-7
+
+
+def test_translation_prior_moves_the_solve_from_feng_to_the_regression_and_is_cross_validated():
+    from skinsynth.pipeline.poisson import (PRIOR_GRID, choose_translation_prior, operator_from_system,
+                                            translation_system)
+
+    data = synthetic_lbs(bones=5, frames=6, rings=16, segments=8, seed=5)
+    rest, faces = data["rest"], data["faces"]
+    edges = mesh_edges(faces)
+    rot, trans, posed = _lbs_pose(data, 3)
+    edge_bones, edge_weights = fit_edge_weights(rest, edges, data["bone_indices"], data["bone_weights"], rot[None],
+                                                (posed[edges[:, 0]] - posed[edges[:, 1]])[None], edge_ridge=1e-12)
+    controls = np.array([0, 30, 60, 90, 110, 125])
+    system = translation_system(rest, edges, data["bone_indices"], data["bone_weights"], edge_bones, edge_weights,
+                                controls, beta=100.0)
+    predicted = trans[None] + np.random.default_rng(0).normal(scale=0.3, size=trans.shape)
+    feng = solve_translations(operator_from_system(system, 1e-10), rot[None], posed[controls][None], predicted)
+    pulled = solve_translations(operator_from_system(system, 1e8), rot[None], posed[controls][None], predicted)
+    assert np.abs(feng - trans).max() < 1e-7  # Feng's solve: exact on an LBS pose
+    assert np.abs(pulled - predicted).max() < 1e-5  # a huge prior: the regression's translations
+
+    def vertex_error(rotations, translations):  # held-out error of the skinned pose
+        return np.sum((lbs_reference(rest, data["bone_indices"], data["bone_weights"], rotations, translations)
+                       - posed[None]) ** 2)
+
+    prior, errors = choose_translation_prior(system, rot[None], posed[controls][None], predicted, vertex_error)
+    assert set(errors) == set(PRIOR_GRID) and prior == min(PRIOR_GRID)  # noisy predictions: trust the solve
+    prior, _ = choose_translation_prior(system, rot[None], posed[controls][None] + 0.5, trans[None], vertex_error)
+    assert prior == max(PRIOR_GRID)  # wrong controls, exact predictions: trust the regression
 
 
 def test_frame_specs():
