@@ -130,6 +130,7 @@ class MotionGraph:
         src, dst = self._edges(self.usable)
         self.indptr, self.indices = _csr(frames, src, dst)
         self._state_cache = {}
+        self._backward_cache = {}
 
     @classmethod
     def from_transitions(cls, result, forbidden=None):
@@ -208,6 +209,19 @@ class MotionGraph:
                                    shape=(n, n))
             self._state_cache[key] = (matrix, np.repeat(mask, segment))
         return self._state_cache[key]
+
+    def _backward(self, usable_only, segment, end_frame, length):
+        """:func:`_backward_sets` of the (frame, segment-position) states, (length+1, F, segment)
+        bool, for walks of ``length`` steps ending at ``end_frame`` (None: anywhere allowed);
+        cached, since every batch of walks asks for the same ones."""
+        key = (bool(usable_only), int(segment), None if end_frame is None else int(end_frame), int(length))
+        if key not in self._backward_cache:
+            _, allowed1 = self._state_matrix(usable_only, 1)
+            end1 = allowed1.copy() if end_frame is None else np.arange(self.frames) == end_frame
+            matrix, allowed = self._state_matrix(usable_only, segment)
+            sets = _backward_sets(matrix, allowed, np.repeat(end1, segment), length)
+            self._backward_cache[key] = sets.reshape(length + 1, self.frames, segment)
+        return self._backward_cache[key]
 
 
 def random_walks(graph, count, frames, rng, start=None, transition_probability=0.5, min_segment=4):
@@ -455,14 +469,8 @@ def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, 
     the targets, for error messages."""
     F = graph.frames
     moves = graph._moves
-    plain_m, allowed1 = graph._state_matrix(usable_only, 1)
-    end1 = allowed1.copy() if end_frame is None else np.arange(F) == end_frame
-    plain = _backward_sets(plain_m, allowed1, end1, length)  # (L+1, F)
-    if segment > 1:
-        strict_m, allowed_s = graph._state_matrix(usable_only, segment)
-        strict = _backward_sets(strict_m, allowed_s, np.repeat(end1, segment), length).reshape(length + 1, F, segment)
-    else:
-        strict = plain.reshape(length + 1, F, 1)
+    plain = graph._backward(usable_only, 1, end_frame, length)[:, :, 0]  # (L+1, F)
+    strict = graph._backward(usable_only, segment, end_frame, length)  # (L+1, F, segment)
 
     if first is None:
         count = since.size
@@ -485,6 +493,12 @@ def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, 
     last = segment - 1
     t_indptr, t_target = moves.t_indptr, moves.t_target
     play_ok = moves.play_ok
+    # Valid transition edges as running counts over the edge list, for every step at once: strict
+    # walks may only transition at the end of a full segment and must land where a full segment
+    # still fits. The uniforms are drawn in one call (the same stream as one call per step).
+    running = np.zeros((length, t_target.size + 1), np.int64)
+    np.cumsum(strict[1:, t_target, 0], axis=1, out=running[:, 1:])
+    uniforms = rng.random((length, 2, count))
     for t in range(length):
         strict_next, plain_next = strict[t + 1], plain[t + 1]
         relaxed = np.flatnonzero(~strict[t, cur, s])  # usually empty: handled on the side
@@ -492,15 +506,13 @@ def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, 
         s_play = np.minimum(s + 1, last)
         can_play = play_ok[cur] & strict_next[nxt_play, s_play]
         lo, hi = t_indptr[cur], t_indptr[cur + 1]
-        # valid transition edges as running counts over the edge list: strict walks may only
-        # transition at the end of a full segment and must land where a full segment still fits
-        cs_s = np.concatenate([[0], np.cumsum(strict_next[t_target, 0])])
+        cs_s = running[t]
         cnt = np.where(s == last, cs_s[hi] - cs_s[lo], 0)
         if relaxed.size:
             cs_p = np.concatenate([[0], np.cumsum(plain_next[t_target])])
             can_play[relaxed] = play_ok[cur[relaxed]] & plain_next[nxt_play[relaxed]]
             cnt[relaxed] = cs_p[hi[relaxed]] - cs_p[lo[relaxed]]
-        u = rng.random((2, count))
+        u = uniforms[t]
         take = ((cnt > 0) & (s == last) & (u[0] < p)) | ~can_play
         movers = np.flatnonzero(take)
         if movers.size:

@@ -314,7 +314,7 @@ class SplicedWalks:
     """A walks of one component spliced, in the local form of Zheng eq. 10.
 
     ``rotation (A, M, 3, 3)``, ``translation (A, M, 3)``: the reference bone's output poses
-    (eq. 7, float64); ``F (A, M, b, 3, 3)``, ``t (A, M, b, 3)``: every bone of the component in
+    (eq. 7, float64; None when not asked for); ``F (A, M, b, 3, 3)``, ``t (A, M, b, 3)``: every bone of the component in
     the reference bone's frame, in ``component.bones`` order, the reference itself at (I, 0).
     World positions are the rigid motion applied to the local ones (:meth:`world`); keeping the
     two apart lets assembly compose its own rigid turn with the reference's before touching the
@@ -327,6 +327,8 @@ class SplicedWalks:
 
     def world(self, dtype=None, animation_block=16):
         """Eq. 10 for every frame: ``(F_world (A, M, b, 3, 3), t_world (A, M, b, 3))``."""
+        if self.rotation is None:
+            raise ValueError("these walks were spliced without the reference motion (reference_motion=False)")
         dtype = self.F.dtype if dtype is None else dtype
         F_out = np.empty(self.F.shape, dtype=dtype)
         t_out = np.empty(self.t.shape, dtype=dtype)
@@ -345,15 +347,19 @@ def apply_rigid_into(F_out, t_out, slots, rotation, translation, F, t, rows=None
     animation of F per output animation (default the same); bones (k,) the bones of F (default all)."""
     count, frames = F_out.shape[:2]
     slots = np.asarray(slots)
+    all_bones = bones is None or np.array_equal(bones, np.arange(F.shape[2]))
     bones = np.arange(F.shape[2]) if bones is None else np.asarray(bones)
-    rows = np.arange(count) if rows is None else np.asarray(rows)
     whole = slots.size == F_out.shape[2] and np.array_equal(slots, np.arange(slots.size))
     step = max(1, int(animation_block))
     for a0 in range(0, count, step):
         block = slice(a0, min(count, a0 + step))
         n = block.stop - a0
-        F_local = F[rows[block]][:, :, bones].reshape(n * frames, bones.size, 3, 3)
-        t_local = t[rows[block]][:, :, bones].reshape(n * frames, bones.size, 3)
+        # Views where possible: gathers copy (rows picks other walks, bones drops the cut).
+        F_local, t_local = (F[block], t[block]) if rows is None else (F[rows[block]], t[rows[block]])
+        if not all_bones:
+            F_local, t_local = F_local[:, :, bones], t_local[:, :, bones]
+        F_local = F_local.reshape(n * frames, bones.size, 3, 3)
+        t_local = t_local.reshape(n * frames, bones.size, 3)
         F_world, t_world = apply_rigid(rotation[block].reshape(-1, 3, 3), translation[block].reshape(-1, 3),
                                        F_local, t_local)
         F_world = F_world.reshape(n, frames, bones.size, 3, 3)
@@ -376,7 +382,7 @@ def splice(component, rotations, translations, sources, window=8, dtype=np.float
 
 
 def splice_local(component, rotations, translations, sources, window=8, dtype=np.float64, anchored=True,
-                 block_frames=8192):
+                 block_frames=8192, reference_motion=True):
     """Splice A walks of one bone component (Zheng §3.3; module notes) -> :class:`SplicedWalks`.
 
     component: a :class:`.graph.ComponentAnalysis` (bones, transitions.reference,
@@ -384,7 +390,9 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
     (F, B, 3): the input skin fit (all B bones; the component's are used); sources (A, M) (or (M,),
     taken as A = 1) input frame per output frame; window: blend frames on each side of a seam;
     dtype of the local positions; anchored: eq. 9 solved for the change from the source positions
-    (default) or plainly; block_frames: memory bound (module notes).
+    (default) or plainly; block_frames: memory bound (module notes); reference_motion: False
+    skips eq. 7 (``rotation`` and ``translation`` are then None) for a component that assembly
+    carries onto another through a cut node, where the reference's own motion cancels.
     """
     bones = np.asarray(component.bones, dtype=np.int64)
     reference = int(component.transitions.reference)
@@ -407,7 +415,9 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
     windows = seam_windows(sources, window)
     b = bones.size
 
-    R_ref, t_ref = reference_alignment(rotations[:, reference], translations[:, reference], sources)  # eq. 7
+    R_ref = t_ref = None
+    if reference_motion:
+        R_ref, t_ref = reference_alignment(rotations[:, reference], translations[:, reference], sources)  # eq. 7
     F_in, t_in, ids = local_frame_positions(rotations, translations, reference, bones)  # eq. 2, (F, b−1, …)
     if not np.array_equal(np.asarray(ids), local_bones):
         raise ValueError("the component's local bones are not its bones without the reference")

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .assembly import assemble
+from .assembly import assemble, merge_order
 from .collisions import colliding, vertex_subset
 from .deformation_gradients import gradient_operator
 from .errors import OptionError
@@ -120,6 +120,8 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
     """``count`` animations of one batch: (F, t, sources (C, count, M), choice, rejected dict)."""
     rng = np.random.default_rng([request.seed, batch])
     bones = rotations.shape[1]
+    # Components assembly carries onto another through a cut node: their eq. 7 motion cancels.
+    carried = {c for c, cut in merge_order([c.bones for c in components]) if cut is not None}
     subset = vertex_subset(rest.shape[0])
     kept_F, kept_t, kept_src, kept_choice = [], [], [], []
     rejected = {"collisions": 0, "too_similar": 0, "merges": 0}
@@ -131,8 +133,8 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
                               f"({rejected}); relax --min-difference or the obstacles")
         tries = need if rounds == 1 else 2 * need
         sources = np.stack([_walks(g, request, tries, rng) for g in graphs])  # (C, tries, M)
-        parts = [splice_local(c, rotations, translations, sources[k], window=request.window, dtype=np.float32)
-                 for k, c in enumerate(components)]
+        parts = [splice_local(c, rotations, translations, sources[k], window=request.window, dtype=np.float32,
+                              reference_motion=k not in carried) for k, c in enumerate(components)]
         if len(components) == 1:
             F, t = parts[0].world()
             choice = np.arange(tries)[:, None]
