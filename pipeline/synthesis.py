@@ -10,7 +10,8 @@ Animations are made in batches of ``BATCH`` with their own random streams
 ``default_rng([seed, batch])``, so the result depends on the seed alone — not on ``jobs`` or on
 how the work is split — and batches can run in parallel worker processes. Workers write their
 bone motions straight into one shared-memory block of the parent's (pickling ~600 MB of float32
-motions per thousand animations back through pipes cost more than a third of the run).
+motions per thousand animations back through pipes cost more than a third of the run), or,
+where /dev/shm is too small for them, send them back through the pool as before.
 """
 
 from dataclasses import dataclass, field
@@ -196,12 +197,15 @@ def _shared_arrays(buffer, shapes):
     return arrays
 
 
-def _batch_into_shared(name, shapes, offset, args, batch, count):
-    """Worker: :func:`make_batch`, its F and t written into the parent's shared output block (the
-    bone motions are most of a batch's bytes; pickling them back costs more than making them)."""
+def _batch_for_parent(name, shapes, offset, args, batch, count):
+    """Worker: :func:`make_batch`, with its F and t written into the parent's shared output block
+    ``name`` (the bone motions are most of a batch's bytes; pickling them back costs more than
+    making them) and the rest returned; with ``name`` None, everything is returned."""
     from multiprocessing import shared_memory
 
     F, t, *rest = make_batch(*args, batch, count)
+    if name is None:
+        return [F, t, *rest]
     block = shared_memory.SharedMemory(name=name)
     try:
         F_out, t_out = _shared_arrays(block.buf, shapes)
@@ -209,7 +213,25 @@ def _batch_into_shared(name, shapes, offset, args, batch, count):
         del F_out, t_out
     finally:
         block.close()
-    return rest
+    return [None, None, *rest]
+
+
+def _shared_block(nbytes):
+    """A new shared-memory block of ``nbytes``, or None where /dev/shm has less room than that
+    (containers often mount 64 MB there; a worker writing past it would die of SIGBUS)."""
+    import os
+    from multiprocessing import shared_memory
+
+    try:
+        stats = os.statvfs("/dev/shm")
+        if stats.f_bavail * stats.f_frsize < 1.05 * nbytes:
+            return None
+    except OSError:  # no /dev/shm (not Linux): POSIX shared memory has no such small mount
+        pass
+    try:
+        return shared_memory.SharedMemory(create=True, size=max(1, nbytes))
+    except OSError:
+        return None
 
 
 def _run_batches(args, batches, jobs, progress, done_before):
@@ -218,33 +240,37 @@ def _run_batches(args, batches, jobs, progress, done_before):
     total = sum(n for _, n in batches)
     rotations, frames = args[2], args[-1].frames
     shapes = [(total, frames, rotations.shape[1], 3, 3), (total, frames, rotations.shape[1], 3)]
+    F, t = np.empty(shapes[0], np.float32), np.empty(shapes[1], np.float32)
+    offsets = np.cumsum([0] + [n for _, n in batches])
     rests, done = [], done_before
     if jobs > 1 and len(batches) > 1:
         from concurrent.futures import ProcessPoolExecutor
-        from multiprocessing import shared_memory
 
-        block = shared_memory.SharedMemory(create=True, size=4 * sum(int(np.prod(s)) for s in shapes))
+        block = _shared_block(F.nbytes + t.nbytes)
         try:
-            offsets = np.cumsum([0] + [n for _, n in batches])
             with ProcessPoolExecutor(max_workers=jobs, initializer=_one_blas_thread) as pool:
-                futures = [pool.submit(_batch_into_shared, block.name, shapes, int(offsets[i]), args, b, n)
-                           for i, (b, n) in enumerate(batches)]
-                for future, (_, n) in zip(futures, batches):
-                    rests.append(future.result())
+                futures = [pool.submit(_batch_for_parent, None if block is None else block.name, shapes,
+                                       int(offsets[i]), args, b, n) for i, (b, n) in enumerate(batches)]
+                for i, (future, (_, n)) in enumerate(zip(futures, batches)):
+                    F_b, t_b, *rest = future.result()
+                    if block is None:
+                        F[offsets[i]:offsets[i] + n], t[offsets[i]:offsets[i] + n] = F_b, t_b
+                    rests.append(rest)
                     done += n
                     if progress is not None:
                         progress(done)
-            F, t = (np.array(a) for a in _shared_arrays(block.buf, shapes))  # out of the block before it goes
+            if block is not None:
+                F_shared, t_shared = _shared_arrays(block.buf, shapes)
+                F[...], t[...] = F_shared, t_shared  # out of the block before it goes
+                del F_shared, t_shared
         finally:
-            block.close()
-            block.unlink()
+            if block is not None:
+                block.close()
+                block.unlink()
     else:
-        F, t = np.empty(shapes[0], np.float32), np.empty(shapes[1], np.float32)
-        at = 0
-        for b, n in batches:
+        for i, (b, n) in enumerate(batches):
             F_b, t_b, *rest = make_batch(*args, b, n)
-            F[at:at + n], t[at:at + n] = F_b, t_b
-            at += n
+            F[offsets[i]:offsets[i] + n], t[offsets[i]:offsets[i] + n] = F_b, t_b
             rests.append(rest)
             done += n
             if progress is not None:
