@@ -8,10 +8,10 @@ Animations whose frames collide after splicing, or that repeat an earlier one mo
 
 Animations are made in batches of ``BATCH`` with their own random streams
 ``default_rng([seed, batch])``, so the result depends on the seed alone — not on ``jobs`` or on
-how the work is split — and batches can run in parallel worker processes. Workers write their
-bone motions straight into one shared-memory block of the parent's (pickling ~600 MB of float32
-motions per thousand animations back through pipes cost more than a third of the run), or,
-where /dev/shm is too small for them, send them back through the pool as before.
+how the work is split — and batches can run in parallel worker processes. Forked workers write
+their bone motions straight into one anonymous shared mapping that becomes the result (pickling
+~600 MB of float32 motions per thousand animations back through pipes cost more than a third of
+the run); where fork does not exist they send them back through the pool.
 """
 
 from dataclasses import dataclass, field
@@ -197,77 +197,70 @@ def _shared_arrays(buffer, shapes):
     return arrays
 
 
-def _batch_for_parent(name, shapes, offset, args, batch, count):
-    """Worker: :func:`make_batch`, with its F and t written into the parent's shared output block
-    ``name`` (the bone motions are most of a batch's bytes; pickling them back costs more than
-    making them) and the rest returned; with ``name`` None, everything is returned."""
-    from multiprocessing import shared_memory
+#: Output blocks the workers of a forked pool write into, by token (inherited through fork).
+_SHARED_OUTPUT = {}
 
+
+def _batch_for_parent(token, offset, args, batch, count):
+    """Worker: :func:`make_batch`, with its F and t written into the parent's shared output block
+    ``token`` (the bone motions are most of a batch's bytes; pickling them back costs more than
+    making them) and the rest returned; with ``token`` None, everything is returned."""
     F, t, *rest = make_batch(*args, batch, count)
-    if name is None:
+    if token is None:
         return [F, t, *rest]
-    block = shared_memory.SharedMemory(name=name)
-    try:
-        F_out, t_out = _shared_arrays(block.buf, shapes)
-        F_out[offset:offset + count], t_out[offset:offset + count] = F, t
-        del F_out, t_out
-    finally:
-        block.close()
+    F_out, t_out = _SHARED_OUTPUT[token]
+    F_out[offset:offset + count], t_out[offset:offset + count] = F, t
     return [None, None, *rest]
 
 
-def _shared_block(nbytes):
-    """A new shared-memory block of ``nbytes``, or None where /dev/shm has less room than that
-    (containers often mount 64 MB there; a worker writing past it would die of SIGBUS)."""
-    import os
-    from multiprocessing import shared_memory
+def _pool_context():
+    """The fork context where there is one (workers then inherit the shared output block), else
+    None (the platform's default; results come back through the pool)."""
+    import multiprocessing
 
-    try:
-        stats = os.statvfs("/dev/shm")
-        if stats.f_bavail * stats.f_frsize < 1.05 * nbytes:
-            return None
-    except OSError:  # no /dev/shm (not Linux): POSIX shared memory has no such small mount
-        pass
-    try:
-        return shared_memory.SharedMemory(create=True, size=max(1, nbytes))
-    except OSError:
-        return None
+    return multiprocessing.get_context("fork") if "fork" in multiprocessing.get_all_start_methods() else None
 
 
 def _run_batches(args, batches, jobs, progress, done_before):
     """make_batch over (batch id, count) pairs, in worker processes when jobs > 1.
-    Returns one round: [F, t, sources, choice, rejected] of all batches in order."""
+    Returns one round: [F, t, sources, choice, rejected] of all batches in order.
+
+    With worker processes, F and t live in one anonymous shared mapping made before the workers
+    are forked: each worker writes its batch in place and the parent's arrays *are* that memory
+    (no copy; it is freed with them)."""
     total = sum(n for _, n in batches)
     rotations, frames = args[2], args[-1].frames
     shapes = [(total, frames, rotations.shape[1], 3, 3), (total, frames, rotations.shape[1], 3)]
-    F, t = np.empty(shapes[0], np.float32), np.empty(shapes[1], np.float32)
     offsets = np.cumsum([0] + [n for _, n in batches])
     rests, done = [], done_before
     if jobs > 1 and len(batches) > 1:
+        import mmap
         from concurrent.futures import ProcessPoolExecutor
 
-        block = _shared_block(F.nbytes + t.nbytes)
+        context = _pool_context()
+        token = None
+        if context is not None:
+            token = f"{id(args)}-{done_before}"
+            block = mmap.mmap(-1, max(1, 4 * sum(int(np.prod(shape)) for shape in shapes)))  # MAP_SHARED
+            F, t = _SHARED_OUTPUT[token] = _shared_arrays(block, shapes)
+        else:
+            F, t = np.empty(shapes[0], np.float32), np.empty(shapes[1], np.float32)
         try:
-            with ProcessPoolExecutor(max_workers=jobs, initializer=_one_blas_thread) as pool:
-                futures = [pool.submit(_batch_for_parent, None if block is None else block.name, shapes,
-                                       int(offsets[i]), args, b, n) for i, (b, n) in enumerate(batches)]
+            with ProcessPoolExecutor(max_workers=jobs, initializer=_one_blas_thread, mp_context=context) as pool:
+                futures = [pool.submit(_batch_for_parent, token, int(offsets[i]), args, b, n)
+                           for i, (b, n) in enumerate(batches)]
                 for i, (future, (_, n)) in enumerate(zip(futures, batches)):
                     F_b, t_b, *rest = future.result()
-                    if block is None:
+                    if token is None:
                         F[offsets[i]:offsets[i] + n], t[offsets[i]:offsets[i] + n] = F_b, t_b
                     rests.append(rest)
                     done += n
                     if progress is not None:
                         progress(done)
-            if block is not None:
-                F_shared, t_shared = _shared_arrays(block.buf, shapes)
-                F[...], t[...] = F_shared, t_shared  # out of the block before it goes
-                del F_shared, t_shared
         finally:
-            if block is not None:
-                block.close()
-                block.unlink()
+            _SHARED_OUTPUT.pop(token, None)
     else:
+        F, t = np.empty(shapes[0], np.float32), np.empty(shapes[1], np.float32)
         for i, (b, n) in enumerate(batches):
             F_b, t_b, *rest = make_batch(*args, b, n)
             F[offsets[i]:offsets[i] + n], t[offsets[i]:offsets[i] + n] = F_b, t_b
