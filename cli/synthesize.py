@@ -53,7 +53,8 @@ class _LazyCrowd:
 @click.option("--min-difference", default=0.0, show_default=True, type=float,
               help="Drop an animation that shares more than 1 − X of its frames (same input frame at the same time) with an earlier one.")
 @click.option("--single-component", is_flag=True, help="Synthesise the whole rig as one component, ignoring cut nodes.")
-@click.option("--window", default=4, show_default=True, type=int, help="Frames blended on each side of a transition.")
+@click.option("--window", default=2, show_default=True, type=int,
+              help="Frames blended on each side of a transition (longer windows measured rougher).")
 @click.option("--usd", "usd_dir", type=click.Path(file_okay=False), default=None, help="Also write one USD point cache per animation here.")
 @click.option("--crowd", type=click.Path(dir_okay=False), default=None, help="Also write one USD stage with every animation on a grid.")
 @click.option("--exr", "exr_dir", type=click.Path(file_okay=False), default=None, help="Also write one vertex-animation texture per animation here.")

@@ -58,7 +58,15 @@ class Request:
     start/end frames; obstacles (collisions.Obstacles or None) with the input frames that collide
     (forbidden (F,) bool); min_difference; window; transition_probability (per frame, once a
     segment has played min_segment frames: the default 0.1 and 8 give segments of about 18
-    frames, each seam blended over ``window`` frames on each side); seed."""
+    frames, each seam blended over ``window`` frames on each side); seed.
+
+    Window: Zheng blends over the whole segments on each side. The blend keeps the input's own
+    accelerations inside the window and spreads the transition's mismatch as a velocity offset
+    over it; a velocity mismatch so builds an offset that grows with the window, and that offset,
+    carried by the reference bone's rotation, bends the path (the kinks at the window ends grow
+    with the window). Measured (50 walks × 600 frames, max acceleration near seams / input's, 3
+    seeds): window 2 → 1.00–1.07 single-component, 1.63–1.82 multi-component on the horse-sized
+    tube; 3 → 1.01, 2.11; 4 → 1.18, 2.85; 8 → 1.75, 3.98; 1 → 1.40, 1.77. Default 2."""
 
     count: int
     frames: int
@@ -69,7 +77,7 @@ class Request:
     obstacles: object = None
     forbidden: np.ndarray | None = None
     min_difference: float = 0.0
-    window: int = 4
+    window: int = 2
     transition_probability: float = 0.1
     min_segment: int = 8
 

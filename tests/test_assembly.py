@@ -67,3 +67,14 @@ def test_merged_components_are_carried_rigidly(components):
                                    atol=1e-9)
                 checked += 1
     assert checked > 0
+
+
+def test_merge_order_starts_each_piece_at_its_most_central_component():
+    from skinsynth.pipeline.assembly import merge_order
+
+    # A chain of three components (the middle one is central), a pair, and a lone component.
+    order = merge_order([[0, 1, 2], [2, 3], [3, 4, 5], [10, 11], [11, 12, 13, 14], [20]])
+    assert order == [(1, None), (0, 2), (2, 3), (4, None), (3, 11), (5, None)]
+    # Ties in centrality go to the component with more bones, then the lower index.
+    assert merge_order([[0, 1], [1, 2, 3]])[0] == (1, None)
+    assert merge_order([[0, 1], [1, 2]])[0] == (0, None)
