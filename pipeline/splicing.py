@@ -314,8 +314,9 @@ class SplicedWalks:
     """A walks of one component spliced, in the local form of Zheng eq. 10.
 
     ``rotation (A, M, 3, 3)``, ``translation (A, M, 3)``: the reference bone's output poses
-    (eq. 7, float64; None when not asked for); ``F (A, M, b, 3, 3)``, ``t (A, M, b, 3)``: every bone of the component in
-    the reference bone's frame, in ``component.bones`` order, the reference itself at (I, 0).
+    (eq. 7, float64; None when not asked for); ``F (A, M, b, 3, 3)``, ``t (A, M, b, 3)``: every
+    bone of the component in the reference bone's frame, in ``component.bones`` order, the
+    reference itself at (I, 0).
     World positions are the rigid motion applied to the local ones (:meth:`world`); keeping the
     two apart lets assembly compose its own rigid turn with the reference's before touching the
     (large) local arrays once."""
