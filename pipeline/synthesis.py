@@ -56,17 +56,18 @@ def component_from_file(data, rest):
 class Request:
     """What to make: count animations of ``frames`` frames; targets [(input frame, output time)],
     start/end frames; obstacles (collisions.Obstacles or None) with the input frames that collide
-    (forbidden (F,) bool); min_difference; window; transition_probability (per frame, once a
+    (forbidden (F,) bool); min_difference; window; spread_velocity; transition_probability (per frame, once a
     segment has played min_segment frames: the default 0.1 and 8 give segments of about 18
     frames, each seam blended over ``window`` frames on each side); seed.
 
-    Window: Zheng blends over the whole segments on each side. The blend keeps the input's own
-    accelerations inside the window and spreads the transition's mismatch as a velocity offset
-    over it; a velocity mismatch so builds an offset that grows with the window, and that offset,
-    carried by the reference bone's rotation, bends the path (the kinks at the window ends grow
-    with the window). Measured (50 walks × 600 frames, max acceleration near seams / input's, 3
-    seeds): window 2 → 1.00–1.07 single-component, 1.63–1.82 multi-component on the horse-sized
-    tube; 3 → 1.01, 2.11; 4 → 1.18, 2.85; 8 → 1.75, 3.98; 1 → 1.40, 1.77. Default 2."""
+    Window: Zheng blends over the whole segments on each side; here ``window`` frames. The blend
+    keeps the input's accelerations inside the window (plus, with ``spread_velocity``, the
+    seam's velocity jump spread evenly; :mod:`.splicing`), and an offset built inside a long
+    window is bent by the reference bone's rotation. Measured (2 × 50 walks × 600 frames, max
+    acceleration near seams / the input's, horse-sized tube; single / multi-component), with
+    the spread: window 1 → 1.38 / 1.66–1.76, 2 → 1.00–1.11 / 1.61–1.81, 3 → 1.00 / 2.09–2.15,
+    4 → 1.07 / 2.69–2.73, 8 → 1.29 / 3.9–4.6; without it: 2 → 1.00–1.07 / 1.63–1.82,
+    4 → 1.18 / 2.86–2.89, 8 → 1.75 / 4.0–4.3. Default 2, the best for several components."""
 
     count: int
     frames: int
@@ -78,6 +79,7 @@ class Request:
     forbidden: np.ndarray | None = None
     min_difference: float = 0.0
     window: int = 2
+    spread_velocity: bool = True
     transition_probability: float = 0.1
     min_segment: int = 8
 
@@ -143,7 +145,8 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
         tries = need if rounds == 1 else 2 * need
         sources = np.stack([_walks(g, request, tries, rng) for g in graphs])  # (C, tries, M)
         parts = [splice_local(c, rotations, translations, sources[k], window=request.window, dtype=np.float32,
-                              reference_motion=k not in carried) for k, c in enumerate(components)]
+                              reference_motion=k not in carried, spread_velocity=request.spread_velocity)
+                 for k, c in enumerate(components)]
         if len(components) == 1:
             F, t = parts[0].world()
             choice = np.arange(tries)[:, None]

@@ -127,17 +127,22 @@ def test_walk_validation():
     assert walk_sources([0, 1, 2, 7], 10).shape == (1, 4)
 
 
-def test_poisson_blend_solves_the_discrete_equation(real_clip):
+@pytest.mark.parametrize("spread", [False, True])
+def test_poisson_blend_solves_the_discrete_equation(real_clip, spread):
     strain = real_clip["component"].strain
     sources = np.stack([walk((10, 40), (71, 101)), walk((30, 35), (50, 53), (80, 102), (11, 41))])
     windows = seam_windows(sources, 6)
-    animation, frame, blended = blend_rotation_strain(strain, sources, windows)
+    animation, frame, blended = blend_rotation_strain(strain, sources, windows, spread_velocity=spread)
     g = strain_second_differences(strain)
     for s in range(windows.seam.size):
-        a, left, right = windows.animation[s], windows.left[s], windows.right[s]
+        a, left, right, k = windows.animation[s], windows.left[s], windows.right[s], windows.seam[s]
         inside = (animation == a) & (frame > left) & (frame < right)
         series = np.concatenate([strain[sources[a, left]][None], blended[inside], strain[sources[a, right]][None]])
         residual = series[:-2] - 2 * series[1:-1] + series[2:] - g[sources[a, left + 1:right]]
+        if spread:  # the seam's velocity jump (input steps j → j+1 against i → i+1), spread evenly
+            i, j = sources[a, k - 1], sources[a, k] - 1
+            jump = (strain[j + 1] - strain[j]) - (strain[i + 1] - strain[i])
+            residual -= jump / (right - left + 1)
         assert np.abs(residual).max() < 1e-10
 
 
