@@ -56,9 +56,9 @@ def component_from_file(data, rest):
 class Request:
     """What to make: count animations of ``frames`` frames; targets [(input frame, output time)],
     start/end frames; obstacles (collisions.Obstacles or None) with the input frames that collide
-    (forbidden (F,) bool); min_difference; window; spread_velocity; transition_probability (per frame, once a
-    segment has played min_segment frames: the default 0.1 and 8 give segments of about 18
-    frames, each seam blended over ``window`` frames on each side); seed.
+    (forbidden (F,) bool); min_difference; window; spread_velocity; transition_probability (per
+    frame, once a segment has played min_segment frames: the default 0.1 and 8 give segments of
+    about 18 frames, each seam blended over ``window`` frames on each side); seed.
 
     Window: Zheng blends over the whole segments on each side; here ``window`` frames. The blend
     keeps the input's accelerations inside the window (plus, with ``spread_velocity``, the
