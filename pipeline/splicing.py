@@ -261,22 +261,22 @@ def strain_second_differences(strain):
 
 def seam_velocity_jumps(strain, sources, windows, win):
     """δ (W, n, 9) of windows ``win``: the input's velocity into the frame played after the seam,
-    d(j+1) − d(j), minus the velocity the left segment would have gone on with, d(i+1) − d(i)
-    (d(i) − d(i−1) where i is the clip's last frame); rotation vectors differenced on one branch."""
+    d(j+1) − d(j), minus the velocity the left segment would have gone on with, d(i+1) − d(i);
+    0 where i is the clip's last frame (nothing says how it would have gone on, and an exact loop
+    closing there must stay exact). Rotation vectors are differenced on one branch."""
     a, k = windows.animation[win], windows.seam[win]
     frames = strain.shape[0]
-    if frames < 2:
-        return np.zeros((win.size,) + strain.shape[1:])
     i, after = sources[a, k - 1], sources[a, k]
-    ahead = np.where(i + 1 < frames, i + 1, i)
-    behind = ahead - 1
+    ahead = np.minimum(i + 1, frames - 1)
 
     def velocity(to, since):
         step = strain[to] - strain[since]
         step[..., :3] = nearest_branch(strain[to][..., :3], strain[since][..., :3]) - strain[since][..., :3]
         return step
 
-    return velocity(after, after - 1) - velocity(ahead, behind)
+    jumps = velocity(after, after - 1) - velocity(ahead, ahead - 1)
+    jumps[i + 1 >= frames] = 0.0
+    return jumps
 
 
 def blend_rotation_strain(strain, sources, windows, select=None, second=None, spread_velocity=True):
