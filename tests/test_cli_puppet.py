@@ -29,10 +29,21 @@ def test_pipeline_and_evaluate_json(files, tmp_path):
     assert result["test_frames"] == [f for f in range(24) if f % 4]
     assert all(0.0 <= result[k] < 0.05 for k in ("kcca", "pca_blendshape", "rbf"))
     assert (tmp_path / "e.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    from skinsynth.pipeline.poisson import PRIOR_GRID
+
+    assert result["translation_prior"] in PRIOR_GRID  # cross-validated by default
     text = assert_ok(cli("evaluate", files / "puppet.h5")).stdout
     assert "control-frame" in text and "kcca" in text
     summary = json.loads(assert_ok(cli("inspect", files / "puppet.h5", "--json")).stdout)
     assert summary["stage"] == "puppet" and [p["stage"] for p in summary["provenance"]] == ["skin", "controls", "puppet"]
+
+
+def test_translation_prior_given_is_stored_and_used(files, tmp_path):
+    assert_ok(cli("train-kcca", files / "controls.h5", "-o", tmp_path / "p5.h5", "--translation-prior", "5", "-q"))
+    with h5py.File(tmp_path / "p5.h5") as f:
+        assert f["poisson"].attrs["prior"] == 5.0 and "user" in f["poisson"].attrs["prior_reason"]
+    result = json.loads(assert_ok(cli("evaluate", tmp_path / "p5.h5", "--json")).stdout)
+    assert result["translation_prior"] == 5.0
 
 
 def test_train_kcca_is_deterministic(files, tmp_path):
@@ -49,7 +60,9 @@ def test_train_kcca_is_deterministic(files, tmp_path):
     (["--regularization", "lots"], ["--regularization"]),
     (["--bases", "0"], ["--bases"]),
     (["--beta", "0"], ["--beta"]),
-], ids=["kernel", "too-few-frames", "bad-spec", "regularization", "bases", "beta"])
+    (["--translation-prior", "strong"], ["--translation-prior"]),
+    (["--translation-prior", "-1"], ["--translation-prior"]),
+], ids=["kernel", "too-few-frames", "bad-spec", "regularization", "bases", "beta", "prior-word", "prior-negative"])
 def test_train_kcca_bad_options(files, tmp_path, args, needles):
     assert_user_error(cli("train-kcca", files / "controls.h5", "-o", tmp_path / "p.h5", *args), *needles,
                       folder=tmp_path)
