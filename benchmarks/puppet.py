@@ -60,6 +60,7 @@ def _evaluate(name, vertices, faces, bones):
                          "pca_components": result.notes["pca_components"]}
             line[key]["kcca_over_pca"] = round(result.overall["kcca"] / result.overall["pca_blendshape"], 3)
             line[key]["lowest"] = min(result.overall, key=result.overall.get)
+            line[key]["translation_prior"] = puppet.translation_prior
             if mode == "auto":
                 line[key]["chosen"] = puppet.global_motion
     return line
