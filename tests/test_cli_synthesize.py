@@ -56,6 +56,16 @@ def test_synthesize_json_and_caches(files, tmp_path):
     assert len(list((tmp_path / "vat").iterdir())) == 4
     summary = json.loads(assert_ok(cli("inspect", tmp_path / "b.h5", "--json")).stdout)
     assert summary["stage"] == "synthesis"
+    # Caches skinned in two threads (--jobs 2) hold the same points, every animation in its place.
+    assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b2.h5", "-n", 4, "-m", 50, "--seed", 1,
+                  "--crowd", tmp_path / "crowd2.usda", "--usd", tmp_path / "each", "--jobs", 2, "--device", "cpu",
+                  "-q"))
+    for a in range(4):
+        one, _, _ = read_points_cache(tmp_path / "crowd.usda", prim=f"/characters/animation_{a:04d}")
+        two, _, _ = read_points_cache(tmp_path / "crowd2.usda", prim=f"/characters/animation_{a:04d}")
+        alone, _, _ = read_points_cache(tmp_path / "each" / f"animation_{a:04d}.usdc")
+        assert np.array_equal(one, two)
+        assert np.abs(alone - lbs_reference(rest, idx, w, F[a], t[a])).max() < 1e-3 * np.ptp(rest)
 
 
 def test_same_seed_same_output_and_input_reproduced_between_seams(files, tmp_path):
