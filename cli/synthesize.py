@@ -80,8 +80,11 @@ class _LazyCrowd:
 @click.option("--min-difference", default=0.0, show_default=True, type=float,
               help="Drop an animation that shares more than 1 − X of its frames (same input frame at the same time) with an earlier one.")
 @click.option("--single-component", is_flag=True, help="Synthesise the whole rig as one component, ignoring cut nodes.")
-@click.option("--window", default=2, show_default=True, type=int,
-              help="Frames blended on each side of a transition (longer windows measured rougher).")
+@click.option("--window", default=3, show_default=True, type=int,
+              help="Frames blended on each side of a transition.")
+@click.option("--cut-damping", default=1e-3, show_default=True, type=float,
+              help="Pull of the cut nodes' eq. 9 solve towards their source positions (relative; 0: none). "
+                   "A cut node is seen by one side's key vertices only; undamped it stretches in blends.")
 @click.option("--spread-velocity/--no-spread-velocity", default=True, show_default=True,
               help="Spread each transition's velocity jump evenly over its blend window (off: Zheng's plain "
                    "guidance, the input's own accelerations).")
@@ -97,8 +100,8 @@ class _LazyCrowd:
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
-               min_difference, single_component, window, spread_velocity, usd_dir, crowd, exr_dir, up_axis, device, jobs,
-               as_json, quiet):
+               min_difference, single_component, window, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, up_axis,
+               device, jobs, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
     Random walks over the motion graph (or walks through targeted frames), splicing at the
@@ -131,7 +134,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     graph_file = read_graph(path)
     skin = graph_file.skin
     request = Request(count=count, frames=frames, seed=seed, targets=list(targets), start=start_frame, end=end_frame,
-                      min_difference=min_difference, window=window, spread_velocity=spread_velocity)
+                      min_difference=min_difference, window=window, spread_velocity=spread_velocity,
+                      cut_damping=cut_damping)
     validate_request(request, skin.rotations.shape[0])
     up = 1 if up_axis == "Y" else 2
     if obstacles or ground_plane:
@@ -163,7 +167,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     parameters = dict(count=count, frames=frames, seed=seed, start_frame=start_frame, end_frame=end_frame,
                       targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,
                       min_difference=min_difference, single_component=single_component, window=window,
-                      spread_velocity=spread_velocity)
+                      spread_velocity=spread_velocity, cut_damping=cut_damping)
     record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(), seed)
     model = read_model(path)
     write_model(output, "synthesis", synthesis_groups(model, result, components, request, skin.fps),

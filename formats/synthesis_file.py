@@ -11,7 +11,7 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` (the weights skin the new 
 - ``component_NNN/bones`` the bone ids of each component;
 - attributes ``@count``, ``@frames``, ``@seed``, ``@distinct``, ``@transitions_used``,
   ``@rejected_collisions``, ``@rejected_too_similar``, ``@rejected_merges``, ``@fps``,
-  ``@targets`` (JSON), ``@window``, ``@spread_velocity``.
+  ``@targets`` (JSON), ``@window``, ``@spread_velocity``, ``@cut_damping``.
 """
 
 import json
@@ -34,7 +34,7 @@ def synthesis_groups(model, result, components, request, fps):
         "@rejected_too_similar": int(result.rejected["too_similar"]),
         "@rejected_merges": int(result.rejected["merges"]), "@fps": float(fps),
         "@targets": json.dumps([list(map(int, t)) for t in request.targets]), "@window": int(request.window),
-        "@spread_velocity": bool(request.spread_velocity),
+        "@spread_velocity": bool(request.spread_velocity), "@cut_damping": float(request.cut_damping),
     }
     for number, component in enumerate(components):
         synthesis[f"component_{number:03d}"] = {"bones": np.asarray(component.bones, dtype=np.int64)}

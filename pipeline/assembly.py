@@ -52,6 +52,14 @@ def merge_into(F, t, cut, part, pick, bones_j, polar_i=None, polar_j=None, anima
     F[:, :, cut] = 0.5 * U_i @ (S_i + S_c)  # eq. 13 (translation stays C_i's)
 
 
+def cut_bones(components):
+    """Bone ids shared by two or more components (sorted bone-id lists): the cut nodes."""
+    if not components:
+        return np.zeros(0, dtype=np.int64)
+    counts = np.bincount(np.concatenate([np.asarray(c, dtype=np.int64) for c in components]))
+    return np.flatnonzero(counts > 1)
+
+
 def merge_order(components):
     """[(component index, shared cut node or None)]: per group of components connected through
     cut nodes, its anchor (cut None) and then the rest in breadth-first order from it.

@@ -142,6 +142,24 @@ class GradientOperator:
         d = self.matrix @ p.T + self.constant[:, None]
         return d.T.reshape(p.shape[0], -1, 3, 3)
 
+    def solve_damped(self, D_tilde, damped, damping, refine=1):
+        """Eq. 9 with the bones ``damped`` (ids) pulled towards p = 0: min ‖G p − (d − c)‖² +
+        μ Σ_{b ∈ damped} ‖p_b‖², μ = ``damping`` × the mean diagonal of G₀ᵀG₀. Used on the change
+        from the source positions, so a damped bone keeps near its source position where the key
+        vertices barely determine it. Same shapes as :meth:`solve`; ``damping = 0`` or no damped
+        bone is :meth:`solve`. The factorisation is kept per (damped bones, damping)."""
+        damped = np.intersect1d(np.asarray(damped, dtype=np.int64), self.bone_ids)
+        if damping <= 0.0 or damped.size == 0:
+            return self.solve(D_tilde, refine)
+        key = (tuple(int(b) for b in damped), float(damping))
+        cache = self.__dict__.setdefault("_damped_factors", {})
+        if key not in cache:
+            normal = self.reduced.T @ self.reduced
+            mask = np.repeat(np.isin(self.bone_ids, damped), 4).astype(np.float64)
+            mu = damping * float(np.mean(np.diag(normal)))
+            cache[key] = scipy.linalg.cho_factor(normal + np.diag(mu * mask + self.lam), lower=True)
+        return self._solve_with(cache[key], D_tilde, refine)
+
     def solve(self, D_tilde, refine=1):
         """Least-squares local bone positions from gradients at the key vertices (Zheng eq. 9).
 
@@ -152,13 +170,18 @@ class GradientOperator:
         relative bias on a determined direction from λ/(σ²+λ) to its square, and leaves
         undetermined directions (σ = 0) at 0: the solution tends to the minimum-norm one.
         """
+        return self._solve_with(self.factor, D_tilde, refine)
+
+    def _solve_with(self, factor, D_tilde, refine):
+        """:meth:`solve` with the Cholesky factor of (normal matrix + λI) given; the refinement
+        removes λ's bias whatever else that normal matrix holds."""
         D_tilde = np.asarray(D_tilde, dtype=np.float64)
         frames, n = D_tilde.shape[0], self.key.shape[0]
         rhs = D_tilde - self.constant.reshape(n, 3, 3)  # (T, n, α, β)
         rhs = rhs.transpose(0, 2, 1, 3).reshape(frames * 3, n * 3)  # rows (t, α), cols (i, β)
-        x = scipy.linalg.cho_solve(self.factor, self.reduced.T @ rhs.T)  # (4B', 3T): (b, γ|t) × (t, α)
+        x = scipy.linalg.cho_solve(factor, self.reduced.T @ rhs.T)  # (4B', 3T): (b, γ|t) × (t, α)
         for _ in range(refine):
-            x = x + self.lam * scipy.linalg.cho_solve(self.factor, x)
+            x = x + self.lam * scipy.linalg.cho_solve(factor, x)
         x = x.T.reshape(frames, 3, -1, 4)  # (T, α, b, 4)
         return x[..., :3].transpose(0, 2, 1, 3), x[..., 3].transpose(0, 2, 1)
 

@@ -65,6 +65,14 @@ tube (max acceleration near seams / the input's), window 4: 1.18 → 1.07, windo
 1.75 → 1.29. This is still a 1D Poisson equation per coordinate, with a different guidance
 field.
 
+Cut nodes (``damped_bones``, ``damping``): a component's cut node sits at its border, where
+only the key vertices on this side see it, so eq. 9 determines it poorly: on a horse-sized tube
+cut into six components the solved cut node took 10–22 % spurious stretch inside windows, and
+assembly reads its stretch (eq. 12–13) and its rotation (eq. 14, which swings every bone hung
+from it). The synthesizer therefore damps the change of the cut nodes (a Tikhonov term μ‖Δp_b‖²
+on their 12 numbers, μ relative to the mean diagonal of G₀ᵀG₀); the parent component places the
+cut node anyway. Single-component synthesis has no cut node and is unaffected.
+
 Input-clip ends: g at input frame 0 or F−1 has no neighbour on one side; it uses the second
 difference of frame 1 or F−2 (the nearest complete one). With fewer than 3 input frames g = 0.
 
@@ -410,18 +418,19 @@ def apply_rigid_into(F_out, t_out, slots, rotation, translation, F, t, rows=None
 
 
 def splice(component, rotations, translations, sources, window=8, dtype=np.float64, anchored=True,
-           block_frames=8192, animation_block=16, spread_velocity=True):
+           block_frames=8192, animation_block=16, spread_velocity=True, damped_bones=(), damping=0.0):
     """World bone positions of A walks of one bone component (Zheng §3.3; module notes):
     :func:`splice_local` then eq. 10. Returns ``(F_world (A, M, b, 3, 3), t_world (A, M, b, 3))``
     in the order of ``component.bones``; the reference bone's F is a rotation, the others'
     general affine matrices inside windows and the source's rotations elsewhere."""
     spliced = splice_local(component, rotations, translations, sources, window=window, dtype=dtype,
-                           anchored=anchored, block_frames=block_frames, spread_velocity=spread_velocity)
+                           anchored=anchored, block_frames=block_frames, spread_velocity=spread_velocity,
+                           damped_bones=damped_bones, damping=damping)
     return spliced.world(animation_block=animation_block)
 
 
 def splice_local(component, rotations, translations, sources, window=8, dtype=np.float64, anchored=True,
-                 block_frames=8192, reference_motion=True, spread_velocity=True):
+                 block_frames=8192, reference_motion=True, spread_velocity=True, damped_bones=(), damping=0.0):
     """Splice A walks of one bone component (Zheng §3.3; module notes) -> :class:`SplicedWalks`.
 
     component: a :class:`.graph.ComponentAnalysis` (bones, transitions.reference,
@@ -432,7 +441,9 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
     (default) or plainly; block_frames: memory bound (module notes); reference_motion: False
     skips eq. 7 (``rotation`` and ``translation`` are then None) for a component that assembly
     carries onto another through a cut node, where the reference's own motion cancels;
-    spread_velocity: the seam's velocity jump spread over the window (module notes).
+    spread_velocity: the seam's velocity jump spread over the window (module notes);
+    damped_bones, damping: with the anchored solve, those bones' change from the source pulled
+    towards 0 (:meth:`.deformation_gradients.GradientOperator.solve_damped`; module notes).
     """
     bones = np.asarray(component.bones, dtype=np.int64)
     reference = int(component.transitions.reference)
@@ -476,7 +487,7 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
         return spliced
     signatures, unique, inverse = distinct_windows(sources, windows)
     F_win, t_win = _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, block_frames,
-                                spread_velocity)
+                                spread_velocity, damped_bones, damping)
     start = np.cumsum(unique.counts) - unique.counts  # first row of each distinct window in F_win
     used = np.flatnonzero(windows.counts > 0)
     animation, frame, owner, _, _ = windows.frames(used)
@@ -516,7 +527,8 @@ def distinct_windows(sources, windows):
     return np.maximum(keys, 0), unique, inverse
 
 
-def _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, block_frames, spread_velocity):
+def _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, block_frames, spread_velocity,
+                 damped_bones=(), damping=0.0):
     """Steps 3–4 for the distinct windows: local positions of the local bones at their free frames,
     ``(F_local (L, b−1, 3, 3), t_local (L, b−1, 3))`` in :meth:`SeamWindows.frames` order."""
     second = strain_second_differences(strain)
@@ -534,7 +546,7 @@ def _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, blo
         if anchored:
             D_tilde -= D_in[src]
             D_tilde += constant
-            dF, dt = operator.solve(D_tilde)  # G⁺(D̃ − D(source))
+            dF, dt = operator.solve_damped(D_tilde, damped_bones, damping)  # G⁺(D̃ − D(source))
             F_block, t_block = F_in[src] + dF, t_in[src] + dt
         else:
             F_block, t_block = operator.solve(D_tilde)  # Zheng eq. 9

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .assembly import assemble, merge_order
+from .assembly import assemble, cut_bones, merge_order
 from .collisions import colliding, vertex_subset
 from .deformation_gradients import gradient_operator
 from .errors import OptionError
@@ -56,18 +56,20 @@ def component_from_file(data, rest):
 class Request:
     """What to make: count animations of ``frames`` frames; targets [(input frame, output time)],
     start/end frames; obstacles (collisions.Obstacles or None) with the input frames that collide
-    (forbidden (F,) bool); min_difference; window; spread_velocity; transition_probability (per
+    (forbidden (F,) bool); min_difference; window; spread_velocity; cut_damping (of the cut nodes'
+    eq. 9 change, :mod:`.splicing`); transition_probability (per
     frame, once a segment has played min_segment frames: the default 0.1 and 8 give segments of
     about 18 frames, each seam blended over ``window`` frames on each side); seed.
 
     Window: Zheng blends over the whole segments on each side; here ``window`` frames. The blend
     keeps the input's accelerations inside the window (plus, with ``spread_velocity``, the
     seam's velocity jump spread evenly; :mod:`.splicing`), and an offset built inside a long
-    window is bent by the reference bone's rotation. Measured (2 × 50 walks × 600 frames, max
-    acceleration near seams / the input's, horse-sized tube; single / multi-component), with
-    the spread: window 1 → 1.38 / 1.66–1.76, 2 → 1.00–1.11 / 1.61–1.81, 3 → 1.00 / 2.09–2.15,
-    4 → 1.07 / 2.69–2.73, 8 → 1.29 / 3.9–4.6; without it: 2 → 1.00–1.07 / 1.63–1.82,
-    4 → 1.18 / 2.86–2.89, 8 → 1.75 / 4.0–4.3. Default 2, the best for several components."""
+    window is bent by the reference bone's rotation. Measured (50 walks × 600 frames, max
+    acceleration near seams / the input's, horse-sized tube, seeds 0–2; single / multi-component
+    with the defaults otherwise): window 1 → 1.38 / 1.33, 2 → 0.92–1.11 / 1.27–1.35,
+    3 → 0.91–1.00 / 1.27–1.28, 4 → 1.07 / 1.34, 8 → 1.29 / 1.34. Without the spread, window 4
+    gave 1.18 and window 8 1.75 single-component; without the cut-node damping, multi-component
+    gave 1.61–1.81 at window 2 and 2.7–4.6 at windows 4–8. Default 3."""
 
     count: int
     frames: int
@@ -78,8 +80,9 @@ class Request:
     obstacles: object = None
     forbidden: np.ndarray | None = None
     min_difference: float = 0.0
-    window: int = 2
+    window: int = 3
     spread_velocity: bool = True
+    cut_damping: float = 1e-3
     transition_probability: float = 0.1
     min_segment: int = 8
 
@@ -104,6 +107,8 @@ class Synthesis:
 def validate_request(request, input_frames):
     if request.count < 1:
         raise OptionError(f"--count must be at least 1 (got {request.count})")
+    if not request.cut_damping >= 0.0:
+        raise OptionError(f"--cut-damping must be at least 0 (got {request.cut_damping})")
     if request.frames < 1:
         raise OptionError(f"--frames must be at least 1 (got {request.frames})")
     if not 0.0 <= request.min_difference <= 1.0:
@@ -133,6 +138,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
     bones = rotations.shape[1]
     # Components assembly carries onto another through a cut node: their eq. 7 motion cancels.
     carried = {c for c, cut in merge_order([c.bones for c in components]) if cut is not None}
+    cut_nodes = cut_bones([c.bones for c in components])
     subset = vertex_subset(rest.shape[0])
     kept_F, kept_t, kept_src, kept_choice = [], [], [], []
     rejected = {"collisions": 0, "too_similar": 0, "merges": 0}
@@ -145,7 +151,8 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
         tries = need if rounds == 1 else 2 * need
         sources = np.stack([_walks(g, request, tries, rng) for g in graphs])  # (C, tries, M)
         parts = [splice_local(c, rotations, translations, sources[k], window=request.window, dtype=np.float32,
-                              reference_motion=k not in carried, spread_velocity=request.spread_velocity)
+                              reference_motion=k not in carried, spread_velocity=request.spread_velocity,
+                              damped_bones=cut_nodes, damping=request.cut_damping)
                  for k, c in enumerate(components)]
         if len(components) == 1:
             F, t = parts[0].world()

@@ -123,6 +123,8 @@ def test_bad_inputs(files, tmp_path):
                           "--obstacle", tmp_path / "bad.obj"), "bad.obj", folder=tmp_path, keep=["bad.obj"])
     assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 0), "--frames")
     assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 5,
+                          "--cut-damping", -1), "--cut-damping")
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 5,
                           "--target", "7"), "FRAME@TIME")
     assert_user_error(cli("synthesize", files / "skin.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 5), "build-graph")
     assert_folder_holds(tmp_path, ["bad.obj"])

@@ -170,3 +170,30 @@ def test_bad_bone_lists_are_refused():
     with pytest.raises(ValueError, match="neither"):
         gradient_operator(case["ids"][:-1], case["reference"], rest, case["key"], case["key_bones"],
                           case["key_weights"], case["grads"])
+
+
+def test_damped_solve_pins_the_damped_bones_and_solves_the_rest():
+    case = lbs_case(6, 4)
+    args = (case["ids"], case["reference"], case["model"]["rest"], case["key"], case["key_bones"],
+            case["key_weights"], case["grads"])
+    op = gradient_operator(*args)
+    D = deformation_gradients(case["R"], case["t"], *args)
+    F0, t0 = op.solve(D)
+    F1, t1 = op.solve_damped(D, [], 1.0)  # nothing damped: the plain solve
+    assert np.array_equal(F0, F1) and np.array_equal(t0, t1)
+    F2, t2 = op.solve_damped(D, case["ids"][:2], 0.0)  # no damping: the plain solve
+    assert np.array_equal(F0, F2) and np.array_equal(t0, t2)
+    # A huge damping pins the damped bones at 0; the others are the least-squares solution with
+    # those columns removed (brute force with a dense lstsq).
+    damped = case["ids"][:2]
+    F3, t3 = op.solve_damped(D, damped, 1e12)
+    assert np.abs(F3[:, :2]).max() < 1e-6 and np.abs(t3[:, :2]).max() < 1e-6
+    G = op.matrix.toarray()
+    keep = np.repeat(~np.isin(case["ids"], damped), 12)
+    rhs = (D.reshape(D.shape[0], -1) - op.constant).T
+    p = np.linalg.lstsq(G[:, keep], rhs, rcond=None)[0].T.reshape(D.shape[0], -1, 12)
+    assert np.abs(F3[:, 2:] - p[..., :9].reshape(F3[:, 2:].shape)).max() < 1e-5
+    assert np.abs(t3[:, 2:] - p[..., 9:]).max() < 1e-5
+    # A moderate damping lies in between: the damped bones move less than in the plain solve.
+    F4, _ = op.solve_damped(D, damped, 1e-1)
+    assert np.abs(F4[:, :2]).max() < np.abs(F0[:, :2]).max()
