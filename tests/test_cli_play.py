@@ -10,22 +10,18 @@ import numpy as np
 import pytest
 
 from skinsynth.formats.exr import read_vat
-from skinsynth.formats.meshseq import write_array_sequence
 from skinsynth.formats.puppet_file import read_puppet
 from skinsynth.formats.usd import read_points_cache, read_skel_characters
 from skinsynth.gpu import available_devices
-from skinsynth.pipeline.examples import bending_bar
 from skinsynth.pipeline.puppet import predict_vertices
 
-from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     root = tmp_path_factory.mktemp("play")
-    vertices, faces = bending_bar(frames=24, rings=10, segments=8, cycles=2)
-    write_array_sequence(root / "bar.npz", vertices, faces, 24.0)
-    assert_ok(cli("fit-skin", root / "bar.npz", "-o", root / "skin.h5", "--bones", 4, "--iterations", 8, "-q"))
+    fitted_bar(root, frames=24, bones=4, iterations=8, cycles=2)
     assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 6, "-q"))
     assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5", "-q"))
     assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "plain.h5", "--no-translation-solver", "-q"))

@@ -5,18 +5,14 @@ import json
 import h5py
 import pytest
 
-from skinsynth.formats.meshseq import write_array_sequence
-from skinsynth.pipeline.examples import bending_bar
 
-from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     root = tmp_path_factory.mktemp("puppet")
-    vertices, faces = bending_bar(frames=24, rings=10, segments=8)
-    write_array_sequence(root / "bar.npz", vertices, faces, 24.0)
-    assert_ok(cli("fit-skin", root / "bar.npz", "-o", root / "skin.h5", "--bones", 4, "--iterations", 8, "-q"))
+    fitted_bar(root, frames=24, bones=4, iterations=8)
     assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 6))
     assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5", "-q"))
     return root

@@ -10,17 +10,14 @@ import trimesh
 from skinsynth.formats.meshseq import write_array_sequence
 from skinsynth.formats.usd import read_points_cache
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.examples import bending_bar
 
-from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     root = tmp_path_factory.mktemp("synth")
-    vertices, faces = bending_bar(frames=40, rings=10, segments=8, cycles=2)
-    write_array_sequence(root / "bar.npz", vertices, faces, 24.0)
-    assert_ok(cli("fit-skin", root / "bar.npz", "-o", root / "skin.h5", "--bones", 4, "--iterations", 10, "-q"))
+    vertices, faces = fitted_bar(root, frames=40, bones=4, iterations=10, cycles=2)
     assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "-q"))
     # A clip without repeated states: one bend, no return.
     write_array_sequence(root / "once.npz", vertices[:12], faces, 24.0)
