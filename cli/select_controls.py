@@ -15,12 +15,15 @@ from .common import check_output_path, command_line, tool_version, user_errors
 @click.option("--components", "-k", default=None, type=int,
               help="Number of PCA bases K  [default: smallest explaining 99% of the in-place variance, "
                    "at least ceil(n_c/2), at most min(frames-1, 3 x vertices)].")
-@click.option("--min-spacing", default=0.05, show_default=True, type=float,
+@click.option("--min-spacing", default=0.1, show_default=True, type=float,
               help="Automatic rule: skip candidates closer than this fraction of the rest bounding-box "
-                   "diagonal to a chosen control.")
+                   "diagonal to a chosen control that moves with them (see --rigid-tolerance).")
+@click.option("--rigid-tolerance", default=0.1, show_default=True, type=float,
+              help="Two near points whose distance changes less than this (relative) in every example "
+                   "move as one piece: the second is skipped. Near points that move apart (lips) are both kept.")
 @click.option("--quiet", "-q", is_flag=True, help="No control list or summary (warnings still show).")
 @user_errors
-def select_controls(input_path, output, count, vertex_list, components, min_spacing, quiet):
+def select_controls(input_path, output, count, vertex_list, components, min_spacing, rigid_tolerance, quiet):
     """Choose control points from a skin file's examples (Feng et al. 2008 §3).
 
     PCA of the example vertex positions (each frame first brought in place by a rigid fit onto
@@ -28,8 +31,8 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
     per rotated basis: the vertex the basis moves most, and the vertex whose motion differs
     most from it. From these 2K candidates n_c are chosen by a fixed rule instead of the
     paper's manual pick: bases by variance share, largest first; first the top vertex of each
-    basis, then the second ones; a candidate within --min-spacing of a chosen control is
-    skipped; any shortfall is filled farthest-point first. The rule uses no randomness, so the
+    basis, then the second ones; a candidate within --min-spacing of a chosen control that
+    moves with it (their distance stays within --rigid-tolerance) is skipped; any shortfall is filled farthest-point first. The rule uses no randomness, so the
     same input always gives the same controls. --vertices takes your own choice instead.
 
     Prints one line per control: vertex id, basis, its variance share, and why it was chosen.
@@ -61,10 +64,11 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
 
     # No progress bar: one SVD of F x 3V and a K x K varimax take seconds even on large meshes.
     selection = select(skin.examples, skin.rest_vertices, count=count, components=components,
-                       user_vertices=user, min_spacing_fraction=min_spacing)
+                       user_vertices=user, min_spacing_fraction=min_spacing, rigid_tolerance=rigid_tolerance)
 
     parameters = dict(count=len(selection.indices), vertices=user, components=selection.components,
-                      components_option=components, min_spacing=min_spacing, method=selection.method)
+                      components_option=components, min_spacing=min_spacing, rigid_tolerance=rigid_tolerance,
+                      method=selection.method)
     record = provenance_record("controls", command_line(), parameters, [input_path], tool_version(), None)
     write_model(output, "controls", controls_groups(selection, model), model["provenance"] + [record],
                 tool_version())

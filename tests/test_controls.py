@@ -220,6 +220,23 @@ def test_choose_controls_spacing_count_and_determinism():
         choose_controls(candidates, basis_of, share, rest, 0, 0.0)
 
 
+def test_near_candidates_are_skipped_only_when_they_move_with_a_control():
+    # Candidates 0 (first, top basis) and 1 lie close; 2 is far. Over the frames, 1 either keeps
+    # its distance to 0 (one rigid piece: skipped) or moves away from it (a lip: kept).
+    rest = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [5.0, 0.0, 0.0]])
+    t = np.linspace(0.0, 1.0, 6)[:, None]
+    turn = np.stack([np.cos(t), np.sin(t), np.zeros_like(t)], axis=-1)[:, 0]  # (F, 3) unit directions
+    rigid = np.stack([np.zeros((6, 3)), 0.1 * turn, np.tile(rest[2], (6, 1))], axis=1)
+    apart = np.stack([np.zeros((6, 3)), rest[1] + 0.3 * t * [1.0, 0.0, 0.0], np.tile(rest[2], (6, 1))], axis=1)
+    candidates, basis_of, share = np.array([0, 1, 2]), np.array([0, 1, 1]), np.array([0.7, 0.3])
+    chosen, _ = choose_controls(candidates, basis_of, share, rest, 2, 0.5, in_place=rigid)
+    assert chosen.tolist() == [0, 2]
+    chosen, reasons = choose_controls(candidates, basis_of, share, rest, 2, 0.5, in_place=apart)
+    assert chosen.tolist() == [0, 1] and "moves on its own" in reasons[1]
+    chosen, _ = choose_controls(candidates, basis_of, share, rest, 2, 0.5)  # no frames: plain spacing
+    assert chosen.tolist() == [0, 2]
+
+
 def test_select_controls_user_vertices_and_option_errors():
     vertices, rest, peaks = two_mouths()
     user = select_controls(vertices, rest, user_vertices=[peaks[0], 3, 17])
