@@ -232,11 +232,12 @@ def _batch_for_parent(token, offset, args, batch, count):
 
 
 def _pool_context():
-    """The fork context where there is one (workers then inherit the shared output block), else
-    None (the platform's default; results come back through the pool)."""
+    """The fork context on Linux (workers then inherit the shared output block), else None (the
+    platform's default start method, results back through the pool: fork is unsafe on macOS)."""
     import multiprocessing
+    import sys
 
-    return multiprocessing.get_context("fork") if "fork" in multiprocessing.get_all_start_methods() else None
+    return multiprocessing.get_context("fork") if sys.platform.startswith("linux") else None
 
 
 def _run_batches(args, batches, jobs, progress, done_before):
