@@ -528,7 +528,7 @@ def distinct_windows(sources, windows):
 
 
 def _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, block_frames, spread_velocity,
-                 damped_bones=(), damping=0.0):
+                 damped_bones, damping):
     """Steps 3–4 for the distinct windows: local positions of the local bones at their free frames,
     ``(F_local (L, b−1, 3, 3), t_local (L, b−1, 3))`` in :meth:`SeamWindows.frames` order."""
     second = strain_second_differences(strain)

@@ -251,42 +251,44 @@ def _run_batches(args, batches, jobs, progress, done_before):
     rotations, frames = args[2], args[-1].frames
     shapes = [(total, frames, rotations.shape[1], 3, 3), (total, frames, rotations.shape[1], 3)]
     offsets = np.cumsum([0] + [n for _, n in batches])
-    rests, done = [], done_before
-    if jobs > 1 and len(batches) > 1:
+    parallel = jobs > 1 and len(batches) > 1
+    context = _pool_context() if parallel else None
+    token = None
+    if context is not None:
         import mmap
+
+        token = f"{id(args)}-{done_before}"
+        block = mmap.mmap(-1, max(1, 4 * sum(int(np.prod(shape)) for shape in shapes)))  # MAP_SHARED
+        F, t = _SHARED_OUTPUT[token] = _shared_arrays(block, shapes)
+    else:
+        F, t = np.empty(shapes[0], np.float32), np.empty(shapes[1], np.float32)
+    rests, done = [], done_before
+
+    def keep(i, n, outcome):
+        """Batch i's outcome in place (its F and t are None when a worker wrote them already)."""
+        nonlocal done
+        F_b, t_b, *rest = outcome
+        if F_b is not None:
+            F[offsets[i]:offsets[i] + n], t[offsets[i]:offsets[i] + n] = F_b, t_b
+        rests.append(rest)
+        done += n
+        if progress is not None:
+            progress(done)
+
+    if parallel:
         from concurrent.futures import ProcessPoolExecutor
 
-        context = _pool_context()
-        token = None
-        if context is not None:
-            token = f"{id(args)}-{done_before}"
-            block = mmap.mmap(-1, max(1, 4 * sum(int(np.prod(shape)) for shape in shapes)))  # MAP_SHARED
-            F, t = _SHARED_OUTPUT[token] = _shared_arrays(block, shapes)
-        else:
-            F, t = np.empty(shapes[0], np.float32), np.empty(shapes[1], np.float32)
         try:
             with ProcessPoolExecutor(max_workers=jobs, initializer=_one_blas_thread, mp_context=context) as pool:
                 futures = [pool.submit(_batch_for_parent, token, int(offsets[i]), args, b, n)
                            for i, (b, n) in enumerate(batches)]
                 for i, (future, (_, n)) in enumerate(zip(futures, batches)):
-                    F_b, t_b, *rest = future.result()
-                    if token is None:
-                        F[offsets[i]:offsets[i] + n], t[offsets[i]:offsets[i] + n] = F_b, t_b
-                    rests.append(rest)
-                    done += n
-                    if progress is not None:
-                        progress(done)
+                    keep(i, n, future.result())
         finally:
             _SHARED_OUTPUT.pop(token, None)
     else:
-        F, t = np.empty(shapes[0], np.float32), np.empty(shapes[1], np.float32)
         for i, (b, n) in enumerate(batches):
-            F_b, t_b, *rest = make_batch(*args, b, n)
-            F[offsets[i]:offsets[i] + n], t[offsets[i]:offsets[i] + n] = F_b, t_b
-            rests.append(rest)
-            done += n
-            if progress is not None:
-                progress(done)
+            keep(i, n, make_batch(*args, b, n))
     sources = np.concatenate([r[0] for r in rests], axis=1)
     choice = np.concatenate([r[1] for r in rests])
     rejected = {key: sum(r[2][key] for r in rests) for key in rests[0][2]}
