@@ -1,191 +1,199 @@
-"""synthesize benchmark: 1,000 animations × 600 frames, seconds, distinct walks, smoothness.
+"""synthesize benchmark on the real captures: seams, drift, segments, coverage, speed, memory.
 
-One JSON line per (dataset, mode): every sequence under ../shared/data (when present) and two
-built-in clips — the demo's bending bar (two bend cycles) and a horse-sized tube whose body
-bends through two exact cycles while its tail swings at its own rate (see benchmarks/graph.py).
+One JSON line per (capture, mode), mode = multi_component (build-graph's defaults) or
+single_component (``--single-component``). Every figure comes from the command line as a user
+runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``, then
 
-Reported: seconds for the bone motions of all animations (--jobs 1 and 2), seconds to skin
-vertex caches with the warp LBS kernel on the CPU, in one thread and in two (measured on 100
-animations, scaled to all), distinct
-animations, transitions used, and smoothness = the largest per-vertex acceleration
-‖v(k+1) − 2 v(k) + v(k−1)‖ within a window of any splice, over the largest in the input clip
-(measured on 50 animations and a subset of ≤ 512 vertices), and the same ratio away from splices
-(more than window + 2 frames from any seam), and for several components the ratio of the same
-components assembled from seamless walks (what recombination alone does, before any splice).
-Seconds and peak resident memory are measured in a freshly spawned process per run (the parent
-process and, with 2 jobs, its largest worker; the workers write the result into memory shared
-with the parent, which counts in the workers' figures, not the parent's). Goal: < 10 s on 2 cores, ratio ≤ 1.5.
+- ``synthesize GRAPH -n 1000 -m 600 --seed 0``, timed as the whole command (reading the graph
+  and writing the result included) with its peak resident memory (the command and its workers,
+  from wait4);
+- smoothness on baked vertices of the first 50 of those animations (LBS with the skin file's own
+  weights, every vertex): per output frame the largest vertex acceleration
+  ‖x(m+1) − 2x(m) + x(m−1)‖, over the input clip's largest (``worst_accel_ratio``; goal ≤ 1.5),
+  the median of the per-frame largest over the input's median (``median_accel_ratio``), and the
+  share of output frames above 1.5× the input's largest;
+- components, transitions per component, mean segment length (output frames between seams of
+  one component), coverage (the smallest share, over components, of input frames that the
+  1,000 walks play; goal ≥ 0.9);
+- ground drift: ``synthesize -n 3 -m 3000``; the lowest vertex of every frame against the input's
+  range of lowest vertices, the excess as a share of the character's height (goal ≤ 0.05), and
+  the tilt of the whole mesh (the rotation of a best rigid fit to the rest pose: the angle
+  between its image of the up axis and the up axis) against the input's largest tilt, in degrees.
 
-    python benchmarks/synthesize.py [--only NAME] [--count 1000] [--frames 600]
+Built-in procedural stand-ins run only when ../shared/data is absent.
+
+The command run is $SKINSYNTH when set (e.g. another checkout's, for a before/after table).
+
+    python benchmarks/synthesize.py [--only NAME] [--mode multi_component] [--count 1000] [--frames 600]
 """
 
 import argparse
 import json
-import resource
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+import tempfile
 import time
-from concurrent.futures import ThreadPoolExecutor
 
+import h5py
 import numpy as np
-from datasets import BONES, shared_sequences
+from datasets import SHARED_DATA
+
+#: Bones per capture (the issues' tables; Zheng Table 1 for the horse).
+BONES = {"horse_gallop": 22, "vlasic_samba": 22, "vellum_sheet": 30, "dembones_bone": 12}
+UP = 1  # every capture in shared/data is Y up
 
 
-def _datasets():
-    from skinsynth.pipeline.examples import articulated_tube, bending_bar
-
-    for name, vertices, faces in shared_sequences():
-        yield name, vertices, faces, BONES.get(name, 20)
-    yield ("bending_bar_two_cycles", *bending_bar(frames=96, cycles=2), 8)
-    periods = np.array([[24.0, 24.0, 24.0, 17.0, 17.0]] * 2)
-    yield ("tube_body_and_tail", *articulated_tube(frames=48, rings=350, segments=24, joints=5, periods=periods,
-                                                   seed=3), 22)
-
-
-def smoothness(result, skin_fit, input_vertices, window, animations=50):
-    """(max acceleration near splices, max acceleration elsewhere) / max acceleration in the input
-    (vertex subset; "elsewhere" is None when every frame is near a splice). Near = within
-    window + 2 frames of a seam of any component."""
-    from skinsynth.gpu import lbs_reference
-    from skinsynth.pipeline.collisions import vertex_subset
-
-    subset = vertex_subset(input_vertices.shape[1])
-    accel_in = np.linalg.norm(np.diff(input_vertices[:, subset], n=2, axis=0), axis=-1).max()
-    worst_near, worst_far = 0.0, None
-    for a in range(min(animations, result.F.shape[0])):
-        v = lbs_reference(skin_fit.rest_vertices[subset], skin_fit.bone_indices[subset],
-                          skin_fit.bone_weights[subset], result.F[a], result.t[a])
-        accel = np.linalg.norm(np.diff(v, n=2, axis=0), axis=-1).max(axis=1)  # (M-2,) at frames 1..M-2
-        src = result.sources[:, a]
-        seam = np.any(src[:, 1:] != src[:, :-1] + 1, axis=0)  # (M-1,) seam at k+1
-        near = np.zeros(accel.shape[0], dtype=bool)
-        for k in np.flatnonzero(seam) + 1:
-            near[max(0, k - window - 2): k + window] = True
-        if near.any():
-            worst_near = max(worst_near, float(accel[near].max()))
-        if (~near).any():
-            worst_far = max(worst_far or 0.0, float(accel[~near].max()))
-    return worst_near / accel_in, None if worst_far is None else worst_far / accel_in
-
-
-def seamless_recombination(analysis, skin_fit, input_vertices, animations=1000, frames=30, seed=0):
-    """Max acceleration / the input's when the components are assembled (Alg. 1) from walks
-    *without* seams — each component plays its own stretch of the clip — so the ratio measures
-    what recombining independent components does on its own, before any splice (None for one
-    component or a clip shorter than ``frames``)."""
-    from skinsynth.gpu import lbs_reference
-    from skinsynth.pipeline.assembly import assemble
-    from skinsynth.pipeline.collisions import vertex_subset
-    from skinsynth.pipeline.splicing import splice_local
-
-    length = skin_fit.rotations.shape[0]
-    if len(analysis.components) < 2 or length <= frames:
-        return None
-    rng = np.random.default_rng(seed)
-    parts = [splice_local(c, skin_fit.rotations, skin_fit.translations,
-                          rng.integers(0, length - frames, size=animations)[:, None] + np.arange(frames))
-             for c in analysis.components]
-    F, t, _, _ = assemble([c.bones for c in analysis.components], parts, skin_fit.rotations.shape[1], rng)
-    subset = vertex_subset(input_vertices.shape[1])
-    accel_in = np.linalg.norm(np.diff(input_vertices[:, subset], n=2, axis=0), axis=-1).max()
-    worst = max(np.linalg.norm(np.diff(lbs_reference(skin_fit.rest_vertices[subset], skin_fit.bone_indices[subset],
-                                                     skin_fit.bone_weights[subset], F[a], t[a]), n=2, axis=0),
-                               axis=-1).max() for a in range(animations))
-    return float(worst / accel_in)
-
-
-def _timed_synthesis(fit, faces, single, request, jobs):
-    """(seconds of synthesize alone, peak RSS MiB of this process, of its largest worker)."""
-    from skinsynth.pipeline.graph import build_graph
-    from skinsynth.pipeline.synthesis import synthesize
-
-    analysis = build_graph(fit.rest_vertices, faces, fit.bone_indices, fit.bone_weights, fit.rotations,
-                           fit.translations, single_component=single)
+def run(args, work):
+    """Run the skinsynth CLI; returns (seconds, peak RSS MiB of it and its waited-for workers, stdout)."""
+    exe = os.environ.get("SKINSYNTH") or shutil.which("skinsynth", path=os.path.dirname(sys.executable)) \
+        or "skinsynth"
     started = time.perf_counter()
-    synthesize(analysis.components, fit.rotations, fit.translations, fit.rest_vertices, fit.bone_indices,
-               fit.bone_weights, request, jobs=jobs)
+    process = subprocess.Popen([exe, *args], cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out_fd = process.stdout
+    _, status, usage = os.wait4(process.pid, 0)
     seconds = time.perf_counter() - started
-    return seconds, _own_peak_mib(), resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
+    stdout = out_fd.read()
+    stderr = process.stderr.read()
+    process.returncode = os.waitstatus_to_exitcode(status)
+    if process.returncode != 0:
+        raise RuntimeError(f"skinsynth {' '.join(args)} failed ({process.returncode}): {stderr.strip()[-800:]}")
+    return seconds, usage.ru_maxrss / 1024.0, stdout
 
 
-def _own_peak_mib():
-    """This process's peak resident memory: VmHWM where /proc has it (getrusage's maxrss would
-    also count the spawning parent's size, kept across fork and exec on Linux)."""
-    try:
-        with open("/proc/self/status") as status:
-            for row in status:
-                if row.startswith("VmHWM:"):
-                    return int(row.split()[1]) / 1024.0
-    except OSError:
-        pass
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+def captures(work):
+    """(name, input path) of every capture, or the built-in stand-ins without real data."""
+    if SHARED_DATA.is_dir():
+        for folder in sorted(p for p in SHARED_DATA.iterdir() if p.is_dir()):
+            files = sorted(folder.glob("*.npz"))
+            if files:
+                yield folder.name, str(files[0])
+        return
+    print(json.dumps({"dataset": "shared/data", "skipped": f"no real data at {SHARED_DATA}; stand-ins only"}))
+    path = os.path.join(work, "bending_bar.npz")
+    run(["example", "bending-bar", "-o", path, "--frames", "96", "--cycles", "2"], work)
+    yield "bending_bar", path
 
 
-def _in_fresh_process(function, *args):
-    """function(*args) in a newly spawned interpreter, so its peak memory is its own."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+def bake(skin, F, t):
+    """Vertices (M, V, 3) of one animation, skinned with the file's own weights (float64)."""
+    from skinsynth.gpu import lbs
 
-    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
-        return pool.submit(function, *args).result()
+    return lbs(skin["rest"], skin["indices"], skin["weights"], F, t, device="cpu")
+
+
+def frame_accel(vertices):
+    """Largest vertex acceleration per frame 1..M−2: (M−2,)."""
+    return np.linalg.norm(np.diff(vertices, n=2, axis=0), axis=-1).max(axis=1)
+
+
+def rigid_tilt(rest, frames, up=UP):
+    """Per frame, degrees between the up axis and its image under the best rigid fit rest → frame."""
+    a = rest - rest.mean(axis=0)
+    b = frames - frames.mean(axis=1, keepdims=True)
+    u, _, vt = np.linalg.svd(np.einsum("fvi,vj->fij", b, a))
+    d = np.sign(np.linalg.det(u @ vt))
+    u[:, :, -1] *= d[:, None]
+    rotation = u @ vt
+    return np.degrees(np.arccos(np.clip(rotation[:, up, up], -1.0, 1.0)))
+
+
+def read_skin(path):
+    with h5py.File(path, "r") as f:
+        return {"rest": f["mesh/rest_vertices"][()], "indices": f["skin/bone_indices"][()],
+                "weights": f["skin/bone_weights"][()], "examples": f["examples/vertices"][()]}
+
+
+def segment_figures(sources):
+    """sources (C, N, M) -> per component (transitions used, mean segment length in frames)."""
+    out = []
+    for walks in sources:
+        seams = np.count_nonzero(walks[:, 1:] != walks[:, :-1] + 1)
+        out.append((int(seams), walks.size / (seams + walks.shape[0])))
+    return out
+
+
+def measure(name, spec, single, work, args):
+    mode = "single_component" if single else "multi_component"
+    skin_path = os.path.join(work, f"{name}.skin.h5")
+    if not os.path.exists(skin_path):
+        run(["fit-skin", spec, "-o", skin_path, "--bones", str(BONES.get(name, 20)), "--seed", "0", "-q"], work)
+    graph_path = os.path.join(work, f"{name}.{mode}.graph.h5")
+    run(["build-graph", skin_path, "-o", graph_path, "-q"] + (["--single-component"] if single else []), work)
+    with h5py.File(graph_path, "r") as f:
+        names = sorted(k for k in f["graph"] if k.startswith("component_"))
+        transitions = [int(f[f"graph/{k}/transitions"].shape[0]) for k in names]
+    line = {"dataset": name, "mode": mode, "components": len(names), "transitions": transitions}
+    out = os.path.join(work, f"{name}.{mode}.bones.h5")
+    seconds, peak, _ = run(["synthesize", graph_path, "-o", out, "-n", str(args.count), "-m", str(args.frames),
+                            "--seed", "0", "-q"], work)
+    line.update(seconds=round(seconds, 2), peak_rss_mib=round(peak))
+    skin = read_skin(skin_path)
+    examples = skin["examples"]
+    accel_in = frame_accel(examples)
+    with h5py.File(out, "r") as f:
+        sources = f["synthesis/sources"][()]
+        used = segment_figures(sources)
+        line["transitions_used_per_animation"] = [round(s / sources.shape[1], 1) for s, _ in used]
+        line["mean_segment_frames"] = [round(m, 1) for _, m in used]
+        line["coverage"] = round(min(np.unique(c).size / examples.shape[0] for c in sources), 3)
+        worst = []
+        for a in range(min(args.smooth, sources.shape[1])):
+            worst.append(frame_accel(bake(skin, f["synthesis/bone_matrices"][a], f["synthesis/bone_translations"][a])))
+    worst = np.concatenate(worst)
+    line["worst_accel_ratio"] = round(float(worst.max() / accel_in.max()), 3)
+    line["median_accel_ratio"] = round(float(np.median(worst) / np.median(accel_in)), 3)
+    line["frames_over_1.5x"] = round(float(np.mean(worst > 1.5 * accel_in.max())), 4)
+    os.remove(out)
+
+    long_out = os.path.join(work, f"{name}.{mode}.long.h5")
+    run(["synthesize", graph_path, "-o", long_out, "-n", str(args.long_count), "-m", str(args.long_frames),
+         "--seed", "0", "-q"], work)
+    low_in = examples[..., UP].min(axis=1)
+    height = float(np.ptp(skin["rest"][:, UP]))
+    subset = np.linspace(0, skin["rest"].shape[0] - 1, min(2000, skin["rest"].shape[0])).astype(int)
+    tilt_in = rigid_tilt(skin["rest"][subset], examples[:, subset])
+    excess, tilt_excess = 0.0, 0.0
+    with h5py.File(long_out, "r") as f:
+        for a in range(f["synthesis/sources"].shape[1]):
+            v = bake(skin, f["synthesis/bone_matrices"][a], f["synthesis/bone_translations"][a])
+            low = v[..., UP].min(axis=1)
+            excess = max(excess, float(np.max(np.maximum(low_in.min() - low, low - low_in.max()))))
+            tilt_excess = max(tilt_excess, float(rigid_tilt(skin["rest"][subset], v[:, subset]).max() - tilt_in.max()))
+    os.remove(long_out)
+    line["ground_drift_over_height"] = round(max(excess, 0.0) / height, 4)
+    line["tilt_beyond_input_deg"] = round(max(tilt_excess, 0.0), 2)
+    line["long_animations"] = f"{args.long_count} x {args.long_frames}"
+    return line
 
 
 def main():
-    from skinsynth.gpu import lbs
-    from skinsynth.pipeline.graph import build_graph
-    from skinsynth.pipeline.skin_fit import fit_skin
-    from skinsynth.pipeline.synthesis import Request, synthesize
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only")
+    parser.add_argument("--mode", choices=["multi_component", "single_component"])
     parser.add_argument("--count", type=int, default=1000)
     parser.add_argument("--frames", type=int, default=600)
+    parser.add_argument("--smooth", type=int, default=50, help="animations whose vertices are baked")
+    parser.add_argument("--long-count", type=int, default=3)
+    parser.add_argument("--long-frames", type=int, default=3000)
+    parser.add_argument("--work", default=None, help="folder kept between runs (skin fits are reused)")
     args = parser.parse_args()
-    for name, vertices, faces, bones in _datasets():
+    work = args.work or tempfile.mkdtemp(prefix="skinsynth_bench_")
+    os.makedirs(work, exist_ok=True)
+    work = str(pathlib.Path(work).resolve())
+    for name, spec in captures(work):
         if args.only and args.only != name:
             continue
-        fit = fit_skin(vertices, bones, iterations=30)
-        for mode, single in (("multi_component", False), ("single_component", True)):
-            analysis = build_graph(fit.rest_vertices, faces, fit.bone_indices, fit.bone_weights, fit.rotations,
-                                   fit.translations, single_component=single)
-            line = {"dataset": name, "mode": mode, "vertices": int(vertices.shape[1]), "bones": bones,
-                    "components": len(analysis.components), "candidate_transitions": analysis.transition_count,
-                    "animations": args.count, "frames": args.frames}
-            request = Request(count=args.count, frames=args.frames, seed=0)
-            try:
-                for jobs in (1, 2):  # timed, and memory measured, in a fresh process each
-                    seconds, peak, peak_workers = _in_fresh_process(_timed_synthesis, fit, faces, single, request, jobs)
-                    line[f"seconds_jobs{jobs}"] = round(seconds, 2)
-                    line[f"peak_rss_mib_jobs{jobs}"] = round(peak)
-                    if jobs > 1:
-                        line["peak_rss_per_worker_mib"] = round(peak_workers)
-                result = synthesize(analysis.components, fit.rotations, fit.translations, fit.rest_vertices,
-                                    fit.bone_indices, fit.bone_weights, request, jobs=2)
-            except Exception as error:  # e.g. a component without an infinite walk
-                line["error"] = str(error)
-                print(json.dumps(line), flush=True)
+        for single in (False, True):
+            mode = "single_component" if single else "multi_component"
+            if args.mode and args.mode != mode:
                 continue
-            sample = min(100, args.count)
-
-            def skin(a):
-                return lbs(fit.rest_vertices, fit.bone_indices, fit.bone_weights, result.F[a], result.t[a], device="cpu")
-
-            started = time.perf_counter()
-            for a in range(sample):
-                skin(a)
-            line["vertex_cache_seconds_all"] = round((time.perf_counter() - started) * args.count / sample, 1)
-            with ThreadPoolExecutor(2) as pool:  # as synthesize --jobs 2 skins its caches
-                started = time.perf_counter()
-                for _ in pool.map(skin, range(sample)):
-                    pass  # each animation's vertices are dropped as soon as they are made
-            line["vertex_cache_seconds_all_2_threads"] = round((time.perf_counter() - started) * args.count / sample, 1)
-            line["distinct"] = result.distinct
-            line["transitions_used"] = int(result.seams_used.sum())
-            near, far = smoothness(result, fit, vertices, request.window)
-            line["smoothness_ratio"] = round(near, 3)
-            # Context for multi-component runs: independent components recombine the input's
-            # motions, which can out-accelerate the input away from any splice too.
-            line["away_from_splices_ratio"] = None if far is None else round(far, 3)
-            recombined = seamless_recombination(analysis, fit, vertices)
-            line["seamless_recombination_ratio"] = None if recombined is None else round(recombined, 3)
+            try:
+                line = measure(name, spec, single, work, args)
+            except RuntimeError as error:
+                line = {"dataset": name, "mode": mode, "error": str(error)}
             print(json.dumps(line), flush=True)
 
 

@@ -23,12 +23,20 @@ from .common import check_output_path, command_line, fail, tool_version, user_er
 @click.option("--svd-threshold", default=0.005, show_default=True, type=float,
               help="Keep reduced coordinates whose singular value is at least this fraction of the largest.")
 @click.option("--min-gap", default=2, show_default=True, type=int, help="Smallest |i − j| of a transition.")
+@click.option("--min-segment", type=int, default=None,
+              help="Shortest stretch (frames) walks play between two seams; transitions closer than half of it "
+                   "to a cheaper one are dropped. Stored as synthesize's default.  [default: half a second at the "
+                   "clip's frame rate]")
+@click.option("--coverage", default=0.95, show_default=True, type=float,
+              help="Admit transitions above the threshold (cheapest first, only those that help) until this share "
+                   "of the frames lies on one strongly connected part of the motion graph, so walks can reach "
+                   "the whole clip.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,
               help="Write PNGs here: the cost matrix of each component with its transitions, and the bone graph.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 @user_errors
 def build_graph(path, output, threshold_scale, threshold_reference, edge_threshold, single_component, svd_threshold,
-                min_gap, plot_dir, quiet):
+                min_gap, min_segment, coverage, plot_dir, quiet):
     """Analyse a skin fit for synthesis (Zheng 2013 §3.2, §3.3, §4.1).
 
     Finds, per weakly coupled bone component, its reference bone, reduced coordinates and the
@@ -46,23 +54,26 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.graph import bone_layout, build_graph as analyse, validate_graph_options
+    from skinsynth.pipeline.graph import bone_layout, build_graph as analyse, default_min_segment, validate_graph_options
 
     check_output_path(output, (".h5", ".hdf5"))
     if plot_dir is not None and os.path.exists(plot_dir) and not os.path.isdir(plot_dir):
         fail(f"{plot_dir}: --plot needs a folder, and this is a file")
     model = read_model(path)
     skin = read_skin(path, model)
-    validate_graph_options(skin.rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap)
+    if min_segment is None:
+        min_segment = default_min_segment(skin.fps)
+    validate_graph_options(skin.rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap,
+                           min_segment, coverage)
     started = time.perf_counter()
     analysis = analyse(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
                        skin.translations, threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                        edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
-                       min_gap=min_gap)
+                       min_gap=min_gap, min_segment=min_segment, coverage=coverage)
     seconds = time.perf_counter() - started
     parameters = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                       edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
-                      min_gap=min_gap)
+                      min_gap=min_gap, min_segment=min_segment, coverage=coverage)
     record = provenance_record("graph", command_line(), parameters, [path], tool_version())
     write_model(output, "graph", graph_groups(model, analysis), model["provenance"] + [record], tool_version())
     if plot_dir is not None:
@@ -81,12 +92,13 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
                               f"{len(analysis.cut_nodes)} cut node(s)")
     if not quiet:
         click.echo(f"wrote {output}: {len(analysis.components)} component(s), cut nodes {analysis.cut_nodes}, "
-                   f"{analysis.transition_count} candidate transitions; {seconds:.1f} s")
+                   f"{analysis.transition_count} transitions, segments ≥ {min_segment} frames; {seconds:.1f} s")
         for number, component in enumerate(analysis.components):
             t = component.transitions
+            extra = f", {t.admitted} above T_c for coverage" if t.admitted else ""
             click.echo(f"  component {number}: bones {component.bones} (reference {t.reference}), "
-                       f"{len(t.pairs)} transitions, {len(component.key)} key vertices, "
-                       f"{t.q.shape[1]} reduced coordinates")
+                       f"{len(t.pairs)} transitions{extra}, {t.share:.0%} of the frames on one strongly connected "
+                       f"part, {len(component.key)} key vertices, {t.q.shape[1]} reduced coordinates")
         if analysis.transition_count == 0:
             click.echo("note: no candidate transitions: the clip has no repeated states at this threshold; "
                        "try a larger --threshold-scale", err=True)

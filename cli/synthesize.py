@@ -80,8 +80,14 @@ class _LazyCrowd:
 @click.option("--min-difference", default=0.0, show_default=True, type=float,
               help="Drop an animation that shares more than 1 − X of its frames (same input frame at the same time) with an earlier one.")
 @click.option("--single-component", is_flag=True, help="Synthesise the whole rig as one component, ignoring cut nodes.")
-@click.option("--window", default=3, show_default=True, type=int,
+@click.option("--min-segment", type=int, default=None,
+              help="Shortest stretch (frames) a walk plays between two seams.  [default: the graph's, set by "
+                   "build-graph: half a second]")
+@click.option("--window", default=4, show_default=True, type=int,
               help="Frames blended on each side of a transition.")
+@click.option("--blend", type=click.Choice(["bones", "key-vertices"]), default="bones", show_default=True,
+              help="What a transition blends: each bone's rotation and pivot in the reference bone's frame (rigid "
+                   "bones), or Zheng's deformation gradients at key vertices solved back to affine bones (eq. 8–9).")
 @click.option("--cut-damping", default=1e-3, show_default=True, type=float,
               help="Pull of the cut nodes' eq. 9 solve towards their source positions (relative; 0: none). "
                    "A cut node is seen by one side's key vertices only; undamped it stretches in blends.")
@@ -100,7 +106,7 @@ class _LazyCrowd:
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
-               min_difference, single_component, window, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, up_axis,
+               min_difference, single_component, min_segment, window, blend, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, up_axis,
                device, jobs, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
@@ -122,20 +128,22 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.collisions import build_obstacles, colliding, vertex_subset
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.graph import build_graph
+    from skinsynth.pipeline.graph import build_graph, default_min_segment
     from skinsynth.pipeline.synthesis import Request, component_from_file, synthesize as make, validate_request
 
     check_output_path(output, (".h5", ".hdf5"))
     if crowd is not None:
         check_output_path(crowd, (".usd", ".usda", ".usdc"))
-    if jobs < 1 or window < 0:
-        raise OptionError("--jobs must be at least 1 and --window at least 0")
+    if jobs < 1:
+        raise OptionError(f"--jobs must be at least 1 (got {jobs})")
     device = resolve_device(device) if (usd_dir or crowd or exr_dir) else None
     graph_file = read_graph(path)
     skin = graph_file.skin
+    if min_segment is None:
+        min_segment = int(graph_file.graph.get("@min_segment", default_min_segment(skin.fps)))
     request = Request(count=count, frames=frames, seed=seed, targets=list(targets), start=start_frame, end=end_frame,
                       min_difference=min_difference, window=window, spread_velocity=spread_velocity,
-                      cut_damping=cut_damping)
+                      cut_damping=cut_damping, min_segment=min_segment, blend=blend)
     validate_request(request, skin.rotations.shape[0])
     up = 1 if up_axis == "Y" else 2
     if obstacles or ground_plane:
@@ -167,7 +175,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     parameters = dict(count=count, frames=frames, seed=seed, start_frame=start_frame, end_frame=end_frame,
                       targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,
                       min_difference=min_difference, single_component=single_component, window=window,
-                      spread_velocity=spread_velocity, cut_damping=cut_damping)
+                      spread_velocity=spread_velocity, cut_damping=cut_damping, min_segment=min_segment, blend=blend)
     record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(), seed)
     model = read_model(path)
     write_model(output, "synthesis", synthesis_groups(model, result, components, request, skin.fps),
@@ -192,7 +200,8 @@ def _graph_options(graph):
     return dict(threshold_scale=float(graph.get("@threshold_scale", 3.0)),
                 threshold_reference=str(graph.get("@threshold_reference", "median-step")),
                 edge_threshold=float(graph.get("@edge_threshold", 0.1)), svd_threshold=float(graph.get("@svd_threshold", 0.005)),
-                min_gap=int(graph.get("@min_gap", 2)))
+                min_gap=int(graph.get("@min_gap", 2)), min_segment=int(graph.get("@min_segment", 12)),
+                coverage=float(graph.get("@coverage", 0.95)))
 
 
 def _read_obstacle(path):

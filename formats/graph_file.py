@@ -7,7 +7,8 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` and adds ``/graph``:
   merges them); ``articulation_points (m,)`` every cut node of the pruned graph (blocks smaller
   than ``@min_bones`` are merged, so some lie inside one component); attributes ``@components``, ``@transitions`` (total),
   ``@threshold_scale``, ``@threshold_reference``, ``@edge_threshold``, ``@svd_threshold``,
-  ``@min_gap``, ``@min_bones``, ``@single_component``.
+  ``@min_gap``, ``@min_bones``, ``@single_component``, ``@min_segment`` (frames; synthesize's
+  default), ``@coverage``.
 - ``/graph/component_NNN`` per component: ``bones (b,)``; ``local_bones (b−1,)`` (the
   non-reference bones, in the order of the reduced-coordinate basis and of eq. 9's unknowns);
   ``reduced_coordinates (F, r)``, ``basis (6(b−1), r)``, ``singular (r,)`` (eq. 3–4);
@@ -18,7 +19,9 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` and adds ``/graph``:
   s02 s11 s12 s22 of the local-frame deformation gradient D = U S, eq. 8); ``operator (3n, 4(b−1))``
   G₀, the row-separable block of eq. 9's G, ``operator_constant (9n,)`` (the reference bone's
   contribution), ``operator_factor (4(b−1), 4(b−1))`` the lower Cholesky factor of G₀ᵀG₀ + λI;
-  attributes ``@reference``, ``@threshold``, ``@alpha``, ``@beta``, ``@lambda``, ``@ridge``. Key-vertex data use the component's own weights, renormalised over
+  attributes ``@reference``, ``@threshold``, ``@alpha``, ``@beta``, ``@lambda``, ``@ridge``,
+  ``@admitted`` (transitions above the threshold admitted for coverage), ``@recurrent_share``
+  (frames on the motion graph's largest strongly connected part). Key-vertex data use the component's own weights, renormalised over
   its bones (the component is synthesised as if it were the whole mesh).
 """
 
@@ -46,7 +49,8 @@ def graph_groups(model, analysis):
              "@threshold_reference": str(options["threshold_reference"]),
              "@edge_threshold": float(options["edge_threshold"]), "@svd_threshold": float(options["svd_threshold"]),
              "@min_gap": int(options["min_gap"]), "@min_bones": int(options["min_bones"]),
-             "@single_component": bool(options["single_component"])}
+             "@single_component": bool(options["single_component"]),
+             "@min_segment": int(options["min_segment"]), "@coverage": float(options["coverage"])}
     for number, c in enumerate(analysis.components):
         t, op = c.transitions, c.operator
         graph[f"component_{number:03d}"] = {
@@ -58,7 +62,8 @@ def graph_groups(model, analysis):
             "key_weights": c.key_weights, "weight_gradients": c.key_gradients, "rotation_strain": c.strain,
             "operator": op.reduced, "operator_constant": op.constant, "operator_factor": np.tril(op.factor[0]),
             "@reference": int(t.reference), "@threshold": float(t.threshold), "@alpha": float(t.alpha),
-            "@beta": float(t.beta), "@lambda": float(op.lam), "@ridge": float(op.ridge)}
+            "@beta": float(t.beta), "@lambda": float(op.lam), "@ridge": float(op.ridge),
+            "@admitted": int(t.admitted), "@recurrent_share": float(t.share)}
     groups["graph"] = graph
     return groups
 

@@ -102,10 +102,14 @@ def rotation_strain(D):
 def rotation_strain_to_matrix(d):
     """d (..., 9) rotation-strain coordinates -> D = exp(Φ) S (..., 3, 3)."""
     d = np.asarray(d, dtype=np.float64)
-    r = rotation_exp(d[..., :3])
-    s00, s01, s02, s11, s12, s22 = (d[..., 3 + i, None] for i in range(6))
+    return rotation_times_strain(rotation_exp(d[..., :3]), d[..., 3:])
+
+
+def rotation_times_strain(r, strain6):
+    """r (..., 3, 3) times the symmetric matrix of strain6 (..., 6) = s00 s01 s02 s11 s12 s22."""
+    s00, s01, s02, s11, s12, s22 = (strain6[..., i, None] for i in range(6))
     # R S column by column on (…, 3) arrays: numpy's stacked 3×3 matmul is several times slower.
-    out = np.empty_like(r)
+    out = np.empty(np.broadcast_shapes(r.shape, strain6.shape[:-1] + (3, 3)))
     out[..., :, 0] = r[..., :, 0] * s00 + r[..., :, 1] * s01 + r[..., :, 2] * s02
     out[..., :, 1] = r[..., :, 0] * s01 + r[..., :, 1] * s11 + r[..., :, 2] * s12
     out[..., :, 2] = r[..., :, 0] * s02 + r[..., :, 1] * s12 + r[..., :, 2] * s22

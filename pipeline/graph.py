@@ -16,7 +16,7 @@ from .bone_graph import bone_components
 from .deformation_gradients import deformation_gradients, gradient_operator, rotation_strain
 from .errors import OptionError
 from .key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
-from .transitions import find_transitions, local_frame_positions
+from .transitions import bone_centroids, find_transitions, local_frame_positions
 
 
 @dataclass
@@ -55,7 +55,14 @@ class GraphAnalysis:
         return int(sum(len(c.transitions.pairs) for c in self.components))
 
 
-def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshold, min_gap):
+def default_min_segment(fps):
+    """Half a second of frames (at least 2): the shortest stretch between seams that still reads
+    as motion rather than a jitter of splices."""
+    return max(2, int(round(0.5 * float(fps))))
+
+
+def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment=2,
+                           coverage=0.95):
     if frames < 3:
         raise OptionError(f"the clip has {frames} frames; transitions need at least 3")
     for name, value in (("--threshold-scale", threshold_scale), ("--edge-threshold", edge_threshold),
@@ -64,6 +71,10 @@ def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshol
             raise OptionError(f"{name} must be positive (got {value})")
     if min_gap < 1:
         raise OptionError(f"--min-gap must be at least 1 (got {min_gap})")
+    if min_segment < 1:
+        raise OptionError(f"--min-segment must be at least 1 frame (got {min_segment})")
+    if not 0.0 <= coverage <= 1.0:
+        raise OptionError(f"--coverage must lie in [0, 1] (got {coverage})")
 
 
 def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotations, translations, options):
@@ -71,7 +82,8 @@ def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotat
     total = rotations.shape[1]
     transitions = find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=bones,
                                    svd_threshold=options["svd_threshold"], threshold_scale=options["threshold_scale"],
-                                   threshold_reference=options["threshold_reference"], min_gap=options["min_gap"])
+                                   threshold_reference=options["threshold_reference"], min_gap=options["min_gap"],
+                                   spacing=max(1, options["min_segment"] // 2), coverage=options["coverage"])
     # The component is synthesised as if it were the whole mesh: its key vertices see only its
     # own bones, weights renormalised over them, so eq. 8 needs no bone from another component
     # and the unit-sum and eq. 15 properties still hold.
@@ -92,17 +104,20 @@ def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotat
 
 def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations, threshold_scale=3.0,
                 threshold_reference="median-step", edge_threshold=0.1, single_component=False,
-                svd_threshold=0.005, min_gap=2, min_bones=3):
+                svd_threshold=0.005, min_gap=2, min_bones=3, min_segment=12, coverage=0.95):
     """Analyse a skin fit for synthesis. rest (V, 3); faces (T, 3); bone_indices/bone_weights
-    (V, K); rotations (F, B, 3, 3); translations (F, B, 3). Returns GraphAnalysis."""
-    validate_graph_options(rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap)
+    (V, K); rotations (F, B, 3, 3); translations (F, B, 3). min_segment: the shortest stretch
+    walks play between seams (frames); transitions closer than half of it to a cheaper one are
+    dropped (:func:`.transitions.select_transitions`, with ``coverage``). Returns GraphAnalysis."""
+    validate_graph_options(rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment,
+                           coverage)
     bones = rotations.shape[1]
     weights, graph, decomposition = bone_components(bone_indices, bone_weights, bones, edge_threshold=edge_threshold,
                                                     single_component=single_component, min_bones=min_bones)
     neighbours = vertex_neighbours(faces, rest.shape[0])
     options = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                    edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
-                   min_gap=min_gap, min_bones=min_bones)
+                   min_gap=min_gap, min_bones=min_bones, min_segment=int(min_segment), coverage=float(coverage))
     components = [analyse_component([int(b) for b in members], rest, neighbours, bone_indices, bone_weights, rotations,
                                     translations, options) for members in decomposition.components]
     edges = np.array(sorted(graph.edges()), dtype=np.int64).reshape(-1, 2)
@@ -117,9 +132,6 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
 def bone_layout(rest, bone_indices, bone_weights, bones):
     """2-D positions (B, 2) for drawing the bone graph: each bone's weighted rest centroid,
     projected on the rest pose's two principal axes."""
-    mass = np.bincount(bone_indices.ravel(), weights=bone_weights.ravel(), minlength=bones)
-    centre = np.stack([np.bincount(bone_indices.ravel(), weights=(bone_weights * rest[:, a, None]).ravel(),
-                                   minlength=bones) for a in range(3)], axis=1) / np.maximum(mass, 1e-300)[:, None]
     centred = rest - rest.mean(axis=0)
     axes = np.linalg.svd(centred, full_matrices=False)[2][:2]
-    return (centre - rest.mean(axis=0)) @ axes.T
+    return (bone_centroids(rest, bone_indices, bone_weights, bones) - rest.mean(axis=0)) @ axes.T

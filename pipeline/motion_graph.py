@@ -224,6 +224,23 @@ class MotionGraph:
         return self._backward_cache[key]
 
 
+def recurrent_frames(frames, transitions):
+    """Frames (F,) bool in the largest strongly connected part of the frame graph (playback
+    i → i+1 and i → j+1 per transition (i, j), j + 1 < F): the frames a long walk can keep
+    coming back to (of equally large parts, the first scipy labels)."""
+    from scipy.sparse.csgraph import connected_components
+
+    frames = int(frames)
+    pairs = np.asarray(transitions, dtype=np.int64).reshape(-1, 2)
+    pairs = pairs[pairs[:, 1] + 1 < frames]
+    src = np.concatenate([np.arange(frames - 1), pairs[:, 0]])
+    dst = np.concatenate([np.arange(1, frames), pairs[:, 1] + 1])
+    matrix = sp.csr_matrix((np.ones(src.size, np.int8), (src, dst)), shape=(frames, frames))
+    _, labels = connected_components(matrix, directed=True, connection="strong")
+    sizes = np.bincount(labels)
+    return labels == np.flatnonzero(sizes == sizes.max())[0] if frames else np.zeros(0, bool)
+
+
 def random_walks(graph, count, frames, rng, start=None, transition_probability=0.5, min_segment=4):
     """``count`` random walks of ``frames`` output frames -> sources (count, frames) int64.
 

@@ -16,18 +16,27 @@ the same length into world bone positions, all at once:
    The reference bone stays rigid (a product of rotations).
 2. Non-reference bones away from seams: their local-frame positions (eq. 2) are the source
    frame's, exactly.
-3. Around each seam (:func:`seam_windows`, :func:`blend_rotation_strain`): the rotation-strain
-   coordinates d of every key vertex are re-solved over a window by the 1D Poisson equation
-   d̃(m−1) − 2 d̃(m) + d̃(m+1) = g(m) at each free frame m, g(m) the second difference of the input
-   series at source[m] with *its own* input neighbours (so the jump itself is never a second
-   difference), and Dirichlet values at the two frames just outside the free run: d̃ = d(source)
-   there (those frames keep their exact positions). The matrix is the same for all 9n
-   coordinates, so every window of every animation is one diagonal block of one symmetric
-   positive-definite tridiagonal system (the negated Laplacian, zero couplings between windows)
-   with 9n right-hand sides: one ``scipy.linalg.solveh_banded`` call (LAPACK ptsv, O(L·9n)) for
-   all windows, or one per group of whole windows when they hold more than ``block_frames``
-   frames (memory bound; the blocks are independent, so the result is the same).
-4. Blended d̃ → D̃ (:func:`rotation_strain_to_matrix`) → eq. 9 for the local positions of the
+3. Around each seam (:func:`seam_windows`, :func:`blend_gradients`): the key vertices'
+   deformation gradients, in rotation-strain form D = U S, are re-solved over a window by the 1D
+   Poisson equation of Zheng §3.3: d̃(m−1) − 2 d̃(m) + d̃(m+1) = g(m) at each free frame m, g(m)
+   the second difference of the input at source[m] with *its own* input neighbours, Dirichlet
+   values d̃ = d(source) at the two frames just outside the free run (they keep their exact
+   positions). It is solved for the correction e = d̃ − d(source) (the same equation, moved):
+   e = 0 at both ends and e'' = h, where h vanishes except next to the seam — h(k−1) =
+   d(i+1) − d(j+1) and h(k) = d(j) − d(i) (i = source[k−1], j = source[k] − 1), the only places
+   where the source series' own neighbours are not its neighbours in the output. The rotation
+   part is a rotation, not a vector: its differences are the small relative rotations
+   log(U(i+1) U(j+1)ᵀ) and log(U(j) U(i)ᵀ), and the blend applies exp(e) on the left of
+   U(source). Blending the axis-angle vectors Φ(U) themselves (as before) broke where a key
+   vertex's local rotation nears π, which real captures do (the samba's reached 3.14 rad): the
+   branch cut flipped vectors inside windows and eq. 9 turned the garbage into bones stretched
+   3.8× (a 17× acceleration spike). The matrix is the same for all 9n coordinates, so every
+   window of every animation is one diagonal block of one symmetric positive-definite
+   tridiagonal system (the negated Laplacian, zero couplings between windows) with 9n
+   right-hand sides: one ``scipy.linalg.solveh_banded`` call (LAPACK ptsv, O(L·9n)) for all
+   windows, or one per group of whole windows when they hold more than ``block_frames`` frames
+   (memory bound; the blocks are independent, so the result is the same).
+4. Blended D̃ → eq. 9 for the local positions of the
    non-reference bones at every free frame, one :meth:`GradientOperator.solve` per block. By
    default (``anchored=True``) eq. 9 is solved for the *change*: p̃ = p(source) + G⁺(D̃ − D(source)),
    D(source) the input gradients of the source frame. With G of full column rank this is the
@@ -73,13 +82,8 @@ from it). The synthesizer therefore damps the change of the cut nodes (a Tikhono
 on their 12 numbers, μ relative to the mean diagonal of G₀ᵀG₀); the parent component places the
 cut node anyway. Single-component synthesis has no cut node and is unaffected.
 
-Input-clip ends: g at input frame 0 or F−1 has no neighbour on one side; it uses the second
-difference of frame 1 or F−2 (the nearest complete one). With fewer than 3 input frames g = 0.
-
-Branch cut: d's rotation part is an axis-angle vector (angle in [0, π]); a key vertex whose
-local rotation crosses π flips its vector, and the blend sees that as a jump (the limitation
-:func:`.transitions.bone_coordinate_matrix` shares). Local-frame key-vertex rotations are
-normally far from π.
+Input-clip ends: where i is the clip's last frame there is no d(i+1); i then goes on with its
+own last step (:func:`seam_guidance`).
 
 Distinct windows (:func:`distinct_windows`): everything steps 3–4 compute for a window — the
 blend, D̃, the eq. 9 solve — depends on the window's source frames left … right alone (local
@@ -107,8 +111,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from .deformation_gradients import rotation_strain_to_matrix
-from .rotations import apply_rigid
+from .deformation_gradients import rotation_times_strain
+from .rotations import apply_rigid, rotation_exp, rotation_log
 from .transitions import local_frame_positions
 
 
@@ -236,112 +240,82 @@ def reference_alignment(R_ref, t_ref, sources):
     return R_out, t_out
 
 
-def nearest_branch(w, reference):
-    """The axis-angle vector of the same rotation as w (…, 3) closest to ``reference`` (…, 3).
-
-    A rotation by θ about k is also one by θ − 2π about k (and θ + 2π): near θ = π the principal
-    vectors of two similar rotations can point in opposite directions, which a blend would read
-    as a jump of ~2π. Of w and w ∓ 2π k, the closer to the reference is w − 2π k exactly when
-    k·(w − reference) > π (and w + 2π k when it is < −π): one dot product, no candidates stacked."""
-    theta = np.sqrt(np.sum(w * w, axis=-1, keepdims=True))
-    axis = np.divide(w, theta, out=np.zeros_like(w), where=theta > 0.0)
-    along = np.sum(axis * (w - reference), axis=-1, keepdims=True)
-    shift = np.where(along > np.pi, -2.0 * np.pi, np.where(along < -np.pi, 2.0 * np.pi, 0.0))
-    return w + shift * axis
-
-
-def strain_second_differences(strain):
-    """g of the module notes: strain (F, n, 9) -> (F, n, 9) second differences d(f−1) − 2d(f) +
-    d(f+1), frames 0 and F−1 copying frames 1 and F−2; zero with fewer than 3 frames. The
-    neighbours' rotation vectors are taken on the branch nearest to d(f)'s (:func:`nearest_branch`)."""
+def gradient_series(strain):
+    """The input's key-vertex gradients as the blend uses them: strain (F, n, 9) ->
+    ``(U (F, n, 3, 3) rotations, S (F, n, 6) stretches)``, U = exp(Φ) whatever branch Φ is on."""
     strain = np.asarray(strain, dtype=np.float64)
-    g = np.zeros_like(strain)
-    if strain.shape[0] >= 3:
-        before = strain[:-2].copy()
-        after = strain[2:].copy()
-        before[..., :3] = nearest_branch(before[..., :3], strain[1:-1, ..., :3])
-        after[..., :3] = nearest_branch(after[..., :3], strain[1:-1, ..., :3])
-        g[1:-1] = before - 2.0 * strain[1:-1] + after
-        g[0] = g[1]
-        g[-1] = g[-2]
-    return g
+    return rotation_exp(strain[..., :3]), strain[..., 3:].copy()
 
 
-def seam_velocity_jumps(strain, sources, windows, win):
-    """δ (W, n, 9) of windows ``win``: the input's velocity into the frame played after the seam,
-    d(j+1) − d(j), minus the velocity the left segment would have gone on with, d(i+1) − d(i);
-    0 where i is the clip's last frame (nothing says how it would have gone on, and an exact loop
-    closing there must stay exact). Rotation vectors are differenced on one branch."""
+def seam_guidance(U, S, sources, windows, win):
+    """The two non-zero guidance terms of each window's correction (module notes, step 3):
+    ``(h_left (W, n, 3+k), h_right (W, n, 3+k))`` at output frames k−1 and k of windows ``win``
+    and the seam's velocity jump δ (W, n, 3+k) = v_R − v_L, v the one-frame steps ``j → j+1``
+    and ``i → i+1``,
+    rotation part first, for a series of rotations U (F, n, 3, 3) and linear coordinates S
+    (F, n, k). With i = source[k−1], j = source[k] − 1: h_left = [log(U(i+1) U(j+1)ᵀ),
+    S(i+1) − S(j+1)], h_right = [log(U(j) U(i)ᵀ), S(j) − S(i)]; where i is the clip's last frame
+    it goes on with its own last step: U(i+1) := U(i) U(i−1)ᵀ U(i), S(i+1) := 2 S(i) − S(i−1)
+    (the old rule, "goes on as j does", put the whole velocity change at the seam: 1.8× the
+    input's acceleration on a synthetic chain, where this gives 0.9×)."""
     a, k = windows.animation[win], windows.seam[win]
-    frames = strain.shape[0]
-    i, after = sources[a, k - 1], sources[a, k]
-    ahead = np.minimum(i + 1, frames - 1)
+    frames = U.shape[0]
+    i, j = sources[a, k - 1], sources[a, k] - 1
+    last = i + 1 >= frames
+    i1 = np.minimum(i + 1, frames - 1)
+    U_next, S_next = U[i1].copy(), S[i1].copy()
+    if last.any():  # past the clip's end: i goes on with its own last step (constant velocity)
+        p = i[last] - 1
+        U_next[last] = U[i[last]] @ np.swapaxes(U[p], -1, -2) @ U[i[last]]
+        S_next[last] = 2.0 * S[i[last]] - S[p]
 
-    def velocity(to, since):
-        step = strain[to] - strain[since]
-        step[..., :3] = nearest_branch(strain[to][..., :3], strain[since][..., :3]) - strain[since][..., :3]
-        return step
+    def difference(Up, Sp, Uq, Sq):  # p ⊖ q: the rotation taking q to p (spatial), and the linear difference
+        return np.concatenate([rotation_log(Up @ np.swapaxes(Uq, -1, -2)), Sp - Sq], axis=-1)
 
-    jumps = velocity(after, after - 1) - velocity(ahead, ahead - 1)
-    jumps[i + 1 >= frames] = 0.0
-    return jumps
+    # δ from the two one-frame steps (small rotations), not from h: h's rotations are wrapped
+    # into (−π, π] one by one, so their sum can be off by 2π where i and j are far apart.
+    velocity_jump = difference(U[j + 1], S[j + 1], U[j], S[j]) - difference(U_next, S_next, U[i], S[i])
+    return (difference(U_next, S_next, U[j + 1], S[j + 1]), difference(U[j], S[j], U[i], S[i]), velocity_jump)
 
 
-def blend_rotation_strain(strain, sources, windows, select=None, second=None, spread_velocity=True):
-    """Poisson-blended rotation-strain coordinates at the free frames of windows (step 3).
+def blend_series(U, S, sources, windows, select=None, spread_velocity=True):
+    """Poisson-blended rotations and linear coordinates at the free frames of windows (step 3).
 
-    strain (F, n, 9) the input series; sources (A, M); windows a :class:`SeamWindows`;
-    ``select`` the windows to solve (default all); ``second`` precomputed
-    :func:`strain_second_differences` (optional); ``spread_velocity``: add δ/(R − L + 1) to every
-    free frame's g (module notes). Returns ``(animation (L,), frame (L,), d̃ (L, n, 9))`` in
-    :meth:`SeamWindows.frames` order. One banded Cholesky solve (``solveh_banded``) of the stacked
-    block-tridiagonal system −Δ d̃ = −g + boundary values, with all n·9 coordinates as right-hand
-    sides.
-    """
-    strain = np.asarray(strain, dtype=np.float64)
-    second = strain_second_differences(strain) if second is None else second
+    U (F, n, 3, 3) rotations, S (F, n, k) linear coordinates of n items per input frame (bones'
+    local rotations and translations, or key vertices' :func:`gradient_series`); sources (A, M);
+    windows a :class:`SeamWindows`; ``select`` the windows to solve (default all);
+    ``spread_velocity``: the seam's velocity jump spread evenly over the window (module notes).
+    Returns ``(animation (L,), frame (L,), rotations (L, n, 3, 3), linear (L, n, k))`` in
+    :meth:`SeamWindows.frames` order: exp(e_rot) U(source) and S(source) + e_lin, e the
+    correction of step 3. One banded Cholesky solve (``solveh_banded``) of the stacked
+    block-tridiagonal system −Δe = −h with all n·(3+k) coordinates as right-hand sides."""
     animation, frame, owner, first, last = windows.frames(select)
-    size, shape = frame.size, strain.shape[1:]
+    size = frame.size
+    n, width = U.shape[1], 3 + S.shape[-1]
+    src = sources[animation, frame]
     if size == 0:
-        return animation, frame, np.zeros((0,) + shape)
-    # −Δ: 2 on the diagonal, −1 between consecutive free frames of one window (upper form).
+        return animation, frame, U[src], S[src]
+    win = owner[first]  # the windows, in order, each once
+    at = np.searchsorted(win, owner)  # window rank of every free frame
+    h_left, h_right, jump = seam_guidance(U, S, sources, windows, win)
+    rhs = np.zeros((size, n, width))
+    if spread_velocity:  # δ as an even extra acceleration
+        span = (windows.right[win] - windows.left[win] + 1).astype(float)
+        rhs -= (jump / span[:, None, None])[at]
+    seam = windows.seam[owner]
+    rhs[frame == seam - 1] -= h_left[at[frame == seam - 1]]
+    rhs[frame == seam] -= h_right[at[frame == seam]]
+    # −Δ: 2 on the diagonal, −1 between consecutive free frames of one window (upper form);
+    # e = 0 at both Dirichlet frames, so no boundary terms.
     bands = np.empty((2, size))
     bands[1] = 2.0
     bands[0] = np.where(first, 0.0, -1.0)
-    rhs = -second[sources[animation, frame]]
-    if spread_velocity:  # the seam's velocity jump as an even extra acceleration over the window
-        win_all = owner[first]
-        jumps = seam_velocity_jumps(strain, sources, windows, win_all)  # (W, n, 9)
-        span = (windows.right[win_all] - windows.left[win_all] + 1).astype(float)
-        rhs -= (jumps / span[:, None, None])[np.searchsorted(win_all, owner)]
-    # Dirichlet ends: the fixed frames keep the input values of their source frames. The right
-    # end's rotation vectors are carried along the window's source frames onto the branch that
-    # continues the left end's, so a window never interpolates across a 2π wrap.
-    win = owner[first]
-    left_values = strain[sources[windows.animation[win], windows.left[win]]]  # (W, n, 9)
-    right_values = _continued(strain, sources, windows, win, left_values)
-    rhs[first] += left_values
-    rhs[last] += right_values[np.searchsorted(win, owner[last])]
     if size == 1:  # LAPACK ptsv refuses an empty off-diagonal
-        solved = rhs.reshape(1, -1) / 2.0
+        e = rhs / 2.0
     else:
-        solved = scipy.linalg.solveh_banded(bands, rhs.reshape(size, -1), lower=False, check_finite=False)
-    return animation, frame, solved.reshape((size,) + shape)
-
-
-def _continued(strain, sources, windows, win, left_values):
-    """Right-end values of windows ``win`` with rotation vectors unwrapped from the left end along
-    the source frames between them (a loop over the window length, batched over windows)."""
-    a, lo, hi = windows.animation[win], windows.left[win], windows.right[win]
-    current = left_values[..., :3].copy()
-    for offset in range(1, int((hi - lo).max()) + 1 if win.size else 0):
-        active = lo + offset <= hi
-        frame = np.minimum(lo + offset, hi)
-        step = strain[sources[a, frame]][..., :3]
-        current = np.where(active[:, None, None], nearest_branch(step, current), current)
-    out = strain[sources[a, hi]].copy()
-    out[..., :3] = current
-    return out
+        e = scipy.linalg.solveh_banded(bands, rhs.reshape(size, -1), lower=False,
+                                       check_finite=False).reshape(size, n, width)
+    return animation, frame, rotation_exp(e[..., :3]) @ U[src], S[src] + e[..., 3:]
 
 
 def _window_blocks(counts, block_frames):
@@ -418,19 +392,21 @@ def apply_rigid_into(F_out, t_out, slots, rotation, translation, F, t, rows=None
 
 
 def splice(component, rotations, translations, sources, window=8, dtype=np.float64, anchored=True,
-           block_frames=8192, animation_block=16, spread_velocity=True, damped_bones=(), damping=0.0):
+           block_frames=8192, animation_block=16, spread_velocity=True, damped_bones=(), damping=0.0, blend="bones",
+           pivots=None):
     """World bone positions of A walks of one bone component (Zheng §3.3; module notes):
     :func:`splice_local` then eq. 10. Returns ``(F_world (A, M, b, 3, 3), t_world (A, M, b, 3))``
     in the order of ``component.bones``; the reference bone's F is a rotation, the others'
     general affine matrices inside windows and the source's rotations elsewhere."""
     spliced = splice_local(component, rotations, translations, sources, window=window, dtype=dtype,
                            anchored=anchored, block_frames=block_frames, spread_velocity=spread_velocity,
-                           damped_bones=damped_bones, damping=damping)
+                           damped_bones=damped_bones, damping=damping, blend=blend, pivots=pivots)
     return spliced.world(animation_block=animation_block)
 
 
 def splice_local(component, rotations, translations, sources, window=8, dtype=np.float64, anchored=True,
-                 block_frames=8192, reference_motion=True, spread_velocity=True, damped_bones=(), damping=0.0):
+                 block_frames=8192, reference_motion=True, spread_velocity=True, damped_bones=(), damping=0.0,
+                 blend="bones", pivots=None):
     """Splice A walks of one bone component (Zheng §3.3; module notes) -> :class:`SplicedWalks`.
 
     component: a :class:`.graph.ComponentAnalysis` (bones, transitions.reference,
@@ -486,8 +462,9 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
     if local_bones.size == 0 or windows.counts.sum() == 0:
         return spliced
     signatures, unique, inverse = distinct_windows(sources, windows)
+    pivots = np.zeros((rotations.shape[1], 3)) if pivots is None else np.asarray(pivots, dtype=np.float64)
     F_win, t_win = _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, block_frames,
-                                spread_velocity, damped_bones, damping)
+                                spread_velocity, damped_bones, damping, blend, pivots[local_bones])
     start = np.cumsum(unique.counts) - unique.counts  # first row of each distinct window in F_win
     used = np.flatnonzero(windows.counts > 0)
     animation, frame, owner, _, _ = windows.frames(used)
@@ -528,28 +505,34 @@ def distinct_windows(sources, windows):
 
 
 def _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, block_frames, spread_velocity,
-                 damped_bones, damping):
+                 damped_bones, damping, blend="bones", pivots=None):
     """Steps 3–4 for the distinct windows: local positions of the local bones at their free frames,
-    ``(F_local (L, b−1, 3, 3), t_local (L, b−1, 3))`` in :meth:`SeamWindows.frames` order."""
-    second = strain_second_differences(strain)
-    D_in = rotation_strain_to_matrix(strain)  # (F, n, 3, 3): the input gradients, as the strain has them
-    constant = operator.constant.reshape(-1, 3, 3)
+    ``(F_local (L, b−1, 3, 3), t_local (L, b−1, 3))`` in :meth:`SeamWindows.frames` order.
+    pivots (b−1, 3): the rest points the bones blend about (``blend="bones"``)."""
+    if blend == "bones":  # rotations, and where each bone takes its pivot
+        U, S = F_in, np.einsum("fbij,bj->fbi", F_in, pivots) + t_in
+    else:
+        U, S = gradient_series(strain)
+        D_in = rotation_times_strain(U, S)  # (F, n, 3, 3): the input gradients
+        constant = operator.constant.reshape(-1, 3, 3)
     total = int(unique.counts.sum())
     F_local = np.empty((total,) + F_in.shape[1:])
     t_local = np.empty((total,) + t_in.shape[1:])
     at = 0
     for select in _window_blocks(unique.counts, max(1, int(block_frames))):
-        animation, frame, d_tilde = blend_rotation_strain(strain, signatures, unique, select, second,
-                                                          spread_velocity)
-        D_tilde = rotation_strain_to_matrix(d_tilde)  # (L, n, 3, 3)
-        src = signatures[animation, frame]
-        if anchored:
-            D_tilde -= D_in[src]
-            D_tilde += constant
-            dF, dt = operator.solve_damped(D_tilde, damped_bones, damping)  # G⁺(D̃ − D(source))
-            F_block, t_block = F_in[src] + dF, t_in[src] + dt
+        animation, frame, rotation, linear = blend_series(U, S, signatures, unique, select, spread_velocity)
+        if blend == "bones":
+            F_block, t_block = rotation, linear - np.einsum("lbij,bj->lbi", rotation, pivots)
         else:
-            F_block, t_block = operator.solve(D_tilde)  # Zheng eq. 9
+            D_tilde = rotation_times_strain(rotation, linear)
+            src = signatures[animation, frame]
+            if anchored:
+                D_tilde -= D_in[src]
+                D_tilde += constant
+                dF, dt = operator.solve_damped(D_tilde, damped_bones, damping)  # G⁺(D̃ − D(source))
+                F_block, t_block = F_in[src] + dF, t_in[src] + dt
+            else:
+                F_block, t_block = operator.solve(D_tilde)  # Zheng eq. 9
         F_local[at:at + frame.size], t_local[at:at + frame.size] = F_block, t_block
         at += frame.size
     return F_local, t_local

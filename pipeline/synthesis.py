@@ -25,7 +25,7 @@ from .errors import OptionError
 from .graph import ComponentAnalysis
 from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks
 from .splicing import splice_local
-from .transitions import Transitions
+from .transitions import Transitions, bone_centroids
 
 BATCH = 250
 MAX_ROUNDS = 20
@@ -80,11 +80,12 @@ class Request:
     obstacles: object = None
     forbidden: np.ndarray | None = None
     min_difference: float = 0.0
-    window: int = 3
+    window: int = 4
     spread_velocity: bool = True
     cut_damping: float = 1e-3
     transition_probability: float = 0.1
-    min_segment: int = 8
+    min_segment: int = 12
+    blend: str = "bones"
 
 
 @dataclass
@@ -109,6 +110,10 @@ def validate_request(request, input_frames):
         raise OptionError(f"--count must be at least 1 (got {request.count})")
     if not request.cut_damping >= 0.0:
         raise OptionError(f"--cut-damping must be at least 0 (got {request.cut_damping})")
+    if request.min_segment < 1:
+        raise OptionError(f"--min-segment must be at least 1 frame (got {request.min_segment})")
+    if request.window < 0:
+        raise OptionError(f"--window must be at least 0 (got {request.window})")
     if request.frames < 1:
         raise OptionError(f"--frames must be at least 1 (got {request.frames})")
     if not 0.0 <= request.min_difference <= 1.0:
@@ -140,6 +145,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
     carried = {c for c, cut in merge_order([c.bones for c in components]) if cut is not None}
     cut_nodes = cut_bones([c.bones for c in components])
     subset = vertex_subset(rest.shape[0])
+    pivots = bone_centroids(rest, bone_indices, bone_weights, bones)
     kept_F, kept_t, kept_src, kept_choice = [], [], [], []
     rejected = {"collisions": 0, "too_similar": 0, "merges": 0}
     need, rounds = count, 0
@@ -152,7 +158,8 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
         sources = np.stack([_walks(g, request, tries, rng) for g in graphs])  # (C, tries, M)
         parts = [splice_local(c, rotations, translations, sources[k], window=request.window, dtype=np.float32,
                               reference_motion=k not in carried, spread_velocity=request.spread_velocity,
-                              damped_bones=cut_nodes, damping=request.cut_damping)
+                              damped_bones=cut_nodes, damping=request.cut_damping,
+                              blend=request.blend, pivots=pivots)
                  for k, c in enumerate(components)]
         if len(components) == 1:
             F, t = parts[0].world()

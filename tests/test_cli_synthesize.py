@@ -18,7 +18,7 @@ from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, 
 def files(tmp_path_factory):
     root = tmp_path_factory.mktemp("synth")
     vertices, faces = fitted_bar(root, frames=40, bones=4, iterations=10, cycles=2)
-    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "-q"))
+    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4, "-q"))
     # A clip without repeated states: one bend, no return.
     write_array_sequence(root / "once.npz", vertices[:12], faces, 24.0)
     assert_ok(cli("fit-skin", root / "once.npz", "-o", root / "once_skin.h5", "--bones", 3, "--iterations", 4, "-q"))

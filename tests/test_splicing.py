@@ -7,8 +7,8 @@ from skinsynth.pipeline.examples import bending_bar, synthetic_lbs
 from skinsynth.pipeline.graph import build_graph
 from skinsynth.pipeline.rotations import rotation_exp
 from skinsynth.pipeline.skin_fit import fit_skin
-from skinsynth.pipeline.splicing import (blend_rotation_strain, seam_windows, splice, strain_second_differences,
-                                         walk_sources)
+from skinsynth.pipeline.splicing import blend_series, seam_windows, splice, walk_sources
+from skinsynth.pipeline.transitions import bone_centroids, candidate_transitions
 
 
 def chain_clip(bones=6, frames=60, period=20.0, second=None, drift=0.0, seed=0, max_influences=4):
@@ -69,6 +69,8 @@ def skin(clip, F, t):
 
 
 def splice_clip(clip, sources, **kwargs):
+    kwargs.setdefault("pivots", bone_centroids(clip["rest"], clip["bone_indices"], clip["bone_weights"],
+                                               clip["rotations"].shape[1]))
     return splice(clip["component"], clip["rotations"], clip["translations"], sources, **kwargs)
 
 
@@ -128,22 +130,36 @@ def test_walk_validation():
 
 
 @pytest.mark.parametrize("spread", [False, True])
-def test_poisson_blend_solves_the_discrete_equation(real_clip, spread):
-    strain = real_clip["component"].strain
+def test_poisson_blend_solves_zhengs_discrete_equation(spread):
+    # Rotations about one fixed axis commute, so the blend of U = Rz(θ) must be Zheng's scalar
+    # Poisson blend of θ: θ̃(m−1) − 2θ̃(m) + θ̃(m+1) = g(source[m]) (the input's own second
+    # difference there, plus the seam's velocity jump spread evenly), θ̃ = θ(source) at the
+    # window's two fixed frames; the linear coordinates likewise, with no rotation in sight.
+    rng = np.random.default_rng(4)
+    frames = 120
+    theta = np.cumsum(np.cumsum(rng.normal(0.0, 0.02, (frames, 2)), axis=0), axis=0)  # angles near π too
+    theta += np.array([3.0, -0.5])
+    U = rotation_exp(np.concatenate([np.zeros((frames, 2, 2)), theta[..., None]], axis=-1))
+    S = rng.normal(size=(frames, 2, 4)).cumsum(axis=0)
     sources = np.stack([walk((10, 40), (71, 101)), walk((30, 35), (50, 53), (80, 102), (11, 41))])
     windows = seam_windows(sources, 6)
-    animation, frame, blended = blend_rotation_strain(strain, sources, windows, spread_velocity=spread)
-    g = strain_second_differences(strain)
+    animation, frame, R, lin = blend_series(U, S, sources, windows, spread_velocity=spread)
+    angle = np.arctan2(R[..., 1, 0], R[..., 0, 0])
     for s in range(windows.seam.size):
         a, left, right, k = windows.animation[s], windows.left[s], windows.right[s], windows.seam[s]
         inside = (animation == a) & (frame > left) & (frame < right)
-        series = np.concatenate([strain[sources[a, left]][None], blended[inside], strain[sources[a, right]][None]])
-        residual = series[:-2] - 2 * series[1:-1] + series[2:] - g[sources[a, left + 1:right]]
-        if spread:  # the seam's velocity jump (input steps j → j+1 against i → i+1), spread evenly
-            i, j = sources[a, k - 1], sources[a, k] - 1
-            jump = (strain[j + 1] - strain[j]) - (strain[i + 1] - strain[i])
-            residual -= jump / (right - left + 1)
-        assert np.abs(residual).max() < 1e-10
+        for series, blended in ((theta, angle[inside]), (S, lin[inside])):
+            ends = series[sources[a, [left, right]]]
+            out = np.concatenate([ends[:1], blended, ends[1:]])
+            if series is theta:  # angles of rotations: modulo 2π, on one branch along the window
+                out = np.unwrap(out, axis=0)
+            src = sources[a, left + 1:right]
+            g = series[src - 1] - 2 * series[src] + series[src + 1]
+            residual = out[:-2] - 2 * out[1:-1] + out[2:] - g
+            if spread:
+                i, j = sources[a, k - 1], sources[a, k] - 1
+                residual -= ((series[j + 1] - series[j]) - (series[i + 1] - series[i])) / (right - left + 1)
+            assert np.abs(residual).max() < 1e-9
 
 
 @pytest.mark.parametrize("clip_name", ["real_clip", "drifting_real_clip"])
@@ -217,7 +233,8 @@ def test_real_transitions_have_continuous_velocity(real_clip):
     # The 12 best candidate transitions (i, j), then the same with j moved on by 3 frames (poor
     # transitions): each in a walk of 20 frames up to i and 20 from j + 1.
     for shift in (0, 3):
-        chosen = [(i, j + shift) for i, j in transitions.pairs if i >= half - 1 and j + shift + half < frames][:12]
+        local_minima, _ = candidate_transitions(transitions.D, transitions.threshold)
+        chosen = [(i, j + shift) for i, j in local_minima if i >= half - 1 and j + shift + half < frames][:12]
         assert len(chosen) == 12
         sources = np.stack([walk((i - half + 1, i + 1), (j + 1, j + half + 1)) for i, j in chosen])
         worst = {}
@@ -258,8 +275,8 @@ def test_anchored_solve_equals_plain_eq9_on_a_full_rank_operator(real_clip):
     component = real_clip["component"]
     assert component.operator.rank() == 12 * len(component.transitions.local_bones)
     sources = np.stack([walk((10, 40), (71, 101)), walk((30, 35), (50, 53), (80, 102), (11, 41))])
-    anchored = splice_clip(real_clip, sources, anchored=True)
-    plain = splice_clip(real_clip, sources, anchored=False)
+    anchored = splice_clip(real_clip, sources, anchored=True, blend="key-vertices")
+    plain = splice_clip(real_clip, sources, anchored=False, blend="key-vertices")
     assert np.abs(anchored[0] - plain[0]).max() < 1e-7 and np.abs(anchored[1] - plain[1]).max() < 1e-7
 
 
@@ -272,10 +289,10 @@ def test_anchored_solve_keeps_what_a_rank_deficient_operator_cannot_see():
     assert component.operator.rank() < 12 * len(component.transitions.local_bones)
     sources = walk((5, 45), (25, 55))
     bones = component.bones
-    F, t = splice_clip(clip, sources[None])
+    F, t = splice_clip(clip, sources[None], blend="key-vertices")
     assert np.abs(F[0] - clip["rotations"][sources][:, bones]).max() < 1e-8
     assert np.abs(t[0] - clip["translations"][sources][:, bones]).max() < 1e-8
-    F, t = splice_clip(clip, sources[None], anchored=False)
+    F, t = splice_clip(clip, sources[None], anchored=False, blend="key-vertices")
     assert np.abs(t[0] - clip["translations"][sources][:, bones]).max() > 1e-2
 
 
@@ -291,9 +308,10 @@ def test_fitted_bending_bar_loop():
     assert np.abs(t[0] - fit.translations[sources]).max() < 1e-8
 
 
-def test_each_distinct_window_is_solved_once_and_matches_a_per_window_solve(drifting_real_clip):
-    from skinsynth.pipeline.deformation_gradients import rotation_strain_to_matrix
-    from skinsynth.pipeline.splicing import distinct_windows, reference_alignment
+@pytest.mark.parametrize("blend", ["bones", "key-vertices"])
+def test_each_distinct_window_is_solved_once_and_matches_a_per_window_solve(drifting_real_clip, blend):
+    from skinsynth.pipeline.deformation_gradients import rotation_times_strain
+    from skinsynth.pipeline.splicing import distinct_windows, gradient_series, reference_alignment
     from skinsynth.pipeline.transitions import local_frame_positions
 
     clip, window = drifting_real_clip, 4
@@ -305,18 +323,27 @@ def test_each_distinct_window_is_solved_once_and_matches_a_per_window_solve(drif
     windows = seam_windows(sources, window)
     _, unique, inverse = distinct_windows(sources, windows)
     assert windows.seam.size == 10 and unique.seam.size == 6 and inverse.max() == 5
-    F, t = splice_clip(clip, sources, window=window)
-    # Brute force: every window blended and solved on its own (eq. 9 anchored, eq. 10).
-    animation, frame, d_tilde = blend_rotation_strain(component.strain, sources, windows)
-    src = sources[animation, frame]
-    D = rotation_strain_to_matrix(d_tilde) - rotation_strain_to_matrix(component.strain)[src]
-    dF, dt = component.operator.solve(D + component.operator.constant.reshape(-1, 3, 3))
+    F, t = splice_clip(clip, sources, window=window, blend=blend)
+    # Brute force: every window blended and solved on its own, then eq. 10.
     F_in, t_in, local = local_frame_positions(clip["rotations"], clip["translations"], component.transitions.reference,
                                               component.bones)
+    if blend == "bones":
+        pivots = bone_centroids(clip["rest"], clip["bone_indices"], clip["bone_weights"], clip["rotations"].shape[1])
+        pivots = pivots[local]
+        animation, frame, rot, lin = blend_series(F_in, np.einsum("fbij,bj->fbi", F_in, pivots) + t_in, sources,
+                                                  windows)
+        F_local, t_local = rot, lin - np.einsum("lbij,bj->lbi", rot, pivots)
+    else:  # eq. 9, anchored
+        U, S = gradient_series(component.strain)
+        animation, frame, rot, lin = blend_series(U, S, sources, windows)
+        src = sources[animation, frame]
+        D = rotation_times_strain(rot, lin) - rotation_times_strain(U, S)[src]
+        dF, dt = component.operator.solve(D + component.operator.constant.reshape(-1, 3, 3))
+        F_local, t_local = F_in[src] + dF, t_in[src] + dt
     R_ref, t_ref = reference_alignment(clip["rotations"][:, component.transitions.reference],
                                        clip["translations"][:, component.transitions.reference], sources)
     at = np.searchsorted(component.bones, local)
-    expected_F = R_ref[animation, frame][:, None] @ (F_in[src] + dF)
-    expected_t = np.einsum("lab,lkb->lka", R_ref[animation, frame], t_in[src] + dt) + t_ref[animation, frame][:, None]
+    expected_F = R_ref[animation, frame][:, None] @ F_local
+    expected_t = np.einsum("lab,lkb->lka", R_ref[animation, frame], t_local) + t_ref[animation, frame][:, None]
     assert np.abs(F[animation[:, None], frame[:, None], at] - expected_F).max() < 1e-12
     assert np.abs(t[animation[:, None], frame[:, None], at] - expected_t).max() < 1e-12
