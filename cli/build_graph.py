@@ -31,12 +31,17 @@ from .common import check_output_path, command_line, fail, tool_version, user_er
               help="Admit transitions above the threshold (cheapest first, only those that help) until this share "
                    "of the frames lies on one strongly connected part of the motion graph, so walks can reach "
                    "the whole clip.")
+@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default="Y", show_default=True,
+              help="The clip's up axis: synthesize places segments by a turn about it and a shift on the ground.")
+@click.option("--posture-weight", default=1.0, show_default=True, type=float,
+              help="Weight of the reference bone's tilt and height in the transition cost (balanced like "
+                   "Zheng's α, β; 0: his eq. 5 alone, for synthesize --alignment full).")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,
               help="Write PNGs here: the cost matrix of each component with its transitions, and the bone graph.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 @user_errors
 def build_graph(path, output, threshold_scale, threshold_reference, edge_threshold, single_component, svd_threshold,
-                min_gap, min_segment, coverage, plot_dir, quiet):
+                min_gap, min_segment, coverage, up_axis, posture_weight, plot_dir, quiet):
     """Analyse a skin fit for synthesis (Zheng 2013 §3.2, §3.3, §4.1).
 
     Finds, per weakly coupled bone component, its reference bone, reduced coordinates and the
@@ -64,16 +69,18 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     if min_segment is None:
         min_segment = default_min_segment(skin.fps)
     validate_graph_options(skin.rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap,
-                           min_segment, coverage)
+                           min_segment, coverage, posture_weight)
     started = time.perf_counter()
     analysis = analyse(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
                        skin.translations, threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                        edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
-                       min_gap=min_gap, min_segment=min_segment, coverage=coverage)
+                       min_gap=min_gap, min_segment=min_segment, coverage=coverage, up_axis="XYZ".index(up_axis),
+                       posture_weight=posture_weight)
     seconds = time.perf_counter() - started
     parameters = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                       edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
-                      min_gap=min_gap, min_segment=min_segment, coverage=coverage)
+                      min_gap=min_gap, min_segment=min_segment, coverage=coverage, up_axis=up_axis,
+                      posture_weight=posture_weight)
     record = provenance_record("graph", command_line(), parameters, [path], tool_version())
     write_model(output, "graph", graph_groups(model, analysis), model["provenance"] + [record], tool_version())
     if plot_dir is not None:

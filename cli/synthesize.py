@@ -88,6 +88,10 @@ class _LazyCrowd:
 @click.option("--blend", type=click.Choice(["bones", "key-vertices"]), default="bones", show_default=True,
               help="What a transition blends: each bone's rotation and pivot in the reference bone's frame (rigid "
                    "bones), or Zheng's deformation gradients at key vertices solved back to affine bones (eq. 8–9).")
+@click.option("--alignment", type=click.Choice(["ground", "full"]), default="ground", show_default=True,
+              help="How a segment is placed after a transition: turned about the up axis and shifted on the ground "
+                   "(motion-graph practice: no drift off the ground, however long), or by Zheng's full rigid "
+                   "transform (eq. 7), for clips that truly turn over (a swimmer, a cloth in the wind).")
 @click.option("--cut-damping", default=1e-3, show_default=True, type=float,
               help="Pull of the cut nodes' eq. 9 solve towards their source positions (relative; 0: none). "
                    "A cut node is seen by one side's key vertices only; undamped it stretches in blends.")
@@ -97,7 +101,8 @@ class _LazyCrowd:
 @click.option("--usd", "usd_dir", type=click.Path(file_okay=False), default=None, help="Also write one USD point cache per animation here.")
 @click.option("--crowd", type=click.Path(dir_okay=False), default=None, help="Also write one USD stage with every animation on a grid.")
 @click.option("--exr", "exr_dir", type=click.Path(file_okay=False), default=None, help="Also write one vertex-animation texture per animation here.")
-@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default="Y", show_default=True, help="Up axis (ground plane, crowd grid, USD).")
+@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
+              help="Up axis (ground alignment, ground plane, crowd grid, USD).  [default: the graph's, Y]")
 @click.option("--device", default="auto", show_default=True, help="Where vertex caches are skinned: auto, cpu, cuda or cuda:N.")
 @click.option("--jobs", "-j", default=1, show_default=True, type=int,
               help="Worker processes for the bone motions, and threads skinning the caches on the CPU (the "
@@ -106,7 +111,7 @@ class _LazyCrowd:
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
-               min_difference, single_component, min_segment, window, blend, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, up_axis,
+               min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, up_axis,
                device, jobs, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
@@ -139,11 +144,14 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     device = resolve_device(device) if (usd_dir or crowd or exr_dir) else None
     graph_file = read_graph(path)
     skin = graph_file.skin
+    if up_axis is None:
+        up_axis = str(graph_file.graph.get("@up_axis", "Y"))
     if min_segment is None:
         min_segment = int(graph_file.graph.get("@min_segment", default_min_segment(skin.fps)))
     request = Request(count=count, frames=frames, seed=seed, targets=list(targets), start=start_frame, end=end_frame,
                       min_difference=min_difference, window=window, spread_velocity=spread_velocity,
-                      cut_damping=cut_damping, min_segment=min_segment, blend=blend)
+                      cut_damping=cut_damping, min_segment=min_segment, blend=blend, alignment=alignment,
+                      up_axis=1 if up_axis == "Y" else 2)
     validate_request(request, skin.rotations.shape[0])
     up = 1 if up_axis == "Y" else 2
     if obstacles or ground_plane:
@@ -175,7 +183,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     parameters = dict(count=count, frames=frames, seed=seed, start_frame=start_frame, end_frame=end_frame,
                       targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,
                       min_difference=min_difference, single_component=single_component, window=window,
-                      spread_velocity=spread_velocity, cut_damping=cut_damping, min_segment=min_segment, blend=blend)
+                      spread_velocity=spread_velocity, cut_damping=cut_damping, min_segment=min_segment, blend=blend,
+                      alignment=alignment, up_axis=up_axis)
     record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(), seed)
     model = read_model(path)
     write_model(output, "synthesis", synthesis_groups(model, result, components, request, skin.fps),
@@ -201,7 +210,8 @@ def _graph_options(graph):
                 threshold_reference=str(graph.get("@threshold_reference", "median-step")),
                 edge_threshold=float(graph.get("@edge_threshold", 0.1)), svd_threshold=float(graph.get("@svd_threshold", 0.005)),
                 min_gap=int(graph.get("@min_gap", 2)), min_segment=int(graph.get("@min_segment", 12)),
-                coverage=float(graph.get("@coverage", 0.95)))
+                coverage=float(graph.get("@coverage", 0.95)), up_axis="XYZ".index(str(graph.get("@up_axis", "Y"))),
+                posture_weight=float(graph.get("@posture_weight", 1.0)))
 
 
 def _read_obstacle(path):

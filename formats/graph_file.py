@@ -8,7 +8,7 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` and adds ``/graph``:
   than ``@min_bones`` are merged, so some lie inside one component); attributes ``@components``, ``@transitions`` (total),
   ``@threshold_scale``, ``@threshold_reference``, ``@edge_threshold``, ``@svd_threshold``,
   ``@min_gap``, ``@min_bones``, ``@single_component``, ``@min_segment`` (frames; synthesize's
-  default), ``@coverage``.
+  default), ``@coverage``, ``@up_axis`` ("Y" or "Z"; synthesize's default), ``@posture_weight``.
 - ``/graph/component_NNN`` per component: ``bones (b,)``; ``local_bones (b−1,)`` (the
   non-reference bones, in the order of the reduced-coordinate basis and of eq. 9's unknowns);
   ``reduced_coordinates (F, r)``, ``basis (6(b−1), r)``, ``singular (r,)`` (eq. 3–4);
@@ -50,7 +50,8 @@ def graph_groups(model, analysis):
              "@edge_threshold": float(options["edge_threshold"]), "@svd_threshold": float(options["svd_threshold"]),
              "@min_gap": int(options["min_gap"]), "@min_bones": int(options["min_bones"]),
              "@single_component": bool(options["single_component"]),
-             "@min_segment": int(options["min_segment"]), "@coverage": float(options["coverage"])}
+             "@min_segment": int(options["min_segment"]), "@coverage": float(options["coverage"]),
+             "@up_axis": "XYZ"[int(options["up_axis"])], "@posture_weight": float(options["posture_weight"])}
     for number, c in enumerate(analysis.components):
         t, op = c.transitions, c.operator
         graph[f"component_{number:03d}"] = {

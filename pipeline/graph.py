@@ -62,7 +62,7 @@ def default_min_segment(fps):
 
 
 def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment=2,
-                           coverage=0.95):
+                           coverage=0.95, posture_weight=1.0):
     if frames < 3:
         raise OptionError(f"the clip has {frames} frames; transitions need at least 3")
     for name, value in (("--threshold-scale", threshold_scale), ("--edge-threshold", edge_threshold),
@@ -75,6 +75,8 @@ def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshol
         raise OptionError(f"--min-segment must be at least 1 frame (got {min_segment})")
     if not 0.0 <= coverage <= 1.0:
         raise OptionError(f"--coverage must lie in [0, 1] (got {coverage})")
+    if not 0.0 <= posture_weight < np.inf:
+        raise OptionError(f"--posture-weight must be finite and at least 0 (got {posture_weight})")
 
 
 def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotations, translations, options):
@@ -83,7 +85,9 @@ def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotat
     transitions = find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=bones,
                                    svd_threshold=options["svd_threshold"], threshold_scale=options["threshold_scale"],
                                    threshold_reference=options["threshold_reference"], min_gap=options["min_gap"],
-                                   spacing=max(1, options["min_segment"] // 2), coverage=options["coverage"])
+                                   spacing=max(1, options["min_segment"] // 2), coverage=options["coverage"],
+                                   up=np.eye(3)[options["up_axis"]], pivots=bone_centroids(rest, bone_indices, bone_weights, total),
+                                   scale=float(np.ptp(rest, axis=0).max()), posture_weight=options["posture_weight"])
     # The component is synthesised as if it were the whole mesh: its key vertices see only its
     # own bones, weights renormalised over them, so eq. 8 needs no bone from another component
     # and the unit-sum and eq. 15 properties still hold.
@@ -104,20 +108,24 @@ def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotat
 
 def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations, threshold_scale=3.0,
                 threshold_reference="median-step", edge_threshold=0.1, single_component=False,
-                svd_threshold=0.005, min_gap=2, min_bones=3, min_segment=12, coverage=0.95):
+                svd_threshold=0.005, min_gap=2, min_bones=3, min_segment=12, coverage=0.95, up_axis=1,
+                posture_weight=1.0):
     """Analyse a skin fit for synthesis. rest (V, 3); faces (T, 3); bone_indices/bone_weights
     (V, K); rotations (F, B, 3, 3); translations (F, B, 3). min_segment: the shortest stretch
     walks play between seams (frames); transitions closer than half of it to a cheaper one are
-    dropped (:func:`.transitions.select_transitions`, with ``coverage``). Returns GraphAnalysis."""
+    dropped (:func:`.transitions.select_transitions`, with ``coverage``); up_axis (0, 1, 2) and
+    posture_weight: the costs also weigh the reference bone's tilt and height about that axis
+    (:func:`.transitions.posture_costs`; 0: Zheng's eq. 5 alone). Returns GraphAnalysis."""
     validate_graph_options(rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment,
-                           coverage)
+                           coverage, posture_weight)
     bones = rotations.shape[1]
     weights, graph, decomposition = bone_components(bone_indices, bone_weights, bones, edge_threshold=edge_threshold,
                                                     single_component=single_component, min_bones=min_bones)
     neighbours = vertex_neighbours(faces, rest.shape[0])
     options = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                    edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
-                   min_gap=min_gap, min_bones=min_bones, min_segment=int(min_segment), coverage=float(coverage))
+                   min_gap=min_gap, min_bones=min_bones, min_segment=int(min_segment), coverage=float(coverage),
+                   up_axis=int(up_axis), posture_weight=float(posture_weight))
     components = [analyse_component([int(b) for b in members], rest, neighbours, bone_indices, bone_weights, rotations,
                                     translations, options) for members in decomposition.components]
     edges = np.array(sorted(graph.edges()), dtype=np.int64).reshape(-1, 2)

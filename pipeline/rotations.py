@@ -122,6 +122,34 @@ def matrix_to_quaternion(rotations):
     return wxyz.reshape(shape + (4,))
 
 
+def heading_rotation(rotations, up):
+    """The turn about the unit axis ``up`` (3,) within each rotation (..., 3, 3) -> (..., 3, 3):
+    the twist Y of the swing-twist split R = Y T, T a rotation about a horizontal axis
+    (quaternion (w, v) -> twist (w, (v·up) up), normalised). Undefined only for a half turn
+    about a horizontal axis (w = v·up = 0), where it returns the identity."""
+    q = matrix_to_quaternion(rotations)
+    along = q[..., 1:] @ np.asarray(up, dtype=np.float64)
+    angle = 2.0 * np.arctan2(along, q[..., 0])
+    return rotation_exp(angle[..., None] * np.asarray(up, dtype=np.float64))
+
+
+def heading_and_posture(rotations, translations, pivot, up):
+    """Split rigid poses into a heading and a posture: P = H ∘ Π.
+
+    rotations (F, 3, 3), translations (F, 3) act on points x ↦ R x + t; pivot (3,) a rest point;
+    up (3,) a unit axis. H(f) is the turn of R(f) about up (:func:`heading_rotation`) with the
+    ground-plane shift that takes the pivot's ground-plane position to where P(f) takes it;
+    Π(f) = H(f)⁻¹ P(f) keeps the tilt and the height. Returns (H_R, H_t, Π_R, Π_t), each (F, …)."""
+    up = np.asarray(up, dtype=np.float64) / np.linalg.norm(up)
+    pivot = np.asarray(pivot, dtype=np.float64)
+    H_R = heading_rotation(rotations, up)
+    position = rotations @ pivot + translations  # where the pivot goes
+    H_t = position - np.outer(position @ up, up) - H_R @ (pivot - (pivot @ up) * up)
+    posture_R = np.swapaxes(H_R, -1, -2) @ rotations
+    posture_t = np.einsum("fba,fb->fa", H_R, translations - H_t)
+    return H_R, H_t, posture_R, posture_t
+
+
 def quaternion_to_matrix(quaternions):
     """quaternions (..., 4), (w, x, y, z), any non-zero length -> rotations (..., 3, 3)."""
     shape = quaternions.shape[:-1]

@@ -112,7 +112,7 @@ import numpy as np
 import scipy.linalg
 
 from .deformation_gradients import rotation_times_strain
-from .rotations import apply_rigid, rotation_exp, rotation_log
+from .rotations import apply_rigid, heading_and_posture, rotation_exp, rotation_log
 from .transitions import local_frame_positions
 
 
@@ -200,17 +200,33 @@ def seam_windows(sources, window=8):
     return SeamWindows(animation=animation, seam=k, left=left.astype(np.int64), right=right.astype(np.int64))
 
 
-def reference_alignment(R_ref, t_ref, sources):
-    """Output reference-bone poses along walks by Zheng eq. 7.
+def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, spread_velocity=True):
+    """Output reference-bone poses along walks: Zheng eq. 7, or its ground-plane form.
 
     R_ref (F, 3, 3), t_ref (F, 3): the input reference bone; sources (A, M) validated walks.
-    Returns (R̃ (A, M, 3, 3), t̃ (A, M, 3)) = G_k ∘ P(source[k]), G the accumulated rigid offsets
-    (identity before the first seam; at a seam k with i = source[k−1], j = source[k] − 1,
-    G ← G ∘ P(i) ∘ P(j)⁻¹).
+    Returns (R̃ (A, M, 3, 3), t̃ (A, M, 3)) = G_k ∘ H(source[k]) ∘ Π(source[k]), G the
+    accumulated offsets (identity before the first seam; at a seam k with i = source[k−1],
+    j = source[k] − 1, G ← G ∘ H(i) ∘ H(j)⁻¹).
+
+    ``up=None`` is Zheng's eq. 7: H(f) = P(f), the input reference pose, and Π = identity, so each
+    segment is moved by a full rigid transform; its height and tilt errors add up seam after seam
+    (on the horse gallop, 3,000 frames ended 0.7 of its height outside the input's range of
+    lowest points, and turned over). With ``up`` a unit axis (3,), as in motion graphs (Kovar et
+    al. 2002), H(f) is the *heading* of P(f): its turn about ``up`` (:func:`.rotations.heading_rotation`)
+    and the ground-plane position of the bone's ``pivot`` (3,) (its rest centroid); Π(f) =
+    H(f)⁻¹ P(f) is the rest, tilt and height, which stay the input's. G is then a turn about up
+    and a ground-plane shift, so nothing accumulates off the ground. Π jumps at a seam (Π(i) vs
+    Π(j)); it is blended over the ``window`` frames on each side like the bones
+    (:func:`blend_series` on its rotation and the pivot's position, ``spread_velocity`` alike).
     """
     R_ref = np.asarray(R_ref, dtype=np.float64)
     t_ref = np.asarray(t_ref, dtype=np.float64)
     count, frames = sources.shape
+    if up is None:
+        H_R, H_t = R_ref, t_ref
+    else:
+        pivot = np.zeros(3) if pivot is None else np.asarray(pivot, dtype=np.float64)
+        H_R, H_t, posture_R, posture_t = heading_and_posture(R_ref, t_ref, pivot, up)
     animation, k = walk_seams(sources)
     # G is constant between seams: compose it once per seam (a loop over the seam rank, batched
     # over animations), then look it up per frame by segment number.
@@ -223,11 +239,11 @@ def reference_alignment(R_ref, t_ref, sources):
     if k.size:
         i = sources[animation, k - 1]
         j = sources[animation, k] - 1
-        # P(i) ∘ P(j)⁻¹ = (R_i R_jᵀ, t_i − R_i R_jᵀ t_j): Zheng eq. 7's fixed rigid transform.
-        rel = R_ref[i] @ np.swapaxes(R_ref[j], -1, -2)
+        # H(i) ∘ H(j)⁻¹ = (R_i R_jᵀ, t_i − R_i R_jᵀ t_j): Zheng eq. 7's fixed rigid transform.
+        rel = H_R[i] @ np.swapaxes(H_R[j], -1, -2)
         rank = segment[animation, k] - 1
         rel_R[animation, rank] = rel
-        rel_t[animation, rank] = t_ref[i] - np.einsum("sab,sb->sa", rel, t_ref[j])
+        rel_t[animation, rank] = H_t[i] - np.einsum("sab,sb->sa", rel, H_t[j])
     G_R = np.empty((count, segments + 1, 3, 3))
     G_t = np.empty((count, segments + 1, 3))
     G_R[:, 0], G_t[:, 0] = np.eye(3), 0.0
@@ -235,9 +251,18 @@ def reference_alignment(R_ref, t_ref, sources):
         G_R[:, r + 1] = G_R[:, r] @ rel_R[:, r]
         G_t[:, r + 1] = np.einsum("aij,aj->ai", G_R[:, r], rel_t[:, r]) + G_t[:, r]
     rows = np.arange(count)[:, None]
-    R_out = G_R[rows, segment] @ R_ref[sources]
-    t_out = np.einsum("amij,amj->ami", G_R[rows, segment], t_ref[sources]) + G_t[rows, segment]
-    return R_out, t_out
+    R_out = G_R[rows, segment] @ H_R[sources]
+    t_out = np.einsum("amij,amj->ami", G_R[rows, segment], H_t[sources]) + G_t[rows, segment]
+    if up is None:
+        return R_out, t_out
+    # The posture Π: the source's, blended across each seam's window.
+    P_R, P_t = posture_R[sources], posture_t[sources]
+    windows = seam_windows(sources, window)
+    if windows.counts.sum():
+        a, m, rotation, position = blend_series(posture_R[:, None], (posture_R @ pivot + posture_t)[:, None],
+                                                sources, windows, spread_velocity=spread_velocity)
+        P_R[a, m], P_t[a, m] = rotation[:, 0], position[:, 0] - rotation[:, 0] @ pivot
+    return R_out @ P_R, np.einsum("amij,amj->ami", R_out, P_t) + t_out
 
 
 def gradient_series(strain):
@@ -406,7 +431,7 @@ def splice(component, rotations, translations, sources, window=8, dtype=np.float
 
 def splice_local(component, rotations, translations, sources, window=8, dtype=np.float64, anchored=True,
                  block_frames=8192, reference_motion=True, spread_velocity=True, damped_bones=(), damping=0.0,
-                 blend="bones", pivots=None):
+                 blend="bones", pivots=None, up=None):
     """Splice A walks of one bone component (Zheng §3.3; module notes) -> :class:`SplicedWalks`.
 
     component: a :class:`.graph.ComponentAnalysis` (bones, transitions.reference,
@@ -420,6 +445,11 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
     spread_velocity: the seam's velocity jump spread over the window (module notes);
     damped_bones, damping: with the anchored solve, those bones' change from the source pulled
     towards 0 (:meth:`.deformation_gradients.GradientOperator.solve_damped`; module notes).
+    blend: "bones" (each bone's rotation and where it takes its pivot, blended in the reference
+    bone's frame: bones stay rigid) or "key-vertices" (Zheng eq. 8–9, affine bones); pivots
+    (B, 3): each bone's rest point its blend turns about (default the origin; the synthesizer
+    passes the bones' rest centroids); up: None for Zheng's eq. 7, or the up axis (3,) for its
+    ground-plane form (:func:`reference_alignment`).
     """
     bones = np.asarray(component.bones, dtype=np.int64)
     reference = int(component.transitions.reference)
@@ -444,7 +474,9 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
 
     R_ref = t_ref = None
     if reference_motion:
-        R_ref, t_ref = reference_alignment(rotations[:, reference], translations[:, reference], sources)  # eq. 7
+        pivot = None if pivots is None else np.asarray(pivots, dtype=np.float64)[reference]
+        R_ref, t_ref = reference_alignment(rotations[:, reference], translations[:, reference], sources, up=up,
+                                           pivot=pivot, window=window, spread_velocity=spread_velocity)  # eq. 7
     F_in, t_in, ids = local_frame_positions(rotations, translations, reference, bones)  # eq. 2, (F, b−1, …)
     if not np.array_equal(np.asarray(ids), local_bones):
         raise ValueError("the component's local bones are not its bones without the reference")

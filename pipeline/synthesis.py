@@ -86,6 +86,8 @@ class Request:
     transition_probability: float = 0.1
     min_segment: int = 12
     blend: str = "bones"
+    alignment: str = "ground"
+    up_axis: int = 1
 
 
 @dataclass
@@ -112,6 +114,10 @@ def validate_request(request, input_frames):
         raise OptionError(f"--cut-damping must be at least 0 (got {request.cut_damping})")
     if request.min_segment < 1:
         raise OptionError(f"--min-segment must be at least 1 frame (got {request.min_segment})")
+    if request.alignment not in ("ground", "full"):
+        raise OptionError(f"--alignment must be ground or full (got {request.alignment!r})")
+    if request.blend not in ("bones", "key-vertices"):
+        raise OptionError(f"--blend must be bones or key-vertices (got {request.blend!r})")
     if request.window < 0:
         raise OptionError(f"--window must be at least 0 (got {request.window})")
     if request.frames < 1:
@@ -146,6 +152,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
     cut_nodes = cut_bones([c.bones for c in components])
     subset = vertex_subset(rest.shape[0])
     pivots = bone_centroids(rest, bone_indices, bone_weights, bones)
+    up = None if request.alignment == "full" else np.eye(3)[request.up_axis]
     kept_F, kept_t, kept_src, kept_choice = [], [], [], []
     rejected = {"collisions": 0, "too_similar": 0, "merges": 0}
     need, rounds = count, 0
@@ -159,7 +166,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
         parts = [splice_local(c, rotations, translations, sources[k], window=request.window, dtype=np.float32,
                               reference_motion=k not in carried, spread_velocity=request.spread_velocity,
                               damped_bones=cut_nodes, damping=request.cut_damping,
-                              blend=request.blend, pivots=pivots)
+                              blend=request.blend, pivots=pivots, up=up)
                  for k, c in enumerate(components)]
         if len(components) == 1:
             F, t = parts[0].world()

@@ -42,7 +42,7 @@ import numpy as np
 from scipy.ndimage import minimum_filter
 
 from .errors import OptionError
-from .rotations import rotation_log
+from .rotations import heading_and_posture, rotation_log
 
 THRESHOLD_REFERENCES = ("median-step", "max-step")
 
@@ -259,7 +259,7 @@ def candidate_transitions(D, threshold, min_gap=2):
     return pairs[order], costs[order]
 
 
-def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95):
+def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_scale=10.0):
     """Transitions of one clip: cheap, spread out, and enough to reach the whole clip.
 
     D (F, F) costs; threshold T_c. Candidates are the local minima of D (3×3 neighbourhood, as
@@ -273,7 +273,9 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95):
     frames then lie on the largest strongly connected part of the frame graph
     (:func:`.motion_graph.recurrent_frames`: walks get trapped or dead-end), further survivors
     are admitted in order of cost, each only if it enlarges that part, until it holds
-    ``coverage`` of the frames or none is left.
+    ``coverage`` of the frames or none is left below ``admit_scale`` × T_c (past that a splice
+    shows: on the Dem Bones example, whose median step is tiny beside its fast flexes, admitting
+    up to 160 T_c for coverage made 3.7× the input's acceleration).
 
     Returns ``(pairs (M, 2) int64, costs (M,), admitted (int): how many of them lie above T_c,
     share (float): the frames on the largest strongly connected part)``, sorted by cost.
@@ -295,7 +297,7 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95):
     chosen = list(below)
     share = float(recurrent_frames(frames, every[chosen]).mean()) if frames else 0.0
     admitted = 0
-    for n in kept[costs[kept] >= threshold]:
+    for n in kept[(costs[kept] >= threshold) & (costs[kept] < admit_scale * threshold)]:
         if share >= coverage:
             break
         trial = float(recurrent_frames(frames, every[chosen + [n]]).mean())
@@ -340,13 +342,36 @@ class Transitions:
         return np.diagonal(self.D, offset=-1).copy()
 
 
+def reference_posture(rotations, translations, pivot, up, scale):
+    """The reference bone's posture per frame, what a ground-plane alignment keeps from the input
+    (:func:`.rotations.heading_and_posture`): rotations (F, 3, 3), translations (F, 3) of the
+    bone, its rest pivot (3,), the unit up axis (3,), scale: a length (the rest pose's size) ->
+    (F, 4) = [Φ(Π_R) (its tilt, no turn about up), the pivot's height / scale]."""
+    _, _, posture_R, posture_t = heading_and_posture(rotations, translations, pivot, up)
+    height = (posture_R @ np.asarray(pivot, dtype=np.float64) + posture_t) @ (np.asarray(up) / np.linalg.norm(up))
+    return np.concatenate([rotation_log(posture_R), (height / scale)[:, None]], axis=1)
+
+
+def posture_costs(D, q, posture, weight=1.0):
+    """D + γ ‖π_i − π_j‖² with π the :func:`reference_posture`: with segments placed by a turn
+    about up and a ground shift, frames i and j must also agree in tilt and height (Zheng's eq. 5
+    is blind to them: his eq. 7 moves a segment by any rigid transform). γ = ``weight`` ×
+    max‖q_i‖² / max‖π_i − π̄‖² balances the term as α and β balance theirs (1 where either is 0)."""
+    centred = posture - posture.mean(axis=0)
+    gamma = weight * _ratio(_max_squared_norm(q) or 1.0, _max_squared_norm(centred))
+    return D + gamma * pairwise_squared_distances(posture), float(gamma)
+
+
 def find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=None, svd_threshold=0.005,
-                     threshold_scale=3.0, threshold_reference="median-step", min_gap=2, spacing=0, coverage=0.95):
+                     threshold_scale=3.0, threshold_reference="median-step", min_gap=2, spacing=0, coverage=0.95,
+                     up=None, pivots=None, scale=1.0, posture_weight=1.0):
     """Zheng §3.2 end to end: reference bone, eq. 2–6, threshold, candidate transitions.
 
     rotations (F, B, 3, 3), translations (F, B, 3), bone_indices (V, K), bone_weights (V, K);
     ``bones_subset``: restrict everything (reference choice included) to these bones, e.g. a
-    component of the bone graph; spacing, coverage: :func:`select_transitions`. Returns a
+    component of the bone graph; spacing, coverage: :func:`select_transitions`; up (3,), pivots
+    (B, 3), scale: with ``up`` given, D also weighs the reference bone's posture
+    (:func:`posture_costs`, ``posture_weight``; 0 leaves Zheng's eq. 5). Returns a
     :class:`Transitions`.
     """
     rotations = np.asarray(rotations, np.float64)
@@ -363,10 +388,14 @@ def find_transitions(rotations, translations, bone_indices, bone_weights, bones_
     q, basis, singular = reduced_coordinates(r_local, t_local, svd_threshold)
     r = reference_motion(rotations, translations, reference)
     D, alpha, beta = transition_costs(q, r)
+    if up is not None and posture_weight > 0.0:
+        posture = reference_posture(rotations[:, reference], translations[:, reference], pivots[reference], up, scale)
+        D, _ = posture_costs(D, q, posture, posture_weight)
     threshold = transition_threshold(D, threshold_scale, threshold_reference)
     pairs, costs, admitted, share = select_transitions(D, threshold, min_gap, spacing, coverage)
     options = dict(svd_threshold=svd_threshold, threshold_scale=threshold_scale,
-                   threshold_reference=threshold_reference, min_gap=min_gap, spacing=spacing, coverage=coverage)
+                   threshold_reference=threshold_reference, min_gap=min_gap, spacing=spacing, coverage=coverage,
+                   posture_weight=posture_weight if up is not None else 0.0)
     return Transitions(reference=reference, bones=subset.tolist(), local_bones=local_bones, q=q, basis=basis,
                        singular=singular, r=r, alpha=alpha, beta=beta, D=D, threshold=threshold, pairs=pairs,
                        costs=costs, options=options, admitted=admitted, share=share)
