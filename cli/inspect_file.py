@@ -36,8 +36,14 @@ def _summary(path, model):
         out["components"] = int(graph.get("@components", 0))
         out["transitions"] = int(graph.get("@transitions", 0))
         out["cut_nodes"] = [int(b) for b in graph.get("cut_nodes", [])]
-        out["transitions_per_component"] = [int(len(graph[k]["transitions"])) for k in sorted(graph)
-                                            if k.startswith("component_") and "transitions" in graph[k]]
+        names = [k for k in sorted(graph) if k.startswith("component_") and "transitions" in graph[k]]
+        out["transitions_per_component"] = [int(len(graph[k]["transitions"])) for k in names]
+        if all("@recurrent_share" in graph[k] for k in names):
+            out["recurrent_share_per_component"] = [round(float(graph[k]["@recurrent_share"]), 4) for k in names]
+            out["admitted_per_component"] = [int(graph[k]["@admitted"]) for k in names]
+        if "@min_segment" in graph:
+            out["min_segment"] = int(graph["@min_segment"])
+            out["up_axis"] = str(graph.get("@up_axis", "Y"))
     if "synthesis" in model:
         synthesis = model["synthesis"]
         for key in ("count", "frames", "seed", "distinct", "transitions_used", "rejected_collisions",
@@ -45,6 +51,14 @@ def _summary(path, model):
             if f"@{key}" in synthesis:
                 name = {"count": "animations", "frames": "animation_frames"}.get(key, key)
                 out[name] = int(synthesis[f"@{key}"])
+        for key in ("coverage", "mean_segment_frames", "shortest_segment"):
+            if key in synthesis:
+                values = np.asarray(synthesis[key]).tolist()
+                out[f"{key}_per_component"] = [round(v, 4) if isinstance(v, float) else v for v in values]
+        for key in ("min_segment", "window", "blend", "alignment"):
+            if f"@{key}" in synthesis:
+                value = synthesis[f"@{key}"]
+                out[key] = value if isinstance(value, str) else int(value)
     out["provenance"] = [{k: r.get(k) for k in ("stage", "command", "tool_version", "seed", "date")}
                          for r in model["provenance"]]
     return out

@@ -104,9 +104,9 @@ class _LazyCrowd:
 @click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
               help="Up axis (ground alignment, ground plane, crowd grid, USD).  [default: the graph's, Y]")
 @click.option("--device", default="auto", show_default=True, help="Where vertex caches are skinned: auto, cpu, cuda or cuda:N.")
-@click.option("--jobs", "-j", default=1, show_default=True, type=int,
+@click.option("--jobs", "-j", default=None, type=int,
               help="Worker processes for the bone motions, and threads skinning the caches on the CPU (the "
-                   "result does not depend on it).")
+                   "result does not depend on it).  [default: all cores]")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 @user_errors
@@ -127,18 +127,20 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
       skinsynth synthesize cloth.graph.h5 -o c.h5 -n 60 -m 480 --obstacle sphere.obj --usd cloths/
     """
     from skinsynth.formats.graph_file import read_graph
-    from skinsynth.formats.model import read_model, write_model
+    from skinsynth.formats.model import write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.synthesis_file import synthesis_groups
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.collisions import build_obstacles, colliding, vertex_subset
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.graph import build_graph, default_min_segment
+    from skinsynth.pipeline.motion_graph import default_min_segment
     from skinsynth.pipeline.synthesis import Request, component_from_file, synthesize as make, validate_request
 
     check_output_path(output, (".h5", ".hdf5"))
     if crowd is not None:
         check_output_path(crowd, (".usd", ".usda", ".usdc"))
+    if jobs is None:
+        jobs = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     if jobs < 1:
         raise OptionError(f"--jobs must be at least 1 (got {jobs})")
     device = resolve_device(device) if (usd_dir or crowd or exr_dir) else None
@@ -162,6 +164,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         subset = vertex_subset(skin.rest_vertices.shape[0])
         request.forbidden = colliding(request.obstacles, skin.examples[:, subset])
     if single_component and len(graph_file.components) > 1:
+        from skinsynth.pipeline.graph import build_graph  # networkx: only imported when needed
+
         analysis = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
                                skin.translations, single_component=True,
                                **_graph_options(graph_file.graph))
@@ -186,21 +190,30 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                       spread_velocity=spread_velocity, cut_damping=cut_damping, min_segment=min_segment, blend=blend,
                       alignment=alignment, up_axis=up_axis)
     record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(), seed)
-    model = read_model(path)
-    write_model(output, "synthesis", synthesis_groups(model, result, components, request, skin.fps),
-                model["provenance"] + [record], tool_version())
+    write_model(output, "synthesis", synthesis_groups(path, result, components, request, skin.fps),
+                graph_file.provenance + [record], tool_version())
     written = [output]
     if usd_dir or crowd or exr_dir:
         written += _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, threads=jobs)
+    stats = result.statistics
     report = {"animations": int(result.F.shape[0]), "frames": int(frames), "seconds": round(seconds, 3),
               "distinct": result.distinct, "transitions_used": int(np.sum(result.seams_used)),
-              "components": len(components), "rejected": result.rejected, "outputs": written}
+              "components": len(components), "min_segment": int(min_segment), "jobs": int(jobs),
+              "graph_transitions": [int(len(c.transitions.pairs)) for c in components],
+              "transitions_used_per_component": stats["transitions"],
+              "mean_segment_frames": [round(m, 2) for m in stats["mean_segment_frames"]],
+              "shortest_segment": stats["shortest_segment"],
+              "coverage": [round(c, 4) for c in stats["coverage"]],
+              "rejected": result.rejected, "outputs": written}
     if as_json:
         click.echo(json.dumps(report))
     else:
         click.echo(f"wrote {output}: {report['animations']} animations × {frames} frames from {len(components)} "
                    f"component(s), {result.distinct} distinct, {report['transitions_used']} transitions used; "
                    f"{seconds:.1f} s" + (f"; replaced {result.rejected}" if any(result.rejected.values()) else ""))
+        click.echo(f"segments: mean {', '.join(f'{m:.1f}' for m in stats['mean_segment_frames'])} frames, shortest "
+                   f"{', '.join(map(str, stats['shortest_segment']))} (≥ {min_segment} asked); input frames played: "
+                   f"{', '.join(f'{c:.0%}' for c in stats['coverage'])} (per component)")
         if len(written) > 1:
             click.echo(f"caches: {', '.join(written[1:]) if len(written) < 6 else written[1] + ' …'}")
 

@@ -71,11 +71,13 @@ def graph_groups(model, analysis):
 
 @dataclass
 class GraphFile:
-    """A graph file as read: skin (SkinModel), graph (the /graph dict), components (list of dicts)."""
+    """A graph file as read: skin (SkinModel), graph (the /graph dict), components (list of dicts),
+    provenance (the file's records)."""
 
     skin: object
     graph: dict
     components: list
+    provenance: list
 
 
 def read_graph(path):
@@ -92,4 +94,4 @@ def read_graph(path):
         if missing:
             raise FormatError(path, f"/graph/{name} lacks {', '.join(missing)}: the file is incomplete")
         components.append(graph[name])
-    return GraphFile(skin=skin, graph=graph, components=components)
+    return GraphFile(skin=skin, graph=graph, components=components, provenance=model["provenance"])

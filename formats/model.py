@@ -15,6 +15,7 @@ inputs and seed give byte-identical datasets.
 """
 
 import json
+import os
 
 import h5py
 import numpy as np
@@ -40,6 +41,14 @@ class Uncompressed:
 
     def __init__(self, array):
         self.array = np.asarray(array)
+
+
+class CopyFrom:
+    """A whole group forwarded from another model file as stored (HDF5 object copy: compressed
+    chunks are copied, not decompressed and compressed again)."""
+
+    def __init__(self, path, name):
+        self.path, self.name = os.fspath(path), name
 
 
 def _write_group(group, contents):
@@ -87,6 +96,10 @@ def write_model(path, stage, groups, provenance, tool_version):
                 g.attrs["parameters"] = json.dumps(record.get("parameters", {}), sort_keys=True)
                 g.attrs["inputs"] = json.dumps(record.get("inputs", []))
             for name, contents in groups.items():
+                if isinstance(contents, CopyFrom):
+                    with h5py.File(contents.path, "r") as source:
+                        source.copy(source[contents.name], f, name=name)
+                    continue
                 _write_group(f.create_group(name, track_order=True), contents)
 
 

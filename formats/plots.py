@@ -10,6 +10,7 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from .atomic import atomic_output
 
@@ -110,4 +111,63 @@ def write_bone_graph_plot(path, positions, weights, edges, components, cut_nodes
     axes.set_aspect("equal", adjustable="datalim")
     axes.set_title(title)
     axes.legend(loc="best", fontsize=8)
+    _save(figure, path)
+
+
+def write_synthesis_plot(path, sources, accel_ratio, title, limit=1.5):
+    """One synthesized animation: where each component's frames come from, and how hard it moves.
+
+    sources (C, M) int: the input-clip frame each of C bone components plays at each of M output
+    frames; a seam of component c is an output frame k >= 1 with sources[c, k] != sources[c, k-1] + 1.
+    accel_ratio (M,): per output frame the largest vertex acceleration over the input clip's largest,
+    NaN where undefined (the first and last frame). Top panel: the source frame per output frame, one
+    step line per component, seams as dots. Bottom panel: accel_ratio against 1 (the input's largest)
+    and ``limit`` (frames above it in red), every seam of any component as a faint vertical line.
+    Raises ValueError for a path not ending in ``.png``, sources not a non-empty 2-D array, or
+    accel_ratio not of shape (M,).
+    """
+    sources = np.asarray(sources)
+    if sources.ndim != 2 or sources.size == 0:
+        raise ValueError(f"sources must be a non-empty (C, M) array, got shape {sources.shape}")
+    if not np.issubdtype(sources.dtype, np.integer):
+        raise ValueError(f"sources must hold integer frame indices, got dtype {sources.dtype}")
+    accel_ratio = np.asarray(accel_ratio, dtype=np.float64)
+    count, length = sources.shape
+    if accel_ratio.shape != (length,):
+        raise ValueError(f"accel_ratio has shape {accel_ratio.shape}, sources has {length} output frames")
+    limit = float(limit)
+
+    frames = np.arange(length)
+    seams = np.zeros(sources.shape, dtype=bool)
+    seams[:, 1:] = sources[:, 1:] != sources[:, :-1] + 1
+
+    figure = _new_figure(path, (10.0, 6.0))
+    top, bottom = figure.subplots(2, 1, sharex=True)
+    for c in range(count):
+        (line,) = top.step(frames, sources[c], where="post", linewidth=1.4, label=f"component {c}")
+        top.scatter(frames[seams[c]], sources[c, seams[c]], s=18, color=line.get_color(), zorder=3)
+    top.set_title(title)
+    top.set_ylabel("input frame")
+    top.yaxis.set_major_locator(MaxNLocator(integer=True))
+    top.grid(True, alpha=0.3)
+    if count > 1:
+        top.legend(loc="best", fontsize=8, ncols=min(count, 4))
+
+    any_seam = frames[seams.any(axis=0)]
+    if any_seam.size:
+        bottom.vlines(any_seam, 0.0, 1.0, transform=bottom.get_xaxis_transform(), colors="0.85", linewidths=0.8,
+                      zorder=0, label=f"seam ({any_seam.size} frames)")
+    bottom.plot(frames, accel_ratio, linewidth=1.4, color="tab:blue", label="max acceleration")
+    bottom.axhline(1.0, color="0.35", linewidth=1.0, label="input's largest")
+    bottom.axhline(limit, color="tab:orange", linestyle="--", linewidth=1.2, label=f"limit {limit:g}×")
+    over = np.zeros(length, dtype=bool)
+    np.greater(accel_ratio, limit, out=over, where=~np.isnan(accel_ratio))
+    if over.any():
+        bottom.plot(frames[over], accel_ratio[over], linestyle="none", marker="o", markersize=4.5, color="red",
+                    zorder=3, label=f"above limit ({int(over.sum())} frames)")
+    bottom.set_ylim(bottom=0.0)
+    bottom.set_xlabel("output frame")
+    bottom.set_ylabel("max acceleration / input's")
+    bottom.grid(True, alpha=0.3)
+    bottom.legend(loc="best", fontsize=8)
     _save(figure, path)

@@ -11,21 +11,26 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` (the weights skin the new 
 - ``component_NNN/bones`` the bone ids of each component;
 - attributes ``@count``, ``@frames``, ``@seed``, ``@distinct``, ``@transitions_used``,
   ``@rejected_collisions``, ``@rejected_too_similar``, ``@rejected_merges``, ``@fps``,
-  ``@targets`` (JSON), ``@window``, ``@spread_velocity``, ``@cut_damping``.
+  ``@targets`` (JSON), ``@window``, ``@spread_velocity``, ``@cut_damping``, ``@min_segment``,
+  ``@blend``, ``@alignment``, ``@up_axis``;
+- per component (C,): ``coverage`` (share of the clip's frames the walks play),
+  ``mean_segment_frames``, ``shortest_segment`` (frames between two seams).
 """
 
 import json
 
 import numpy as np
 
-from .model import Uncompressed
+from .model import CopyFrom, Uncompressed
 
 
-def synthesis_groups(model, result, components, request, fps):
-    groups = {name: model[name] for name in ("mesh", "examples", "skin")}
+def synthesis_groups(source, result, components, request, fps):
+    """The groups of a synthesis file; ``/mesh``, ``/examples`` and ``/skin`` are copied as
+    stored from the graph file ``source``."""
+    groups = {name: CopyFrom(source, name) for name in ("mesh", "examples", "skin")}
     synthesis = {
-        "bone_matrices": Uncompressed(result.F.astype(np.float32)),
-        "bone_translations": Uncompressed(result.t.astype(np.float32)),
+        "bone_matrices": Uncompressed(np.asarray(result.F, dtype=np.float32)),  # no copy when already float32
+        "bone_translations": Uncompressed(np.asarray(result.t, dtype=np.float32)),
         "sources": result.sources.astype(np.int32),
         "seams": np.asarray(result.seams_used, dtype=np.int64),
         "@count": int(result.F.shape[0]), "@frames": int(result.F.shape[1]), "@seed": int(request.seed),
@@ -35,7 +40,11 @@ def synthesis_groups(model, result, components, request, fps):
         "@rejected_merges": int(result.rejected["merges"]), "@fps": float(fps),
         "@targets": json.dumps([list(map(int, t)) for t in request.targets]), "@window": int(request.window),
         "@spread_velocity": bool(request.spread_velocity), "@cut_damping": float(request.cut_damping),
+        "@min_segment": int(request.min_segment), "@blend": str(request.blend), "@alignment": str(request.alignment),
+        "@up_axis": "XYZ"[int(request.up_axis)],
     }
+    for key in ("coverage", "mean_segment_frames", "shortest_segment"):
+        synthesis[key] = np.asarray(result.statistics[key])
     for number, component in enumerate(components):
         synthesis[f"component_{number:03d}"] = {"bones": np.asarray(component.bones, dtype=np.int64)}
     groups["synthesis"] = synthesis

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .bone_graph import bone_components
 from .deformation_gradients import deformation_gradients, gradient_operator, rotation_strain
 from .errors import OptionError
+from .motion_graph import default_min_segment  # noqa: F401  (re-exported for the CLI)
 from .key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
 from .transitions import bone_centroids, find_transitions, local_frame_positions
 
@@ -53,12 +53,6 @@ class GraphAnalysis:
     @property
     def transition_count(self):
         return int(sum(len(c.transitions.pairs) for c in self.components))
-
-
-def default_min_segment(fps):
-    """Half a second of frames (at least 2): the shortest stretch between seams that still reads
-    as motion rather than a jitter of splices."""
-    return max(2, int(round(0.5 * float(fps))))
 
 
 def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment=2,
@@ -116,6 +110,8 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
     dropped (:func:`.transitions.select_transitions`, with ``coverage``); up_axis (0, 1, 2) and
     posture_weight: the costs also weigh the reference bone's tilt and height about that axis
     (:func:`.transitions.posture_costs`; 0: Zheng's eq. 5 alone). Returns GraphAnalysis."""
+    from .bone_graph import bone_components  # networkx: imported when a graph is built, not by synthesize
+
     validate_graph_options(rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment,
                            coverage, posture_weight)
     bones = rotations.shape[1]

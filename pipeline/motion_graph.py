@@ -76,6 +76,12 @@ class _Moves:
     t_pairs: np.ndarray
 
 
+def default_min_segment(fps):
+    """Half a second of frames (at least 2): the shortest stretch between seams that still reads
+    as motion rather than a jitter of splices."""
+    return max(2, int(round(0.5 * float(fps))))
+
+
 class MotionGraph:
     """The frame graph of one clip (see the module docstring for the walk semantics).
 
@@ -382,6 +388,27 @@ def seams(sources):
     for row in sources:
         k = np.flatnonzero(row[1:] != row[:-1] + 1) + 1
         out.append((k, np.stack([row[k - 1], row[k] - 1], axis=1)))
+    return out
+
+
+def walk_statistics(sources, frames):
+    """What walks of C components make of the clip: sources (C, N, M) -> dict of (C,) lists:
+    ``transitions`` (seams in all N walks), ``mean_segment_frames`` (output frames per segment,
+    the partial first and last segments included), ``shortest_segment`` (frames of the shortest
+    segment between two seams; M where no walk has two seams), ``coverage`` (the share of the
+    clip's ``frames`` input frames that some walk plays)."""
+    sources = np.asarray(sources)
+    count, length = sources.shape[1:]
+    out = {"transitions": [], "mean_segment_frames": [], "shortest_segment": [], "coverage": []}
+    for walks in sources:
+        seam = walks[:, 1:] != walks[:, :-1] + 1
+        total = int(seam.sum())
+        animation, k = np.nonzero(seam)
+        gaps = np.diff(k)[animation[1:] == animation[:-1]]  # between consecutive seams of one walk
+        out["transitions"].append(total)
+        out["mean_segment_frames"].append(float(walks.size / (total + count)) if count else 0.0)
+        out["shortest_segment"].append(int(gaps.min()) if gaps.size else int(length))
+        out["coverage"].append(float(np.unique(walks).size / frames))
     return out
 
 

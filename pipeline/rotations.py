@@ -100,17 +100,41 @@ def polar_of_near_rotations(matrices, tolerance=1e-6):
     return u.reshape(m.shape), s.reshape(m.shape)
 
 
-def apply_rigid(rotation, translation, F, t):
-    """The rigid motion (rotation (N, 3, 3), translation (N, 3)) applied to K bone positions per
-    item, F (N, K, 3, 3), t (N, K, 3) -> (rotation F, rotation t + translation).
+def apply_rigid_into(F_out, t_out, slots, rotation, translation, F, t, rows=None, bones=None, animation_block=16):
+    """``F_out[a, :, slots] = rotation[a] F[rows[a], :, bones]`` and ``t_out[a, :, slots] =
+    rotation[a] t[rows[a], :, bones] + translation[a]`` for every animation a, in blocks of
+    ``animation_block`` animations, computed in the outputs' dtype.
 
-    The K products of one item are one (3, 3) @ (3, 3K) product: numpy's stacked matmul is about
-    twice as fast on that shape as on K separate 3×3 products (same sums, same rounding)."""
-    count, bones = F.shape[:2]
-    side = np.ascontiguousarray(F.transpose(0, 2, 1, 3)).reshape(count, 3, 3 * bones)
-    F_out = (rotation @ side).reshape(count, 3, bones, 3).transpose(0, 2, 1, 3)
-    t_out = t @ np.swapaxes(rotation, -1, -2) + translation[:, None, :]
-    return F_out, t_out
+    F_out (A, M, B, 3, 3), t_out (A, M, B, 3); slots (k,) bone slots of the outputs; rotation
+    (A, M, 3, 3), translation (A, M, 3); F (A', M, b, 3, 3), t (A', M, b, 3); rows (A,) the
+    animation of F per output animation (default the same); bones (k,) the bones of F (default all).
+    The products are written out entry by entry over whole blocks (numpy's stacked 3×3 matmul is
+    slow per matrix), and stored one bone slot at a time (a fancy-index scatter over all slots
+    is several times slower): on float32 outputs this halves the assembly of 1,000 × 600 frames."""
+    count = F_out.shape[0]
+    dtype = F_out.dtype
+    slots = np.asarray(slots)
+    bones = np.arange(F.shape[2]) if bones is None else np.asarray(bones)
+    whole = slots.size == F_out.shape[2] and np.array_equal(slots, np.arange(slots.size)) \
+        and np.array_equal(bones, np.arange(F.shape[2]))
+    step = max(1, int(animation_block))
+    for a0 in range(0, count, step):
+        block = slice(a0, min(count, a0 + step))
+        F_local, t_local = (F[block], t[block]) if rows is None else (F[rows[block]], t[rows[block]])
+        R = rotation[block].astype(dtype)[:, :, None]  # (n, M, 1, 3, 3)
+        c = translation[block].astype(dtype)[:, :, None]  # (n, M, 1, 3)
+        F_world = np.empty(F_local.shape[:3] + (3, 3), dtype)
+        t_world = np.empty(t_local.shape[:3] + (3,), dtype)
+        for i in range(3):
+            F_world[..., i, :] = R[..., i, 0, None] * F_local[..., 0, :] + R[..., i, 1, None] * F_local[..., 1, :] \
+                + R[..., i, 2, None] * F_local[..., 2, :]
+            t_world[..., i] = R[..., i, 0] * t_local[..., 0] + R[..., i, 1] * t_local[..., 1] \
+                + R[..., i, 2] * t_local[..., 2] + c[..., i]
+        if whole:
+            F_out[block], t_out[block] = F_world, t_world
+        else:
+            for k, slot in zip(bones, slots):
+                F_out[block, :, slot], t_out[block, :, slot] = F_world[:, :, k], t_world[:, :, k]
 
 
 def matrix_to_quaternion(rotations):

@@ -112,7 +112,7 @@ import numpy as np
 import scipy.linalg
 
 from .deformation_gradients import rotation_times_strain
-from .rotations import apply_rigid, heading_and_posture, rotation_exp, rotation_log
+from .rotations import apply_rigid_into, heading_and_posture, rotation_exp, rotation_log
 from .transitions import local_frame_positions
 
 
@@ -381,39 +381,6 @@ class SplicedWalks:
         apply_rigid_into(F_out, t_out, np.arange(self.F.shape[2]), self.rotation, self.translation, self.F, self.t,
                          animation_block=animation_block)
         return F_out, t_out
-
-
-def apply_rigid_into(F_out, t_out, slots, rotation, translation, F, t, rows=None, bones=None, animation_block=16):
-    """``F_out[a, :, slots] = rotation[a] F[rows[a], :, bones]`` and ``t_out[a, :, slots] =
-    rotation[a] t[rows[a], :, bones] + translation[a]`` for every animation a, in blocks of
-    ``animation_block`` animations (float64 arithmetic, stored in the outputs' dtype).
-
-    F_out (A, M, B, 3, 3), t_out (A, M, B, 3); slots (k,) bone slots of the outputs; rotation
-    (A, M, 3, 3), translation (A, M, 3); F (A', M, b, 3, 3), t (A', M, b, 3); rows (A,) the
-    animation of F per output animation (default the same); bones (k,) the bones of F (default all)."""
-    count, frames = F_out.shape[:2]
-    slots = np.asarray(slots)
-    all_bones = bones is None or np.array_equal(bones, np.arange(F.shape[2]))
-    bones = np.arange(F.shape[2]) if bones is None else np.asarray(bones)
-    whole = slots.size == F_out.shape[2] and np.array_equal(slots, np.arange(slots.size))
-    step = max(1, int(animation_block))
-    for a0 in range(0, count, step):
-        block = slice(a0, min(count, a0 + step))
-        n = block.stop - a0
-        # Views where possible: gathers copy (rows picks other walks, bones drops the cut).
-        F_local, t_local = (F[block], t[block]) if rows is None else (F[rows[block]], t[rows[block]])
-        if not all_bones:
-            F_local, t_local = F_local[:, :, bones], t_local[:, :, bones]
-        F_local = F_local.reshape(n * frames, bones.size, 3, 3)
-        t_local = t_local.reshape(n * frames, bones.size, 3)
-        F_world, t_world = apply_rigid(rotation[block].reshape(-1, 3, 3), translation[block].reshape(-1, 3),
-                                       F_local, t_local)
-        F_world = F_world.reshape(n, frames, bones.size, 3, 3)
-        t_world = t_world.reshape(n, frames, bones.size, 3)
-        if whole:
-            F_out[block], t_out[block] = F_world, t_world
-        else:
-            F_out[block, :, slots], t_out[block, :, slots] = F_world, t_world
 
 
 def splice(component, rotations, translations, sources, window=8, dtype=np.float64, anchored=True,

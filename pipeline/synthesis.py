@@ -23,7 +23,7 @@ from .collisions import colliding, vertex_subset
 from .deformation_gradients import gradient_operator
 from .errors import OptionError
 from .graph import ComponentAnalysis
-from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks
+from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks, walk_statistics
 from .splicing import splice_local
 from .transitions import Transitions, bone_centroids
 
@@ -96,7 +96,8 @@ class Synthesis:
     input frame played per component (the walks each animation was assembled from); choice (N, C)
     bookkeeping of the assembly; seams_used (N,) transitions per animation;
     distinct: animations whose walks differ from every other; rejected: counts of animations
-    replaced (collisions, too similar, failed merges)."""
+    replaced (collisions, too similar, failed merges); statistics: per component transitions,
+    mean and shortest segment, coverage (:func:`.motion_graph.walk_statistics`)."""
 
     F: np.ndarray
     t: np.ndarray
@@ -105,6 +106,7 @@ class Synthesis:
     seams_used: np.ndarray
     distinct: int
     rejected: dict
+    statistics: dict = field(default_factory=dict)
 
 
 def validate_request(request, input_frames):
@@ -350,4 +352,4 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     joint = sources.transpose(1, 0, 2).reshape(sources.shape[1], -1)
     distinct = int(np.unique(joint, axis=0).shape[0])
     return Synthesis(F=F, t=t, sources=sources, choice=choice, seams_used=seams_used, distinct=distinct,
-                     rejected=rejected)
+                     rejected=rejected, statistics=walk_statistics(sources, rotations.shape[0]))

@@ -70,7 +70,7 @@ def test_log_exp_inverse(rotations):
 def test_polar_decomposition_matches_scipy_and_near_rotations_shortcut(rotations):
     import scipy.linalg
 
-    from skinsynth.pipeline.rotations import apply_rigid, polar_decomposition, polar_of_near_rotations
+    from skinsynth.pipeline.rotations import apply_rigid_into, polar_decomposition, polar_of_near_rotations
 
     rng = np.random.default_rng(1)
     stretched = rotations @ (np.eye(3) + 0.1 * rng.normal(size=(50, 3, 3)))
@@ -87,12 +87,18 @@ def test_polar_decomposition_matches_scipy_and_near_rotations_shortcut(rotations
     assert np.array_equal(S[:50], np.broadcast_to(np.eye(3), (50, 3, 3)))
     U_ref, S_ref = polar_decomposition(mixed[50:])
     assert np.array_equal(U[50:], U_ref) and np.array_equal(S[50:], S_ref)
-    # apply_rigid: R F and R t + c for K bones per item, against a plain loop.
-    F = rng.normal(size=(50, 4, 3, 3))
-    t = rng.normal(size=(50, 4, 3))
-    c = rng.normal(size=(50, 3))
-    F_out, t_out = apply_rigid(rotations, c, F, t)
-    for n in range(50):
-        for k in range(4):
-            assert np.allclose(F_out[n, k], rotations[n] @ F[n, k], atol=1e-14)
-            assert np.allclose(t_out[n, k], rotations[n] @ t[n, k] + c[n], atol=1e-14)
+    # apply_rigid_into: R F and R t + c for chosen bones of chosen walks into chosen slots, against a
+    # plain loop, across animation blocks.
+    R = rotations[:48].reshape(4, 12, 3, 3)
+    c = rng.normal(size=(4, 12, 3))
+    F = rng.normal(size=(3, 12, 4, 3, 3))
+    t = rng.normal(size=(3, 12, 4, 3))
+    rows, bones, slots = np.array([2, 0, 2, 1]), np.array([3, 1]), np.array([5, 0])
+    F_out, t_out = np.zeros((4, 12, 6, 3, 3)), np.zeros((4, 12, 6, 3))
+    apply_rigid_into(F_out, t_out, slots, R, c, F, t, rows=rows, bones=bones, animation_block=3)
+    for a in range(4):
+        for m in range(12):
+            for bone, slot in zip(bones, slots):
+                assert np.allclose(F_out[a, m, slot], R[a, m] @ F[rows[a], m, bone], atol=1e-14)
+                assert np.allclose(t_out[a, m, slot], R[a, m] @ t[rows[a], m, bone] + c[a, m], atol=1e-14)
+    assert not F_out[:, :, [1, 2, 3, 4]].any()
