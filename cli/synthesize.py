@@ -101,6 +101,10 @@ class _LazyCrowd:
 @click.option("--usd", "usd_dir", type=click.Path(file_okay=False), default=None, help="Also write one USD point cache per animation here.")
 @click.option("--crowd", type=click.Path(dir_okay=False), default=None, help="Also write one USD stage with every animation on a grid.")
 @click.option("--exr", "exr_dir", type=click.Path(file_okay=False), default=None, help="Also write one vertex-animation texture per animation here.")
+@click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,
+              help="Write PNGs here for the first --plot-count animations: the input frame each component plays "
+                   "at each output frame, seams marked, and the largest vertex acceleration against the input's.")
+@click.option("--plot-count", default=4, show_default=True, type=int, help="Animations --plot draws.")
 @click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
               help="Up axis (ground alignment, ground plane, crowd grid, USD).  [default: the graph's, Y]")
 @click.option("--device", default="auto", show_default=True, help="Where vertex caches are skinned: auto, cpu, cuda or cuda:N.")
@@ -112,7 +116,7 @@ class _LazyCrowd:
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
                min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, up_axis,
-               device, jobs, as_json, quiet):
+               plot_dir, plot_count, device, jobs, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
     Random walks over the motion graph (or walks through targeted frames), splicing at the
@@ -143,7 +147,11 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         jobs = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     if jobs < 1:
         raise OptionError(f"--jobs must be at least 1 (got {jobs})")
-    device = resolve_device(device) if (usd_dir or crowd or exr_dir) else None
+    if plot_count < 1:
+        raise OptionError(f"--plot-count must be at least 1 (got {plot_count})")
+    if plot_dir is not None and os.path.exists(plot_dir) and not os.path.isdir(plot_dir):
+        raise OptionError(f"{plot_dir}: --plot needs a folder, and this is a file")
+    device = resolve_device(device) if (usd_dir or crowd or exr_dir or plot_dir) else None
     graph_file = read_graph(path)
     skin = graph_file.skin
     if up_axis is None:
@@ -195,6 +203,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     written = [output]
     if usd_dir or crowd or exr_dir:
         written += _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, threads=jobs)
+    if plot_dir is not None:
+        written += _write_plots(plot_dir, skin, result, min(plot_count, count), device)
     stats = result.statistics
     report = {"animations": int(result.F.shape[0]), "frames": int(frames), "seconds": round(seconds, 3),
               "distinct": result.distinct, "transitions_used": int(np.sum(result.seams_used)),
@@ -215,7 +225,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                    f"{', '.join(map(str, stats['shortest_segment']))} (≥ {min_segment} asked); input frames played: "
                    f"{', '.join(f'{c:.0%}' for c in stats['coverage'])} (per component)")
         if len(written) > 1:
-            click.echo(f"caches: {', '.join(written[1:]) if len(written) < 6 else written[1] + ' …'}")
+            click.echo(f"also wrote: {', '.join(written[1:]) if len(written) < 6 else written[1] + ' …'}")
 
 
 def _graph_options(graph):
@@ -241,6 +251,28 @@ def _read_obstacle(path):
     if len(getattr(mesh, "faces", [])) == 0:
         raise FormatError(path, "the obstacle has no faces")
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
+
+
+def _write_plots(folder, skin, result, count, device):
+    """One PNG per animation: sources per component and seams, max vertex acceleration / the
+    input's (vertices baked with the skin's own weights)."""
+    from skinsynth.formats.plots import write_synthesis_plot
+    from skinsynth.gpu import lbs
+    from skinsynth.pipeline.evaluation import frame_accelerations
+
+    os.makedirs(folder, exist_ok=True)
+    largest = np.nanmax(frame_accelerations(skin.examples))
+    written = []
+    for a in range(count):
+        vertices = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, result.F[a], result.t[a],
+                       device=device)
+        ratio = frame_accelerations(vertices) / largest
+        target = os.path.join(folder, f"animation_{a:04d}.png")
+        seams = int(np.sum(result.sources[:, a, 1:] != result.sources[:, a, :-1] + 1))
+        write_synthesis_plot(target, result.sources[:, a], ratio,
+                             f"animation {a}: {seams} seams, largest acceleration {np.nanmax(ratio):.2f}× the input's")
+        written.append(target)
+    return written
 
 
 def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, threads=1):

@@ -31,6 +31,15 @@ def largest_side(points):
     return float(np.ptp(points, axis=0).max())
 
 
+def frame_accelerations(vertices):
+    """Largest vertex acceleration ‖x(m+1) − 2 x(m) + x(m−1)‖ per frame: vertices (M, V, 3) ->
+    (M,), NaN at the first and last frame (no second difference there)."""
+    out = np.full(vertices.shape[0], np.nan)
+    if vertices.shape[0] >= 3:
+        out[1:-1] = np.linalg.norm(np.diff(vertices, n=2, axis=0), axis=-1).max(axis=1)
+    return out
+
+
 def relative_errors(predicted, truth, scale):
     """(per-frame RMS (F,), overall RMS) of vertex distances divided by ``scale``."""
     squared = np.sum((predicted - truth) ** 2, axis=2)

@@ -557,10 +557,15 @@ def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, 
         lo, hi = t_indptr[cur], t_indptr[cur + 1]
         cs_s = running[t]
         cnt = np.where(s == last, cs_s[hi] - cs_s[lo], 0)
+        loose = np.zeros(count, bool)  # walks choosing among the plain graph's edges this step
         if relaxed.size:
             cs_p = np.concatenate([[0], np.cumsum(plain_next[t_target])])
             can_play[relaxed] = play_ok[cur[relaxed]] & plain_next[nxt_play[relaxed]]
-            cnt[relaxed] = cs_p[hi[relaxed]] - cs_p[lo[relaxed]]
+            # A relaxed walk that must move takes, where it can, a transition that makes it
+            # strict again: else it can fall back into the same trap at every turn.
+            back = cs_s[hi[relaxed]] - cs_s[lo[relaxed]]
+            loose[relaxed] = back == 0
+            cnt[relaxed] = np.where(back > 0, back, cs_p[hi[relaxed]] - cs_p[lo[relaxed]])
         u = uniforms[t]
         take = ((cnt > 0) & (s == last) & (u[0] < p)) | ~can_play
         movers = np.flatnonzero(take)
@@ -569,10 +574,9 @@ def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, 
                 raise RuntimeError("internal error: a walk has no valid move")
             rank = np.minimum((u[1, movers] * cnt[movers]).astype(np.int64), cnt[movers] - 1)
             edge = np.searchsorted(cs_s, cs_s[lo[movers]] + rank + 1) - 1  # the rank-th valid edge
-            if relaxed.size:
-                loose = ~strict[t, cur[movers], s[movers]]
-                if loose.any():
-                    edge[loose] = np.searchsorted(cs_p, cs_p[lo[movers[loose]]] + rank[loose] + 1) - 1
+            if loose[movers].any():
+                plain_movers = loose[movers]
+                edge[plain_movers] = np.searchsorted(cs_p, cs_p[lo[movers[plain_movers]]] + rank[plain_movers] + 1) - 1
             nxt_play[movers] = t_target[edge]
             s_play[movers] = 0
         cur, s = nxt_play, s_play

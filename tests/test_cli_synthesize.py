@@ -124,7 +124,32 @@ def test_bad_inputs(files, tmp_path):
     assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 5,
                           "--target", "7"), "FRAME@TIME")
     assert_user_error(cli("synthesize", files / "skin.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 5), "build-graph")
+    for option, value in (("--min-segment", 0), ("--window", -1), ("--plot-count", 0), ("--jobs", 0)):
+        assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 30,
+                              option, value, "--plot", tmp_path / "plots"), option)
+    for option, value in (("--min-segment", 0), ("--coverage", 1.5), ("--posture-weight", -1),
+                          ("--posture-weight", "inf")):
+        assert_user_error(cli("build-graph", files / "skin.h5", "-o", tmp_path / "g.h5", option, value), option)
     assert_folder_holds(tmp_path, ["bad.obj"])
+
+
+def test_plots_show_each_animation_and_reports_name_segments_and_coverage(files, tmp_path):
+    report = json.loads(assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 3, "-m", 80,
+                                      "--plot", tmp_path / "plots", "--plot-count", 2, "--json",
+                                      "--device", "cpu")).stdout)
+    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["animation_0000.png", "animation_0001.png"]
+    assert all((tmp_path / "plots" / p).read_bytes()[:4] == b"\x89PNG" for p in ("animation_0000.png",))
+    _, _, sources = bones(tmp_path / "b.h5")
+    seams = np.count_nonzero(sources[..., 1:] != sources[..., :-1] + 1, axis=(1, 2))
+    assert report["transitions_used_per_component"] == seams.tolist()
+    assert report["min_segment"] == 4  # the graph's (build-graph --min-segment 4)
+    assert report["coverage"] == [round(np.unique(c).size / 40, 4) for c in sources]
+    assert min(report["shortest_segment"]) >= 4
+    summary = json.loads(assert_ok(cli("inspect", tmp_path / "b.h5", "--json")).stdout)
+    assert summary["coverage_per_component"] == report["coverage"]
+    assert summary["min_segment"] == 4 and summary["alignment"] == "ground" and summary["blend"] == "bones"
+    graph = json.loads(assert_ok(cli("inspect", files / "graph.h5", "--json")).stdout)
+    assert graph["min_segment"] == 4 and len(graph["recurrent_share_per_component"]) == graph["components"]
 
 
 def test_multi_component_output_is_a_whole_animation(files, tmp_path):
