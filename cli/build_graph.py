@@ -59,7 +59,8 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.graph import bone_layout, build_graph as analyse, default_min_segment, validate_graph_options
+    from skinsynth.pipeline.graph import bone_layout, build_graph as analyse, validate_graph_options
+    from skinsynth.pipeline.motion_graph import default_min_segment
 
     check_output_path(output, (".h5", ".hdf5"))
     if plot_dir is not None and os.path.exists(plot_dir) and not os.path.isdir(plot_dir):

@@ -14,7 +14,6 @@ import numpy as np
 
 from .deformation_gradients import deformation_gradients, gradient_operator, rotation_strain
 from .errors import OptionError
-from .motion_graph import default_min_segment  # noqa: F401  (re-exported for the CLI)
 from .key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
 from .transitions import bone_centroids, find_transitions, local_frame_positions
 
