@@ -637,6 +637,7 @@ class _Workspace:
 
     def __init__(self, samples, puppet, device):
         wp, vec8 = runtime.warp(), _vec8()
+        samples = int(samples)  # chunk bounds may be numpy integers, which warp does not take as a shape
         bones, n_p = puppet.bones, puppet.training.shape[0]
         shape = (samples, bones)
         self.xi = wp.empty((samples, n_p), dtype=wp.float32, device=device)

@@ -173,6 +173,16 @@ def test_run_puppet_chunks_threads_and_out(monkeypatch):
     assert {"kernel_vectors", "predict", "solve_translations", "skin"} <= set(timings)
 
 
+@pytest.mark.parametrize("samples", [3, 17])
+def test_run_puppet_takes_any_sample_count_over_threads(samples):
+    # Thread bounds are numpy integers; a chunk smaller than the step used one as warp's shape.
+    rng = np.random.default_rng(samples)
+    puppet = random_puppet(rng, "gaussian", influences=3)
+    x, c, frames = rng.normal(size=(samples, 12)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
+    expected = pk.reference_run_puppet(puppet, x, c, frames)
+    assert relative_error(pk.run_puppet(puppet, x, c, frames, threads=2), expected) < TOL
+
+
 def test_run_puppet_rejects_bad_input():
     rng = np.random.default_rng(2)
     puppet = random_puppet(rng, "linear", solver=False)
