@@ -62,7 +62,7 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.pipeline.graph import bone_layout, build_graph as analyse, validate_graph_options
     from skinsynth.pipeline.motion_graph import default_min_segment
 
-    check_output_path(output, (".h5", ".hdf5"))
+    check_output_path(output, (".h5", ".hdf5"), inputs=[path])
     if plot_dir is not None and os.path.exists(plot_dir) and not os.path.isdir(plot_dir):
         fail(f"{plot_dir}: --plot needs a folder, and this is a file")
     model = read_model(path)

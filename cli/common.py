@@ -40,20 +40,71 @@ def user_errors(command):
             fail(str(error))
         except MemoryError:
             fail("out of memory: the input is too large for this machine at these settings")
-        except KeyboardInterrupt:
-            click.echo("skinsynth: interrupted; no output written", err=True)
-            sys.exit(130)
+        except KeyboardInterrupt as stop:
+            interrupted(stop)
     return wrapper
 
 
-def check_output_path(path, suffixes):
-    """Refuse an output path whose extension this command cannot write, before any work."""
+def interrupted(stop):
+    """Exit after a signal: say which and what was written (only files complete in place)."""
+    import signal
+
+    from skinsynth.formats.atomic import WRITTEN
+
+    number = getattr(stop, "signum", signal.SIGINT)
+    name = signal.Signals(number).name
+    done = f"wrote only {', '.join(WRITTEN)}" if WRITTEN else "no output written"
+    click.echo(f"skinsynth: interrupted ({name}); {done}", err=True)
+    sys.exit(128 + number)
+
+
+def raise_interrupted(signum, frame):
+    """Signal handler: SIGTERM and SIGHUP end the command as Ctrl-C does (outputs cleaned up)."""
+    from skinsynth.formats.atomic import Interrupted
+
+    raise Interrupted(signum)
+
+
+def check_output_path(path, suffixes, inputs=()):
+    """Refuse, before any work, an output path whose extension this command cannot write, whose
+    folder is missing or not writable, or that is one of ``inputs`` (the same file by device and
+    inode, so another name, a hard link or a symbolic link to an input is caught too)."""
     lower = str(path).lower()
     if not any(lower.endswith(s) for s in suffixes):
         fail(f"{path}: output must end in {', '.join(suffixes)}")
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         fail(f"{path}: cannot write here: the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        fail(f"{path}: cannot write here: the folder {folder} is not writable")
+    check_not_an_input(path, inputs)
+
+
+def check_side_folder(folder):
+    """Refuse, before any work, a folder for side outputs that is a file, or that cannot be made
+    or written (its nearest existing ancestor decides)."""
+    if os.path.exists(folder) and not os.path.isdir(folder):
+        fail(f"{folder}: needs a folder, and this is a file")
+    existing = os.path.abspath(folder)
+    while not os.path.exists(existing):
+        existing = os.path.dirname(existing)
+    if not os.access(existing, os.W_OK | os.X_OK):
+        fail(f"{folder}: cannot write here: {existing} is not writable")
+
+
+def check_not_an_input(path, inputs):
+    """Refuse an output that is one of the input files (same device and inode)."""
+    try:
+        target = os.stat(path)
+    except OSError:
+        return  # not there yet: it cannot be an input
+    for source in inputs:
+        try:
+            found = os.stat(source)
+        except OSError:
+            continue
+        if (found.st_dev, found.st_ino) == (target.st_dev, target.st_ino):
+            fail(f"{path}: the output is the input {source}; write the result to another file")
 
 
 def command_line():

@@ -39,7 +39,7 @@ def evaluate(path, as_json, plot, skinning, pca_components):
     from skinsynth.pipeline.evaluation import evaluate_puppet
 
     if plot is not None:
-        check_output_path(plot, (".png",))
+        check_output_path(plot, (".png",), inputs=[path])
     puppet, test_frames, skin = read_puppet(path)
     if len(test_frames) == 0:
         fail(f"{path}: no held-out frames (trained with --train-frames covering every example); "

@@ -35,7 +35,7 @@ def export(path, output, kind, device, half, max_width, up_axis):
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs, resolve_device
 
-    check_output_path(output, USD_SUFFIXES + (".exr",))
+    check_output_path(output, USD_SUFFIXES + (".exr",), inputs=[path])
     if max_width < 1:
         fail(f"--max-width must be at least 1 (got {max_width})")
     device = resolve_device(device)

@@ -46,7 +46,7 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, r
     from skinsynth.pipeline.rotations import align_hemispheres, rigid_to_dual_quaternion
     from skinsynth.pipeline.skin_fit import bone_rest_frames, bounding_box_diagonal, fit_skin as fit, validate_fit_options
 
-    check_output_path(output, (".h5", ".hdf5"))
+    check_output_path(output, (".h5", ".hdf5"), inputs=[input_spec])
     if fps is not None and not fps > 0:
         raise OptionError(f"--fps must be positive (got {fps})")
     if tolerance < 0 or transform_steps < 0:

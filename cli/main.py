@@ -1,6 +1,8 @@
 """The ``skinsynth`` command: one click group, one module per subcommand."""
 
+import signal
 import sys
+import threading
 
 import click
 
@@ -23,13 +25,21 @@ class SkinsynthGroup(click.Group):
     def main(self, args=None, prog_name=None, **extra):
         args = list(sys.argv[1:] if args is None else args)
         common.INVOCATION[:] = ["skinsynth"] + [str(a) for a in args]
+        from skinsynth.formats.atomic import WRITTEN
+
+        WRITTEN.clear()  # what this command writes (several run in one process under tests)
+        if threading.current_thread() is threading.main_thread():
+            for name in ("SIGTERM", "SIGHUP"):
+                if hasattr(signal, name) and signal.getsignal(getattr(signal, name)) is not signal.SIG_IGN:
+                    signal.signal(getattr(signal, name), common.raise_interrupted)
         try:
             return super().main(args, prog_name=prog_name or "skinsynth", standalone_mode=False, **extra)
         except click.exceptions.Exit as done:  # --help, --version
             sys.exit(done.exit_code)
         except click.exceptions.Abort:
-            click.echo("skinsynth: interrupted; no output written", err=True)
-            sys.exit(130)
+            common.interrupted(KeyboardInterrupt())
+        except KeyboardInterrupt as stop:  # a signal outside a command's own handling
+            common.interrupted(stop)
         except click.ClickException as error:
             ctx = getattr(error, "ctx", None)
             hint = f" (see '{ctx.command_path} --help')" if isinstance(error, click.UsageError) and ctx else ""

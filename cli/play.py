@@ -52,7 +52,7 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
     from skinsynth.pipeline.evaluation import largest_side
     from skinsynth.pipeline.playback import grid_offsets, host_inputs, instance_trajectories, world_bones
 
-    check_output_path(output, OUTPUTS)
+    check_output_path(output, OUTPUTS, inputs=[path, *control_files])
     device = resolve_device(device)
     puppet, _, skin = read_puppet(path)
     if translation_solver and puppet.translations is None:

@@ -50,7 +50,7 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
     from skinsynth.pipeline.controls import select_controls as select
     from skinsynth.pipeline.errors import OptionError
 
-    check_output_path(output, (".h5", ".hdf5"))
+    check_output_path(output, (".h5", ".hdf5"), inputs=[input_path])
     user = None
     if vertex_list is not None:
         try:

@@ -7,7 +7,7 @@ import time
 import click
 import numpy as np
 
-from .common import Progress, check_output_path, command_line, tool_version, user_errors
+from .common import Progress, check_output_path, check_side_folder, command_line, tool_version, user_errors
 
 
 def _target(text):
@@ -140,17 +140,18 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.pipeline.motion_graph import default_min_segment
     from skinsynth.pipeline.synthesis import Request, component_from_file, synthesize as make, validate_request
 
-    check_output_path(output, (".h5", ".hdf5"))
+    check_output_path(output, (".h5", ".hdf5"), inputs=[path, *obstacles])
     if crowd is not None:
-        check_output_path(crowd, (".usd", ".usda", ".usdc"))
+        check_output_path(crowd, (".usd", ".usda", ".usdc"), inputs=[path, *obstacles, output])
+    for folder in (usd_dir, exr_dir, plot_dir):  # side folders: writable before any work
+        if folder is not None:
+            check_side_folder(folder)
     if jobs is None:
         jobs = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     if jobs < 1:
         raise OptionError(f"--jobs must be at least 1 (got {jobs})")
     if plot_count < 1:
         raise OptionError(f"--plot-count must be at least 1 (got {plot_count})")
-    if plot_dir is not None and os.path.exists(plot_dir) and not os.path.isdir(plot_dir):
-        raise OptionError(f"{plot_dir}: --plot needs a folder, and this is a file")
     device = resolve_device(device) if (usd_dir or crowd or exr_dir or plot_dir) else None
     graph_file = read_graph(path)
     skin = graph_file.skin

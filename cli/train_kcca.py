@@ -54,7 +54,7 @@ def train_kcca(path, output, kernel, bases, regularization, translation_solver, 
     from skinsynth.pipeline.kcca import KERNELS
     from skinsynth.pipeline.puppet import parse_frame_spec, train_puppet
 
-    check_output_path(output, (".h5", ".hdf5"))
+    check_output_path(output, (".h5", ".hdf5"), inputs=[path])
     if kernel not in KERNELS:
         raise OptionError(f"--kernel {kernel!r} does not exist; choose one of {', '.join(KERNELS)}")
     if regularization != "auto":
@@ -62,11 +62,15 @@ def train_kcca(path, output, kernel, bases, regularization, translation_solver, 
             regularization = float(regularization)
         except ValueError:
             raise OptionError(f"--regularization must be a number or 'auto' (got {regularization!r})") from None
+        if not 0.0 < regularization < np.inf:
+            raise OptionError(f"--regularization must be a positive finite number (got {regularization})")
     if translation_prior != "auto":
         try:
             translation_prior = float(translation_prior)
         except ValueError:
             raise OptionError(f"--translation-prior must be a number or 'auto' (got {translation_prior!r})") from None
+        if not 0.0 <= translation_prior < np.inf:
+            raise OptionError(f"--translation-prior must be a finite number ≥ 0 (got {translation_prior})")
     model = read_model(path, stages=("controls",))
     skin = read_skin(path, model)
     controls = read_controls(path, model)

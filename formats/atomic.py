@@ -2,13 +2,79 @@
 
 An interrupted or failed command therefore never leaves a partial or corrupt file, and a
 failed overwrite leaves the old file intact.
+
+Signals: while a file is being written (in the main thread), SIGINT, SIGTERM and SIGHUP are held
+back rather than raised wherever the interpreter happens to be (inside HDF5's C callbacks a
+KeyboardInterrupt was reported as "Exception ignored" and lost, so an interrupted command
+finished with status 0). Once the writer is done, a held-back signal abandons the file: the
+temporary is removed, the old file stays, and :class:`Interrupted` is raised. So a file is either
+complete and in place or not touched, and :data:`WRITTEN` lists the ones that were.
 """
 
 import contextlib
 import os
+import signal
 import tempfile
+import threading
 
 from .errors import FormatError
+
+#: The outputs this process has renamed into place, in order (what an interruption leaves).
+WRITTEN = []
+_HELD = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s is not None)
+
+
+class Interrupted(KeyboardInterrupt):
+    """A signal (SIGINT, SIGTERM, SIGHUP) stopped the command; ``signum`` says which."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = int(signum)
+
+
+@contextlib.contextmanager
+def held_signals():
+    """Hold SIGINT, SIGTERM and SIGHUP back inside the block (main thread only; elsewhere
+    nothing changes); yields the list of the signal numbers that arrived meanwhile."""
+    pending = []
+    if threading.current_thread() is not threading.main_thread():
+        yield pending
+        return
+    previous = {}
+    for number in _HELD:
+        handler = signal.getsignal(number)
+        if handler is signal.SIG_IGN or handler is None:
+            continue
+        previous[number] = handler
+        signal.signal(number, lambda signum, frame: pending.append(signum))
+    try:
+        yield pending
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+
+def _sweep_stale(folder, prefix, suffix):
+    """Remove ``prefix<pid>.*<suffix>`` temporaries of processes that no longer exist."""
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return
+    for name in names:
+        if not (name.startswith(prefix) and name.endswith(suffix)):
+            continue
+        pid = name[len(prefix):].split(".", 1)[0]
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid), 0)
+            continue  # its writer is still running
+        except ProcessLookupError:
+            pass
+        except OSError:  # e.g. another user's process: leave it
+            continue
+        with contextlib.suppress(OSError):
+            os.remove(os.path.join(folder, name))
 
 
 @contextlib.contextmanager
@@ -17,7 +83,9 @@ def atomic_output(path):
 
     The suffix is kept because USD and OpenEXR choose their encoding from the extension.
     On success the temporary file is fsynced and renamed onto ``path``; on any exception it
-    is removed and the exception propagates.
+    is removed and the exception propagates. The temporary's name holds the writer's process
+    id: one left by a writer killed outright (SIGKILL, a power cut) is removed by the next write
+    of the same file once that process is gone.
     """
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
@@ -26,8 +94,10 @@ def atomic_output(path):
     suffix = "." + ext if dot else ""
     if not os.path.isdir(folder):
         raise FormatError(path, f"cannot write here: the folder {folder} does not exist")
+    prefix = f".{stem or base}."
+    _sweep_stale(folder, prefix, ".tmp" + suffix)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{stem or base}.", suffix=".tmp" + suffix, dir=folder)
+        fd, tmp = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=".tmp" + suffix, dir=folder)
     except OSError as error:
         raise FormatError(path, f"cannot write here: {error.strerror}") from None
     os.close(fd)
@@ -35,12 +105,18 @@ def atomic_output(path):
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(tmp, 0o666 & ~umask)
-    try:
-        yield tmp
-        with open(tmp, "rb+") as handle:
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.remove(tmp)
-        raise
+    with held_signals() as pending:
+        try:
+            yield tmp
+            if pending:  # stopped while writing: abandon the file, keep the old one
+                raise Interrupted(pending[0])
+            with open(tmp, "rb+") as handle:
+                os.fsync(handle.fileno())
+            os.replace(tmp, path)
+            WRITTEN.append(path)
+        except BaseException:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(tmp)
+            raise
+    if pending:  # arrived during the rename: the file is complete; stop now
+        raise Interrupted(pending[0])

@@ -17,6 +17,8 @@ from __future__ import annotations
 import os
 
 import numpy as np
+
+from .errors import require_finite
 import OpenEXR
 
 from skinsynth.formats.atomic import atomic_output
@@ -39,8 +41,8 @@ def write_vat(path, rest_vertices, vertices, fps, max_width=8192, half=False) ->
         raise ValueError(f"rest_vertices must have shape (V, 3) with V > 0, got {rest.shape}")
     if vertices.ndim != 3 or vertices.shape[1:] != rest.shape or len(vertices) == 0:
         raise ValueError(f"vertices must have shape (F, {len(rest)}, 3) with F > 0, got {vertices.shape}")
-    if not (np.isfinite(rest).all() and np.isfinite(vertices).all()):
-        raise ValueError("vertices contain NaN or inf")
+    require_finite(path, "the rest pose", rest)
+    require_finite(path, "the vertices", vertices)
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be positive, got {fps}")
     if int(max_width) != max_width or max_width < 1:

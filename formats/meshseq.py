@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skinsynth.formats.errors import FormatError
+from skinsynth.formats.errors import FormatError, require_finite
 
 FRAME_EXTENSIONS = (".obj", ".ply", ".off")
 USD_EXTENSIONS = (".usd", ".usda", ".usdc")
@@ -274,6 +274,7 @@ def write_vertex_animation(path, vertices, faces, fps, names=None):
     from .atomic import atomic_output
 
     vertices = np.asarray(vertices, dtype=np.float32)
+    require_finite(path, "the vertices", vertices)
     with atomic_output(path) as tmp:
         with h5py.File(tmp, "w") as f:
             data = vertices[0] if vertices.shape[0] == 1 else vertices

@@ -21,7 +21,7 @@ import h5py
 import numpy as np
 
 from .atomic import atomic_output
-from .errors import FormatError
+from .errors import FormatError, require_finite
 
 FORMAT_NAME = "skinsynth"
 FORMAT_VERSION = 1
@@ -72,6 +72,21 @@ def _write_group(group, contents):
             group.create_dataset(name, data=array, track_times=False)
 
 
+def _require_finite_groups(path, groups, prefix=""):
+    """Refuse to write any float dataset or attribute holding NaN or inf (named in the error)."""
+    for name, value in groups.items():
+        if isinstance(value, CopyFrom):
+            continue  # forwarded from a file that was checked when it was written
+        if isinstance(value, dict):
+            _require_finite_groups(path, value, f"{prefix}/{name}")
+            continue
+        array = value.array if isinstance(value, Uncompressed) else value
+        if isinstance(array, (str, bytes)):
+            continue
+        label = f"{prefix}/@{name[1:]}" if name.startswith("@") else f"{prefix}/{name}"
+        require_finite(path, label, array)
+
+
 def write_model(path, stage, groups, provenance, tool_version):
     """Write a model file atomically.
 
@@ -81,6 +96,7 @@ def write_model(path, stage, groups, provenance, tool_version):
     """
     if stage not in STAGES:
         raise ValueError(f"unknown stage {stage!r}")
+    _require_finite_groups(path, groups)
     with atomic_output(path) as tmp:
         with h5py.File(tmp, "w", track_order=True) as f:
             f.attrs["format"] = FORMAT_NAME

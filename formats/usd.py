@@ -13,7 +13,7 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 from skinsynth.formats.atomic import atomic_output
-from skinsynth.formats.errors import FormatError
+from skinsynth.formats.errors import FormatError, require_finite
 from skinsynth.formats.meshseq import USD_EXTENSIONS
 
 METERS_PER_UNIT = 1.0  # example sequences carry no unit; DCCs then import them at the size they have
@@ -28,7 +28,7 @@ def write_points_cache(path, vertices, faces, fps, prim_name="mesh", up_axis="Y"
     The encoding (.usda text, .usdc/.usd binary) follows the extension. Raises ValueError for
     malformed arrays; nothing is left on disk when writing fails.
     """
-    vertices = _float_array("vertices", vertices, (None, None, 3))
+    vertices = _float_array("vertices", vertices, (None, None, 3), path)
     write_points_characters(path, vertices[None], faces, fps, names=[prim_name], up_axis=up_axis, group=None)
 
 
@@ -40,9 +40,9 @@ def write_points_characters(path, vertices, faces, fps, names=None, up_axis="Y",
     fit in memory at once.
     """
     if isinstance(vertices, np.ndarray) or not hasattr(vertices, "__getitem__"):
-        vertices = _float_array("vertices", vertices, (None, None, None, 3))
+        vertices = _float_array("vertices", vertices, (None, None, None, 3), path)
     characters = len(vertices)
-    first = _float_array("vertices[0]", vertices[0], (None, None, 3))
+    first = _float_array("vertices[0]", vertices[0], (None, None, 3), path)
     frames, count = first.shape[:2]
     faces = _faces("faces", faces, count)
     names = _character_names(names, characters)
@@ -52,7 +52,7 @@ def write_points_characters(path, vertices, faces, fps, names=None, up_axis="Y",
         stage = _new_stage(tmp, fps, frames, up_axis)
         parent = _group_parent(stage, group)
         for c, name in enumerate(names):
-            character = first if c == 0 else _float_array(f"vertices[{c}]", vertices[c], (frames, count, 3))
+            character = first if c == 0 else _float_array(f"vertices[{c}]", vertices[c], (frames, count, 3), path)
             mesh = _define_mesh(stage, parent.AppendChild(name), faces)
             if group is None and c == 0:
                 stage.SetDefaultPrim(mesh.GetPrim())
@@ -102,9 +102,9 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
     rest = _float_array("rest_vertices", rest_vertices, (None, 3))
     count = len(rest)
     faces = _faces("faces", faces, count)
-    rotations = _float_array("rotations", rotations, (None, None, None, 3, 3))
+    rotations = _float_array("rotations", rotations, (None, None, None, 3, 3), path)
     characters, frames, bones = rotations.shape[:3]
-    translations = _float_array("translations", translations, (characters, frames, bones, 3))
+    translations = _float_array("translations", translations, (characters, frames, bones, 3), path)
     centers = _float_array("bind_centers", bind_centers, (bones, 3))
     indices, weights = _influences(bone_indices, bone_weights, count, bones)
     _check_rotations(rotations.reshape(-1, bones, 3, 3))
@@ -216,12 +216,16 @@ def _extent(points):
 # ---------------------------------------------------------------- argument checks (programming errors)
 
 
-def _float_array(name, values, shape):
+def _float_array(name, values, shape, path=None):
+    """values as float64 of ``shape`` (None: any size); ValueError for a wrong shape; NaN or inf
+    is a FormatError naming ``path`` when given (a result out of range), else a ValueError."""
     array = np.asarray(values, dtype=np.float64)
     if array.ndim != len(shape) or any(want is not None and got != want for got, want in zip(array.shape, shape)):
         wanted = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
         raise ValueError(f"{name} must have shape {wanted}, got {array.shape}")
-    if not np.isfinite(array).all():
+    if path is not None:
+        require_finite(path, name, array)
+    elif not np.isfinite(array).all():
         raise ValueError(f"{name} contains NaN or inf")
     return array
 

@@ -133,14 +133,16 @@ def assemble(components, parts, bones, rng, tries=32, dtype=np.float32):
         U_c, S_c = polar_of_near_rotations(part.F[:, :, where])
         U_a, S_a = polar_of_near_rotations(F[:, :, cut])
         candidates = np.argsort(rng.random((count, count)), axis=1)[:, :tries]  # a seeded order per animation
-        # Eq. 12 for every (a, candidate) pair from Gram matrices: ‖Sa−Sc‖² = ‖Sa‖² + ‖Sc‖² − 2⟨Sa, Sc⟩.
+        # Eq. 12 for every (a, candidate) pair, as a mean over frames: eq. 12 sums over the M frames
+        # but T_c is a single frame's ‖S‖², so taken literally it rejects every pair of long
+        # animations (module notes). Summed in numpy's fixed pairwise order, one animation at a
+        # time, never through BLAS: a BLAS product (a Gram matrix) sums in an order that depends
+        # on its thread count, which flipped borderline merges between --jobs 1 and 2.
         flat_a, flat_c = S_a.reshape(count, -1), S_c.reshape(count, -1)
-        inner = flat_a @ flat_c.T
-        norm_a, norm_c = np.sum(flat_a ** 2, axis=1), np.sum(flat_c ** 2, axis=1)
-        rows = np.arange(count)[:, None]
-        # Mean over frames: eq. 12 sums over the M frames but T_c is a single frame's ‖S‖², so taken
-        # literally it rejects every pair of long animations (documented in the module notes).
-        difference = np.maximum(norm_a[:, None] + norm_c[None, :] - 2.0 * inner, 0.0)[rows, candidates] / frames
+        difference = np.empty(candidates.shape)
+        for a in range(count):
+            gap = flat_c[candidates[a]] - flat_a[a]
+            difference[a] = np.sum(gap * gap, axis=1) / frames
         peak_a = np.max(np.sum(S_a ** 2, axis=(-1, -2)), axis=1)
         peak_c = np.max(np.sum(S_c ** 2, axis=(-1, -2)), axis=1)
         threshold = 0.05 * np.maximum(peak_a[:, None], peak_c[candidates])  # Zheng's T_c

@@ -214,11 +214,24 @@ def motion_graphs(components, forbidden=None):
     return [MotionGraph.from_transitions(c.transitions, forbidden=forbidden) for c in components]
 
 
-def _one_blas_thread():
-    """Worker initialiser: each process already has a core; BLAS threads would oversubscribe."""
+def _worker_setup():
+    """Worker initialiser: one BLAS thread (each process already has a core; more would
+    oversubscribe); signals left to the parent, which ends its workers when it stops; and, on
+    Linux, death with the parent even when it is killed outright (no orphan keeps computing)."""
+    import signal
+    import sys
+
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=1, user_api="blas")
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN if name != "SIGTERM" else signal.SIG_DFL)
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        PR_SET_PDEATHSIG = 1
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
 
 
 def _shared_arrays(buffer, shapes):
@@ -295,11 +308,17 @@ def _run_batches(args, batches, jobs, progress, done_before):
         from concurrent.futures import ProcessPoolExecutor
 
         try:
-            with ProcessPoolExecutor(max_workers=jobs, initializer=_one_blas_thread, mp_context=context) as pool:
-                futures = [pool.submit(_batch_for_parent, token, int(offsets[i]), args, b, n)
-                           for i, (b, n) in enumerate(batches)]
-                for i, (future, (_, n)) in enumerate(zip(futures, batches)):
-                    keep(i, n, future.result())
+            with ProcessPoolExecutor(max_workers=jobs, initializer=_worker_setup, mp_context=context) as pool:
+                try:
+                    futures = [pool.submit(_batch_for_parent, token, int(offsets[i]), args, b, n)
+                               for i, (b, n) in enumerate(batches)]
+                    for i, (future, (_, n)) in enumerate(zip(futures, batches)):
+                        keep(i, n, future.result())
+                except BaseException:  # stopped (a signal) or failed: end the workers now, not after their batch
+                    for process in list(getattr(pool, "_processes", {}).values()):
+                        process.terminate()
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    raise
         finally:
             _SHARED_OUTPUT.pop(token, None)
     else:
