@@ -77,8 +77,22 @@ def _sweep_stale(folder, prefix, suffix):
             os.remove(os.path.join(folder, name))
 
 
+def _out_of_space(error):
+    """Whether an exception from a writer means the disk (or quota) is full: an OSError with
+    ENOSPC/EDQUOT, or a library error quoting it (h5py reports HDF5's write failures so)."""
+    import errno
+
+    if isinstance(error, OSError) and error.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)):
+        return True
+    return "No space left on device" in str(error) or "Disk quota exceeded" in str(error)
+
+
+def _megabytes(count):
+    return f"{count / 2 ** 20:.1f} MB"
+
+
 @contextlib.contextmanager
-def atomic_output(path):
+def atomic_output(path, expected_bytes=0):
     """Yield a temporary path in the target's folder with the target's suffix.
 
     The suffix is kept because USD and OpenEXR choose their encoding from the extension.
@@ -86,6 +100,10 @@ def atomic_output(path):
     is removed and the exception propagates. The temporary's name holds the writer's process
     id: one left by a writer killed outright (SIGKILL, a power cut) is removed by the next write
     of the same file once that process is gone.
+
+    Space: ``expected_bytes`` (the writer's estimate, an upper bound) is checked against the
+    free space first, because HDF5 does not fail cleanly on a full disk (it crashed the process
+    and left the temporary); a full disk met anyway is one FormatError line.
     """
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
@@ -96,6 +114,13 @@ def atomic_output(path):
         raise FormatError(path, f"cannot write here: the folder {folder} does not exist")
     prefix = f".{stem or base}."
     _sweep_stale(folder, prefix, ".tmp" + suffix)
+    if expected_bytes:
+        import shutil
+
+        free = shutil.disk_usage(folder).free
+        if free < expected_bytes:
+            raise FormatError(path, f"not enough space: about {_megabytes(expected_bytes)} needed, "
+                                    f"{_megabytes(free)} free in {folder}; nothing written")
     try:
         fd, tmp = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=".tmp" + suffix, dir=folder)
     except OSError as error:
@@ -114,9 +139,11 @@ def atomic_output(path):
                 os.fsync(handle.fileno())
             os.replace(tmp, path)
             WRITTEN.append(path)
-        except BaseException:
+        except BaseException as error:
             with contextlib.suppress(FileNotFoundError):
                 os.remove(tmp)
+            if _out_of_space(error):
+                raise FormatError(path, f"no space left on the device of {folder}; nothing written") from None
             raise
     if pending:  # arrived during the rename: the file is complete; stop now
         raise Interrupted(pending[0])

@@ -72,7 +72,7 @@ def write_vat(path, rest_vertices, vertices, fps, max_width=8192, half=False) ->
         "vat_bounds_max": offsets.max(axis=(0, 1)).astype(np.float32),
     }
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, **metadata}
-    with atomic_output(path) as tmp:
+    with atomic_output(path, expected_bytes=image.nbytes + (1 << 16)) as tmp:
         with OpenEXR.File(header, {"RGB": image}) as exr:
             exr.write(tmp)
     return metadata

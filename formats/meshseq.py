@@ -275,7 +275,7 @@ def write_vertex_animation(path, vertices, faces, fps, names=None):
 
     vertices = np.asarray(vertices, dtype=np.float32)
     require_finite(path, "the vertices", vertices)
-    with atomic_output(path) as tmp:
+    with atomic_output(path, expected_bytes=vertices.nbytes + (1 << 20)) as tmp:
         with h5py.File(tmp, "w") as f:
             data = vertices[0] if vertices.shape[0] == 1 else vertices
             f.create_dataset("vertices", data=data, compression="gzip", compression_opts=4, shuffle=True,

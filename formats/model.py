@@ -87,6 +87,20 @@ def _require_finite_groups(path, groups, prefix=""):
         require_finite(path, label, array)
 
 
+def _estimated_bytes(groups):
+    """An upper bound of a file's size: its arrays uncompressed, forwarded groups as stored,
+    plus 1 MiB of HDF5 structure."""
+    total = 1 << 20
+    for value in groups.values():
+        if isinstance(value, CopyFrom):
+            total += os.path.getsize(value.path)
+        elif isinstance(value, dict):
+            total += _estimated_bytes(value) - (1 << 20)
+        else:
+            total += getattr(value.array if isinstance(value, Uncompressed) else np.asarray(value), "nbytes", 0)
+    return total
+
+
 def write_model(path, stage, groups, provenance, tool_version):
     """Write a model file atomically.
 
@@ -97,7 +111,7 @@ def write_model(path, stage, groups, provenance, tool_version):
     if stage not in STAGES:
         raise ValueError(f"unknown stage {stage!r}")
     _require_finite_groups(path, groups)
-    with atomic_output(path) as tmp:
+    with atomic_output(path, expected_bytes=_estimated_bytes(groups)) as tmp:
         with h5py.File(tmp, "w", track_order=True) as f:
             f.attrs["format"] = FORMAT_NAME
             f.attrs["format_version"] = FORMAT_VERSION

@@ -50,6 +50,11 @@ def _read_csv(path, count):
     if point.max() >= count:
         raise FormatError(path, f"point {point.max()} does not exist: the puppet has {count} control points (0..{count - 1})")
     frames = int(frame.max()) + 1
+    # Every frame gives every point once, so the rows bound the frames: check before allocating
+    # (a lone row numbered 100000000 asked for gigabytes).
+    if frames > rows.shape[0]:  # each frame needs at least one row: the table stays ≤ rows × points
+        raise FormatError(path, f"{rows.shape[0]} rows cannot hold frames 0..{frames - 1} ({frames * count} rows "
+                                f"for {count} points): frames are missing; every frame needs each point exactly once")
     seen = np.zeros((frames, count), dtype=np.int64)
     np.add.at(seen, (frame, point), 1)
     if (seen != 1).any():

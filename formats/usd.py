@@ -48,7 +48,9 @@ def write_points_characters(path, vertices, faces, fps, names=None, up_axis="Y",
     names = _character_names(names, characters)
     _check_common(path, fps, group or names[0], up_axis, frames)
 
-    with atomic_output(path) as tmp:
+    # float32 points and a float extent per frame and character (usda text takes several times that)
+    expected = characters * frames * (count * 12 + 48) * (6 if str(path).lower().endswith(".usda") else 1)
+    with atomic_output(path, expected_bytes=expected + (1 << 20)) as tmp:
         stage = _new_stage(tmp, fps, frames, up_axis)
         parent = _group_parent(stage, group)
         for c, name in enumerate(names):

@@ -1,0 +1,206 @@
+"""Fault injection (issue 11): a full disk, signals at random moments, an output that is an input,
+NaN results, oversized inputs, and parallelism that must not change a bit of the output.
+
+Commands that must be killed or must see their own environment (BLAS threads, a full filesystem)
+run as real processes; the rest in-process."""
+
+import hashlib
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
+
+SKINSYNTH = [sys.executable, "-c", "import sys; from skinsynth.cli.main import main; sys.argv[0] = 'skinsynth'; "
+                                   "sys.exit(main())"]
+
+
+@pytest.fixture(scope="module")
+def chain(tmp_path_factory):
+    """bar.npz → skin.h5 → graph.h5 (two components), controls.h5 → puppet.h5, and controls.csv."""
+    root = tmp_path_factory.mktemp("faults")
+    vertices, _ = fitted_bar(root, frames=48, bones=6, iterations=8, cycles=2)
+    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4,
+                  "--edge-threshold", 0.5, "-q"))
+    with h5py.File(root / "graph.h5") as f:
+        assert f["graph"].attrs["components"] >= 2
+    assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 4))
+    assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5"))
+    with h5py.File(root / "controls.h5") as f:
+        ids = f["controls/vertex_indices"][()]
+    rows = [f"{frame},{p},{x},{y},{z}" for frame in range(6) for p, (x, y, z) in enumerate(vertices[frame, ids])]
+    (root / "controls.csv").write_text("frame,point,x,y,z\n" + "\n".join(rows) + "\n")
+    return root
+
+
+def digest(path):
+    return hashlib.sha256(open(path, "rb").read()).hexdigest()
+
+
+def run(args, env=None, **kwargs):
+    return subprocess.run(SKINSYNTH + [str(a) for a in args], capture_output=True, text=True,
+                          env={**os.environ, **(env or {})}, **kwargs)
+
+
+# -- an output that is an input -------------------------------------------------------------------
+
+COMMANDS = [  # (command line with {out} for -o, the input it must not overwrite)
+    (["fit-skin", "bar.npz", "--bones", 3, "-o", "{out}"], "bar.npz"),
+    (["build-graph", "skin.h5", "-o", "{out}"], "skin.h5"),
+    (["select-controls", "skin.h5", "-o", "{out}"], "skin.h5"),
+    (["train-kcca", "controls.h5", "-o", "{out}"], "controls.h5"),
+    (["synthesize", "graph.h5", "-n", 2, "-m", 20, "-o", "{out}"], "graph.h5"),
+    (["play", "puppet.h5", "-c", "controls.csv", "-o", "{out}"], "puppet.h5"),
+]
+
+
+@pytest.mark.parametrize("command, source", COMMANDS, ids=[c[0][0] for c in COMMANDS])
+@pytest.mark.parametrize("alias", ["same name", "symbolic link", "hard link"])
+def test_an_output_that_is_an_input_is_refused_before_any_work(chain, tmp_path, command, source, alias):
+    target = chain / source
+    before = digest(target)
+    if alias == "same name":
+        out = target
+    else:
+        out = tmp_path / ("alias" + os.path.splitext(source)[1])
+        (os.symlink if alias == "symbolic link" else os.link)(target, out)
+    if source.endswith(".npz"):  # fit-skin writes .h5: alias an .h5 name to the input instead
+        out = tmp_path / "alias.h5"
+        (os.symlink if alias != "hard link" else os.link)(target, out)
+    args = [str(out) if a == "{out}" else (str(chain / a) if isinstance(a, str) and (chain / a).exists() else a)
+            for a in command]
+    assert_user_error(cli(*args), "the output is the input")
+    assert digest(target) == before
+
+
+# -- a full disk ------------------------------------------------------------------------------------
+
+@pytest.fixture
+def full_disk(tmp_path):
+    """A 64 KiB tmpfs (root on Linux only; skipped with the reason elsewhere)."""
+    folder = tmp_path / "tiny"
+    folder.mkdir()
+    if not sys.platform.startswith("linux") or os.geteuid() != 0:
+        pytest.skip("mounting a tiny tmpfs needs root on Linux")
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(folder)], capture_output=True)
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.decode().strip()}")
+    yield folder
+    subprocess.run(["umount", str(folder)], capture_output=True)
+
+
+def test_a_full_disk_is_one_line_and_leaves_nothing(chain, full_disk):
+    cases = [["fit-skin", chain / "bar.npz", "--bones", 3, "-o", full_disk / "x.h5", "-q"],
+             ["export", chain / "skin.h5", "-o", full_disk / "x.usda", "--as", "points"],
+             ["export", chain / "skin.h5", "-o", full_disk / "x.exr"],
+             ["example", "bending-bar", "-o", full_disk / "x.npz", "--frames", 96],
+             ["evaluate", chain / "puppet.h5", "--plot", full_disk / "x.png"],
+             ["synthesize", chain / "graph.h5", "-n", 20, "-m", 100, "-o", full_disk / "x.h5", "-q"],
+             ["play", chain / "puppet.h5", "-c", chain / "controls.csv", "-o", full_disk / "x.usdc", "--instances", 500]]
+    for args in cases:
+        done = run(args)
+        lines = done.stderr.strip().splitlines()
+        assert done.returncode == 2 and len(lines) == 1, (args, done.stderr[-2000:])
+        assert "space" in lines[0] and str(full_disk) in lines[0], lines[0]
+        assert_folder_holds(full_disk)  # no output, no temporary
+
+
+# -- signals at random moments ---------------------------------------------------------------------
+
+def _alive(pgid):
+    try:
+        os.killpg(pgid, 0)
+        return True
+    except ProcessLookupError:
+        return False
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(number=st.sampled_from([signal.SIGINT, signal.SIGTERM, signal.SIGHUP]), delay=st.floats(0.3, 4.0),
+       existing=st.booleans())
+def test_a_signal_at_any_moment_leaves_the_old_file_or_the_whole_new_one(chain, tmp_path, number, delay, existing):
+    out = tmp_path / f"bones_{number}_{delay:.3f}_{existing}.h5"
+    if existing:
+        out.write_bytes(b"the old file")
+    process = subprocess.Popen(SKINSYNTH + ["synthesize", str(chain / "graph.h5"), "-n", "600", "-m", "300", "-o",
+                                            str(out), "--jobs", "2", "-q"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    time.sleep(delay)
+    process.send_signal(number)
+    _, stderr = process.communicate(timeout=120)
+    # −N: the signal came while Python was starting up or shutting down, outside the command.
+    assert process.returncode in (0, 128 + number, -number), stderr
+    for _ in range(50):  # the workers end with the command
+        if not _alive(process.pid):
+            break
+        time.sleep(0.1)
+    assert not _alive(process.pid), "a worker outlived the command"
+    assert not [n for n in os.listdir(tmp_path) if ".tmp" in n]
+    if process.returncode == 128 + number:
+        assert len(stderr.strip().splitlines()) == 1, stderr
+    untouched = out.read_bytes() == b"the old file" if existing else not out.exists()
+    if "no output written" in stderr:
+        assert untouched
+    if process.returncode == 0 or "wrote only" in stderr or not untouched:  # then it is the whole new file
+        with h5py.File(out) as f:
+            assert f["synthesis/bone_matrices"].shape[:2] == (600, 300)
+
+
+def test_a_killed_writer_leaves_a_temporary_the_next_write_removes(chain, tmp_path):
+    out = tmp_path / "bones.h5"
+    stale = tmp_path / f".bones.{2 ** 22 + 12345}.abcdefgh.tmp.h5"  # a pid no process has
+    stale.write_bytes(b"partial")
+    assert_ok(cli("synthesize", chain / "graph.h5", "-n", 2, "-m", 20, "-o", out, "-q"))
+    assert sorted(os.listdir(tmp_path)) == ["bones.h5"]
+
+
+# -- results out of range, inputs out of bounds ---------------------------------------------------
+
+def test_non_finite_results_are_never_written(chain, tmp_path):
+    from skinsynth.formats.errors import FormatError
+    from skinsynth.formats.model import write_model
+
+    with pytest.raises(FormatError, match=r"x.h5: not written: /skin/rotations holds NaN"):
+        write_model(tmp_path / "x.h5", "skin", {"skin": {"rotations": np.array([0.0, np.nan])}}, [], "0")
+    with pytest.raises(FormatError, match=r"/skin/@rmse holds NaN"):
+        write_model(tmp_path / "x.h5", "skin", {"skin": {"@rmse": float("inf")}}, [], "0")
+    assert_folder_holds(tmp_path)
+    for option in ("--translation-prior", "--regularization"):
+        assert_user_error(cli("train-kcca", chain / "controls.h5", "-o", tmp_path / "p.h5", option, "inf"), option,
+                          folder=tmp_path)
+
+
+def test_a_csv_cannot_ask_for_more_memory_than_its_rows(chain, tmp_path):
+    (tmp_path / "huge.csv").write_text("frame,point,x,y,z\n100000000,0,1,2,3\n")
+    assert_user_error(cli("play", chain / "puppet.h5", "-c", tmp_path / "huge.csv", "-o", tmp_path / "o.h5"),
+                      "huge.csv", "frames are missing", folder=tmp_path, keep=["huge.csv"])
+
+
+# -- parallelism and BLAS threads change nothing ------------------------------------------------------
+
+def test_jobs_and_blas_threads_give_byte_identical_datasets(chain, tmp_path):
+    outputs = []
+    for jobs, blas in ((1, 1), (1, 2), (2, 1), (2, 2)):
+        out = tmp_path / f"j{jobs}b{blas}.h5"
+        done = run(["synthesize", chain / "graph.h5", "-n", 260, "-m", 60, "--seed", 9, "--jobs", jobs, "-o", out,
+                    "-q"], env={"OPENBLAS_NUM_THREADS": str(blas), "OMP_NUM_THREADS": str(blas),
+                                "MKL_NUM_THREADS": str(blas)})
+        assert done.returncode == 0, done.stderr
+        outputs.append(out)
+    with h5py.File(outputs[0]) as first:
+        names = [n for n in first["synthesis"] if isinstance(first["synthesis"][n], h5py.Dataset)]
+        reference = {n: first["synthesis"][n][()].tobytes() for n in names}
+    for other in outputs[1:]:
+        with h5py.File(other) as f:
+            for name in names:
+                assert f["synthesis"][name][()].tobytes() == reference[name], (other.name, name)
