@@ -20,6 +20,7 @@ import numpy as np
 
 from .errors import FormatError
 from .model import read_model, require
+from .validation import check_skin
 
 
 @dataclass
@@ -87,10 +88,7 @@ def read_skin(path, model=None):
     mesh = require(model, path, "mesh", ("rest_vertices", "faces"))
     examples = require(model, path, "examples", ("vertices",))
     skin = require(model, path, "skin", _SKIN_DATASETS)
-    frames, bones = skin["rotations"].shape[:2]
-    count = mesh["rest_vertices"].shape[0]
-    if skin["bone_indices"].shape[0] != count or examples["vertices"].shape[:2] != (frames, count):
-        raise FormatError(path, "inconsistent array shapes between /mesh, /examples and /skin")
+    check_skin(path, model)  # kinds, shapes, finite values, index ranges, unit weights
     return SkinModel(
         rest_vertices=mesh["rest_vertices"], faces=mesh["faces"], rest_frame=int(mesh.get("@rest_frame", 0)),
         examples=examples["vertices"], fps=float(examples.get("@fps", 24.0)), source=str(examples.get("@source", "")),
