@@ -21,6 +21,7 @@ import numpy as np
 
 from .errors import FormatError
 from .model import read_model, require
+from .validation import check_controls
 
 #: Groups a controls file carries forward from the skin file, unchanged.
 CARRIED_GROUPS = ("mesh", "examples", "skin")
@@ -81,6 +82,8 @@ def read_controls(path, model=None):
         raise FormatError(path, f"is a '{model['stage']}' file without control points (/controls); "
                                 "run select-controls first")
     group = require(model, path, "controls", _DATASETS)
+    if "mesh" in model and "rest_vertices" in model["mesh"]:
+        check_controls(path, model, {"V": np.shape(model["mesh"]["rest_vertices"])[0]})
     indices = np.asarray(group["vertex_indices"]).astype(np.int64)
     reasons = [_text(r) for r in np.atleast_1d(group["reasons"])]
     candidates = np.asarray(group["candidate_vertices"]).astype(np.int64)

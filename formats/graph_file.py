@@ -32,6 +32,7 @@ import numpy as np
 from .errors import FormatError
 from .model import read_model, require
 from .skin_file import read_skin
+from .validation import check_graph
 
 _COMPONENT_DATASETS = ("bones", "local_bones", "reduced_coordinates", "costs", "transitions", "transition_costs",
                        "key_vertices", "key_bones", "key_weights", "weight_gradients", "rotation_strain")
@@ -85,6 +86,7 @@ def read_graph(path):
     model = read_model(path, stages=("graph",))
     skin = read_skin(path, model)
     graph = require(model, path, "graph", ("weights", "kept_edges", "cut_nodes"))
+    check_graph(path, model, {"F": skin.rotations.shape[0], "B": skin.bones, "V": skin.rest_vertices.shape[0]})
     names = sorted(k for k in graph if k.startswith("component_"))
     if not names:
         raise FormatError(path, "/graph has no components: the file is incomplete")

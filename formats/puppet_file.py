@@ -23,6 +23,7 @@ from .controls_file import read_controls
 from .errors import FormatError
 from .model import read_model, require
 from .skin_file import read_skin
+from .validation import check_controls, check_puppet
 
 
 def puppet_groups(model, puppet, test_frames, regularization_mode):
@@ -64,6 +65,9 @@ def read_puppet(path):
     training = require(model, path, "training", ("train_frames", "test_frames", "reference_controls"))
     kcca = require(model, path, "kcca", ("predictor", "bias", "training_controls", "control_mean",
                                          "correlations", "regularization"))
+    dims = {"F": skin.rotations.shape[0], "B": skin.bones, "V": skin.rest_vertices.shape[0]}
+    check_controls(path, model, dims)
+    check_puppet(path, model, dims)
     bones = skin.bones
     if kcca["predictor"].shape[0] != 8 * bones:
         raise FormatError(path, f"/kcca/predictor has {kcca['predictor'].shape[0]} rows, expected 8 × {bones} bones")

@@ -15,6 +15,7 @@ import numpy as np
 from .errors import FormatError
 
 _KINDS = {"float": "f", "int": "iu", "bool": "b"}
+_MEANING = {"V": "mesh's vertices", "B": "skin's bones", "F": "clip's frames"}
 
 
 @dataclass(frozen=True)
@@ -66,8 +67,11 @@ def check_group(path, group, data, fields, dims):
             raise FormatError(path, f"{where} holds {value.min()}, below its lowest allowed value "
                                     f"{_size(field.low, dims)}")
         if field.high is not None and value.max() >= _size(field.high, dims):
-            bound = f"{field.high} = {_size(field.high, dims)}" if isinstance(field.high, str) else field.high
-            raise FormatError(path, f"{where} holds {value.max()}, not below {bound}")
+            high = _size(field.high, dims)
+            if field.high in _MEANING:
+                raise FormatError(path, f"{where} holds {value.max()}, outside the {_MEANING[field.high]} "
+                                        f"({high}: 0..{high - 1})")
+            raise FormatError(path, f"{where} holds {value.max()}, not below {field.high} = {high}")
 
 
 def check_attribute(path, group, data, name, kind, low=None, high=None, choices=None, optional=True):
@@ -124,3 +128,80 @@ def check_skin(path, model):
     check_attribute(path, "examples", model["examples"], "fps", "float", low=1e-9)
     check_attribute(path, "mesh", model["mesh"], "rest_frame", "int", low=0, high=dims["F"] - 1)
     return dims
+
+
+GRAPH = {"weights": Field("float", ("B", "B")), "kept_edges": Field("int", ("E", 2), low=0, high="B"),
+         "cut_nodes": Field("int", (None,), low=0, high="B")}
+GRAPH_COMPONENT = {
+    "bones": Field("int", ("b",), low=0, high="B"),
+    "local_bones": Field("int", ("l",), low=0, high="B"),
+    "reduced_coordinates": Field("float", ("F", "r")),
+    "costs": Field("float", ("F", "F"), low=0.0),
+    "transitions": Field("int", ("M", 2), low=0, high="F"),
+    "transition_costs": Field("float", ("M",)),
+    "key_vertices": Field("int", ("n",), low=0, high="V"),
+    "key_bones": Field("int", ("n", "k"), low=-1, high="B"),
+    "key_weights": Field("float", ("n", "k"), low=0.0),
+    "weight_gradients": Field("float", ("n", "k", 3)),
+    "rotation_strain": Field("float", ("F", "n", 9)),
+}
+
+
+def check_graph(path, model, dims):
+    """/graph of a graph file and each of its components (``dims`` from :func:`check_skin`)."""
+    graph = model["graph"]
+    check_group(path, "graph", graph, GRAPH, dims)
+    check_attribute(path, "graph", graph, "min_segment", "int", low=1)
+    check_attribute(path, "graph", graph, "coverage", "float", low=0.0, high=1.0)
+    check_attribute(path, "graph", graph, "up_axis", None, choices=("Y", "Z"))
+    check_attribute(path, "graph", graph, "threshold_reference", None, choices=("median-step", "max-step"))
+    for name in sorted(k for k in graph if k.startswith("component_")):
+        component, local = graph[name], dict(dims)
+        check_group(path, f"graph/{name}", component, GRAPH_COMPONENT, local)
+        reference = check_attribute(path, f"graph/{name}", component, "reference", "int", low=0, high=dims["B"] - 1,
+                                    optional=False)
+        check_attribute(path, f"graph/{name}", component, "ridge", "float", low=0.0)
+        bones = np.asarray(component["bones"])
+        if np.unique(bones).size != bones.size or reference not in bones or not np.array_equal(
+                np.sort(np.asarray(component["local_bones"])), np.setdiff1d(bones, [reference])):
+            raise FormatError(path, f"/graph/{name}: bones, local_bones and @reference disagree (the local bones are "
+                                    "the component's bones other than its reference)")
+
+
+CONTROLS = {  # basis_variance first: it binds Kb, the bound of candidate_basis
+    "basis_variance": Field("float", ("Kb",), low=0.0),
+    "vertex_indices": Field("int", ("N",), low=0, high="V"),
+    "control_basis": Field("int", ("N",), low=-1, optional=True),
+    "candidate_vertices": Field("int", ("C",), low=0, high="V"),
+    "candidate_basis": Field("int", ("C",), low=0, high="Kb"),
+    "candidate_loading": Field("float", ("C",), low=0.0),
+}
+TRAINING = {"train_frames": Field("int", ("P",), low=0, high="F"), "test_frames": Field("int", (None,), low=0, high="F"),
+            "reference_controls": Field("float", ("N", 3))}
+KCCA = {"predictor": Field("float", ("B8", "P")), "bias": Field("float", ("B8",)),
+        "training_controls": Field("float", ("P", "N3")), "control_mean": Field("float", ("N3",)),
+        "correlations": Field("float", ("B", None)), "regularization": Field("float", ("B",), low=0.0)}
+POISSON = {"rotation_operator": Field("float", ("B", "B", 3)), "control_operator": Field("float", ("B", "N")),
+           "prior_operator": Field("float", ("B", "B"))}
+KERNELS = ("gaussian", "polynomial", "linear")
+
+
+def check_controls(path, model, dims):
+    """/controls (``dims`` from :func:`check_skin`, updated with N)."""
+    check_group(path, "controls", model["controls"], CONTROLS, dims)
+
+
+def check_puppet(path, model, dims):
+    """/training, /kcca and /poisson of a puppet file (``dims`` after :func:`check_controls`)."""
+    dims.update(B8=8 * dims["B"], N3=3 * dims["N"])
+    check_group(path, "training", model["training"], TRAINING, dims)
+    check_attribute(path, "training", model["training"], "global_motion", None, choices=("control-frame", "world"))
+    check_group(path, "kcca", model["kcca"], KCCA, dims)
+    kcca = model["kcca"]
+    check_attribute(path, "kcca", kcca, "kernel", None, choices=KERNELS, optional=False)
+    check_attribute(path, "kcca", kcca, "scale", "float", low=1e-300, optional=False)
+    check_attribute(path, "kcca", kcca, "offset", "float")
+    check_attribute(path, "kcca", kcca, "degree", "int", low=1, high=64)
+    if "poisson" in model:
+        check_group(path, "poisson", model["poisson"], POISSON, dims)
+        check_attribute(path, "poisson", model["poisson"], "prior", "float", low=0.0)
