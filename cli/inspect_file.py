@@ -8,9 +8,28 @@ import numpy as np
 from .common import user_errors
 
 
+def _validate(path, model):
+    """The same checks every command makes on what it reads: a corrupt file is one error line."""
+    from skinsynth.formats.model import require
+    from skinsynth.formats.validation import check_controls, check_graph, check_puppet, check_skin
+
+    if "skin" not in model:
+        return
+    require(model, path, "mesh", ("rest_vertices", "faces"))
+    require(model, path, "examples", ("vertices",))
+    dims = check_skin(path, model)
+    if "controls" in model:
+        check_controls(path, model, dims)
+    if "kcca" in model and "training" in model:
+        check_puppet(path, model, dims)
+    if "graph" in model:
+        check_graph(path, model, dims)
+
+
 def _summary(path, model):
     from skinsynth.formats.model import require
 
+    _validate(path, model)
     out = {"file": str(path), "stage": model["stage"], "format_version": model["format_version"]}
     if "mesh" in model:
         mesh = require(model, path, "mesh", ("rest_vertices", "faces"))

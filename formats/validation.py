@@ -110,6 +110,9 @@ SKIN = {
     "translations": Field("float", ("F", "B", 3)),
     "dual_quaternions": Field("float", ("F", "B", 8)),
     "bone_rest_frames": Field("float", ("B", 4, 4)),
+    "error_history": Field("float", (None,), low=0.0, optional=True),
+    "frame_rmse": Field("float", ("F",), low=0.0, optional=True),
+    "initial_labels": Field("int", ("V",), low=0, high="B", optional=True),
 }
 
 

@@ -14,6 +14,7 @@ their bone motions straight into one anonymous shared mapping that becomes the r
 the run); where fork does not exist they send them back through the pool.
 """
 
+import contextlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -214,24 +215,47 @@ def motion_graphs(components, forbidden=None):
     return [MotionGraph.from_transitions(c.transitions, forbidden=forbidden) for c in components]
 
 
+_WORKER_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+
 def _worker_setup():
-    """Worker initialiser: one BLAS thread (each process already has a core; more would
-    oversubscribe); signals left to the parent, which ends its workers when it stops; and, on
-    Linux, death with the parent even when it is killed outright (no orphan keeps computing)."""
+    """Worker initialiser: signals left to the parent, which ends its workers when it stops (it
+    forks them with these signals blocked, so none arrives before this runs); on Linux, death
+    with the parent even when it is killed outright (no orphan keeps computing); one BLAS thread
+    (each process already has a core; more would oversubscribe)."""
     import signal
     import sys
 
-    from threadpoolctl import threadpool_limits
-
-    threadpool_limits(limits=1, user_api="blas")
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+    for name in _WORKER_SIGNALS:
         if hasattr(signal, name):
-            signal.signal(getattr(signal, name), signal.SIG_IGN if name != "SIGTERM" else signal.SIG_DFL)
+            signal.signal(getattr(signal, name), signal.SIG_DFL if name == "SIGTERM" else signal.SIG_IGN)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {getattr(signal, n) for n in _WORKER_SIGNALS if hasattr(signal, n)})
     if sys.platform.startswith("linux"):
         import ctypes
 
         PR_SET_PDEATHSIG = 1
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1, user_api="blas")
+
+
+@contextlib.contextmanager
+def _signals_blocked():
+    """Block SIGINT/SIGTERM/SIGHUP in this thread while workers are forked (they inherit the
+    mask and unblock once their own handlers are set); arrivals meanwhile are delivered after."""
+    import signal
+
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {getattr(signal, n) for n in _WORKER_SIGNALS
+                                                         if hasattr(signal, n)})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _shared_arrays(buffer, shapes):
@@ -310,8 +334,9 @@ def _run_batches(args, batches, jobs, progress, done_before):
         try:
             with ProcessPoolExecutor(max_workers=jobs, initializer=_worker_setup, mp_context=context) as pool:
                 try:
-                    futures = [pool.submit(_batch_for_parent, token, int(offsets[i]), args, b, n)
-                               for i, (b, n) in enumerate(batches)]
+                    with _signals_blocked():  # workers are forked here
+                        futures = [pool.submit(_batch_for_parent, token, int(offsets[i]), args, b, n)
+                                   for i, (b, n) in enumerate(batches)]
                     for i, (future, (_, n)) in enumerate(zip(futures, batches)):
                         keep(i, n, future.result())
                 except BaseException:  # stopped (a signal) or failed: end the workers now, not after their batch

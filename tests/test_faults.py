@@ -204,3 +204,60 @@ def test_jobs_and_blas_threads_give_byte_identical_datasets(chain, tmp_path):
         with h5py.File(other) as f:
             for name in names:
                 assert f["synthesis"][name][()].tobytes() == reference[name], (other.name, name)
+
+
+# -- corrupted files: one dataset at a time, every dataset of every stage file ---------------------
+
+CONSUMERS = {"skin.h5": [["build-graph", "{f}", "-o", "{out}.h5", "-q"], ["export", "{f}", "-o", "{out}.usdc"]],
+             "controls.h5": [["train-kcca", "{f}", "-o", "{out}.h5"]],
+             "puppet.h5": [["evaluate", "{f}"], ["play", "{f}", "-c", "{chain}/controls.csv", "-o", "{out}.h5"]],
+             "graph.h5": [["synthesize", "{f}", "-o", "{out}.h5", "-n", "2", "-m", "20", "-q"]]}
+
+
+def _corrupt(path, name, kind):
+    with h5py.File(path, "r+") as f:
+        value = f[name][()]
+        del f[name]
+        if kind == "nan":
+            value = np.asarray(value, dtype=np.float64).copy()
+            value.flat[value.size // 2] = np.nan
+        elif kind == "shape":
+            value = np.asarray(value).reshape(-1)[:-1] if np.size(value) > 1 else np.zeros((2, 2))
+        elif kind == "dtype":
+            value = np.array([b"x"] * max(1, min(np.size(value), 3)))
+        else:  # an index far out of range
+            value = np.asarray(value).copy()
+            value.flat[0] = 10 ** 6
+        f[name] = value
+
+
+def test_every_corrupted_dataset_is_refused_in_one_line_or_harmless(chain, tmp_path):
+    counts = {"refused": 0, "harmless": 0}
+    for stage, commands in CONSUMERS.items():
+        with h5py.File(chain / stage) as f:
+            names = []
+            f.visititems(lambda n, o: names.append(n) if isinstance(o, h5py.Dataset) and not n.startswith("provenance")
+                         else None)
+            kinds = {n: f[n].dtype.kind for n in names}
+        for name in names:
+            for kind in (("nan", "shape", "dtype") + (("range",) if kinds[name] in "iu" else ())
+                         if kinds[name] in "fiub" else ("shape",)):
+                broken = tmp_path / stage
+                broken.write_bytes((chain / stage).read_bytes())
+                _corrupt(broken, name, kind)
+                for command in [["inspect", "{f}"]] + commands:
+                    args = [a.replace("{f}", str(broken)).replace("{out}", str(tmp_path / "out"))
+                            .replace("{chain}", str(chain)) for a in command]
+                    result = cli(*args)
+                    where = f"{stage} /{name} {kind}: {command[0]}"
+                    assert isinstance(result.exception, (SystemExit, type(None))), f"{where}: {result.exception!r}"
+                    if result.exit_code == 0:
+                        counts["harmless"] += 1
+                        continue
+                    lines = result.stderr.splitlines()
+                    assert result.exit_code == 2 and len(lines) == 1 and str(broken) in lines[0], f"{where}: {lines}"
+                    counts["refused"] += 1
+                for leftover in tmp_path.glob("out*"):
+                    leftover.unlink()
+    print(f"corrupted-file cases: {counts}")
+    assert counts["refused"] > 300, counts
