@@ -14,7 +14,7 @@ EXAMPLES = ("bending-bar",)
 @click.option("--rings", default=40, show_default=True, type=int, help="Vertex rings along the bar.")
 @click.option("--segments", default=16, show_default=True, type=int, help="Vertices around each ring.")
 @click.option("--cycles", default=1, show_default=True, type=int, help="Bend-and-twist cycles over the frames.")
-@click.option("--fps", default=24.0, show_default=True, type=float, help="Frame rate stored with the sequence.")
+@click.option("--fps", default=24.0, show_default=True, type=click.FloatRange(min=0.0, min_open=True, max=1e6), help="Frame rate stored with the sequence.")
 @user_errors
 def example(name, output, frames, rings, segments, cycles, fps):
     """Write a built-in example mesh sequence (no download needed).

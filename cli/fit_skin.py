@@ -17,11 +17,11 @@ from .common import Progress, check_output_path, command_line, tool_version, use
 @click.option("--tolerance", default=1e-3, show_default=True, type=float,
               help="Stop once the RMSE improves by less than this (relative) for 3 iterations in a row.")
 @click.option("--rest-frame", default=0, show_default=True, type=int, help="Frame used as the rest pose.")
-@click.option("--seed", default=0, show_default=True, type=int, help="Seed of the clustering initialisation.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0), help="Seed of the clustering initialisation.")
 @click.option("--transform-steps", default=1, show_default=True, type=int,
               help="Joint Levenberg-Marquardt steps on all bones of a frame per iteration (0: per-bone updates only).")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
-@click.option("--fps", default=None, type=float, help="Frame rate, when the input does not carry one (default 24).")
+@click.option("--fps", default=None, type=click.FloatRange(min=0.0, min_open=True, max=1e6), help="Frame rate, when the input does not carry one (default 24).")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 @user_errors
 def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, rest_frame, seed,

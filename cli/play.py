@@ -63,6 +63,8 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
     controls = instance_trajectories(trajectories, instances)  # (C, F, n_c, 3)
     characters, frames = controls.shape[:2]
     spacing = 1.5 * largest_side(skin.rest_vertices) if spacing is None else spacing
+    if not np.isfinite(spacing) or spacing < 0.0:
+        raise OptionError(f"--spacing must be a finite distance ≥ 0 (got {spacing})")
     offsets = grid_offsets(characters, spacing, up_axis) if characters > 1 else np.zeros((1, 3))
 
     flat = controls.reshape(-1, count, 3)

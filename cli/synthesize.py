@@ -69,7 +69,7 @@ class _LazyCrowd:
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Bone motions file to write (.h5).")
 @click.option("--count", "-n", required=True, type=int, help="Number of animations.")
 @click.option("--frames", "-m", required=True, type=int, help="Frames per animation.")
-@click.option("--seed", default=0, show_default=True, type=int, help="Seed of every random choice.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0), help="Seed of every random choice.")
 @click.option("--start-frame", type=int, default=None, help="Input frame every animation starts with.")
 @click.option("--end-frame", type=int, default=None, help="Input frame every animation ends with.")
 @click.option("--target", "targets", multiple=True, type=_target, metavar="FRAME@TIME",

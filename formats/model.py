@@ -154,10 +154,10 @@ def read_header(path):
     with f:
         if f.attrs.get("format") != FORMAT_NAME:
             raise FormatError(path, "not a skinsynth model file (no format = 'skinsynth' attribute)")
-        try:
-            version = int(f.attrs.get("format_version", -1))
-        except (TypeError, ValueError):
-            raise FormatError(path, f"invalid format_version {f.attrs.get('format_version')!r}") from None
+        raw = f.attrs.get("format_version", -1)
+        if np.ndim(raw) != 0 or np.asarray(raw).dtype.kind not in "iu":  # 1.5 or "1" is not a version
+            raise FormatError(path, f"invalid format_version {np.asarray(raw).tolist()!r}: an integer is needed")
+        version = int(raw)
         stage = f.attrs.get("stage", "")
         stage = stage.decode() if isinstance(stage, bytes) else str(stage)
     if version > FORMAT_VERSION:

@@ -261,3 +261,20 @@ def test_every_corrupted_dataset_is_refused_in_one_line_or_harmless(chain, tmp_p
                     leftover.unlink()
     print(f"corrupted-file cases: {counts}")
     assert counts["refused"] > 300, counts
+
+
+def test_out_of_range_options_and_versions_are_one_line(chain, tmp_path):
+    for args, needle in ((["fit-skin", chain / "bar.npz", "-o", tmp_path / "x.h5", "--bones", 3, "--seed", -5], "--seed"),
+                         (["fit-skin", chain / "bar.npz", "-o", tmp_path / "x.h5", "--bones", 3, "--fps", "1e400"], "--fps"),
+                         (["fit-skin", chain / "bar.npz", "-o", tmp_path / "x.h5", "--bones", 3, "--fps", "nan"], "--fps"),
+                         (["synthesize", chain / "graph.h5", "-o", tmp_path / "x.h5", "-n", 2, "-m", 20, "--seed", -1],
+                          "--seed"),
+                         (["play", chain / "puppet.h5", "-c", chain / "controls.csv", "-o", tmp_path / "x.h5",
+                           "--instances", 2, "--spacing", "nan"], "--spacing"),
+                         (["example", "bending-bar", "-o", tmp_path / "x.npz", "--fps", "inf"], "--fps")):
+        assert_user_error(cli(*args), needle, folder=tmp_path)
+    odd = tmp_path / "odd.h5"
+    odd.write_bytes((chain / "skin.h5").read_bytes())
+    with h5py.File(odd, "r+") as f:
+        f.attrs["format_version"] = 1.5
+    assert_user_error(cli("inspect", odd), "format_version 1.5", folder=tmp_path, keep=["odd.h5"])
