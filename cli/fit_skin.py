@@ -21,7 +21,7 @@ from .common import Progress, check_output_path, command_line, tool_version, use
 @click.option("--transform-steps", default=1, show_default=True, type=int,
               help="Joint Levenberg-Marquardt steps on all bones of a frame per iteration (0: per-bone updates only).")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
-@click.option("--fps", default=None, type=click.FloatRange(min=0.0, min_open=True, max=1e6), help="Frame rate, when the input does not carry one (default 24).")
+@click.option("--fps", default=None, type=float, help="Frame rate, when the input does not carry one (default 24).")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 @user_errors
 def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, rest_frame, seed,
@@ -47,8 +47,8 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, r
     from skinsynth.pipeline.skin_fit import bone_rest_frames, bounding_box_diagonal, fit_skin as fit, validate_fit_options
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[input_spec])
-    if fps is not None and not fps > 0:
-        raise OptionError(f"--fps must be positive (got {fps})")
+    if fps is not None and not 0 < fps < float("inf"):
+        raise OptionError(f"--fps must be positive and finite (got {fps})")
     if tolerance < 0 or transform_steps < 0:
         raise OptionError("--tolerance and --transform-steps must not be negative")
     sequence = read_mesh_sequence(input_spec, prim=prim, fps=fps)
