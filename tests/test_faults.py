@@ -278,3 +278,16 @@ def test_out_of_range_options_and_versions_are_one_line(chain, tmp_path):
     with h5py.File(odd, "r+") as f:
         f.attrs["format_version"] = 1.5
     assert_user_error(cli("inspect", odd), "format_version 1.5", folder=tmp_path, keep=["odd.h5"])
+
+
+def test_play_threads_and_blas_threads_give_byte_identical_vertices(chain, tmp_path):
+    results = []
+    for threads, blas in ((1, 1), (2, 2), (3, 1)):
+        out = tmp_path / f"t{threads}b{blas}.h5"
+        done = run(["play", chain / "puppet.h5", "-c", chain / "controls.csv", "-o", out, "--instances", 7,
+                    "--threads", threads, "--device", "cpu"],
+                   env={"OPENBLAS_NUM_THREADS": str(blas), "OMP_NUM_THREADS": str(blas)})
+        assert done.returncode == 0, done.stderr
+        with h5py.File(out) as f:
+            results.append(f["vertices"][()].tobytes())
+    assert results[0] == results[1] == results[2]
