@@ -14,16 +14,18 @@ class FormatError(Exception):
 
 
 def all_finite(array):
-    """Whether a numeric array holds no NaN or inf, in one float64 sum (NaN and inf propagate
-    through a sum; a sum of finite float32 values cannot overflow float64): much cheaper than
-    ``np.isfinite(array).all()`` on the half-gigabyte results synthesize writes."""
+    """Whether a numeric array holds no NaN or inf: one float64 sum first (NaN and inf propagate
+    through a sum; a finite sum proves every value finite), much cheaper than
+    ``np.isfinite(array).all()`` on the half-gigabyte results synthesize writes; that check only
+    where the sum is not finite (a NaN, or finite values whose sum overflows)."""
     import numpy as np
 
     array = np.asarray(array)
-    if array.dtype.kind not in "fc" or array.size == 0:
+    if array.dtype.kind != "f" or array.size == 0:
         return True
-    return bool(np.isfinite(np.add.reduce(array.ravel(), dtype=np.complex128 if array.dtype.kind == "c"
-                                          else np.float64)))
+    if np.isfinite(np.add.reduce(array.ravel(), dtype=np.float64)):
+        return True
+    return bool(np.isfinite(array).all())  # the sum overflowed, or a value is NaN or inf: look
 
 
 def require_finite(path, what, array):
