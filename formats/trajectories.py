@@ -75,7 +75,9 @@ def read_control_trajectories(spec, count, control_indices, vertex_count):
         return _check(spec, _read_csv(spec, count), count)
     if ext == ".npy":
         try:
-            controls = np.load(spec, allow_pickle=False)
+            # Memory-mapped first: the header's shape is checked against the file's size before
+            # anything is allocated (a small file declaring a huge array is refused, not loaded).
+            controls = np.load(spec, allow_pickle=False, mmap_mode="r")
         except FileNotFoundError:
             raise FormatError(spec, "no such file") from None
         except (OSError, ValueError) as error:

@@ -129,6 +129,9 @@ class MotionGraph:
         src, dst = self._edges(allowed)
         self.usable = _infinite_walk_nodes(frames, src, dst) & allowed
         self.dead_ends = allowed & ~self.usable
+        if not allowed.any():
+            raise OptionError(f"every one of the clip's {frames} frames collides with the obstacles or the ground "
+                              "plane: there is nothing left to play")
         if not self.usable.any():
             detail = f" ({frames} frames, {len(pairs)} transitions"
             if forbidden.any():

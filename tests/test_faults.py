@@ -291,3 +291,18 @@ def test_play_threads_and_blas_threads_give_byte_identical_vertices(chain, tmp_p
         with h5py.File(out) as f:
             results.append(f["vertices"][()].tobytes())
     assert results[0] == results[1] == results[2]
+
+
+def test_small_files_declaring_huge_arrays_and_obstacles_that_hit_every_frame(chain, tmp_path):
+    import trimesh
+
+    np.save(tmp_path / "small.npy", np.zeros((3, 4, 3)))
+    raw = (tmp_path / "small.npy").read_bytes()
+    (tmp_path / "huge.npy").write_bytes(raw.replace(b"(3, 4, 3)", b"(9999999, 4, 3)"))  # header only
+    assert_user_error(cli("play", chain / "puppet.h5", "-c", tmp_path / "huge.npy", "-o", tmp_path / "o.h5"),
+                      "huge.npy")
+    box = trimesh.creation.box(extents=(100.0, 100.0, 100.0))
+    box.export(tmp_path / "box.obj")
+    assert_user_error(cli("synthesize", chain / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 20,
+                          "--obstacle", tmp_path / "box.obj"), "every one of the clip's")
+    assert not (tmp_path / "o.h5").exists() and not (tmp_path / "b.h5").exists()
