@@ -36,8 +36,9 @@ class SkinsynthGroup(click.Group):
             return super().main(args, prog_name=prog_name or "skinsynth", standalone_mode=False, **extra)
         except click.exceptions.Exit as done:  # --help, --version
             sys.exit(done.exit_code)
-        except click.exceptions.Abort:
-            common.interrupted(KeyboardInterrupt())
+        except click.exceptions.Abort as abort:  # click turns a KeyboardInterrupt (ours carry the signal) into Abort
+            cause = abort.__cause__ or abort.__context__
+            common.interrupted(cause if isinstance(cause, KeyboardInterrupt) else KeyboardInterrupt())
         except KeyboardInterrupt as stop:  # a signal outside a command's own handling
             common.interrupted(stop)
         except click.ClickException as error:
