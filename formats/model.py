@@ -133,10 +133,27 @@ def write_model(path, stage, groups, provenance, tool_version):
                 _write_group(f.create_group(name, track_order=True), contents)
 
 
+#: A dataset may expand to at most this many times the bytes it occupies in the file (gzip of
+#: the float data skinsynth writes stays far below; all zeros reach about 1000×)...
+MAX_EXPANSION = 1000
+#: ... once it is larger than this (small datasets are read whatever their storage).
+_SMALL = 64 << 20
+
+
+class DeclaredTooLarge(ValueError):
+    """A dataset declares far more data than its file holds."""
+
+
 def _read_group(group):
     out = {f"@{k}": (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
     for name, item in group.items():
         if isinstance(item, h5py.Dataset):
+            # Sizes are checked against what the file holds before anything is allocated: a
+            # small file must not make a reader ask for gigabytes (unwritten chunks read as fill).
+            declared = item.size * item.dtype.itemsize
+            if declared > _SMALL and declared > MAX_EXPANSION * item.id.get_storage_size():
+                raise DeclaredTooLarge(f"{item.name} declares {declared / 2 ** 30:.1f} GiB but the file holds "
+                                       f"{item.id.get_storage_size() / 2 ** 20:.1f} MiB of it")
             out[name] = item[()]
         elif isinstance(item, h5py.Group):
             out[name] = _read_group(item)
@@ -191,6 +208,8 @@ def read_model(path, stages=None):
             for name, item in f.items():
                 if name != "provenance" and isinstance(item, h5py.Group):
                     model[name] = _read_group(item)
+    except DeclaredTooLarge as exc:
+        raise FormatError(path, f"damaged model file: {exc}") from None
     except (OSError, KeyError, ValueError) as exc:
         raise FormatError(path, f"damaged model file ({exc})") from None
     return model

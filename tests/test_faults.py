@@ -306,3 +306,13 @@ def test_small_files_declaring_huge_arrays_and_obstacles_that_hit_every_frame(ch
     assert_user_error(cli("synthesize", chain / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 20,
                           "--obstacle", tmp_path / "box.obj"), "every one of the clip's")
     assert not (tmp_path / "o.h5").exists() and not (tmp_path / "b.h5").exists()
+
+
+def test_a_model_file_cannot_declare_more_than_it_holds(chain, tmp_path):
+    forged = tmp_path / "forged.h5"
+    forged.write_bytes((chain / "skin.h5").read_bytes())
+    with h5py.File(forged, "r+") as f:
+        del f["examples/vertices"]
+        f.create_dataset("examples/vertices", shape=(10 ** 6, 1000, 3), dtype="f8", chunks=(1, 1000, 3))  # unwritten
+    assert forged.stat().st_size < 10 ** 7
+    assert_user_error(cli("inspect", forged), "forged.h5", "/examples/vertices declares 22.4 GiB")
