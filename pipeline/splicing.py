@@ -217,7 +217,7 @@ def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, sp
     H(f)⁻¹ P(f) is the rest, tilt and height, which stay the input's. G is then a turn about up
     and a ground-plane shift, so nothing accumulates off the ground. Π jumps at a seam (Π(i) vs
     Π(j)); it is blended over the ``window`` frames on each side like the bones
-    (:func:`blend_series` on its rotation and the pivot's position, ``spread_velocity`` alike).
+    (:func:`blend_rigid` about the pivot, ``spread_velocity`` alike).
     """
     R_ref = np.asarray(R_ref, dtype=np.float64)
     t_ref = np.asarray(t_ref, dtype=np.float64)
@@ -259,9 +259,9 @@ def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, sp
     P_R, P_t = posture_R[sources], posture_t[sources]
     windows = seam_windows(sources, window)
     if windows.counts.sum():
-        a, m, rotation, position = blend_series(posture_R[:, None], (posture_R @ pivot + posture_t)[:, None],
-                                                sources, windows, spread_velocity=spread_velocity)
-        P_R[a, m], P_t[a, m] = rotation[:, 0], position[:, 0] - rotation[:, 0] @ pivot
+        a, m, rotation, translation = blend_rigid(posture_R[:, None], posture_t[:, None], pivot[None], sources,
+                                                  windows, spread_velocity=spread_velocity)
+        P_R[a, m], P_t[a, m] = rotation[:, 0], translation[:, 0]
     return R_out @ P_R, np.einsum("amij,amj->ami", R_out, P_t) + t_out
 
 
@@ -341,6 +341,17 @@ def blend_series(U, S, sources, windows, select=None, spread_velocity=True):
         e = scipy.linalg.solveh_banded(bands, rhs.reshape(size, -1), lower=False,
                                        check_finite=False).reshape(size, n, width)
     return animation, frame, rotation_exp(e[..., :3]) @ U[src], S[src] + e[..., 3:]
+
+
+def blend_rigid(R, t, pivots, sources, windows, select=None, spread_velocity=True):
+    """:func:`blend_series` of rigid transforms x ↦ R x + t about their ``pivots``: the rotation
+    and the position each takes its pivot to are blended, so a transform that turns a lot while
+    its pivot barely moves stays put there (blending R and t apart turns about the origin and
+    swings what lies far from it). R (F, n, 3, 3), t (F, n, 3), pivots (n, 3). Returns
+    ``(animation (L,), frame (L,), R̃ (L, n, 3, 3), t̃ (L, n, 3))``."""
+    animation, frame, rotation, position = blend_series(R, np.einsum("fbij,bj->fbi", R, pivots) + t, sources,
+                                                        windows, select, spread_velocity)
+    return animation, frame, rotation, position - np.einsum("lbij,bj->lbi", rotation, pivots)
 
 
 def _window_blocks(counts, block_frames):
@@ -508,9 +519,7 @@ def _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, blo
     """Steps 3–4 for the distinct windows: local positions of the local bones at their free frames,
     ``(F_local (L, b−1, 3, 3), t_local (L, b−1, 3))`` in :meth:`SeamWindows.frames` order.
     pivots (b−1, 3): the rest points the bones blend about (``blend="bones"``)."""
-    if blend == "bones":  # rotations, and where each bone takes its pivot
-        U, S = F_in, np.einsum("fbij,bj->fbi", F_in, pivots) + t_in
-    else:
+    if blend != "bones":
         U, S = gradient_series(strain)
         D_in = rotation_times_strain(U, S)  # (F, n, 3, 3): the input gradients
         constant = operator.constant.reshape(-1, 3, 3)
@@ -519,10 +528,10 @@ def _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, blo
     t_local = np.empty((total,) + t_in.shape[1:])
     at = 0
     for select in _window_blocks(unique.counts, max(1, int(block_frames))):
-        animation, frame, rotation, linear = blend_series(U, S, signatures, unique, select, spread_velocity)
         if blend == "bones":
-            F_block, t_block = rotation, linear - np.einsum("lbij,bj->lbi", rotation, pivots)
+            _, frame, F_block, t_block = blend_rigid(F_in, t_in, pivots, signatures, unique, select, spread_velocity)
         else:
+            animation, frame, rotation, linear = blend_series(U, S, signatures, unique, select, spread_velocity)
             D_tilde = rotation_times_strain(rotation, linear)
             src = signatures[animation, frame]
             if anchored:
