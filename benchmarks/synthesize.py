@@ -123,7 +123,9 @@ def bake(skin, F, t):
 
 def frame_accel(vertices):
     """Largest vertex acceleration per frame 1..M−2: (M−2,)."""
-    return np.linalg.norm(np.diff(vertices, n=2, axis=0), axis=-1).max(axis=1)
+    from skinsynth.pipeline.evaluation import frame_accelerations
+
+    return frame_accelerations(vertices)[1:-1]
 
 
 def rigid_tilt(rest, frames, up=UP):
@@ -143,16 +145,9 @@ def read_skin(path):
                 "weights": f["skin/bone_weights"][()], "examples": f["examples/vertices"][()]}
 
 
-def segment_figures(sources):
-    """sources (C, N, M) -> per component (transitions used, mean segment length in frames)."""
-    out = []
-    for walks in sources:
-        seams = np.count_nonzero(walks[:, 1:] != walks[:, :-1] + 1)
-        out.append((int(seams), walks.size / (seams + walks.shape[0])))
-    return out
-
-
 def measure(name, spec, single, work, args):
+    from skinsynth.pipeline.motion_graph import walk_statistics
+
     mode = "single_component" if single else "multi_component"
     skin_path = os.path.join(work, f"{name}.skin.h5")
     if not os.path.exists(skin_path):
@@ -172,10 +167,11 @@ def measure(name, spec, single, work, args):
     accel_in = frame_accel(examples)
     with h5py.File(out, "r") as f:
         sources = f["synthesis/sources"][()]
-        used = segment_figures(sources)
-        line["transitions_used_per_animation"] = [round(s / sources.shape[1], 1) for s, _ in used]
-        line["mean_segment_frames"] = [round(m, 1) for _, m in used]
-        line["coverage"] = round(min(np.unique(c).size / examples.shape[0] for c in sources), 3)
+        stats = walk_statistics(sources, examples.shape[0])
+        line["transitions_used_per_animation"] = [round(s / sources.shape[1], 1) for s in stats["transitions"]]
+        line["mean_segment_frames"] = [round(m, 1) for m in stats["mean_segment_frames"]]
+        line["shortest_segment"] = stats["shortest_segment"]
+        line["coverage"] = round(min(stats["coverage"]), 3)
         worst = []
         for a in range(min(args.smooth, sources.shape[1])):
             worst.append(frame_accel(bake(skin, f["synthesis/bone_matrices"][a], f["synthesis/bone_translations"][a])))
