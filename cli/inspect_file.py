@@ -11,7 +11,7 @@ from .common import user_errors
 def _validate(path, model):
     """The same checks every command makes on what it reads: a corrupt file is one error line."""
     from skinsynth.formats.model import require
-    from skinsynth.formats.validation import check_controls, check_graph, check_puppet, check_skin
+    from skinsynth.formats.validation import check_controls, check_graph, check_puppet, check_skin, check_synthesis
 
     if "skin" not in model:
         return
@@ -24,6 +24,8 @@ def _validate(path, model):
         check_puppet(path, model, dims)
     if "graph" in model:
         check_graph(path, model, dims)
+    if "synthesis" in model:
+        check_synthesis(path, model, dims)
 
 
 def _summary(path, model):

@@ -19,8 +19,23 @@ from .play import play
 from .synthesize import synthesize
 
 
+class _Stopped(Exception):
+    """A KeyboardInterrupt (Ctrl-C, or SIGTERM/SIGHUP turned into one) carried past click, which
+    would print a blank line before turning it into Abort."""
+
+    def __init__(self, stop):
+        super().__init__()
+        self.stop = stop
+
+
 class SkinsynthGroup(click.Group):
     """A click group whose usage errors are one line on stderr (exit 2), like every other user error."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt as stop:
+            raise _Stopped(stop) from None
 
     def main(self, args=None, prog_name=None, **extra):
         args = list(sys.argv[1:] if args is None else args)
@@ -36,6 +51,8 @@ class SkinsynthGroup(click.Group):
             return super().main(args, prog_name=prog_name or "skinsynth", standalone_mode=False, **extra)
         except click.exceptions.Exit as done:  # --help, --version
             sys.exit(done.exit_code)
+        except _Stopped as stopped:
+            common.interrupted(stopped.stop)
         except click.exceptions.Abort as abort:  # click turns a KeyboardInterrupt (ours carry the signal) into Abort
             cause = abort.__cause__ or abort.__context__
             common.interrupted(cause if isinstance(cause, KeyboardInterrupt) else KeyboardInterrupt())

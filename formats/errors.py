@@ -34,3 +34,21 @@ def require_finite(path, what, array):
     if not all_finite(array):
         raise FormatError(path, f"not written: {what} holds NaN or inf values (a result out of range: check the "
                                 "options and the input that produced it)")
+
+
+#: A stored array may expand to at most this many times the bytes it occupies in its file (gzip
+#: or deflate of real float data stays far below; all zeros reach about 1000×, deflate's own
+#: ceiling is 1032×)...
+MAX_EXPANSION = 1000
+#: ... once it is larger than this (small arrays are read whatever their storage).
+SMALL_ARRAY_BYTES = 64 << 20
+
+
+def declared_size_problem(what, declared, held):
+    """A message when ``declared`` bytes are far more than the ``held`` bytes a file stores for
+    ``what`` (a small file must never make a reader ask for gigabytes); None when plausible.
+    Callers check before allocating, then raise FormatError naming the file."""
+    if declared > SMALL_ARRAY_BYTES and declared > MAX_EXPANSION * max(held, 0):
+        return (f"{what} declares {declared / 2 ** 30:.1f} GiB but the file holds {held / 2 ** 20:.1f} MiB of it "
+                "(a damaged or hostile file)")
+    return None

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skinsynth.formats.errors import FormatError, require_finite
+from skinsynth.formats.errors import FormatError, declared_size_problem, require_finite
 
 FRAME_EXTENSIONS = (".obj", ".ply", ".off")
 USD_EXTENSIONS = (".usd", ".usda", ".usdc")
@@ -220,6 +220,7 @@ def _read_npz(path) -> MeshSequence:
     # np.load treats a non-zip file as a pickle and would blame pickling; say what is wrong.
     if not zipfile.is_zipfile(path):
         raise FormatError(path, "not an .npz file (not a zip archive)")
+    _check_npz_sizes(path, ("vertices", "faces", "fps"))
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in ("vertices", "faces", "fps") if name in data.files}
@@ -228,13 +229,44 @@ def _read_npz(path) -> MeshSequence:
     return _from_named_arrays(path, arrays)
 
 
+def _check_npz_sizes(path, names):
+    """Refuse members whose .npy header declares far more than their compressed bytes, before
+    np.load allocates what the header asks for."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            for name in names:
+                try:
+                    info = archive.getinfo(name + ".npy")
+                except KeyError:
+                    continue
+                with archive.open(info) as member:
+                    version = np.lib.format.read_magic(member)
+                    read_header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                                   else np.lib.format.read_array_header_2_0)
+                    shape, _, dtype = read_header(member)
+                declared = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                problem = declared_size_problem(f"'{name}'", declared, info.compress_size)
+                if problem:
+                    raise FormatError(path, problem)
+    except FormatError:
+        raise
+    except Exception as error:  # zipfile and .npy header errors: not a usable npz
+        raise FormatError(path, f"cannot read as .npz: {error}") from None
+
+
 def _read_h5(path) -> MeshSequence:
     import h5py
 
     try:
         with h5py.File(path, "r") as data:
-            arrays = {name: data[name][()] for name in ("vertices", "faces", "fps")
-                      if isinstance(data.get(name), h5py.Dataset)}
+            found = {name: data[name] for name in ("vertices", "faces", "fps")
+                     if isinstance(data.get(name), h5py.Dataset)}
+            for name, item in found.items():
+                problem = declared_size_problem(f"'{name}'", item.size * item.dtype.itemsize,
+                                                item.id.get_storage_size())
+                if problem:
+                    raise FormatError(path, problem)
+            arrays = {name: item[()] for name, item in found.items()}
             if "fps" not in arrays and "fps" in data.attrs:
                 arrays["fps"] = data.attrs["fps"]
     except OSError as error:

@@ -21,7 +21,7 @@ import h5py
 import numpy as np
 
 from .atomic import atomic_output
-from .errors import FormatError, require_finite
+from .errors import FormatError, declared_size_problem, require_finite
 
 FORMAT_NAME = "skinsynth"
 FORMAT_VERSION = 1
@@ -133,13 +133,6 @@ def write_model(path, stage, groups, provenance, tool_version):
                 _write_group(f.create_group(name, track_order=True), contents)
 
 
-#: A dataset may expand to at most this many times the bytes it occupies in the file (gzip of
-#: the float data skinsynth writes stays far below; all zeros reach about 1000×)...
-MAX_EXPANSION = 1000
-#: ... once it is larger than this (small datasets are read whatever their storage).
-_SMALL = 64 << 20
-
-
 class DeclaredTooLarge(ValueError):
     """A dataset declares far more data than its file holds."""
 
@@ -150,10 +143,9 @@ def _read_group(group):
         if isinstance(item, h5py.Dataset):
             # Sizes are checked against what the file holds before anything is allocated: a
             # small file must not make a reader ask for gigabytes (unwritten chunks read as fill).
-            declared = item.size * item.dtype.itemsize
-            if declared > _SMALL and declared > MAX_EXPANSION * item.id.get_storage_size():
-                raise DeclaredTooLarge(f"{item.name} declares {declared / 2 ** 30:.1f} GiB but the file holds "
-                                       f"{item.id.get_storage_size() / 2 ** 20:.1f} MiB of it")
+            problem = declared_size_problem(item.name, item.size * item.dtype.itemsize, item.id.get_storage_size())
+            if problem:
+                raise DeclaredTooLarge(problem)
             out[name] = item[()]
         elif isinstance(item, h5py.Group):
             out[name] = _read_group(item)

@@ -13,7 +13,7 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 from skinsynth.formats.atomic import atomic_output
-from skinsynth.formats.errors import FormatError, require_finite
+from skinsynth.formats.errors import FormatError, declared_size_problem, require_finite
 from skinsynth.formats.meshseq import USD_EXTENSIONS
 
 METERS_PER_UNIT = 1.0  # example sequences carry no unit; DCCs then import them at the size they have
@@ -316,6 +316,12 @@ def read_points_cache(path, prim=None) -> tuple[np.ndarray, np.ndarray, float]:
             raise FormatError(path, f"{where}: no points at time code {time:g}")
         points = np.asarray(points, dtype=np.float64)
         if vertices is None:
+            # A crate file stores a repeated value once, so a few kilobytes can hold a million
+            # samples of the same points: bound the whole array by the bytes of every layer.
+            problem = declared_size_problem(f"{where}: {len(times)} samples of {len(points)} points",
+                                            len(times) * points.nbytes, _stage_bytes(stage))
+            if problem:
+                raise FormatError(path, problem)
             vertices = np.empty((len(times),) + points.shape)
         if points.shape != vertices.shape[1:]:
             raise FormatError(path, f"{where}: {len(points)} points at time code {time:g}, "
@@ -378,6 +384,12 @@ def _open(path):
     if stage is None:
         raise FormatError(path, "cannot open as USD")
     return stage
+
+
+def _stage_bytes(stage):
+    """The bytes of every file layer the stage composes (a small file may reference a big cache)."""
+    return sum(os.path.getsize(layer.realPath) for layer in stage.GetUsedLayers()
+               if layer.realPath and os.path.isfile(layer.realPath))
 
 
 def _usd_reason(error):

@@ -38,6 +38,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .alignment import apply_frames, control_frames
 from .errors import OptionError
@@ -328,6 +329,9 @@ def collinearity_warning(rest, indices, diagonal):
     return None
 
 
+# One BLAS thread: a threaded SVD or product sums in an order that depends on the thread count,
+# and the controls chosen from it must not (issue 11: the same input gives the same file).
+@threadpool_limits.wrap(limits=1, user_api="blas")
 def select_controls(vertices, rest, count=None, components=None, user_vertices=None, min_spacing_fraction=0.1,
                     rigid_tolerance=RIGID_TOLERANCE):
     """Feng §3 control-point selection (after Meyer & Anderson 2007), as described in the module doc.

@@ -347,8 +347,13 @@ def _run_batches(args, batches, jobs, progress, done_before):
         finally:
             _SHARED_OUTPUT.pop(token, None)
     else:
-        for i, (b, n) in enumerate(batches):
-            keep(i, n, make_batch(*args, b, n))
+        from threadpoolctl import threadpool_limits
+
+        # One BLAS thread, as in the workers: a multi-threaded BLAS may split a product's sums
+        # differently (the key-vertex solve's), so only this makes --jobs 1 and N agree bit for bit.
+        with threadpool_limits(limits=1, user_api="blas"):
+            for i, (b, n) in enumerate(batches):
+                keep(i, n, make_batch(*args, b, n))
     sources = np.concatenate([r[0] for r in rests], axis=1)
     choice = np.concatenate([r[1] for r in rests])
     rejected = {key: sum(r[2][key] for r in rests) for key in rests[0][2]}
