@@ -1,8 +1,11 @@
 """The ``skinsynth`` command: one click group, one module per subcommand."""
 
+import contextlib
+import os
 import signal
 import sys
 import threading
+import warnings
 
 import click
 
@@ -19,6 +22,20 @@ from .play import play
 from .synthesize import synthesize
 
 
+@contextlib.contextmanager
+def _warnings_policy():
+    """A command's stderr is its progress and, on failure, one error line: library warnings
+    (numpy overflow on a hostile input, deprecations) are not shown, since every result is checked
+    finite before it is written and every input is validated. SKINSYNTH_WARNINGS=1, or Python's own
+    -W / PYTHONWARNINGS, keeps Python's filters (the test suite turns every warning into an error)."""
+    if os.environ.get("SKINSYNTH_WARNINGS") or sys.warnoptions:
+        yield
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
+
+
 class _Stopped(Exception):
     """A KeyboardInterrupt (Ctrl-C, or SIGTERM/SIGHUP turned into one) carried past click, which
     would print a blank line before turning it into Abort."""
@@ -33,7 +50,8 @@ class SkinsynthGroup(click.Group):
 
     def invoke(self, ctx):
         try:
-            return super().invoke(ctx)
+            with _warnings_policy():
+                return super().invoke(ctx)
         except KeyboardInterrupt as stop:
             raise _Stopped(stop) from None
 

@@ -13,6 +13,10 @@ import numpy as np
 
 from .errors import FormatError
 
+#: play's kernels compute in float32: a squared distance between two positions must stay below
+#: its largest value (3.4e38), so no coordinate may reach 1e18 (far beyond any real unit).
+MAX_COORDINATE = 1e18
+
 
 def _check(path, controls, count):
     if controls.ndim != 3 or controls.shape[2] != 3:
@@ -25,6 +29,12 @@ def _check(path, controls, count):
     if bad.any():
         frame, point, _ = np.argwhere(bad)[0]
         raise FormatError(path, f"non-finite position (NaN or inf) at frame {frame}, point {point}")
+    far = np.abs(controls) >= MAX_COORDINATE
+    if far.any():
+        frame, point, _ = np.argwhere(far)[0]
+        raise FormatError(path, f"position {np.abs(controls[frame, point]).max():.3g} away at frame {frame}, point "
+                                f"{point}: coordinates must stay below {MAX_COORDINATE:.0e} (the kernels compute in "
+                                "float32)")
     return controls
 
 

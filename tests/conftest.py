@@ -11,6 +11,10 @@ SHARED_DATA = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "d
 def pytest_configure(config):
     # Before any test imports warp: keep compiled kernels out of the user's cache folder.
     os.environ.setdefault("SKINSYNTH_CACHE_DIR", str(pathlib.Path(config.rootpath) / "build" / "test-warp-cache"))
+    # Commands keep Python's warning filters, so the suite's "every warning is an error" reaches
+    # them in-process, and a command run as a process prints any warning it meets (tests then see
+    # more than one stderr line).
+    os.environ["SKINSYNTH_WARNINGS"] = "1"
 
 
 @pytest.fixture(scope="session")

@@ -393,3 +393,26 @@ def test_mesh_sequences_cannot_declare_more_than_they_hold(tmp_path):
         assert os.path.getsize(tmp_path / name) < 10 ** 6
         assert_user_error(cli("fit-skin", tmp_path / name, "-o", tmp_path / "out.h5", "--bones", 2), name, what)
     assert not (tmp_path / "out.h5").exists()
+
+
+def test_library_warnings_stay_off_a_commands_stderr_unless_asked(monkeypatch):
+    import warnings
+
+    from skinsynth.cli.main import _warnings_policy
+
+    monkeypatch.delenv("SKINSYNTH_WARNINGS", raising=False)
+    monkeypatch.setattr(sys, "warnoptions", [])
+    with _warnings_policy():
+        warnings.warn("overflow encountered in cast", RuntimeWarning)  # the suite's filter would make it an error
+        np.float32(1e30) * np.float32(1e30)
+    monkeypatch.setenv("SKINSYNTH_WARNINGS", "1")
+    with pytest.warns(RuntimeWarning), _warnings_policy():
+        warnings.warn("shown when asked", RuntimeWarning)
+
+
+def test_controls_beyond_float32_range_are_refused(chain, tmp_path):
+    controls = np.zeros((3, 4, 3))
+    controls[1, 2, 0] = 1e20
+    np.save(tmp_path / "far.npy", controls)
+    assert_user_error(cli("play", chain / "puppet.h5", "-c", tmp_path / "far.npy", "-o", tmp_path / "o.h5"),
+                      "far.npy", "frame 1, point 2", "float32", folder=tmp_path, keep=["far.npy"])
