@@ -282,6 +282,7 @@ def fit_rbf(
     smoothing=0.0,
     epsilon=None,
     input_tolerance=1e-6,
+    merge_tolerance=1e-3,
 ):
     """Fit direct RBF regression, aligned control vector (3n_c) -> aligned vertices (3V).
 
@@ -301,6 +302,12 @@ def fit_rbf(
     a single affine map of the reduced inputs (fine on smooth families, brittle on noisy controls;
     raise ``input_tolerance`` to keep fewer directions). ``epsilon`` (shape parameter) is needed only by the
     scale-dependent kernels and defaults to 1 (the inputs have unit spread).
+
+    Training frames whose reduced inputs lie within ``merge_tolerance`` of an earlier one (in
+    units of the spread) are merged into it, outputs averaged: an interpolating spline through two
+    nearly equal inputs with different outputs has an enormous gradient between them and predicts
+    nonsense elsewhere (a periodic capture holds each pose twice, up to file rounding: the horse
+    gallop's frames k and k + 24 differ by 1e-4, and the spline's error was 600× the mesh).
     """
     vertices, indices, reference = _check_training(train_vertices, control_indices, reference_controls, global_motion)
     if not np.isfinite(smoothing) or smoothing < 0.0:
@@ -309,12 +316,15 @@ def fit_rbf(
     placed = _in_place(vertices, indices, reference, global_motion)
     inputs = placed[:, indices].reshape(n_p, -1)
     outputs = placed.reshape(n_p, -1)
+    spread = float(np.sqrt(np.sum(inputs.var(axis=0))))
+    if not spread > 0.0:
+        raise OptionError("the (aligned) control points do not move over the training frames; nothing to regress on")
+    inputs, outputs = _merge_repeated_inputs(inputs / spread, outputs, merge_tolerance)
+    inputs *= spread
     input_mean = inputs.mean(axis=0)
     _, s, vt = np.linalg.svd(inputs - input_mean, full_matrices=False)
-    if s[0] <= 0.0:
-        raise OptionError("the (aligned) control points do not move over the training frames; nothing to regress on")
     input_axes = vt[s > input_tolerance * s[0]]
-    input_scale = float(np.sqrt(np.sum(s**2) / n_p))
+    input_scale = float(np.sqrt(np.sum(s**2) / inputs.shape[0]))
     reduced = (inputs - input_mean) @ input_axes.T / input_scale
     if epsilon is None:
         epsilon = 1.0
@@ -334,6 +344,23 @@ def fit_rbf(
         kernel=kernel,
         smoothing=float(smoothing),
     )
+
+
+def _merge_repeated_inputs(inputs, outputs, tolerance):
+    """(inputs (m, r), outputs (m, p)) with every input within ``tolerance`` of an earlier kept one
+    merged into it (outputs averaged); m ≤ n, first-seen order."""
+    squared = np.sum((inputs[:, None, :] - inputs[None, :, :]) ** 2, axis=-1)
+    owner = np.arange(inputs.shape[0])
+    for i in range(1, inputs.shape[0]):  # over training frames (tens to hundreds), not vertices
+        earlier = np.flatnonzero(squared[i, :i] <= tolerance ** 2)
+        if earlier.size:
+            owner[i] = owner[earlier[0]]
+    kept, group = np.unique(owner, return_inverse=True)
+    if kept.size == owner.size:
+        return inputs, outputs
+    sums = np.zeros((kept.size, outputs.shape[1]))
+    np.add.at(sums, group, outputs)
+    return inputs[kept], sums / np.bincount(group)[:, None]
 
 
 def predict_rbf(model, controls):

@@ -147,6 +147,18 @@ def test_baselines_generalise_on_the_bending_bar():
     assert pca_error < 0.02 * deformation
 
 
+def test_rbf_survives_a_periodic_clip_that_repeats_its_poses():
+    """Training on two copies of a cycle (each pose twice, up to file rounding, as the horse
+    gallop holds them) must predict as well as training on one copy."""
+    vertices, train, test, controls = _bar_split()
+    reference = vertices[0, controls]
+    rounding = np.random.default_rng(0).normal(scale=1e-5, size=vertices[train].shape)
+    twice = np.concatenate([vertices[train], vertices[train] + rounding])
+    once = predict_rbf(fit_rbf(vertices[train], controls, reference), vertices[test][:, controls])
+    repeated = predict_rbf(fit_rbf(twice, controls, reference), vertices[test][:, controls])
+    assert _rms(repeated, once) < 1e-3 * _rms(vertices[test], vertices[0])
+
+
 def test_baselines_are_equivariant_under_rigid_motion_in_control_frame_mode():
     vertices, train, test, controls = _bar_split()
     reference = vertices[0, controls]
