@@ -13,7 +13,14 @@ float32 `out` buffer, written in place on the CPU; `f64_frames_per_s`: with the 
 result, first layout only). `stages` synchronises after each stage (so sums slightly exceed the
 end-to-end time). The numpy reference runs on at most --numpy-samples samples and is scaled.
 
-    python benchmarks/play.py [--repeats 3] [--only face] [--numpy-samples 200]
+Then, with --real DIR (the puppet benchmark's work folder, or an empty one), one line per real
+capture: its puppet (``train-kcca --train-frames every:4``, built with the CLI when DIR lacks
+it) played by ``skinsynth play`` from the capture's own control trajectories into an HDF5 bake
+and a UsdSkel file; ``bake_error`` and ``usdskel_error`` are the largest vertex distances from
+the float64 reference (``pipeline.puppet.predict_vertices``) over the rest diagonal (goal
+≤ 1e-5), next to play's own frames per second (``--json``, compute only, the machine's threads).
+
+    python benchmarks/play.py [--repeats 3] [--only face] [--numpy-samples 200] [--real DIR]
 """
 
 import argparse
@@ -98,13 +105,61 @@ def numpy_reference(puppet, x, c, frames, solver):
     return stages
 
 
+def real_puppets(work):
+    """One JSON line per real capture: play's bake and UsdSkel output against the float64 reference."""
+    import os
+
+    import h5py
+    from datasets import BONES, captures, run
+
+    from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.formats.usd import read_skel_points
+    from skinsynth.pipeline.puppet import predict_vertices
+
+    os.makedirs(work, exist_ok=True)
+    for name, spec in captures(work):
+        skin = os.path.join(work, f"{name}.skin.h5")
+        controls = os.path.join(work, f"{name}.controls.h5")
+        puppet_path = os.path.join(work, f"{name}.every4.puppet.h5")
+        if not os.path.exists(skin):
+            run(["fit-skin", spec, "-o", skin, "--bones", str(BONES.get(name, 20)), "--seed", "0", "-q"], work)
+        if not os.path.exists(controls):
+            run(["select-controls", skin, "-o", controls, "--count", "8", "-q"], work)
+        if not os.path.exists(puppet_path):
+            run(["train-kcca", controls, "-o", puppet_path, "--train-frames", "every:4", "-q"], work)
+        bake, usd = os.path.join(work, f"{name}.play.h5"), os.path.join(work, f"{name}.play.usdc")
+        _, _, _, stdout = run(["play", puppet_path, "-c", spec, "-o", bake, "--json"], work)
+        run(["play", puppet_path, "-c", spec, "-o", usd, "--as", "skel"], work)
+        puppet, _, _ = read_puppet(puppet_path)
+        with h5py.File(puppet_path, "r") as f:
+            examples = f["examples/vertices"][()]
+        reference = predict_vertices(puppet, examples[:, puppet.control_indices])
+        rest = puppet.rest_vertices
+        diagonal = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
+        with h5py.File(bake, "r") as f:
+            baked = f["vertices"][()]
+        skel = read_skel_points(usd)
+        print(json.dumps({"dataset": name, "frames": int(examples.shape[0]), "vertices": int(rest.shape[0]),
+                          "bones": int(puppet.regression.predictor.shape[0]),
+                          "predictor_max": float(np.abs(puppet.regression.predictor).max()),
+                          "bake_error": float(np.abs(baked - reference).max() / diagonal),
+                          "usdskel_error": float(np.abs(skel - reference).max() / diagonal),
+                          "play": json.loads(stdout)}), flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", choices=sorted(MODELS))
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--numpy-samples", type=int, default=100)
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--real", metavar="DIR", help="also play a puppet of every real capture (work folder)")
+    parser.add_argument("--real-only", action="store_true", help="only the real puppets")
     opts = parser.parse_args()
+    if opts.real:
+        real_puppets(opts.real)
+    if opts.real_only:
+        return
     devices = [d for d in available_devices() if d in ("cpu", "cuda:0")]
     rng = np.random.default_rng(0)
     for name, size in MODELS.items():

@@ -2,7 +2,10 @@
 
 Every function takes N *samples* (frames × characters, flattened: each sample is independent)
 and runs one launch over all of them (per chunk, where device memory must stay bounded).
-Numpy in, float64 numpy out; float32 on the device. The stages, each with its numpy reference:
+Numpy in, float64 numpy out. On the device the kernel vectors ξ and the raw predictions M ξ + m
+are float64 (M's entries reach 1e4 and cancel: float32 lost 1.7e-3 of the horse's diagonal);
+from the normalised dual quaternions on, float32 (values of order one). The stages, each with
+its numpy reference:
 
 1. :func:`kernel_vectors` — ξ = k(x, training) for standardised controls x (N, d), (N, n_p);
 2. :func:`predict_dual_quaternions` — d = M ξ + m for all bones at once (Feng §6.1), (N, B, 8);
@@ -207,6 +210,15 @@ def _vec8():
 
 
 @functools.cache
+def _vec8d():
+    """Raw predictions d = M ξ + m stay in float64: M's entries reach 1e4 on real puppets (nearly
+    repeated training poses) and cancel in the sum, which float32 turned into dual-quaternion
+    errors of 3e-3 (1.7e-3 of the horse's diagonal)."""
+    wp = runtime.warp()
+    return wp.types.vector(length=8, dtype=wp.float64)
+
+
+@functools.cache
 def _funcs():
     """Device helpers on (w, x, y, z, w, x, y, z) vec8 dual quaternions."""
     wp = runtime.warp()
@@ -234,13 +246,13 @@ def _kernel_vector_kernel(kind: str, degree: int):
 
     @wp.kernel(module="unique")
     def kernel_vector_kernel(
-        x: wp.array2d(dtype=wp.float32),
-        training: wp.array2d(dtype=wp.float32),
-        offset: wp.float32,
-        xi: wp.array2d(dtype=wp.float32),
+        x: wp.array2d(dtype=wp.float64),
+        training: wp.array2d(dtype=wp.float64),
+        offset: wp.float64,
+        xi: wp.array2d(dtype=wp.float64),
     ):
         n, j = wp.tid()
-        acc = wp.float32(0.0)
+        acc = wp.float64(0.0)
         for c in range(x.shape[1]):
             if wp.static(gaussian):
                 diff = x[n, c] - training[j, c]
@@ -248,10 +260,10 @@ def _kernel_vector_kernel(kind: str, degree: int):
             else:
                 acc += x[n, c] * training[j, c]
         if wp.static(gaussian):
-            xi[n, j] = wp.exp(-0.5 * acc)
+            xi[n, j] = wp.exp(wp.float64(-0.5) * acc)
         elif wp.static(polynomial):
             base = acc + offset
-            value = wp.float32(1.0)
+            value = wp.float64(1.0)
             for _ in range(degree):
                 value *= base
             xi[n, j] = value
@@ -264,14 +276,14 @@ def _kernel_vector_kernel(kind: str, degree: int):
 @functools.cache
 def _predict_kernel():
     wp = runtime.warp()
-    vec8 = _vec8()
+    vec8d = _vec8d()
 
     @wp.kernel(module="unique")
     def predict_kernel(
-        xi: wp.array2d(dtype=wp.float32),
-        predictor: wp.array2d(dtype=vec8),  # (B, n_p): bone b's column j of M
-        bias: wp.array(dtype=vec8),  # (B,)
-        d: wp.array2d(dtype=vec8),  # (N, B)
+        xi: wp.array2d(dtype=wp.float64),
+        predictor: wp.array2d(dtype=vec8d),  # (B, n_p): bone b's column j of M
+        bias: wp.array(dtype=vec8d),  # (B,)
+        d: wp.array2d(dtype=vec8d),  # (N, B)
     ):
         n, b = wp.tid()
         acc = bias[b]
@@ -288,21 +300,23 @@ def _normalise_kernel():
     vec8 = _vec8()
     dq_real, dq_dual, dq_pack = _funcs()
 
+    vec8d = _vec8d()
+
     @wp.kernel(module="unique")
     def normalise_kernel(
-        d: wp.array2d(dtype=vec8),
+        d: wp.array2d(dtype=vec8d),  # raw, float64: normalised before rounding to float32
         unit: wp.array2d(dtype=vec8),
         rotations: wp.array2d(dtype=wp.mat33),
         translations: wp.array2d(dtype=wp.vec3),
     ):
         n, b = wp.tid()
         v = d[n, b]
-        q0 = dq_real(v)
-        qe = dq_dual(v)
-        inv = 1.0 / wp.length(q0)
-        q0 = q0 * inv
-        qe = qe * inv
-        unit[n, b] = dq_pack(q0, qe)
+        inv = wp.float64(1.0) / wp.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3])
+        u = vec8(wp.float32(v[0] * inv), wp.float32(v[1] * inv), wp.float32(v[2] * inv), wp.float32(v[3] * inv),
+                 wp.float32(v[4] * inv), wp.float32(v[5] * inv), wp.float32(v[6] * inv), wp.float32(v[7] * inv))
+        q0 = dq_real(u)
+        qe = dq_dual(u)
+        unit[n, b] = u
         rotations[n, b] = wp.quat_to_matrix(q0)
         p = qe * wp.quat(-q0[0], -q0[1], -q0[2], q0[3])  # qe q0*
         translations[n, b] = 2.0 * wp.vec3(p[0], p[1], p[2])
@@ -434,6 +448,10 @@ def _f32(wp, values, dtype, device):
     return wp.array(np.ascontiguousarray(values, dtype=np.float32), dtype=dtype, device=device)
 
 
+def _f64(wp, values, dtype, device):
+    return wp.array(np.ascontiguousarray(values, dtype=np.float64), dtype=dtype, device=device)
+
+
 def kernel_vectors(x, training, kind, offset=0.0, degree=5, device="cpu") -> np.ndarray:
     """ξ (N, n_p) float64 between standardised controls x (N, d) and training (n_p, d); one launch.
 
@@ -445,19 +463,19 @@ def kernel_vectors(x, training, kind, offset=0.0, degree=5, device="cpu") -> np.
         raise ValueError(f"x (N, d) and training (n_p, d) must share d, got {x.shape} and {training.shape}")
     device = runtime.resolve_device(device)
     wp = runtime.warp()
-    out = wp.empty((x.shape[0], training.shape[0]), dtype=wp.float32, device=device)
+    out = wp.empty((x.shape[0], training.shape[0]), dtype=wp.float64, device=device)
     if out.size:
         wp.launch(_kernel_vector_kernel(kind, int(degree)), dim=out.shape,
-                  inputs=[_f32(wp, x, wp.float32, device), _f32(wp, training, wp.float32, device), float(offset)],
+                  inputs=[_f64(wp, x, wp.float64, device), _f64(wp, training, wp.float64, device), float(offset)],
                   outputs=[out], device=device)
-    return out.numpy().astype(np.float64)
+    return out.numpy()
 
 
 def _predictor_columns(predictor):
-    """M (8B, n_p) -> (B, n_p, 8) float32, so each bone's column j is one vec8."""
+    """M (8B, n_p) -> (B, n_p, 8) float64, so each bone's column j is one vec8d."""
     predictor = np.asarray(predictor)
     bones = predictor.shape[0] // 8
-    return np.ascontiguousarray(predictor.reshape(bones, 8, -1).transpose(0, 2, 1), dtype=np.float32)
+    return np.ascontiguousarray(predictor.reshape(bones, 8, -1).transpose(0, 2, 1), dtype=np.float64)
 
 
 def predict_dual_quaternions(xi, predictor, bias, device="cpu") -> np.ndarray:
@@ -468,15 +486,15 @@ def predict_dual_quaternions(xi, predictor, bias, device="cpu") -> np.ndarray:
         raise ValueError(f"expected xi (N, n_p), predictor (8B, n_p), bias (8B,); got {xi.shape}, "
                          f"{predictor.shape}, {bias.shape}")
     device = runtime.resolve_device(device)
-    wp, vec8 = runtime.warp(), _vec8()
+    wp, vec8d = runtime.warp(), _vec8d()
     bones = predictor.shape[0] // 8
-    out = wp.empty((xi.shape[0], bones), dtype=vec8, device=device)
+    out = wp.empty((xi.shape[0], bones), dtype=vec8d, device=device)
     if out.size:
         wp.launch(_predict_kernel(), dim=out.shape,
-                  inputs=[_f32(wp, xi, wp.float32, device), _f32(wp, _predictor_columns(predictor), vec8, device),
-                          _f32(wp, bias.reshape(bones, 8), vec8, device)],
+                  inputs=[_f64(wp, xi, wp.float64, device), _f64(wp, _predictor_columns(predictor), vec8d, device),
+                          _f64(wp, bias.reshape(bones, 8), vec8d, device)],
                   outputs=[out], device=device)
-    return out.numpy().reshape(xi.shape[0], bones, 8).astype(np.float64)
+    return out.numpy().reshape(xi.shape[0], bones, 8)
 
 
 def normalise_dual_quaternions(d, device="cpu"):
@@ -493,7 +511,7 @@ def normalise_dual_quaternions(d, device="cpu"):
     rot = wp.empty(shape, dtype=wp.mat33, device=device)
     trans = wp.empty(shape, dtype=wp.vec3, device=device)
     if unit.size:
-        wp.launch(_normalise_kernel(), dim=shape, inputs=[_f32(wp, d, vec8, device)], outputs=[unit, rot, trans],
+        wp.launch(_normalise_kernel(), dim=shape, inputs=[_f64(wp, d, _vec8d(), device)], outputs=[unit, rot, trans],
                   device=device)
     return (unit.numpy().reshape(shape + (8,)).astype(np.float64), rot.numpy().astype(np.float64),
             trans.numpy().astype(np.float64))
@@ -603,11 +621,11 @@ class DevicePuppet:
         bones = arrays.bones
         rest, idx, w = _skin_arrays(arrays.rest_vertices, arrays.bone_indices, arrays.bone_weights, bones)
         self.skin = _SkinBuffers(rest, idx, w, dev)
-        self.training = _f32(wp, arrays.training_controls, wp.float32, dev)
+        self.training = _f64(wp, arrays.training_controls, wp.float64, dev)
         if arrays.predictor.shape != (8 * bones, self.training.shape[0]) or np.shape(arrays.bias) != (8 * bones,):
             raise ValueError(f"predictor must be (8B, n_p) = (8·{bones}, {self.training.shape[0]}) and bias (8B,)")
-        self.predictor = _f32(wp, _predictor_columns(arrays.predictor), vec8, dev)
-        self.bias = _f32(wp, np.reshape(arrays.bias, (bones, 8)), vec8, dev)
+        self.predictor = _f64(wp, _predictor_columns(arrays.predictor), _vec8d(), dev)
+        self.bias = _f64(wp, np.reshape(arrays.bias, (bones, 8)), _vec8d(), dev)
         self.gamma = self.control_operator = self.prior = None
         if arrays.has_solver:
             gamma, q, prior = _check_operator(arrays.rotation_operator, arrays.control_operator,
@@ -640,8 +658,8 @@ class _Workspace:
         samples = int(samples)  # chunk bounds may be numpy integers, which warp does not take as a shape
         bones, n_p = puppet.bones, puppet.training.shape[0]
         shape = (samples, bones)
-        self.xi = wp.empty((samples, n_p), dtype=wp.float32, device=device)
-        self.raw = wp.empty(shape, dtype=vec8, device=device)
+        self.xi = wp.empty((samples, n_p), dtype=wp.float64, device=device)
+        self.raw = wp.empty(shape, dtype=_vec8d(), device=device)
         self.unit = wp.empty(shape, dtype=vec8, device=device)
         self.rot = wp.empty(shape, dtype=wp.mat33, device=device)
         self.trans = wp.empty(shape, dtype=wp.vec3, device=device)
@@ -689,7 +707,7 @@ def _run_chunk(puppet, space, x, c, f, out, device, timings=None):
                 timings[name] = timings.get(name, 0.0) + now - stamp[0]
             stamp[0] = now
 
-    x_d = _f32(wp, x, wp.float32, device)
+    x_d = _f64(wp, x, wp.float64, device)
     solve = c is not None
     if f is not None:
         wp.launch(_frames_kernel(), dim=n, inputs=[_f32(wp, f, wp.mat44, device)], outputs=[space.frames[:n]],

@@ -62,6 +62,22 @@ def test_predict_dual_quaternions(samples):
     assert np.allclose(got[0, 3, 5], predictor[29] @ xi[0] + bias[29], rtol=1e-5)
 
 
+def test_predictions_with_large_cancelling_coefficients_stay_exact():
+    """Nearly repeated training poses give predictors whose entries reach 1e4 and cancel (the
+    horse's): d = M ξ + m must keep float64's precision, not float32's (which lost 3e-3)."""
+    rng = np.random.default_rng(7)
+    bones, n_p, samples = 6, 24, 30
+    xi = np.exp(-rng.random((samples, n_p)))
+    twin = rng.normal(size=(8 * bones, n_p // 2)) * 2.5e4
+    predictor = np.concatenate([twin, -twin * (1.0 + 1e-4)], axis=1)  # columns of twin poses nearly cancel
+    bias = random_dual_quaternions(rng, 1, bones, flip=False).reshape(-1)
+    raw = pk.predict_dual_quaternions(xi, predictor, bias)
+    expected = pk.predict_dual_quaternions_reference(xi, predictor, bias)
+    assert np.abs(raw - expected).max() < 1e-9 * np.abs(predictor).max()
+    unit = pk.normalise_dual_quaternions(raw)[0]
+    assert np.abs(unit - pk.normalise_dual_quaternions_reference(expected)[0]).max() < 1e-6
+
+
 @pytest.mark.parametrize("samples", [1, 40])
 def test_normalise_dual_quaternions(samples):
     rng = np.random.default_rng(samples)
