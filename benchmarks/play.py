@@ -75,7 +75,7 @@ def random_inputs(rng, samples, puppet):
 def numpy_reference(puppet, x, c, frames, solver):
     """Stage seconds of the numpy reference (composing the stage references)."""
     from skinsynth.gpu.skinning import dqs_reference
-    from skinsynth.pipeline.rotations import quaternion_multiply
+    from skinsynth.gpu.dual_quaternions import with_translations
 
     stages, t0 = {}, time.perf_counter()
 
@@ -95,8 +95,7 @@ def numpy_reference(puppet, x, c, frames, solver):
         trans = pk.solve_translations_reference(rot, c, trans, puppet.rotation_operator, puppet.control_operator,
                                                 puppet.prior_operator)
         mark("solve_translations")
-        pure = np.concatenate([np.zeros(trans.shape[:-1] + (1,)), trans], axis=-1)
-        d = np.concatenate([d[..., :4], 0.5 * quaternion_multiply(pure, d[..., :4])], axis=-1)
+        d = with_translations(d, trans)
         mark("compose")
     placed = dqs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, d)
     mark("skin")

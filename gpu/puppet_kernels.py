@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import runtime
+from .dual_quaternions import dual_quaternion_to_rigid, with_translations
 from .skinning import _checked, dqs_reference
 
 KERNEL_KINDS = ("gaussian", "polynomial", "linear")
@@ -42,35 +43,33 @@ _DEVICE_CHUNK = 1 << 24
 
 
 # ----------------------------------------------------------------------------------------------
-# numpy references of the single stages (the ones the pipeline already has are reused)
+# numpy references of the single stages (the pipeline's own computations call these)
 
 
 def kernel_vectors_reference(x, training, kind, offset=0.0, degree=5):
-    """ξ (N, n_p) float64: ``pipeline.kcca.ControlKernel.matrix`` on already standardised inputs."""
-    from skinsynth.pipeline.kcca import ControlKernel
-
+    """ξ (N, n_p) float64 between standardised controls x (N, d) and training (n_p, d) (what
+    ``pipeline.kcca.ControlKernel.matrix`` computes): "gaussian" exp(-|x-y|²/2), "polynomial"
+    (xᵀy + offset)^degree, "linear" xᵀy."""
     _check_kind(kind)
-    x = np.asarray(x, dtype=np.float64)
-    kernel = ControlKernel(kind=kind, mean=np.zeros(x.shape[1]), scale=1.0, offset=float(offset), degree=int(degree))
-    return kernel.matrix(x, np.asarray(training, dtype=np.float64))
+    x, training = np.asarray(x, dtype=np.float64), np.asarray(training, dtype=np.float64)
+    if kind == "linear":
+        return x @ training.T
+    if kind == "polynomial":
+        return (x @ training.T + offset) ** degree
+    sq = np.sum(x * x, axis=1)[:, None] + np.sum(training * training, axis=1)[None, :] - 2.0 * x @ training.T
+    return np.exp(-0.5 * np.maximum(sq, 0.0))
 
 
 def predict_dual_quaternions_reference(xi, predictor, bias):
     """d (N, B, 8) = M ξ + m with M (8B, n_p) (row b·8 + m is bone b's m-th number), m (8B,)."""
-    from skinsynth.pipeline.kcca import KccaRegression, predict
-
     predictor = np.asarray(predictor, dtype=np.float64)
     bones = predictor.shape[0] // 8
-    regression = KccaRegression(predictor=predictor.reshape(bones, 8, -1),
-                                bias=np.asarray(bias, dtype=np.float64).reshape(bones, 8),
-                                correlations=None, regularization=None)
-    return predict(regression, np.asarray(xi, dtype=np.float64))
+    return (np.einsum("bmn,fn->fbm", predictor.reshape(bones, 8, -1), np.asarray(xi, dtype=np.float64))
+            + np.asarray(bias, dtype=np.float64).reshape(bones, 8))
 
 
 def normalise_dual_quaternions_reference(d):
     """(unit d (N, B, 8), rotations (N, B, 3, 3), translations (N, B, 3)), dividing by |q0|."""
-    from skinsynth.pipeline.rotations import dual_quaternion_to_rigid
-
     d = np.asarray(d, dtype=np.float64)
     unit = d / np.linalg.norm(d[..., :4], axis=-1, keepdims=True)
     rotations, translations = dual_quaternion_to_rigid(unit)
@@ -79,14 +78,11 @@ def normalise_dual_quaternions_reference(d):
 
 def solve_translations_reference(rotations, controls, predicted_translations, rotation_operator,
                                  control_operator, prior_operator):
-    """``pipeline.poisson.solve_translations`` with the operator given as arrays: t (N, B, 3)."""
-    from skinsynth.pipeline.poisson import TranslationOperator, solve_translations as solve
-
-    operator = TranslationOperator(np.asarray(rotation_operator, dtype=np.float64),
-                                   np.asarray(control_operator, dtype=np.float64),
-                                   np.asarray(prior_operator, dtype=np.float64))
-    return solve(operator, np.asarray(rotations, dtype=np.float64), np.asarray(controls, dtype=np.float64),
-                 np.asarray(predicted_translations, dtype=np.float64))
+    """Feng §6.2's translations t = Γ·R + Q·c + Π·t̂ (N, B, 3): rotations (N, B, 3, 3), controls
+    (N, n_c, 3) in place, predicted t̂ (N, B, 3); Γ (B, B, 3), Q (B, n_c), Π (B, B)."""
+    return (np.einsum("bkc,fkac->fba", np.asarray(rotation_operator, dtype=np.float64), rotations, optimize=True)
+            + np.einsum("bl,fla->fba", np.asarray(control_operator, dtype=np.float64), controls)
+            + np.einsum("bk,fka->fba", np.asarray(prior_operator, dtype=np.float64), predicted_translations))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -174,8 +170,6 @@ def reference_run_puppet(puppet, standardised_controls, controls_in_place, world
     Composes the stage references; the world frames are applied to the skinned vertices, as
     ``pipeline.puppet.predict_vertices`` does (the device version folds them into the bones).
     """
-    from skinsynth.pipeline.rotations import quaternion_multiply
-
     arrays = _as_arrays(puppet)
     if isinstance(arrays, DevicePuppet):
         arrays = arrays.host
@@ -186,8 +180,7 @@ def reference_run_puppet(puppet, standardised_controls, controls_in_place, world
     if translation_solver:
         trans = solve_translations_reference(rot, c, trans, arrays.rotation_operator, arrays.control_operator,
                                              arrays.prior_operator)
-        pure = np.concatenate([np.zeros(trans.shape[:-1] + (1,)), trans], axis=-1)
-        d = np.concatenate([d[..., :4], 0.5 * quaternion_multiply(pure, d[..., :4])], axis=-1)
+        d = with_translations(d, trans)
     placed = dqs_reference(arrays.rest_vertices, arrays.bone_indices, arrays.bone_weights, d)
     if f is None:
         return placed
@@ -616,7 +609,7 @@ class DevicePuppet:
         _check_kind(arrays.kernel)
         self.host = arrays
         self.device = runtime.resolve_device(device)
-        wp, vec8 = runtime.warp(), _vec8()
+        wp = runtime.warp()
         dev = self.device
         bones = arrays.bones
         rest, idx, w = _skin_arrays(arrays.rest_vertices, arrays.bone_indices, arrays.bone_weights, bones)

@@ -49,14 +49,11 @@ class ControlKernel:
         return (controls - self.mean) / self.scale
 
     def matrix(self, x, y):
-        """Kernel values (n, m) between standardised vectors x (n, d) and y (m, d)."""
-        if self.kind == "linear":
-            return x @ y.T
-        if self.kind == "polynomial":
-            return (x @ y.T + self.offset) ** self.degree
-        sq = np.sum(x * x, axis=1)[:, None] + np.sum(y * y, axis=1)[None, :] - 2.0 * x @ y.T
-        # Standardised inputs have σ = 1, so the Gaussian is exp(-|x-y|²/2).
-        return np.exp(-0.5 * np.maximum(sq, 0.0))
+        """Kernel values (n, m) between standardised vectors x (n, d) and y (m, d) (standardised
+        inputs have σ = 1, so the Gaussian is exp(-|x-y|²/2)); the run time's own reference."""
+        from skinsynth.gpu.puppet_kernels import kernel_vectors_reference
+
+        return kernel_vectors_reference(x, y, self.kind, self.offset, self.degree)
 
 
 def control_kernel(kind, controls):

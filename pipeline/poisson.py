@@ -172,7 +172,9 @@ def choose_translation_prior(system, rotations, controls, predicted, vertex_erro
 
 
 def solve_translations(operator, rotations, controls, predicted_translations):
-    """rotations (F, B, 3, 3), controls (F, n_c, 3), predicted_translations (F, B, 3) -> (F, B, 3)."""
-    return (np.einsum("bkc,fkac->fba", operator.rotation_operator, rotations, optimize=True)
-            + np.einsum("bl,fla->fba", operator.control_operator, controls)
-            + np.einsum("bk,fka->fba", operator.prior_operator, predicted_translations))
+    """rotations (F, B, 3, 3), controls (F, n_c, 3), predicted_translations (F, B, 3) -> (F, B, 3)
+    (Feng §6.2; the run time's own reference computes it)."""
+    from skinsynth.gpu.puppet_kernels import solve_translations_reference
+
+    return solve_translations_reference(rotations, controls, predicted_translations, operator.rotation_operator,
+                                        operator.control_operator, operator.prior_operator)

@@ -20,7 +20,7 @@ from .errors import OptionError
 from .kcca import ControlKernel, KccaRegression, choose_regularization, control_kernel, fit_kcca, predict
 from .poisson import (TranslationOperator, choose_translation_prior, fit_edge_weights, mesh_edges, operator_from_system,
                       solve_translations, translation_system)
-from .rotations import dual_quaternion_to_rigid, quaternion_multiply, rigid_to_dual_quaternion
+from .rotations import dual_quaternion_to_rigid, rigid_to_dual_quaternion, with_translations
 
 GLOBAL_MOTION = ("auto", "control-frame", "world")
 #: A frame fitted to the controls is trusted only above this conditioning (s₂/s₁, every frame).
@@ -250,8 +250,7 @@ def predict_bones(puppet, controls, translation_solver=True):
     if translation_solver and puppet.translations is not None:
         rot, trans = dual_quaternion_to_rigid(d)
         trans = solve_translations(puppet.translations, rot, placed, trans)  # t = P·T   (Feng §6.2)
-        pure = np.concatenate([np.zeros(trans.shape[:-1] + (1,)), trans], axis=-1)
-        d = np.concatenate([d[..., :4], 0.5 * quaternion_multiply(pure, d[..., :4])], axis=-1)
+        d = with_translations(d, trans)
     return d, frame_r, frame_t
 
 

@@ -239,3 +239,22 @@ def test_run_puppet_matches_predict_vertices(trained_puppet, solver):
     assert relative_error(got, expected) < TOL
     reference = pk.reference_run_puppet(puppet, x, placed, frames, translation_solver=solver)
     assert relative_error(reference, expected) < 1e-10
+
+
+def test_the_kernels_sit_below_the_pipeline():
+    """Layers point one way (cli → pipeline → gpu): no module of gpu/ imports the pipeline, not even
+    inside a function."""
+    import ast
+    import pathlib
+
+    import skinsynth.gpu
+
+    for path in pathlib.Path(skinsynth.gpu.__file__).parent.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                names = [("." * node.level) + (node.module or "")]
+            elif isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            else:
+                continue
+            assert not [n for n in names if "pipeline" in n or n.startswith("..")], (path.name, names)
