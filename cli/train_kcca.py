@@ -13,6 +13,9 @@ from .common import check_output_path, command_line, tool_version, user_errors
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Puppet file to write (.h5).")
 @click.option("--kernel", default="gaussian", show_default=True,
               help="Kernel on the control side: gaussian, polynomial ((xᵀy + c)^5) or linear.")
+@click.option("--kernel-width", default="auto", show_default=True,
+              help="Gaussian width as a multiple of the training controls' spread σ, or 'auto' (0.5σ…8σ by "
+                   "cross-validation on the training frames, printed).")
 @click.option("--bases", default=8, show_default=True, type=int, help="Kernel-CCA bases per bone (n_f; at most 8).")
 @click.option("--regularization", default="auto", show_default=True,
               help="κ relative to the mean kernel eigenvalue, or 'auto' (per bone, by cross-validation on the training frames).")
@@ -31,7 +34,7 @@ from .common import check_output_path, command_line, tool_version, user_errors
                    "examples move as a whole and the controls fix a frame well, else world (the choice is printed).")
 @click.option("--quiet", "-q", is_flag=True, help="No summary.")
 @user_errors
-def train_kcca(path, output, kernel, bases, regularization, translation_solver, beta, translation_prior, train_frames,
+def train_kcca(path, output, kernel, kernel_width, bases, regularization, translation_solver, beta, translation_prior, train_frames,
                global_motion, quiet):
     """Train the puppet: per-bone kernel CCA from control points to bone dual quaternions.
 
@@ -64,6 +67,13 @@ def train_kcca(path, output, kernel, bases, regularization, translation_solver, 
             raise OptionError(f"--regularization must be a number or 'auto' (got {regularization!r})") from None
         if not 0.0 < regularization < np.inf:
             raise OptionError(f"--regularization must be a positive finite number (got {regularization})")
+    if kernel_width != "auto":
+        try:
+            kernel_width = float(kernel_width)
+        except ValueError:
+            raise OptionError(f"--kernel-width must be a number or 'auto' (got {kernel_width!r})") from None
+        if not 0.0 < kernel_width < np.inf:
+            raise OptionError(f"--kernel-width must be a positive finite number (got {kernel_width})")
     if translation_prior != "auto":
         try:
             translation_prior = float(translation_prior)
@@ -83,11 +93,11 @@ def train_kcca(path, output, kernel, bases, regularization, translation_solver, 
                           skin.rotations, skin.translations, np.asarray(controls.vertex_indices), train,
                           kernel=kernel, bases=bases, regularization=regularization,
                           translation_solver=translation_solver, beta=beta, global_motion=global_motion,
-                          translation_prior=translation_prior)
+                          translation_prior=translation_prior, kernel_width=kernel_width)
     seconds = time.perf_counter() - started
     parameters = dict(kernel=kernel, bases=bases, regularization=regularization, translation_solver=translation_solver,
                       beta=beta, translation_prior=translation_prior, train_frames=train_frames,
-                      global_motion=global_motion)
+                      global_motion=global_motion, kernel_width=kernel_width)
     record = provenance_record("puppet", command_line(), parameters, [path], tool_version())
     write_model(output, "puppet", puppet_groups(model, puppet, test, "auto" if regularization == "auto" else "fixed"),
                 model["provenance"] + [record], tool_version())
@@ -98,5 +108,7 @@ def train_kcca(path, output, kernel, bases, regularization, translation_solver, 
                    f"{corr.shape[1]} bases (mean first correlation {corr[:, 0].mean():.3f}), "
                    f"translation solver {'on' if translation_solver else 'off'}; {seconds:.1f} s")
         click.echo(f"global motion: {puppet.global_motion} ({puppet.global_motion_reason})")
+        if puppet.kernel_width_reason:
+            click.echo(f"kernel width: {puppet.kernel_width_reason}")
         if translation_solver:
             click.echo(f"translation prior: {puppet.translation_prior:g} ({puppet.translation_prior_reason})")

@@ -43,7 +43,8 @@ def puppet_groups(model, puppet, test_frames, regularization_mode):
                       "regularization": puppet.regression.regularization,
                       "@kernel": k.kind, "@scale": float(k.scale), "@offset": float(k.offset),
                       "@degree": int(k.degree), "@bases": int(puppet.regression.correlations.shape[1]),
-                      "@regularization_mode": str(regularization_mode)}
+                      "@regularization_mode": str(regularization_mode),
+                      "@width_reason": puppet.kernel_width_reason}
     if puppet.translations is not None:
         op = puppet.translations
         groups["poisson"] = {"rotation_operator": op.rotation_operator, "control_operator": op.control_operator,
@@ -87,5 +88,6 @@ def read_puppet(path):
                     training_controls=kcca["training_controls"], regression=regression, translations=operator,
                     beta=beta, train_frames=training["train_frames"],
                     global_motion_reason=str(training.get("@global_motion_reason", "")),
-                    translation_prior=prior, translation_prior_reason=prior_reason)
+                    translation_prior=prior, translation_prior_reason=prior_reason,
+                    kernel_width_reason=str(kcca.get("@width_reason", "")))
     return puppet, training["test_frames"], skin

@@ -349,18 +349,17 @@ def fit_rbf(
 def _merge_repeated_inputs(inputs, outputs, tolerance):
     """(inputs (m, r), outputs (m, p)) with every input within ``tolerance`` of an earlier kept one
     merged into it (outputs averaged); m ≤ n, first-seen order."""
-    squared = np.sum((inputs[:, None, :] - inputs[None, :, :]) ** 2, axis=-1)
-    owner = np.arange(inputs.shape[0])
-    for i in range(1, inputs.shape[0]):  # over training frames (tens to hundreds), not vertices
-        earlier = np.flatnonzero(squared[i, :i] <= tolerance ** 2)
-        if earlier.size:
-            owner[i] = owner[earlier[0]]
-    kept, group = np.unique(owner, return_inverse=True)
-    if kept.size == owner.size:
+    from .kcca import repeat_groups
+
+    group = repeat_groups(inputs, tolerance)
+    count = group.max() + 1
+    if count == inputs.shape[0]:
         return inputs, outputs
-    sums = np.zeros((kept.size, outputs.shape[1]))
+    first = np.full(count, inputs.shape[0])
+    np.minimum.at(first, group, np.arange(inputs.shape[0]))
+    sums = np.zeros((count, outputs.shape[1]))
     np.add.at(sums, group, outputs)
-    return inputs[kept], sums / np.bincount(group)[:, None]
+    return inputs[first], sums / np.bincount(group)[:, None]
 
 
 def predict_rbf(model, controls):

@@ -17,7 +17,8 @@ import numpy as np
 
 from .alignment import apply_frames, control_frames, frame_conditioning, invert_frames
 from .errors import OptionError
-from .kcca import ControlKernel, KccaRegression, choose_regularization, control_kernel, fit_kcca, predict
+from .kcca import (ControlKernel, KccaRegression, choose_kernel_width, choose_regularization, control_kernel, cv_folds,
+                   fit_kcca, predict)
 from .poisson import (TranslationOperator, choose_translation_prior, fit_edge_weights, mesh_edges, operator_from_system,
                       solve_translations, translation_system)
 from .rotations import dual_quaternion_to_rigid, rigid_to_dual_quaternion, with_translations
@@ -36,8 +37,8 @@ def choose_global_motion(examples, rest, faces, bone_indices, bone_weights, rota
     collinear (a tube with controls along it). Which helps depends on the data, so: if the
     controls fix a rotation poorly in some training frame (conditioning ≤ FRAME_CONDITIONING),
     world; otherwise the mode with the lower vertex error in ``folds``-fold cross-validation over
-    the training frames (interleaved folds; fixed κ = 1e-2 and no translation solver, to keep
-    it cheap).
+    the training frames (interleaved folds; fixed κ = 1e-2, width σ and no translation solver,
+    to keep it cheap).
     """
     conditioning = frame_conditioning(examples[train_frames][:, control_indices])
     if conditioning <= FRAME_CONDITIONING:
@@ -47,14 +48,16 @@ def choose_global_motion(examples, rest, faces, bone_indices, bone_weights, rota
         return "control-frame", (f"too few training frames to cross-validate; the controls fix a frame well "
                                  f"(conditioning {conditioning:.2f})")
     errors = {}
+    flat = examples[train_frames][:, control_indices].reshape(len(train_frames), -1)
+    spread = max(float(np.sqrt(np.sum(flat.var(axis=0)))), np.finfo(float).tiny)
+    fold_tests = [train_frames[test] for test in cv_folds(flat / spread, folds)]
     for mode in ("control-frame", "world"):
         total = 0.0
-        for fold in range(folds):
-            test = train_frames[fold::folds]
+        for test in fold_tests:
             train = np.setdiff1d(train_frames, test)
             puppet = train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, translations,
                                   control_indices, train, kernel=kernel, regularization=1e-2,
-                                  translation_solver=False, global_motion=mode)
+                                  translation_solver=False, global_motion=mode, kernel_width=1.0)
             pred = predict_vertices(puppet, examples[test][:, control_indices], translation_solver=False)
             total += float(np.sum((pred - examples[test]) ** 2))
         errors[mode] = np.sqrt(total / (len(train_frames) * rest.shape[0]))
@@ -90,6 +93,7 @@ class Puppet:
     global_motion_reason: str = ""
     translation_prior: float = 1e-6
     translation_prior_reason: str = ""
+    kernel_width_reason: str = ""
 
 
 def parse_frame_spec(spec, frames):
@@ -140,11 +144,12 @@ def _bone_dual_quaternions(rotations, translations):
 
 def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, translations, control_indices,
                  train_frames, kernel="gaussian", bases=8, regularization="auto", translation_solver=True,
-                 beta=100.0, global_motion="auto", translation_prior="auto"):
+                 beta=100.0, global_motion="auto", translation_prior="auto", kernel_width="auto"):
     """Train a puppet from a skin fit. examples (F, V, 3); rotations (F, B, 3, 3), translations
     (F, B, 3) the fitted bones; control_indices (n_c,); train_frames (n_p,); translation_prior:
     the Poisson solve's pull towards the regression's translations (:mod:`.poisson`), a number or
-    "auto" (cross-validated). Returns Puppet."""
+    "auto" (cross-validated); kernel_width: the Gaussian's width as a multiple of the controls'
+    spread σ, or "auto" (cross-validated, :func:`.kcca.choose_kernel_width`). Returns Puppet."""
     if global_motion not in GLOBAL_MOTION:
         raise OptionError(f"--global-motion must be one of {', '.join(GLOBAL_MOTION)}")
     if len(train_frames) < 4:
@@ -167,10 +172,23 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
     rot = np.einsum("fac,fbcd->fbad", frame_r, rotations[train_frames])
     trans = np.einsum("fac,fbc->fba", frame_r, translations[train_frames]) + frame_t[:, None, :]
 
-    kern = control_kernel(kernel, placed_controls.reshape(len(train_frames), -1))
-    x = kern.standardise(placed_controls.reshape(len(train_frames), -1))
+    flat_controls = placed_controls.reshape(len(train_frames), -1)
+    kern = control_kernel(kernel, flat_controls)
     targets = np.swapaxes(_bone_dual_quaternions(rot, trans), 0, 1)  # (B, n_p, 8)
-    if regularization == "auto":
+    width_reason = f"{kernel_width:g}σ, chosen by the user (--kernel-width)" if kernel_width != "auto" else ""
+    if kernel != "gaussian":
+        width_reason = ""
+    elif kernel_width == "auto":
+        width, auto_kappa, listed = choose_kernel_width(kern, flat_controls, targets, bases=bases)
+        width_reason = f"{width:g}σ ({listed})"
+    else:
+        if not float(kernel_width) > 0.0:
+            raise OptionError(f"--kernel-width must be a positive number or 'auto' (got {kernel_width})")
+        kern.scale *= float(kernel_width)
+    x = kern.standardise(flat_controls)
+    if regularization == "auto" and kernel == "gaussian" and kernel_width == "auto":
+        kappa = auto_kappa
+    elif regularization == "auto":
         kappa = choose_regularization(kern, x, targets, bases=bases)
     else:
         kappa = float(regularization)
@@ -198,7 +216,8 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
                   control_indices=np.asarray(control_indices), reference_controls=reference,
                   global_motion=global_motion, kernel=kern, training_controls=x, regression=regression,
                   translations=operator, beta=float(beta), train_frames=np.asarray(train_frames),
-                  global_motion_reason=reason, translation_prior=float(prior), translation_prior_reason=prior_reason)
+                  global_motion_reason=reason, translation_prior=float(prior), translation_prior_reason=prior_reason,
+                  kernel_width_reason=width_reason)
 
 
 #: Vertices used to score the translation prior (evenly spaced; the whole mesh when smaller).
@@ -213,10 +232,8 @@ def _cross_validated_prior(system, kern, x, targets, bases, kappa, placed, place
     from skinsynth.gpu import dqs_reference
 
     n = x.shape[0]
-    folds = max(2, min(folds, n))
     d = np.empty((n,) + targets.shape[:1] + (8,))
-    for fold in range(folds):
-        test = np.arange(fold, n, folds)
+    for test in cv_folds(x, folds):
         train = np.setdiff1d(np.arange(n), test)
         model = fit_kcca(kern.matrix(x[train], x[train]), targets[:, train], bases=bases, regularization=kappa)
         d[test] = predict(model, kern.matrix(x[test], x[train]))
