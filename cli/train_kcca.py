@@ -60,27 +60,9 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
     if kernel not in KERNELS:
         raise OptionError(f"--kernel {kernel!r} does not exist; choose one of {', '.join(KERNELS)}")
-    if regularization != "auto":
-        try:
-            regularization = float(regularization)
-        except ValueError:
-            raise OptionError(f"--regularization must be a number or 'auto' (got {regularization!r})") from None
-        if not 0.0 < regularization < np.inf:
-            raise OptionError(f"--regularization must be a positive finite number (got {regularization})")
-    if kernel_width != "auto":
-        try:
-            kernel_width = float(kernel_width)
-        except ValueError:
-            raise OptionError(f"--kernel-width must be a number or 'auto' (got {kernel_width!r})") from None
-        if not 0.0 < kernel_width < np.inf:
-            raise OptionError(f"--kernel-width must be a positive finite number (got {kernel_width})")
-    if translation_prior != "auto":
-        try:
-            translation_prior = float(translation_prior)
-        except ValueError:
-            raise OptionError(f"--translation-prior must be a number or 'auto' (got {translation_prior!r})") from None
-        if not 0.0 <= translation_prior < np.inf:
-            raise OptionError(f"--translation-prior must be a finite number ≥ 0 (got {translation_prior})")
+    regularization = _number_or_auto("--regularization", regularization, "a positive finite number", low_open=True)
+    kernel_width = _number_or_auto("--kernel-width", kernel_width, "a positive finite number", low_open=True)
+    translation_prior = _number_or_auto("--translation-prior", translation_prior, "a finite number ≥ 0")
     model = read_model(path, stages=("controls",))
     skin = read_skin(path, model)
     controls = read_controls(path, model)
@@ -112,3 +94,18 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
             click.echo(f"kernel width: {puppet.kernel_width_reason}")
         if translation_solver:
             click.echo(f"translation prior: {puppet.translation_prior:g} ({puppet.translation_prior_reason})")
+
+
+def _number_or_auto(option, value, what, low_open=False):
+    """'auto', or the option's value as a finite number ≥ 0 (> 0 when ``low_open``); OptionError otherwise."""
+    from skinsynth.pipeline.errors import OptionError
+
+    if value == "auto":
+        return value
+    try:
+        number = float(value)
+    except ValueError:
+        raise OptionError(f"{option} must be a number or 'auto' (got {value!r})") from None
+    if not (0.0 < number if low_open else 0.0 <= number) or not number < np.inf:
+        raise OptionError(f"{option} must be {what} (got {number})")
+    return number
