@@ -20,7 +20,7 @@ Plus one line timing the training of a face-sized model (23,728 vertices, 260 bo
 examples, synthetic LBS). Without real data a bending bar stands in. $SKINSYNTH picks the
 command (another checkout's, for a before/after table).
 
-    python benchmarks/puppet.py [--work DIR] [--only NAME]
+    python benchmarks/puppet.py [--work DIR] [--only NAME] [--train-kcca-args '--kernel-width 1']
 """
 
 import argparse
@@ -52,7 +52,7 @@ def _choices(puppet_path):
     return out
 
 
-def measure(name, spec, work):
+def measure(name, spec, work, extra=()):
     skin_path = os.path.join(work, f"{name}.skin.h5")
     if not os.path.exists(skin_path):
         run(["fit-skin", spec, "-o", skin_path, "--bones", str(BONES.get(name, 20)), "--seed", "0", "-q"], work)
@@ -66,7 +66,8 @@ def measure(name, spec, work):
     for density, split in SPLITS:
         train = f"first:{round(0.6 * frames)}" if density.endswith("%") else density
         puppet_path = os.path.join(work, f"{name}.{density.replace(':', '').replace('%', '')}.puppet.h5")
-        seconds, _, _, _ = run(["train-kcca", controls_path, "-o", puppet_path, "--train-frames", train, "-q"], work)
+        seconds, _, _, _ = run(["train-kcca", controls_path, "-o", puppet_path, "--train-frames", train, "-q",
+                                *extra], work)
         _, _, _, stdout = run(["evaluate", puppet_path, "--json"], work)
         result = json.loads(stdout)
         rows = {k: result[k] for k in ("kcca", "kcca_no_translation_solver", "pca_blendshape", "rbf")}
@@ -97,12 +98,13 @@ def main():
     parser.add_argument("--work", help="folder for the intermediate files (skin fits are reused from it)")
     parser.add_argument("--only", help="run only this capture")
     parser.add_argument("--no-face", action="store_true", help="skip the face-sized training timing")
+    parser.add_argument("--train-kcca-args", default="", help="extra train-kcca options, e.g. '--kernel-width 1'")
     args = parser.parse_args()
     work = args.work or tempfile.mkdtemp(prefix="skinsynth_bench_")
     os.makedirs(work, exist_ok=True)
     for name, spec in captures(work):
         if args.only in (None, name):
-            measure(name, spec, work)
+            measure(name, spec, work, args.train_kcca_args.split())
     if not args.no_face and args.only is None:
         print(json.dumps(_face_sized_training()), flush=True)
 

@@ -22,8 +22,11 @@ METHODS = {
               help="Skinning of the predicted bones: dual quaternions (Feng §6.3) or linear (the fitted model).")
 @click.option("--pca-components", type=int, default=None,
               help="Blendshape count of the PCA baseline (default: leave-one-out cross-validation on the training frames).")
+@click.option("--extrapolate", type=float, default=None, metavar="FRACTION",
+              help="Also retrain the puppet (train-kcca's own options) on the first FRACTION of the frames, e.g. "
+                   "0.6, and report every method on the rest: poses never seen, not between examples.")
 @user_errors
-def evaluate(path, as_json, plot, skinning, pca_components):
+def evaluate(path, as_json, plot, skinning, pca_components, extrapolate):
     """Compare the puppet with PCA blendshapes and RBF regression on the held-out example frames.
 
     Each method is driven by the control vertices' positions in the frames the puppet did not
@@ -36,15 +39,19 @@ def evaluate(path, as_json, plot, skinning, pca_components):
       skinsynth evaluate horse.puppet.h5 --json --plot horse_errors.png
     """
     from skinsynth.formats.puppet_file import read_puppet
-    from skinsynth.pipeline.evaluation import evaluate_puppet
+    from skinsynth.pipeline.evaluation import evaluate_extrapolation, evaluate_puppet, extrapolation_split
 
     if plot is not None:
         check_output_path(plot, (".png",), inputs=[path])
-    puppet, test_frames, skin = read_puppet(path)
+    puppet, test_frames, skin, options = read_puppet(path, with_options=True)
     if len(test_frames) == 0:
         fail(f"{path}: no held-out frames (trained with --train-frames covering every example); "
              "retrain leaving some out, e.g. --train-frames every:4")
+    split = None if extrapolate is None else extrapolation_split(skin.examples.shape[0], extrapolate)
     result = evaluate_puppet(puppet, skin.examples, test_frames, skinning=skinning, pca_components=pca_components)
+    beyond = None
+    if split is not None:
+        beyond = evaluate_extrapolation(skin, puppet.control_indices, options, *split, skinning, pca_components)
     if plot is not None:
         from skinsynth.formats.plots import write_error_plot
 
@@ -55,6 +62,9 @@ def evaluate(path, as_json, plot, skinning, pca_components):
         payload = dict(result.overall)
         payload.update(test_frames=[int(f) for f in result.test_frames], train_frames=[int(f) for f in puppet.train_frames],
                        per_frame={k: [float(e) for e in v] for k, v in result.per_frame.items()}, **result.notes)
+        if beyond is not None:
+            payload["extrapolation"] = dict(beyond.overall, train_frames=beyond.notes["train_frames"],
+                                            test_frames=[int(f) for f in beyond.test_frames])
         click.echo(json.dumps(payload, sort_keys=True))
         return
     click.echo(f"{path}: {len(result.test_frames)} held-out frames, {len(puppet.train_frames)} training; "
@@ -63,11 +73,19 @@ def evaluate(path, as_json, plot, skinning, pca_components):
                f"kernel {result.notes['kernel']}; PCA baseline with {result.notes['pca_components']} blendshapes"
                + (f"; translation prior {result.notes['translation_prior']:g}"
                   if result.notes["translation_prior"] is not None else ""))
+    _table(result)
+    if beyond is not None:
+        click.echo(f"extrapolation: trained on frames 0..{beyond.notes['train_frames'] - 1}, tested on the "
+                   f"{len(beyond.test_frames)} after")
+        _table(beyond)
+    if plot is not None:
+        click.echo(f"wrote {plot}")
+
+
+def _table(result):
     best = min(result.overall, key=result.overall.get)
     for name, label in METHODS.items():
         if name == "kcca" and not result.notes["translation_solver"]:
             label += " (trained without the solver: same as below)"
         mark = "  <- lowest" if name == best else ""
         click.echo(f"  {name:<28} {result.overall[name]:.5f}  {label}{mark}")
-    if plot is not None:
-        click.echo(f"wrote {plot}")

@@ -54,8 +54,22 @@ def puppet_groups(model, puppet, test_frames, regularization_mode):
     return groups
 
 
-def read_puppet(path):
-    """(Puppet, test_frames (n_t,), skin: SkinModel) from a puppet file; FormatError if not one."""
+#: train-kcca's options that ``train_puppet`` takes, as recorded in the puppet's provenance.
+TRAINING_OPTIONS = ("kernel", "kernel_width", "bases", "regularization", "translation_solver", "beta",
+                    "translation_prior", "global_motion")
+
+
+def training_options(model):
+    """The options train-kcca was given for this puppet ({name: value} for ``train_puppet``),
+    from its provenance; options it does not record keep train_puppet's defaults."""
+    records = [r for r in model.get("provenance", []) if r.get("stage") == "puppet"]
+    parameters = records[-1].get("parameters", {}) if records else {}
+    return {name: parameters[name] for name in TRAINING_OPTIONS if name in parameters}
+
+
+def read_puppet(path, with_options=False):
+    """(Puppet, test_frames (n_t,), skin: SkinModel) from a puppet file, and with ``with_options``
+    also train-kcca's options (:func:`training_options`); FormatError if not one."""
     from skinsynth.pipeline.kcca import ControlKernel, KccaRegression
     from skinsynth.pipeline.poisson import TranslationOperator
     from skinsynth.pipeline.puppet import Puppet
@@ -90,4 +104,6 @@ def read_puppet(path):
                     global_motion_reason=str(training.get("@global_motion_reason", "")),
                     translation_prior=prior, translation_prior_reason=prior_reason,
                     kernel_width_reason=str(kcca.get("@width_reason", "")))
+    if with_options:
+        return puppet, training["test_frames"], skin, training_options(model)
     return puppet, training["test_frames"], skin

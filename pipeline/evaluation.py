@@ -12,7 +12,7 @@ import numpy as np
 
 from .baselines import fit_pca_blendshape, fit_rbf, predict_pca_blendshape, predict_rbf
 from .errors import OptionError
-from .puppet import predict_vertices
+from .puppet import predict_vertices, train_puppet
 
 
 @dataclass
@@ -81,3 +81,28 @@ def evaluate_puppet(puppet, examples, test_frames, skinning="dual-quaternion", p
                                    and np.isfinite(puppet.translation_prior) else None),
              "kernel": puppet.kernel.kind}
     return Evaluation(per_frame=per_frame, overall=overall, test_frames=test_frames, scale=scale, notes=notes)
+
+
+def extrapolation_split(frames, fraction):
+    """(train (n,), test (F − n,)) frame ids of a contiguous hold-out: the first ``fraction`` of the
+    frames, then the rest. OptionError unless 0 < fraction < 1 leaves ≥ 4 training frames and ≥ 1 test frame."""
+    if not 0.0 < fraction < 1.0:
+        raise OptionError(f"--extrapolate must lie strictly between 0 and 1 (got {fraction})")
+    count = int(round(fraction * frames))
+    if count < 4 or count >= frames:
+        raise OptionError(f"--extrapolate {fraction:g} trains on {count} of {frames} frames; at least 4 are "
+                          "needed and at least one must be left to test")
+    return np.arange(count), np.arange(count, frames)
+
+
+def evaluate_extrapolation(skin, control_indices, options, train, test, skinning="dual-quaternion",
+                           pca_components=None):
+    """A contiguous hold-out (:func:`extrapolation_split`): a puppet trained with ``options``
+    (train_puppet's keywords) on ``train``, every method tested on ``test``, so on poses no method
+    saw between its examples. skin: the puppet's SkinModel. Returns :class:`Evaluation` (its
+    notes add ``train_frames``: the count trained on)."""
+    puppet = train_puppet(skin.examples, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
+                          skin.rotations, skin.translations, control_indices, train, **options)
+    result = evaluate_puppet(puppet, skin.examples, test, skinning, pca_components)
+    result.notes["train_frames"] = int(len(train))
+    return result

@@ -191,24 +191,7 @@ def choose_regularization(kernel, controls, targets, bases=8, grid=REGULARIZATIO
     return (chosen, float(error.min(axis=0).sum())) if with_error else chosen
 
 
-#: Gaussian widths tried by ``--kernel-width auto``, as multiples of the controls' spread σ.
+#: Gaussian widths tried by ``--kernel-width auto``, as multiples of the controls' spread σ (Feng
+#: §7 takes σ from the data, but no fixed multiple suits every capture: chosen by
+#: ``pipeline.puppet``'s cross-validated vertex error, with κ and the translation prior).
 WIDTH_GRID = (0.5, 1.0, 2.0, 4.0, 8.0)
-
-
-def choose_kernel_width(kernel, controls, targets, bases=8, grid=WIDTH_GRID):
-    """(width, κ (B,), reason): the Gaussian width, a multiple of σ (``kernel.scale``), with the
-    lowest cross-validated dual-quaternion error over all bones (κ chosen per bone at each).
-
-    Feng §7 takes σ from the data but no fixed multiple suits every capture: measured at every:4,
-    the horse's six distinct training poses want 4σ (0.0250 against 0.0324 at σ), the samba σ.
-    controls (n_p, d) raw (not standardised); targets (B, n_p, m). The kernel is updated in place.
-    """
-    base = kernel.scale
-    errors = {}
-    for width in grid:
-        kernel.scale = base * width
-        errors[width] = choose_regularization(kernel, kernel.standardise(controls), targets, bases, with_error=True)
-    width = min(grid, key=lambda w: (errors[w][1], w))
-    kernel.scale = base * width
-    listed = ", ".join(f"{w:g}σ {errors[w][1]:.3g}" for w in grid)
-    return width, errors[width][0], f"cross-validated dual-quaternion error {listed}"

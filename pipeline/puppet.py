@@ -17,10 +17,10 @@ import numpy as np
 
 from .alignment import apply_frames, control_frames, frame_conditioning, invert_frames
 from .errors import OptionError
-from .kcca import (ControlKernel, KccaRegression, choose_kernel_width, choose_regularization, control_kernel, cv_folds,
+from .kcca import (WIDTH_GRID, ControlKernel, KccaRegression, choose_regularization, control_kernel, cv_folds,
                    fit_kcca, predict)
-from .poisson import (TranslationOperator, choose_translation_prior, fit_edge_weights, mesh_edges, operator_from_system,
-                      solve_translations, translation_system)
+from .poisson import (PRIOR_GRID, TranslationOperator, choose_translation_prior, fit_edge_weights, mesh_edges,
+                      operator_from_system, solve_translations, translation_system)
 from .rotations import dual_quaternion_to_rigid, rigid_to_dual_quaternion, with_translations
 
 GLOBAL_MOTION = ("auto", "control-frame", "world")
@@ -175,40 +175,57 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
     flat_controls = placed_controls.reshape(len(train_frames), -1)
     kern = control_kernel(kernel, flat_controls)
     targets = np.swapaxes(_bone_dual_quaternions(rot, trans), 0, 1)  # (B, n_p, 8)
-    width_reason = f"{kernel_width:g}σ, chosen by the user (--kernel-width)" if kernel_width != "auto" else ""
-    if kernel != "gaussian":
-        width_reason = ""
-    elif kernel_width == "auto":
-        width, auto_kappa, listed = choose_kernel_width(kern, flat_controls, targets, bases=bases)
-        width_reason = f"{width:g}σ ({listed})"
-    else:
-        if not float(kernel_width) > 0.0:
-            raise OptionError(f"--kernel-width must be a positive number or 'auto' (got {kernel_width})")
-        kern.scale *= float(kernel_width)
-    x = kern.standardise(flat_controls)
-    if regularization == "auto" and kernel == "gaussian" and kernel_width == "auto":
-        kappa = auto_kappa
-    elif regularization == "auto":
-        kappa = choose_regularization(kern, x, targets, bases=bases)
-    else:
-        kappa = float(regularization)
-        if not kappa >= 0.0:
-            raise OptionError(f"--regularization must be a non-negative number or 'auto' (got {regularization})")
-    regression = fit_kcca(kern.matrix(x, x), targets, bases=bases, regularization=kappa)
-
-    operator, prior, prior_reason = None, 1e-6, ""
+    if kernel_width != "auto" and not float(kernel_width) > 0.0:
+        raise OptionError(f"--kernel-width must be a positive number or 'auto' (got {kernel_width})")
+    if regularization != "auto" and not float(regularization) >= 0.0:
+        raise OptionError(f"--regularization must be a non-negative number or 'auto' (got {regularization})")
     if translation_prior != "auto" and not float(translation_prior) >= 0.0:
         raise OptionError(f"--translation-prior must be a non-negative number or 'auto' (got {translation_prior})")
+
+    system = None
+    placed = apply_frames(frame_r, frame_t, examples[train_frames])
     if translation_solver:
         edges = mesh_edges(faces)
-        placed = apply_frames(frame_r, frame_t, examples[train_frames])
         edge_vectors = placed[:, edges[:, 0]] - placed[:, edges[:, 1]]
         edge_bones, edge_weights = fit_edge_weights(rest, edges, bone_indices, bone_weights, rot, edge_vectors)
         system = translation_system(rest, edges, bone_indices, bone_weights, edge_bones, edge_weights,
                                     control_indices, beta=beta)
+    widths = WIDTH_GRID if kernel == "gaussian" and kernel_width == "auto" else (
+        float(kernel_width) if kernel == "gaussian" and kernel_width != "auto" else 1.0,)
+    priors = PRIOR_GRID if translation_prior == "auto" else (float(translation_prior),)
+    base_scale, tried = kern.scale, {}
+    for width in widths:
+        kern.scale = base_scale * width
+        x = kern.standardise(flat_controls)
+        kappa = (choose_regularization(kern, x, targets, bases=bases) if regularization == "auto"
+                 else float(regularization))
+        errors = None
+        if len(widths) > 1 or (system is not None and len(priors) > 1):
+            errors = _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kappa, placed,
+                                                    placed_controls, rest, bone_indices, bone_weights)
+        tried[width] = (kappa, errors)
+    if len(widths) > 1:  # the width, and with it κ and the prior, of the lowest out-of-fold vertex error
+        width = min(widths, key=lambda w: (min(tried[w][1].values()), w))
+    else:
+        width = widths[0]
+    kappa, errors = tried[width]
+    kern.scale = base_scale * width
+    x = kern.standardise(flat_controls)
+    regression = fit_kcca(kern.matrix(x, x), targets, bases=bases, regularization=kappa)
+
+    width_reason = ""
+    if kernel == "gaussian" and len(widths) > 1:
+        listed = ", ".join(f"{w:g}σ {min(tried[w][1].values()):.4g}" for w in widths)
+        width_reason = f"{width:g}σ (cross-validated RMS vertex error {listed})"
+    elif kernel == "gaussian":
+        width_reason = f"{width:g}σ, chosen by the user (--kernel-width)"
+    operator, prior, prior_reason = None, 1e-6, ""
+    if system is not None:
         if translation_prior == "auto":
-            prior, prior_reason = _cross_validated_prior(system, kern, x, targets, bases, regression.regularization,
-                                                         placed, placed_controls, rest, bone_indices, bone_weights)
+            prior = min(errors, key=errors.get)
+            prior_reason = (f"cross-validated RMS {errors[prior]:.4g} at prior {prior:g} (Feng's plain solve, prior "
+                            f"1e-06: {errors[min(errors)]:.4g}; nearest the regression's translations, prior "
+                            f"{max(errors):g}: {errors[max(errors)]:.4g})")
         else:
             prior, prior_reason = float(translation_prior), "chosen by the user (--translation-prior)"
         operator = operator_from_system(system, prior)
@@ -220,15 +237,16 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
                   kernel_width_reason=width_reason)
 
 
-#: Vertices used to score the translation prior (evenly spaced; the whole mesh when smaller).
+#: Vertices used to score the translation prior and the kernel width (evenly spaced; the whole mesh when smaller).
 PRIOR_VERTICES = 4096
 
 
-def _cross_validated_prior(system, kern, x, targets, bases, kappa, placed, placed_controls, rest, bone_indices,
-                           bone_weights, folds=5):
-    """(prior, reason): the Poisson prior with the lowest dual-quaternion-skinned vertex error of
-    out-of-fold predictions (interleaved folds over the training frames, the chosen κ per bone;
-    the edge weights and the kernel's parameters are the ones fitted on all training frames)."""
+def _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kappa, placed, placed_controls, rest,
+                                   bone_indices, bone_weights, folds=5):
+    """{prior: RMS} of the dual-quaternion-skinned vertices of out-of-fold predictions, with the
+    Poisson translations at each prior (``system`` None: the regression's own translations, keyed
+    by 0.0). Folds keep repeated poses together (:func:`.kcca.cv_folds`); κ per bone as chosen;
+    the edge weights and the kernel's parameters are those fitted on all training frames."""
     from skinsynth.gpu import dqs_reference
 
     n = x.shape[0]
@@ -246,11 +264,11 @@ def _cross_validated_prior(system, kern, x, targets, bases, kappa, placed, place
                                 rigid_to_dual_quaternion(rotations, translations))
         return np.sum((skinned - placed[:, subset]) ** 2)
 
-    prior, errors = choose_translation_prior(system, rot, placed_controls, trans, vertex_error)
-    rms = {p: np.sqrt(e / (n * subset.size)) for p, e in errors.items()}
-    return prior, (f"cross-validated RMS {rms[prior]:.4g} at prior {prior:g} (Feng's plain solve, prior 1e-06: "
-                   f"{rms[min(rms)]:.4g}; nearest the regression's translations, prior {max(rms):g}: "
-                   f"{rms[max(rms)]:.4g})")
+    if system is None:
+        errors = {0.0: vertex_error(rot, trans)}
+    else:
+        _, errors = choose_translation_prior(system, rot, placed_controls, trans, vertex_error, grid=priors)
+    return {p: float(np.sqrt(e / (n * subset.size))) for p, e in errors.items()}
 
 
 def predict_bones(puppet, controls, translation_solver=True):

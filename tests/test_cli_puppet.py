@@ -75,3 +75,19 @@ def test_evaluate_refuses_other_stages_and_all_training(files, tmp_path):
     assert_user_error(cli("evaluate", tmp_path / "all.h5"), "no held-out frames")
     assert_user_error(cli("evaluate", files / "puppet.h5", "--plot", tmp_path / "e.pdf"), ".png")
     assert_folder_holds(tmp_path, ["all.h5"])
+
+
+def test_evaluate_extrapolates_with_the_puppets_own_options(files, tmp_path):
+    """--extrapolate retrains with train-kcca's recorded options on the first frames and tests on
+    the rest: the same as training that split by hand."""
+    out = json.loads(assert_ok(cli("evaluate", files / "puppet.h5", "--json", "--extrapolate", 0.75)).stdout)
+    beyond = out["extrapolation"]
+    assert beyond["train_frames"] == 18 and beyond["test_frames"] == list(range(18, 24))
+    assert_ok(cli("train-kcca", files / "controls.h5", "-o", tmp_path / "first.h5", "--train-frames", "first:18", "-q"))
+    by_hand = json.loads(assert_ok(cli("evaluate", tmp_path / "first.h5", "--json")).stdout)
+    for key in ("kcca", "kcca_no_translation_solver", "pca_blendshape", "rbf"):
+        assert beyond[key] == pytest.approx(by_hand[key], rel=1e-9)
+    text = assert_ok(cli("evaluate", files / "puppet.h5", "--extrapolate", 0.75)).stdout
+    assert "extrapolation: trained on frames 0..17, tested on the 6 after" in text
+    for bad in (0.0, 1.0, 0.1):
+        assert_user_error(cli("evaluate", files / "puppet.h5", "--extrapolate", bad), "--extrapolate")
