@@ -37,14 +37,18 @@ def choose_global_motion(examples, rest, faces, bone_indices, bone_weights, rota
     collinear (a tube with controls along it). Which helps depends on the data, so: if the
     controls fix a rotation poorly in some training frame (conditioning ≤ FRAME_CONDITIONING),
     world; otherwise the mode with the lower vertex error in ``folds``-fold cross-validation over
-    the training frames (interleaved folds; fixed κ = 1e-2, width σ and no translation solver,
-    to keep it cheap).
+    the training frames (interleaved folds, leave-one-out when a fold would leave fewer than the 4
+    frames a puppet needs; fixed κ = 1e-2, width σ and no translation solver, to keep it cheap).
+    With 5 training frames (the horse at every:10) the old 4-fold rule fell back to control-frame
+    without looking, and the horse's error was 6× world's.
     """
     conditioning = frame_conditioning(examples[train_frames][:, control_indices])
     if conditioning <= FRAME_CONDITIONING:
         return "world", (f"the controls are nearly collinear (conditioning {conditioning:.2f}): a frame fitted "
                          "to them would be unstable; spread the controls in 3D to allow control-frame")
-    if len(train_frames) < 4 + -(-len(train_frames) // folds):
+    if len(train_frames) - -(-len(train_frames) // folds) < 4:
+        folds = len(train_frames)  # leave one out: every fold must keep the 4 frames a puppet needs
+    if len(train_frames) < 5:
         return "control-frame", (f"too few training frames to cross-validate; the controls fix a frame well "
                                  f"(conditioning {conditioning:.2f})")
     errors = {}

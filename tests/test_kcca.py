@@ -203,3 +203,16 @@ def test_kernel_width_is_chosen_on_held_out_vertices_and_repeats_do_not_fool_it(
                 reasons.append(puppet.kernel_width_reason)
     assert "cross-validated" in reasons[0] and reasons[0] == reasons[1]
     assert errors[(1, "auto")] <= 1.05 * min(e for (c, w), e in errors.items() if w != "auto")
+
+
+def test_global_motion_is_cross_validated_even_with_five_training_frames():
+    """Five training frames (the horse at every:10) leave too few for 4 folds; leave-one-out still
+    decides, instead of falling back to control-frame unseen."""
+    from skinsynth.pipeline.puppet import choose_global_motion
+
+    data = synthetic_lbs(bones=5, frames=24, rings=16, segments=8)
+    controls = [3, 30, 60, 90, 110, 125]
+    mode, reason = choose_global_motion(data["vertices"], data["rest"], data["faces"], data["bone_indices"],
+                                        data["bone_weights"], data["rotations"], data["translations"], controls,
+                                        np.arange(0, 24, 5), "gaussian")
+    assert "cross-validated" in reason and mode in ("world", "control-frame")
