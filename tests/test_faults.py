@@ -385,8 +385,8 @@ def test_mesh_sequences_cannot_declare_more_than_they_hold(tmp_path):
     mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
     points = Vt.Vec3fArray.FromNumpy(np.random.default_rng(0).random((10 ** 4, 3), dtype=np.float32))
     attribute = mesh.CreatePointsAttr()
-    for time in range(3000):  # the crate stores the array once: 3000 samples cost 8 bytes each
-        attribute.Set(points, time)
+    for code in range(3000):  # the crate stores the array once: 3000 samples cost 8 bytes each
+        attribute.Set(points, code)
     stage.Save()
     for name, what in [("npz.npz", "'vertices' declares 223.5 GiB"), ("h5.h5", "'vertices' declares 22.4 GiB"),
                        ("usd.usdc", "3000 samples of 10000 points declares 0.7 GiB")]:
