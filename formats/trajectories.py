@@ -13,8 +13,8 @@ import numpy as np
 
 from .errors import FormatError
 
-#: play's kernels compute in float32: a squared distance between two positions must stay below
-#: its largest value (3.4e38), so no coordinate may reach 1e18 (far beyond any real unit).
+#: play skins and writes float32 (largest value 3.4e38) and squares distances on the way: no
+#: coordinate may reach 1e18, far beyond any real unit, so a result is never inf.
 MAX_COORDINATE = 1e18
 
 
