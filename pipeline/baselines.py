@@ -352,12 +352,10 @@ def _merge_repeated_inputs(inputs, outputs, tolerance):
     from .kcca import repeat_groups
 
     group = repeat_groups(inputs, tolerance)
-    count = group.max() + 1
-    if count == inputs.shape[0]:
+    _, first = np.unique(group, return_index=True)  # group ids are in first-seen order
+    if first.size == inputs.shape[0]:
         return inputs, outputs
-    first = np.full(count, inputs.shape[0])
-    np.minimum.at(first, group, np.arange(inputs.shape[0]))
-    sums = np.zeros((count, outputs.shape[1]))
+    sums = np.zeros((first.size, outputs.shape[1]))
     np.add.at(sums, group, outputs)
     return inputs[first], sums / np.bincount(group)[:, None]
 

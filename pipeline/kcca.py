@@ -168,14 +168,12 @@ def cv_folds(controls, folds):
     return [np.flatnonzero(groups % folds == fold) for fold in range(folds)]
 
 
-def choose_regularization(kernel, controls, targets, bases=8, grid=REGULARIZATION_GRID, folds=5,
-                          with_error=False):
+def choose_regularization(kernel, controls, targets, bases=8, grid=REGULARIZATION_GRID, folds=5):
     """Per-bone κ from ``grid`` minimising k-fold cross-validated squared prediction error.
 
     controls (n_p, d) standardised; targets (B, n_p, m). Folds are interleaved frames
     (frame i goes to fold i mod k), so each fold spans the whole clip; repeated poses share a
-    fold (:func:`cv_folds`). Returns (B,) κ, and with
-    ``with_error`` also the summed cross-validated squared error at those κ.
+    fold (:func:`cv_folds`). Returns (B,) κ.
     """
     n = controls.shape[0]
     error = np.zeros((len(grid), targets.shape[0]))
@@ -187,8 +185,7 @@ def choose_regularization(kernel, controls, targets, bases=8, grid=REGULARIZATIO
             model = fit_kcca(k_train, targets[:, train], bases=bases, regularization=kappa)
             residual = predict(model, k_test) - np.swapaxes(targets[:, test], 0, 1)
             error[g] += np.sum(residual ** 2, axis=(0, 2))
-    chosen = np.asarray(grid)[np.argmin(error, axis=0)]
-    return (chosen, float(error.min(axis=0).sum())) if with_error else chosen
+    return np.asarray(grid)[np.argmin(error, axis=0)]
 
 
 #: Gaussian widths tried by ``--kernel-width auto``, as multiples of the controls' spread σ (Feng
