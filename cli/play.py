@@ -22,7 +22,8 @@ OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
 @click.option("--instances", default=1, show_default=True, type=int,
               help="Characters from one --controls file, each starting a fraction of the clip later.")
 @click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
-              help="USD: UsdSkel with dual-quaternion skinning (editable bones), or baked time-sampled meshes.")
+              help="USD: UsdSkel with dual-quaternion skinning (editable bones; a puppet's correctives as "
+                   "blend shapes), or baked time-sampled meshes.")
 @click.option("--spacing", default=None, type=float,
               help="Grid spacing between characters on the ground plane (default 1.5 × the largest rest bounding-box side).")
 @click.option("--translation-solver/--no-translation-solver", default=True, show_default=True,
@@ -86,12 +87,15 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
         if kind == "skel":
             from skinsynth.formats.usd import write_skel_characters
 
-            rotations, translations = world_bones(puppet, flat, translation_solver)
+            rotations, translations, shape_weights = world_bones(puppet, flat, translation_solver)
             rotations = rotations.reshape(characters, frames, *rotations.shape[1:])
             translations = translations.reshape(characters, frames, -1, 3) + offsets[:, None, None, :]
+            shapes = None  # the correctives are blend shapes, played before skinning
+            if shape_weights is not None:
+                shapes = (puppet.correctives.offsets, shape_weights.reshape(characters, frames, -1))
             write_skel_characters(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
                                   rotations, translations, skin.bone_rest_frames[:, :3, 3], skin.fps, names=names,
-                                  up_axis=up_axis, skinning="dual-quaternion")
+                                  up_axis=up_axis, skinning="dual-quaternion", blend_shapes=shapes)
         else:
             from skinsynth.formats.usd import write_points_characters
 

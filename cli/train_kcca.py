@@ -32,16 +32,22 @@ from .common import check_output_path, command_line, tool_version, user_errors
               help="control-frame: train and run in a rigid frame fitted to the control points (for travelling "
                    "or turning examples); world: use positions as they are; auto: control-frame when the "
                    "examples move as a whole and the controls fix a frame well, else world (the choice is printed).")
+@click.option("--correctives", default="auto", show_default=True,
+              help="Pose-space correctives: what skinning misses at each example, kept in the rest pose and "
+                   "interpolated over the controls (n_p blend shapes). A ridge relative to the kernel's mean "
+                   "diagonal, 'off', or 'auto' (1e-6…1 or off, by cross-validation on the training frames; printed).")
 @click.option("--quiet", "-q", is_flag=True, help="No summary.")
 @user_errors
 def train_kcca(path, output, kernel, kernel_width, bases, regularization, translation_solver, beta, translation_prior, train_frames,
-               global_motion, quiet):
+               global_motion, correctives, quiet):
     """Train the puppet: per-bone kernel CCA from control points to bone dual quaternions.
 
     PATH is a controls file from select-controls. The examples are brought in place by a rigid
     frame fitted to the control points (--global-motion), each bone's dual quaternion is
     regressed on the kernelised control vector (Feng §4), and the Poisson translation operator
     (Feng §5, eq. 10–11) is precomputed so that run-time translations are one matrix product.
+    What the skinned prediction still misses at the examples is learnt as pose-space correctives
+    (--correctives; Park and Hodgins 2006, cited by Feng §2).
 
     \b
     Examples:
@@ -63,6 +69,9 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     regularization = _number_or_auto("--regularization", regularization, "a positive finite number", low_open=True)
     kernel_width = _number_or_auto("--kernel-width", kernel_width, "a positive finite number", low_open=True)
     translation_prior = _number_or_auto("--translation-prior", translation_prior, "a finite number ≥ 0")
+    if correctives != "off":
+        correctives = _number_or_auto("--correctives", correctives, "a positive finite ridge, 'auto' or 'off'",
+                                      low_open=True)
     model = read_model(path, stages=("controls",))
     skin = read_skin(path, model)
     controls = read_controls(path, model)
@@ -75,11 +84,11 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
                           skin.rotations, skin.translations, np.asarray(controls.vertex_indices), train,
                           kernel=kernel, bases=bases, regularization=regularization,
                           translation_solver=translation_solver, beta=beta, global_motion=global_motion,
-                          translation_prior=translation_prior, kernel_width=kernel_width)
+                          translation_prior=translation_prior, kernel_width=kernel_width, correctives=correctives)
     seconds = time.perf_counter() - started
     parameters = dict(kernel=kernel, bases=bases, regularization=regularization, translation_solver=translation_solver,
                       beta=beta, translation_prior=translation_prior, train_frames=train_frames,
-                      global_motion=global_motion, kernel_width=kernel_width)
+                      global_motion=global_motion, kernel_width=kernel_width, correctives=correctives)
     record = provenance_record("puppet", command_line(), parameters, [path], tool_version())
     write_model(output, "puppet", puppet_groups(model, puppet, test, "auto" if regularization == "auto" else "fixed"),
                 model["provenance"] + [record], tool_version())
@@ -94,6 +103,7 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
             click.echo(f"kernel width: {puppet.kernel_width_reason}")
         if translation_solver:
             click.echo(f"translation prior: {puppet.translation_prior:g} ({puppet.translation_prior_reason})")
+        click.echo(f"correctives: {puppet.correctives_reason}")
 
 
 def _number_or_auto(option, value, what, low_open=False):

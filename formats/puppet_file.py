@@ -15,6 +15,10 @@ Copies forward ``/mesh``, ``/examples``, ``/skin`` and ``/controls`` and adds:
   ``control_operator (B, n_c)``, ``prior_operator (B, B)``; ``@beta``, ``@prior`` (the relative
   weight γ of the pull towards the regression's translations) and ``@prior_reason``. Translations
   are ``t_b = Σ_b' R_b' Γ[b, b'] + Σ_l Q[b, l] c_l + Σ_b' Π[b, b'] t̂_b'``.
+- ``/correctives`` (when the pose-space correctives are on, ``pipeline.correctives``):
+  ``weights (n_p, n_p)``, ``offsets (n_p, V, 3)``; ``@ridge``, ``@reason``. Before skinning the
+  rest pose becomes ``rest + Σ_j w_j offsets[j]`` with ``w = weights @ ξ`` (n_p blend shapes).
+  ``/training/@correctives_reason`` says why they are on or off.
 """
 
 import numpy as np
@@ -34,7 +38,8 @@ def puppet_groups(model, puppet, test_frames, regularization_mode):
                           "test_frames": np.asarray(test_frames, dtype=np.int64),
                           "reference_controls": puppet.reference_controls,
                           "@global_motion": puppet.global_motion,
-                          "@global_motion_reason": puppet.global_motion_reason}
+                          "@global_motion_reason": puppet.global_motion_reason,
+                          "@correctives_reason": puppet.correctives_reason}
     k = puppet.kernel
     groups["kcca"] = {"predictor": puppet.regression.predictor.reshape(bones * 8, -1),
                       "bias": puppet.regression.bias.reshape(-1),
@@ -51,12 +56,16 @@ def puppet_groups(model, puppet, test_frames, regularization_mode):
                              "prior_operator": op.prior_operator, "@beta": float(puppet.beta),
                              "@prior": float(puppet.translation_prior),
                              "@prior_reason": puppet.translation_prior_reason}
+    if puppet.correctives is not None:
+        c = puppet.correctives
+        groups["correctives"] = {"weights": c.weights, "offsets": c.offsets, "@ridge": float(c.ridge),
+                                 "@reason": c.reason}
     return groups
 
 
 #: train-kcca's options that ``train_puppet`` takes, as recorded in the puppet's provenance.
 TRAINING_OPTIONS = ("kernel", "kernel_width", "bases", "regularization", "translation_solver", "beta",
-                    "translation_prior", "global_motion")
+                    "translation_prior", "global_motion", "correctives")
 
 
 def training_options(model):
@@ -70,6 +79,7 @@ def training_options(model):
 def read_puppet(path, with_options=False):
     """(Puppet, test_frames (n_t,), skin: SkinModel) from a puppet file, and with ``with_options``
     also train-kcca's options (:func:`training_options`); FormatError if not one."""
+    from skinsynth.pipeline.correctives import Correctives
     from skinsynth.pipeline.kcca import ControlKernel, KccaRegression
     from skinsynth.pipeline.poisson import TranslationOperator
     from skinsynth.pipeline.puppet import Puppet
@@ -96,6 +106,11 @@ def read_puppet(path, with_options=False):
         operator = TranslationOperator(pois["rotation_operator"], pois["control_operator"], pois["prior_operator"])
         beta = float(pois.get("@beta", np.nan))
         prior, prior_reason = float(pois.get("@prior", np.nan)), str(pois.get("@prior_reason", ""))
+    correctives = None
+    if "correctives" in model:
+        group = require(model, path, "correctives", ("weights", "offsets"))
+        correctives = Correctives(weights=group["weights"], offsets=group["offsets"], ridge=float(group["@ridge"]),
+                                  reason=str(group.get("@reason", "")))
     puppet = Puppet(rest_vertices=skin.rest_vertices, bone_indices=skin.bone_indices, bone_weights=skin.bone_weights,
                     control_indices=np.asarray(controls.vertex_indices), reference_controls=training["reference_controls"],
                     global_motion=str(training.get("@global_motion", "control-frame")), kernel=kernel,
@@ -103,7 +118,8 @@ def read_puppet(path, with_options=False):
                     beta=beta, train_frames=training["train_frames"],
                     global_motion_reason=str(training.get("@global_motion_reason", "")),
                     translation_prior=prior, translation_prior_reason=prior_reason,
-                    kernel_width_reason=str(kcca.get("@width_reason", "")))
+                    kernel_width_reason=str(kcca.get("@width_reason", "")), correctives=correctives,
+                    correctives_reason=str(training.get("@correctives_reason", "")))
     if with_options:
         return puppet, training["test_frames"], skin, training_options(model)
     return puppet, training["test_frames"], skin

@@ -94,12 +94,16 @@ SKINNING_METHODS = {"linear": "classicLinear", "dual-quaternion": "dualQuaternio
 
 
 def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
-                          bind_centers, fps, names=None, up_axis="Y", skinning="linear", group="characters") -> None:
+                          bind_centers, fps, names=None, up_axis="Y", skinning="linear", group="characters",
+                          blend_shapes=None) -> None:
     """Several characters sharing one rig, each with its own bone animation, as UsdSkel.
 
     rotations (C, F, B, 3, 3), translations (C, F, B, 3); the rest as :func:`write_skel_cache`.
     Each character is a SkelRoot ``/<group>/<name>`` (``/<name>`` when group is None; names
     default to character_000...). World placement is part of the bone transforms.
+    blend_shapes: optional (offsets (S, V, 3), weights (C, F, S)): rest-pose offsets that UsdSkel
+    adds, weighted per frame, before skinning (a puppet's pose-space correctives); the shapes are
+    written once, under the first character's mesh, and every character's mesh targets them.
     """
     rest = _float_array("rest_vertices", rest_vertices, (None, 3))
     count = len(rest)
@@ -114,6 +118,12 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
     if skinning not in SKINNING_METHODS:
         raise ValueError(f"skinning must be one of {', '.join(SKINNING_METHODS)}, got {skinning!r}")
     _check_common(path, fps, group or names[0], up_axis, frames)
+    shape_offsets = shape_weights = None
+    if blend_shapes is not None:
+        shape_offsets = _float_array("blend shape offsets", blend_shapes[0], (None, count, 3), path)
+        shape_weights = _float_array("blend shape weights", blend_shapes[1],
+                                     (characters, frames, shape_offsets.shape[0]), path)
+        shape_names = Vt.TokenArray([f"shape_{j:03d}" for j in range(shape_offsets.shape[0])])
 
     joints = Vt.TokenArray([f"bone_{b:03d}" for b in range(bones)])
     bind = np.tile(np.eye(4), (bones, 1, 1))
@@ -129,7 +139,7 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
             root = UsdSkel.Root.Define(stage, root_path)
             if group is None and c == 0:
                 stage.SetDefaultPrim(root.GetPrim())
-            _define_skeleton(stage, root_path, joints, bind, ones, rotations[c], translations[c], centers)
+            animation = _define_skeleton(stage, root_path, joints, bind, ones, rotations[c], translations[c], centers)
             mesh = _define_mesh(stage, root_path.AppendChild("Mesh"), faces)
             mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(rest.astype(np.float32)))
             mesh.GetExtentAttr().Set(_extent(rest))
@@ -140,12 +150,26 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
             binding.CreateJointWeightsPrimvar(False, element_size).Set(Vt.FloatArray.FromNumpy(weights.ravel()))
             binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
             binding.CreateSkinningMethodAttr(SKINNING_METHODS[skinning])
+            if shape_offsets is not None:
+                if c == 0:
+                    shape_paths = [mesh.GetPath().AppendChild(n) for n in shape_names]
+                    for shape_path, offsets in zip(shape_paths, shape_offsets):
+                        UsdSkel.BlendShape.Define(stage, shape_path).CreateOffsetsAttr(
+                            Vt.Vec3fArray.FromNumpy(offsets.astype(np.float32)))
+                binding.CreateBlendShapesAttr(shape_names)
+                binding.CreateBlendShapeTargetsRel().SetTargets(shape_paths)
+                animation.CreateBlendShapesAttr(shape_names)
+                attribute = animation.CreateBlendShapeWeightsAttr()
+                for frame in range(frames):
+                    attribute.Set(Vt.FloatArray.FromNumpy(shape_weights[c, frame].astype(np.float32)),
+                                  Usd.TimeCode(frame))
         stage.GetRootLayer().Save()
         del stage
 
 
 def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translations, centers):
-    """Skeleton and Animation of one character: rotations (F, B, 3, 3), translations (F, B, 3)."""
+    """Skeleton and Animation of one character: rotations (F, B, 3, 3), translations (F, B, 3).
+    Returns the UsdSkel.Animation."""
     frames, bones = rotations.shape[:2]
     joint_translations = np.einsum("fbij,bj->fbi", rotations, centers) + translations
     joint_matrices = np.zeros((frames * bones, 4, 4))
@@ -172,6 +196,7 @@ def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translatio
     for frame in range(frames):
         anim_rotations.Set(Vt.QuatfArray.FromNumpy(quats[frame]), Usd.TimeCode(frame))
     UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
+    return animation
 
 
 def _character_names(names, characters):
@@ -360,12 +385,23 @@ def read_skel_characters(path) -> list:
 
 
 def _skin_all_frames(stage, skeleton, target):
+    """UsdSkel's own result: blend shapes (if bound) applied to the rest points, then skinning."""
     rest_points = UsdGeom.Mesh(target.GetPrim()).GetPointsAttr()
     start, end = stage.GetStartTimeCode(), stage.GetEndTimeCode()
+    shapes = None
+    if target.HasBlendShapes() and skeleton.GetAnimQuery():
+        query = UsdSkel.BlendShapeQuery(UsdSkel.BindingAPI(target.GetPrim()))
+        shapes = (query, query.ComputeBlendShapePointIndices(), query.ComputeSubShapePointOffsets())
     frames = []
     for time in np.arange(start, end + 0.5):
         code = Usd.TimeCode(float(time))
         points = rest_points.Get(code)
+        if shapes is not None:
+            query, point_indices, point_offsets = shapes
+            weights = skeleton.GetAnimQuery().ComputeBlendShapeWeights(code)
+            mapped = target.GetBlendShapeMapper().Remap(weights) if target.GetBlendShapeMapper() else weights
+            sub_weights, shape_indices, sub_indices = query.ComputeSubShapeWeights(mapped)
+            query.ComputeDeformedPoints(sub_weights, shape_indices, sub_indices, point_indices, point_offsets, points)
         transforms = skeleton.ComputeSkinningTransforms(code)
         if transforms is None or not target.ComputeSkinnedPoints(transforms, points, code):
             raise FormatError(stage.GetRootLayer().realPath, f"UsdSkel cannot skin {target.GetPrim().GetPath()}")

@@ -195,6 +195,7 @@ KCCA = {"predictor": Field("float", ("B8", "P")), "bias": Field("float", ("B8",)
         "correlations": Field("float", ("B", None)), "regularization": Field("float", ("B",), low=0.0)}
 POISSON = {"rotation_operator": Field("float", ("B", "B", 3)), "control_operator": Field("float", ("B", "N")),
            "prior_operator": Field("float", ("B", "B"))}
+CORRECTIVES = {"weights": Field("float", ("P", "P")), "offsets": Field("float", ("P", "V", 3))}
 KERNELS = ("gaussian", "polynomial", "linear")
 
 
@@ -204,7 +205,7 @@ def check_controls(path, model, dims):
 
 
 def check_puppet(path, model, dims):
-    """/training, /kcca and /poisson of a puppet file (``dims`` after :func:`check_controls`)."""
+    """/training, /kcca, /poisson and /correctives of a puppet file (``dims`` after :func:`check_controls`)."""
     dims.update(B8=8 * dims["B"], N3=3 * dims["N"])
     check_group(path, "training", model["training"], TRAINING, dims)
     check_attribute(path, "training", model["training"], "global_motion", None, choices=("control-frame", "world"))
@@ -217,6 +218,9 @@ def check_puppet(path, model, dims):
     if "poisson" in model:
         check_group(path, "poisson", model["poisson"], POISSON, dims)
         check_attribute(path, "poisson", model["poisson"], "prior", "float", low=0.0)
+    if "correctives" in model:
+        check_group(path, "correctives", model["correctives"], CORRECTIVES, dims)
+        check_attribute(path, "correctives", model["correctives"], "ridge", "float", low=1e-300, optional=False)
 
 
 SYNTHESIS = {  # sources first: it binds C, N and M

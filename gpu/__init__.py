@@ -1,9 +1,9 @@
 """skinsynth.gpu: warp kernels with numpy references, and the device choice.
 
 Public API (resolved lazily, so importing this package neither imports nor initialises warp):
-lbs, lbs_reference, dqs_reference, resolve_device, available_devices, DeviceError; the puppet's
+lbs, lbs_reference, dqs_reference, vertex_dual_quaternions, resolve_device, available_devices, DeviceError; the puppet's
 run-time path (puppet_kernels): kernel_vectors, predict_dual_quaternions, normalise_dual_quaternions,
-solve_translations, dq_skin, run_puppet, reference_run_puppet, PuppetArrays, DevicePuppet, and the
+solve_translations, corrective_offsets, dq_skin, run_puppet, reference_run_puppet, PuppetArrays, DevicePuppet, and the
 stage references *_reference.
 """
 
@@ -13,11 +13,14 @@ _EXPORTS = {
     "lbs": "skinning",
     "lbs_reference": "skinning",
     "dqs_reference": "skinning",
+    "vertex_dual_quaternions": "skinning",
     "kernel_vectors": "puppet_kernels",
     "predict_dual_quaternions": "puppet_kernels",
     "normalise_dual_quaternions": "puppet_kernels",
     "solve_translations": "puppet_kernels",
     "dq_skin": "puppet_kernels",
+    "corrective_offsets": "puppet_kernels",
+    "corrective_offsets_reference": "puppet_kernels",
     "run_puppet": "puppet_kernels",
     "reference_run_puppet": "puppet_kernels",
     "PuppetArrays": "puppet_kernels",

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .alignment import apply_frames, control_frames, frame_conditioning, invert_frames
+from .correctives import Correctives, choose_ridge, corrective_offsets, cross_validated_errors, fit_correctives, rest_offsets
 from .errors import OptionError
 from .kcca import (WIDTH_GRID, ControlKernel, KccaRegression, choose_regularization, control_kernel, cv_folds,
                    fit_kcca, predict)
@@ -61,7 +62,8 @@ def choose_global_motion(examples, rest, faces, bone_indices, bone_weights, rota
             train = np.setdiff1d(train_frames, test)
             puppet = train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, translations,
                                   control_indices, train, kernel=kernel, regularization=1e-2,
-                                  translation_solver=False, global_motion=mode, kernel_width=1.0)
+                                  translation_solver=False, global_motion=mode, kernel_width=1.0,
+                                  correctives="off")
             pred = predict_vertices(puppet, examples[test][:, control_indices], translation_solver=False)
             total += float(np.sum((pred - examples[test]) ** 2))
         errors[mode] = np.sqrt(total / (len(train_frames) * rest.shape[0]))
@@ -79,7 +81,8 @@ class Puppet:
     global_motion "control-frame" | "world" (and why: global_motion_reason); kernel: ControlKernel; training_controls (n_p, 3 n_c)
     standardised; regression: KccaRegression (predictor (B, 8, n_p), bias (B, 8));
     translations: TranslationOperator or None; beta; translation_prior (relative γ of
-    :mod:`.poisson`, and why: translation_prior_reason); train_frames (n_p,).
+    :mod:`.poisson`, and why: translation_prior_reason); train_frames (n_p,); correctives:
+    :class:`.correctives.Correctives` or None (rest-pose offsets added before skinning).
     """
 
     rest_vertices: np.ndarray
@@ -98,6 +101,8 @@ class Puppet:
     translation_prior: float = 1e-6
     translation_prior_reason: str = ""
     kernel_width_reason: str = ""
+    correctives: Correctives | None = None
+    correctives_reason: str = ""
 
 
 def parse_frame_spec(spec, frames):
@@ -148,12 +153,15 @@ def _bone_dual_quaternions(rotations, translations):
 
 def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, translations, control_indices,
                  train_frames, kernel="gaussian", bases=8, regularization="auto", translation_solver=True,
-                 beta=100.0, global_motion="auto", translation_prior="auto", kernel_width="auto"):
+                 beta=100.0, global_motion="auto", translation_prior="auto", kernel_width="auto",
+                 correctives="auto"):
     """Train a puppet from a skin fit. examples (F, V, 3); rotations (F, B, 3, 3), translations
     (F, B, 3) the fitted bones; control_indices (n_c,); train_frames (n_p,); translation_prior:
     the Poisson solve's pull towards the regression's translations (:mod:`.poisson`), a number or
     "auto" (cross-validated); kernel_width: the Gaussian's width as a multiple of the controls'
-    spread σ, or "auto" (cross-validated, :func:`_choose_width_and_kappa`). Returns Puppet."""
+    spread σ, or "auto" (cross-validated, :func:`_choose_width_and_kappa`); correctives: the
+    pose-space correctives' relative ridge (:mod:`.correctives`), "auto" (cross-validated) or
+    "off". Returns Puppet."""
     if global_motion not in GLOBAL_MOTION:
         raise OptionError(f"--global-motion must be one of {', '.join(GLOBAL_MOTION)}")
     if len(train_frames) < 4:
@@ -185,6 +193,8 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
         raise OptionError(f"--regularization must be a non-negative number or 'auto' (got {regularization})")
     if translation_prior != "auto" and not float(translation_prior) >= 0.0:
         raise OptionError(f"--translation-prior must be a non-negative number or 'auto' (got {translation_prior})")
+    if correctives not in ("auto", "off") and not 0.0 < float(correctives) < np.inf:
+        raise OptionError(f"--correctives must be a positive ridge, 'auto' or 'off' (got {correctives})")
 
     system = None
     placed = apply_frames(frame_r, frame_t, examples[train_frames])
@@ -194,15 +204,18 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
         edge_bones, edge_weights = fit_edge_weights(rest, edges, bone_indices, bone_weights, rot, edge_vectors)
         system = translation_system(rest, edges, bone_indices, bone_weights, edge_bones, edge_weights,
                                     control_indices, beta=beta)
-    kappa, errors, width_reason = _choose_width_and_kappa(kern, kernel_width, regularization, translation_prior,
-                                                          flat_controls, targets, bases, system, placed,
-                                                          placed_controls, rest, bone_indices, bone_weights)
+    kappa, scores, width_reason = _choose_width_and_kappa(kern, kernel_width, regularization, translation_prior,
+                                                          correctives == "auto", flat_controls, targets, bases,
+                                                          system, placed, placed_controls, rest, bone_indices,
+                                                          bone_weights)
     x = kern.standardise(flat_controls)
-    regression = fit_kcca(kern.matrix(x, x), targets, bases=bases, regularization=kappa)
+    kernel_matrix = kern.matrix(x, x)
+    regression = fit_kcca(kernel_matrix, targets, bases=bases, regularization=kappa)
 
     operator, prior, prior_reason = None, 1e-6, ""
     if system is not None:
         if translation_prior == "auto":
+            errors = scores.priors
             prior = min(errors, key=errors.get)
             prior_reason = (f"cross-validated RMS {errors[prior]:.4g} at prior {prior:g} (Feng's plain solve, prior "
                             f"1e-06: {errors[min(errors)]:.4g}; nearest the regression's translations, prior "
@@ -210,24 +223,51 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
         else:
             prior, prior_reason = float(translation_prior), "chosen by the user (--translation-prior)"
         operator = operator_from_system(system, prior)
-    return Puppet(rest_vertices=rest, bone_indices=bone_indices, bone_weights=bone_weights,
-                  control_indices=np.asarray(control_indices), reference_controls=reference,
-                  global_motion=global_motion, kernel=kern, training_controls=x, regression=regression,
-                  translations=operator, beta=float(beta), train_frames=np.asarray(train_frames),
-                  global_motion_reason=reason, translation_prior=float(prior), translation_prior_reason=prior_reason,
-                  kernel_width_reason=width_reason)
+    puppet = Puppet(rest_vertices=rest, bone_indices=bone_indices, bone_weights=bone_weights,
+                    control_indices=np.asarray(control_indices), reference_controls=reference,
+                    global_motion=global_motion, kernel=kern, training_controls=x, regression=regression,
+                    translations=operator, beta=float(beta), train_frames=np.asarray(train_frames),
+                    global_motion_reason=reason, translation_prior=float(prior), translation_prior_reason=prior_reason,
+                    kernel_width_reason=width_reason)
+    if correctives == "off":
+        ridge, puppet.correctives_reason = None, "off, chosen by the user (--correctives off)"
+    elif correctives == "auto":
+        ridge, puppet.correctives_reason = choose_ridge(scores.correctives)
+    else:
+        ridge, puppet.correctives_reason = float(correctives), "chosen by the user (--correctives)"
+    if ridge is not None:
+        d = predict_bones(puppet, controls)[0]
+        offsets = rest_offsets(rest, bone_indices, bone_weights, d, placed)
+        puppet.correctives = fit_correctives(kernel_matrix, offsets, ridge, puppet.correctives_reason)
+    return puppet
 
 
-def _choose_width_and_kappa(kern, kernel_width, regularization, translation_prior, flat_controls, targets, bases,
-                            system, placed, placed_controls, rest, bone_indices, bone_weights):
-    """(κ (B,) or scalar, {prior: out-of-fold RMS} or None, width reason); sets ``kern.scale``.
+@dataclass
+class _Scores:
+    """Cross-validated RMS vertex errors at one kernel width: priors {prior: error} (no
+    correctives; keyed 0.0 without the solver) and correctives {ridge: error} (inf: none, at the
+    best prior) or None when not asked for."""
+
+    priors: dict
+    correctives: dict | None
+
+    @property
+    def best(self):
+        return min((self.correctives or self.priors).values())
+
+
+def _choose_width_and_kappa(kern, kernel_width, regularization, translation_prior, correctives, flat_controls,
+                            targets, bases, system, placed, placed_controls, rest, bone_indices, bone_weights):
+    """(κ (B,) or scalar, :class:`_Scores` or None, width reason); sets ``kern.scale``.
 
     Feng §7 takes the Gaussian's σ from the data, but no fixed multiple suits every capture
     (measured at every:4: the horse's six distinct poses want a wide kernel, the samba σ). With
     ``kernel_width`` "auto" each width of WIDTH_GRID gets its per-bone κ (dual-quaternion
     cross-validation, when "auto") and is scored by the out-of-fold skinned-vertex error at its
-    best translation prior, the quantity ``evaluate`` reports; the lowest wins (ties: the
-    narrower). The errors at the chosen width also pick the prior."""
+    best translation prior, the quantity ``evaluate`` reports, with the best pose-space
+    correctives when ``correctives`` (they change which width is best: the Vellum sheet at
+    every:4 wanted 8σ without them, 0.5σ with); the lowest wins (ties: the narrower). The scores
+    at the chosen width also pick the prior and the correctives' ridge."""
     gaussian = kern.kind == "gaussian"
     widths = WIDTH_GRID if gaussian and kernel_width == "auto" else (
         float(kernel_width) if gaussian and kernel_width != "auto" else 1.0,)
@@ -238,16 +278,16 @@ def _choose_width_and_kappa(kern, kernel_width, regularization, translation_prio
         x = kern.standardise(flat_controls)
         kappa = (choose_regularization(kern, x, targets, bases=bases) if regularization == "auto"
                  else float(regularization))
-        errors = None
-        if len(widths) > 1 or (system is not None and len(priors) > 1):
-            errors = _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kappa, placed,
-                                                    placed_controls, rest, bone_indices, bone_weights)
-        tried[width] = (kappa, errors)
-    width = min(widths, key=lambda w: (min(tried[w][1].values()), w)) if len(widths) > 1 else widths[0]
+        scores = None
+        if len(widths) > 1 or (system is not None and len(priors) > 1) or correctives:
+            scores = _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kappa, placed,
+                                                    placed_controls, rest, bone_indices, bone_weights, correctives)
+        tried[width] = (kappa, scores)
+    width = min(widths, key=lambda w: (tried[w][1].best, w)) if len(widths) > 1 else widths[0]
     kern.scale = base_scale * width
     reason = ""
     if gaussian and len(widths) > 1:
-        listed = ", ".join(f"{w:g}σ {min(tried[w][1].values()):.4g}" for w in widths)
+        listed = ", ".join(f"{w:g}σ {tried[w][1].best:.4g}" for w in widths)
         reason = f"{width:g}σ (cross-validated RMS vertex error {listed})"
     elif gaussian:
         reason = f"{width:g}σ, chosen by the user (--kernel-width)"
@@ -259,22 +299,30 @@ PRIOR_VERTICES = 4096
 
 
 def _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kappa, placed, placed_controls, rest,
-                                   bone_indices, bone_weights, folds=5):
-    """{prior: RMS} of the dual-quaternion-skinned vertices of out-of-fold predictions, with the
-    Poisson translations at each prior (``system`` None: the regression's own translations, keyed
-    by 0.0). Folds keep repeated poses together (:func:`.kcca.cv_folds`); κ per bone as chosen;
-    the edge weights and the kernel's parameters are those fitted on all training frames."""
+                                   bone_indices, bone_weights, correctives=False, folds=5):
+    """:class:`_Scores` of the dual-quaternion-skinned vertices of out-of-fold predictions, with
+    the Poisson translations at each prior (``system`` None: the regression's own translations,
+    keyed by 0.0), and with ``correctives`` also each corrective ridge at the best prior
+    (:func:`.correctives.cross_validated_errors`: each fold's puppet predicts every row, its own
+    rows giving the residuals it learns). Folds keep repeated poses together
+    (:func:`.kcca.cv_folds`); κ per bone as chosen; the edge weights and the kernel's parameters
+    are those fitted on all training frames. Scored on PRIOR_VERTICES evenly spaced vertices."""
     from skinsynth.gpu import dqs_reference
 
     n = x.shape[0]
+    kernel_matrix = kern.matrix(x, x)
+    fold_tests = cv_folds(x, folds)
     d = np.empty((n,) + targets.shape[:1] + (8,))
-    for test in cv_folds(x, folds):
+    every_row = []
+    for test in fold_tests:
         train = np.setdiff1d(np.arange(n), test)
-        model = fit_kcca(kern.matrix(x[train], x[train]), targets[:, train], bases=bases, regularization=kappa)
-        d[test] = predict(model, kern.matrix(x[test], x[train]))
+        model = fit_kcca(kernel_matrix[np.ix_(train, train)], targets[:, train], bases=bases, regularization=kappa)
+        rows = predict(model, kernel_matrix[:, train])
+        d[test] = rows[test]
+        every_row.append(rows / np.linalg.norm(rows[..., :4], axis=-1, keepdims=True))
     d /= np.linalg.norm(d[..., :4], axis=-1, keepdims=True)
     rot, trans = dual_quaternion_to_rigid(d)
-    subset = np.unique(np.linspace(0, rest.shape[0] - 1, min(PRIOR_VERTICES, rest.shape[0])).astype(np.int64))
+    subset = _vertex_subset(rest.shape[0])
 
     def vertex_error(rotations, translations):
         skinned = dqs_reference(rest[subset], bone_indices[subset], bone_weights[subset],
@@ -285,11 +333,27 @@ def _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kapp
         errors = {0.0: vertex_error(rot, trans)}
     else:
         _, errors = choose_translation_prior(system, rot, placed_controls, trans, vertex_error, grid=priors)
-    return {p: float(np.sqrt(e / (n * subset.size))) for p, e in errors.items()}
+    errors = {p: float(np.sqrt(e / (n * subset.size))) for p, e in errors.items()}
+    corrective_errors = None
+    if correctives:
+        if system is not None:
+            operator = operator_from_system(system, min(errors, key=errors.get))
+            for i, rows in enumerate(every_row):
+                r, t = dual_quaternion_to_rigid(rows)
+                every_row[i] = with_translations(rows, solve_translations(operator, r, placed_controls, t))
+        corrective_errors = cross_validated_errors(kernel_matrix, fold_tests, every_row, placed[:, subset],
+                                                   rest[subset], bone_indices[subset], bone_weights[subset])
+    return _Scores(priors=errors, correctives=corrective_errors)
+
+
+def _vertex_subset(count):
+    """Evenly spaced vertex ids (at most PRIOR_VERTICES of count) that cross-validation scores."""
+    return np.unique(np.linspace(0, count - 1, min(PRIOR_VERTICES, count)).astype(np.int64))
 
 
 def predict_bones(puppet, controls, translation_solver=True):
-    """controls (F, n_c, 3) world -> (dual quaternions (F, B, 8) in place, frame_r, frame_t).
+    """controls (F, n_c, 3) world -> (dual quaternions (F, B, 8) in place, frame_r, frame_t,
+    kernel vectors ξ (F, n_p)).
 
     The dual quaternions are unit and, with the solver, carry its translations."""
     frames = controls.shape[0]
@@ -303,7 +367,7 @@ def predict_bones(puppet, controls, translation_solver=True):
         rot, trans = dual_quaternion_to_rigid(d)
         trans = solve_translations(puppet.translations, rot, placed, trans)  # t = P·T   (Feng §6.2)
         d = with_translations(d, trans)
-    return d, frame_r, frame_t
+    return d, frame_r, frame_t, xi
 
 
 SKINNING = ("dual-quaternion", "linear")
@@ -313,16 +377,19 @@ def predict_vertices(puppet, controls, translation_solver=True, skinning="dual-q
     """The whole run-time prediction in numpy: controls (F, n_c, 3) -> vertices (F, V, 3).
 
     ``skinning``: "dual-quaternion" as Feng §6.3 (no candy-wrapper collapse), or "linear", the
-    model the skin weights were fitted for (exact on LBS data; see ``skinsynth evaluate``)."""
+    model the skin weights were fitted for (exact on LBS data; see ``skinsynth evaluate``).
+    The puppet's correctives (if any) are added to the rest pose first; they were fitted for
+    dual-quaternion skinning, so with "linear" they reproduce the examples only approximately."""
     from skinsynth.gpu import dqs_reference, lbs_reference
 
     if skinning not in SKINNING:
         raise OptionError(f"skinning must be one of {', '.join(SKINNING)}")
-    d, frame_r, frame_t = predict_bones(puppet, controls, translation_solver)
+    d, frame_r, frame_t, xi = predict_bones(puppet, controls, translation_solver)
+    offsets = None if puppet.correctives is None else corrective_offsets(puppet.correctives, xi)
     if skinning == "linear":
         rot, trans = dual_quaternion_to_rigid(d)
-        placed = lbs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, rot, trans)
+        placed = lbs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, rot, trans, offsets)
     else:
-        placed = dqs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, d)  # Feng §6.3
+        placed = dqs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, d, offsets)  # Feng §6.3
     inv_r, inv_t = invert_frames(frame_r, frame_t)
     return apply_frames(inv_r, inv_t, placed)
