@@ -2,7 +2,8 @@
 (1 and 2 Python threads) and on CUDA when present, per stage and end to end.
 
 One JSON line per (model, layout, solver). Models: "face" (V=23,728, B=260, n_c=8, n_p=38,
-K=4) and "horse" (V=8,431, B=150, n_c=8, n_p=27, K=4), random but well-formed (unit dual
+K=4), "face+correctives" (the same with 38 pose-space corrective blend shapes) and "horse"
+(V=8,431, B=150, n_c=8, n_p=27, K=4), random but well-formed (unit dual
 quaternions around which M ξ + m varies, weights summing to 1, Gaussian kernel). Layouts: 1000
 frames × 1 character and 100 frames × 100 characters (N = samples = frames × characters).
 
@@ -36,6 +37,7 @@ from timing import median_seconds
 
 MODELS = {
     "face": dict(verts=23728, bones=260, controls=8, examples=38, influences=4),
+    "face+correctives": dict(verts=23728, bones=260, controls=8, examples=38, influences=4, correctives=True),
     "horse": dict(verts=8431, bones=150, controls=8, examples=27, influences=4),
 }
 LAYOUTS = [(1000, 1), (100, 100)]
@@ -47,7 +49,7 @@ def rotations(rng, shape, angle=1.0):
     return rotation_exp(rng.uniform(-angle, angle, size=shape + (3,)))
 
 
-def random_puppet(rng, verts, bones, controls, examples, influences):
+def random_puppet(rng, verts, bones, controls, examples, influences, correctives=False):
     rest = rng.normal(size=(verts, 3))
     idx = np.stack([rng.choice(bones, influences, replace=False) for _ in range(verts)])
     w = rng.random((verts, influences)) ** 2
@@ -58,7 +60,9 @@ def random_puppet(rng, verts, bones, controls, examples, influences):
         training_controls=rng.normal(size=(examples, 3 * controls)) / np.sqrt(3 * controls), kernel="gaussian",
         predictor=rng.normal(size=(8 * bones, examples)) * 0.05, bias=base,
         rotation_operator=rng.normal(size=(bones, bones, 3)) * 0.05, control_operator=rng.normal(size=(bones, controls)) * 0.1,
-        prior_operator=rng.normal(size=(bones, bones)) * 1e-6)
+        prior_operator=rng.normal(size=(bones, bones)) * 1e-6,
+        corrective_weights=rng.normal(size=(examples, examples)) if correctives else None,
+        corrective_offsets=rng.normal(size=(examples, verts, 3)) * 0.01 if correctives else None)
 
 
 def random_inputs(rng, samples, puppet):
@@ -97,7 +101,12 @@ def numpy_reference(puppet, x, c, frames, solver):
         mark("solve_translations")
         d = with_translations(d, trans)
         mark("compose")
-    placed = dqs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, d)
+    offsets = None
+    if puppet.has_correctives:
+        offsets = pk.corrective_offsets_reference(
+            pk.corrective_weights_reference(xi, x, puppet.corrective_weights), puppet.corrective_offsets)
+        mark("correctives")
+    placed = dqs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, d, offsets)
     mark("skin")
     np.einsum("nab,nvb->nva", frames[:, :3, :3], placed) + frames[:, None, :3, 3]
     mark("world_frames")

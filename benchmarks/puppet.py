@@ -11,7 +11,7 @@ in --work; bones as in ``datasets.BONES``), ``select-controls --count 8``, then 
   regression's translations, PCA blendshapes, direct RBF regression), RMS vertex distance over
   the held-out frames with the largest rest bounding-box side scaled to 1 (Feng §7);
 - the choices train-kcca made from data, read back from the puppet file (global motion, kernel
-  width, κ per bone, translation prior).
+  width, κ per bone, translation prior, pose-space correctives).
 
 ``lowest`` names evaluate's lowest row; ``kcca_over_pca`` and ``kcca_over_rbf`` are the ratios
 issue 12 asks about (goal: kcca lowest, ≤ 0.8× PCA, at every:4 and every:10).
@@ -47,6 +47,8 @@ def _choices(puppet_path):
         out["regularization_range"] = [float(regularization.min()), float(regularization.max())]
         if "poisson" in f:
             out["translation_prior"] = float(f["poisson"].attrs.get("prior", float("nan")))
+        reason = str(training.attrs.get("correctives_reason", ""))
+        out["correctives"] = reason.split(" (")[0].split(":")[0]  # "off" or e.g. "ridge 0.001, affine tail"
         out["train_frames"] = int(training["train_frames"].shape[0])
         out["test_frames"] = int(training["test_frames"].shape[0])
     return out

@@ -72,7 +72,8 @@ def evaluate(path, as_json, plot, skinning, pca_components, extrapolate):
                f"{skinning} skinning; "
                f"kernel {result.notes['kernel']}; PCA baseline with {result.notes['pca_components']} blendshapes"
                + (f"; translation prior {result.notes['translation_prior']:g}"
-                  if result.notes["translation_prior"] is not None else ""))
+                  if result.notes["translation_prior"] is not None else "")
+               + f"; correctives: {result.notes['correctives'] or 'off'}")
     _table(result)
     if beyond is not None:
         click.echo(f"extrapolation: trained on frames 0..{beyond.notes['train_frames'] - 1}, tested on the "

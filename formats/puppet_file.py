@@ -16,8 +16,10 @@ Copies forward ``/mesh``, ``/examples``, ``/skin`` and ``/controls`` and adds:
   weight γ of the pull towards the regression's translations) and ``@prior_reason``. Translations
   are ``t_b = Σ_b' R_b' Γ[b, b'] + Σ_l Q[b, l] c_l + Σ_b' Π[b, b'] t̂_b'``.
 - ``/correctives`` (when the pose-space correctives are on, ``pipeline.correctives``):
-  ``weights (n_p, n_p)``, ``offsets (n_p, V, 3)``; ``@ridge``, ``@reason``. Before skinning the
-  rest pose becomes ``rest + Σ_j w_j offsets[j]`` with ``w = weights @ ξ`` (n_p blend shapes).
+  ``weights (n_p, n_p)``, ``offsets (n_p, V, 3)``, with an affine tail also ``tail (n_p, 1 + r)``
+  and ``axes (r, 3 n_c)``; ``@ridge``, ``@power``, ``@reason``. Before skinning the rest pose
+  becomes ``rest + Σ_j w_j offsets[j]`` with blend weights
+  ``w = weights @ ξ^power + tail @ [1, x @ axesᵀ]`` (n_p blend shapes; ξ^power elementwise).
   ``/training/@correctives_reason`` says why they are on or off.
 """
 
@@ -59,7 +61,9 @@ def puppet_groups(model, puppet, test_frames, regularization_mode):
     if puppet.correctives is not None:
         c = puppet.correctives
         groups["correctives"] = {"weights": c.weights, "offsets": c.offsets, "@ridge": float(c.ridge),
-                                 "@reason": c.reason}
+                                 "@power": float(c.power), "@reason": c.reason}
+        if c.tail is not None:
+            groups["correctives"].update(tail=c.tail, axes=c.axes)
     return groups
 
 
@@ -109,8 +113,11 @@ def read_puppet(path, with_options=False):
     correctives = None
     if "correctives" in model:
         group = require(model, path, "correctives", ("weights", "offsets"))
+        if ("tail" in group) != ("axes" in group):
+            raise FormatError(path, "/correctives has one of tail and axes without the other")
         correctives = Correctives(weights=group["weights"], offsets=group["offsets"], ridge=float(group["@ridge"]),
-                                  reason=str(group.get("@reason", "")))
+                                  power=float(group.get("@power", 1.0)), tail=group.get("tail"),
+                                  axes=group.get("axes"), reason=str(group.get("@reason", "")))
     puppet = Puppet(rest_vertices=skin.rest_vertices, bone_indices=skin.bone_indices, bone_weights=skin.bone_weights,
                     control_indices=np.asarray(controls.vertex_indices), reference_controls=training["reference_controls"],
                     global_motion=str(training.get("@global_motion", "control-frame")), kernel=kernel,

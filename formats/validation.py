@@ -195,7 +195,8 @@ KCCA = {"predictor": Field("float", ("B8", "P")), "bias": Field("float", ("B8",)
         "correlations": Field("float", ("B", None)), "regularization": Field("float", ("B",), low=0.0)}
 POISSON = {"rotation_operator": Field("float", ("B", "B", 3)), "control_operator": Field("float", ("B", "N")),
            "prior_operator": Field("float", ("B", "B"))}
-CORRECTIVES = {"weights": Field("float", ("P", "P")), "offsets": Field("float", ("P", "V", 3))}
+CORRECTIVES = {"weights": Field("float", ("P", "P")), "offsets": Field("float", ("P", "V", 3)),
+               "tail": Field("float", ("P", "R1"), optional=True), "axes": Field("float", ("R", "N3"), optional=True)}
 KERNELS = ("gaussian", "polynomial", "linear")
 
 
@@ -221,6 +222,11 @@ def check_puppet(path, model, dims):
     if "correctives" in model:
         check_group(path, "correctives", model["correctives"], CORRECTIVES, dims)
         check_attribute(path, "correctives", model["correctives"], "ridge", "float", low=1e-300, optional=False)
+        check_attribute(path, "correctives", model["correctives"], "power", "float", low=1e-300, high=1e3)
+        group = model["correctives"]
+        if "tail" in group and "axes" in group and group["tail"].shape[1:] != (group["axes"].shape[0] + 1,):
+            raise FormatError(path, f"/correctives/tail has {group['tail'].shape[1:]} columns, expected "
+                                    f"1 + {group['axes'].shape[0]} axes")
 
 
 SYNTHESIS = {  # sources first: it binds C, N and M

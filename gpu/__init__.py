@@ -21,6 +21,7 @@ _EXPORTS = {
     "dq_skin": "puppet_kernels",
     "corrective_offsets": "puppet_kernels",
     "corrective_offsets_reference": "puppet_kernels",
+    "corrective_weights_reference": "puppet_kernels",
     "run_puppet": "puppet_kernels",
     "reference_run_puppet": "puppet_kernels",
     "PuppetArrays": "puppet_kernels",

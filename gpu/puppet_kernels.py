@@ -11,8 +11,9 @@ its numpy reference:
 2. :func:`predict_dual_quaternions` — d = M ξ + m for all bones at once (Feng §6.1), (N, B, 8);
 3. :func:`normalise_dual_quaternions` — unit d, its rotations (N, B, 3, 3) and translations;
 4. :func:`solve_translations` — the Poisson translations t = Γ·R + Q·c + Π·t̂ (Feng §6.2);
-5. :func:`corrective_offsets` — the pose-space correctives' rest offsets Σ_j (W ξ)_j O_j
-   (``pipeline.correctives``; W ξ in float64, the blend in float32), (N, V, 3);
+5. :func:`corrective_offsets` — the pose-space correctives' rest offsets Σ_j w_j O_j
+   (``pipeline.correctives``; the blend weights w = A ξ^p + B [1, x Pᵀ] in float64 on the host,
+   :func:`corrective_weights_reference`, the blend in float32), (N, V, 3);
    :func:`dq_skin` — dual-quaternion skinning (Kavan et al. 2007; Feng §6.3) of the rest pose
    plus those offsets, (N, V, 3);
 6. :func:`run_puppet` — all of it on the device, arrays staying on the device between stages,
@@ -101,8 +102,10 @@ class PuppetArrays:
     degree (polynomial); predictor (8B, n_p) with row b·8 + m the m-th dual-quaternion number of
     bone b, bias (8B,); the translation operator (``pipeline.poisson.TranslationOperator``):
     rotation_operator Γ (B, B, 3), control_operator Q (B, n_c), prior_operator Π (B, B), or all
-    None for a puppet trained without the solver; corrective_weights W (n_p, n_p) and
-    corrective_offsets O (n_p, V, 3) of the pose-space correctives, or None.
+    None for a puppet trained without the solver; the pose-space correctives
+    (``pipeline.correctives.Correctives``): corrective_weights A (n_p, n_p), corrective_power p,
+    corrective_tail B (n_p, 1 + r) and corrective_axes P (r, d) (or None), corrective_offsets
+    O (n_p, V, 3); all None without correctives.
     """
 
     rest_vertices: np.ndarray
@@ -119,6 +122,9 @@ class PuppetArrays:
     degree: int = 5
     corrective_weights: np.ndarray | None = None
     corrective_offsets: np.ndarray | None = None
+    corrective_power: float = 1.0
+    corrective_tail: np.ndarray | None = None
+    corrective_axes: np.ndarray | None = None
 
     @classmethod
     def from_puppet(cls, puppet):
@@ -133,7 +139,10 @@ class PuppetArrays:
                    control_operator=None if ops is None else ops.control_operator,
                    prior_operator=None if ops is None else ops.prior_operator,
                    corrective_weights=None if corr is None else corr.weights,
-                   corrective_offsets=None if corr is None else corr.offsets)
+                   corrective_offsets=None if corr is None else corr.offsets,
+                   corrective_power=1.0 if corr is None else corr.power,
+                   corrective_tail=None if corr is None else corr.tail,
+                   corrective_axes=None if corr is None else corr.axes)
 
     @property
     def bones(self):
@@ -148,9 +157,25 @@ class PuppetArrays:
         return self.corrective_weights is not None
 
 
-def corrective_offsets_reference(xi, weights, offsets):
-    """Rest offsets (N, V, 3) of kernel vectors ξ (N, n_p): Σ_j (ξ Wᵀ)_j O_j, W (n_p, n_p), O (n_p, V, 3)."""
-    return np.einsum("nj,jvc->nvc", np.asarray(xi) @ np.asarray(weights).T, offsets)
+def corrective_weights_reference(xi, x, weights, power=1.0, tail=None, axes=None):
+    """Blend weights w (N, n_p) float64 of the pose-space correctives: ``A ξ^p + B [1, x Pᵀ]`` for
+    kernel vectors ξ (N, n_p) and standardised controls x (N, d); weights A (n_p, n_p), tail B
+    (n_p, 1 + r) and axes P (r, d), or None for no affine tail."""
+    w = (np.asarray(xi, dtype=np.float64) ** power) @ np.asarray(weights).T
+    if tail is not None:
+        tail = np.asarray(tail)
+        w += tail[:, 0] + (np.asarray(x, dtype=np.float64) @ np.asarray(axes).T) @ tail[:, 1:].T
+    return w
+
+
+def corrective_offsets_reference(blend_weights, offsets):
+    """Rest offsets (N, V, 3) Σ_j w_j O_j of blend weights w (N, n_p) and offsets O (n_p, V, 3)."""
+    return np.einsum("nj,jvc->nvc", blend_weights, offsets)
+
+
+def _corrective_weights(arrays, xi, x):
+    return corrective_weights_reference(xi, x, arrays.corrective_weights, arrays.corrective_power,
+                                        arrays.corrective_tail, arrays.corrective_axes)
 
 
 def _as_arrays(puppet):
@@ -200,7 +225,7 @@ def reference_run_puppet(puppet, standardised_controls, controls_in_place, world
         d = with_translations(d, trans)
     offsets = None
     if arrays.has_correctives:
-        offsets = corrective_offsets_reference(xi, arrays.corrective_weights, arrays.corrective_offsets)
+        offsets = corrective_offsets_reference(_corrective_weights(arrays, xi, x), arrays.corrective_offsets)
     placed = dqs_reference(arrays.rest_vertices, arrays.bone_indices, arrays.bone_weights, d, offsets)
     if f is None:
         return placed
@@ -457,19 +482,10 @@ def _skin_kernel(influences: int, corrected: bool = False):
 
 
 @functools.cache
-def _corrective_kernels():
-    # w = W ξ in float64 (ξ and W are as ill-conditioned as M ξ), then Σ_j w_j O_j in float32
-    # (offsets are small); on the CPU both are BLAS products instead (_run_chunk).
+def _corrective_kernel():
+    # Σ_j w_j O_j in float32 (offsets are small; w, which can be large and cancel, is computed in
+    # float64 on the host). Used off the CPU; the CPU path is a BLAS product (_run_chunk).
     wp = runtime.warp()
-
-    @wp.kernel(module="unique")
-    def corrective_weights_kernel(xi: wp.array2d(dtype=wp.float64), weights: wp.array2d(dtype=wp.float64),
-                                  out: wp.array2d(dtype=wp.float64)):
-        n, j = wp.tid()
-        acc = wp.float64(0.0)
-        for k in range(xi.shape[1]):
-            acc += weights[j, k] * xi[n, k]
-        out[n, j] = acc
 
     @wp.kernel(module="unique")
     def corrective_offsets_kernel(w: wp.array2d(dtype=wp.float64), offsets: wp.array2d(dtype=wp.vec3),
@@ -480,7 +496,7 @@ def _corrective_kernels():
             acc += wp.float32(w[n, j]) * offsets[j, i]
         out[n, i] = acc
 
-    return corrective_weights_kernel, corrective_offsets_kernel
+    return corrective_offsets_kernel
 
 
 # ----------------------------------------------------------------------------------------------
@@ -622,25 +638,19 @@ class _SkinBuffers:
                   inputs=[self.rest, self.idx, self.w, dual_quaternions, offsets], outputs=[out], device=device)
 
 
-def corrective_offsets(xi, weights, offsets, device="cpu") -> np.ndarray:
-    """Rest offsets (N, V, 3) float64 of the pose-space correctives for kernel vectors ξ (N, n_p):
-    ``corrective_offsets_reference`` with the device kernels (which the CPU path of
-    :func:`run_puppet` replaces by BLAS products). weights (n_p, n_p), offsets (n_p, V, 3)."""
-    xi, weights, offsets = np.asarray(xi), np.asarray(weights), np.asarray(offsets)
-    n_p = weights.shape[0]
-    if xi.ndim != 2 or xi.shape[1] != n_p or weights.shape != (n_p, n_p) or offsets.shape[::2] != (n_p, 3):
-        raise ValueError(f"need xi (N, n_p), weights (n_p, n_p), offsets (n_p, V, 3); got {xi.shape}, "
-                         f"{weights.shape}, {offsets.shape}")
+def corrective_offsets(blend_weights, offsets, device="cpu") -> np.ndarray:
+    """Rest offsets (N, V, 3) float64 of the pose-space correctives, ``corrective_offsets_reference``
+    as the device kernel (which the CPU path of :func:`run_puppet` replaces by BLAS products).
+    blend_weights (N, n_p), offsets (n_p, V, 3)."""
+    w, offsets = np.asarray(blend_weights), np.asarray(offsets)
+    if w.ndim != 2 or offsets.ndim != 3 or offsets.shape[::2] != (w.shape[1], 3):
+        raise ValueError(f"need blend_weights (N, n_p) and offsets (n_p, V, 3); got {w.shape}, {offsets.shape}")
     device = runtime.resolve_device(device)
     wp = runtime.warp()
-    weights_kernel, offsets_kernel = _corrective_kernels()
-    w = wp.empty(xi.shape, dtype=wp.float64, device=device)
-    out = wp.empty((xi.shape[0], offsets.shape[1]), dtype=wp.vec3, device=device)
+    out = wp.empty((w.shape[0], offsets.shape[1]), dtype=wp.vec3, device=device)
     if out.size:
-        wp.launch(weights_kernel, dim=w.shape, inputs=[_f64(wp, xi, wp.float64, device),
-                                                       _f64(wp, weights, wp.float64, device)],
-                  outputs=[w], device=device)
-        wp.launch(offsets_kernel, dim=out.shape, inputs=[w, _f32(wp, offsets, wp.vec3, device)], outputs=[out],
+        wp.launch(_corrective_kernel(), dim=out.shape,
+                  inputs=[_f64(wp, w, wp.float64, device), _f32(wp, offsets, wp.vec3, device)], outputs=[out],
                   device=device)
     return out.numpy().astype(np.float64)
 
@@ -714,18 +724,17 @@ class DevicePuppet:
             self.host_operators = (np.ascontiguousarray(gamma.reshape(bones, -1).T, dtype=np.float32),
                                    np.ascontiguousarray(q.T, dtype=np.float32),
                                    np.ascontiguousarray(prior.T, dtype=np.float32))
-        self.corrective_weights = self.corrective_offsets = None
+        self.corrective_offsets = None
         if arrays.has_correctives:
             n_p = self.training.shape[0]
             weights, offsets = np.asarray(arrays.corrective_weights), np.asarray(arrays.corrective_offsets)
             if weights.shape != (n_p, n_p) or offsets.shape != (n_p, self.skin.verts, 3):
                 raise ValueError(f"corrective weights must be ({n_p}, {n_p}) and offsets ({n_p}, "
                                  f"{self.skin.verts}, 3), got {weights.shape} and {offsets.shape}")
-            self.corrective_weights = _f64(wp, weights, wp.float64, dev)
-            self.corrective_offsets = _f32(wp, offsets, wp.vec3, dev)
-            # On the CPU: W ξ and the blend are BLAS products (float64, then float32).
-            self.host_correctives = (np.ascontiguousarray(weights.T),
-                                     np.ascontiguousarray(offsets.reshape(n_p, -1), dtype=np.float32))
+            if dev == "cpu":  # the blend is a BLAS product there
+                self.host_offsets = np.ascontiguousarray(offsets.reshape(n_p, -1), dtype=np.float32)
+            else:
+                self.corrective_offsets = _f32(wp, offsets, wp.vec3, dev)
 
     @property
     def bones(self):
@@ -752,9 +761,8 @@ class _Workspace:
         self.solved = wp.empty(shape, dtype=wp.vec3, device=device)
         self.final = wp.empty(shape, dtype=vec8, device=device)
         self.frames = wp.empty(samples, dtype=vec8, device=device)
-        self.offsets = self.corrective_weights = None
-        if puppet.corrective_weights is not None and device != "cpu":
-            self.corrective_weights = wp.empty((samples, n_p), dtype=wp.float64, device=device)
+        self.offsets = None
+        if puppet.corrective_offsets is not None:
             self.offsets = wp.empty((samples, puppet.verts), dtype=wp.vec3, device=device)
         self._out_shape, self._device, self._out = (samples, puppet.verts), device, None
 
@@ -830,13 +838,12 @@ def _run_chunk(puppet, space, x, c, f, out, device, timings=None, offsets_host=N
     offsets = None
     if offsets_host is not None:
         offsets = wp.array(offsets_host, dtype=wp.vec3, device="cpu", copy=False)
-    elif puppet.corrective_weights is not None:
+    elif puppet.corrective_offsets is not None:
         offsets = space.offsets[:n]
-        weights_kernel, offsets_kernel = _corrective_kernels()
-        w = space.corrective_weights[:n]
-        wp.launch(weights_kernel, dim=w.shape, inputs=[xi, puppet.corrective_weights], outputs=[w], device=device)
-        wp.launch(offsets_kernel, dim=offsets.shape, inputs=[w, puppet.corrective_offsets], outputs=[offsets],
-                  device=device)
+        w = _corrective_weights(host, xi.numpy(), x)  # small (n, n_p), float64 on the host
+        wp.launch(_corrective_kernel(), dim=offsets.shape, inputs=[_f64(wp, w, wp.float64, device),
+                                                                   puppet.corrective_offsets],
+                  outputs=[offsets], device=device)
         mark("correctives")
     direct = (device == "cpu" and out.dtype == np.float32 and out.flags.c_contiguous)
     if direct:  # skin straight into the caller's float32 buffer: no copy at all on the CPU
@@ -858,10 +865,10 @@ _CORRECTIVE_ROWS = 64
 
 def _cpu_corrective_offsets(puppet, x, out, threads):
     """Corrective rest offsets of all samples into out (N, V, 3) float32: per fixed block, ξ
-    and w = W ξ in float64 (numpy), then Σ_j w_j O_j as one float32 product (6× the corrective
-    kernel's speed on the CPU; the kernels serve CUDA). Blocks go round-robin to ``threads``."""
+    and the blend weights in float64 (numpy), then Σ_j w_j O_j as one float32 product (80× the
+    corrective kernel's speed on the CPU; the kernel serves CUDA). Blocks go round-robin to
+    ``threads``."""
     host = puppet.host
-    weights_t, blend = puppet.host_correctives
     flat = out.reshape(out.shape[0], -1)
     starts = range(0, x.shape[0], _CORRECTIVE_ROWS)
 
@@ -869,7 +876,8 @@ def _cpu_corrective_offsets(puppet, x, out, threads):
         for start in starts[first::threads]:
             stop = start + _CORRECTIVE_ROWS
             xi = kernel_vectors_reference(x[start:stop], host.training_controls, host.kernel, host.offset, host.degree)
-            np.matmul((xi @ weights_t).astype(np.float32), blend, out=flat[start:stop])
+            w = _corrective_weights(host, xi, x[start:stop])
+            np.matmul(w.astype(np.float32), puppet.host_offsets, out=flat[start:stop])
 
     _in_threads(work, [(t,) for t in range(min(threads, len(starts)))])
 
@@ -937,7 +945,7 @@ def run_puppet(puppet, standardised_controls, controls_in_place=None, world_fram
     threads = max(1, min(int(threads), samples)) if device == "cpu" else 1
     step = max(1, min(_DEVICE_CHUNK // verts, -(-samples // threads)))
     offsets = None
-    if device == "cpu" and dev_puppet.corrective_weights is not None:
+    if device == "cpu" and dev_puppet.host.has_correctives:
         direct = out.dtype == np.float32 and out.flags.c_contiguous
         offsets = out if direct else np.empty((samples, verts, 3), dtype=np.float32)
         _cpu_corrective_offsets(dev_puppet, x, offsets, threads)

@@ -10,42 +10,69 @@ al. (2000) keep such residuals in the rest pose, so they turn with the skin. Her
 1. At each training example j the puppet's own prediction is skinned. Each vertex's blended dual
    quaternion is a rigid motion (R, t), so the residual carried back to the rest pose,
    ``o_j = Rᵀ (y_j − t) − rest`` (V, 3), makes skinning reproduce the example: skin(rest + o_j) = y_j.
-2. Over control space the offsets are interpolated by kernel ridge regression on Feng's kernel
-   vector ξ (same kernel and width as the regression, so the run time has ξ already):
-   ``w(ξ) = (K + λ k̄ I)⁻¹ ξ`` (n_p,) with k̄ the mean diagonal of K, and ``o(ξ) = Σ_j w_j o_j``.
-   Far from every example a Gaussian ξ → 0, so the correction fades and the puppet falls back on
-   its skin rather than extrapolating residuals.
-3. The run time adds o(ξ) to the rest pose before skinning: n_p blend shapes with weights w(ξ)
+2. Over control space the offsets are interpolated by kernel ridge regression with an optional
+   affine tail, on the standardised control vector x and Feng's kernel vector ξ (so the run time
+   has both already): ``o(x) = Σ_j w_j(x) o_j`` with blend weights
+   ``w(x) = A ξ^p + B [1, x Pᵀ]`` (n_p,). ξ^p, elementwise, is the regression's Gaussian at
+   1/√p of its width (p = 1 for the other kernels); P (r, d) holds the r leading principal axes
+   of the training controls. ``A``, ``B`` solve the interpolation system with ridge λ k̄ (k̄ the
+   mean diagonal of the kernel matrix) and the tail unpenalised. Far from every example a
+   Gaussian ξ → 0, so without the tail the correction fades and the puppet falls back on its skin;
+   the tail carries trends that are linear in the controls (the Dem Bones bone: 0.00161 → 0.0012
+   of the box at every:10).
+3. The run time adds o(x) to the rest pose before skinning: n_p blend shapes with weights w(x)
    (how UsdSkel plays them).
 
-λ is relative to k̄. ``"auto"`` picks it from RIDGE_GRID, or no correctives at all, by the
-cross-validated vertex error of the whole prediction (:func:`cross_validated_errors`); ties go
-to no correctives, then to the larger λ (the smoother choice).
+``"auto"`` chooses p from POWER_GRID, the tail (on or off), and λ from RIDGE_GRID, or no
+correctives at all, by the cross-validated vertex error of the whole prediction
+(:func:`cross_validated_errors`); ties go to no correctives, then to the simpler model (no tail,
+p = 1, the larger λ).
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from skinsynth.gpu import vertex_dual_quaternions
+from skinsynth.gpu import corrective_offsets_reference, corrective_weights_reference, vertex_dual_quaternions
 
 from .errors import OptionError
 from .rotations import dual_quaternion_to_rigid
 
 RIDGE_GRID = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
+#: Powers of a Gaussian ξ tried: the corrective's kernel at 1, 1/2 and 1/4 of the regression's width.
+POWER_GRID = (1.0, 4.0, 16.0)
 #: Frames per chunk when carrying residuals back to the rest pose (bounds the (f, V, K, 8) gather).
 _CHUNK_VALUES = 1 << 22
 
 
 @dataclass
 class Correctives:
-    """weights (n_p, n_p): w(ξ) = weights @ ξ; offsets (n_p, V, 3) the examples' rest-pose residuals;
-    ridge the relative λ; reason why (as chosen or given)."""
+    """weights A (n_p, n_p), power p, tail B (n_p, 1 + r) and axes P (r, d) or both None:
+    blend weights w(x) = A ξ^p + B [1, x Pᵀ]; offsets (n_p, V, 3) the examples' rest-pose
+    residuals; ridge the relative λ; reason why (as chosen or given)."""
 
     weights: np.ndarray
     offsets: np.ndarray
     ridge: float
+    power: float = 1.0
+    tail: np.ndarray | None = None
+    axes: np.ndarray | None = None
     reason: str = ""
+
+
+@dataclass(frozen=True)
+class Model:
+    """One corrective model of the cross-validated grid: ridge (inf: no correctives), power, tail."""
+
+    ridge: float
+    power: float = 1.0
+    tail: bool = False
+
+    def __str__(self):
+        if self.ridge == np.inf:
+            return "off"
+        return f"ridge {self.ridge:g}" + (f", width 1/{np.sqrt(self.power):g}" if self.power != 1.0 else "") + (
+            ", affine tail" if self.tail else "")
 
 
 def rest_offsets(rest, bone_indices, bone_weights, dual_quaternions, targets):
@@ -61,63 +88,95 @@ def rest_offsets(rest, bone_indices, bone_weights, dual_quaternions, targets):
     return out
 
 
-def weight_operator(kernel_matrix, ridge):
-    """(K + λ k̄ I)⁻¹ (n_p, n_p) for kernel_matrix K (n_p, n_p) and relative λ ``ridge``."""
+def tail_axes(x, n_p=None):
+    """Principal axes P (r, d) of standardised controls x (n, d) for the affine tail: those above
+    1e-6 of the largest singular value, at most n // 2 (the tail must leave the kernel part data)."""
+    _, s, vt = np.linalg.svd(x - x.mean(axis=0), full_matrices=False)
+    r = min(int(np.sum(s > 1e-6 * s[0])) if s.size and s[0] > 0 else 0, x.shape[0] // 2)
+    return vt[:r]
+
+
+def _features(x, axes):
+    return np.hstack([np.ones((x.shape[0], 1)), x @ axes.T])
+
+
+def blend_operator(kernel_matrix, ridge, features=None):
+    """(A (n, n), B (n, 1 + r) or None) with w(x) = A k(x) + B f(x) interpolating the examples:
+    kernel_matrix K (n, n), features F (n, 1 + r) of the examples or None; solves
+    [[K + λ k̄ I, F], [Fᵀ, 0]] [Aᵀ; Bᵀ] = [I; 0]."""
     n = kernel_matrix.shape[0]
     mean_diagonal = max(float(np.mean(np.diag(kernel_matrix))), np.finfo(float).tiny)
     system = kernel_matrix + ridge * mean_diagonal * np.eye(n)
+    m = 0 if features is None else features.shape[1]
+    if m:
+        system = np.block([[system, features], [features.T, np.zeros((m, m))]])
+    right = np.vstack([np.eye(n), np.zeros((m, n))])
     try:
-        return np.linalg.solve(system, np.eye(n))
+        solution = np.linalg.solve(system, right)
     except np.linalg.LinAlgError:
-        raise OptionError(f"corrective ridge {ridge:g} leaves the kernel matrix singular; use a larger one") from None
+        raise OptionError(f"corrective ridge {ridge:g} leaves the kernel system singular; use a larger one") from None
+    return solution[:n].T, (solution[n:].T if m else None)
 
 
-def fit_correctives(kernel_matrix, offsets, ridge, reason=""):
-    """Correctives from the examples' rest offsets (n_p, V, 3) and their kernel matrix (n_p, n_p)."""
-    if not (np.isfinite(ridge) and ridge > 0.0):
-        raise OptionError(f"--correctives must be a positive ridge, 'auto' or 'off' (got {ridge})")
-    return Correctives(weights=weight_operator(kernel_matrix, ridge), offsets=offsets, ridge=float(ridge),
-                       reason=reason)
+def fit_correctives(kernel_matrix, x, offsets, model, reason=""):
+    """Correctives from the examples' rest offsets (n_p, V, 3), their kernel matrix (n_p, n_p)
+    (the regression's ξ at the examples) and standardised controls x (n_p, d), for ``model``."""
+    if not (np.isfinite(model.ridge) and model.ridge > 0.0):
+        raise OptionError(f"--correctives must be a positive ridge, 'auto' or 'off' (got {model.ridge})")
+    axes = tail_axes(x) if model.tail else None
+    weights, tail = blend_operator(kernel_matrix ** model.power, model.ridge,
+                                   None if axes is None else _features(x, axes))
+    return Correctives(weights=weights, offsets=offsets, ridge=float(model.ridge), power=float(model.power),
+                       tail=tail, axes=axes, reason=reason)
 
 
-def corrective_offsets(correctives, kernel_vectors):
-    """Rest offsets (F, V, 3) for kernel vectors ξ (F, n_p): Σ_j w_j(ξ) o_j (the run time's own reference)."""
-    from skinsynth.gpu import corrective_offsets_reference
+def blend_weights(correctives, kernel_vectors, x):
+    """Blend weights w (F, n_p) for kernel vectors ξ (F, n_p) and standardised controls x (F, d)
+    (the run time's own reference computes them)."""
+    c = correctives
+    return corrective_weights_reference(kernel_vectors, x, c.weights, c.power, c.tail, c.axes)
 
-    return corrective_offsets_reference(kernel_vectors, correctives.weights, correctives.offsets)
+
+def corrective_offsets(correctives, kernel_vectors, x):
+    """Rest offsets (F, V, 3) for kernel vectors ξ (F, n_p) and standardised controls x (F, d)."""
+    return corrective_offsets_reference(blend_weights(correctives, kernel_vectors, x), correctives.offsets)
 
 
-def cross_validated_errors(kernel_matrix, folds, fold_predictions, targets, rest, bone_indices, bone_weights,
-                           grid=RIDGE_GRID):
-    """{λ: RMS vertex error} over held-out frames, λ = inf meaning no correctives.
+def cross_validated_errors(kernel_matrix, x, folds, fold_predictions, targets, rest, bone_indices, bone_weights,
+                           powers=(1.0,), ridges=RIDGE_GRID):
+    """{Model: RMS vertex error} over held-out rows, ``Model(inf)`` meaning no correctives.
 
-    kernel_matrix (n, n) of the training frames; folds: list of held-out row indices;
-    fold_predictions: per fold, the unit bone dual quaternions (n, B, 8) of a puppet trained
-    without that fold's rows, for all n rows; targets (n, V', 3) the examples in place (a vertex
-    subset, with rest (V', 3) and the skin's bone_indices / bone_weights rows to match). Each
-    fold's correctives are fitted from its own training rows' residuals, as training does."""
+    kernel_matrix (n, n) of the training rows, x (n, d) their standardised controls; folds: list
+    of held-out row indices; fold_predictions: per fold, the unit bone dual quaternions (n, B, 8)
+    of a puppet trained without that fold's rows, for all n rows; targets (n, V', 3) the examples
+    in place (a vertex subset, with rest (V', 3) and the skin's bone_indices / bone_weights rows to
+    match). Each fold's correctives are fitted from its own training rows' residuals, as training
+    does; errors are measured in the rest pose (skinning is rigid per vertex, so lengths agree)."""
     n = kernel_matrix.shape[0]
-    total = dict.fromkeys((np.inf,) + tuple(grid), 0.0)
+    models = [Model(ridge, power, tail) for tail in (False, True) for power in powers for ridge in ridges]
+    total = dict.fromkeys([Model(np.inf)] + models, 0.0)
     for test, d in zip(folds, fold_predictions):
         train = np.setdiff1d(np.arange(n), test)
-        offsets = rest_offsets(rest, bone_indices, bone_weights, d[train], targets[train])
-        rot, trans = dual_quaternion_to_rigid(vertex_dual_quaternions(bone_indices, bone_weights, d[test]))
-        skinned = np.einsum("fvij,vj->fvi", rot, rest) + trans
-        residual = targets[test] - skinned
-        total[np.inf] += float(np.sum(residual ** 2))
-        for ridge in grid:
-            weights = kernel_matrix[np.ix_(test, train)] @ weight_operator(kernel_matrix[np.ix_(train, train)], ridge)
-            moved = np.einsum("fvij,fvj->fvi", rot, np.einsum("fj,jvc->fvc", weights, offsets))
-            total[ridge] += float(np.sum((residual - moved) ** 2))
+        offsets = rest_offsets(rest, bone_indices, bone_weights, d, targets).reshape(n, -1)
+        total[Model(np.inf)] += float(np.sum(offsets[test] ** 2))
+        axes = tail_axes(x[train])
+        features = _features(x, axes)
+        for model in models:
+            k = kernel_matrix ** model.power
+            a, b = blend_operator(k[np.ix_(train, train)], model.ridge, features[train] if model.tail else None)
+            weights = k[np.ix_(test, train)] @ a.T + (features[test] @ b.T if model.tail else 0.0)
+            total[model] += float(np.sum((offsets[test] - weights @ offsets[train]) ** 2))
     count = n * rest.shape[0]
-    return {ridge: float(np.sqrt(error / count)) for ridge, error in total.items()}
+    return {model: float(np.sqrt(error / count)) for model, error in total.items()}
 
 
-def choose_ridge(errors):
-    """(ridge or None for no correctives, reason) from :func:`cross_validated_errors`' result."""
+def choose_model(errors):
+    """(Model or None for no correctives, reason) from :func:`cross_validated_errors`' result:
+    the lowest error; ties to none, then no tail, p = 1 and the larger λ."""
     best = min(errors.values())
-    chosen = np.inf if errors[np.inf] <= best else max(r for r, e in errors.items() if e <= best)
-    listed = ", ".join(f"{'off' if r == np.inf else f'{r:g}'} {e:.4g}" for r, e in sorted(errors.items()))
-    if chosen == np.inf:
-        return None, f"off: correctives did not lower the cross-validated RMS vertex error ({listed})"
-    return chosen, f"ridge {chosen:g} (cross-validated RMS vertex error {listed})"
+    order = sorted(errors, key=lambda m: (errors[m] > best, m.ridge != np.inf, m.tail, m.power, -m.ridge))
+    chosen = order[0]
+    off = errors[Model(np.inf)]
+    if chosen.ridge == np.inf:
+        return None, f"off: correctives did not lower the cross-validated RMS vertex error ({off:.4g})"
+    return chosen, f"{chosen} (cross-validated RMS vertex error {errors[chosen]:.4g}, without correctives {off:.4g})"

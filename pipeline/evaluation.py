@@ -79,7 +79,7 @@ def evaluate_puppet(puppet, examples, test_frames, skinning="dual-quaternion", p
              "translation_solver": puppet.translations is not None, "pca_components": int(pca.components),
              "translation_prior": (float(puppet.translation_prior) if puppet.translations is not None
                                    and np.isfinite(puppet.translation_prior) else None),
-             "kernel": puppet.kernel.kind}
+             "kernel": puppet.kernel.kind, "correctives": puppet.correctives_reason}
     return Evaluation(per_frame=per_frame, overall=overall, test_frames=test_frames, scale=scale, notes=notes)
 
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from .alignment import apply_frames, invert_frames
 from .errors import OptionError
+from .correctives import blend_weights
 from .puppet import in_place, predict_bones
 from .rotations import dual_quaternion_to_rigid
 
@@ -46,10 +47,10 @@ def grid_offsets(characters, spacing, up_axis="Y"):
 def world_bones(puppet, controls, translation_solver=True):
     """Bone transforms in the world: controls (N, n_c, 3) -> (rotations (N, B, 3, 3), translations
     (N, B, 3), blend-shape weights (N, n_p) of the puppet's correctives or None)."""
-    d, frame_r, frame_t, xi = predict_bones(puppet, controls, translation_solver)
+    d, frame_r, frame_t, (xi, x) = predict_bones(puppet, controls, translation_solver)
     rotations, translations = dual_quaternion_to_rigid(d)
     inv_r, inv_t = invert_frames(frame_r, frame_t)
-    weights = None if puppet.correctives is None else xi @ puppet.correctives.weights.T
+    weights = None if puppet.correctives is None else blend_weights(puppet.correctives, xi, x)
     return (np.einsum("nac,nbcd->nbad", inv_r, rotations),
             np.einsum("nac,nbc->nba", inv_r, translations) + inv_t[:, None, :], weights)
 

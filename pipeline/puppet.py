@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .alignment import apply_frames, control_frames, frame_conditioning, invert_frames
-from .correctives import Correctives, choose_ridge, corrective_offsets, cross_validated_errors, fit_correctives, rest_offsets
+from .correctives import (POWER_GRID, Correctives, Model, choose_model, corrective_offsets, cross_validated_errors,
+                          fit_correctives, rest_offsets)
 from .errors import OptionError
 from .kcca import (WIDTH_GRID, ControlKernel, KccaRegression, choose_regularization, control_kernel, cv_folds,
                    fit_kcca, predict)
@@ -230,23 +231,24 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
                     global_motion_reason=reason, translation_prior=float(prior), translation_prior_reason=prior_reason,
                     kernel_width_reason=width_reason)
     if correctives == "off":
-        ridge, puppet.correctives_reason = None, "off, chosen by the user (--correctives off)"
+        model, puppet.correctives_reason = None, "off, chosen by the user (--correctives off)"
     elif correctives == "auto":
-        ridge, puppet.correctives_reason = choose_ridge(scores.correctives)
+        model, puppet.correctives_reason = choose_model(scores.correctives)
     else:
-        ridge, puppet.correctives_reason = float(correctives), "chosen by the user (--correctives)"
-    if ridge is not None:
+        model = Model(float(correctives))
+        puppet.correctives_reason = f"{model}, chosen by the user (--correctives)"
+    if model is not None:
         d = predict_bones(puppet, controls)[0]
         offsets = rest_offsets(rest, bone_indices, bone_weights, d, placed)
-        puppet.correctives = fit_correctives(kernel_matrix, offsets, ridge, puppet.correctives_reason)
+        puppet.correctives = fit_correctives(kernel_matrix, x, offsets, model, puppet.correctives_reason)
     return puppet
 
 
 @dataclass
 class _Scores:
     """Cross-validated RMS vertex errors at one kernel width: priors {prior: error} (no
-    correctives; keyed 0.0 without the solver) and correctives {ridge: error} (inf: none, at the
-    best prior) or None when not asked for."""
+    correctives; keyed 0.0 without the solver) and correctives {:class:`.correctives.Model`:
+    error} (at the best prior) or None when not asked for."""
 
     priors: dict
     correctives: dict | None
@@ -302,7 +304,7 @@ def _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kapp
                                    bone_indices, bone_weights, correctives=False, folds=5):
     """:class:`_Scores` of the dual-quaternion-skinned vertices of out-of-fold predictions, with
     the Poisson translations at each prior (``system`` None: the regression's own translations,
-    keyed by 0.0), and with ``correctives`` also each corrective ridge at the best prior
+    keyed by 0.0), and with ``correctives`` also each corrective model at the best prior
     (:func:`.correctives.cross_validated_errors`: each fold's puppet predicts every row, its own
     rows giving the residuals it learns). Folds keep repeated poses together
     (:func:`.kcca.cv_folds`); κ per bone as chosen; the edge weights and the kernel's parameters
@@ -341,8 +343,9 @@ def _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kapp
             for i, rows in enumerate(every_row):
                 r, t = dual_quaternion_to_rigid(rows)
                 every_row[i] = with_translations(rows, solve_translations(operator, r, placed_controls, t))
-        corrective_errors = cross_validated_errors(kernel_matrix, fold_tests, every_row, placed[:, subset],
-                                                   rest[subset], bone_indices[subset], bone_weights[subset])
+        corrective_errors = cross_validated_errors(kernel_matrix, x, fold_tests, every_row, placed[:, subset],
+                                                   rest[subset], bone_indices[subset], bone_weights[subset],
+                                                   powers=POWER_GRID if kern.kind == "gaussian" else (1.0,))
     return _Scores(priors=errors, correctives=corrective_errors)
 
 
@@ -353,7 +356,7 @@ def _vertex_subset(count):
 
 def predict_bones(puppet, controls, translation_solver=True):
     """controls (F, n_c, 3) world -> (dual quaternions (F, B, 8) in place, frame_r, frame_t,
-    kernel vectors ξ (F, n_p)).
+    (kernel vectors ξ (F, n_p), standardised controls x (F, d))).
 
     The dual quaternions are unit and, with the solver, carry its translations."""
     frames = controls.shape[0]
@@ -367,7 +370,7 @@ def predict_bones(puppet, controls, translation_solver=True):
         rot, trans = dual_quaternion_to_rigid(d)
         trans = solve_translations(puppet.translations, rot, placed, trans)  # t = P·T   (Feng §6.2)
         d = with_translations(d, trans)
-    return d, frame_r, frame_t, xi
+    return d, frame_r, frame_t, (xi, x)
 
 
 SKINNING = ("dual-quaternion", "linear")
@@ -384,8 +387,8 @@ def predict_vertices(puppet, controls, translation_solver=True, skinning="dual-q
 
     if skinning not in SKINNING:
         raise OptionError(f"skinning must be one of {', '.join(SKINNING)}")
-    d, frame_r, frame_t, xi = predict_bones(puppet, controls, translation_solver)
-    offsets = None if puppet.correctives is None else corrective_offsets(puppet.correctives, xi)
+    d, frame_r, frame_t, (xi, x) = predict_bones(puppet, controls, translation_solver)
+    offsets = None if puppet.correctives is None else corrective_offsets(puppet.correctives, xi, x)
     if skinning == "linear":
         rot, trans = dual_quaternion_to_rigid(d)
         placed = lbs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, rot, trans, offsets)

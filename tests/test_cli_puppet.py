@@ -3,8 +3,8 @@
 import json
 
 import h5py
+import numpy as np
 import pytest
-
 
 from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
 
@@ -91,3 +91,36 @@ def test_evaluate_extrapolates_with_the_puppets_own_options(files, tmp_path):
     assert "extrapolation: trained on frames 0..17, tested on the 6 after" in text
     for bad in (0.0, 1.0, 0.1):
         assert_user_error(cli("evaluate", files / "puppet.h5", "--extrapolate", bad), "--extrapolate")
+
+
+@pytest.mark.parametrize("correctives", ["off", "1e-4", "tail"])
+def test_the_documented_numpy_recipe_reproduces_predict_vertices(files, tmp_path, correctives):
+    """docs/format.md's third-party implementation (h5py and numpy only), run as written, on a
+    puppet without correctives, with them, and with a power and an affine tail written in."""
+    import pathlib
+    import re
+
+    from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.pipeline.puppet import predict_vertices
+
+    path = tmp_path / "puppet.h5"
+    assert_ok(cli("train-kcca", files / "controls.h5", "-o", path, "-q", "--correctives",
+                  "1e-4" if correctives == "tail" else correctives))
+    if correctives == "tail":
+        rng = np.random.default_rng(0)
+        with h5py.File(path, "r+") as f:
+            n_p, d = f["kcca/training_controls"].shape
+            f["correctives"].attrs["power"] = 4.0
+            f["correctives"].create_dataset("tail", data=rng.normal(size=(n_p, 4)))
+            f["correctives"].create_dataset("axes", data=np.linalg.qr(rng.normal(size=(d, 3)))[0].T)
+    text = (pathlib.Path(__file__).parents[1] / "docs" / "format.md").read_text()
+    section = text[text.index("## Evaluating a puppet in numpy"):]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1).replace("bar.puppet.h5", str(path))
+    namespace = {}
+    exec(compile(code, "docs/format.md", "exec"), namespace)
+    puppet, test_frames, skin = read_puppet(str(path))
+    assert (puppet.correctives is None) == (correctives == "off")
+    controls = skin.examples[:, puppet.control_indices]
+    expected = predict_vertices(puppet, controls)
+    got = np.stack([namespace["evaluate"](c) for c in controls])
+    assert np.abs(got - expected).max() < 1e-9 * np.ptp(skin.rest_vertices, axis=0).max()

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from skinsynth.gpu import dqs_reference, puppet_kernels as pk
-from skinsynth.pipeline.correctives import RIDGE_GRID, choose_ridge, fit_correctives, rest_offsets
+from skinsynth.pipeline.correctives import (POWER_GRID, RIDGE_GRID, Model, blend_weights, choose_model,
+                                            fit_correctives, rest_offsets)
 from skinsynth.pipeline.examples import synthetic_lbs
 from skinsynth.pipeline.puppet import predict_vertices, train_puppet
 from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
@@ -71,7 +72,8 @@ def test_correctives_learn_what_the_skin_cannot_and_are_cross_validated():
     train, test = np.arange(0, 40, 2), np.arange(1, 40, 2)
     plain, corrected = _train(data, train, "off"), _train(data, train, "auto")
     assert plain.correctives is None and "off" in plain.correctives_reason
-    assert corrected.correctives is not None and corrected.correctives.ridge in RIDGE_GRID
+    c = corrected.correctives
+    assert c is not None and c.ridge in RIDGE_GRID and c.power in POWER_GRID
     assert "cross-validated" in corrected.correctives_reason
     assert corrected.correctives.offsets.shape == (20,) + data["rest"].shape
     # held out: measured 0.061 without, 0.0002 with
@@ -82,15 +84,18 @@ def test_a_tiny_ridge_reproduces_the_training_examples():
     data = bulging_tube()
     train = np.arange(0, 40, 2)
     puppet = _train(data, train, 1e-9)
-    assert puppet.correctives.ridge == 1e-9 and "user" in puppet.correctives_reason
+    assert puppet.correctives.ridge == 1e-9 and puppet.correctives_reason == "ridge 1e-09, chosen by the user (--correctives)"
     assert _rms(puppet, data, train) < 1e-6 * np.ptp(data["rest"], axis=0).max()
 
 
-def test_choose_ridge_prefers_none_then_the_smoother_on_ties():
-    assert choose_ridge({np.inf: 1.0, 1e-3: 1.0, 1.0: 1.2})[0] is None
-    assert choose_ridge({np.inf: 1.0, 1e-3: 0.5, 1e-2: 0.5, 1.0: 0.7})[0] == 1e-2
-    ridge, reason = choose_ridge({np.inf: 1.0, 1e-3: 0.5, 1.0: 0.7})
-    assert ridge == 1e-3 and "off 1" in reason
+def test_choose_model_prefers_none_then_the_simpler_on_ties():
+    off = Model(np.inf)
+    assert choose_model({off: 1.0, Model(1e-3): 1.0, Model(1.0): 1.2})[0] is None
+    ties = {off: 1.0, Model(1e-3): 0.5, Model(1e-2): 0.5, Model(1e-2, 4.0): 0.5, Model(1e-2, 1.0, True): 0.5}
+    assert choose_model(ties)[0] == Model(1e-2)
+    model, reason = choose_model({off: 1.0, Model(1e-3, 4.0, True): 0.5, Model(1.0): 0.7})
+    assert model == Model(1e-3, 4.0, True) and reason.startswith("ridge 0.001, width 1/2, affine tail")
+    assert "without correctives 1" in reason
 
 
 def test_fit_correctives_refuses_a_bad_ridge():
@@ -98,18 +103,33 @@ def test_fit_correctives_refuses_a_bad_ridge():
 
     for ridge in (0.0, -1.0, np.inf, np.nan):
         with pytest.raises(OptionError, match="--correctives"):
-            fit_correctives(np.eye(3), np.zeros((3, 4, 3)), ridge)
+            fit_correctives(np.eye(3), np.zeros((3, 2)), np.zeros((3, 4, 3)), Model(ridge))
+
+
+def test_the_affine_tail_reproduces_offsets_linear_in_the_controls():
+    """With the tail, offsets that are an affine function of the controls are predicted exactly
+    anywhere, even far from every example, where the Gaussian part has faded."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(12, 4))
+    slope, bias = rng.normal(size=(4, 30)), rng.normal(size=30)
+    offsets = (x @ slope + bias).reshape(12, 10, 3)
+    kernel = np.exp(-0.5 * np.sum((x[:, None] - x[None]) ** 2, axis=-1))
+    c = fit_correctives(kernel, x, offsets, Model(1e-3, 1.0, True))
+    far = rng.normal(size=(5, 4)) * 10.0
+    xi = np.exp(-0.5 * np.sum((far[:, None] - x[None]) ** 2, axis=-1))
+    expected = (far @ slope + bias).reshape(5, 10, 3)
+    assert np.abs(np.einsum("fj,jvc->fvc", blend_weights(c, xi, far), c.offsets) - expected).max() < 1e-8
 
 
 def test_corrective_kernels_match_their_reference_on_the_cpu():
     rng = np.random.default_rng(4)
-    xi, weights, offsets = rng.random((9, 12)), rng.normal(size=(12, 12)) * 50.0, rng.normal(size=(12, 70, 3)) * 0.01
-    expected = pk.corrective_offsets_reference(xi, weights, offsets)
-    assert np.abs(pk.corrective_offsets(xi, weights, offsets) - expected).max() < 1e-6 * np.abs(expected).max()
-    rest, idx, w = random_skin(rng, 70, 5, 3)
+    w, offsets = rng.normal(size=(9, 12)) * 50.0, rng.normal(size=(12, 70, 3)) * 0.01
+    expected = pk.corrective_offsets_reference(w, offsets)
+    assert np.abs(pk.corrective_offsets(w, offsets) - expected).max() < 1e-6 * np.abs(expected).max()
+    rest, idx, weights = random_skin(rng, 70, 5, 3)
     dq = random_dual_quaternions(rng, 9, 5)
-    got = pk.dq_skin(rest, idx, w, dq, rest_offsets=expected)
-    assert np.abs(got - dqs_reference(rest, idx, w, dq, expected)).max() < 1e-5
+    got = pk.dq_skin(rest, idx, weights, dq, rest_offsets=expected)
+    assert np.abs(got - dqs_reference(rest, idx, weights, dq, expected)).max() < 1e-5
 
 
 @pytest.mark.parametrize("threads", [1, 2])
@@ -143,3 +163,25 @@ def test_usdskel_plays_the_correctives_as_blend_shapes(tmp_path):
     scale = np.ptp(data["rest"], axis=0).max()
     assert np.abs(played[0][1] - expected).max() < 1e-5 * scale
     assert np.abs(played[1][1] - 5.0 - expected).max() < 1e-5 * scale
+
+
+@pytest.mark.parametrize("tail", [False, True])
+@pytest.mark.parametrize("threads", [1, 3])
+def test_run_puppet_plays_any_corrective_model_as_its_reference(tail, threads):
+    import dataclasses
+
+    from test_gpu_puppet import random_puppet, random_rigid_frames
+
+    rng = np.random.default_rng(10 + tail)
+    puppet = random_puppet(rng, "gaussian")
+    n_p, d = puppet.training_controls.shape
+    puppet = dataclasses.replace(
+        puppet, corrective_weights=rng.normal(size=(n_p, n_p)) * 30.0, corrective_power=4.0,
+        corrective_offsets=rng.normal(size=(n_p, 400, 3)) * 0.05,
+        corrective_tail=rng.normal(size=(n_p, 4)) if tail else None,
+        corrective_axes=np.linalg.qr(rng.normal(size=(d, 3)))[0].T if tail else None)
+    samples = 150  # more than one fixed block of the CPU path
+    x, c, frames = rng.normal(size=(samples, d)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
+    expected = pk.reference_run_puppet(puppet, x, c, frames)
+    got = pk.run_puppet(puppet, x, c, frames, threads=threads)
+    assert np.abs(got - expected).max() < 1e-5 * np.abs(expected).max()
