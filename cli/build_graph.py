@@ -31,8 +31,9 @@ from .common import check_output_path, command_line, fail, tool_version, user_er
               help="Admit transitions above the threshold (cheapest first, only those that help) until this share "
                    "of the frames lies on one strongly connected part of the motion graph, so walks can reach "
                    "the whole clip.")
-@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default="Y", show_default=True,
-              help="The clip's up axis: synthesize places segments by a turn about it and a shift on the ground.")
+@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
+              help="The clip's up axis: synthesize places segments by a turn about it and a shift on the ground "
+                   "(default: the input's, as fit-skin recorded it; Y for files from before).")
 @click.option("--posture-weight", default=1.0, show_default=True, type=float,
               help="Weight of the reference bone's tilt and height in the transition cost (balanced like "
                    "Zheng's α, β; 0: his eq. 5 alone, for synthesize --alignment full).")
@@ -69,6 +70,7 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     skin = read_skin(path, model)
     if min_segment is None:
         min_segment = default_min_segment(skin.fps)
+    up_axis = up_axis or skin.scene.up_axis
     validate_graph_options(skin.rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap,
                            min_segment, coverage, posture_weight)
     started = time.perf_counter()

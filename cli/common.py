@@ -35,14 +35,41 @@ def user_errors(command):
         from skinsynth.gpu import DeviceError
 
         try:
-            return command(*args, **kwargs)
+            result = command(*args, **kwargs)
+            sys.stdout.flush()  # a full disk or a closed pipe on stdout shows here, not at exit
+            return result
         except (FormatError, OptionError, DeviceError) as error:
             fail(str(error))
         except MemoryError:
             fail("out of memory: the input is too large for this machine at these settings")
         except KeyboardInterrupt as stop:
             interrupted(stop)
+        except OSError as error:
+            _release_stdout()
+            fail(os_error_message(error))
     return wrapper
+
+
+def os_error_message(error):
+    """One line for an operating-system error: the file (or stdout) and what the system said."""
+    import errno
+
+    if isinstance(error, BrokenPipeError) or error.errno == errno.EPIPE:
+        return "stdout: the reading end of the pipe closed before the output was written"
+    where = error.filename if error.filename is not None else "stdout"
+    return f"{where}: {error.strerror or error}"
+
+
+def _release_stdout():
+    """After an error, let nothing more fail on stdout: what is still buffered for a full disk
+    or a closed pipe would fail again at exit, with a traceback; send it to the null device."""
+    try:
+        sys.stdout.flush()
+    except OSError:
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
 
 
 def interrupted(stop):

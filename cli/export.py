@@ -16,12 +16,14 @@ USD_SUFFIXES = (".usd", ".usda", ".usdc")
 @click.option("--device", default="auto", show_default=True, help="Where the skinning kernel runs: auto, cpu, cuda or cuda:N.")
 @click.option("--half", is_flag=True, help="EXR only: store 16-bit half floats instead of 32-bit.")
 @click.option("--max-width", default=8192, show_default=True, type=int, help="EXR only: texture width limit; vertices wrap to more rows.")
-@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default="Y", show_default=True, help="USD stage up axis.")
+@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
+              help="USD stage up axis (default: the input's, as fit-skin recorded it).")
 @user_errors
 def export(path, output, kind, device, half, max_width, up_axis):
     """Export the animation of a model file.
 
-    For a skin file this is the LBS reconstruction of the example frames: as UsdSkel (--as
+    For a skin file this is the LBS reconstruction of the example frames, at the input's units,
+    up axis, time codes and mesh prim path (as fit-skin recorded them): as UsdSkel (--as
     skel: joints, bind/rest transforms, animation and joint weights, so animators get curves),
     as a time-sampled mesh (--as points), or as an OpenEXR vertex-animation texture (.exr:
     per-vertex offsets from the rest pose, one row block per frame, bounds in the header).
@@ -46,7 +48,7 @@ def export(path, output, kind, device, half, max_width, up_axis):
 
         write_skel_cache(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
                          skin.rotations, skin.translations, skin.bone_rest_frames[:, :3, 3], skin.fps,
-                         up_axis=up_axis)
+                         up_axis=up_axis, scene=skin.scene)
     else:
         frames = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
                      skin.translations, device=device)
@@ -60,6 +62,6 @@ def export(path, output, kind, device, half, max_width, up_axis):
         else:
             from skinsynth.formats.usd import write_points_cache
 
-            write_points_cache(output, frames, skin.faces, skin.fps, up_axis=up_axis)
+            write_points_cache(output, frames, skin.faces, skin.fps, up_axis=up_axis, scene=skin.scene)
     click.echo(f"wrote {output}: {skin.rotations.shape[0]} frames, {skin.rest_vertices.shape[0]} vertices"
                + ("" if to_exr else f" ({'UsdSkel, ' + str(skin.bones) + ' joints' if kind == 'skel' else 'point cache'})"))

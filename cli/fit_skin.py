@@ -1,6 +1,7 @@
 """``skinsynth fit-skin``: skinning decomposition of a mesh sequence."""
 
 import time
+from dataclasses import replace
 
 import click
 import numpy as np
@@ -22,10 +23,17 @@ from .common import Progress, check_output_path, command_line, tool_version, use
               help="Joint Levenberg-Marquardt steps on all bones of a frame per iteration (0: per-bone updates only).")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
 @click.option("--fps", default=None, type=float, help="Frame rate, when the input does not carry one (default 24).")
+@click.option("--meters-per-unit", default=None, type=float,
+              help="Units of the input's coordinates (USD metersPerUnit; 0.01 for centimetres). Default: what a "
+                   "USD input states, else 1. Every USD written downstream states it again.")
+@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
+              help="The input's up axis. Default: what a USD input states, else Y.")
+@click.option("--start-frame", default=None, type=float,
+              help="Time code of the input's first frame. Default: a USD input's first sample, else 0.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 @user_errors
 def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, rest_frame, seed,
-             transform_steps, prim, fps, quiet):
+             transform_steps, prim, fps, meters_per_unit, up_axis, start_frame, quiet):
     """Fit a linear-blend-skinning model with rigid bones to a mesh sequence.
 
     INPUT is a folder or glob of OBJ/PLY/OFF frames (natural frame order), a USD file with a
@@ -52,6 +60,10 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, r
     if tolerance < 0 or transform_steps < 0:
         raise OptionError("--tolerance and --transform-steps must not be negative")
     sequence = read_mesh_sequence(input_spec, prim=prim, fps=fps)
+    try:
+        sequence = replace(sequence, scene=sequence.scene.overridden(meters_per_unit, up_axis, start_frame))
+    except ValueError as error:
+        raise OptionError(str(error)) from None
     frames, count = sequence.vertices.shape[:2]
     validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
     rest_frame = rest_frame % frames
@@ -74,8 +86,10 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, r
     frame_rmse = np.sqrt(sq.mean(axis=1))
     dq = align_hemispheres(rigid_to_dual_quaternion(result.rotations, result.translations), axis=0)
     rest_frames = bone_rest_frames(result.rest_vertices, result.bone_indices, result.bone_weights, bones)
+    scene = sequence.scene
     parameters = dict(bones=bones, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
-                      rest_frame=rest_frame, seed=seed, transform_steps=transform_steps, prim=prim, fps=sequence.fps)
+                      rest_frame=rest_frame, seed=seed, transform_steps=transform_steps, prim=prim, fps=sequence.fps,
+                      meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame)
     record = provenance_record("skin", command_line(), parameters, [input_spec], tool_version(), seed)
     write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal),
                 [record], tool_version())
@@ -84,6 +98,8 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, r
         click.echo(f"wrote {output}: {bones} bones, {count} vertices, {frames} frames; "
                    f"RMSE {result.rmse:.4g} = {result.rmse / diagonal:.2e} of the bounding-box diagonal "
                    f"({result.iterations} iterations, {state}, {seconds:.1f} s)")
+        click.echo(f"scene: {scene.describe(frames)} at {sequence.fps:g} fps (stated again by every USD written "
+                   "from it; --meters-per-unit, --up-axis, --start-frame override)")
         if result.bones_without_weight:
             click.echo(f"note: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
                        "has fewer independently moving parts than --bones", err=True)

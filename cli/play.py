@@ -30,7 +30,8 @@ OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
               help="Recompute bone translations with the Poisson solve (needs a puppet trained with it).")
 @click.option("--device", default="auto", show_default=True, help="auto, cpu, cuda or cuda:N.")
 @click.option("--threads", default=0, type=int, help="CPU threads for the kernels (default: all cores).")
-@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default="Y", show_default=True, help="Ground plane and USD up axis.")
+@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
+              help="Ground plane and USD up axis (default: the input's, as fit-skin recorded it).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object with the timing instead of text.")
 @user_errors
 def play(path, control_files, output, instances, kind, spacing, translation_solver, device, threads, up_axis, as_json):
@@ -66,6 +67,7 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
     spacing = 1.5 * largest_side(skin.rest_vertices) if spacing is None else spacing
     if not np.isfinite(spacing) or spacing < 0.0:
         raise OptionError(f"--spacing must be a finite distance ≥ 0 (got {spacing})")
+    up_axis = up_axis or skin.scene.up_axis
     offsets = grid_offsets(characters, spacing, up_axis) if characters > 1 else np.zeros((1, 3))
 
     flat = controls.reshape(-1, count, 3)
@@ -95,11 +97,12 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
                 shapes = (puppet.correctives.offsets, shape_weights.reshape(characters, frames, -1))
             write_skel_characters(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
                                   rotations, translations, skin.bone_rest_frames[:, :3, 3], skin.fps, names=names,
-                                  up_axis=up_axis, skinning="dual-quaternion", blend_shapes=shapes)
+                                  up_axis=up_axis, skinning="dual-quaternion", blend_shapes=shapes, scene=skin.scene)
         else:
             from skinsynth.formats.usd import write_points_characters
 
-            write_points_characters(output, vertices, skin.faces, skin.fps, names=names, up_axis=up_axis)
+            write_points_characters(output, vertices, skin.faces, skin.fps, names=names, up_axis=up_axis,
+                                    scene=skin.scene)
         written = [output]
     elif lower.endswith(".exr"):
         from skinsynth.formats.exr import write_vat

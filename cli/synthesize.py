@@ -295,7 +295,7 @@ def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, thread
                     from skinsynth.formats.usd import write_points_cache
 
                     target = os.path.join(usd_dir, f"animation_{a:04d}.usdc")
-                    write_points_cache(target, vertices, skin.faces, skin.fps, up_axis=up_axis)
+                    write_points_cache(target, vertices, skin.faces, skin.fps, up_axis=up_axis, scene=skin.scene)
                     written.append(target)
                 if exr_dir:
                     from skinsynth.formats.exr import write_vat
@@ -312,7 +312,8 @@ def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, thread
         characters = _LazyCrowd(skin, result.F, result.t, offsets, device, threads)
         try:
             write_points_characters(crowd, characters, skin.faces, skin.fps,
-                                    names=[f"animation_{a:04d}" for a in range(count)], up_axis=up_axis)
+                                    names=[f"animation_{a:04d}" for a in range(count)], up_axis=up_axis,
+                                    scene=skin.scene)
         finally:
             characters.close()
         written.append(crowd)

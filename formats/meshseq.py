@@ -12,11 +12,12 @@ import os
 import re
 import warnings
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from skinsynth.formats.errors import FormatError, declared_size_problem, require_finite
+from skinsynth.formats.scene import Scene
 
 FRAME_EXTENSIONS = (".obj", ".ply", ".off")
 USD_EXTENSIONS = (".usd", ".usda", ".usdc")
@@ -26,12 +27,14 @@ DEFAULT_FPS = 24.0
 
 @dataclass(frozen=True)
 class MeshSequence:
-    """vertices (F, V, 3) float64, faces (T, 3) int64 triangles, fps, and the input as given."""
+    """vertices (F, V, 3) float64, faces (T, 3) int64 triangles, fps, the input as given, and
+    its scene (units, up axis, first frame, prim path; USD states them, other inputs default)."""
 
     vertices: np.ndarray
     faces: np.ndarray
     fps: float
     source: str
+    scene: Scene = field(default_factory=Scene)
 
 
 def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = None) -> MeshSequence:
@@ -57,9 +60,9 @@ def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = N
         sequence = _read_frame_files(spec, _glob_frames(spec))
     elif ext in USD_EXTENSIONS:
         # pxr takes a third of a second to import: pay for it only when reading USD.
-        from skinsynth.formats.usd import read_points_cache
+        from skinsynth.formats.usd import read_points_cache, read_scene
 
-        sequence = sequence_from_arrays(spec, *read_points_cache(spec, prim))
+        sequence = replace(sequence_from_arrays(spec, *read_points_cache(spec, prim)), scene=read_scene(spec, prim))
     elif ext == ".npz":
         sequence = _read_npz(spec)
     elif ext in (".h5", ".hdf5"):
@@ -71,7 +74,7 @@ def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = N
                                 f"{'/'.join(USD_EXTENSIONS + ARRAY_EXTENSIONS)}")
 
     if fps is not None:
-        sequence = MeshSequence(sequence.vertices, sequence.faces, float(fps), sequence.source)
+        sequence = replace(sequence, fps=float(fps))
     return sequence
 
 

@@ -3,7 +3,8 @@
 Groups (all arrays float64 unless noted; conventions in docs/format.md):
 
 - ``/mesh``: ``rest_vertices (V, 3)``, ``faces (T, 3)`` int64; ``@rest_frame``.
-- ``/examples``: ``vertices (F, V, 3)``; ``@fps``, ``@source``.
+- ``/examples``: ``vertices (F, V, 3)``; ``@fps``, ``@source``, and the input's scene
+  (:mod:`.scene`): ``@meters_per_unit``, ``@up_axis``, ``@start_frame``, ``@prim_path``.
 - ``/skin``: ``bone_indices (V, K)`` int32, ``bone_weights (V, K)`` (≥ 0, rows sum to 1, sorted
   decreasing, unused slots 0), ``rotations (F, B, 3, 3)``, ``translations (F, B, 3)``,
   ``dual_quaternions (F, B, 8)`` (real then dual part, each (w, x, y, z), hemisphere-consistent
@@ -14,11 +15,12 @@ Groups (all arrays float64 unless noted; conventions in docs/format.md):
   ``@bones_without_weight``.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .errors import FormatError
+from .scene import Scene
 from .model import read_model, require
 from .validation import check_skin
 
@@ -42,6 +44,7 @@ class SkinModel:
     rmse: float
     rmse_over_diagonal: float
     provenance: list
+    scene: Scene = field(default_factory=Scene)
 
     @property
     def bones(self):
@@ -53,7 +56,8 @@ def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, f
     return {
         "mesh": {"rest_vertices": fit.rest_vertices, "faces": sequence.faces.astype(np.int64),
                  "@rest_frame": int(rest_frame)},
-        "examples": {"vertices": sequence.vertices, "@fps": float(sequence.fps), "@source": sequence.source},
+        "examples": {"vertices": sequence.vertices, "@fps": float(sequence.fps), "@source": sequence.source,
+                     **sequence.scene.attributes()},
         "skin": {
             "bone_indices": fit.bone_indices.astype(np.int32),
             "bone_weights": fit.bone_weights,
@@ -95,4 +99,5 @@ def read_skin(path, model=None):
         bone_indices=skin["bone_indices"], bone_weights=skin["bone_weights"], rotations=skin["rotations"],
         translations=skin["translations"], dual_quaternions=skin["dual_quaternions"],
         bone_rest_frames=skin["bone_rest_frames"], rmse=float(skin.get("@rmse", np.nan)),
-        rmse_over_diagonal=float(skin.get("@rmse_over_diagonal", np.nan)), provenance=model["provenance"])
+        rmse_over_diagonal=float(skin.get("@rmse_over_diagonal", np.nan)), provenance=model["provenance"],
+        scene=Scene.from_attributes(examples))

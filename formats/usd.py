@@ -16,24 +16,29 @@ from skinsynth.formats.atomic import atomic_output
 from skinsynth.formats.errors import FormatError, declared_size_problem, require_finite
 from skinsynth.formats.meshseq import USD_EXTENSIONS
 
-METERS_PER_UNIT = 1.0  # example sequences carry no unit; DCCs then import them at the size they have
 
 
 # ---------------------------------------------------------------- writing
 
 
-def write_points_cache(path, vertices, faces, fps, prim_name="mesh", up_axis="Y") -> None:
-    """Write vertices (F, V, 3) and faces (T, 3) as a Mesh ``/<prim_name>`` with points at time codes 0..F-1.
+def write_points_cache(path, vertices, faces, fps, prim_name=None, up_axis=None, scene=None) -> None:
+    """Write vertices (F, V, 3) and faces (T, 3) as a Mesh with points at time codes start..start+F-1.
 
-    The encoding (.usda text, .usdc/.usd binary) follows the extension. Raises ValueError for
+    ``scene`` (:class:`~skinsynth.formats.scene.Scene`, default: 1 m per unit, Y up, from 0, at
+    ``/mesh``) gives the stage's metersPerUnit, upAxis and first time code and the mesh's path
+    (parents become Xforms); ``prim_name`` (``/<prim_name>``) and ``up_axis`` override it. The
+    encoding (.usda text, .usdc/.usd binary) follows the extension. Raises ValueError for
     malformed arrays; nothing is left on disk when writing fails.
     """
+    scene = _scene(scene, up_axis, prim_name)
     vertices = _float_array("vertices", vertices, (None, None, 3), path)
-    write_points_characters(path, vertices[None], faces, fps, names=[prim_name], up_axis=up_axis, group=None)
+    write_points_characters(path, vertices[None], faces, fps, names=[scene.prim_name], group=None, scene=scene)
 
 
-def write_points_characters(path, vertices, faces, fps, names=None, up_axis="Y", group="characters") -> None:
-    """Several baked characters as Meshes ``/<group>/<name>`` (or ``/<name>``).
+def write_points_characters(path, vertices, faces, fps, names=None, up_axis=None, group="characters",
+                            scene=None) -> None:
+    """Several baked characters as Meshes ``/<group>/<name>`` (group None: the one mesh at the
+    scene's prim path). ``scene`` and ``up_axis`` as :func:`write_points_cache`.
 
     vertices: an array (C, F, V, 3), or any sequence whose item c is character c's (F, V, 3) —
     e.g. a lazy one that skins each character only when it is written, so a crowd never has to
@@ -45,62 +50,70 @@ def write_points_characters(path, vertices, faces, fps, names=None, up_axis="Y",
     first = _float_array("vertices[0]", vertices[0], (None, None, 3), path)
     frames, count = first.shape[:2]
     faces = _faces("faces", faces, count)
+    scene = _scene(scene, up_axis)
     names = _character_names(names, characters)
-    _check_common(path, fps, group or names[0], up_axis, frames)
+    _check_common(path, fps, group or names[0], scene.up_axis, frames)
+    start = scene.start_frame
 
     # float32 points and a float extent per frame and character (usda text takes several times that)
     expected = characters * frames * (count * 12 + 48) * (6 if str(path).lower().endswith(".usda") else 1)
     with atomic_output(path, expected_bytes=expected + (1 << 20)) as tmp:
-        stage = _new_stage(tmp, fps, frames, up_axis)
+        stage = _new_stage(tmp, fps, frames, scene)
         parent = _group_parent(stage, group)
         for c, name in enumerate(names):
             character = first if c == 0 else _float_array(f"vertices[{c}]", vertices[c], (frames, count, 3), path)
-            mesh = _define_mesh(stage, parent.AppendChild(name), faces)
+            mesh_path = Sdf.Path(scene.prim_path) if group is None else parent.AppendChild(name)
+            _define_parents(stage, mesh_path)
+            mesh = _define_mesh(stage, mesh_path, faces)
             if group is None and c == 0:
-                stage.SetDefaultPrim(mesh.GetPrim())
+                _set_default_prim(stage, mesh.GetPath())
             # One attribute at a time: interleaving Sets on two attributes is ~4x slower in pxr 26.
             points = mesh.GetPointsAttr()
             for frame in range(frames):
-                points.Set(Vt.Vec3fArray.FromNumpy(character[frame].astype(np.float32)), Usd.TimeCode(frame))
+                points.Set(Vt.Vec3fArray.FromNumpy(character[frame].astype(np.float32)), Usd.TimeCode(start + frame))
             extent = mesh.GetExtentAttr()
             for frame in range(frames):
-                extent.Set(_extent(character[frame]), Usd.TimeCode(frame))
+                extent.Set(_extent(character[frame]), Usd.TimeCode(start + frame))
         stage.GetRootLayer().Save()
         del stage  # release the layer before the file is renamed under it
 
 
 def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
-                     bind_centers, fps, prim_name="mesh", up_axis="Y", skinning="linear") -> None:
+                     bind_centers, fps, prim_name=None, up_axis=None, skinning="linear", scene=None) -> None:
     """Write a rigid-bone animation as UsdSkel so that UsdSkel's skinning reproduces skinsynth's.
 
     rest_vertices (V, 3); faces (T, 3); bone_indices (V, K) int and bone_weights (V, K)
     (non-negative, rows summing to 1; written as given, K = elementSize); rotations (F, B, 3, 3)
     and translations (F, B, 3), the per-frame bone transforms; bind_centers (B, 3), each bone's
-    joint in the rest pose; skinning "linear" (classicLinear) or "dual-quaternion". Layout:
-    SkelRoot ``/<prim_name>`` holding ``Skeleton`` (B root joints ``bone_000``...),
-    ``Skeleton/Animation`` and the bound ``Mesh``.
+    joint in the rest pose; skinning "linear" (classicLinear) or "dual-quaternion"; ``scene``,
+    ``prim_name`` and ``up_axis`` as :func:`write_points_cache`. Layout: the mesh keeps the
+    scene's prim path and its parent becomes the SkelRoot, holding ``Skeleton`` (B root joints
+    ``bone_000``...) and ``Skeleton/Animation``; a mesh at the root (``/mesh``) cannot have a
+    SkelRoot above it, so there the SkelRoot is ``/mesh`` and the mesh ``/mesh/Mesh``.
 
     Each joint's bind transform is a translation to its centre c. In Gf's row-vector form the
     skinning transform is inverse(bind) * joint, and it must equal our A(t) = [R^T 0; t 1]; so
     joint = bind * A(t) = [R^T 0; c R^T + t 1]: the joint turns by R and sits at R c + t.
     """
+    scene = _scene(scene, up_axis, prim_name)
     rotations = _float_array("rotations", rotations, (None, None, 3, 3))
     write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations[None],
-                          np.asarray(translations)[None], bind_centers, fps, names=[prim_name], up_axis=up_axis,
-                          skinning=skinning, group=None)
+                          np.asarray(translations)[None], bind_centers, fps, names=[scene.prim_name],
+                          skinning=skinning, group=None, scene=scene)
 
 
 SKINNING_METHODS = {"linear": "classicLinear", "dual-quaternion": "dualQuaternion"}
 
 
 def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
-                          bind_centers, fps, names=None, up_axis="Y", skinning="linear", group="characters",
-                          blend_shapes=None) -> None:
+                          bind_centers, fps, names=None, up_axis=None, skinning="linear", group="characters",
+                          blend_shapes=None, scene=None) -> None:
     """Several characters sharing one rig, each with its own bone animation, as UsdSkel.
 
     rotations (C, F, B, 3, 3), translations (C, F, B, 3); the rest as :func:`write_skel_cache`.
-    Each character is a SkelRoot ``/<group>/<name>`` (``/<name>`` when group is None; names
-    default to character_000...). World placement is part of the bone transforms.
+    Each character is a SkelRoot ``/<group>/<name>`` holding its ``Mesh`` (group None: one
+    character laid out as :func:`write_skel_cache`; names default to character_000...). World
+    placement is part of the bone transforms. ``scene`` and ``up_axis`` as :func:`write_points_cache`.
     blend_shapes: optional (offsets (S, V, 3), weights (C, F, S)): rest-pose offsets that UsdSkel
     adds, weighted per frame, before skinning (a puppet's pose-space correctives); the shapes are
     written once, under the first character's mesh, and every character's mesh targets them.
@@ -114,10 +127,12 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
     centers = _float_array("bind_centers", bind_centers, (bones, 3))
     indices, weights = _influences(bone_indices, bone_weights, count, bones)
     _check_rotations(rotations.reshape(-1, bones, 3, 3))
+    scene = _scene(scene, up_axis)
     names = _character_names(names, characters)
     if skinning not in SKINNING_METHODS:
         raise ValueError(f"skinning must be one of {', '.join(SKINNING_METHODS)}, got {skinning!r}")
-    _check_common(path, fps, group or names[0], up_axis, frames)
+    _check_common(path, fps, group or names[0], scene.up_axis, frames)
+    start = scene.start_frame
     shape_offsets = shape_weights = None
     if blend_shapes is not None:
         shape_offsets = _float_array("blend shape offsets", blend_shapes[0], (None, count, 3), path)
@@ -132,15 +147,17 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
     ones = Vt.Vec3hArray.FromNumpy(np.ones((bones, 3), dtype=np.float16))
 
     with atomic_output(path) as tmp:
-        stage = _new_stage(tmp, fps, frames, up_axis)
+        stage = _new_stage(tmp, fps, frames, scene)
         parent = _group_parent(stage, group)
         for c, name in enumerate(names):
-            root_path = parent.AppendChild(name)
-            root = UsdSkel.Root.Define(stage, root_path)
+            root_path, mesh_path = _skel_paths(parent, name, scene if group is None else None)
+            _define_parents(stage, root_path)
+            UsdSkel.Root.Define(stage, root_path)
             if group is None and c == 0:
-                stage.SetDefaultPrim(root.GetPrim())
-            animation = _define_skeleton(stage, root_path, joints, bind, ones, rotations[c], translations[c], centers)
-            mesh = _define_mesh(stage, root_path.AppendChild("Mesh"), faces)
+                _set_default_prim(stage, root_path)
+            animation = _define_skeleton(stage, root_path, joints, bind, ones, rotations[c], translations[c], centers,
+                                         start)
+            mesh = _define_mesh(stage, mesh_path, faces)
             mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(rest.astype(np.float32)))
             mesh.GetExtentAttr().Set(_extent(rest))
             binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
@@ -162,12 +179,12 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
                 attribute = animation.CreateBlendShapeWeightsAttr()
                 for frame in range(frames):
                     attribute.Set(Vt.FloatArray.FromNumpy(shape_weights[c, frame].astype(np.float32)),
-                                  Usd.TimeCode(frame))
+                                  Usd.TimeCode(start + frame))
         stage.GetRootLayer().Save()
         del stage
 
 
-def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translations, centers):
+def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translations, centers, start=0.0):
     """Skeleton and Animation of one character: rotations (F, B, 3, 3), translations (F, B, 3).
     Returns the UsdSkel.Animation."""
     frames, bones = rotations.shape[:2]
@@ -192,9 +209,9 @@ def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translatio
     animation.CreateScalesAttr(ones)  # without scales DCCs ignore the animation
     for frame in range(frames):  # one attribute at a time, as in write_points_cache
         anim_translations.Set(Vt.Vec3fArray.FromNumpy(joint_translations[frame].astype(np.float32)),
-                              Usd.TimeCode(frame))
+                              Usd.TimeCode(start + frame))
     for frame in range(frames):
-        anim_rotations.Set(Vt.QuatfArray.FromNumpy(quats[frame]), Usd.TimeCode(frame))
+        anim_rotations.Set(Vt.QuatfArray.FromNumpy(quats[frame]), Usd.TimeCode(start + frame))
     UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
     return animation
 
@@ -215,14 +232,56 @@ def _group_parent(stage, group):
     return parent
 
 
-def _new_stage(tmp, fps, frames, up_axis):
+def _scene(scene, up_axis=None, prim_name=None):
+    """The writer's Scene: ``scene`` (default Scene()) with ``up_axis`` and ``prim_name`` applied."""
+    from dataclasses import replace
+
+    from skinsynth.formats.scene import Scene
+
+    scene = Scene() if scene is None else scene
+    if up_axis is not None:
+        scene = replace(scene, up_axis=up_axis)
+    if prim_name is not None:
+        scene = replace(scene, prim_path="/" + prim_name)
+    if not Sdf.Path.IsValidPathString(scene.prim_path) or not Sdf.Path(scene.prim_path).IsAbsolutePath() \
+            or not Sdf.Path(scene.prim_path).IsPrimPath():
+        raise ValueError(f"prim path {scene.prim_path!r} is not an absolute USD prim path")
+    return scene
+
+
+def _skel_paths(parent, name, scene):
+    """(SkelRoot path, mesh path) of a character: ``/<group>/<name>`` and its ``Mesh``, or for a
+    single rig (scene given) the scene's mesh path under its parent as SkelRoot (a root-level
+    mesh ``/m`` cannot have one: SkelRoot ``/m``, mesh ``/m/Mesh``)."""
+    if scene is None:
+        root = parent.AppendChild(name)
+        return root, root.AppendChild("Mesh")
+    mesh = Sdf.Path(scene.prim_path)
+    if mesh.GetParentPath() == Sdf.Path.absoluteRootPath:
+        return mesh, mesh.AppendChild("Mesh")
+    return mesh.GetParentPath(), mesh
+
+
+def _define_parents(stage, path):
+    """Ancestors of ``path`` that do not exist yet become Xforms (DCCs expect transformable parents)."""
+    for ancestor in Sdf.Path(path).GetParentPath().GetPrefixes():  # top first
+        if not stage.GetPrimAtPath(ancestor).IsValid():
+            UsdGeom.Xform.Define(stage, ancestor)
+
+
+def _set_default_prim(stage, path):
+    """The default prim is the root-level ancestor of ``path`` (USD wants a root prim)."""
+    stage.SetDefaultPrim(stage.GetPrimAtPath(Sdf.Path(path).GetPrefixes()[0]))
+
+
+def _new_stage(tmp, fps, frames, scene):
     stage = Usd.Stage.CreateNew(tmp)
     stage.SetTimeCodesPerSecond(fps)
     stage.SetFramesPerSecond(fps)
-    stage.SetStartTimeCode(0)
-    stage.SetEndTimeCode(frames - 1)
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis == "Y" else UsdGeom.Tokens.z)
-    UsdGeom.SetStageMetersPerUnit(stage, METERS_PER_UNIT)
+    stage.SetStartTimeCode(scene.start_frame)
+    stage.SetEndTimeCode(scene.start_frame + frames - 1)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if scene.up_axis == "Y" else UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, scene.meters_per_unit)
     return stage
 
 
@@ -355,6 +414,20 @@ def read_points_cache(path, prim=None) -> tuple[np.ndarray, np.ndarray, float]:
         world = np.array(mesh.ComputeLocalToWorldTransform(code))
         vertices[frame] = points @ world[:3, :3] + world[3, :3]
     return sequence_from_arrays(path, vertices, faces, fps).vertices, faces, float(fps)
+
+
+def read_scene(path, prim=None):
+    """The :class:`~skinsynth.formats.scene.Scene` of the mesh ``read_points_cache`` reads:
+    the stage's metersPerUnit and upAxis (an X-up stage counts as Y up: skinsynth's ground plane
+    needs Y or Z), the time code of the first points sample, and the mesh's path."""
+    from skinsynth.formats.scene import Scene
+
+    stage = _open(path)
+    mesh = _find_mesh(path, stage, prim)
+    times = mesh.GetPointsAttr().GetTimeSamples()
+    return Scene(meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)),
+                 up_axis="Z" if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z else "Y",
+                 start_frame=float(times[0]) if times else 0.0, prim_path=str(mesh.GetPath()))
 
 
 def read_skel_points(path) -> np.ndarray:

@@ -129,6 +129,12 @@ def check_skin(path, model):
         raise FormatError(path, f"/skin/bone_weights rows must sum to 1 (vertex {row} sums to "
                                 f"{weights[row].sum():.6g})")
     check_attribute(path, "examples", model["examples"], "fps", "float", low=1e-9)
+    check_attribute(path, "examples", model["examples"], "meters_per_unit", "float", low=1e-300)
+    check_attribute(path, "examples", model["examples"], "up_axis", None, choices=("Y", "Z"))
+    check_attribute(path, "examples", model["examples"], "start_frame", "float")
+    prim_path = model["examples"].get("@prim_path")
+    if prim_path is not None and not (isinstance(prim_path, str) and prim_path.startswith("/") and len(prim_path) > 1):
+        raise FormatError(path, f"/examples/@prim_path is {prim_path!r}, not an absolute USD prim path")
     check_attribute(path, "mesh", model["mesh"], "rest_frame", "int", low=0, high=dims["F"] - 1)
     return dims
 
