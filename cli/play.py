@@ -7,7 +7,7 @@ import time
 import click
 import numpy as np
 
-from .common import check_output_path, user_errors
+from .common import check_output_path, check_side_folder, user_errors
 
 OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
 
@@ -17,8 +17,9 @@ OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
 @click.option("--controls", "-c", "control_files", multiple=True, required=True,
               help="Control trajectories: CSV (frame,point,x,y,z), .npy (F, n_c, 3), or a mesh sequence whose "
                    "control vertices are used. Repeat for several characters.")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="USD (.usd/.usda/.usdc), OpenEXR vertex-animation texture (.exr; one per character), or .h5 vertices.")
+@click.option("-o", "--output", required=True, type=click.Path(),
+              help="USD (.usd/.usda/.usdc), an OpenEXR vertex-animation texture (.exr, one character), a folder "
+                   "(ending in /: one texture per character, DIR/character_000.exr …), or .h5 vertices.")
 @click.option("--instances", default=1, show_default=True, type=int,
               help="Characters from one --controls file, each starting a fraction of the clip later.")
 @click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
@@ -46,6 +47,7 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
       skinsynth play face.puppet.h5 --controls mocap.csv -o face.usdc
       skinsynth play horse.puppet.h5 --controls gallop.npy --instances 100 -o herd.usdc --as points
       skinsynth play horse.puppet.h5 -c a.npy -c b.npy -o horses.h5 --json
+      skinsynth play bar.puppet.h5 -c bar.npz --instances 16 -o crowd_vat/
     """
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.formats.trajectories import read_control_trajectories
@@ -54,7 +56,11 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
     from skinsynth.pipeline.evaluation import largest_side
     from skinsynth.pipeline.playback import grid_offsets, host_inputs, instance_trajectories, world_bones
 
-    check_output_path(output, OUTPUTS, inputs=[path, *control_files])
+    to_folder = output.endswith(("/", os.sep))
+    if to_folder:
+        check_side_folder(output)
+    else:
+        check_output_path(output, OUTPUTS, inputs=[path, *control_files])
     device = resolve_device(device)
     puppet, _, skin = read_puppet(path)
     if translation_solver and puppet.translations is None:
@@ -64,6 +70,9 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
                     for f in control_files]
     controls = instance_trajectories(trajectories, instances)  # (C, F, n_c, 3)
     characters, frames = controls.shape[:2]
+    if output.lower().endswith(".exr") and characters > 1:
+        raise OptionError(f"{output}: {characters} characters make {characters} textures; give a folder "
+                          f"(-o {output[:-4]}/) for one texture each")
     spacing = 1.5 * largest_side(skin.rest_vertices) if spacing is None else spacing
     if not np.isfinite(spacing) or spacing < 0.0:
         raise OptionError(f"--spacing must be a finite distance ≥ 0 (got {spacing})")
@@ -104,13 +113,18 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
             write_points_characters(output, vertices, skin.faces, skin.fps, names=names, up_axis=up_axis,
                                     scene=skin.scene)
         written = [output]
-    elif lower.endswith(".exr"):
+    elif lower.endswith(".exr") or to_folder:
+        from skinsynth.formats.atomic import atomic_folder
         from skinsynth.formats.exr import write_vat
 
-        stem = output[:-4]
-        written = [output] if characters == 1 else [f"{stem}_{c:03d}.exr" for c in range(characters)]
-        for c, target in enumerate(written):
-            write_vat(target, skin.rest_vertices + offsets[c], vertices[c], skin.fps)
+        if to_folder:
+            with atomic_folder(output) as folder:
+                for c, name in enumerate(names):
+                    write_vat(os.path.join(folder, f"{name}.exr"), skin.rest_vertices + offsets[c], vertices[c],
+                              skin.fps)
+        else:
+            write_vat(output, skin.rest_vertices, vertices[0], skin.fps)
+        written = [output]
     else:
         from skinsynth.formats.meshseq import write_vertex_animation
 

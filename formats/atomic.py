@@ -147,3 +147,38 @@ def atomic_output(path, expected_bytes=0):
             raise
     if pending:  # arrived during the rename: the file is complete; stop now
         raise Interrupted(pending[0])
+
+
+@contextlib.contextmanager
+def atomic_folder(path):
+    """Yield a temporary folder beside ``path``; on success it replaces ``path`` (a folder of
+    several outputs, e.g. one texture per character), so a Make rule whose target is the folder
+    sees it whole or not at all. On any exception the temporary folder is removed."""
+    import shutil
+
+    path = os.fspath(path).rstrip(os.sep) or os.sep
+    parent = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(parent):
+        raise FormatError(path, f"cannot write here: the folder {parent} does not exist")
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise FormatError(path, "is a file; a folder is written here")
+    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(path)}.{os.getpid()}.", suffix=".tmp", dir=parent)
+    os.chmod(tmp, 0o777 & ~_umask())
+    mark = len(WRITTEN)
+    try:
+        yield tmp
+        if os.path.isdir(path):
+            shutil.rmtree(path)
+        os.replace(tmp, path)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    finally:
+        del WRITTEN[mark:]  # the files inside the temporary folder: the folder is what counts
+    WRITTEN.append(path)
+
+
+def _umask():
+    umask = os.umask(0)
+    os.umask(umask)
+    return umask

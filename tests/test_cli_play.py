@@ -60,9 +60,16 @@ def test_instances_points_cache_and_exr(files, tmp_path):
                   "--as", "points"))
     vertices, _, _ = read_points_cache(tmp_path / "c.usda", prim="/characters/character_003")
     assert np.allclose(vertices, crowd[3], atol=1e-4)
-    assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", tmp_path / "t.exr", "--instances", 2))
-    offsets, meta = read_vat(tmp_path / "t_001.exr")
+    # Several textures: a folder, written whole (a Make rule's target is exactly the path given).
+    assert_user_error(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", tmp_path / "t.exr",
+                          "--instances", 2), "give a folder", f"-o {tmp_path / 't'}/")
+    assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", f"{tmp_path / 'vat'}/", "--instances", 2))
+    assert sorted(os.listdir(tmp_path / "vat")) == ["character_000.exr", "character_001.exr"]
+    offsets, meta = read_vat(tmp_path / "vat" / "character_001.exr")
     assert offsets.shape == (24, crowd.shape[2], 3) and meta["vat_frame_count"] == 24
+    assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", f"{tmp_path / 'vat'}/"))  # replaced
+    assert sorted(os.listdir(tmp_path / "vat")) == ["character_000.exr"]
+    assert not [n for n in os.listdir(tmp_path) if n.startswith(".")]
 
 
 def test_several_control_files_and_csv(files, tmp_path):
