@@ -5,7 +5,7 @@ import time
 
 import click
 
-from .common import check_output_path, command_line, fail, tool_version, user_errors
+from .common import report, summary_options, check_output_path, command_line, fail, tool_version, user_errors
 
 
 @click.command("build-graph")
@@ -39,10 +39,10 @@ from .common import check_output_path, command_line, fail, tool_version, user_er
                    "Zheng's α, β; 0: his eq. 5 alone, for synthesize --alignment full).")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,
               help="Write PNGs here: the cost matrix of each component with its transitions, and the bone graph.")
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
+@summary_options
 @user_errors
 def build_graph(path, output, threshold_scale, threshold_reference, edge_threshold, single_component, svd_threshold,
-                min_gap, min_segment, coverage, up_axis, posture_weight, plot_dir, quiet):
+                min_gap, min_segment, coverage, up_axis, posture_weight, plot_dir, quiet, as_json):
     """Analyse a skin fit for synthesis (Zheng 2013 §3.2, §3.3, §4.1).
 
     Finds, per weakly coupled bone component, its reference bone, reduced coordinates and the
@@ -100,17 +100,22 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
                               analysis.kept_edges, [c.bones for c in analysis.components], analysis.cut_nodes,
                               f"bone graph: {len(analysis.components)} component(s), "
                               f"{len(analysis.cut_nodes)} cut node(s)")
-    if not quiet:
-        click.echo(f"wrote {output}: {len(analysis.components)} component(s), cut nodes {analysis.cut_nodes}, "
-                   f"{analysis.transition_count} transitions, segments ≥ {min_segment} frames; {seconds:.1f} s")
-        for number, component in enumerate(analysis.components):
-            t = component.transitions
-            extra = f", {t.admitted} above T_c for coverage" if t.admitted else ""
-            click.echo(f"  component {number}: bones {component.bones} (reference {t.reference}), "
-                       f"{len(t.pairs)} transitions{extra}, {t.share:.0%} of the frames on one strongly connected "
-                       f"part, {len(component.key)} key vertices, {t.q.shape[1]} reduced coordinates")
-        if analysis.transition_count == 0:
-            click.echo("note: no candidate transitions: the clip has no repeated states at this threshold; "
-                       "try a larger --threshold-scale", err=True)
-        if plot_dir is not None:
-            click.echo(f"plots in {plot_dir}/")
+    lines = [f"wrote {output}: {len(analysis.components)} component(s), cut nodes {analysis.cut_nodes}, "
+             f"{analysis.transition_count} transitions, segments ≥ {min_segment} frames; {seconds:.1f} s"]
+    components = []
+    for number, component in enumerate(analysis.components):
+        t = component.transitions
+        extra = f", {t.admitted} above T_c for coverage" if t.admitted else ""
+        lines.append(f"  component {number}: bones {component.bones} (reference {t.reference}), "
+                     f"{len(t.pairs)} transitions{extra}, {t.share:.0%} of the frames on one strongly connected "
+                     f"part, {len(component.key)} key vertices, {t.q.shape[1]} reduced coordinates")
+        components.append({"bones": list(component.bones), "reference": int(t.reference),
+                           "transitions": len(t.pairs), "admitted": int(t.admitted), "share": float(t.share),
+                           "key_vertices": len(component.key), "reduced_coordinates": int(t.q.shape[1])})
+    summary = {"output": output, "components": components, "cut_nodes": list(analysis.cut_nodes),
+               "transitions": int(analysis.transition_count), "min_segment": int(min_segment), "up_axis": up_axis,
+               "seconds": round(seconds, 3)}
+    report(summary, lines, as_json, quiet)
+    if analysis.transition_count == 0:
+        click.echo("warning: no candidate transitions: the clip has no repeated states at this threshold; "
+                   "try a larger --threshold-scale", err=True)

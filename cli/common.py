@@ -134,6 +134,36 @@ def check_not_an_input(path, inputs):
             fail(f"{path}: the output is the input {source}; write the result to another file")
 
 
+def summary_options(command):
+    """``--json`` and ``--quiet``, meaning the same on every command."""
+    command = click.option("--quiet", "-q", is_flag=True,
+                           help="No progress bar and no summary (warnings still go to stderr).")(command)
+    return click.option("--json", "as_json", is_flag=True,
+                        help="Print the summary as one JSON object on stdout, and nothing else there.")(command)
+
+
+def report(summary, lines, as_json=False, quiet=False):
+    """A command's summary: ``summary`` as one JSON object (``--json``), else the text ``lines``
+    unless ``--quiet``. Numpy scalars and arrays become JSON numbers and lists."""
+    import json
+
+    if as_json:
+        click.echo(json.dumps(summary, sort_keys=True, default=_jsonable))
+    elif not quiet:
+        for line in lines:
+            click.echo(line)
+
+
+def _jsonable(value):
+    import numpy as np
+
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
 def command_line():
     import shlex
 

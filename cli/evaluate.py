@@ -4,7 +4,7 @@ import json
 
 import click
 
-from .common import check_output_path, fail, user_errors
+from .common import summary_options, check_output_path, fail, user_errors
 
 METHODS = {
     "kcca": "kernel CCA + Poisson translation solver",
@@ -16,7 +16,6 @@ METHODS = {
 
 @click.command("evaluate")
 @click.argument("path", type=click.Path(dir_okay=False))
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object (for scripts and dashboards).")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, help="Write per-frame error curves to this PNG.")
 @click.option("--skinning", type=click.Choice(["dual-quaternion", "linear"]), default="dual-quaternion", show_default=True,
               help="Skinning of the predicted bones: dual quaternions (Feng §6.3) or linear (the fitted model).")
@@ -25,8 +24,9 @@ METHODS = {
 @click.option("--extrapolate", type=float, default=None, metavar="FRACTION",
               help="Also retrain the puppet (train-kcca's own options) on the first FRACTION of the frames, e.g. "
                    "0.6, and report every method on the rest: poses never seen, not between examples.")
+@summary_options
 @user_errors
-def evaluate(path, as_json, plot, skinning, pca_components, extrapolate):
+def evaluate(path, as_json, quiet, plot, skinning, pca_components, extrapolate):
     """Compare the puppet with PCA blendshapes and RBF regression on the held-out example frames.
 
     Each method is driven by the control vertices' positions in the frames the puppet did not
@@ -66,6 +66,8 @@ def evaluate(path, as_json, plot, skinning, pca_components, extrapolate):
             payload["extrapolation"] = dict(beyond.overall, train_frames=beyond.notes["train_frames"],
                                             test_frames=[int(f) for f in beyond.test_frames])
         click.echo(json.dumps(payload, sort_keys=True))
+        return
+    if quiet:
         return
     click.echo(f"{path}: {len(result.test_frames)} held-out frames, {len(puppet.train_frames)} training; "
                f"global motion: {result.notes['global_motion']} ({result.notes['global_motion_reason']}); "

@@ -2,7 +2,7 @@
 
 import click
 
-from .common import check_output_path, fail, user_errors
+from .common import report, summary_options, check_output_path, fail, user_errors
 
 EXAMPLES = ("bending-bar",)
 
@@ -15,8 +15,9 @@ EXAMPLES = ("bending-bar",)
 @click.option("--segments", default=16, show_default=True, type=int, help="Vertices around each ring.")
 @click.option("--cycles", default=1, show_default=True, type=int, help="Bend-and-twist cycles over the frames.")
 @click.option("--fps", default=24.0, show_default=True, type=click.FloatRange(min=0.0, min_open=True, max=1e6), help="Frame rate stored with the sequence.")
+@summary_options
 @user_errors
-def example(name, output, frames, rings, segments, cycles, fps):
+def example(name, output, frames, rings, segments, cycles, fps, quiet, as_json):
     """Write a built-in example mesh sequence (no download needed).
 
     bending-bar: a capped cylinder that bends into an arc and twists over one cycle, the kind of
@@ -35,4 +36,5 @@ def example(name, output, frames, rings, segments, cycles, fps):
         fail("--frames and --rings must be at least 2, --segments at least 3, --cycles at least 1, --fps positive")
     vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
     write_array_sequence(output, vertices, faces, fps)
-    click.echo(f"wrote {output}: {name}, {frames} frames, {vertices.shape[1]} vertices")
+    report({"output": output, "name": name, "frames": frames, "vertices": int(vertices.shape[1]), "fps": fps},
+           [f"wrote {output}: {name}, {frames} frames, {vertices.shape[1]} vertices"], as_json, quiet)

@@ -2,7 +2,7 @@
 
 import click
 
-from .common import check_output_path, fail, user_errors
+from .common import report, summary_options, check_output_path, fail, user_errors
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
 
@@ -18,8 +18,9 @@ USD_SUFFIXES = (".usd", ".usda", ".usdc")
 @click.option("--max-width", default=8192, show_default=True, type=int, help="EXR only: texture width limit; vertices wrap to more rows.")
 @click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
               help="USD stage up axis (default: the input's, as fit-skin recorded it).")
+@summary_options
 @user_errors
-def export(path, output, kind, device, half, max_width, up_axis):
+def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json):
     """Export the animation of a model file.
 
     For a skin file this is the LBS reconstruction of the example frames, at the input's units,
@@ -63,5 +64,9 @@ def export(path, output, kind, device, half, max_width, up_axis):
             from skinsynth.formats.usd import write_points_cache
 
             write_points_cache(output, frames, skin.faces, skin.fps, up_axis=up_axis, scene=skin.scene)
-    click.echo(f"wrote {output}: {skin.rotations.shape[0]} frames, {skin.rest_vertices.shape[0]} vertices"
-               + ("" if to_exr else f" ({'UsdSkel, ' + str(skin.bones) + ' joints' if kind == 'skel' else 'point cache'})"))
+    what = "vertex-animation texture" if to_exr else ("UsdSkel" if kind == "skel" else "point cache")
+    summary = {"output": output, "frames": int(skin.rotations.shape[0]), "vertices": int(skin.rest_vertices.shape[0]),
+               "kind": what, "joints": skin.bones if what == "UsdSkel" else None}
+    report(summary, [f"wrote {output}: {skin.rotations.shape[0]} frames, {skin.rest_vertices.shape[0]} vertices"
+                     + ("" if to_exr else f" ({'UsdSkel, ' + str(skin.bones) + ' joints' if kind == 'skel' else 'point cache'})")],
+           as_json, quiet)

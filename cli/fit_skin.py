@@ -6,7 +6,7 @@ from dataclasses import replace
 import click
 import numpy as np
 
-from .common import Progress, check_output_path, command_line, tool_version, user_errors
+from .common import Progress, check_output_path, command_line, report, summary_options, tool_version, user_errors
 
 
 @click.command("fit-skin")
@@ -30,10 +30,10 @@ from .common import Progress, check_output_path, command_line, tool_version, use
               help="The input's up axis. Default: what a USD input states, else Y.")
 @click.option("--start-frame", default=None, type=float,
               help="Time code of the input's first frame. Default: a USD input's first sample, else 0.")
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
+@summary_options
 @user_errors
 def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, rest_frame, seed,
-             transform_steps, prim, fps, meters_per_unit, up_axis, start_frame, quiet):
+             transform_steps, prim, fps, meters_per_unit, up_axis, start_frame, quiet, as_json):
     """Fit a linear-blend-skinning model with rigid bones to a mesh sequence.
 
     INPUT is a folder or glob of OBJ/PLY/OFF frames (natural frame order), a USD file with a
@@ -93,13 +93,17 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, r
     record = provenance_record("skin", command_line(), parameters, [input_spec], tool_version(), seed)
     write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal),
                 [record], tool_version())
-    if not quiet:
-        state = "converged" if result.converged else "iteration limit"
-        click.echo(f"wrote {output}: {bones} bones, {count} vertices, {frames} frames; "
-                   f"RMSE {result.rmse:.4g} = {result.rmse / diagonal:.2e} of the bounding-box diagonal "
-                   f"({result.iterations} iterations, {state}, {seconds:.1f} s)")
-        click.echo(f"scene: {scene.describe(frames)} at {sequence.fps:g} fps (stated again by every USD written "
-                   "from it; --meters-per-unit, --up-axis, --start-frame override)")
-        if result.bones_without_weight:
-            click.echo(f"note: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
-                       "has fewer independently moving parts than --bones", err=True)
+    state = "converged" if result.converged else "iteration limit"
+    summary = {"output": output, "bones": bones, "vertices": int(count), "frames": int(frames), "fps": sequence.fps,
+               "rmse": result.rmse, "rmse_over_diagonal": result.rmse / diagonal, "iterations": int(result.iterations),
+               "converged": bool(result.converged), "seconds": round(seconds, 3),
+               "bones_without_weight": int(result.bones_without_weight), "meters_per_unit": scene.meters_per_unit,
+               "up_axis": scene.up_axis, "start_frame": scene.start_frame, "prim_path": scene.prim_path}
+    report(summary, [f"wrote {output}: {bones} bones, {count} vertices, {frames} frames; "
+                     f"RMSE {result.rmse:.4g} = {result.rmse / diagonal:.2e} of the bounding-box diagonal "
+                     f"({result.iterations} iterations, {state}, {seconds:.1f} s)",
+                     f"scene: {scene.describe(frames)} at {sequence.fps:g} fps (stated again by every USD written "
+                     "from it; --meters-per-unit, --up-axis, --start-frame override)"], as_json, quiet)
+    if result.bones_without_weight:
+        click.echo(f"warning: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
+                   "has fewer independently moving parts than --bones", err=True)

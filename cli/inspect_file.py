@@ -42,6 +42,11 @@ def _summary(path, model):
         out["frames"] = int(examples["vertices"].shape[0])
         out["fps"] = float(examples.get("@fps", 0.0))
         out["source"] = str(examples.get("@source", ""))
+        from skinsynth.formats.scene import Scene
+
+        scene = Scene.from_attributes(examples)
+        out.update(meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame,
+                   prim_path=scene.prim_path)
     if "skin" in model:
         skin = require(model, path, "skin", ("rotations", "bone_indices", "bone_weights"))
         out["bones"] = int(skin["rotations"].shape[1])
@@ -52,6 +57,27 @@ def _summary(path, model):
             if f"@{key}" in skin:
                 value = skin[f"@{key}"]
                 out[key] = bool(value) if key == "converged" else (int(value) if key in ("iterations", "bones_without_weight") else float(value))
+    if "controls" in model:
+        controls = model["controls"]
+        out["control_vertex_indices"] = [int(v) for v in controls.get("vertex_indices", [])]
+        out["control_reasons"] = [r.decode() if isinstance(r, bytes) else str(r) for r in controls.get("reasons", [])]
+    if "kcca" in model and "training" in model:
+        kcca, training = model["kcca"], model["training"]
+        out["kernel"] = str(kcca.get("@kernel", ""))
+        out["kernel_scale"] = float(kcca.get("@scale", 0.0))
+        out["kernel_width_reason"] = str(kcca.get("@width_reason", ""))
+        out["bases"] = int(kcca.get("@bases", 0))
+        out["regularization_per_bone"] = [float(k) for k in kcca.get("regularization", [])]
+        out["global_motion"] = str(training.get("@global_motion", ""))
+        out["global_motion_reason"] = str(training.get("@global_motion_reason", ""))
+        out["train_frames"] = int(len(training.get("train_frames", [])))
+        out["test_frames"] = int(len(training.get("test_frames", [])))
+        out["translation_solver"] = "poisson" in model
+        if "poisson" in model:
+            out["translation_prior"] = float(model["poisson"].get("@prior", np.nan))
+            out["translation_prior_reason"] = str(model["poisson"].get("@prior_reason", ""))
+        out["correctives"] = "correctives" in model
+        out["correctives_reason"] = str(training.get("@correctives_reason", ""))
     if "graph" in model:
         graph = model["graph"]
         out["components"] = int(graph.get("@components", 0))
@@ -80,7 +106,8 @@ def _summary(path, model):
             if f"@{key}" in synthesis:
                 value = synthesis[f"@{key}"]
                 out[key] = value if isinstance(value, str) else int(value)
-    out["provenance"] = [{k: r.get(k) for k in ("stage", "command", "tool_version", "seed", "date")}
+    out["provenance"] = [{k: r.get(k) for k in ("stage", "command", "tool_version", "seed", "date", "parameters",
+                                                 "inputs")}
                          for r in model["provenance"]]
     return out
 
@@ -88,8 +115,9 @@ def _summary(path, model):
 @click.command("inspect")
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
+@click.option("--quiet", "-q", is_flag=True, help="Print nothing: only check the file (exit 0 when it is valid, 2 if not).")
 @user_errors
-def inspect_file(path, as_json):
+def inspect_file(path, as_json, quiet):
     """Summarise a skinsynth model file: stage, version, counts, fit errors, provenance.
 
     \b
@@ -100,8 +128,10 @@ def inspect_file(path, as_json):
     from skinsynth.formats.model import read_model
 
     summary = _summary(path, read_model(path))
+    if quiet and not as_json:
+        return
     if as_json:
-        click.echo(json.dumps(summary, sort_keys=True))
+        click.echo(json.dumps(summary, sort_keys=True, default=str))
         return
     for key, value in summary.items():
         if key == "provenance":

@@ -1,13 +1,12 @@
 """``skinsynth play``: drive the trained puppet with control trajectories, many characters at once."""
 
-import json
 import os
 import time
 
 import click
 import numpy as np
 
-from .common import check_output_path, check_side_folder, user_errors
+from .common import report, summary_options, check_output_path, check_side_folder, user_errors
 
 OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
 
@@ -25,6 +24,11 @@ OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
 @click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
               help="USD: UsdSkel with dual-quaternion skinning (editable bones; a puppet's correctives as "
                    "blend shapes), or baked time-sampled meshes.")
+@click.option("--skinning", type=click.Choice(["dual-quaternion", "linear"]), default="dual-quaternion",
+              show_default=True,
+              help="Dual quaternions (Feng §6.3) or linear blend skinning, for every output. UsdSkel's "
+                   "dualQuaternion is ignored by Blender's importer (it skins linearly: 1.7e-2 of the diagonal "
+                   "away on the horse); linear gives a rig every DCC and engine plays as computed.")
 @click.option("--spacing", default=None, type=float,
               help="Grid spacing between characters on the ground plane (default 1.5 × the largest rest bounding-box side).")
 @click.option("--translation-solver/--no-translation-solver", default=True, show_default=True,
@@ -33,9 +37,10 @@ OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
 @click.option("--threads", default=0, type=int, help="CPU threads for the kernels (default: all cores).")
 @click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
               help="Ground plane and USD up axis (default: the input's, as fit-skin recorded it).")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object with the timing instead of text.")
+@summary_options
 @user_errors
-def play(path, control_files, output, instances, kind, spacing, translation_solver, device, threads, up_axis, as_json):
+def play(path, control_files, output, instances, kind, skinning, spacing, translation_solver, device, threads, up_axis,
+         as_json, quiet):
     """Play a puppet: control-point trajectories in, whole-surface animation out (Feng §6).
 
     Per frame and character: kernel vector, d = M ξ for all bones, dual-quaternion
@@ -80,15 +85,31 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
     offsets = grid_offsets(characters, spacing, up_axis) if characters > 1 else np.zeros((1, 3))
 
     flat = controls.reshape(-1, count, 3)
-    device_puppet = DevicePuppet(puppet, device)
-    threads = threads or os.cpu_count() or 1
-    # Warm-up on one frame: warp compiles (or loads) its kernels on first launch, which is not
-    # the compute being timed.
-    run_puppet(device_puppet, *host_inputs(puppet, flat[:1]), translation_solver=translation_solver)
-    started = time.perf_counter()
-    x, placed, world = host_inputs(puppet, flat)
-    vertices = np.empty((characters * frames, skin.rest_vertices.shape[0], 3), dtype=np.float32)
-    run_puppet(device_puppet, x, placed, world, translation_solver=translation_solver, out=vertices, threads=threads)
+    bones = None
+    if skinning == "linear":
+        from skinsynth.gpu import corrective_offsets_reference, lbs
+
+        still = (np.tile(np.eye(3), (1, skin.bones, 1, 1)), np.zeros((1, skin.bones, 3)))
+        lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, *still, device,
+            None if puppet.correctives is None else np.zeros((1,) + skin.rest_vertices.shape))  # warm-up, untimed
+        started = time.perf_counter()
+        bones = world_bones(puppet, flat, translation_solver)
+        rotations, translations, shape_weights = bones
+        shift = None if shape_weights is None else corrective_offsets_reference(shape_weights,
+                                                                               puppet.correctives.offsets)
+        vertices = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations, translations, device,
+                       shift).astype(np.float32)
+    else:
+        device_puppet = DevicePuppet(puppet, device)
+        threads = threads or os.cpu_count() or 1
+        # Warm-up on one frame: warp compiles (or loads) its kernels on first launch, which is not
+        # the compute being timed.
+        run_puppet(device_puppet, *host_inputs(puppet, flat[:1]), translation_solver=translation_solver)
+        started = time.perf_counter()
+        x, placed, world = host_inputs(puppet, flat)
+        vertices = np.empty((characters * frames, skin.rest_vertices.shape[0], 3), dtype=np.float32)
+        run_puppet(device_puppet, x, placed, world, translation_solver=translation_solver, out=vertices,
+                   threads=threads)
     seconds = time.perf_counter() - started
     vertices = vertices.reshape(characters, frames, -1, 3) + offsets[:, None, None, :].astype(np.float32)
 
@@ -98,7 +119,7 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
         if kind == "skel":
             from skinsynth.formats.usd import write_skel_characters
 
-            rotations, translations, shape_weights = world_bones(puppet, flat, translation_solver)
+            rotations, translations, shape_weights = bones or world_bones(puppet, flat, translation_solver)
             rotations = rotations.reshape(characters, frames, *rotations.shape[1:])
             translations = translations.reshape(characters, frames, -1, 3) + offsets[:, None, None, :]
             shapes = None  # the correctives are blend shapes, played before skinning
@@ -106,7 +127,11 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
                 shapes = (puppet.correctives.offsets, shape_weights.reshape(characters, frames, -1))
             write_skel_characters(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
                                   rotations, translations, skin.bone_rest_frames[:, :3, 3], skin.fps, names=names,
-                                  up_axis=up_axis, skinning="dual-quaternion", blend_shapes=shapes, scene=skin.scene)
+                                  up_axis=up_axis, skinning=skinning, blend_shapes=shapes, scene=skin.scene)
+            if skinning == "dual-quaternion":
+                click.echo("warning: Blender's USD importer ignores skinningMethod dualQuaternion and skins this rig "
+                           "linearly, away from what skinsynth computed; --skinning linear gives a rig every DCC "
+                           "plays as computed", err=True)
         else:
             from skinsynth.formats.usd import write_points_characters
 
@@ -130,13 +155,11 @@ def play(path, control_files, output, instances, kind, spacing, translation_solv
 
         write_vertex_animation(output, vertices, skin.faces, skin.fps, names)
         written = [output]
-    report = {"frames": int(frames), "characters": int(characters), "seconds": round(seconds, 4),
+    summary = {"frames": int(frames), "characters": int(characters), "seconds": round(seconds, 4),
               "frames_per_second": round(frames / seconds, 1),
               "character_frames_per_second": round(characters * frames / seconds, 1),
-              "device": device, "translation_solver": bool(translation_solver), "outputs": written}
-    if as_json:
-        click.echo(json.dumps(report))
-    else:
-        click.echo(f"played {characters} character(s) × {frames} frames on {device} in {seconds:.3f} s: "
-                   f"{report['frames_per_second']:.0f} frames/s, {report['character_frames_per_second']:.0f} "
-                   f"character-frames/s (compute only); wrote {', '.join(written)}")
+              "device": device, "translation_solver": bool(translation_solver), "skinning": skinning,
+              "outputs": written}
+    report(summary, [f"played {characters} character(s) × {frames} frames on {device} in {seconds:.3f} s: "
+                     f"{summary['frames_per_second']:.0f} frames/s, {summary['character_frames_per_second']:.0f} "
+                     f"character-frames/s (compute only); wrote {', '.join(written)}"], as_json, quiet)

@@ -2,7 +2,7 @@
 
 import click
 
-from .common import check_output_path, command_line, tool_version, user_errors
+from .common import report, summary_options, check_output_path, command_line, tool_version, user_errors
 
 
 @click.command("select-controls")
@@ -21,9 +21,9 @@ from .common import check_output_path, command_line, tool_version, user_errors
 @click.option("--rigid-tolerance", default=0.1, show_default=True, type=float,
               help="Two near points whose distance changes less than this (relative) in every example "
                    "move as one piece: the second is skipped. Near points that move apart (lips) are both kept.")
-@click.option("--quiet", "-q", is_flag=True, help="No control list or summary (warnings still show).")
+@summary_options
 @user_errors
-def select_controls(input_path, output, count, vertex_list, components, min_spacing, rigid_tolerance, quiet):
+def select_controls(input_path, output, count, vertex_list, components, min_spacing, rigid_tolerance, quiet, as_json):
     """Choose control points from a skin file's examples (Feng et al. 2008 §3).
 
     PCA of the example vertex positions (each frame first brought in place by a rigid fit onto
@@ -74,11 +74,14 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
                 tool_version())
     for warning in selection.warnings:
         click.echo(f"warning: {warning}", err=True)
-    if not quiet:
-        for number, (vertex, basis, reason) in enumerate(zip(selection.indices, selection.control_basis,
-                                                             selection.reasons)):
-            share = 100.0 * selection.basis_variance[basis]
-            click.echo(f"control {number}: vertex {vertex}, basis {basis} ({share:.1f}% of variance): {reason}")
-        click.echo(f"wrote {output}: {len(selection.indices)} control points ({selection.method}) from "
-                   f"{len(set(selection.candidates.tolist()))} candidates of {selection.components} rotated PCA "
-                   f"bases explaining {100.0 * selection.explained:.1f}% of the in-place variance")
+    lines = [f"control {number}: vertex {vertex}, basis {basis} ({100.0 * selection.basis_variance[basis]:.1f}% of "
+             f"variance): {reason}"
+             for number, (vertex, basis, reason) in enumerate(zip(selection.indices, selection.control_basis,
+                                                                  selection.reasons))]
+    lines.append(f"wrote {output}: {len(selection.indices)} control points ({selection.method}) from "
+                 f"{len(set(selection.candidates.tolist()))} candidates of {selection.components} rotated PCA "
+                 f"bases explaining {100.0 * selection.explained:.1f}% of the in-place variance")
+    summary = {"output": output, "vertex_indices": selection.indices, "reasons": list(selection.reasons),
+               "bases": selection.control_basis, "method": selection.method, "components": int(selection.components),
+               "explained": float(selection.explained), "warnings": list(selection.warnings)}
+    report(summary, lines, as_json, quiet)

@@ -1,13 +1,12 @@
 """``skinsynth synthesize``: one clip in, many different animations out (Zheng 2013)."""
 
-import json
 import os
 import time
 
 import click
 import numpy as np
 
-from .common import Progress, check_output_path, check_side_folder, command_line, tool_version, user_errors
+from .common import report, summary_options, Progress, check_output_path, check_side_folder, command_line, tool_version, user_errors
 
 
 def _target(text):
@@ -111,8 +110,7 @@ class _LazyCrowd:
 @click.option("--jobs", "-j", default=None, type=int,
               help="Worker processes for the bone motions, and threads skinning the caches on the CPU (the "
                    "result does not depend on it).  [default: all cores]")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@summary_options
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
                min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, up_axis,
@@ -207,7 +205,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     if plot_dir is not None:
         written += _write_plots(plot_dir, skin, result, min(plot_count, count), device)
     stats = result.statistics
-    report = {"animations": int(result.F.shape[0]), "frames": int(frames), "seconds": round(seconds, 3),
+    summary = {"animations": int(result.F.shape[0]), "frames": int(frames), "seconds": round(seconds, 3),
               "distinct": result.distinct, "transitions_used": int(np.sum(result.seams_used)),
               "components": len(components), "min_segment": int(min_segment), "jobs": int(jobs),
               "graph_transitions": [int(len(c.transitions.pairs)) for c in components],
@@ -216,17 +214,15 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
               "shortest_segment": stats["shortest_segment"],
               "coverage": [round(c, 4) for c in stats["coverage"]],
               "rejected": result.rejected, "outputs": written}
-    if as_json:
-        click.echo(json.dumps(report))
-    else:
-        click.echo(f"wrote {output}: {report['animations']} animations × {frames} frames from {len(components)} "
-                   f"component(s), {result.distinct} distinct, {report['transitions_used']} transitions used; "
-                   f"{seconds:.1f} s" + (f"; replaced {result.rejected}" if any(result.rejected.values()) else ""))
-        click.echo(f"segments: mean {', '.join(f'{m:.1f}' for m in stats['mean_segment_frames'])} frames, shortest "
-                   f"{', '.join(map(str, stats['shortest_segment']))} (≥ {min_segment} asked); input frames played: "
-                   f"{', '.join(f'{c:.0%}' for c in stats['coverage'])} (per component)")
-        if len(written) > 1:
-            click.echo(f"also wrote: {', '.join(written[1:]) if len(written) < 6 else written[1] + ' …'}")
+    lines = [f"wrote {output}: {summary['animations']} animations × {frames} frames from {len(components)} "
+             f"component(s), {result.distinct} distinct, {summary['transitions_used']} transitions used; "
+             f"{seconds:.1f} s" + (f"; replaced {result.rejected}" if any(result.rejected.values()) else ""),
+             f"segments: mean {', '.join(f'{m:.1f}' for m in stats['mean_segment_frames'])} frames, shortest "
+             f"{', '.join(map(str, stats['shortest_segment']))} (≥ {min_segment} asked); input frames played: "
+             f"{', '.join(f'{c:.0%}' for c in stats['coverage'])} (per component)"]
+    if len(written) > 1:
+        lines.append(f"also wrote: {', '.join(written[1:]) if len(written) < 6 else written[1] + ' …'}")
+    report(summary, lines, as_json, quiet)
 
 
 def _graph_options(graph):

@@ -5,7 +5,7 @@ import time
 import click
 import numpy as np
 
-from .common import check_output_path, command_line, tool_version, user_errors
+from .common import report, summary_options, check_output_path, command_line, tool_version, user_errors
 
 
 @click.command("train-kcca")
@@ -36,10 +36,10 @@ from .common import check_output_path, command_line, tool_version, user_errors
               help="Pose-space correctives: what skinning misses at each example, kept in the rest pose and "
                    "interpolated over the controls (n_p blend shapes). A ridge relative to the kernel's mean "
                    "diagonal, 'off', or 'auto' (1e-6…1 or off, by cross-validation on the training frames; printed).")
-@click.option("--quiet", "-q", is_flag=True, help="No summary.")
+@summary_options
 @user_errors
 def train_kcca(path, output, kernel, kernel_width, bases, regularization, translation_solver, beta, translation_prior, train_frames,
-               global_motion, correctives, quiet):
+               global_motion, correctives, quiet, as_json):
     """Train the puppet: per-bone kernel CCA from control points to bone dual quaternions.
 
     PATH is a controls file from select-controls. The examples are brought in place by a rigid
@@ -92,18 +92,27 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     record = provenance_record("puppet", command_line(), parameters, [path], tool_version())
     write_model(output, "puppet", puppet_groups(model, puppet, test, "auto" if regularization == "auto" else "fixed"),
                 model["provenance"] + [record], tool_version())
-    if not quiet:
-        corr = puppet.regression.correlations
-        click.echo(f"wrote {output}: {skin.bones} bones, {len(controls.vertex_indices)} controls, "
-                   f"{len(train)} training / {len(test)} held-out frames, {kernel} kernel, "
-                   f"{corr.shape[1]} bases (mean first correlation {corr[:, 0].mean():.3f}), "
-                   f"translation solver {'on' if translation_solver else 'off'}; {seconds:.1f} s")
-        click.echo(f"global motion: {puppet.global_motion} ({puppet.global_motion_reason})")
-        if puppet.kernel_width_reason:
-            click.echo(f"kernel width: {puppet.kernel_width_reason}")
-        if translation_solver:
-            click.echo(f"translation prior: {puppet.translation_prior:g} ({puppet.translation_prior_reason})")
-        click.echo(f"correctives: {puppet.correctives_reason}")
+    corr = puppet.regression.correlations
+    lines = [f"wrote {output}: {skin.bones} bones, {len(controls.vertex_indices)} controls, "
+             f"{len(train)} training / {len(test)} held-out frames, {kernel} kernel, "
+             f"{corr.shape[1]} bases (mean first correlation {corr[:, 0].mean():.3f}), "
+             f"translation solver {'on' if translation_solver else 'off'}; {seconds:.1f} s",
+             f"global motion: {puppet.global_motion} ({puppet.global_motion_reason})"]
+    if puppet.kernel_width_reason:
+        lines.append(f"kernel width: {puppet.kernel_width_reason}")
+    if translation_solver:
+        lines.append(f"translation prior: {puppet.translation_prior:g} ({puppet.translation_prior_reason})")
+    lines.append(f"correctives: {puppet.correctives_reason}")
+    summary = {"output": output, "bones": skin.bones, "controls": len(controls.vertex_indices),
+               "train_frames": len(train), "test_frames": len(test), "kernel": kernel, "bases": int(corr.shape[1]),
+               "kernel_scale": float(puppet.kernel.scale), "kernel_width_reason": puppet.kernel_width_reason,
+               "regularization": puppet.regression.regularization, "global_motion": puppet.global_motion,
+               "global_motion_reason": puppet.global_motion_reason, "translation_solver": bool(translation_solver),
+               "translation_prior": puppet.translation_prior if translation_solver else None,
+               "translation_prior_reason": puppet.translation_prior_reason,
+               "correctives": puppet.correctives is not None, "correctives_reason": puppet.correctives_reason,
+               "seconds": round(seconds, 3)}
+    report(summary, lines, as_json, quiet)
 
 
 def _number_or_auto(option, value, what, low_open=False):

@@ -70,7 +70,8 @@ def lbs_reference(rest_vertices, bone_indices, bone_weights, rotations, translat
         posed = rest if offsets is None else rest + offsets[f0 : f0 + step]
         for k in range(idx.shape[1]):
             b = idx[:, k]
-            moved = np.einsum("fvij,...vj->fvi", rot[f0 : f0 + step, b], posed) + trans[f0 : f0 + step, b]
+            spec = "fvij,vj->fvi" if offsets is None else "fvij,fvj->fvi"
+            moved = np.einsum(spec, rot[f0 : f0 + step, b], posed) + trans[f0 : f0 + step, b]
             block += w[:, k, None] * moved
     return out
 
@@ -125,7 +126,7 @@ def dqs_reference(rest_vertices, bone_indices, bone_weights, dual_quaternions, r
 
 
 @functools.cache
-def _kernel(influences: int):
+def _kernel(influences: int, corrected: bool = False):
     # Built on first use so that importing this module does not import warp. K is a compile-time
     # constant (one small module per K) so the slot loop unrolls: 1.4x faster on the CPU than a
     # loop bounded by the array shape. No zero-weight branch either (it costs as much again):
@@ -139,10 +140,13 @@ def _kernel(influences: int):
         bone_weights: wp.array2d(dtype=wp.float32),
         rotations: wp.array2d(dtype=wp.mat33),
         translations: wp.array2d(dtype=wp.vec3),
+        offsets: wp.array2d(dtype=wp.vec3),  # (F, V) rest offsets, read only when corrected
         out: wp.array2d(dtype=wp.vec3),
     ):
         f, i = wp.tid()
         p = rest[i]
+        if wp.static(corrected):
+            p = p + offsets[f, i]
         acc = wp.vec3(0.0)
         for k in range(influences):
             b = bone_indices[i, k]
@@ -152,20 +156,23 @@ def _kernel(influences: int):
     return lbs_kernel
 
 
-def lbs(rest_vertices, bone_indices, bone_weights, rotations, translations, device="cpu") -> np.ndarray:
+def lbs(rest_vertices, bone_indices, bone_weights, rotations, translations, device="cpu",
+        rest_offsets=None) -> np.ndarray:
     """Skinned vertices (F, V, 3) float64 from one warp launch over (frames, vertices) per chunk.
 
     Computes in float32 on `device` (any `resolve_device` spelling, e.g. "cpu", "cuda:0", "auto").
     Frames go in chunks of at most 2**24 vertex-frames so device memory stays bounded.
+    rest_offsets (F, V, 3), optional: added to the rest pose of each frame first.
     """
     rest, idx, w, rot, trans = _checked(rest_vertices, bone_indices, bone_weights, rotations, translations)
     frames, verts = rot.shape[0], rest.shape[0]
+    offsets = _offsets(rest_offsets, frames, verts)
     device = runtime.resolve_device(device)
     out = np.empty((frames, verts, 3))
     if out.size == 0:
         return out
     wp = runtime.warp()
-    kernel = _kernel(idx.shape[1])
+    kernel = _kernel(idx.shape[1], offsets is not None)
     f32 = np.float32
     rest_d = wp.array(rest.astype(f32), dtype=wp.vec3, device=device)
     idx_d = wp.array(idx.astype(np.int32), dtype=wp.int32, device=device)
@@ -174,12 +181,14 @@ def lbs(rest_vertices, bone_indices, bone_weights, rotations, translations, devi
     trans_d = wp.array(trans.astype(f32), dtype=wp.vec3, device=device)
     step = max(1, _DEVICE_CHUNK // verts)
     buf = wp.empty((min(step, frames), verts), dtype=wp.vec3, device=device)
+    none = wp.empty((1, 1), dtype=wp.vec3, device=device)
     for f0 in range(0, frames, step):
         n = min(step, frames - f0)
+        shift = none if offsets is None else wp.array(offsets[f0 : f0 + n].astype(f32), dtype=wp.vec3, device=device)
         wp.launch(
             kernel,
             dim=(n, verts),
-            inputs=[rest_d, idx_d, w_d, rot_d[f0 : f0 + n], trans_d[f0 : f0 + n]],
+            inputs=[rest_d, idx_d, w_d, rot_d[f0 : f0 + n], trans_d[f0 : f0 + n], shift],
             outputs=[buf],
             device=device,
         )

@@ -138,3 +138,71 @@ def test_operating_system_errors_are_one_line_without_traceback(chain, tmp_path)
     assert done.returncode == 2 and len(done.stderr.splitlines()) == 1 and "pipe closed" in done.stderr
     (tmp_path / "out.usda").mkdir()
     assert_user_error(cli("export", chain / "skin.h5", "-o", tmp_path / "out.usda"), "out.usda")
+
+
+def test_every_command_prints_one_json_object_or_nothing_when_quiet(chain, tmp_path):
+    import json
+
+    commands = {
+        "example": ["example", "bending-bar", "-o", tmp_path / "bar.npz", "--frames", 12],
+        "fit-skin": ["fit-skin", tmp_path / "bar.npz", "-o", tmp_path / "s.h5", "--bones", 2, "--iterations", 2],
+        "select-controls": ["select-controls", chain / "skin.h5", "-o", tmp_path / "c.h5", "--count", 4],
+        "train-kcca": ["train-kcca", chain / "controls.h5", "-o", tmp_path / "p.h5", "--correctives", "off"],
+        "build-graph": ["build-graph", chain / "skin.h5", "-o", tmp_path / "g.h5", "--min-segment", 4],
+        "export": ["export", chain / "skin.h5", "-o", tmp_path / "e.usda"],
+        "play": ["play", chain / "puppet.h5", "-c", chain / "capture.usda", "-o", tmp_path / "o.h5"],
+        "synthesize": ["synthesize", chain / "graph.h5", "-o", tmp_path / "y.h5", "-n", 2, "-m", 20],
+        "evaluate": ["evaluate", chain / "puppet.h5"],
+        "inspect": ["inspect", chain / "puppet.h5"],
+    }
+    keys = {"fit-skin": "rmse_over_diagonal", "select-controls": "vertex_indices", "train-kcca": "correctives_reason",
+            "build-graph": "components", "export": "kind", "play": "frames_per_second", "synthesize": "animations",
+            "evaluate": "kcca", "inspect": "stage", "example": "vertices"}
+    for name, args in commands.items():
+        quiet = assert_ok(cli(*args, "--quiet"))
+        assert quiet.stdout == "", (name, quiet.stdout)
+        printed = assert_ok(cli(*args, "--json")).stdout
+        assert printed.count("\n") == 1, (name, printed)
+        assert keys[name] in json.loads(printed), name
+
+
+def test_inspect_json_has_stage_keys_provenance_parameters_and_input_hashes(chain):
+    import json
+
+    controls = json.loads(assert_ok(cli("inspect", chain / "controls.h5", "--json")).stdout)
+    assert len(controls["control_vertex_indices"]) == 6 == len(controls["control_reasons"])
+    assert controls["prim_path"] == "/World/body" and controls["meters_per_unit"] == 0.01
+    puppet = json.loads(assert_ok(cli("inspect", chain / "puppet.h5", "--json")).stdout)
+    for key in ("kernel", "kernel_scale", "global_motion", "translation_prior", "correctives_reason",
+                "regularization_per_bone", "bases"):
+        assert key in puppet, key
+    fit = puppet["provenance"][0]
+    assert fit["stage"] == "skin" and fit["parameters"]["bones"] == 4 and fit["parameters"]["up_axis"] == "Z"
+    assert fit["inputs"][0]["path"].endswith("capture.usda") and len(fit["inputs"][0]["sha256"]) == 64
+
+
+def test_play_linear_skinning_is_what_usdskel_plays_and_the_reference_computes(chain, tmp_path):
+    import h5py
+
+    from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.formats.usd import read_skel_points
+    from skinsynth.pipeline.puppet import predict_vertices
+
+    puppet_path = tmp_path / "corrected.h5"
+    assert_ok(cli("train-kcca", chain / "controls.h5", "-o", puppet_path, "-q", "--correctives", "1e-4"))
+    args = ["play", puppet_path, "-c", chain / "capture.usda", "--skinning", "linear", "--device", "cpu"]
+    assert_ok(cli(*args, "-o", tmp_path / "linear.h5"))
+    skel = assert_ok(cli(*args, "-o", tmp_path / "linear.usda"))
+    assert "warning" not in skel.stderr
+    stage = Usd.Stage.Open(str(tmp_path / "linear.usda"))
+    mesh = stage.GetPrimAtPath("/characters/character_000/Mesh")
+    assert UsdSkel.BindingAPI(mesh).GetSkinningMethodAttr().Get() == "classicLinear"
+    puppet, _, skin = read_puppet(str(puppet_path))
+    reference = predict_vertices(puppet, skin.examples[:, puppet.control_indices], skinning="linear")
+    with h5py.File(tmp_path / "linear.h5") as f:
+        baked = f["vertices"][()].reshape(reference.shape)  # one character
+    scale = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
+    assert np.abs(baked - reference).max() < 1e-5 * scale
+    assert np.abs(read_skel_points(tmp_path / "linear.usda") - reference).max() < 1e-5 * scale
+    dual = assert_ok(cli("play", puppet_path, "-c", chain / "capture.usda", "-o", tmp_path / "dq.usda"))
+    assert "Blender" in dual.stderr and "--skinning linear" in dual.stderr
