@@ -56,7 +56,8 @@ def os_error_message(error):
 
     if isinstance(error, BrokenPipeError) or error.errno == errno.EPIPE:
         return "stdout: the reading end of the pipe closed before the output was written"
-    where = error.filename if error.filename is not None else "stdout"
+    # a rename names the destination (the user's path) second, the temporary first
+    where = next((name for name in (error.filename2, error.filename) if name is not None), "stdout")
     return f"{where}: {error.strerror or error}"
 
 

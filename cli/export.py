@@ -1,20 +1,23 @@
 """``skinsynth export``: the animation a model file holds, as USD or an OpenEXR vertex-animation texture."""
 
+import os
+
 import click
 
-from .common import report, summary_options, check_output_path, fail, user_errors
+from .common import check_side_folder, report, summary_options, check_output_path, fail, user_errors
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
 
 
 @click.command("export")
 @click.argument("path", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="Output: .usd/.usda/.usdc, or .exr for a vertex-animation texture.")
+@click.option("-o", "--output", required=True, type=click.Path(),
+              help="Output: .usd/.usda/.usdc, .exr for a vertex-animation texture, or a folder (ending in /) for "
+                   "an engine-ready one: textures, normals, the rest mesh with texel UVs (.obj/.glb), vat.json.")
 @click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
               help="USD only: UsdSkel skeleton with joint weights (editable), or a baked time-sampled mesh.")
 @click.option("--device", default="auto", show_default=True, help="Where the skinning kernel runs: auto, cpu, cuda or cuda:N.")
-@click.option("--half", is_flag=True, help="EXR only: store 16-bit half floats instead of 32-bit.")
+@click.option("--half", is_flag=True, help="Textures only: store 16-bit half floats instead of 32-bit.")
 @click.option("--max-width", default=8192, show_default=True, type=int, help="EXR only: texture width limit; vertices wrap to more rows.")
 @click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
               help="USD stage up axis (default: the input's, as fit-skin recorded it).")
@@ -38,12 +41,20 @@ def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json)
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs, resolve_device
 
-    check_output_path(output, USD_SUFFIXES + (".exr",), inputs=[path])
+    to_folder = output.endswith(("/", os.sep))
+    if to_folder:
+        check_side_folder(output)
+    else:
+        check_output_path(output, USD_SUFFIXES + (".exr",), inputs=[path])
     if max_width < 1:
         fail(f"--max-width must be at least 1 (got {max_width})")
     device = resolve_device(device)
     skin = read_skin(path)
-    to_exr = output.lower().endswith(".exr")
+    to_exr = output.lower().endswith(".exr") or to_folder
+    if to_exr:
+        from skinsynth.formats.vat_bundle import check_texture_size
+
+        check_texture_size(output, skin.rest_vertices.shape[0], skin.rotations.shape[0], max_width)
     if kind == "skel" and not to_exr:
         from skinsynth.formats.usd import write_skel_cache
 
@@ -59,7 +70,13 @@ def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json)
             if half and abs(frames - skin.rest_vertices).max() > HALF_MAX:
                 fail(f"{output}: offsets from the rest pose exceed the half-float range ({HALF_MAX:g}); drop --half")
 
-            write_vat(output, skin.rest_vertices, frames, skin.fps, max_width=max_width, half=half)
+            if to_folder:
+                from skinsynth.formats.vat_bundle import write_vat_folder
+
+                write_vat_folder(output, skin.rest_vertices, skin.faces, [("animation", frames)], skin.fps,
+                                 skin.scene, max_width=max_width, half=half)
+            else:
+                write_vat(output, skin.rest_vertices, frames, skin.fps, max_width=max_width, half=half)
         else:
             from skinsynth.formats.usd import write_points_cache
 

@@ -18,7 +18,8 @@ OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
                    "control vertices are used. Repeat for several characters.")
 @click.option("-o", "--output", required=True, type=click.Path(),
               help="USD (.usd/.usda/.usdc), an OpenEXR vertex-animation texture (.exr, one character), a folder "
-                   "(ending in /: one texture per character, DIR/character_000.exr …), or .h5 vertices.")
+                   "(ending in /: engine-ready textures per character, normals, the rest mesh with texel UVs "
+                   "as .obj/.glb and vat.json), or .h5 vertices.")
 @click.option("--instances", default=1, show_default=True, type=int,
               help="Characters from one --controls file, each starting a fraction of the clip later.")
 @click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
@@ -29,6 +30,9 @@ OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
               help="Dual quaternions (Feng §6.3) or linear blend skinning, for every output. UsdSkel's "
                    "dualQuaternion is ignored by Blender's importer (it skins linearly: 1.7e-2 of the diagonal "
                    "away on the horse); linear gives a rig every DCC and engine plays as computed.")
+@click.option("--half", is_flag=True, help="Textures (-o DIR/ or .exr): 16-bit half floats instead of 32-bit.")
+@click.option("--max-width", default=8192, show_default=True, type=int,
+              help="Textures: width limit; vertices wrap to more rows.")
 @click.option("--spacing", default=None, type=float,
               help="Grid spacing between characters on the ground plane (default 1.5 × the largest rest bounding-box side).")
 @click.option("--translation-solver/--no-translation-solver", default=True, show_default=True,
@@ -39,8 +43,8 @@ OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
               help="Ground plane and USD up axis (default: the input's, as fit-skin recorded it).")
 @summary_options
 @user_errors
-def play(path, control_files, output, instances, kind, skinning, spacing, translation_solver, device, threads, up_axis,
-         as_json, quiet):
+def play(path, control_files, output, instances, kind, skinning, half, max_width, spacing, translation_solver, device,
+         threads, up_axis, as_json, quiet):
     """Play a puppet: control-point trajectories in, whole-surface animation out (Feng §6).
 
     Per frame and character: kernel vector, d = M ξ for all bones, dual-quaternion
@@ -75,6 +79,12 @@ def play(path, control_files, output, instances, kind, skinning, spacing, transl
                     for f in control_files]
     controls = instance_trajectories(trajectories, instances)  # (C, F, n_c, 3)
     characters, frames = controls.shape[:2]
+    if max_width < 1:
+        raise OptionError(f"--max-width must be at least 1 (got {max_width})")
+    if output.lower().endswith(".exr") or to_folder:
+        from skinsynth.formats.vat_bundle import check_texture_size
+
+        check_texture_size(output, skin.rest_vertices.shape[0], frames, max_width)
     if output.lower().endswith(".exr") and characters > 1:
         raise OptionError(f"{output}: {characters} characters make {characters} textures; give a folder "
                           f"(-o {output[:-4]}/) for one texture each")
@@ -139,16 +149,18 @@ def play(path, control_files, output, instances, kind, skinning, spacing, transl
                                     scene=skin.scene)
         written = [output]
     elif lower.endswith(".exr") or to_folder:
-        from skinsynth.formats.atomic import atomic_folder
-        from skinsynth.formats.exr import write_vat
+        from skinsynth.formats.exr import HALF_MAX, write_vat
+        from skinsynth.formats.vat_bundle import write_vat_folder
 
-        if to_folder:
-            with atomic_folder(output) as folder:
-                for c, name in enumerate(names):
-                    write_vat(os.path.join(folder, f"{name}.exr"), skin.rest_vertices + offsets[c], vertices[c],
-                              skin.fps)
+        if to_folder:  # engine-ready: textures, normals, the rest mesh with texel UVs, vat.json
+            # each character's offsets from its own grid cell, so one rest mesh serves them all
+            write_vat_folder(output, skin.rest_vertices, skin.faces,
+                             [(name, vertices[c] - offsets[c].astype(np.float32)) for c, name in enumerate(names)],
+                             skin.fps, skin.scene, max_width=max_width, half=half)
         else:
-            write_vat(output, skin.rest_vertices, vertices[0], skin.fps)
+            if half and np.abs(vertices[0] - skin.rest_vertices).max() > HALF_MAX:
+                raise OptionError(f"{output}: offsets exceed the half-float range ({HALF_MAX:g}); drop --half")
+            write_vat(output, skin.rest_vertices, vertices[0], skin.fps, max_width=max_width, half=half)
         written = [output]
     else:
         from skinsynth.formats.meshseq import write_vertex_animation

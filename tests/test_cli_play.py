@@ -64,11 +64,13 @@ def test_instances_points_cache_and_exr(files, tmp_path):
     assert_user_error(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", tmp_path / "t.exr",
                           "--instances", 2), "give a folder", f"-o {tmp_path / 't'}/")
     assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", f"{tmp_path / 'vat'}/", "--instances", 2))
-    assert sorted(os.listdir(tmp_path / "vat")) == ["character_000.exr", "character_001.exr"]
+    assert sorted(os.listdir(tmp_path / "vat")) == ["character_000.exr", "character_000_normals.exr",
+                                                    "character_001.exr", "character_001_normals.exr", "rest.glb",
+                                                    "rest.obj", "vat.json"]
     offsets, meta = read_vat(tmp_path / "vat" / "character_001.exr")
     assert offsets.shape == (24, crowd.shape[2], 3) and meta["vat_frame_count"] == 24
     assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", f"{tmp_path / 'vat'}/"))  # replaced
-    assert sorted(os.listdir(tmp_path / "vat")) == ["character_000.exr"]
+    assert "character_001.exr" not in os.listdir(tmp_path / "vat")
     assert not [n for n in os.listdir(tmp_path) if n.startswith(".")]
 
 

@@ -1,0 +1,128 @@
+"""Engine-ready vertex animation: everything a VAT shader needs, in one folder.
+
+A folder (written whole, :func:`~skinsynth.formats.atomic.atomic_folder`) holding, per animation
+``NAME``:
+
+- ``NAME.exr``: offsets from the rest pose (:func:`~skinsynth.formats.exr.write_vat`'s layout:
+  ``width`` texels a row, ``rows_per_frame`` rows a frame, frames top to bottom);
+- ``NAME_normals.exr``: the deformed mesh's unit vertex normals, same layout (area-weighted);
+
+and once for all animations of the folder:
+
+- ``rest.obj`` and ``rest.glb``: the rest mesh, vertices in skinsynth's order, with one UV per
+  vertex at the centre of its texel in frame 0, bottom-up like OBJ and OpenGL
+  (``u = (i mod width + 0.5) / width``, ``v = 1 − (i div width + 0.5) / height``; glTF stores
+  ``1 − v``, its own convention, and engines flip it back on import);
+- ``vat.json``: what shaders need (frame count, fps, width, height, rows per frame, bounds,
+  encoding, the decode formula, units and up axis).
+
+Decoding frame ``f`` in a vertex shader: ``v_f = v − f · rows_per_frame / height``, sample with
+point filtering (no mips, no compression, linear colour space), ``position = rest + texel``.
+``docs/vat.md`` spells it out for Unity, Unreal and Houdini's Labs VAT conventions.
+"""
+
+import json
+import os
+
+import numpy as np
+import scipy.sparse
+
+from .errors import FormatError
+
+#: Largest texture side the common engines load (Unity, Unreal, most GPUs: 16384).
+MAX_TEXTURE_SIDE = 16384
+
+
+def texture_layout(vertex_count, frame_count, max_width):
+    """(width, rows_per_frame, height) of a VAT."""
+    width = int(min(vertex_count, max_width))
+    rows = -(-vertex_count // width)
+    return width, rows, rows * frame_count
+
+
+def check_texture_size(path, vertex_count, frame_count, max_width, limit=MAX_TEXTURE_SIDE):
+    """FormatError naming ``path`` when the texture would exceed ``limit`` texels on a side."""
+    width, rows, height = texture_layout(vertex_count, frame_count, max_width)
+    if height > limit or width > limit:
+        raise FormatError(path, f"the texture would be {width} × {height} texels ({frame_count} frames × {rows} "
+                                f"rows); engines load at most {limit} on a side: play fewer frames or split the "
+                                f"animation (--max-width {max_width} already)")
+    return width, rows, height
+
+
+def vertex_normals(vertices, faces):
+    """Unit area-weighted vertex normals (F, V, 3) of vertices (F, V, 3) and faces (T, 3)."""
+    frames, count = vertices.shape[:2]
+    corners = vertices[:, faces]  # (F, T, 3, 3)
+    face_normals = np.cross(corners[:, :, 1] - corners[:, :, 0], corners[:, :, 2] - corners[:, :, 0])  # area × 2
+    incidence = scipy.sparse.csr_matrix((np.ones(faces.size), (faces.ravel(), np.repeat(np.arange(len(faces)), 3))),
+                                        shape=(count, len(faces)))
+    summed = (incidence @ face_normals.transpose(1, 0, 2).reshape(len(faces), -1)).reshape(count, frames, 3)
+    summed = summed.transpose(1, 0, 2)
+    length = np.linalg.norm(summed, axis=-1, keepdims=True)
+    return np.where(length > 0.0, summed / np.where(length > 0.0, length, 1.0), 0.0)
+
+
+def vertex_uvs(vertex_count, width, height):
+    """(V, 2) texel-centre UVs of frame 0, bottom-up (OBJ / OpenGL)."""
+    index = np.arange(vertex_count)
+    return np.stack([(index % width + 0.5) / width, 1.0 - (index // width + 0.5) / height], axis=1)
+
+
+def rest_mesh_files(folder, rest_vertices, faces, width, height):
+    """``rest.obj`` and ``rest.glb`` in ``folder``: vertices in order, one UV per vertex."""
+    import trimesh
+
+    uv = vertex_uvs(len(rest_vertices), width, height)
+    # OBJ by hand: trimesh writes UVs only together with a material file, which no VAT shader uses
+    with open(os.path.join(folder, "rest.obj"), "w") as handle:
+        handle.write("# skinsynth rest mesh: one UV per vertex, the centre of its texel in frame 0 (vat.json)\n")
+        np.savetxt(handle, rest_vertices, fmt="v %.9g %.9g %.9g")
+        np.savetxt(handle, uv, fmt="vt %.9g %.9g")
+        np.savetxt(handle, np.repeat(faces + 1, 2, axis=1), fmt="f %d/%d %d/%d %d/%d")
+    mesh = trimesh.Trimesh(rest_vertices, faces, process=False, visual=trimesh.visual.TextureVisuals(uv=uv))
+    mesh.export(os.path.join(folder, "rest.glb"))
+
+
+def sidecar(animations, count, width, rows, height, frames, fps, half, scene, bounds):
+    """The ``vat.json`` dict: animations [name, ...], bounds [(min (3,), max (3,))], and what the
+    shader needs."""
+    return {
+        "format": "skinsynth vertex animation texture 1",
+        "animations": [{"name": n, "offsets": f"{n}.exr", "normals": f"{n}_normals.exr",
+                        "bounds_min": [float(v) for v in b[0]], "bounds_max": [float(v) for v in b[1]]}
+                       for n, b in zip(animations, bounds)],
+        "rest_mesh": {"obj": "rest.obj", "glb": "rest.glb", "uv": "texel centre of frame 0, v bottom-up"},
+        "vertex_count": int(count), "frame_count": int(frames), "fps": float(fps), "width": int(width),
+        "height": int(height), "rows_per_frame": int(rows),
+        "encoding": {"channels": "RGB", "type": "half" if half else "float32", "offsets": "model units, from the "
+                     "rest position", "normals": "unit vectors", "frames": "top to bottom"},
+        "decode": "v_f = v - f * rows_per_frame / height; position = rest + sample_point(offsets, (u, v_f))",
+        "meters_per_unit": float(scene.meters_per_unit), "up_axis": scene.up_axis,
+    }
+
+
+def write_vat_folder(folder, rest_vertices, faces, animations, fps, scene, max_width=8192, half=False):
+    """Write the folder: animations is a list of (name, vertices (F, V, 3)) of one rest mesh.
+    Checks the texture size first (:func:`check_texture_size`). Returns the sidecar dict."""
+    from .atomic import atomic_folder
+    from .exr import HALF_MAX, write_vat
+
+    frames = animations[0][1].shape[0]
+    count = len(rest_vertices)
+    width, rows, height = check_texture_size(folder, count, frames, max_width)
+    bounds = []
+    with atomic_folder(folder) as tmp:
+        for name, vertices in animations:
+            if half and np.abs(vertices - rest_vertices).max() > HALF_MAX:
+                raise FormatError(folder, f"{name}: offsets exceed the half-float range ({HALF_MAX:g}); drop --half")
+            meta = write_vat(os.path.join(tmp, f"{name}.exr"), rest_vertices, vertices, fps, max_width, half)
+            bounds.append((meta["vat_bounds_min"], meta["vat_bounds_max"]))
+            write_vat(os.path.join(tmp, f"{name}_normals.exr"), np.zeros_like(rest_vertices),
+                      vertex_normals(np.asarray(vertices, dtype=np.float64), faces), fps, max_width, half)
+        rest_mesh_files(tmp, rest_vertices, faces, width, height)
+        description = sidecar([n for n, _ in animations], count, width, rows, height, frames, fps, half, scene,
+                              bounds)
+        with open(os.path.join(tmp, "vat.json"), "w") as handle:
+            json.dump(description, handle, indent=2)
+    return description
