@@ -99,7 +99,12 @@ class _LazyCrowd:
                    "guidance, the input's own accelerations).")
 @click.option("--usd", "usd_dir", type=click.Path(file_okay=False), default=None, help="Also write one USD point cache per animation here.")
 @click.option("--crowd", type=click.Path(dir_okay=False), default=None, help="Also write one USD stage with every animation on a grid.")
-@click.option("--exr", "exr_dir", type=click.Path(file_okay=False), default=None, help="Also write one vertex-animation texture per animation here.")
+@click.option("--exr", "exr_dir", type=click.Path(file_okay=False), default=None,
+              help="Also write an engine-ready vertex animation here: per animation offsets and normals textures, "
+                   "the rest mesh with texel UVs (rest.obj, rest.glb), vat.json (docs/vat.md).")
+@click.option("--half", is_flag=True, help="--exr: 16-bit half floats instead of 32-bit.")
+@click.option("--max-width", default=8192, show_default=True, type=int,
+              help="--exr: texture width limit; vertices wrap to more rows.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,
               help="Write PNGs here for the first --plot-count animations: the input frame each component plays "
                    "at each output frame, seams marked, and the largest vertex acceleration against the input's.")
@@ -113,8 +118,8 @@ class _LazyCrowd:
 @summary_options
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
-               min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, up_axis,
-               plot_dir, plot_count, device, jobs, as_json, quiet):
+               min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, half,
+               max_width, up_axis, plot_dir, plot_count, device, jobs, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
     Random walks over the motion graph (or walks through targeted frames), splicing at the
@@ -150,6 +155,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         raise OptionError(f"--jobs must be at least 1 (got {jobs})")
     if plot_count < 1:
         raise OptionError(f"--plot-count must be at least 1 (got {plot_count})")
+    if max_width < 1:
+        raise OptionError(f"--max-width must be at least 1 (got {max_width})")
     device = resolve_device(device) if (usd_dir or crowd or exr_dir or plot_dir) else None
     graph_file = read_graph(path)
     skin = graph_file.skin
@@ -201,7 +208,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                 graph_file.provenance + [record], tool_version())
     written = [output]
     if usd_dir or crowd or exr_dir:
-        written += _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, threads=jobs)
+        written += _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, threads=jobs,
+                                 texture=dict(half=half, max_width=max_width))
     if plot_dir is not None:
         written += _write_plots(plot_dir, skin, result, min(plot_count, count), device)
     stats = result.statistics
@@ -272,7 +280,7 @@ def _write_plots(folder, skin, result, count, device):
     return written
 
 
-def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, threads=1):
+def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, threads=1, texture=None):
     from skinsynth.pipeline.evaluation import largest_side
     from skinsynth.pipeline.playback import grid_offsets
 
@@ -280,25 +288,32 @@ def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, thread
     none = np.zeros((count, 3))
     written = []
     if usd_dir or exr_dir:
+        from skinsynth.formats.vat_bundle import check_texture_size, write_vat_folder
+
+        if exr_dir:
+            check_texture_size(exr_dir, skin.rest_vertices.shape[0], result.F.shape[1], texture["max_width"])
+        if usd_dir:
+            os.makedirs(usd_dir, exist_ok=True)
         frames = _LazyCrowd(skin, result.F, result.t, none, device, threads)
-        for folder in (usd_dir, exr_dir):
-            if folder:
-                os.makedirs(folder, exist_ok=True)
-        try:
+
+        def each():  # every animation skinned once, for both outputs
+            from skinsynth.formats.usd import write_points_cache
+
             for a in range(count):
                 vertices = frames[a]
                 if usd_dir:
-                    from skinsynth.formats.usd import write_points_cache
-
                     target = os.path.join(usd_dir, f"animation_{a:04d}.usdc")
                     write_points_cache(target, vertices, skin.faces, skin.fps, up_axis=up_axis, scene=skin.scene)
                     written.append(target)
-                if exr_dir:
-                    from skinsynth.formats.exr import write_vat
+                yield f"animation_{a:04d}", vertices
 
-                    target = os.path.join(exr_dir, f"animation_{a:04d}.exr")
-                    write_vat(target, skin.rest_vertices, vertices, skin.fps)
-                    written.append(target)
+        try:
+            if exr_dir:
+                write_vat_folder(exr_dir, skin.rest_vertices, skin.faces, each(), skin.fps, skin.scene, **texture)
+                written.append(exr_dir)
+            else:
+                for _ in each():
+                    pass
         finally:
             frames.close()
     if crowd:

@@ -103,26 +103,32 @@ def sidecar(animations, count, width, rows, height, frames, fps, half, scene, bo
 
 
 def write_vat_folder(folder, rest_vertices, faces, animations, fps, scene, max_width=8192, half=False):
-    """Write the folder: animations is a list of (name, vertices (F, V, 3)) of one rest mesh.
-    Checks the texture size first (:func:`check_texture_size`). Returns the sidecar dict."""
+    """Write the folder: ``animations`` yields (name, vertices (F, V, 3)) of one rest mesh, and is
+    consumed once (it may skin each animation only when asked: a crowd never has to fit in
+    memory). The texture size is checked on the first (:func:`check_texture_size`). Returns the
+    sidecar dict."""
     from .atomic import atomic_folder
     from .exr import HALF_MAX, write_vat
 
-    frames = animations[0][1].shape[0]
     count = len(rest_vertices)
-    width, rows, height = check_texture_size(folder, count, frames, max_width)
-    bounds = []
+    names, bounds, layout = [], [], None
     with atomic_folder(folder) as tmp:
         for name, vertices in animations:
+            if layout is None:
+                frames = len(vertices)
+                layout = check_texture_size(folder, count, frames, max_width)
             if half and np.abs(vertices - rest_vertices).max() > HALF_MAX:
                 raise FormatError(folder, f"{name}: offsets exceed the half-float range ({HALF_MAX:g}); drop --half")
             meta = write_vat(os.path.join(tmp, f"{name}.exr"), rest_vertices, vertices, fps, max_width, half)
+            names.append(name)
             bounds.append((meta["vat_bounds_min"], meta["vat_bounds_max"]))
             write_vat(os.path.join(tmp, f"{name}_normals.exr"), np.zeros_like(rest_vertices),
                       vertex_normals(np.asarray(vertices, dtype=np.float64), faces), fps, max_width, half)
+        if layout is None:
+            raise ValueError("no animations to write")
+        width, rows, height = layout
         rest_mesh_files(tmp, rest_vertices, faces, width, height)
-        description = sidecar([n for n, _ in animations], count, width, rows, height, frames, fps, half, scene,
-                              bounds)
+        description = sidecar(names, count, width, rows, height, frames, fps, half, scene, bounds)
         with open(os.path.join(tmp, "vat.json"), "w") as handle:
             json.dump(description, handle, indent=2)
     return description

@@ -8,6 +8,7 @@ import pytest
 import trimesh
 
 from skinsynth.formats.meshseq import write_array_sequence
+from skinsynth.formats.exr import read_vat
 from skinsynth.formats.usd import read_points_cache
 from skinsynth.gpu import lbs_reference
 
@@ -50,7 +51,11 @@ def test_synthesize_json_and_caches(files, tmp_path):
     vertices, _, _ = read_points_cache(tmp_path / "crowd.usda", prim="/characters/animation_0000")
     expected = lbs_reference(rest, idx, w, F[0], t[0])
     assert np.abs(vertices - expected).max() < 1e-3 * np.ptp(rest)
-    assert len(list((tmp_path / "vat").iterdir())) == 4
+    vat = sorted(p.name for p in (tmp_path / "vat").iterdir())  # an engine-ready folder (docs/vat.md)
+    assert vat == sorted([f"animation_{a:04d}{k}.exr" for a in range(4) for k in ("", "_normals")]
+                         + ["rest.glb", "rest.obj", "vat.json"])
+    offsets, _ = read_vat(tmp_path / "vat" / "animation_0002.exr")
+    assert np.abs(rest + offsets - lbs_reference(rest, idx, w, F[2], t[2])).max() < 1e-3 * np.ptp(rest)
     summary = json.loads(assert_ok(cli("inspect", tmp_path / "b.h5", "--json")).stdout)
     assert summary["stage"] == "synthesis"
     # Caches skinned in two threads (--jobs 2) hold the same points, every animation in its place.
