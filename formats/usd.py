@@ -116,7 +116,8 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
     placement is part of the bone transforms. ``scene`` and ``up_axis`` as :func:`write_points_cache`.
     blend_shapes: optional (offsets (S, V, 3), weights (C, F, S)): rest-pose offsets that UsdSkel
     adds, weighted per frame, before skinning (a puppet's pose-space correctives); the shapes are
-    written once, under the first character's mesh, and every character's mesh targets them.
+    written once, under the first character's mesh, and every character's mesh targets them,
+    each as a ± pair with weights in [0, 1] (:func:`_unit_range_shapes`).
     """
     rest = _float_array("rest_vertices", rest_vertices, (None, 3))
     count = len(rest)
@@ -138,7 +139,8 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
         shape_offsets = _float_array("blend shape offsets", blend_shapes[0], (None, count, 3), path)
         shape_weights = _float_array("blend shape weights", blend_shapes[1],
                                      (characters, frames, shape_offsets.shape[0]), path)
-        shape_names = Vt.TokenArray([f"shape_{j:03d}" for j in range(shape_offsets.shape[0])])
+        shape_offsets, shape_weights = _unit_range_shapes(shape_offsets, shape_weights)
+        shape_names = Vt.TokenArray([f"shape_{j:03d}{s}" for j in range(len(shape_offsets) // 2) for s in "pn"])
 
     joints = Vt.TokenArray([f"bone_{b:03d}" for b in range(bones)])
     bind = np.tile(np.eye(4), (bones, 1, 1))
@@ -182,6 +184,18 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
                                   Usd.TimeCode(start + frame))
         stage.GetRootLayer().Save()
         del stage
+
+
+def _unit_range_shapes(offsets, weights):
+    """The same deformation with every weight in [0, 1]: shape j becomes ``+k_j O_j`` and
+    ``−k_j O_j`` (names ``shape_NNNp``, ``shape_NNNn``) weighted ``max(±w_j, 0) / k_j``, with
+    k_j the largest |w_j|. Blender's shape keys clamp to [0, 1], and a puppet's blend weights
+    are signed (measured: −0.13…0.50 put Blender 1e-3 of the diagonal off). offsets (S, V, 3),
+    weights (C, F, S) -> (2S, V, 3), (C, F, 2S)."""
+    scale = np.maximum(np.abs(weights).max(axis=(0, 1)), np.finfo(np.float32).tiny)  # (S,)
+    both = np.stack([offsets * scale[:, None, None], -offsets * scale[:, None, None]], axis=1)
+    split = np.stack([np.maximum(weights, 0.0), np.maximum(-weights, 0.0)], axis=-1) / scale[:, None]
+    return both.reshape(-1, *offsets.shape[1:]), split.reshape(*weights.shape[:2], -1)
 
 
 def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translations, centers, start=0.0):

@@ -158,6 +158,12 @@ def test_usdskel_plays_the_correctives_as_blend_shapes(tmp_path):
                           np.stack([rotations] * 2), np.stack([translations, translations + 5.0]), centres, 24.0,
                           skinning="dual-quaternion", blend_shapes=(puppet.correctives.offsets, np.stack([weights] * 2)))
     expected = predict_vertices(puppet, controls)
+    from pxr import Usd, UsdSkel
+
+    stage = Usd.Stage.Open(path)  # weights as DCCs want them: ± shape pairs, every weight in [0, 1]
+    animation = UsdSkel.Animation(stage.GetPrimAtPath("/characters/character_001/Skeleton/Animation"))
+    written = np.array([animation.GetBlendShapeWeightsAttr().Get(f) for f in range(len(controls))])
+    assert written.shape[1] == 2 * len(puppet.correctives.offsets) and 0.0 <= written.min() and written.max() <= 1.0
     played = read_skel_characters(path)
     assert [name for name, _ in played] == ["/characters/character_000/Mesh", "/characters/character_001/Mesh"]
     scale = np.ptp(data["rest"], axis=0).max()
