@@ -22,6 +22,7 @@ demo: setup
 	$(BIN)/skinsynth export $(DEMO)/skin.h5 -o $(DEMO)/bar_skel.usda --as skel
 	$(BIN)/skinsynth export $(DEMO)/skin.h5 -o $(DEMO)/bar_points.usdc --as points
 	$(BIN)/skinsynth export $(DEMO)/skin.h5 -o $(DEMO)/bar_vat.exr
+	$(BIN)/skinsynth export $(DEMO)/skin.h5 -o $(DEMO)/bar_vat/
 	$(BIN)/skinsynth select-controls $(DEMO)/skin.h5 -o $(DEMO)/controls.h5
 	$(BIN)/skinsynth train-kcca $(DEMO)/controls.h5 -o $(DEMO)/puppet.h5
 	$(BIN)/skinsynth evaluate $(DEMO)/puppet.h5 --plot $(DEMO)/puppet_errors.png
@@ -35,6 +36,7 @@ demo: setup
 	@echo "  bar_skel.usda    UsdSkel rig + animation (open in usdview, Blender, Houdini, Maya)"
 	@echo "  bar_points.usdc  baked point cache of the same animation"
 	@echo "  bar_vat.exr      vertex-animation texture for game engines"
+	@echo "  bar_vat/         engine-ready: offsets and normals textures, rest.obj/.glb with texel UVs, vat.json (docs/vat.md)"
 	@echo "  controls.h5      8 control vertices chosen by PCA + varimax"
 	@echo "  puppet.h5        kernel-CCA puppet driven by those controls"
 	@echo "  puppet_errors.png held-out error of the puppet vs PCA blendshapes and RBF"
