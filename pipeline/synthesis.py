@@ -8,13 +8,12 @@ Animations whose frames collide after splicing, or that repeat an earlier one mo
 
 Animations are made in batches of ``BATCH`` with their own random streams
 ``default_rng([seed, batch])``, so the result depends on the seed alone — not on ``jobs`` or on
-how the work is split — and batches can run in parallel worker processes. Forked workers write
-their bone motions straight into one anonymous shared mapping that becomes the result (pickling
-~600 MB of float32 motions per thousand animations back through pipes cost more than a third of
-the run); where fork does not exist they send them back through the pool.
+how the work is split — and batches can run in parallel worker processes (:mod:`.execution`:
+forked workers write their bone motions straight into one anonymous shared mapping that becomes
+the result; pickling ~600 MB of float32 motions per thousand animations back through pipes cost
+more than a third of the run).
 """
 
-import contextlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,6 +22,7 @@ from .assembly import assemble, cut_bones, merge_order
 from .collisions import colliding, vertex_subset
 from .deformation_gradients import gradient_operator
 from .errors import OptionError
+from .execution import run_batches
 from .graph import ComponentAnalysis
 from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks, walk_statistics
 from .splicing import splice_local
@@ -215,145 +215,15 @@ def motion_graphs(components, forbidden=None):
     return [MotionGraph.from_transitions(c.transitions, forbidden=forbidden) for c in components]
 
 
-_WORKER_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
-
-
-def _worker_setup():
-    """Worker initialiser: signals left to the parent, which ends its workers when it stops (it
-    forks them with these signals blocked, so none arrives before this runs); on Linux, death
-    with the parent even when it is killed outright (no orphan keeps computing); one BLAS thread
-    (each process already has a core; more would oversubscribe)."""
-    import signal
-    import sys
-
-    for name in _WORKER_SIGNALS:
-        if hasattr(signal, name):
-            signal.signal(getattr(signal, name), signal.SIG_DFL if name == "SIGTERM" else signal.SIG_IGN)
-    if hasattr(signal, "pthread_sigmask"):
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {getattr(signal, n) for n in _WORKER_SIGNALS if hasattr(signal, n)})
-    if sys.platform.startswith("linux"):
-        import ctypes
-
-        PR_SET_PDEATHSIG = 1
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-    from threadpoolctl import threadpool_limits
-
-    threadpool_limits(limits=1, user_api="blas")
-
-
-@contextlib.contextmanager
-def _signals_blocked():
-    """Block SIGINT/SIGTERM/SIGHUP in this thread while workers are forked (they inherit the
-    mask and unblock once their own handlers are set); arrivals meanwhile are delivered after."""
-    import signal
-
-    if not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {getattr(signal, n) for n in _WORKER_SIGNALS
-                                                         if hasattr(signal, n)})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
-
-
-def _shared_arrays(buffer, shapes):
-    """float32 arrays of ``shapes`` laid end to end in ``buffer``."""
-    arrays, at = [], 0
-    for shape in shapes:
-        size = int(np.prod(shape))
-        arrays.append(np.ndarray(shape, dtype=np.float32, buffer=buffer, offset=at * 4))
-        at += size
-    return arrays
-
-
-#: Output blocks the workers of a forked pool write into, by token (inherited through fork).
-_SHARED_OUTPUT = {}
-
-
-def _batch_for_parent(token, offset, args, batch, count):
-    """Worker: :func:`make_batch`, with its F and t written into the parent's shared output block
-    ``token`` (the bone motions are most of a batch's bytes; pickling them back costs more than
-    making them) and the rest returned; with ``token`` None, everything is returned."""
-    F, t, *rest = make_batch(*args, batch, count)
-    if token is None:
-        return [F, t, *rest]
-    F_out, t_out = _SHARED_OUTPUT[token]
-    F_out[offset:offset + count], t_out[offset:offset + count] = F, t
-    return [None, None, *rest]
-
-
-def _pool_context():
-    """The fork context on Linux (workers then inherit the shared output block), else None (the
-    platform's default start method, results back through the pool: fork is unsafe on macOS)."""
-    import multiprocessing
-    import sys
-
-    return multiprocessing.get_context("fork") if sys.platform.startswith("linux") else None
-
-
 def _run_batches(args, batches, jobs, progress, done_before):
-    """make_batch over (batch id, count) pairs, in worker processes when jobs > 1.
-    Returns one round: [F, t, sources, choice, rejected] of all batches in order.
-
-    With worker processes, F and t live in one anonymous shared mapping made before the workers
-    are forked: each worker writes its batch in place and the parent's arrays *are* that memory
-    (no copy; it is freed with them)."""
+    """make_batch over (batch id, count) pairs (:func:`.execution.run_batches`: here, or in worker
+    processes when jobs > 1). Returns one round: [F, t, sources, choice, rejected] of all
+    batches in order."""
     total = sum(n for _, n in batches)
     rotations, frames = args[2], args[-1].frames
     shapes = [(total, frames, rotations.shape[1], 3, 3), (total, frames, rotations.shape[1], 3)]
-    offsets = np.cumsum([0] + [n for _, n in batches])
-    parallel = jobs > 1 and len(batches) > 1
-    context = _pool_context() if parallel else None
-    token = None
-    if context is not None:
-        import mmap
-
-        token = f"{id(args)}-{done_before}"
-        block = mmap.mmap(-1, max(1, 4 * sum(int(np.prod(shape)) for shape in shapes)))  # MAP_SHARED
-        F, t = _SHARED_OUTPUT[token] = _shared_arrays(block, shapes)
-    else:
-        F, t = np.empty(shapes[0], np.float32), np.empty(shapes[1], np.float32)
-    rests, done = [], done_before
-
-    def keep(i, n, outcome):
-        """Batch i's outcome in place (its F and t are None when a worker wrote them already)."""
-        nonlocal done
-        F_b, t_b, *rest = outcome
-        if F_b is not None:
-            F[offsets[i]:offsets[i] + n], t[offsets[i]:offsets[i] + n] = F_b, t_b
-        rests.append(rest)
-        done += n
-        if progress is not None:
-            progress(done)
-
-    if parallel:
-        from concurrent.futures import ProcessPoolExecutor
-
-        try:
-            with ProcessPoolExecutor(max_workers=jobs, initializer=_worker_setup, mp_context=context) as pool:
-                try:
-                    with _signals_blocked():  # workers are forked here
-                        futures = [pool.submit(_batch_for_parent, token, int(offsets[i]), args, b, n)
-                                   for i, (b, n) in enumerate(batches)]
-                    for i, (future, (_, n)) in enumerate(zip(futures, batches)):
-                        keep(i, n, future.result())
-                except BaseException:  # stopped (a signal) or failed: end the workers now, not after their batch
-                    for process in list(getattr(pool, "_processes", {}).values()):
-                        process.terminate()
-                    pool.shutdown(wait=False, cancel_futures=True)
-                    raise
-        finally:
-            _SHARED_OUTPUT.pop(token, None)
-    else:
-        from threadpoolctl import threadpool_limits
-
-        # One BLAS thread, as in the workers: a multi-threaded BLAS may split a product's sums
-        # differently (the key-vertex solve's), so only this makes --jobs 1 and N agree bit for bit.
-        with threadpool_limits(limits=1, user_api="blas"):
-            for i, (b, n) in enumerate(batches):
-                keep(i, n, make_batch(*args, b, n))
+    report = None if progress is None else (lambda rows: progress(done_before + rows))
+    (F, t), rests = run_batches(make_batch, args, batches, jobs, shapes, report)
     sources = np.concatenate([r[0] for r in rests], axis=1)
     choice = np.concatenate([r[1] for r in rests])
     rejected = {key: sum(r[2][key] for r in rests) for key in rests[0][2]}
