@@ -127,9 +127,7 @@ def atomic_output(path, expected_bytes=0):
         raise FormatError(path, f"cannot write here: {error.strerror}") from None
     os.close(fd)
     # mkstemp makes the file private (0600); give it the permissions a plain open() would.
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)
+    os.chmod(tmp, 0o666 & ~_umask())
     with held_signals() as pending:
         try:
             yield tmp
@@ -179,6 +177,7 @@ def atomic_folder(path):
 
 
 def _umask():
+    """The process's umask (reading it means setting it, so it is set straight back)."""
     umask = os.umask(0)
     os.umask(umask)
     return umask

@@ -321,7 +321,8 @@ def _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kapp
         model = fit_kcca(kernel_matrix[np.ix_(train, train)], targets[:, train], bases=bases, regularization=kappa)
         rows = predict(model, kernel_matrix[:, train])
         d[test] = rows[test]
-        every_row.append(rows / np.linalg.norm(rows[..., :4], axis=-1, keepdims=True))
+        if correctives:  # the corrective models learn from each fold's own rows too
+            every_row.append(rows / np.linalg.norm(rows[..., :4], axis=-1, keepdims=True))
     d /= np.linalg.norm(d[..., :4], axis=-1, keepdims=True)
     rot, trans = dual_quaternion_to_rigid(d)
     subset = _vertex_subset(rest.shape[0])
