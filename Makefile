@@ -58,6 +58,7 @@ bench: setup
 	$(BIN)/python benchmarks/graph.py
 	$(BIN)/python benchmarks/play.py
 	$(BIN)/python benchmarks/synthesize.py
+	$(BIN)/python benchmarks/cluster.py
 	$(BIN)/python benchmarks/lbs.py
 
 clean:

@@ -1,5 +1,7 @@
 """``skinsynth synthesize``: one clip in, many different animations out (Zheng 2013)."""
 
+import contextlib
+import functools
 import os
 import time
 
@@ -115,11 +117,17 @@ class _LazyCrowd:
 @click.option("--jobs", "-j", default=None, type=int,
               help="Worker processes for the bone motions, and threads skinning the caches on the CPU (the "
                    "result does not depend on it).  [default: all cores]")
+@click.option("--cluster", default=None, metavar="ADDRESS",
+              help="Make the animations on a Dask cluster: a running scheduler (tcp://host:8786) or local:N (N "
+                   "worker processes here, started and closed by the command). Each batch of 250 is written by its "
+                   "worker to OUT's shard folder (<OUT without .h5>.shards/, on a file system every worker sees at "
+                   "the same path), which OUT then maps (HDF5 virtual datasets): keep the two together. A rerun "
+                   "reuses the finished shards. Same datasets as without it (docs/cluster.md).")
 @summary_options
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
                min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, half,
-               max_width, up_axis, plot_dir, plot_count, device, jobs, as_json, quiet):
+               max_width, up_axis, plot_dir, plot_count, device, jobs, cluster, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
     Random walks over the motion graph (or walks through targeted frames), splicing at the
@@ -158,60 +166,79 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     if max_width < 1:
         raise OptionError(f"--max-width must be at least 1 (got {max_width})")
     device = resolve_device(device) if (usd_dir or crowd or exr_dir or plot_dir) else None
-    graph_file = read_graph(path)
-    skin = graph_file.skin
-    if up_axis is None:
-        up_axis = str(graph_file.graph.get("@up_axis", "Y"))
-    if min_segment is None:
-        min_segment = int(graph_file.graph.get("@min_segment", default_min_segment(skin.fps)))
-    request = Request(count=count, frames=frames, seed=seed, targets=list(targets), start=start_frame, end=end_frame,
-                      min_difference=min_difference, window=window, spread_velocity=spread_velocity,
-                      cut_damping=cut_damping, min_segment=min_segment, blend=blend, alignment=alignment,
-                      up_axis=1 if up_axis == "Y" else 2)
-    validate_request(request, skin.rotations.shape[0])
-    up = 1 if up_axis == "Y" else 2
-    if obstacles or ground_plane:
-        meshes = [_read_obstacle(o) for o in obstacles]
-        ground = (up, float(skin.examples[..., up].min())) if ground_plane else None
-        # Splices may dip a hair below the clip's lowest point: allow 0.1% of the rest pose's size.
-        request.obstacles = build_obstacles(meshes, ground=ground, tolerance=1e-3 * float(np.ptp(skin.rest_vertices)))
-        subset = vertex_subset(skin.rest_vertices.shape[0])
-        request.forbidden = colliding(request.obstacles, skin.examples[:, subset])
-    if single_component and len(graph_file.components) > 1:
-        from skinsynth.pipeline.graph import build_graph  # networkx: only imported when needed
+    # a cluster starts (local:N) or is reached in the background while the graph is read
+    with (_cluster_starting(cluster) if cluster else contextlib.nullcontext()) as joined:
+        graph_file = read_graph(path)
+        skin = graph_file.skin
+        if up_axis is None:
+            up_axis = str(graph_file.graph.get("@up_axis", "Y"))
+        if min_segment is None:
+            min_segment = int(graph_file.graph.get("@min_segment", default_min_segment(skin.fps)))
+        request = Request(count=count, frames=frames, seed=seed, targets=list(targets), start=start_frame,
+                          end=end_frame, min_difference=min_difference, window=window, spread_velocity=spread_velocity,
+                          cut_damping=cut_damping, min_segment=min_segment, blend=blend, alignment=alignment,
+                          up_axis=1 if up_axis == "Y" else 2)
+        validate_request(request, skin.rotations.shape[0])
+        up = 1 if up_axis == "Y" else 2
+        if obstacles or ground_plane:
+            meshes = [_read_obstacle(o) for o in obstacles]
+            ground = (up, float(skin.examples[..., up].min())) if ground_plane else None
+            # Splices may dip a hair below the clip's lowest point: allow 0.1% of the rest pose's size.
+            request.obstacles = build_obstacles(meshes, ground=ground,
+                                                tolerance=1e-3 * float(np.ptp(skin.rest_vertices)))
+            subset = vertex_subset(skin.rest_vertices.shape[0])
+            request.forbidden = colliding(request.obstacles, skin.examples[:, subset])
+        if single_component and len(graph_file.components) > 1:
+            from skinsynth.pipeline.graph import build_graph  # networkx: only imported when needed
 
-        analysis = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
-                               skin.translations, single_component=True,
-                               **_graph_options(graph_file.graph))
-        components = analysis.components
-    else:
-        components = [component_from_file(c, skin.rest_vertices) for c in graph_file.components]
+            analysis = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
+                                   skin.rotations, skin.translations, single_component=True,
+                                   **_graph_options(graph_file.graph))
+            components = analysis.components
+        else:
+            components = [component_from_file(c, skin.rest_vertices) for c in graph_file.components]
 
-    started = time.perf_counter()
-    with Progress(count, "synthesize", quiet or as_json) as bar:
-        done = [0]
+        parameters = dict(count=count, frames=frames, seed=seed, start_frame=start_frame, end_frame=end_frame,
+                          targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,
+                          min_difference=min_difference, single_component=single_component, window=window,
+                          spread_velocity=spread_velocity, cut_damping=cut_damping, min_segment=min_segment,
+                          blend=blend, alignment=alignment, up_axis=up_axis)
+        record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(),
+                                   seed)
+        shards = _shards(output, record, frames, skin.rotations.shape[1]) if cluster else None
 
-        def progress(finished):
-            bar.update(finished - done[0], f"{finished}/{count} animations")
-            done[0] = finished
+        started = time.perf_counter()
+        with (_shard_folder(shards["folder"]) if cluster else contextlib.nullcontext()), \
+                Progress(count, "synthesize", quiet or as_json) as bar:
+            done = [0]
 
-        result = make(components, skin.rotations, skin.translations, skin.rest_vertices, skin.bone_indices,
-                      skin.bone_weights, request, jobs=jobs, progress=progress)
-    seconds = time.perf_counter() - started
-    parameters = dict(count=count, frames=frames, seed=seed, start_frame=start_frame, end_frame=end_frame,
-                      targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,
-                      min_difference=min_difference, single_component=single_component, window=window,
-                      spread_velocity=spread_velocity, cut_damping=cut_damping, min_segment=min_segment, blend=blend,
-                      alignment=alignment, up_axis=up_axis)
-    record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(), seed)
-    write_model(output, "synthesis", synthesis_groups(path, result, components, request, skin.fps),
+            def progress(finished):
+                bar.update(finished - done[0], f"{finished}/{count} animations")
+                done[0] = finished
+
+            remote = on_cluster = None
+            if cluster:
+                on_cluster = joined()
+                from skinsynth.pipeline.execution import Remote
+
+                remote = Remote(on_cluster, shards["store"], shards["stored"])
+                if on_cluster.dashboard and not (quiet or as_json):
+                    click.echo(f"Dask dashboard: {on_cluster.dashboard}", err=True)
+            result = make(components, skin.rotations, skin.translations, skin.rest_vertices, skin.bone_indices,
+                          skin.bone_weights, request, jobs=jobs, progress=progress, remote=remote)
+            workers = on_cluster.workers if on_cluster is not None else None
+        seconds = time.perf_counter() - started
+    write_model(output, "synthesis",
+                synthesis_groups(path, result, components, request, skin.fps,
+                                 shards=os.path.basename(shards["folder"]) if shards else None),
                 graph_file.provenance + [record], tool_version())
     written = [output]
-    if usd_dir or crowd or exr_dir:
-        written += _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, threads=jobs,
-                                 texture=dict(half=half, max_width=max_width))
-    if plot_dir is not None:
-        written += _write_plots(plot_dir, skin, result, min(plot_count, count), device)
+    with _motions(output, result, remote) as motions:  # a cluster's motions are read back from the shards
+        if usd_dir or crowd or exr_dir:
+            written += _write_caches(skin, motions, usd_dir, crowd, exr_dir, up_axis, device, threads=jobs,
+                                     texture=dict(half=half, max_width=max_width))
+        if plot_dir is not None:
+            written += _write_plots(plot_dir, skin, motions, min(plot_count, count), device)
     stats = result.statistics
     summary = {"animations": int(result.F.shape[0]), "frames": int(frames), "seconds": round(seconds, 3),
               "distinct": result.distinct, "transitions_used": int(np.sum(result.seams_used)),
@@ -228,9 +255,69 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
              f"segments: mean {', '.join(f'{m:.1f}' for m in stats['mean_segment_frames'])} frames, shortest "
              f"{', '.join(map(str, stats['shortest_segment']))} (≥ {min_segment} asked); input frames played: "
              f"{', '.join(f'{c:.0%}' for c in stats['coverage'])} (per component)"]
+    if remote is not None:
+        from skinsynth.formats.synthesis_shards import remove_unused_shards
+
+        remove_unused_shards(shards["folder"], {handle for handle, _ in result.F.pieces})
+        summary["cluster"] = {"address": cluster, "workers": workers, "tasks": remote.tasks,
+                              "reused_batches": remote.reused, "retries": remote.retries,
+                              "dashboard": on_cluster.dashboard, "shards": shards["folder"]}
+        lines.append(f"cluster {cluster}: {workers} workers, {remote.tasks} tasks, {remote.retries} re-run after a "
+                     f"lost worker, {remote.reused} batches reused; shards in {shards['folder']}")
     if len(written) > 1:
         lines.append(f"also wrote: {', '.join(written[1:]) if len(written) < 6 else written[1] + ' …'}")
     report(summary, lines, as_json, quiet)
+
+
+def _cluster_starting(address):
+    from skinsynth.pipeline.execution import Cluster
+
+    return Cluster.starting(address, preload=("skinsynth.pipeline.synthesis",))
+
+
+def _shards(output, record, frames, bones):
+    """The shard folder of ``output`` (created), the run's shard record, the shards an earlier
+    run finished with the same record, and the store the workers call."""
+    from skinsynth.formats.synthesis_shards import shard_folder, shard_record, stored_shards, write_synthesis_shard
+
+    folder = shard_folder(output)
+    # what a batch's animations depend on: not the total count or the obstacles' paths (their bytes count)
+    parameters = {k: v for k, v in record["parameters"].items() if k not in ("count", "obstacles")}
+    shard = shard_record(record["inputs"], parameters, record["tool_version"])
+    return {"folder": folder, "stored": stored_shards(folder, shard, frames, bones),
+            "store": functools.partial(write_synthesis_shard, folder, shard)}
+
+
+@contextlib.contextmanager
+def _shard_folder(folder):
+    """The shard folder, made for the run and removed again if the run fails before any shard
+    is in it (a failed command leaves nothing new behind; finished shards stay for a rerun)."""
+    from skinsynth.formats.synthesis_shards import check_shard_folder
+
+    existed = os.path.isdir(folder)
+    check_shard_folder(folder)
+    try:
+        yield
+    except BaseException:
+        if not existed:
+            with contextlib.suppress(OSError):
+                os.rmdir(folder)  # only when empty
+        raise
+
+
+@contextlib.contextmanager
+def _motions(output, result, remote):
+    """``result``, with its bone motions readable by animation: as they are, or (a cluster run)
+    the datasets of the written ``output``, read one animation at a time."""
+    if remote is None:
+        yield result
+        return
+    import dataclasses
+
+    from skinsynth.formats.synthesis_file import open_motions
+
+    with open_motions(output) as (F, t):
+        yield dataclasses.replace(result, F=F, t=t)
 
 
 def _graph_options(graph):

@@ -43,6 +43,23 @@ class Uncompressed:
         self.array = np.asarray(array)
 
 
+class VirtualRows:
+    """Marks a dataset written as an HDF5 virtual dataset over other files' rows (the shards of
+    a cluster run): ``shape``, ``dtype``, ``runs`` [(file relative to this file's folder,
+    dataset name, the source's rows, first source row, first row here, length)]. Rows no run
+    covers, or whose file is gone, read as NaN (readers here refuse such a file first)."""
+
+    def __init__(self, shape, dtype, runs):
+        self.shape, self.dtype, self.runs = tuple(shape), np.dtype(dtype), list(runs)
+
+    def layout(self):
+        layout = h5py.VirtualLayout(shape=self.shape, dtype=self.dtype)
+        for file, name, rows, first, at, length in self.runs:
+            source = h5py.VirtualSource(file, name, shape=(rows,) + self.shape[1:], dtype=self.dtype)
+            layout[at:at + length] = source[first:first + length]
+        return layout
+
+
 class CopyFrom:
     """A whole group forwarded from another model file as stored (HDF5 object copy: compressed
     chunks are copied, not decompressed and compressed again)."""
@@ -62,6 +79,9 @@ def _write_group(group, contents):
         if isinstance(value, Uncompressed):
             group.create_dataset(name, data=value.array, track_times=False)
             continue
+        if isinstance(value, VirtualRows):
+            group.create_virtual_dataset(name, value.layout(), fillvalue=np.nan)
+            continue
         array = np.asarray(value)
         if array.ndim == 0:
             group.create_dataset(name, data=array, track_times=False)
@@ -75,8 +95,8 @@ def _write_group(group, contents):
 def _require_finite_groups(path, groups, prefix=""):
     """Refuse to write any float dataset or attribute holding NaN or inf (named in the error)."""
     for name, value in groups.items():
-        if isinstance(value, CopyFrom):
-            continue  # forwarded from a file that was checked when it was written
+        if isinstance(value, (CopyFrom, VirtualRows)):
+            continue  # forwarded from a file, or rows of files, checked when they were written
         if isinstance(value, dict):
             _require_finite_groups(path, value, f"{prefix}/{name}")
             continue
@@ -94,6 +114,8 @@ def _estimated_bytes(groups):
     for value in groups.values():
         if isinstance(value, CopyFrom):
             total += os.path.getsize(value.path)
+        elif isinstance(value, VirtualRows):
+            total += 64 * len(value.runs)
         elif isinstance(value, dict):
             total += _estimated_bytes(value) - (1 << 20)
         else:
@@ -143,13 +165,34 @@ def _read_group(group):
         if isinstance(item, h5py.Dataset):
             # Sizes are checked against what the file holds before anything is allocated: a
             # small file must not make a reader ask for gigabytes (unwritten chunks read as fill).
-            problem = declared_size_problem(item.name, item.size * item.dtype.itemsize, item.id.get_storage_size())
+            held = _virtual_storage(item) if item.is_virtual else item.id.get_storage_size()
+            problem = declared_size_problem(item.name, item.size * item.dtype.itemsize, held)
             if problem:
                 raise DeclaredTooLarge(problem)
             out[name] = item[()]
         elif isinstance(item, h5py.Group):
             out[name] = _read_group(item)
     return out
+
+
+def _virtual_storage(dataset):
+    """Bytes the files a virtual dataset maps hold for it; DeclaredTooLarge naming the first
+    one that is missing or lacks its dataset (HDF5 would read it as fill values, silently)."""
+    folder = os.path.dirname(os.path.abspath(dataset.file.filename))
+    held, seen = 0, set()
+    for mapping in dataset.virtual_sources():
+        key = (mapping.file_name, mapping.dset_name)
+        if key in seen:
+            continue
+        seen.add(key)
+        source = os.path.join(folder, mapping.file_name)
+        try:
+            with h5py.File(source, "r") as f:
+                held += f[mapping.dset_name].id.get_storage_size()
+        except (OSError, KeyError):
+            raise DeclaredTooLarge(f"{dataset.name} maps {mapping.file_name} (a shard of the run), which is missing or "
+                                   f"unreadable: keep the shard folder beside the file") from None
+    return held
 
 
 def read_header(path):

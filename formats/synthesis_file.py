@@ -5,7 +5,9 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` (the weights skin the new 
 
 - ``bone_matrices (N, M, B, 3, 3)`` float32, ``bone_translations (N, M, B, 3)`` float32: every
   animation's bones in the world, v = Σ w (F ū + t) (affine near transitions, Zheng eq. 9–10);
-  written uncompressed (they are most of the file and gzip would dominate the write time);
+  written uncompressed (they are most of the file and gzip would dominate the write time); after
+  ``synthesize --cluster`` they are HDF5 virtual datasets over the run's shards
+  (:mod:`.synthesis_shards`), read as any dataset while the shard folder stays beside the file;
 - ``sources (C, N, M)`` int32: the input frame each component plays at each output frame;
   ``seams (N,)`` int64 the transitions each animation took (all components);
 - ``component_NNN/bones`` the bone ids of each component;
@@ -17,20 +19,32 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` (the weights skin the new 
   ``mean_segment_frames``, ``shortest_segment`` (frames between two seams).
 """
 
+import contextlib
 import json
 
+import h5py
 import numpy as np
 
-from .model import CopyFrom, Uncompressed
+from .model import CopyFrom, Uncompressed, VirtualRows
+from .synthesis_shards import MOTIONS
 
 
-def synthesis_groups(source, result, components, request, fps):
+def _motion(rows, name, shards):
+    """A bone-motion dataset: the array itself, or (rows the cluster's workers stored, which have
+    ``runs()``) a virtual dataset over the shards in the folder ``shards`` beside the file."""
+    if not hasattr(rows, "runs"):
+        return Uncompressed(np.asarray(rows, dtype=np.float32))  # no copy when already float32
+    return VirtualRows(rows.shape, np.float32, [(f"{shards}/{handle}", name, *run) for handle, *run in rows.runs()])
+
+
+def synthesis_groups(source, result, components, request, fps, shards=None):
     """The groups of a synthesis file; ``/mesh``, ``/examples`` and ``/skin`` are copied as
-    stored from the graph file ``source``."""
+    stored from the graph file ``source``; ``shards``: the shard folder's name, when the bone
+    motions are rows the workers of a cluster stored."""
     groups = {name: CopyFrom(source, name) for name in ("mesh", "examples", "skin")}
     synthesis = {
-        "bone_matrices": Uncompressed(np.asarray(result.F, dtype=np.float32)),  # no copy when already float32
-        "bone_translations": Uncompressed(np.asarray(result.t, dtype=np.float32)),
+        MOTIONS[0]: _motion(result.F, MOTIONS[0], shards),
+        MOTIONS[1]: _motion(result.t, MOTIONS[1], shards),
         "sources": result.sources.astype(np.int32),
         "seams": np.asarray(result.seams_used, dtype=np.int64),
         "@count": int(result.F.shape[0]), "@frames": int(result.F.shape[1]), "@seed": int(request.seed),
@@ -50,3 +64,11 @@ def synthesis_groups(source, result, components, request, fps):
     groups["synthesis"] = synthesis
     return groups
 
+
+
+@contextlib.contextmanager
+def open_motions(path):
+    """(bone_matrices, bone_translations) of a synthesis file as h5py datasets, read one
+    animation at a time (``F[a]``): a cluster run's motions need not fit in memory."""
+    with h5py.File(path, "r") as f:
+        yield f["synthesis"][MOTIONS[0]], f["synthesis"][MOTIONS[1]]

@@ -22,7 +22,7 @@ from .assembly import assemble, cut_bones, merge_order
 from .collisions import colliding, vertex_subset
 from .deformation_gradients import gradient_operator
 from .errors import OptionError
-from .execution import run_batches
+from .execution import concatenate_rows, run_batches
 from .graph import ComponentAnalysis
 from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks, walk_statistics
 from .splicing import splice_local
@@ -215,23 +215,28 @@ def motion_graphs(components, forbidden=None):
     return [MotionGraph.from_transitions(c.transitions, forbidden=forbidden) for c in components]
 
 
-def _run_batches(args, batches, jobs, progress, done_before):
-    """make_batch over (batch id, count) pairs (:func:`.execution.run_batches`: here, or in worker
-    processes when jobs > 1). Returns one round: [F, t, sources, choice, rejected] of all
+def _run_batches(args, batches, jobs, progress, done_before, remote):
+    """make_batch over (batch id, count) pairs (:func:`.execution.run_batches`: here, in worker
+    processes when jobs > 1, or on ``remote``'s cluster). Returns one round: [F, t, sources, choice, rejected] of all
     batches in order."""
     total = sum(n for _, n in batches)
     rotations, frames = args[2], args[-1].frames
     shapes = [(total, frames, rotations.shape[1], 3, 3), (total, frames, rotations.shape[1], 3)]
     report = None if progress is None else (lambda rows: progress(done_before + rows))
-    (F, t), rests = run_batches(make_batch, args, batches, jobs, shapes, report)
+    (F, t), rests = run_batches(make_batch, args, batches, jobs, shapes, report, remote)
     sources = np.concatenate([r[0] for r in rests], axis=1)
     choice = np.concatenate([r[1] for r in rests])
     rejected = {key: sum(r[2][key] for r in rests) for key in rests[0][2]}
     return [F, t, sources, choice, rejected]
 
 
-def synthesize(components, rotations, translations, rest, bone_indices, bone_weights, request, jobs=1, progress=None):
+def synthesize(components, rotations, translations, rest, bone_indices, bone_weights, request, jobs=1, progress=None,
+               remote=None):
     """Make ``request.count`` animations. components: list of ComponentAnalysis. Returns Synthesis.
+
+    With ``remote`` (:class:`.execution.Remote`) the batches run on a Dask cluster and the
+    result's F and t are :class:`.execution.StoredRows` (where the workers stored them), not
+    arrays; everything else is the same, bit for bit.
 
     The diversity filter runs within each batch and then once more over all animations kept
     (earlier batches win); animations it drops are replaced by further batches with fresh
@@ -244,7 +249,7 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     for _ in range(MAX_ROUNDS):
         batches = [(next_batch + b, min(BATCH, need - b * BATCH)) for b in range(-(-need // BATCH))]
         next_batch += len(batches)
-        results.append(_run_batches(args, batches, jobs, progress, request.count - need))
+        results.append(_run_batches(args, batches, jobs, progress, request.count - need, remote))
         if request.min_difference <= 0.0:
             break
         joint = np.concatenate([r[2] for r in results], axis=1)
@@ -262,8 +267,8 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     else:
         raise OptionError(f"could not make {request.count} animations that differ by --min-difference "
                           f"{request.min_difference} in {MAX_ROUNDS} rounds; lower it")
-    F = results[0][0] if len(results) == 1 else np.concatenate([r[0] for r in results])
-    t = results[0][1] if len(results) == 1 else np.concatenate([r[1] for r in results])
+    F = results[0][0] if len(results) == 1 else concatenate_rows([r[0] for r in results])
+    t = results[0][1] if len(results) == 1 else concatenate_rows([r[1] for r in results])
     sources = np.concatenate([r[2] for r in results], axis=1)
     choice = np.concatenate([r[3] for r in results])
     rejected = {key: sum(r[4][key] for r in results) for key in results[0][4]}

@@ -1,0 +1,123 @@
+"""Shards of a synthesis run on a cluster (``synthesize --cluster``): one HDF5 file per batch of
+animations, written (atomically) by the worker that made the batch.
+
+They live in ``<OUT stem>.shards/`` beside the output, which maps their bone motions as HDF5
+virtual datasets (:class:`~skinsynth.formats.model.VirtualRows`), so the shards must stay there.
+A shard is ``batch_NNNNNN_<key prefix>.h5``; only its attributes say what it holds:
+
+- ``format = "skinsynth-shard"``, ``shard_version``, ``batch``, ``count``;
+- ``key``: the sha256 of everything the batch's content depends on (the graph file's and
+  obstacles' sha256, the options that change animations, the batch id and size, the tool
+  version), and ``provenance`` the same record as JSON, for people;
+- ``rejected_collisions``, ``rejected_too_similar``, ``rejected_merges``;
+- ``bone_matrices (count, M, B, 3, 3)`` and ``bone_translations (count, M, B, 3)`` float32,
+  uncompressed; ``sources (C, count, M)`` and ``choice (count, C)`` int64.
+
+A rerun reuses a shard whose ``key`` matches (whatever it is called) and computes the rest.
+"""
+
+import hashlib
+import json
+import os
+
+import h5py
+import numpy as np
+
+from .atomic import atomic_output
+from .errors import FormatError
+
+SHARD_FORMAT = "skinsynth-shard"
+SHARD_VERSION = 1
+#: The outcome's large arrays, in order, as the shards and the output's /synthesis name them.
+MOTIONS = ("bone_matrices", "bone_translations")
+_REJECTED = ("collisions", "too_similar", "merges")
+
+
+def shard_folder(output):
+    """Where the shards of ``output`` live: ``<output without suffix>.shards`` beside it."""
+    return os.path.splitext(os.path.abspath(output))[0] + ".shards"
+
+
+def shard_record(inputs, parameters, tool_version):
+    """What every batch of a run depends on (batch id and size are added per shard):
+    ``inputs`` [{path, sha256}], ``parameters`` (the options that change animations)."""
+    return {"inputs": [item["sha256"] for item in inputs], "parameters": parameters, "tool_version": tool_version,
+            "shard_version": SHARD_VERSION}
+
+
+def _key(record, batch, count):
+    text = json.dumps(dict(record, batch=int(batch), count=int(count)), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def write_synthesis_shard(folder, record, batch, count, outcome):
+    """Write one batch (``outcome`` = [F, t, sources, choice, rejected] from
+    ``pipeline.synthesis.make_batch``) to its shard in ``folder``; returns the file's name."""
+    key = _key(record, batch, count)
+    name = f"batch_{int(batch):06d}_{key[:16]}.h5"
+    F, t, sources, choice, rejected = outcome
+    path = os.path.join(folder, name)
+    with atomic_output(path, expected_bytes=F.nbytes + t.nbytes + (1 << 20)) as tmp:
+        with h5py.File(tmp, "w", track_order=True) as f:
+            f.attrs.update(format=SHARD_FORMAT, shard_version=SHARD_VERSION, batch=int(batch), count=int(count),
+                           key=key, provenance=json.dumps(dict(record, batch=int(batch), count=int(count)),
+                                                          sort_keys=True))
+            for reason in _REJECTED:
+                f.attrs[f"rejected_{reason}"] = int(rejected[reason])
+            for dataset, array in zip(MOTIONS, (F, t)):
+                f.create_dataset(dataset, data=np.asarray(array, dtype=np.float32), track_times=False)
+            f.create_dataset("sources", data=np.asarray(sources, dtype=np.int64), track_times=False)
+            f.create_dataset("choice", data=np.asarray(choice, dtype=np.int64), track_times=False)
+    return name
+
+
+def stored_shards(folder, record, frames, bones):
+    """{(batch, count): (name, [sources, choice, rejected])} for every complete shard in
+    ``folder`` whose key matches ``record`` (names are not trusted: a shard is what its
+    attributes and shapes say). Files that are not such shards are left alone."""
+    found = {}
+    if not os.path.isdir(folder):
+        return found
+    for name in sorted(os.listdir(folder)):
+        if not name.endswith(".h5") or name.startswith("."):
+            continue
+        try:
+            with h5py.File(os.path.join(folder, name), "r") as f:
+                if f.attrs.get("format") != SHARD_FORMAT or int(f.attrs.get("shard_version", -1)) != SHARD_VERSION:
+                    continue
+                batch, count = int(f.attrs["batch"]), int(f.attrs["count"])
+                if f.attrs.get("key") != _key(record, batch, count):
+                    continue
+                shapes = {"bone_matrices": (count, frames, bones, 3, 3), "bone_translations": (count, frames, bones, 3)}
+                if any(f[d].shape != shape or f[d].id.get_storage_size() != 4 * int(np.prod(shape))
+                       for d, shape in shapes.items()):
+                    continue
+                rest = [f["sources"][()], f["choice"][()], {r: int(f.attrs[f"rejected_{r}"]) for r in _REJECTED}]
+        except (OSError, KeyError, ValueError, TypeError):
+            continue  # unreadable or not ours: computed again
+        found[(batch, count)] = (name, rest)
+    return found
+
+
+def remove_unused_shards(folder, used):
+    """Remove the shards in ``folder`` that no output maps any more (``used``: file names);
+    other files are left alone."""
+    for name in os.listdir(folder):
+        if name.startswith("batch_") and name.endswith(".h5") and name not in used:
+            try:
+                with h5py.File(os.path.join(folder, name), "r") as f:
+                    ours = f.attrs.get("format") == SHARD_FORMAT
+            except OSError:
+                continue
+            if ours:
+                os.remove(os.path.join(folder, name))
+
+
+def check_shard_folder(folder):
+    """Create the shard folder (or check it) before any work; FormatError when it cannot be."""
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as error:
+        raise FormatError(folder, f"cannot create the shard folder: {error.strerror}") from None
+    if not os.access(folder, os.W_OK):
+        raise FormatError(folder, "the shard folder is not writable")

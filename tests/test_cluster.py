@@ -1,0 +1,193 @@
+"""synthesize --cluster: real Dask clusters (worker processes) give the single-machine datasets,
+survive a worker killed mid-run, resume from finished shards, and refuse what cannot work."""
+
+import json
+import logging
+import os
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+from distributed import WorkerPlugin
+
+from skinsynth.pipeline.execution import StoredRows, concatenate_rows
+
+from cli_helpers import assert_ok, assert_user_error, cli, fitted_bar
+
+COUNT, FRAMES = 600, 60  # three batches: 250, 250, 100
+
+
+@pytest.fixture(scope="module")
+def graph(tmp_path_factory):
+    root = tmp_path_factory.mktemp("cluster")
+    fitted_bar(root, frames=40, bones=4, iterations=10, cycles=2)
+    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4, "-q"))
+    return root / "graph.h5"
+
+
+@pytest.fixture(scope="module")
+def reference(graph, tmp_path_factory):
+    """The single-machine run every cluster run must equal."""
+    out = tmp_path_factory.mktemp("reference") / "one.h5"
+    assert_ok(cli("synthesize", graph, "-o", out, "-n", COUNT, "-m", FRAMES, "--seed", 4, "--jobs", 1, "-q"))
+    return out
+
+
+def contents(path):
+    """{name: bytes} of every dataset and attribute but the provenance's."""
+    out = {}
+    with h5py.File(path) as f:
+        def keep(name, item):
+            if name.startswith("provenance"):
+                return
+            for key, value in item.attrs.items():
+                out[f"{name}@{key}"] = repr(value)
+            if isinstance(item, h5py.Dataset):
+                value = item[()]
+                out[name] = (value.dtype.str, value.shape, repr(value.tolist()) if value.dtype.kind == "O"
+                             else value.tobytes())
+        f.visititems(keep)
+    return out
+
+
+def run_cluster(graph, out, address, *extra):
+    done = assert_ok(cli("synthesize", graph, "-o", out, "-n", COUNT, "-m", FRAMES, "--seed", 4, "--cluster", address,
+                         "--json", *extra))
+    return json.loads(done.stdout)
+
+
+def shards_of(out):
+    return sorted((out.parent / (out.stem + ".shards")).iterdir())
+
+
+def test_a_local_cluster_gives_the_single_machine_datasets(graph, reference, tmp_path):
+    out = tmp_path / "many.h5"
+    summary = run_cluster(graph, out, "local:2")
+    assert summary["cluster"]["workers"] == 2 and summary["cluster"]["tasks"] == 3
+    assert summary["cluster"]["retries"] == 0 and summary["cluster"]["reused_batches"] == 0
+    assert contents(out) == contents(reference)
+    with h5py.File(out) as f:  # the motions are the shards' rows, not copies
+        assert f["synthesis/bone_matrices"].is_virtual and f["synthesis/bone_translations"].is_virtual
+    assert len(shards_of(out)) == 3
+    # every reader works on it as on any synthesis file
+    assert json.loads(assert_ok(cli("inspect", out, "--json")).stdout)["stage"] == "synthesis"
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    """A running local cluster (2 worker processes) addressed as a remote one: tcp://…"""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, silence_logs=logging.ERROR,
+                      dashboard_address=":0") as cluster:
+        yield cluster
+
+
+class KillFirstTask(WorkerPlugin):
+    """A worker plugin: the first worker to start a skinsynth batch dies on the spot (os._exit),
+    once (a marker file says it happened); its nanny starts a fresh worker."""
+
+    def __init__(self, marker):
+        self.marker = marker
+
+    def transition(self, key, start, finish, **kwargs):
+        if finish == "executing" and "skinsynth-batch" in str(key) and not os.path.exists(self.marker):
+            open(self.marker, "w").close()
+            os._exit(1)
+
+
+def test_a_worker_killed_mid_run_loses_nothing(graph, reference, scheduler, tmp_path):
+    from distributed import Client
+
+    marker = tmp_path / "killed"
+    with Client(scheduler) as client:
+        client.register_plugin(KillFirstTask(str(marker)), name="kill-first-task")
+        try:
+            summary = run_cluster(graph, tmp_path / "many.h5", scheduler.scheduler_address)
+        finally:
+            client.unregister_worker_plugin("kill-first-task")
+    assert marker.exists()  # a worker did die mid-batch …
+    assert summary["cluster"]["retries"] >= 1
+    assert contents(tmp_path / "many.h5") == contents(reference)  # … and nothing was lost or duplicated
+    assert len(shards_of(tmp_path / "many.h5")) == 3
+
+
+def test_a_rerun_reuses_finished_shards_by_their_provenance(graph, reference, scheduler, tmp_path):
+    out = tmp_path / "many.h5"
+    run_cluster(graph, out, scheduler.scheduler_address)
+    first, second, third = shards_of(out)
+    # an interruption: the output never written, one batch unfinished; a shard renamed (names are not trusted)
+    os.remove(out)
+    os.remove(second)
+    os.rename(third, third.with_name("renamed.h5"))
+    # a shard of another run (another seed) in the folder is not taken for one of this run
+    other = tmp_path / "other.h5"
+    run_cluster(graph, other, scheduler.scheduler_address, "--seed", 5)
+    alien = shards_of(other)[1]
+    shutil.copy(alien, second.with_name(alien.name))
+    summary = run_cluster(graph, out, scheduler.scheduler_address)
+    assert summary["cluster"]["reused_batches"] == 2 and summary["cluster"]["tasks"] == 1
+    assert contents(out) == contents(reference)
+    names = sorted(p.name for p in shards_of(out))
+    assert "renamed.h5" in names and alien.name not in names  # the other run's shard is cleared away
+    # the same command once more computes nothing
+    again = run_cluster(graph, out, scheduler.scheduler_address)
+    assert again["cluster"]["tasks"] == 0 and again["cluster"]["reused_batches"] == 3
+
+
+def test_min_difference_rounds_on_a_cluster_equal_the_single_machine(graph, tmp_path):
+    args = ("-n", 260, "-m", 60, "--seed", 9, "--min-difference", 0.05)
+    assert_ok(cli("synthesize", graph, "-o", tmp_path / "one.h5", "--jobs", 1, "-q", *args))
+    summary = json.loads(assert_ok(cli("synthesize", graph, "-o", tmp_path / "many.h5", "--cluster", "local:2",
+                                       "--json", *args)).stdout)
+    assert contents(tmp_path / "one.h5") == contents(tmp_path / "many.h5")
+    # the case where rows are dropped across batches and replaced by a second round of batches
+    assert summary["rejected"]["too_similar"] > 0 and summary["cluster"]["tasks"] > 2
+
+
+def test_caches_of_a_cluster_run_are_the_single_machine_caches(graph, tmp_path):
+    from skinsynth.formats.usd import read_points_cache
+
+    for name, where in (("one", ("--jobs", 1)), ("many", ("--cluster", "local:1"))):
+        assert_ok(cli("synthesize", graph, "-o", tmp_path / f"{name}.h5", "-n", 3, "-m", 20, "--seed", 1,
+                      "--crowd", tmp_path / f"{name}.usda", "--device", "cpu", "-q", *where))
+    for a in range(3):
+        one, _, _ = read_points_cache(tmp_path / "one.usda", prim=f"/characters/animation_{a:04d}")
+        many, _, _ = read_points_cache(tmp_path / "many.usda", prim=f"/characters/animation_{a:04d}")
+        assert np.array_equal(one, many)
+
+
+def test_a_missing_shard_is_an_error_not_zeros(graph, tmp_path):
+    out = tmp_path / "many.h5"
+    assert_ok(cli("synthesize", graph, "-o", out, "-n", 3, "-m", 20, "--cluster", "local:1", "-q"))
+    [shard] = shards_of(out)
+    os.remove(shard)
+    assert_user_error(cli("inspect", out), "many.h5", shard.name, "missing")
+
+
+@pytest.mark.parametrize("address, needle", [("local:0", "local:N"), ("local:two", "local:N"),
+                                             ("nonsense:port", "not a scheduler address"),
+                                             ("tcp://127.0.0.1:1", "cannot reach")])
+def test_a_bad_cluster_address_is_one_line_and_leaves_nothing(graph, tmp_path, address, needle):
+    assert_user_error(cli("synthesize", graph, "-o", tmp_path / "o.h5", "-n", 3, "-m", 20, "--cluster", address),
+                      address, needle, folder=tmp_path)
+
+
+def test_stored_rows_select_and_concatenate_as_arrays_do():
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        counts = rng.integers(1, 6, size=rng.integers(1, 5))
+        pieces = [(f"piece{k}", int(n)) for k, n in enumerate(counts)]
+        data = {name: rng.normal(size=(n, 2)) for name, n in pieces}
+        whole = np.concatenate([data[name] for name, _ in pieces])
+        keep = rng.random(len(whole)) < 0.6
+        parts = [StoredRows(pieces, (2,))[keep], StoredRows(pieces[:1], (2,))]
+        stored = concatenate_rows(parts)
+        expected = np.concatenate([whole[keep], data["piece0"]])
+        assert stored.shape == expected.shape
+        rebuilt = np.full(expected.shape, np.nan)
+        for name, rows, first, at, length in stored.runs():
+            assert rows == data[name].shape[0]
+            rebuilt[at:at + length] = data[name][first:first + length]
+        assert np.array_equal(rebuilt, expected)
