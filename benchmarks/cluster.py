@@ -11,7 +11,7 @@ with default options, cached in --work), ``synthesize GRAPH -n 1000 -m 600 --see
   of its process group) mid-run once the first shard exists: the same datasets, and the
   retries the command reports;
 - the measured throughput and output size per animation, and from them the sizing table of
-  docs/cluster.md (10⁴, 10⁵, 10⁶ animations × 600 frames; hours at 16, 64 and 256 worker cores;
+  docs/cluster.md (10⁴, 10⁵, 10⁶ animations × 600 frames; hours at 2 (this machine), 16, 64 and 256 worker cores;
   storage), for the samba's bones and scaled to a 27-bone rig (bytes and work are linear in bones).
 
 One JSON line per measurement.
@@ -33,6 +33,7 @@ import h5py
 from datasets import BONES, captures, run
 
 CAPTURE = "vlasic_samba"
+WORKERS = (2, 16, 64, 256)  # this machine's cores, and clusters
 
 
 def contents(path):
@@ -160,11 +161,12 @@ def main():
     for rig, scale in ((f"samba ({bones} bones)", 1.0), ("27 bones", 27.0 / bones)):
         for n in (10 ** 4, 10 ** 5, 10 ** 6):
             sizing.append({"rig": rig, "animations": n, "storage_gb": round(n * stored * scale / 1e9, 1),
-                           "hours": {str(w): round(n * core_seconds * scale / w / 3600, 2) for w in (16, 64, 256)}})
+                           "hours": {str(w): round(n * core_seconds * scale / w / 3600, 3) for w in WORKERS}})
     print(json.dumps({"capture": CAPTURE, "case": "sizing", "frames": args.frames, "bones": bones,
                       "core_seconds_per_animation": round(core_seconds, 4), "bytes_per_animation": round(stored),
-                      "write_mb_per_core_second": round(stored / core_seconds / 1e6, 1), "table": sizing}), flush=True)
-
+                      "write_mb_s_per_worker": round(stored / core_seconds / 1e6, 1),
+                      "write_mb_s_at": {str(w): round(w * stored / core_seconds / 1e6) for w in WORKERS},
+                      "table": sizing}), flush=True)
 
 if __name__ == "__main__":
     main()

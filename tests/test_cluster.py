@@ -136,6 +136,37 @@ def test_a_rerun_reuses_finished_shards_by_their_provenance(graph, reference, sc
     assert again["cluster"]["tasks"] == 0 and again["cluster"]["reused_batches"] == 3
 
 
+def test_an_interrupted_run_leaves_its_finished_shards_and_resumes_from_them(graph, reference, tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "many.h5"
+    command = [sys.executable, "-c", "import sys; from skinsynth.cli.main import main; sys.exit(main())",
+               "synthesize", str(graph), "-o", str(out), "-n", str(COUNT), "-m", str(FRAMES), "--seed", "4",
+               "--cluster", "local:1", "-q"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    folder = tmp_path / "many.shards"
+    deadline = time.monotonic() + 120
+    while process.poll() is None and time.monotonic() < deadline:
+        if folder.is_dir() and any(p.name.startswith("batch_") for p in folder.iterdir()):
+            process.send_signal(signal.SIGTERM)
+            break
+        time.sleep(0.02)
+    _, stderr = process.communicate(timeout=120)
+    if process.returncode == 0:
+        pytest.skip("the run finished before it could be interrupted")
+    assert process.returncode == 128 + signal.SIGTERM and stderr.strip().splitlines()[-1].endswith(
+        "interrupted (SIGTERM); no output written"), stderr
+    assert not out.exists()
+    finished = len(shards_of(out))
+    assert 1 <= finished < 3
+    summary = run_cluster(graph, out, "local:1")
+    assert summary["cluster"]["reused_batches"] == finished and summary["cluster"]["tasks"] == 3 - finished
+    assert contents(out) == contents(reference)
+
+
 def test_min_difference_rounds_on_a_cluster_equal_the_single_machine(graph, tmp_path):
     args = ("-n", 260, "-m", 60, "--seed", 9, "--min-difference", 0.05)
     assert_ok(cli("synthesize", graph, "-o", tmp_path / "one.h5", "--jobs", 1, "-q", *args))
