@@ -32,23 +32,10 @@ import time
 import h5py
 from datasets import BONES, captures, run
 
+from skinsynth.formats.model import content_digests as contents
+
 CAPTURE = "vlasic_samba"
 WORKERS = (2, 16, 64, 256)  # this machine's cores, and clusters
-
-
-def contents(path):
-    """{name: bytes} of every dataset and attribute but the provenance's."""
-    out = {}
-    with h5py.File(path) as f:
-        def keep(name, item):
-            if name.startswith("provenance"):
-                return
-            for key, value in item.attrs.items():
-                out[f"{name}@{key}"] = repr(value)
-            if isinstance(item, h5py.Dataset):
-                out[name] = item[()].tobytes()
-        f.visititems(keep)
-    return out
 
 
 def folder_bytes(folder):

@@ -116,8 +116,11 @@ def _summary(path, model):
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
 @click.option("--quiet", "-q", is_flag=True, help="Print nothing: only check the file (exit 0 when it is valid, 2 if not).")
+@click.option("--digests", is_flag=True,
+              help="Also the sha256 of every dataset and attribute (provenance aside): two files with the same "
+                   "digests hold the same data bit for bit, however stored (e.g. --jobs against --cluster).")
 @user_errors
-def inspect_file(path, as_json, quiet):
+def inspect_file(path, as_json, quiet, digests):
     """Summarise a skinsynth model file: stage, version, counts, fit errors, provenance.
 
     \b
@@ -125,16 +128,21 @@ def inspect_file(path, as_json, quiet):
       skinsynth inspect horse.skin.h5
       skinsynth inspect horse.skin.h5 --json | jq .rmse_over_diagonal
     """
-    from skinsynth.formats.model import read_model
+    from skinsynth.formats.model import content_digests, read_model
 
     summary = _summary(path, read_model(path))
+    if digests:
+        summary["digests"] = content_digests(path)
     if quiet and not as_json:
         return
     if as_json:
         click.echo(json.dumps(summary, sort_keys=True, default=str))
         return
     for key, value in summary.items():
-        if key == "provenance":
+        if key == "digests":  # as sha256sum prints them: diff two files' lists
+            for name, digest in value.items():
+                click.echo(f"{digest}  {name}")
+        elif key == "provenance":
             for record in value:
                 click.echo(f"provenance: {record['stage']} by skinsynth {record['tool_version']} on {record['date']}"
                            f" (seed {record['seed']}): {record['command']}")

@@ -77,9 +77,7 @@ def run_batches(make, args, batches, jobs, output_shapes, progress=None, remote=
                     for i, (future, (_, n)) in enumerate(zip(futures, batches)):
                         keep(i, n, future.result())
                 except BaseException:  # stopped (a signal) or failed: end the workers now, not after their batch
-                    for process in list(getattr(pool, "_processes", {}).values()):
-                        process.terminate()
-                    pool.shutdown(wait=False, cancel_futures=True)
+                    _end_workers(pool)
                     raise
         finally:
             _SHARED_OUTPUT.pop(token, None)
@@ -90,6 +88,25 @@ def run_batches(make, args, batches, jobs, output_shapes, progress=None, remote=
             for i, (b, n) in enumerate(batches):
                 keep(i, n, make(*args, b, n))
     return outputs, rests
+
+
+def _end_workers(pool):
+    """End a process pool's workers at once and let its manager thread finish.
+
+    A worker ended while it was sending a batch's result leaves half a message in the result
+    pipe; the pool's manager thread then waits in ``recv`` for the rest, and the interpreter
+    waits for that thread at exit: the command hung (1 run in about 45 with a signal near the
+    end of the work). The parent holds the pipe's writing end too, so once the workers are gone
+    it closes its own: the read ends (EOF), the manager sees a broken pool and ends."""
+    writer = getattr(getattr(pool, "_result_queue", None), "_writer", None)
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    for process in processes:
+        process.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.join(5.0)
+    if writer is not None:
+        writer.close()
 
 
 def _batch_for_parent(make, count_outputs, token, offset, args, batch, count):

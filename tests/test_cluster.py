@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from distributed import WorkerPlugin
 
+from skinsynth.formats.model import content_digests
 from skinsynth.pipeline.execution import StoredRows, concatenate_rows
 
 from cli_helpers import assert_ok, assert_user_error, cli, fitted_bar
@@ -35,20 +36,8 @@ def reference(graph, tmp_path_factory):
 
 
 def contents(path):
-    """{name: bytes} of every dataset and attribute but the provenance's."""
-    out = {}
-    with h5py.File(path) as f:
-        def keep(name, item):
-            if name.startswith("provenance"):
-                return
-            for key, value in item.attrs.items():
-                out[f"{name}@{key}"] = repr(value)
-            if isinstance(item, h5py.Dataset):
-                value = item[()]
-                out[name] = (value.dtype.str, value.shape, repr(value.tolist()) if value.dtype.kind == "O"
-                             else value.tobytes())
-        f.visititems(keep)
-    return out
+    """sha256 of every dataset and attribute but the provenance's (formats.model.content_digests)."""
+    return content_digests(path)
 
 
 def run_cluster(graph, out, address, *extra):
@@ -70,8 +59,11 @@ def test_a_local_cluster_gives_the_single_machine_datasets(graph, reference, tmp
     with h5py.File(out) as f:  # the motions are the shards' rows, not copies
         assert f["synthesis/bone_matrices"].is_virtual and f["synthesis/bone_translations"].is_virtual
     assert len(shards_of(out)) == 3
-    # every reader works on it as on any synthesis file
-    assert json.loads(assert_ok(cli("inspect", out, "--json")).stdout)["stage"] == "synthesis"
+    # every reader works on it as on any synthesis file; inspect --digests shows it is the same data
+    summary = json.loads(assert_ok(cli("inspect", out, "--json", "--digests")).stdout)
+    assert summary["stage"] == "synthesis" and summary["digests"] == contents(reference)
+    listed = assert_ok(cli("inspect", reference, "--digests")).stdout
+    assert f"{summary['digests']['synthesis/bone_matrices']}  synthesis/bone_matrices" in listed.splitlines()
 
 
 @pytest.fixture(scope="module")
@@ -203,6 +195,22 @@ def test_a_missing_shard_is_an_error_not_zeros(graph, tmp_path):
 def test_a_bad_cluster_address_is_one_line_and_leaves_nothing(graph, tmp_path, address, needle):
     assert_user_error(cli("synthesize", graph, "-o", tmp_path / "o.h5", "-n", 3, "-m", 20, "--cluster", address),
                       address, needle, folder=tmp_path)
+
+
+def test_content_digests_see_values_not_storage(tmp_path):
+    from skinsynth.formats.model import Uncompressed, write_model
+
+    values = np.random.default_rng(1).normal(size=(300, 4)).astype(np.float32)
+    for name, stored in (("packed.h5", values), ("plain.h5", Uncompressed(values))):  # gzip vs contiguous
+        write_model(tmp_path / name, "skin", {"skin": {"rotations": stored, "@bones": 4}}, [], "test")
+    changed = values.copy()
+    changed[299, 3] = np.nextafter(changed[299, 3], np.float32(np.inf))
+    write_model(tmp_path / "changed.h5", "skin", {"skin": {"rotations": changed, "@bones": 4}}, [], "test")
+    write_model(tmp_path / "attribute.h5", "skin", {"skin": {"rotations": values, "@bones": 5}}, [], "test")
+    packed = content_digests(tmp_path / "packed.h5", block_bytes=1000)  # read in blocks of 62 rows
+    assert packed == content_digests(tmp_path / "plain.h5")
+    assert packed["skin/rotations"] != content_digests(tmp_path / "changed.h5")["skin/rotations"]
+    assert packed["skin@bones"] != content_digests(tmp_path / "attribute.h5")["skin@bones"]
 
 
 def test_stored_rows_select_and_concatenate_as_arrays_do():
