@@ -1,143 +1,108 @@
-"""fit-skin benchmark: one JSON line per (dataset, bones) with seconds, peak memory and RMSE/diagonal.
+"""fit-skin against py-dem-bones, side by side in the same run, on every sequence in ../shared/data.
 
-Datasets: every sequence under ../shared/data (each subfolder, read as skinsynth reads any input:
-a folder of frames, or the first .usd/.npz/.h5 file in it) plus built-in procedural ones, so the
-script reports figures even where the real data is absent. When ``py-dem-bones`` is installed
-(``pip install -e .[bench]``) it fits the same data with the same bone count, 30 iterations and
-≤ 4 influences, and the line carries its figures and the ratios ours/theirs.
+One JSON line per (capture, bones):
 
-RMSE: sqrt of the mean over all frames and vertices of the squared distance between the LBS
-reconstruction and the input, divided by the rest-pose (frame 0) bounding-box diagonal.
+- ``skinsynth``: ``skinsynth fit-skin INPUT -o OUT --bones B --seed 0 --json`` with default
+  options otherwise, timed as the whole command (process start, reading, fitting, writing), its
+  peak resident memory, the RMSE over the rest bounding-box diagonal it reports, iterations,
+  why it stopped, and from its per-iteration history the time to reach py-dem-bones' error
+  (command start to that iteration's end);
+- ``dem_bones``: py-dem-bones 0.13.1 (Electronic Arts' Dem Bones, C++/OpenMP) on the same
+  vertices, bones, ≤ 4 influences and 30 iterations (its CLI defaults otherwise) in its own
+  process, timed from process start to the solved weights and transforms (reading the same
+  .npz included, writing nothing), and its RMSE over the diagonal, measured the same way;
+- the same-run ratios ``time_ratio`` = ours / theirs (goal ≤ 0.5) and ``rmse_ratio`` (goal ≤ 0.7).
 
-    python benchmarks/fit_skin.py [--only NAME] [--no-dembones] [--iterations 30]
+Both use every core. py-dem-bones is optional (``pip install -e .[bench]``); without it only
+our figures are printed. Built-in procedural stand-ins run only when ../shared/data is absent.
+The command run is $SKINSYNTH when set (another checkout's, for a before/after table).
+
+    python benchmarks/fit_skin.py [--only NAME] [--no-dembones] [--work DIR]
 """
 
 import argparse
 import json
-import multiprocessing as mp
-import pathlib
-import resource
+import os
+import subprocess
+import sys
+import tempfile
 import time
 
-import numpy as np
+from datasets import captures, run
 
-SHARED_DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"
-#: bone counts of the issue's table (Zheng Table 1 for the horse); others get DEFAULT_BONES.
+#: bones per capture (the horse's is Zheng's Table 1); others get DEFAULT_BONES.
 BONES = {"horse_gallop": 22, "vlasic_samba": 30, "vellum_sheet": 30}
 DEFAULT_BONES = 20
 
-
-def _real_inputs():
-    if not SHARED_DATA.is_dir():
-        return []
-    found = []
-    for folder in sorted(p for p in SHARED_DATA.iterdir() if p.is_dir()):
-        candidates = [folder] + sorted(folder.rglob("*"))
-        found.append((folder.name, [str(c) for c in candidates if c.is_dir() or c.suffix.lower() in
-                                    (".usd", ".usda", ".usdc", ".npz", ".h5", ".hdf5")]))
-    return found
-
-
-def _load(name, specs):
-    """(vertices (F, V, 3), faces) of a dataset: built-in generators or the first spec that reads."""
-    from skinsynth.formats.errors import FormatError
-    from skinsynth.formats.meshseq import read_mesh_sequence
-    from skinsynth.pipeline.examples import bending_bar
-
-    if name == "bending_bar_horse_size":
-        return bending_bar(frames=48, rings=200, segments=42)
-    if name == "bending_bar_samba_size":
-        return bending_bar(frames=175, rings=200, segments=50)
-    if name == "bending_bar_small":
-        return bending_bar(frames=60, rings=40, segments=16)
-    errors = []
-    for spec in specs:
-        try:
-            seq = read_mesh_sequence(spec)
-            return seq.vertices, seq.faces
-        except FormatError as error:
-            errors.append(str(error))
-    raise FormatError(name, "no readable sequence: " + "; ".join(errors[:3]))
+_DEM_BONES = """
+import sys, time, json
+started = float(sys.argv[3])
+import numpy as np
+import py_dem_bones
+data = np.load(sys.argv[1])
+vertices = np.asarray(data["vertices"], dtype=np.float64)
+faces = np.asarray(data["faces"]) if "faces" in data else None
+result = py_dem_bones.solve_skinning(vertices[0], vertices, int(sys.argv[2]), faces=faces, max_influences=4,
+                                     iterations=30)
+seconds = time.time() - started
+homogeneous = np.c_[vertices[0], np.ones(len(vertices[0]))]
+recon = np.einsum("bv,fbac,vc->fva", result.weights, result.transforms[:, :, :3, :], homogeneous)
+diagonal = np.linalg.norm(vertices[0].max(axis=0) - vertices[0].min(axis=0))
+rmse = float(np.sqrt(np.mean(np.sum((recon - vertices) ** 2, axis=2))) / diagonal)
+print(json.dumps({"seconds": round(seconds, 3), "rmse_over_diagonal": rmse,
+                  "bones_used": int((result.weights.sum(axis=1) > 0).sum())}))
+"""
 
 
-def _rmse(recon, vertices):
-    diag = np.linalg.norm(vertices[0].max(axis=0) - vertices[0].min(axis=0))
-    return float(np.sqrt(np.mean(np.sum((recon - vertices) ** 2, axis=2))) / diag)
+def dem_bones(path, bones):
+    """py-dem-bones in a fresh process: (summary dict); seconds from process start."""
+    started = time.time()
+    done = subprocess.run([sys.executable, "-c", _DEM_BONES, path, str(bones), repr(started)], capture_output=True,
+                          text=True)
+    if done.returncode != 0:
+        return {"error": done.stderr.strip()[-400:]}
+    return json.loads(done.stdout)
 
 
-def _peak_mib():
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-def _ours(name, specs, bones, iterations, queue):
-    from skinsynth.gpu import lbs_reference
-    from skinsynth.pipeline.skin_fit import fit_skin
-
-    vertices, _ = _load(name, specs)
-    base = _peak_mib()
-    start = time.perf_counter()
-    fit = fit_skin(vertices, bones, max_influences=4, iterations=iterations, rest_frame=0, seed=0)
-    seconds = time.perf_counter() - start
-    recon = lbs_reference(fit.rest_vertices, fit.bone_indices, fit.bone_weights, fit.rotations, fit.translations)
-    queue.put(dict(frames=int(vertices.shape[0]), vertices=int(vertices.shape[1]), seconds=round(seconds, 3),
-                   peak_mib=round(_peak_mib(), 1), input_mib=round(base, 1), rmse_over_diagonal=_rmse(recon, vertices),
-                   iterations=fit.iterations, converged=fit.converged, bones_used=bones - fit.bones_without_weight))
-
-
-def _dembones(name, specs, bones, iterations, queue):
-    import py_dem_bones
-
-    vertices, faces = _load(name, specs)
-    start = time.perf_counter()
-    result = py_dem_bones.solve_skinning(vertices[0], vertices, bones, faces=faces, max_influences=4,
-                                         iterations=iterations)
-    seconds = time.perf_counter() - start
-    homogeneous = np.c_[vertices[0], np.ones(len(vertices[0]))]
-    recon = np.einsum("bv,fbac,vc->fva", result.weights, result.transforms[:, :, :3, :], homogeneous)
-    queue.put(dict(seconds=round(seconds, 3), peak_mib=round(_peak_mib(), 1), rmse_over_diagonal=_rmse(recon, vertices),
-                   bones_used=int((result.weights.sum(axis=1) > 0).sum())))
-
-
-def _isolated(target, *args):
-    """Run one measurement in a fresh process so its peak memory is its own."""
-    ctx = mp.get_context("spawn")
-    queue = ctx.Queue()
-    proc = ctx.Process(target=target, args=args + (queue,))
-    proc.start()
-    proc.join()
-    if proc.exitcode != 0 or queue.empty():
-        return {"error": f"exit code {proc.exitcode}"}
-    return queue.get()
+def ours(path, bones, work):
+    out = os.path.join(work, "fit.h5")
+    seconds, peak, _, stdout = run(["fit-skin", path, "-o", out, "--bones", str(bones), "--seed", "0", "--json"], work)
+    summary = json.loads(stdout)
+    # history times count from the fit's start; the command's own start is `seconds − fit seconds` earlier
+    offset = seconds - summary["seconds"] if "seconds" in summary else 0.0
+    history = [(offset + t, e) for t, e in summary.get("history", [])]
+    return {"seconds": round(seconds, 3), "peak_rss_mib": round(peak), "rmse_over_diagonal": summary["rmse_over_diagonal"],
+            "iterations": summary["iterations"], "converged": summary["converged"],
+            "stopped": summary.get("stopped"), "fit_seconds": summary.get("seconds")}, history
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", help="run only this dataset name")
+    parser.add_argument("--only", help="run only this capture")
     parser.add_argument("--no-dembones", action="store_true", help="skip the py-dem-bones comparison")
-    parser.add_argument("--iterations", type=int, default=30)
+    parser.add_argument("--work", default=None)
     args = parser.parse_args()
-
-    cases = [(name, specs, BONES.get(name, DEFAULT_BONES)) for name, specs in _real_inputs()]
-    if not cases:
-        print(json.dumps({"dataset": "shared/data", "skipped": f"no real data at {SHARED_DATA}"}), flush=True)
-    # Procedural stand-ins at the sizes of the issue's table: horse (8.4k vertices, 48 frames, 22
-    # bones) and samba (10k vertices, 175 frames, 30 bones).
-    cases += [("bending_bar_small", [], 8), ("bending_bar_horse_size", [], 22), ("bending_bar_samba_size", [], 30)]
+    work = args.work or tempfile.mkdtemp(prefix="skinsynth-fit-")
+    os.makedirs(work, exist_ok=True)
     import importlib.util
 
     have_dembones = importlib.util.find_spec("py_dem_bones") is not None and not args.no_dembones
-    for name, specs, bones in cases:
+    for name, path in captures(work):
         if args.only and name != args.only:
             continue
-        line = {"dataset": name, "bones": bones, "iterations_max": args.iterations, "max_influences": 4}
-        line["skinsynth"] = _isolated(_ours, name, specs, bones, args.iterations)
-        if have_dembones:
-            theirs = _isolated(_dembones, name, specs, bones, args.iterations)
-            line["dem_bones"] = theirs
-            ours = line["skinsynth"]
-            if "error" not in theirs and "error" not in ours:
-                line["time_ratio"] = round(ours["seconds"] / theirs["seconds"], 3)
-                line["rmse_ratio"] = round(ours["rmse_over_diagonal"] / theirs["rmse_over_diagonal"], 3)
+        bones = BONES.get(name, DEFAULT_BONES)
+        line = {"capture": name, "bones": bones}
+        line["skinsynth"], history = ours(path, bones, work)
+        if have_dembones and path.endswith(".npz"):
+            theirs = line["dem_bones"] = dem_bones(path, bones)
+            if "error" not in theirs:
+                mine = line["skinsynth"]
+                line["time_ratio"] = round(mine["seconds"] / theirs["seconds"], 3)
+                line["rmse_ratio"] = round(mine["rmse_over_diagonal"] / theirs["rmse_over_diagonal"], 3)
+                reached = [t for t, e in history if e <= theirs["rmse_over_diagonal"]]
+                mine["seconds_to_dem_bones_error"] = round(reached[0], 2) if reached else None
+                reached = [t for t, e in history if e <= 0.7 * theirs["rmse_over_diagonal"]]
+                mine["seconds_to_0.7x_dem_bones_error"] = round(reached[0], 2) if reached else None
         print(json.dumps(line), flush=True)
 
 

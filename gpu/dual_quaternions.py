@@ -6,7 +6,6 @@ quaternion then the dual one, ``q0 + ε qe`` with ``qe = ½ (0, t) q0`` (Kavan e
 """
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 
 def quaternion_to_matrix(quaternions):
@@ -14,6 +13,8 @@ def quaternion_to_matrix(quaternions):
     shape = quaternions.shape[:-1]
     q = quaternions.reshape(-1, 4)
     xyzw = np.concatenate([q[:, 1:], q[:, :1]], axis=1)
+    from scipy.spatial.transform import Rotation  # here: scipy.spatial costs every command ~0.5 s to import
+
     return Rotation.from_quat(xyzw).as_matrix().reshape(shape + (3, 3))
 
 

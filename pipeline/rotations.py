@@ -9,7 +9,6 @@ Conventions (the whole project uses them, and docs/format.md states them):
 """
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 # The quaternion arithmetic sits below the pipeline, where the kernels' references use it too.
 from skinsynth.gpu.dual_quaternions import (  # noqa: F401 (re-exported)
@@ -144,6 +143,8 @@ def apply_rigid_into(F_out, t_out, slots, rotation, translation, F, t, rows=None
 def matrix_to_quaternion(rotations):
     """rotations (..., 3, 3) -> quaternions (..., 4), (w, x, y, z), w >= 0."""
     shape = rotations.shape[:-2]
+    from scipy.spatial.transform import Rotation  # here: scipy.spatial costs every command ~0.5 s to import
+
     xyzw = Rotation.from_matrix(rotations.reshape(-1, 3, 3)).as_quat()
     wxyz = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
     wxyz *= np.where(wxyz[:, :1] < 0.0, -1.0, 1.0)
@@ -204,6 +205,8 @@ def align_hemispheres(quaternions, axis=0):
 def rotation_log(rotations):
     """rotations (..., 3, 3) -> axis-angle vectors (..., 3) (the matrix logarithm, Zheng eq. 3)."""
     shape = rotations.shape[:-2]
+    from scipy.spatial.transform import Rotation
+
     return Rotation.from_matrix(rotations.reshape(-1, 3, 3)).as_rotvec().reshape(shape + (3,))
 
 

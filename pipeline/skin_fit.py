@@ -12,11 +12,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .bone_transforms import (Trajectories, fit_cluster_transforms, refine_bone_transforms,
-                              update_bone_transforms, weighted_sums)
+from .bone_transforms import Trajectories, fit_cluster_transforms, refine_bone_transforms, weighted_sums
 from .errors import OptionError
 from .skin_init import initial_clusters
 from .skin_weights import update_weights
+from .transform_sweep import sweep_bone_transforms
 
 
 @dataclass
@@ -38,6 +38,7 @@ class SkinFit:
     error_history: list = field(default_factory=list)
     iterations: int = 0
     converged: bool = False
+    stopped: str = ""
     labels: np.ndarray | None = None
     bones_without_weight: int = 0
 
@@ -86,14 +87,22 @@ def _reseed_unused_bones(transforms, weights_total, vertex_error, rest, data):
 # One BLAS thread: a threaded product sums in an order that depends on the thread count, and the
 # same input must give the same file (issue 11). On two cores threads gained 4 % (horse, 22 bones).
 @threadpool_limits.wrap(limits=1, user_api="blas")
-def fit_skin(vertices, bones, max_influences=4, iterations=30, rest_frame=0, seed=0,
-             tolerance=1e-3, patience=3, candidates=None, sweeps=1, joint_steps=0, joint_max_bones=64, progress=None):
+def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, seed=0,
+             tolerance=0.02, patience=5, candidates=None, sweeps=1, joint_steps=0, joint_max_bones=64, progress=None):
     """Fit an LBS model with ``bones`` rigid bones to ``vertices (F, V, 3)``.
 
-    Stops after ``iterations`` or once the RMSE has improved by less than ``tolerance``
-    (relative) for ``patience`` iterations in a row (Dem Bones' rule). ``candidates`` bones are
+    Stopping rule: once the last ``patience`` iterations together improved the RMSE by less
+    than ``tolerance`` of it (relative), more iterations stop paying and the fit stops
+    (``converged``); else after ``iterations``. The defaults (2 % over 5 iterations) were chosen
+    on the real captures: the error then falls by a few per cent per further 10 iterations
+    (horse: 1.60e-3 of the diagonal at the stop, 1.54e-3 after 60; each iteration costs as much
+    as the last). ``fit.stopped`` says which rule ended the fit. ``candidates`` bones are
     considered per vertex in the weight solve (default 2·max_influences). ``progress`` is
     called as ``progress(iteration, rmse)`` after each iteration. Returns :class:`SkinFit`.
+
+    The weight solve and the bone sweep run compiled on every core (:mod:`.vertex_weights`,
+    :mod:`.transform_sweep`); each vertex and each frame is solved on its own, so the result
+    does not depend on the thread count.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     frames, count = vertices.shape[:2]
@@ -106,12 +115,13 @@ def fit_skin(vertices, bones, max_influences=4, iterations=30, rest_frame=0, see
     bone_weights = np.ones((count, 1))
 
     history, quiet, converged = [], 0, False
+    stopped = f"iteration limit ({iterations}; --iterations)"
     for iteration in range(1, iterations + 1):
         weights = np.zeros((count, bones))
         np.put_along_axis(weights, bone_indices, bone_weights, axis=1)
         p, q = weighted_sums(weights, data)
         for _ in range(sweeps):
-            transforms = update_bone_transforms(transforms, p, q)
+            transforms = sweep_bone_transforms(transforms, p, q)
         if joint_steps and bones <= joint_max_bones:
             transforms = refine_bone_transforms(transforms, p, q, steps=joint_steps)
         bone_indices, bone_weights, vertex_error = update_weights(
@@ -125,18 +135,18 @@ def fit_skin(vertices, bones, max_influences=4, iterations=30, rest_frame=0, see
             transforms = _reseed_unused_bones(transforms, totals, vertex_error, rest, data)
             quiet = 0
             continue
-        if len(history) > 1 and history[-2] - rmse <= tolerance * history[-2]:
-            quiet += 1
-            if quiet >= patience:
-                converged = True
-                break
-        else:
-            quiet = 0
+        quiet += 1  # iterations since the last reseed
+        if quiet > patience and history[-1 - patience] - rmse < tolerance * history[-1 - patience]:
+            gain = (history[-1 - patience] - rmse) / history[-1 - patience]
+            stopped = (f"converged: the last {patience} iterations improved the RMSE by {gain:.2%} "
+                       f"(< {tolerance:.2%}; --tolerance)")
+            converged = True
+            break
     totals = np.bincount(bone_indices.ravel(), weights=bone_weights.ravel(), minlength=bones)
     return SkinFit(
         rest_vertices=rest.copy(), bone_indices=bone_indices, bone_weights=bone_weights,
         rotations=transforms[..., :3], translations=transforms[..., 3], rmse=history[-1],
-        error_history=history, iterations=len(history), converged=converged, labels=labels,
+        error_history=history, iterations=len(history), converged=converged, stopped=stopped, labels=labels,
         bones_without_weight=int((totals <= 0.0).sum()))
 
 
