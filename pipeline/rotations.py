@@ -141,11 +141,31 @@ def apply_rigid_into(F_out, t_out, slots, rotation, translation, F, t, rows=None
 
 
 def matrix_to_quaternion(rotations):
-    """rotations (..., 3, 3) -> quaternions (..., 4), (w, x, y, z), w >= 0."""
-    shape = rotations.shape[:-2]
-    from scipy.spatial.transform import Rotation  # here: scipy.spatial costs every command ~0.5 s to import
+    """rotations (..., 3, 3) -> quaternions (..., 4), (w, x, y, z), w >= 0.
 
-    xyzw = Rotation.from_matrix(rotations.reshape(-1, 3, 3)).as_quat()
+    Shepperd's method as scipy's ``Rotation.from_matrix`` computes it (the largest of the trace
+    and the diagonal picks the stable formula), in numpy: importing scipy.spatial cost every
+    command about 0.3 s."""
+    shape = rotations.shape[:-2]
+    m = np.asarray(rotations, dtype=np.float64).reshape(-1, 3, 3)
+    decision = np.stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]], axis=1)
+    choice = np.argmax(decision, axis=1)
+    xyzw = np.empty((m.shape[0], 4))
+    for i in range(3):
+        rows = choice == i
+        j, k = (i + 1) % 3, (i + 2) % 3
+        mi = m[rows]
+        xyzw[rows, i] = 1.0 - decision[rows, 3] + 2.0 * mi[:, i, i]
+        xyzw[rows, j] = mi[:, j, i] + mi[:, i, j]
+        xyzw[rows, k] = mi[:, k, i] + mi[:, i, k]
+        xyzw[rows, 3] = mi[:, k, j] - mi[:, j, k]
+    rows = choice == 3
+    mi = m[rows]
+    xyzw[rows, 0] = mi[:, 2, 1] - mi[:, 1, 2]
+    xyzw[rows, 1] = mi[:, 0, 2] - mi[:, 2, 0]
+    xyzw[rows, 2] = mi[:, 1, 0] - mi[:, 0, 1]
+    xyzw[rows, 3] = 1.0 + decision[rows, 3]
+    xyzw /= np.linalg.norm(xyzw, axis=1, keepdims=True)
     wxyz = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
     wxyz *= np.where(wxyz[:, :1] < 0.0, -1.0, 1.0)
     return wxyz.reshape(shape + (4,))

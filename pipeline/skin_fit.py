@@ -12,11 +12,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .bone_transforms import Trajectories, fit_cluster_transforms, refine_bone_transforms, weighted_sums
+from .bone_transforms import Trajectories, fit_cluster_transforms, refine_bone_transforms
 from .errors import OptionError
 from .skin_init import initial_clusters
 from .skin_weights import update_weights
-from .transform_sweep import sweep_bone_transforms
+from .transform_sweep import sparse_weighted_sums, sweep_bone_transforms
 
 
 @dataclass
@@ -117,9 +117,7 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
     history, quiet, converged = [], 0, False
     stopped = f"iteration limit ({iterations}; --iterations)"
     for iteration in range(1, iterations + 1):
-        weights = np.zeros((count, bones))
-        np.put_along_axis(weights, bone_indices, bone_weights, axis=1)
-        p, q = weighted_sums(weights, data)
+        p, q = sparse_weighted_sums(bone_indices, bone_weights, data, bones)
         for _ in range(sweeps):
             transforms = sweep_bone_transforms(transforms, p, q)
         if joint_steps and bones <= joint_max_bones:

@@ -1,4 +1,6 @@
-"""The per-bone Procrustes sweep of :func:`.bone_transforms.update_bone_transforms`, compiled.
+"""The transform step of the skin fit, compiled: the per-bone Procrustes sweep of
+:func:`.bone_transforms.update_bone_transforms` and the vertex sums it needs
+(:func:`.bone_transforms.weighted_sums`).
 
 Each frame's transforms depend only on that frame's sums, so frames run in parallel (numba,
 every core) while the bones of one frame are updated in order, Gauss-Seidel, exactly as the
@@ -60,3 +62,42 @@ def sweep_bone_transforms(transforms, p, q):
     out = np.array(transforms, dtype=np.float64, order="C", copy=True)
     _sweep(out, np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(q, dtype=np.float64), order, coupled)
     return out
+
+
+@numba.njit(cache=True, parallel=True, nogil=True)
+def _sums(bone_indices, bone_weights, rest_h, flat, members, starts, p, q):
+    bones, frames = p.shape[:2]
+    k = bone_indices.shape[1]
+    for j in numba.prange(bones):
+        for m in range(starts[j], starts[j + 1]):
+            i, slot = members[m] // k, members[m] % k
+            w = bone_weights[i, slot]
+            for t in range(frames):
+                for a in range(3):
+                    value = w * flat[i, 3 * t + a]
+                    for c in range(4):
+                        p[j, t, a, c] += value * rest_h[i, c]
+            for other in range(k):
+                ww = w * bone_weights[i, other]
+                if ww != 0.0:
+                    target = bone_indices[i, other]
+                    for c in range(4):
+                        for d in range(4):
+                            q[j, target, c, d] += ww * rest_h[i, c] * rest_h[i, d]
+
+
+def sparse_weighted_sums(bone_indices, bone_weights, data, bones):
+    """The sums of :func:`.bone_transforms.weighted_sums` from sparse weights (V, K): P (B, F, 3,
+    4), Q (B, B, 4, 4). Bones in parallel, each summing its vertices in index order, so the sums
+    do not depend on the thread count."""
+    k = bone_indices.shape[1]
+    used = bone_weights.ravel() != 0.0
+    flat_bones = bone_indices.ravel()
+    members = np.flatnonzero(used)  # entries i*K + slot, grouped by bone below, vertex order kept
+    members = members[np.argsort(flat_bones[members], kind="stable")].astype(np.int64)
+    starts = np.searchsorted(flat_bones[members], np.arange(bones + 1)).astype(np.int64)
+    p = np.zeros((bones, data.frames, 3, 4))
+    q = np.zeros((bones, bones, 4, 4))
+    _sums(np.ascontiguousarray(bone_indices, dtype=np.int64), np.ascontiguousarray(bone_weights, dtype=np.float64),
+          data.homogeneous, data.flat, members, starts, p, q)
+    return p, q

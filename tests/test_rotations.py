@@ -102,3 +102,13 @@ def test_polar_decomposition_matches_scipy_and_near_rotations_shortcut(rotations
                 assert np.allclose(F_out[a, m, slot], R[a, m] @ F[rows[a], m, bone], atol=1e-14)
                 assert np.allclose(t_out[a, m, slot], R[a, m] @ t[rows[a], m, bone] + c[a, m], atol=1e-14)
     assert not F_out[:, :, [1, 2, 3, 4]].any()
+
+
+def test_matrix_to_quaternion_is_scipys_shepperd_method():
+    rotations = Rotation.random(5000, random_state=3).as_matrix()
+    rotations[:4] = [np.eye(3), np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0])]
+    xyzw = Rotation.from_matrix(rotations).as_quat()
+    expected = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
+    expected *= np.where(expected[:, :1] < 0.0, -1.0, 1.0)
+    np.testing.assert_allclose(matrix_to_quaternion(rotations.reshape(50, 100, 3, 3)).reshape(-1, 4), expected,
+                               rtol=0, atol=1e-15)

@@ -88,3 +88,26 @@ def test_compiled_bone_sweep_equals_the_numpy_sweep_for_any_thread_count():
     np.testing.assert_allclose(rotations @ rotations.transpose(0, 1, 3, 2), np.broadcast_to(np.eye(3), rotations.shape),
                                atol=1e-12)
     assert (np.linalg.det(rotations) > 0).all()
+
+
+def test_compiled_sums_equal_the_sparse_matrix_sums_for_any_thread_count():
+    from skinsynth.pipeline.bone_transforms import weighted_sums
+    from skinsynth.pipeline.transform_sweep import sparse_weighted_sums
+
+    transforms, data, indices, weights = random_problem(8)
+    indices, weights, _ = update_weights(transforms, data, indices, weights, 3, solver="numpy")
+    weights[::7, -1] = 0.0  # unused slots count for nothing
+    dense = np.zeros((data.count, transforms.shape[1]))
+    np.add.at(dense, (np.arange(data.count)[:, None], indices), weights)
+    p, q = weighted_sums(dense, data)
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = sparse_weighted_sums(indices, weights, data, transforms.shape[1])
+        numba.set_num_threads(max(2, threads))
+        many = sparse_weighted_sums(indices, weights, data, transforms.shape[1])
+    finally:
+        numba.set_num_threads(threads)
+    np.testing.assert_allclose(one[0], p, rtol=1e-12, atol=1e-12 * np.abs(p).max())
+    np.testing.assert_allclose(one[1], q, rtol=1e-12, atol=1e-12 * np.abs(q).max())
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(one, many))
