@@ -25,6 +25,9 @@ from .common import Progress, check_output_path, command_line, report, summary_o
 @click.option("--transform-steps", default=0, show_default=True, type=int,
               help="Joint Levenberg-Marquardt steps on all bones of a frame per iteration (0: per-bone updates only; "
                    "a step costs about four iterations and gains less than they do on the real captures).")
+@click.option("--device", default="cpu", show_default=True,
+              help="Where the weight solve and the bone sweep run: cpu (compiled, every core), cuda or cuda:N (warp "
+                   "kernels on that GPU; the same fit to rounding), or auto (a GPU when there is one).")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
 @click.option("--fps", default=None, type=float, help="Frame rate, when the input does not carry one (default 24).")
 @click.option("--meters-per-unit", default=None, type=float,
@@ -36,7 +39,7 @@ from .common import Progress, check_output_path, command_line, report, summary_o
               help="Time code of the input's first frame. Default: a USD input's first sample, else 0.")
 @summary_options
 @user_errors
-def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, patience, rest_frame, seed,
+def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, patience, device, rest_frame, seed,
              transform_steps, prim, fps, meters_per_unit, up_axis, start_frame, quiet, as_json):
     """Fit a linear-blend-skinning model with rigid bones to a mesh sequence.
 
@@ -63,6 +66,11 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
         raise OptionError(f"--fps must be positive and finite (got {fps})")
     if tolerance < 0 or transform_steps < 0:
         raise OptionError("--tolerance and --transform-steps must not be negative")
+    if device != "cpu":  # "cpu" runs numba's loops and never imports warp (about 1 s)
+        from skinsynth.gpu import resolve_device
+
+        device = resolve_device(device)
+    warp_device = None if device == "cpu" else device
     sequence = read_mesh_sequence(input_spec, prim=prim, fps=fps)
     try:
         sequence = replace(sequence, scene=sequence.scene.overridden(meters_per_unit, up_axis, start_frame))
@@ -85,6 +93,7 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
     with Progress(iterations, f"fit-skin {bones} bones", quiet) as bar:
         result = fit(sequence.vertices, bones, max_influences=max_influences, iterations=iterations,
                      rest_frame=rest_frame, seed=seed, tolerance=tolerance, patience=patience, joint_steps=transform_steps,
+                     device=warp_device,
                      progress=progress)
     seconds = time.perf_counter() - started
 
@@ -98,7 +107,7 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
     rest_frames = bone_rest_frames(result.rest_vertices, result.bone_indices, result.bone_weights, bones)
     scene = sequence.scene
     parameters = dict(bones=bones, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
-                      patience=patience,
+                      patience=patience, device=device,
                       rest_frame=rest_frame, seed=seed, transform_steps=transform_steps, prim=prim, fps=sequence.fps,
                       meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame)
     record = provenance_record("skin", command_line(), parameters, [input_spec], tool_version(), seed)
@@ -108,6 +117,7 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
     summary = {"output": output, "bones": bones, "vertices": int(count), "frames": int(frames), "fps": sequence.fps,
                "rmse": result.rmse, "rmse_over_diagonal": result.rmse / diagonal, "iterations": int(result.iterations),
                "converged": bool(result.converged), "stopped": result.stopped, "seconds": round(seconds, 3),
+               "device": device,
                "bones_without_weight": int(result.bones_without_weight), "meters_per_unit": scene.meters_per_unit,
                "up_axis": scene.up_axis, "start_frame": scene.start_frame, "prim_path": scene.prim_path,
                "history": [[t, float(f"{e:.6g}")] for t, e in history]}

@@ -88,7 +88,8 @@ def _reseed_unused_bones(transforms, weights_total, vertex_error, rest, data):
 # same input must give the same file (issue 11). On two cores threads gained 4 % (horse, 22 bones).
 @threadpool_limits.wrap(limits=1, user_api="blas")
 def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, seed=0,
-             tolerance=0.02, patience=5, candidates=None, sweeps=1, joint_steps=0, joint_max_bones=64, progress=None):
+             tolerance=0.02, patience=5, candidates=None, sweeps=1, joint_steps=0, joint_max_bones=64, progress=None,
+             device=None):
     """Fit an LBS model with ``bones`` rigid bones to ``vertices (F, V, 3)``.
 
     Stopping rule: once the last ``patience`` iterations together improved the RMSE by less
@@ -101,8 +102,9 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
     called as ``progress(iteration, rmse)`` after each iteration. Returns :class:`SkinFit`.
 
     The weight solve and the bone sweep run compiled on every core (:mod:`.vertex_weights`,
-    :mod:`.transform_sweep`); each vertex and each frame is solved on its own, so the result
-    does not depend on the thread count.
+    :mod:`.transform_sweep`), or with ``device`` (a warp device, e.g. "cuda:0") as warp kernels
+    there (``gpu.skin_fit_kernels``: the same steps, equal to 1e-14 on the CPU); each vertex and
+    each frame is solved on its own, so the result does not depend on the thread count.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     frames, count = vertices.shape[:2]
@@ -114,16 +116,24 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
     bone_indices = labels[:, None].astype(np.int32)
     bone_weights = np.ones((count, 1))
 
+    if device is None:
+        sweep = sweep_bone_transforms
+    else:
+        from skinsynth.gpu.skin_fit_kernels import sweep_bone_transforms_warp
+
+        def sweep(transforms, p, q):
+            return sweep_bone_transforms_warp(transforms, p, q, device)
+
     history, quiet, converged = [], 0, False
     stopped = f"iteration limit ({iterations}; --iterations)"
     for iteration in range(1, iterations + 1):
         p, q = sparse_weighted_sums(bone_indices, bone_weights, data, bones)
         for _ in range(sweeps):
-            transforms = sweep_bone_transforms(transforms, p, q)
+            transforms = sweep(transforms, p, q)
         if joint_steps and bones <= joint_max_bones:
             transforms = refine_bone_transforms(transforms, p, q, steps=joint_steps)
         bone_indices, bone_weights, vertex_error = update_weights(
-            transforms, data, bone_indices, bone_weights, max_influences, candidates)
+            transforms, data, bone_indices, bone_weights, max_influences, candidates, device=device)
         rmse = float(np.sqrt(vertex_error.sum() / (frames * count)))
         history.append(rmse)
         if progress is not None:

@@ -43,14 +43,16 @@ def _select(columns, chosen, weights, linear, gram):
     return pick(chosen), pick(weights), pick(linear), gram
 
 
-def update_weights(transforms, data, bone_indices, bone_weights, max_influences, candidates=None, solver="compiled"):
+def update_weights(transforms, data, bone_indices, bone_weights, max_influences, candidates=None, solver="compiled",
+                   device=None):
     """New sparse weights for fixed transforms.
 
     transforms (F, B, 3, 4); data: Trajectories; bone_indices (V, K0) and bone_weights (V, K0),
     the current weights (their bones stay candidates, so the error cannot grow before
     sparsification). Returns (bone_indices (V, K), bone_weights (V, K), squared_error (V,)),
     columns sorted by decreasing weight; unused slots have weight 0. ``solver``: "compiled"
-    (:mod:`.vertex_weights`, every core) or "numpy" (the batched reference below).
+    (:mod:`.vertex_weights`, every core; with a warp ``device`` such as "cuda:0", the same solve
+    as a warp kernel there) or "numpy" (the batched reference below).
     """
     bones = transforms.shape[1]
     k = min(max_influences, bones)
@@ -67,10 +69,13 @@ def update_weights(transforms, data, bone_indices, bone_weights, max_influences,
     start = current[rows, chosen]
     start = np.where(start.sum(axis=1, keepdims=True) > 0.0, start, 1.0 / c)
     if solver == "compiled":
-        from .vertex_weights import solve_vertex_weights
-
-        return solve_vertex_weights(products, data.homogeneous, chosen, projections[rows, chosen],
-                                    start / start.sum(axis=1, keepdims=True), data.squared_norm, k)
+        if device is not None:
+            from skinsynth.gpu.skin_fit_kernels import solve_vertex_weights_warp as solve
+        else:
+            from .vertex_weights import solve_vertex_weights as solve
+        extra = {} if device is None else {"device": device}
+        return solve(products, data.homogeneous, chosen, projections[rows, chosen],
+                     start / start.sum(axis=1, keepdims=True), data.squared_norm, k, **extra)
     gram = _gram(products, data.homogeneous, chosen)
     linear = projections[rows, chosen]
     weights = solve_simplex_qp(gram, linear, start=start / start.sum(axis=1, keepdims=True))
