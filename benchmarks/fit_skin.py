@@ -17,7 +17,9 @@ Both use every core. py-dem-bones is optional (``pip install -e .[bench]``); wit
 our figures are printed. Built-in procedural stand-ins run only when ../shared/data is absent.
 The command run is $SKINSYNTH when set (another checkout's, for a before/after table).
 
-    python benchmarks/fit_skin.py [--only NAME] [--no-dembones] [--work DIR]
+With ``--device cuda`` our command runs its warp kernels on the GPU (``fit-skin --device``).
+
+    python benchmarks/fit_skin.py [--only NAME] [--no-dembones] [--work DIR] [--device cuda]
 """
 
 import argparse
@@ -64,9 +66,10 @@ def dem_bones(path, bones):
     return json.loads(done.stdout)
 
 
-def ours(path, bones, work):
+def ours(path, bones, work, device="cpu"):
     out = os.path.join(work, "fit.h5")
-    seconds, peak, _, stdout = run(["fit-skin", path, "-o", out, "--bones", str(bones), "--seed", "0", "--json"], work)
+    seconds, peak, _, stdout = run(["fit-skin", path, "-o", out, "--bones", str(bones), "--seed", "0", "--json",
+                                    "--device", device], work)
     summary = json.loads(stdout)
     # history times count from the fit's start; the command's own start is `seconds − fit seconds` earlier
     offset = seconds - summary["seconds"] if "seconds" in summary else 0.0
@@ -81,6 +84,7 @@ def main():
     parser.add_argument("--only", help="run only this capture")
     parser.add_argument("--no-dembones", action="store_true", help="skip the py-dem-bones comparison")
     parser.add_argument("--work", default=None)
+    parser.add_argument("--device", default="cpu", help="fit-skin --device (cpu, cuda, cuda:N)")
     args = parser.parse_args()
     work = args.work or tempfile.mkdtemp(prefix="skinsynth-fit-")
     os.makedirs(work, exist_ok=True)
@@ -91,8 +95,8 @@ def main():
         if args.only and name != args.only:
             continue
         bones = BONES.get(name, DEFAULT_BONES)
-        line = {"capture": name, "bones": bones}
-        line["skinsynth"], history = ours(path, bones, work)
+        line = {"capture": name, "bones": bones, "device": args.device}
+        line["skinsynth"], history = ours(path, bones, work, args.device)
         if have_dembones and path.endswith(".npz"):
             theirs = line["dem_bones"] = dem_bones(path, bones)
             if "error" not in theirs:

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from skinsynth.gpu.skin_fit_kernels import sweep_bone_transforms_warp
-from skinsynth.pipeline.bone_transforms import update_bone_transforms, weighted_sums
+from skinsynth.pipeline.bone_transforms import update_bone_transforms
 from skinsynth.pipeline.skin_fit import fit_skin
 from skinsynth.pipeline.skin_weights import update_weights
 
 from cli_helpers import assert_user_error, cli
-from test_vertex_weights import random_problem
+from test_vertex_weights import random_problem, sweep_problem
 
 
 def test_the_weight_kernel_equals_the_numpy_reference():
@@ -31,13 +31,7 @@ def test_the_weight_kernel_without_sparsification_and_with_all_bones():
 
 
 def test_the_sweep_kernel_equals_the_numpy_sweep():
-    transforms, data, indices, weights = random_problem(13, frames=16)
-    indices, weights, _ = update_weights(transforms, data, indices, weights, 3, solver="numpy")
-    dense = np.zeros((data.count, transforms.shape[1]))
-    np.put_along_axis(dense, indices, weights, axis=1)
-    dense[:, 2] = 0.0  # a bone without weight keeps its transform
-    p, q = weighted_sums(dense, data)
-    start = transforms + 0.1 * np.random.default_rng(1).normal(size=transforms.shape)
+    start, p, q = sweep_problem(13, frames=16, unused=2)
     np.testing.assert_allclose(sweep_bone_transforms_warp(start, p, q, "cpu"), update_bone_transforms(start, p, q),
                                rtol=0, atol=1e-10)
 

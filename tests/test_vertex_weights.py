@@ -27,6 +27,20 @@ def random_problem(seed, frames=12, count=400, bones=7, noise=0.02):
     return transforms, Trajectories(vertices, rest), current, np.ones((count, 1))
 
 
+def sweep_problem(seed, frames, unused):
+    """(start transforms (F, B, 3, 4) off the truth, P, Q) of a random problem's fitted weights,
+    bone ``unused`` given no weight (it must keep its transform)."""
+    from skinsynth.pipeline.bone_transforms import weighted_sums
+
+    transforms, data, indices, weights = random_problem(seed, frames=frames)
+    indices, weights, _ = update_weights(transforms, data, indices, weights, 3, solver="numpy")
+    dense = np.zeros((data.count, transforms.shape[1]))
+    np.put_along_axis(dense, indices, weights, axis=1)
+    dense[:, unused] = 0.0
+    p, q = weighted_sums(dense, data)
+    return transforms + 0.1 * np.random.default_rng(seed).normal(size=transforms.shape), p, q
+
+
 @pytest.mark.parametrize("seed, influences, candidates", [(0, 4, None), (1, 2, None), (2, 4, 7), (3, 3, 3),
                                                            (4, 1, None)])
 def test_compiled_weights_equal_the_numpy_reference(seed, influences, candidates):
@@ -62,16 +76,10 @@ def test_the_thread_count_changes_nothing():
 
 
 def test_compiled_bone_sweep_equals_the_numpy_sweep_for_any_thread_count():
-    from skinsynth.pipeline.bone_transforms import update_bone_transforms, weighted_sums
+    from skinsynth.pipeline.bone_transforms import update_bone_transforms
     from skinsynth.pipeline.transform_sweep import sweep_bone_transforms
 
-    transforms, data, indices, weights = random_problem(7, frames=20)
-    indices, weights, _ = update_weights(transforms, data, indices, weights, 3, solver="numpy")
-    dense = np.zeros((data.count, transforms.shape[1]))
-    np.put_along_axis(dense, indices, weights, axis=1)
-    dense[:, 4] = 0.0  # a bone without weight keeps its transform
-    p, q = weighted_sums(dense, data)
-    start = transforms + 0.1 * np.random.default_rng(0).normal(size=transforms.shape)
+    start, p, q = sweep_problem(7, frames=20, unused=4)
     reference = update_bone_transforms(start, p, q)
     threads = numba.get_num_threads()
     try:
