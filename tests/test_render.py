@@ -1,0 +1,61 @@
+"""The headless rasteriser (groundwork for ``skinsynth preview``) against analytic images."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from skinsynth.pipeline.render import (BACKGROUND, MESH_COLOR, Camera, frame_bounds, lambert, look_at, project,
+                                       render)
+
+W, H = 160, 120
+
+
+def background_mask(image):
+    return np.all(image == (np.asarray(BACKGROUND) * 255 + 0.5).astype(np.uint8), axis=2)
+
+
+def test_a_unit_cube_seen_head_on_is_its_front_square_in_its_lambert_shade():
+    cube = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    distance = 3.0
+    camera = Camera(view=look_at((0.0, 0.0, distance), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0)), fov_y=np.radians(40.0))
+    light = np.array([0.3, 0.5, 0.8])
+    image = render(cube.vertices, cube.faces, camera, W, H, light=light)
+    # the front face z = 0.5 projects to a square of half-size f·0.5/(d − 0.5) pixels about the centre
+    focal = (H / 2) / np.tan(camera.fov_y / 2)
+    half = focal * 0.5 / (distance - 0.5)
+    x, y = np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5)
+    inside = (np.abs(x - W / 2) < half - 1) & (np.abs(y - H / 2) < half - 1)
+    outside = (np.abs(x - W / 2) > half + 1) | (np.abs(y - H / 2) > half + 1)
+    covered = ~background_mask(image)
+    assert covered[inside].all() and not covered[outside].any()
+    shade = lambert(np.array([[0.0, 0.0, 1.0]]), light / np.linalg.norm(light))[0] * np.asarray(MESH_COLOR)
+    assert np.abs(image[inside].astype(float) - shade * 255).max() <= 1.0
+
+
+def test_the_nearer_triangle_wins_whatever_the_order():
+    camera = Camera(view=look_at((0.0, 0.0, 5.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0)))
+    near = np.array([[-1.0, -1.0, 1.0], [1.0, -1.0, 1.0], [0.0, 1.0, 1.0]])
+    far = near + [0.2, 0.0, -1.0]
+    vertices = np.concatenate([near, far])
+    red, blue = np.tile([1.0, 0.0, 0.0], (3, 1)), np.tile([0.0, 0.0, 1.0], (3, 1))
+    images = [render(vertices, faces, camera, W, H, vertex_colors=np.concatenate([red, blue]), light=[0, 0, 1.0])
+              for faces in (np.array([[0, 1, 2], [3, 4, 5]]), np.array([[3, 4, 5], [0, 1, 2]]))]
+    assert np.array_equal(images[0], images[1])
+    centre = images[0][H // 2, W // 2]
+    assert centre[0] > 200 and centre[2] < 10  # red: the nearer one
+
+
+@pytest.mark.parametrize("preset", ["front", "side", "three-quarter"])
+@pytest.mark.parametrize("up_axis", [1, 2])
+def test_a_framed_camera_sees_the_whole_animation_upright(preset, up_axis):
+    rng = np.random.default_rng(0)
+    frames = rng.normal(size=(10, 200, 3)) * [1.0, 3.0, 0.5] + [5.0, -2.0, 1.0]
+    if up_axis == 2:
+        frames = frames[..., [0, 2, 1]] * [1, -1, 1]
+    lower, upper = frames.reshape(-1, 3).min(axis=0), frames.reshape(-1, 3).max(axis=0)
+    camera = frame_bounds(lower, upper, preset, up_axis=up_axis, aspect=W / H)
+    screen = project(frames.reshape(-1, 3), camera, W, H)
+    assert (screen[:, 2] > camera.near).all()
+    assert (screen[:, 0] > 0).all() and (screen[:, 0] < W).all() and (screen[:, 1] > 0).all() and (screen[:, 1] < H).all()
+    top = project(np.array([(lower + upper) / 2 + np.eye(3)[up_axis]]), camera, W, H)[0]
+    assert top[1] < H / 2  # the up axis points up on screen
