@@ -30,6 +30,8 @@ demo: setup
 	$(BIN)/skinsynth build-graph $(DEMO)/skin.h5 -o $(DEMO)/graph.h5 --plot $(DEMO)/graph_plots
 	$(BIN)/skinsynth synthesize $(DEMO)/graph.h5 -o $(DEMO)/bones.h5 --count 16 --frames 240 --seed 0 \
 		--crowd $(DEMO)/synthesized_crowd.usdc
+	$(BIN)/skinsynth preview $(DEMO)/bones.h5 -o $(DEMO)/synthesized.mp4 --animation 0 --animation 1
+	$(BIN)/skinsynth preview $(DEMO)/puppet.h5 -o $(DEMO)/puppet_vs_truth.mp4
 	@echo
 	@echo "demo results in $(DEMO)/:"
 	@echo "  skin.h5          fitted skin model (skinsynth inspect $(DEMO)/skin.h5)"
@@ -44,6 +46,8 @@ demo: setup
 	@echo "  graph.h5         transitions, bone graph and splicing operators (plots in graph_plots/)"
 	@echo "  bones.h5         16 new animations of 240 frames spliced from the example"
 	@echo "  synthesized_crowd.usdc  those 16 animations on a grid (USD point caches): open it in a DCC"
+	@echo "  synthesized.mp4  two of them rendered headless, seams marked red (skinsynth preview)"
+	@echo "  puppet_vs_truth.mp4  the puppet's held-out frames next to the truth, its error in red"
 
 test: setup
 	$(BIN)/python -m pytest -q
@@ -60,6 +64,7 @@ bench: setup
 	$(BIN)/python benchmarks/synthesize.py
 	$(BIN)/python benchmarks/cluster.py
 	$(BIN)/python benchmarks/lbs.py
+	$(BIN)/python benchmarks/render.py
 
 clean:
 	rm -rf build $(VENV) *.egg-info

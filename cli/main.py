@@ -19,6 +19,7 @@ from .train_kcca import train_kcca
 from .evaluate import evaluate
 from .build_graph import build_graph
 from .play import play
+from .preview import preview
 from .synthesize import synthesize
 
 
@@ -114,3 +115,4 @@ main.add_command(evaluate)
 main.add_command(play)
 main.add_command(build_graph)
 main.add_command(synthesize)
+main.add_command(preview)

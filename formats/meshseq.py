@@ -319,3 +319,33 @@ def write_vertex_animation(path, vertices, faces, fps, names=None):
             f.attrs["fps"] = float(fps)
             if names is not None:
                 f.create_dataset("names", data=np.array(names, dtype=h5py.string_dtype()), track_times=False)
+
+
+def read_played_characters(path):
+    """A ``play -o OUT.h5`` file: (names [C], vertices (C, F, V, 3) float64, faces (T, 3), fps). A
+    one-character file (``vertices (F, V, 3)``) is read as one character."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as data:
+            item, faces = data.get("vertices"), data.get("faces")
+            if not isinstance(item, h5py.Dataset) or item.ndim not in (3, 4):
+                raise FormatError(path, "no 'vertices' array of shape (F, V, 3) or (C, F, V, 3)")
+            if not isinstance(faces, h5py.Dataset):
+                raise FormatError(path, "no 'faces' array")
+            problem = declared_size_problem("'vertices'", item.size * item.dtype.itemsize, item.id.get_storage_size())
+            if problem:
+                raise FormatError(path, problem)
+            vertices = np.asarray(item[()], dtype=np.float64)
+            faces = faces[()]
+            fps = data.attrs.get("fps", None)
+            names = [n.decode() if isinstance(n, bytes) else str(n) for n in data["names"][()]] \
+                if isinstance(data.get("names"), h5py.Dataset) else None
+    except OSError as error:
+        raise FormatError(path, f"cannot read as HDF5: {error}") from None
+    if vertices.ndim == 3:
+        vertices = vertices[None]
+    sequences = [sequence_from_arrays(path, v, faces, None if fps is None else float(fps)) for v in vertices]
+    if names is None or len(names) != len(sequences):
+        names = [f"character {c}" for c in range(len(sequences))]
+    return names, np.stack([s.vertices for s in sequences]), sequences[0].faces, sequences[0].fps

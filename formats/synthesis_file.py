@@ -72,3 +72,9 @@ def open_motions(path):
     animation at a time (``F[a]``): a cluster run's motions need not fit in memory."""
     with h5py.File(path, "r") as f:
         yield f["synthesis"][MOTIONS[0]], f["synthesis"][MOTIONS[1]]
+
+
+def read_sources(path):
+    """sources (C, N, M) int64 of a synthesis file: the input frame each component plays."""
+    with h5py.File(path, "r") as f:
+        return np.asarray(f["synthesis"]["sources"][()], dtype=np.int64)

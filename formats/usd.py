@@ -564,3 +564,15 @@ def _triangles(path, mesh, time):
     if mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
         triangles = triangles[:, [0, 2, 1]]  # keep outward normals right-handed like the other readers
     return triangles
+
+
+def read_skel_animation(path):
+    """([(mesh prim path, vertices (F, V, 3), faces (T, 3))], fps, up axis "Y"/"Z"): every
+    skinned mesh of a UsdSkel file as UsdSkel itself skins it, with its triangles."""
+    stage = _open(path)
+    out = []
+    for name, vertices in read_skel_characters(path):
+        mesh = UsdGeom.Mesh(stage.GetPrimAtPath(name))
+        out.append((name, vertices, _triangles(path, mesh, Usd.TimeCode.Default())))
+    up = "Z" if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z else "Y"
+    return out, float(stage.GetTimeCodesPerSecond() or 24.0), up

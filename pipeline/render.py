@@ -142,19 +142,21 @@ def render(vertices, faces, camera, width=640, height=480, smooth=False, ground=
            color=MESH_COLOR, vertex_colors=None, light=None):
     """The mesh ``vertices (V, 3)``, ``faces (T, 3)`` seen by ``camera``: image (H, W, 3) uint8.
 
-    ground: the height of a ground quad along ``up_axis`` (None: no ground), drawn wide enough
-    to fill the view; vertex_colors (V, 3) in [0, 1] replace ``color`` (e.g. an error map); the
+    ground: the height of an endless checkered ground plane along ``up_axis`` (None: no
+    ground), or a layer from :func:`ground_layer` (the same for every frame of a fixed camera:
+    make it once); vertex_colors (V, 3) in [0, 1] replace ``color`` (e.g. an error map); the
     light comes from over the camera's shoulder unless given (a world direction towards it)."""
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
-    if light is None:
-        light = camera.view[:3, :3].T @ np.array([0.35, 0.6, 0.7])  # camera space → world
-    light = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
-    image = np.empty((height, width, 3))
-    image[:] = BACKGROUND
-    depth = np.full((height, width), np.inf)
-    if ground is not None:
-        _draw_ground(image, depth, vertices, camera, width, height, ground, up_axis, light)
+    light = default_light(camera) if light is None else np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
+    if ground is None:
+        image = np.empty((height, width, 3))
+        image[:] = BACKGROUND
+        depth = np.full((height, width), np.inf)
+    else:
+        if not isinstance(ground, tuple):
+            ground = ground_layer(camera, width, height, float(ground), up_axis, np.ptp(vertices, axis=0).max())
+        image, depth = ground[0].copy(), ground[1].copy()
     base = np.broadcast_to(np.asarray(color, dtype=np.float64), vertices.shape) if vertex_colors is None \
         else np.asarray(vertex_colors, dtype=np.float64)
     screen = project(vertices, camera, width, height)
@@ -167,26 +169,34 @@ def render(vertices, faces, camera, width=640, height=480, smooth=False, ground=
     return (np.clip(image, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
 
-def _draw_ground(image, depth, vertices, camera, width, height, level, up_axis, light):
-    """A square ground quad at ``level`` along the up axis, centred under the mesh, 20× its size."""
-    centre = vertices.mean(axis=0)
-    size = 10.0 * max(np.ptp(vertices, axis=0).max(), 1e-12)
+def default_light(camera):
+    """A light over the camera's shoulder (a world direction towards it)."""
+    light = camera.view[:3, :3].T @ np.array([0.35, 0.6, 0.7])
+    return light / np.linalg.norm(light)
+
+
+def ground_layer(camera, width, height, level, up_axis, size, light=None):
+    """(image (H, W, 3), depth (H, W)) of an endless ground plane at ``level`` along the up axis,
+    checkered in cells of ``size``/2, fading into the background with distance: every pixel's
+    ray meets the plane exactly (no triangles, nothing clipped at the near plane)."""
+    light = default_light(camera) if light is None else light
+    rotation, eye = camera.view[:3, :3], -camera.view[:3, :3].T @ camera.view[:3, 3]
+    focal = (height / 2.0) / np.tan(camera.fov_y / 2.0)
+    x, y = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+    rays_camera = np.stack([(x - width / 2.0) / focal, -(y - height / 2.0) / focal, -np.ones_like(x)], axis=-1)
+    rays = rays_camera @ rotation  # camera → world (rotation is orthonormal)
+    along = rays[..., up_axis]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (level - eye[up_axis]) / along
+    hit = (t > 0.0) & np.isfinite(t)
+    points = eye + np.where(hit, t, 0.0)[..., None] * rays
     a, b = [axis for axis in range(3) if axis != up_axis]
-    corners = np.tile(centre, (4, 1))
-    corners[:, up_axis] = level
-    corners[:, a] += size * np.array([-1.0, 1.0, 1.0, -1.0])
-    corners[:, b] += size * np.array([-1.0, -1.0, 1.0, 1.0])
-    # a fine grid of quads, so a quad partly behind the camera drops only its own cells
-    steps = 24
-    u = np.linspace(0.0, 1.0, steps + 1)
-    grid = (corners[0] + u[:, None, None] * (corners[1] - corners[0])
-            + u[None, :, None] * (corners[3] - corners[0])).reshape(-1, 3)
-    index = np.arange((steps + 1) ** 2).reshape(steps + 1, steps + 1)
-    quads = np.stack([index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]], axis=-1).reshape(-1, 4)
-    triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-    normal = np.eye(3)[up_axis]
-    shade = lambert(normal[None], light)[0] * np.asarray(GROUND_COLOR)
-    checker = ((np.arange(steps)[:, None] + np.arange(steps)[None, :]) % 2).ravel()
-    colors = shade * np.where(checker, 1.0, 0.94)[:, None]
-    _rasterise(project(grid, camera, width, height), triangles, np.ascontiguousarray(np.concatenate([colors, colors])),
-               False, image, depth)
+    cell = max(size, 1e-12) / 2.0
+    checker = (np.floor(points[..., a] / cell) + np.floor(points[..., b] / cell)) % 2
+    shade = lambert(np.eye(3)[up_axis][None], light)[0] * np.asarray(GROUND_COLOR)
+    colour = shade * np.where(checker, 1.0, 0.94)[..., None]
+    distance = np.where(hit, t * np.linalg.norm(rays, axis=-1), np.inf)
+    fade = np.clip(distance / (40.0 * cell), 0.0, 1.0)[..., None] ** 2  # towards the horizon
+    image = np.where(hit[..., None], (1.0 - fade) * colour + fade * np.asarray(BACKGROUND), np.asarray(BACKGROUND))
+    depth = np.where(hit, t, np.inf)  # camera depth along −z: rays have unit −z in camera space
+    return np.ascontiguousarray(image), np.ascontiguousarray(depth)

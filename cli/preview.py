@@ -1,0 +1,214 @@
+"""``skinsynth preview``: look at any animation without a DCC: .mp4, .gif or a .png contact sheet."""
+
+import os
+import time
+
+import click
+import numpy as np
+
+from .common import Progress, check_output_path, report, summary_options, user_errors
+
+MESH_SUFFIXES = (".npz", ".usd", ".usda", ".usdc")
+
+
+def _size(text):
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+        if width < 16 or height < 16 or width > 8192 or height > 8192:
+            raise ValueError
+        return width, height
+    except ValueError:
+        raise click.BadParameter(f"{text!r}: expected WIDTHxHEIGHT, e.g. 640x480 (16 to 8192 each)") from None
+
+
+def _frame_range(text):
+    first, sep, last = text.partition(":")
+    try:
+        if not sep:
+            raise ValueError
+        return (int(first) if first else None, int(last) if last else None)
+    except ValueError:
+        raise click.BadParameter(f"{text!r}: expected A:B (either may be left out), e.g. 0:48") from None
+
+
+@click.command("preview")
+@click.argument("path", type=click.Path())
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Video (.mp4, H.264), animated .gif, or a .png contact sheet of evenly spaced frames.")
+@click.option("--animation", "animations", multiple=True, type=int,
+              help="Synthesis file: the animation to show (repeatable: several in a grid).  [default: 0]")
+@click.option("--examples", is_flag=True, help="Skin file: show the input frames instead of the fitted reconstruction.")
+@click.option("--compare", is_flag=True,
+              help="Skin file: the input and the reconstruction side by side, the reconstruction coloured by each "
+                   "vertex's error (red at --error-scale).")
+@click.option("--error-scale", default=0.01, show_default=True, type=float,
+              help="Error shown full red, as a fraction of the rest pose's bounding-box diagonal (--compare, puppets).")
+@click.option("--size", default="640x480", show_default=True, type=_size, metavar="WxH", help="Size of each panel.")
+@click.option("--fps", default=None, type=float, help="Frames per second of the video.  [default: the file's]")
+@click.option("--frames", "frame_range", default=None, type=_frame_range, metavar="A:B",
+              help="Only frames A to B−1 (Python slice; either end may be left out).")
+@click.option("--camera", type=click.Choice(["three-quarter", "front", "side"]), default="three-quarter",
+              show_default=True, help="Where the camera stands; it frames the whole animation.")
+@click.option("--flat", is_flag=True, help="Flat shading (one normal per face) instead of smooth.")
+@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
+              help="Up axis.  [default: the file's (USD, skinsynth files), else Y]")
+@click.option("--sheet-frames", default=12, show_default=True, type=click.IntRange(min=1),
+              help=".png: frames on the contact sheet (4 per row).")
+@summary_options
+@user_errors
+def preview(path, output, animations, examples, compare, error_scale, size, fps, frame_range, camera, flat, up_axis,
+            sheet_frames, as_json, quiet):
+    """Render the animation a file holds, headless (no display, no OpenGL).
+
+    PATH: an input sequence (a folder or glob of OBJ/PLY/OFF frames, .npz, .h5, USD); a skin file
+    (its reconstruction; --examples the input; --compare both, the error as colour); a puppet
+    (its held-out frames: prediction next to truth, the error as colour); a play output (.h5,
+    USD; every character in a grid); a synthesis file (--animation N, seams marked in red).
+    Each frame names its source frame in the corner.
+
+    \b
+    Examples:
+      skinsynth preview horse.skin.h5 -o horse_fit.mp4 --compare
+      skinsynth preview herd.h5 -o herd.gif --animation 0 --animation 1 --animation 2 --animation 3
+      skinsynth preview puppet.h5 -o puppet.png --camera front
+    """
+    from skinsynth.formats.video import SUFFIXES, sheet_indices, write_frames
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.preview import Preview
+
+    check_output_path(output, SUFFIXES, inputs=[path])
+    if fps is not None and not 0 < fps <= 240:
+        raise OptionError(f"--fps must lie in (0, 240] (got {fps})")
+    if not error_scale > 0:
+        raise OptionError(f"--error-scale must be positive (got {error_scale})")
+    panels, file_fps, file_up = _panels(path, list(animations), examples, compare, error_scale)
+    up = "XYZ".index(up_axis or file_up)
+    count = min(p.vertices.shape[0] for p in panels)
+    frames = np.arange(count)[slice(*frame_range)] if frame_range else np.arange(count)
+    if frames.size == 0:
+        raise OptionError(f"--frames {frame_range[0]}:{frame_range[1]} selects none of the {count} frames")
+    if output.lower().endswith(".png"):
+        frames = frames[sheet_indices(len(frames), sheet_frames)]
+    movie = Preview(panels, size=size, frames=frames, preset=camera, smooth=not flat, up_axis=up)
+    started = time.perf_counter()
+    with Progress(len(movie), "preview", quiet or as_json) as bar:
+        def rendered():
+            for n, image in enumerate(movie):
+                bar.update(1, f"frame {int(movie.frames[n])}")
+                yield image
+
+        write_frames(output, rendered(), len(movie), fps or file_fps, sheet_columns=max(1, 4 // len(panels)))
+    seconds = time.perf_counter() - started
+    summary = {"output": output, "frames": int(len(movie)), "panels": len(panels), "size": list(size),
+               "seconds": round(seconds, 3), "frames_per_second": round(len(movie) / max(seconds, 1e-9), 1),
+               "fps": float(fps or file_fps)}
+    report(summary, [f"wrote {output}: {len(movie)} frames of {len(panels)} panel(s) at {size[0]}×{size[1]}, "
+                     f"{summary['frames_per_second']} frames/s"], as_json, quiet)
+
+
+def _panels(path, animations, examples, compare, error_scale):
+    """(panels, fps, up axis "Y"/"Z") for whatever animation ``path`` holds."""
+    from skinsynth.formats.errors import FormatError
+    from skinsynth.formats.meshseq import read_mesh_sequence, read_played_characters
+    from skinsynth.formats.model import read_header
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.preview import Panel
+
+    lower = str(path).lower()
+    if (examples or compare) and not lower.endswith((".h5", ".hdf5")):
+        raise OptionError("--examples and --compare apply to skin files")
+    if lower.endswith((".h5", ".hdf5")) and os.path.isfile(path):
+        try:
+            stage, _ = read_header(path)
+        except FormatError:
+            stage = None  # not a skinsynth model file: a sequence or played characters
+        if stage is not None:
+            return _model_panels(path, stage, animations, examples, compare, error_scale)
+        names, vertices, faces, fps = read_played_characters(path)
+        return [Panel(v, faces, name if len(names) > 1 else "") for name, v in zip(names, vertices)], fps, "Y"
+    if animations:
+        raise OptionError("--animation applies to synthesis files")
+    if lower.endswith((".usd", ".usda", ".usdc")) and os.path.isfile(path):
+        try:
+            sequence = read_mesh_sequence(path)
+        except FormatError:  # no time-sampled mesh: a UsdSkel rig, skinned by UsdSkel itself
+            from skinsynth.formats.usd import read_skel_animation
+
+            characters, fps, up = read_skel_animation(path)
+            return ([Panel(v, faces, name.rsplit("/", 2)[-2] if len(characters) > 1 else "")
+                     for name, v, faces in characters[:16]], fps, up)
+        return [Panel(sequence.vertices, sequence.faces, "")], sequence.fps, sequence.scene.up_axis
+    sequence = read_mesh_sequence(path)
+    return [Panel(sequence.vertices, sequence.faces, "")], sequence.fps, sequence.scene.up_axis
+
+
+def _model_panels(path, stage, animations, examples, compare, error_scale):
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.gpu import lbs_reference
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.preview import Panel, error_colors
+    from skinsynth.pipeline.skin_fit import bounding_box_diagonal
+
+    if animations and stage != "synthesis":
+        raise OptionError("--animation applies to synthesis files")
+    if (examples or compare) and stage not in ("skin", "controls", "graph"):
+        raise OptionError("--examples and --compare apply to skin files")
+    if stage == "puppet":
+        return _puppet_panels(path, error_scale)
+    skin = read_skin(path)
+    up = skin.scene.up_axis
+    if stage == "synthesis":
+        return _synthesis_panels(path, skin, animations or [0]), skin.fps, up
+    captions = [f"frame {f}" for f in range(skin.examples.shape[0])]
+    if examples:
+        return [Panel(skin.examples, skin.faces, "input", captions=captions)], skin.fps, up
+    fitted = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations, skin.translations)
+    if not compare:
+        return [Panel(fitted, skin.faces, "fit-skin reconstruction", captions=captions)], skin.fps, up
+    scale = error_scale * bounding_box_diagonal(skin.rest_vertices)
+    return [Panel(skin.examples, skin.faces, "input", captions=captions),
+            Panel(fitted, skin.faces, f"reconstruction (red: error >= {error_scale:g} of the diagonal)",
+                  colors=error_colors(fitted, skin.examples, scale), captions=captions)], skin.fps, up
+
+
+def _puppet_panels(path, error_scale):
+    from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.preview import Panel, error_colors
+    from skinsynth.pipeline.puppet import predict_vertices
+    from skinsynth.pipeline.skin_fit import bounding_box_diagonal
+
+    puppet, test_frames, skin = read_puppet(path)
+    if len(test_frames) == 0:
+        raise OptionError(f"{path}: the puppet has no held-out frames to show (train with --train-frames)")
+    truth = skin.examples[test_frames]
+    predicted = predict_vertices(puppet, truth[:, puppet.control_indices])
+    scale = error_scale * bounding_box_diagonal(skin.rest_vertices)
+    captions = [f"held-out frame {int(f)}" for f in test_frames]
+    return [Panel(truth, skin.faces, "truth", captions=captions),
+            Panel(predicted, skin.faces, f"puppet (red: error >= {error_scale:g} of the diagonal)",
+                  colors=error_colors(predicted, truth, scale), captions=captions)], skin.fps, skin.scene.up_axis
+
+
+def _synthesis_panels(path, skin, animations):
+    from skinsynth.formats.synthesis_file import open_motions, read_sources
+    from skinsynth.gpu import lbs_reference
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.preview import Panel
+
+    sources = read_sources(path)  # (C, N, M)
+    count = sources.shape[1]
+    for a in animations:
+        if not 0 <= a < count:
+            raise OptionError(f"--animation {a}: the file holds animations 0..{count - 1}")
+    panels = []
+    with open_motions(path) as (F, t):
+        for a in animations:
+            vertices = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, F[a], t[a])
+            played = sources[:, a]  # (C, M)
+            seams = np.zeros(played.shape[1], dtype=bool)
+            seams[1:] = np.any(played[:, 1:] != played[:, :-1] + 1, axis=0)
+            captions = [f"frame {m} · input {', '.join(str(int(s)) for s in played[:, m])}"
+                        + (" · seam" if seams[m] else "") for m in range(played.shape[1])]
+            panels.append(Panel(vertices, skin.faces, f"animation {a}", captions=captions, marked=seams))
+    return panels

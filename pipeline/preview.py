@@ -1,0 +1,87 @@
+"""What ``skinsynth preview`` shows: panels of meshes in a grid, one camera framing them all,
+captions in a corner, rendered frame by frame (:mod:`.render`).
+
+A panel is one animated mesh: ``vertices (M, V, 3)``, ``faces (T, 3)``, a title, optional
+per-vertex colours ``(M, V, 3)`` (an error map), and a caption per frame (the source frame;
+for a synthesis, the input frame each component plays, with the seams marked).
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .render import frame_bounds, ground_layer, render
+
+ERROR_LOW = np.array([0.72, 0.74, 0.80])
+ERROR_HIGH = np.array([0.85, 0.12, 0.10])
+
+
+@dataclass
+class Panel:
+    vertices: np.ndarray
+    faces: np.ndarray
+    title: str
+    colors: np.ndarray | None = None
+    captions: list = field(default_factory=list)
+    marked: np.ndarray | None = None  # (M,) bool: frames whose caption is marked (a seam)
+
+
+def error_colors(predicted, truth, scale):
+    """Per-vertex colours (M, V, 3): grey where the prediction is exact, red at ``scale`` or more."""
+    amount = np.clip(np.linalg.norm(predicted - truth, axis=-1) / scale, 0.0, 1.0)[..., None]
+    return ERROR_LOW + amount * (ERROR_HIGH - ERROR_LOW)
+
+
+class Preview:
+    """Frames of ``panels`` side by side (``columns`` per row), each ``size`` = (W, H) pixels,
+    seen by one camera framing every panel's whole animation, the ground under the lowest point.
+    ``frames`` (M,) which frames to show; ``preset``, ``smooth``, ``up_axis`` (1 Y, 2 Z)."""
+
+    def __init__(self, panels, size=(640, 480), frames=None, preset="three-quarter", smooth=True, up_axis=1,
+                 columns=None):
+        self.panels, self.size, self.smooth, self.up_axis = panels, size, smooth, up_axis
+        count = min(p.vertices.shape[0] for p in panels)
+        self.frames = np.arange(count) if frames is None else np.asarray(frames)
+        self.columns = columns or min(len(panels), 4)
+        every = np.concatenate([p.vertices[self.frames].reshape(-1, 3) for p in panels])
+        lower, upper = every.min(axis=0), every.max(axis=0)
+        width, height = size
+        self.camera = frame_bounds(lower, upper, preset, up_axis=up_axis, aspect=width / height)
+        self.ground = ground_layer(self.camera, width, height, float(lower[up_axis]), up_axis,
+                                   float(np.max(upper - lower)))
+
+    def __len__(self):
+        return len(self.frames)
+
+    def __getitem__(self, n):
+        """Frame n: (rows·H, columns·W, 3) uint8."""
+        width, height = self.size
+        rows = -(-len(self.panels) // self.columns)
+        out = np.full((rows * height, self.columns * width, 3), 255, np.uint8)
+        m = int(self.frames[n])
+        for k, panel in enumerate(self.panels):
+            colors = None if panel.colors is None else panel.colors[m]
+            image = render(panel.vertices[m], panel.faces, self.camera, width, height, smooth=self.smooth,
+                           ground=self.ground, up_axis=self.up_axis, vertex_colors=colors)
+            caption = panel.captions[m] if panel.captions else f"frame {m}"
+            marked = panel.marked is not None and bool(panel.marked[m])
+            image = _caption(image, f"{panel.title}\n{caption}" if panel.title else caption, marked)
+            r, c = divmod(k, self.columns)
+            out[r * height:(r + 1) * height, c * width:(c + 1) * width] = image
+        return out
+
+    def __iter__(self):
+        return (self[n] for n in range(len(self)))
+
+
+def _caption(image, text, marked=False):
+    """``text`` in the top-left corner (dark, or red when ``marked``), on a light box."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    picture = Image.fromarray(image)
+    draw = ImageDraw.Draw(picture)
+    font = ImageFont.load_default()
+    box = draw.multiline_textbbox((8, 6), text, font=font)
+    draw.rectangle((box[0] - 4, box[1] - 3, box[2] + 4, box[3] + 3), fill=(255, 255, 255))
+    draw.multiline_text((8, 6), text, fill=(200, 20, 20) if marked else (20, 20, 30), font=font)
+    return np.asarray(picture)
