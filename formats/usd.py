@@ -576,3 +576,10 @@ def read_skel_animation(path):
         out.append((name, vertices, _triangles(path, mesh, Usd.TimeCode.Default())))
     up = "Z" if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z else "Y"
     return out, float(stage.GetTimeCodesPerSecond() or 24.0), up
+
+
+def animated_mesh_paths(path):
+    """Paths of every Mesh with time-sampled points (a crowd's characters), in traversal order."""
+    stage = _open(path)
+    return [str(p.GetPath()) for p in stage.Traverse()
+            if p.IsA(UsdGeom.Mesh) and UsdGeom.Mesh(p).GetPointsAttr().GetNumTimeSamples() > 0]

@@ -23,7 +23,8 @@ def files(tmp_path_factory):
     assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 6, "-q"))
     assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5", "-q"))
     assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4, "-q"))
-    assert_ok(cli("synthesize", root / "graph.h5", "-o", root / "bones.h5", "-n", 3, "-m", 30, "-q"))
+    assert_ok(cli("synthesize", root / "graph.h5", "-o", root / "bones.h5", "-n", 3, "-m", 30, "--crowd",
+                  root / "crowd.usda", "--device", "cpu", "-q"))
     assert_ok(cli("play", root / "puppet.h5", "-c", root / "bar.npz", "-o", root / "played.h5", "--instances", 2,
                   "--device", "cpu", "-q"))
     assert_ok(cli("play", root / "puppet.h5", "-c", root / "bar.npz", "-o", root / "played.usda", "-q"))
@@ -37,6 +38,7 @@ CASES = [  # (input, extra options, panels, frames)
     ("points.usdc", (), 1, 24),
     ("played.h5", (), 2, 24),
     ("played.usda", (), 1, 24),
+    ("crowd.usda", (), 3, 30),
     ("skin.h5", (), 1, 24),
     ("skin.h5", ("--examples",), 1, 24),
     ("skin.h5", ("--compare",), 2, 24),
