@@ -129,24 +129,18 @@ def _panels(path, animations, examples, compare, error_scale):
     if animations:
         raise OptionError("--animation applies to synthesis files")
     if lower.endswith((".usd", ".usda", ".usdc")) and os.path.isfile(path):
-        try:
-            sequence = read_mesh_sequence(path)
-        except FormatError:  # no time-sampled mesh: a UsdSkel rig, skinned by UsdSkel itself
-            from skinsynth.formats.usd import read_skel_animation
+        from skinsynth.formats.usd import animated_mesh_paths, read_skel_animation
 
+        meshes = animated_mesh_paths(path)
+        if not meshes:  # no time-sampled mesh: a UsdSkel rig, skinned by UsdSkel itself
             characters, fps, up = read_skel_animation(path)
             return ([Panel(v, faces, name.rsplit("/", 2)[-2] if len(characters) > 1 else "")
                      for name, v, faces in characters[:16]], fps, up)
-        from skinsynth.formats.usd import animated_mesh_paths
-
-        meshes = animated_mesh_paths(path)[:16]
-        if len(meshes) > 1:  # a crowd: every character (at most 16) in a grid
-            panels = []
-            for mesh in meshes:
-                character = read_mesh_sequence(path, prim=mesh)
-                panels.append(Panel(character.vertices, character.faces, mesh.rsplit("/", 1)[-1]))
-            return panels, sequence.fps, sequence.scene.up_axis
-        return [Panel(sequence.vertices, sequence.faces, "")], sequence.fps, sequence.scene.up_axis
+        panels, sequence = [], None
+        for mesh in meshes[:16]:  # a crowd: every character (at most 16) in a grid
+            sequence = read_mesh_sequence(path, prim=mesh)
+            panels.append(Panel(sequence.vertices, sequence.faces, mesh.rsplit("/", 1)[-1] if len(meshes) > 1 else ""))
+        return panels, sequence.fps, sequence.scene.up_axis
     sequence = read_mesh_sequence(path)
     return [Panel(sequence.vertices, sequence.faces, "")], sequence.fps, sequence.scene.up_axis
 

@@ -69,13 +69,15 @@ def update_weights(transforms, data, bone_indices, bone_weights, max_influences,
     start = current[rows, chosen]
     start = np.where(start.sum(axis=1, keepdims=True) > 0.0, start, 1.0 / c)
     if solver == "compiled":
-        if device is not None:
-            from skinsynth.gpu.skin_fit_kernels import solve_vertex_weights_warp as solve
-        else:
-            from .vertex_weights import solve_vertex_weights as solve
-        extra = {} if device is None else {"device": device}
-        return solve(products, data.homogeneous, chosen, projections[rows, chosen],
-                     start / start.sum(axis=1, keepdims=True), data.squared_norm, k, **extra)
+        problem = (products, data.homogeneous, chosen, projections[rows, chosen],
+                   start / start.sum(axis=1, keepdims=True), data.squared_norm, k)
+        if device is None:
+            from .vertex_weights import solve_vertex_weights
+
+            return solve_vertex_weights(*problem)
+        from skinsynth.gpu.skin_fit_kernels import solve_vertex_weights_warp
+
+        return solve_vertex_weights_warp(*problem, device=device)
     gram = _gram(products, data.homogeneous, chosen)
     linear = projections[rows, chosen]
     weights = solve_simplex_qp(gram, linear, start=start / start.sum(axis=1, keepdims=True))
