@@ -25,7 +25,7 @@ def main():
     args = parser.parse_args()
     width, height = (int(v) for v in args.size.split("x"))
     from skinsynth.formats.meshseq import read_mesh_sequence
-    from skinsynth.pipeline.render import frame_bounds, render
+    from skinsynth.pipeline.render import frame_bounds, ground_layer, render
 
     work = tempfile.mkdtemp(prefix="skinsynth-render-")
     for name, path in captures(work):
@@ -33,7 +33,8 @@ def main():
         vertices, faces = sequence.vertices, sequence.faces
         lower, upper = vertices.reshape(-1, 3).min(axis=0), vertices.reshape(-1, 3).max(axis=0)
         camera = frame_bounds(lower, upper, "three-quarter", up_axis=1, aspect=width / height)
-        ground = float(lower[1])
+        # the ground under a fixed camera is the same every frame: made once, as preview does
+        ground = ground_layer(camera, width, height, float(lower[1]), 1, float(np.max(upper - lower)))
         render(vertices[0], faces, camera, width, height, ground=ground)  # compile / load once
         line = {"capture": name, "vertices": int(vertices.shape[1]), "faces": int(len(faces)),
                 "size": [width, height]}
