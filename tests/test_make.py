@@ -15,7 +15,8 @@ SKINSYNTH = os.path.join(os.path.dirname(sys.executable), "skinsynth")
 
 MAKEFILE = """\
 S := {skinsynth}
-all: skin.usda skin_vat.exr controls.h5 puppet.h5 crowd.usdc crowd_vat/ one.h5 graph.h5 synth.h5 synth_usd/
+all: skin.usda skin_vat.exr controls.h5 puppet.h5 crowd.usdc crowd_vat/ one.h5 graph.h5 synth.h5 synth_usd/ \\
+\tsynth.mp4 puppet.png
 skin.h5: bar.npz
 \t$(S) fit-skin $< -o $@ --bones 4 --iterations 6 -q
 skin.usda: skin.h5
@@ -36,6 +37,10 @@ graph.h5: skin.h5
 \t$(S) build-graph $< -o $@ --min-segment 4 -q
 synth.h5 synth_usd/: graph.h5
 \t$(S) synthesize $< -o synth.h5 -n 2 -m 30 --usd synth_usd -q
+synth.mp4: synth.h5
+\t$(S) preview $< -o $@ --animation 1 --size 64x48 -q
+puppet.png: puppet.h5
+\t$(S) preview $< -o $@ --size 64x48 -q
 """
 
 
