@@ -158,7 +158,10 @@ def _model_panels(path, stage, animations, examples, compare, error_scale):
         raise OptionError("--examples and --compare apply to skin files")
     if stage == "puppet":
         return _puppet_panels(path, error_scale)
-    skin = read_skin(path)
+    from skinsynth.formats.model import read_model
+
+    # only the skin: a synthesis's motions are read one animation at a time below
+    skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
     up = skin.scene.up_axis
     if stage == "synthesis":
         return _synthesis_panels(path, skin, animations or [0]), skin.fps, up

@@ -220,11 +220,12 @@ def read_header(path):
     return stage, version
 
 
-def read_model(path, stages=None):
+def read_model(path, stages=None, groups=None):
     """Read a whole model file into nested dicts.
 
-    stages: the stages the caller accepts (None = any). Returns {"stage", "format_version",
-    "provenance": [records], group name: {dataset: array, "@attr": value}}.
+    stages: the stages the caller accepts (None = any); groups: the groups to read (None = all:
+    a caller that needs only the skin need not load a synthesis's motions). Returns {"stage",
+    "format_version", "provenance": [records], group name: {dataset: array, "@attr": value}}.
     """
     stage, version = read_header(path)
     if stages is not None and stage not in stages:
@@ -241,7 +242,7 @@ def read_model(path, stages=None):
                 record["seed"] = None if int(record.get("seed", -1)) < 0 else int(record["seed"])
                 model["provenance"].append(record)
             for name, item in f.items():
-                if name != "provenance" and isinstance(item, h5py.Group):
+                if name != "provenance" and isinstance(item, h5py.Group) and (groups is None or name in groups):
                     model[name] = _read_group(item)
     except DeclaredTooLarge as exc:
         raise FormatError(path, f"damaged model file: {exc}") from None
@@ -265,7 +266,7 @@ def content_digests(path, block_bytes=64 << 20):
     a cluster run's shards. Datasets are read ``block_bytes`` at a time."""
     import hashlib
 
-    stage, _ = read_header(path)
+    read_header(path)  # refuses what is not a model file
     digests = {}
 
     def visit(name, item):
@@ -282,7 +283,8 @@ def content_digests(path, block_bytes=64 << 20):
                 for start in range(0, item.shape[0], step):
                     digest.update(np.ascontiguousarray(item[start:start + step]).tobytes())
             else:
-                digest.update(repr(item[()].tolist() if hasattr(item[()], "tolist") else item[()]).encode())
+                value = item[()]
+                digest.update(repr(value.tolist() if hasattr(value, "tolist") else value).encode())
             digests[name] = digest.hexdigest()
 
     try:

@@ -76,18 +76,26 @@ def project(points, camera, width, height):
     return np.stack([x, y, depth], axis=1)
 
 
+def _area_normals(vertices, faces):
+    """(T, 3): each face's normal times twice its area."""
+    return np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+
+
+def _unit(vectors):
+    return vectors / np.maximum(np.linalg.norm(vectors, axis=1, keepdims=True), 1e-300)
+
+
 def face_normals(vertices, faces):
-    n = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    return _unit(_area_normals(vertices, faces))
 
 
 def vertex_normals(vertices, faces):
     """Area-weighted vertex normals (V, 3)."""
-    n = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+    n = _area_normals(vertices, faces)
     out = np.zeros_like(vertices, dtype=np.float64)
     for corner in range(3):
         np.add.at(out, faces[:, corner], n)
-    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
+    return _unit(out)
 
 
 def lambert(normals, light, ambient=0.3):

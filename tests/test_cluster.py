@@ -62,6 +62,10 @@ def test_a_local_cluster_gives_the_single_machine_datasets(graph, reference, tmp
     # every reader works on it as on any synthesis file; inspect --digests shows it is the same data
     summary = json.loads(assert_ok(cli("inspect", out, "--json", "--digests")).stdout)
     assert summary["stage"] == "synthesis" and summary["digests"] == contents(reference)
+    from skinsynth.formats.model import read_model
+
+    partial = read_model(out, groups=("skin",))  # a reader that needs the skin leaves the motions alone
+    assert "skin" in partial and "synthesis" not in partial
     listed = assert_ok(cli("inspect", reference, "--digests")).stdout
     assert f"{summary['digests']['synthesis/bone_matrices']}  synthesis/bone_matrices" in listed.splitlines()
 
