@@ -5,7 +5,7 @@ import time
 
 import click
 
-from .common import report, summary_options, check_output_path, command_line, fail, tool_version, user_errors
+from .common import FolderOutputs, report, summary_options, check_output_path, command_line, tool_version, user_errors
 
 
 @click.command("build-graph")
@@ -64,8 +64,8 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.pipeline.motion_graph import default_min_segment
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
-    if plot_dir is not None and os.path.exists(plot_dir) and not os.path.isdir(plot_dir):
-        fail(f"{plot_dir}: --plot needs a folder, and this is a file")
+    folders = FolderOutputs([path], [output, plot_dir])
+    folders.check(plot_dir)
     model = read_model(path)
     skin = read_skin(path, model)
     if min_segment is None:
@@ -89,17 +89,19 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     if plot_dir is not None:
         from skinsynth.formats.plots import write_bone_graph_plot, write_cost_matrix_plot
 
-        os.makedirs(plot_dir, exist_ok=True)
-        for number, component in enumerate(analysis.components):
-            t = component.transitions
-            write_cost_matrix_plot(os.path.join(plot_dir, f"costs_component_{number:03d}.png"), t.D, t.pairs,
-                                   t.threshold, f"component {number}: {len(component.bones)} bones, "
-                                   f"{len(t.pairs)} transitions (T_c = {t.threshold:.3g})")
-        positions = bone_layout(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
-        write_bone_graph_plot(os.path.join(plot_dir, "bone_graph.png"), positions, analysis.weights,
-                              analysis.kept_edges, [c.bones for c in analysis.components], analysis.cut_nodes,
-                              f"bone graph: {len(analysis.components)} component(s), "
-                              f"{len(analysis.cut_nodes)} cut node(s)")
+        from skinsynth.formats.output_folder import atomic_folder
+
+        with atomic_folder(plot_dir, **folders.guard(plot_dir)) as tmp:
+            for number, component in enumerate(analysis.components):
+                t = component.transitions
+                write_cost_matrix_plot(os.path.join(tmp, f"costs_component_{number:03d}.png"), t.D, t.pairs,
+                                       t.threshold, f"component {number}: {len(component.bones)} bones, "
+                                       f"{len(t.pairs)} transitions (T_c = {t.threshold:.3g})")
+            positions = bone_layout(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
+            write_bone_graph_plot(os.path.join(tmp, "bone_graph.png"), positions, analysis.weights,
+                                  analysis.kept_edges, [c.bones for c in analysis.components], analysis.cut_nodes,
+                                  f"bone graph: {len(analysis.components)} component(s), "
+                                  f"{len(analysis.cut_nodes)} cut node(s)")
     lines = [f"wrote {output}: {len(analysis.components)} component(s), cut nodes {analysis.cut_nodes}, "
              f"{analysis.transition_count} transitions, segments ≥ {min_segment} frames; {seconds:.1f} s"]
     components = []

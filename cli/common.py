@@ -108,16 +108,31 @@ def check_output_path(path, suffixes, inputs=()):
     check_not_an_input(path, inputs)
 
 
-def check_side_folder(folder):
-    """Refuse, before any work, a folder for side outputs that is a file, or that cannot be made
-    or written (its nearest existing ancestor decides)."""
-    if os.path.exists(folder) and not os.path.isdir(folder):
-        fail(f"{folder}: needs a folder, and this is a file")
-    existing = os.path.abspath(folder)
-    while not os.path.exists(existing):
-        existing = os.path.dirname(existing)
-    if not os.access(existing, os.W_OK | os.X_OK):
-        fail(f"{folder}: cannot write here: {existing} is not writable")
+class FolderOutputs:
+    """A command's folder outputs, each refused before any work when it could cost the user a
+    file: one that holds anything skinsynth did not write, the working folder, or a folder that
+    holds an input or another output of the command
+    (:func:`~skinsynth.formats.output_folder.check_folder_output`).
+
+    ``inputs``: the input files; ``outputs``: every output (files and folders, None where not
+    asked for). :meth:`guard` gives the writer of one folder what it must check again at its swap."""
+
+    def __init__(self, inputs, outputs):
+        self.inputs = [str(p) for p in inputs if p is not None]
+        self.outputs = [str(p) for p in outputs if p is not None]
+
+    def check(self, folder):
+        """Check ``folder`` (one of the outputs) now; returns it."""
+        from skinsynth.formats.output_folder import check_folder_output
+
+        if folder is not None:
+            check_folder_output(folder, **self.guard(folder))
+        return folder
+
+    def guard(self, folder):
+        """``inputs`` and ``outputs`` (the others) for ``folder``'s writer."""
+        index = self.outputs.index(str(folder))
+        return {"inputs": self.inputs, "outputs": self.outputs[:index] + self.outputs[index + 1:]}
 
 
 def check_not_an_input(path, inputs):

@@ -4,7 +4,7 @@ import os
 
 import click
 
-from .common import check_side_folder, report, summary_options, check_output_path, fail, user_errors
+from .common import FolderOutputs, report, summary_options, check_output_path, fail, user_errors
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
 
@@ -42,8 +42,9 @@ def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json)
     from skinsynth.gpu import lbs, resolve_device
 
     to_folder = output.endswith(("/", os.sep))
+    folders = FolderOutputs([path], [output])
     if to_folder:
-        check_side_folder(output)
+        folders.check(output)
     else:
         check_output_path(output, USD_SUFFIXES + (".exr",), inputs=[path])
     if max_width < 1:
@@ -74,7 +75,7 @@ def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json)
                 from skinsynth.formats.vat_bundle import write_vat_folder
 
                 write_vat_folder(output, skin.rest_vertices, skin.faces, [("animation", frames)], skin.fps,
-                                 skin.scene, max_width=max_width, half=half)
+                                 skin.scene, max_width=max_width, half=half, **folders.guard(output))
             else:
                 write_vat(output, skin.rest_vertices, frames, skin.fps, max_width=max_width, half=half)
         else:

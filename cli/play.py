@@ -6,7 +6,7 @@ import time
 import click
 import numpy as np
 
-from .common import report, summary_options, check_output_path, check_side_folder, user_errors
+from .common import report, summary_options, check_output_path, FolderOutputs, user_errors
 
 OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
 
@@ -66,8 +66,9 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     from skinsynth.pipeline.playback import grid_offsets, host_inputs, instance_trajectories, world_bones
 
     to_folder = output.endswith(("/", os.sep))
+    folders = FolderOutputs([path, *control_files], [output])
     if to_folder:
-        check_side_folder(output)
+        folders.check(output)
     else:
         check_output_path(output, OUTPUTS, inputs=[path, *control_files])
     device = resolve_device(device)
@@ -156,7 +157,7 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
             # each character's offsets from its own grid cell, so one rest mesh serves them all
             write_vat_folder(output, skin.rest_vertices, skin.faces,
                              [(name, vertices[c] - offsets[c].astype(np.float32)) for c, name in enumerate(names)],
-                             skin.fps, skin.scene, max_width=max_width, half=half)
+                             skin.fps, skin.scene, max_width=max_width, half=half, **folders.guard(output))
         else:
             if half and np.abs(vertices[0] - skin.rest_vertices).max() > HALF_MAX:
                 raise OptionError(f"{output}: offsets exceed the half-float range ({HALF_MAX:g}); drop --half")

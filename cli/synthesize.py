@@ -8,7 +8,7 @@ import time
 import click
 import numpy as np
 
-from .common import report, summary_options, Progress, check_output_path, check_side_folder, command_line, tool_version, user_errors
+from .common import report, summary_options, Progress, check_output_path, FolderOutputs, command_line, tool_version, user_errors
 
 
 def _target(text):
@@ -154,9 +154,12 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     check_output_path(output, (".h5", ".hdf5"), inputs=[path, *obstacles])
     if crowd is not None:
         check_output_path(crowd, (".usd", ".usda", ".usdc"), inputs=[path, *obstacles, output])
-    for folder in (usd_dir, exr_dir, plot_dir):  # side folders: writable before any work
-        if folder is not None:
-            check_side_folder(folder)
+    from skinsynth.formats.synthesis_shards import shard_folder
+
+    folders = FolderOutputs([path, *obstacles], [output, crowd, usd_dir, exr_dir, plot_dir,
+                                                 shard_folder(output) if cluster else None])
+    for folder in (usd_dir, exr_dir, plot_dir):  # side folders: safe to write before any work
+        folders.check(folder)
     if jobs is None:
         jobs = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     if jobs < 1:
@@ -235,10 +238,10 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     written = [output]
     with _motions(output, result, remote) as motions:  # a cluster's motions are read back from the shards
         if usd_dir or crowd or exr_dir:
-            written += _write_caches(skin, motions, usd_dir, crowd, exr_dir, up_axis, device, threads=jobs,
+            written += _write_caches(skin, motions, usd_dir, crowd, exr_dir, up_axis, device, folders, threads=jobs,
                                      texture=dict(half=half, max_width=max_width))
         if plot_dir is not None:
-            written += _write_plots(plot_dir, skin, motions, min(plot_count, count), device)
+            written += _write_plots(plot_dir, skin, motions, min(plot_count, count), device, folders)
     stats = result.statistics
     summary = {"animations": int(result.F.shape[0]), "frames": int(frames), "seconds": round(seconds, 3),
               "distinct": result.distinct, "transitions_used": int(np.sum(result.seams_used)),
@@ -345,29 +348,32 @@ def _read_obstacle(path):
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
 
-def _write_plots(folder, skin, result, count, device):
+def _write_plots(folder, skin, result, count, device, folders):
     """One PNG per animation: sources per component and seams, max vertex acceleration / the
     input's (vertices baked with the skin's own weights)."""
+    from skinsynth.formats.output_folder import atomic_folder
     from skinsynth.formats.plots import write_synthesis_plot
     from skinsynth.gpu import lbs
     from skinsynth.pipeline.evaluation import frame_accelerations
 
-    os.makedirs(folder, exist_ok=True)
     largest = np.nanmax(frame_accelerations(skin.examples))
     written = []
-    for a in range(count):
-        vertices = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, result.F[a], result.t[a],
-                       device=device)
-        ratio = frame_accelerations(vertices) / largest
-        target = os.path.join(folder, f"animation_{a:04d}.png")
-        seams = int(np.sum(result.sources[:, a, 1:] != result.sources[:, a, :-1] + 1))
-        write_synthesis_plot(target, result.sources[:, a], ratio,
-                             f"animation {a}: {seams} seams, largest acceleration {np.nanmax(ratio):.2f}× the input's")
-        written.append(target)
+    with atomic_folder(folder, **folders.guard(folder)) as tmp:
+        for a in range(count):
+            vertices = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, result.F[a], result.t[a],
+                           device=device)
+            ratio = frame_accelerations(vertices) / largest
+            name = f"animation_{a:04d}.png"
+            seams = int(np.sum(result.sources[:, a, 1:] != result.sources[:, a, :-1] + 1))
+            # no acceleration in an animation under 3 frames
+            peak = f"{np.max(ratio[1:-1]):.2f}× the input's" if len(ratio) > 2 else "none (under 3 frames)"
+            write_synthesis_plot(os.path.join(tmp, name), result.sources[:, a], ratio,
+                                 f"animation {a}: {seams} seams, largest acceleration {peak}")
+            written.append(os.path.join(folder, name))
     return written
 
 
-def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, threads=1, texture=None):
+def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, folders, threads=1, texture=None):
     from skinsynth.pipeline.evaluation import largest_side
     from skinsynth.pipeline.playback import grid_offsets
 
@@ -379,28 +385,32 @@ def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, thread
 
         if exr_dir:
             check_texture_size(exr_dir, skin.rest_vertices.shape[0], result.F.shape[1], texture["max_width"])
-        if usd_dir:
-            os.makedirs(usd_dir, exist_ok=True)
-        frames = _LazyCrowd(skin, result.F, result.t, none, device, threads)
+        from skinsynth.formats.output_folder import atomic_folder
 
-        def each():  # every animation skinned once, for both outputs
+        frames = _LazyCrowd(skin, result.F, result.t, none, device, threads)
+        usd_folder = atomic_folder(usd_dir, **folders.guard(usd_dir)) if usd_dir else contextlib.nullcontext()
+
+        def each(usd_tmp):  # every animation skinned once, for both outputs
             from skinsynth.formats.usd import write_points_cache
 
             for a in range(count):
                 vertices = frames[a]
                 if usd_dir:
-                    target = os.path.join(usd_dir, f"animation_{a:04d}.usdc")
-                    write_points_cache(target, vertices, skin.faces, skin.fps, up_axis=up_axis, scene=skin.scene)
-                    written.append(target)
+                    name = f"animation_{a:04d}.usdc"
+                    write_points_cache(os.path.join(usd_tmp, name), vertices, skin.faces, skin.fps, up_axis=up_axis,
+                                       scene=skin.scene)
+                    written.append(os.path.join(usd_dir, name))
                 yield f"animation_{a:04d}", vertices
 
         try:
-            if exr_dir:
-                write_vat_folder(exr_dir, skin.rest_vertices, skin.faces, each(), skin.fps, skin.scene, **texture)
-                written.append(exr_dir)
-            else:
-                for _ in each():
-                    pass
+            with usd_folder as usd_tmp:
+                if exr_dir:
+                    write_vat_folder(exr_dir, skin.rest_vertices, skin.faces, each(usd_tmp), skin.fps, skin.scene,
+                                     **texture, **folders.guard(exr_dir))
+                    written.append(exr_dir)
+                else:
+                    for _ in each(usd_tmp):
+                        pass
         finally:
             frames.close()
     if crowd:

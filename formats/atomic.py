@@ -55,7 +55,8 @@ def held_signals():
 
 
 def _sweep_stale(folder, prefix, suffix):
-    """Remove ``prefix<pid>.*<suffix>`` temporaries of processes that no longer exist."""
+    """Remove ``prefix<pid>.*<suffix>`` temporaries (files, or folders of a folder output) of
+    processes that no longer exist."""
     try:
         names = os.listdir(folder)
     except OSError:
@@ -73,8 +74,14 @@ def _sweep_stale(folder, prefix, suffix):
             pass
         except OSError:  # e.g. another user's process: leave it
             continue
-        with contextlib.suppress(OSError):
-            os.remove(os.path.join(folder, name))
+        path = os.path.join(folder, name)
+        if os.path.isdir(path) and not os.path.islink(path):
+            import shutil
+
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                os.remove(path)
 
 
 def _out_of_space(error):
@@ -84,7 +91,8 @@ def _out_of_space(error):
 
     if isinstance(error, OSError) and error.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)):
         return True
-    return "No space left on device" in str(error) or "Disk quota exceeded" in str(error)
+    text = str(error).lower()  # also this module's own FormatError, met again by an enclosing folder
+    return "no space left on" in text or "disk quota exceeded" in text
 
 
 def _megabytes(count):
@@ -145,35 +153,6 @@ def atomic_output(path, expected_bytes=0):
             raise
     if pending:  # arrived during the rename: the file is complete; stop now
         raise Interrupted(pending[0])
-
-
-@contextlib.contextmanager
-def atomic_folder(path):
-    """Yield a temporary folder beside ``path``; on success it replaces ``path`` (a folder of
-    several outputs, e.g. one texture per character), so a Make rule whose target is the folder
-    sees it whole or not at all. On any exception the temporary folder is removed."""
-    import shutil
-
-    path = os.fspath(path).rstrip(os.sep) or os.sep
-    parent = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(parent):
-        raise FormatError(path, f"cannot write here: the folder {parent} does not exist")
-    if os.path.exists(path) and not os.path.isdir(path):
-        raise FormatError(path, "is a file; a folder is written here")
-    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(path)}.{os.getpid()}.", suffix=".tmp", dir=parent)
-    os.chmod(tmp, 0o777 & ~_umask())
-    mark = len(WRITTEN)
-    try:
-        yield tmp
-        if os.path.isdir(path):
-            shutil.rmtree(path)
-        os.replace(tmp, path)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    finally:
-        del WRITTEN[mark:]  # the files inside the temporary folder: the folder is what counts
-    WRITTEN.append(path)
 
 
 def _umask():

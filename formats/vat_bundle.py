@@ -1,6 +1,6 @@
 """Engine-ready vertex animation: everything a VAT shader needs, in one folder.
 
-A folder (written whole, :func:`~skinsynth.formats.atomic.atomic_folder`) holding, per animation
+A folder (written whole, :func:`~skinsynth.formats.output_folder.atomic_folder`, with its manifest) holding, per animation
 ``NAME``:
 
 - ``NAME.exr``: offsets from the rest pose (:func:`~skinsynth.formats.exr.write_vat`'s layout:
@@ -102,17 +102,19 @@ def sidecar(animations, count, width, rows, height, frames, fps, half, scene, bo
     }
 
 
-def write_vat_folder(folder, rest_vertices, faces, animations, fps, scene, max_width=8192, half=False):
+def write_vat_folder(folder, rest_vertices, faces, animations, fps, scene, max_width=8192, half=False, inputs=(),
+                     outputs=()):
     """Write the folder: ``animations`` yields (name, vertices (F, V, 3)) of one rest mesh, and is
     consumed once (it may skin each animation only when asked: a crowd never has to fit in
-    memory). The texture size is checked on the first (:func:`check_texture_size`). Returns the
-    sidecar dict."""
-    from .atomic import atomic_folder
+    memory). The texture size is checked on the first (:func:`check_texture_size`). ``inputs``
+    and ``outputs``: the command's input files and other outputs, which the folder must not hold
+    (:func:`~skinsynth.formats.output_folder.atomic_folder`). Returns the sidecar dict."""
+    from .output_folder import atomic_folder
     from .exr import HALF_MAX, write_vat
 
     count = len(rest_vertices)
     names, bounds, layout = [], [], None
-    with atomic_folder(folder) as tmp:
+    with atomic_folder(folder, inputs, outputs) as tmp:
         for name, vertices in animations:
             if layout is None:
                 frames = len(vertices)

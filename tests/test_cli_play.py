@@ -64,7 +64,7 @@ def test_instances_points_cache_and_exr(files, tmp_path):
     assert_user_error(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", tmp_path / "t.exr",
                           "--instances", 2), "give a folder", f"-o {tmp_path / 't'}/")
     assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", f"{tmp_path / 'vat'}/", "--instances", 2))
-    assert sorted(os.listdir(tmp_path / "vat")) == ["character_000.exr", "character_000_normals.exr",
+    assert sorted(os.listdir(tmp_path / "vat")) == [".skinsynth-folder.json", "character_000.exr", "character_000_normals.exr",
                                                     "character_001.exr", "character_001_normals.exr", "rest.glb",
                                                     "rest.obj", "vat.json"]
     offsets, meta = read_vat(tmp_path / "vat" / "character_001.exr")

@@ -53,7 +53,7 @@ def test_synthesize_json_and_caches(files, tmp_path):
     assert np.abs(vertices - expected).max() < 1e-3 * np.ptp(rest)
     vat = sorted(p.name for p in (tmp_path / "vat").iterdir())  # an engine-ready folder (docs/vat.md)
     assert vat == sorted([f"animation_{a:04d}{k}.exr" for a in range(4) for k in ("", "_normals")]
-                         + ["rest.glb", "rest.obj", "vat.json"])
+                         + [".skinsynth-folder.json", "rest.glb", "rest.obj", "vat.json"])
     offsets, _ = read_vat(tmp_path / "vat" / "animation_0002.exr")
     assert np.abs(rest + offsets - lbs_reference(rest, idx, w, F[2], t[2])).max() < 1e-3 * np.ptp(rest)
     summary = json.loads(assert_ok(cli("inspect", tmp_path / "b.h5", "--json")).stdout)
@@ -142,7 +142,8 @@ def test_plots_show_each_animation_and_reports_name_segments_and_coverage(files,
     report = json.loads(assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 3, "-m", 80,
                                       "--plot", tmp_path / "plots", "--plot-count", 2, "--json",
                                       "--device", "cpu")).stdout)
-    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["animation_0000.png", "animation_0001.png"]
+    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == [".skinsynth-folder.json", "animation_0000.png",
+                                                                      "animation_0001.png"]
     assert all((tmp_path / "plots" / p).read_bytes()[:4] == b"\x89PNG" for p in ("animation_0000.png",))
     _, _, sources = bones(tmp_path / "b.h5")
     seams = np.count_nonzero(sources[..., 1:] != sources[..., :-1] + 1, axis=(1, 2))

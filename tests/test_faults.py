@@ -14,7 +14,7 @@ import time
 import h5py
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
@@ -99,20 +99,122 @@ def full_disk(tmp_path):
     subprocess.run(["umount", str(folder)], capture_output=True)
 
 
-def test_a_full_disk_is_one_line_and_leaves_nothing(chain, full_disk):
+def test_a_full_disk_is_one_line_and_leaves_nothing(chain, full_disk, tmp_path):
     cases = [["fit-skin", chain / "bar.npz", "--bones", 3, "-o", full_disk / "x.h5", "-q"],
              ["export", chain / "skin.h5", "-o", full_disk / "x.usda", "--as", "points"],
              ["export", chain / "skin.h5", "-o", full_disk / "x.exr"],
              ["example", "bending-bar", "-o", full_disk / "x.npz", "--frames", 96],
              ["evaluate", chain / "puppet.h5", "--plot", full_disk / "x.png"],
              ["synthesize", chain / "graph.h5", "-n", 20, "-m", 100, "-o", full_disk / "x.h5", "-q"],
-             ["play", chain / "puppet.h5", "-c", chain / "controls.csv", "-o", full_disk / "x.usdc", "--instances", 500]]
+             ["play", chain / "puppet.h5", "-c", chain / "controls.csv", "-o", full_disk / "x.usdc", "--instances", 500],
+             # folder outputs (issue 27): the temporary folder goes, and the line names the user's folder
+             ["export", chain / "skin.h5", "-o", f"{full_disk / 'vat'}/"],
+             ["play", chain / "puppet.h5", "-c", chain / "controls.csv", "-o", f"{full_disk / 'vat'}/", "--instances", 8],
+             ["synthesize", chain / "graph.h5", "-n", 20, "-m", 100, "-o", tmp_path / "s.h5", "-q", "--usd",
+              full_disk / "usd"],
+             ["synthesize", chain / "graph.h5", "-n", 8, "-m", 100, "-o", tmp_path / "s.h5", "-q", "--plot",
+              full_disk / "plots", "--plot-count", 8],
+             ["build-graph", chain / "skin.h5", "-o", tmp_path / "g.h5", "--edge-threshold", 0.5, "--plot",
+              full_disk / "plots", "-q"]]
     for args in cases:
         done = run(args)
         lines = done.stderr.strip().splitlines()
         assert done.returncode == 2 and len(lines) == 1, (args, done.stderr[-2000:])
         assert "space" in lines[0] and str(full_disk) in lines[0], lines[0]
         assert_folder_holds(full_disk)  # no output, no temporary
+
+
+# -- folder outputs never cost the user a file (issue 27) ------------------------------------------
+
+#: Every command with a folder output: (its arguments with {dir} for the folder and {out} for its
+#: file output, or None; its input to place inside the folder when asked).
+FOLDER_OUTPUTS = {
+    "export": (["export", "{skin.h5}", "-o", "{dir}/", "-q"], None),
+    "play": (["play", "{puppet.h5}", "-c", "{controls.csv}", "--instances", 2, "-o", "{dir}/", "-q"], None),
+    "synthesize --exr": (["synthesize", "{graph.h5}", "-n", 2, "-m", 20, "-o", "{out}", "--exr", "{dir}/", "-q"],
+                         "h5"),
+    "synthesize --usd": (["synthesize", "{graph.h5}", "-n", 2, "-m", 20, "-o", "{out}", "--usd", "{dir}", "-q"],
+                         "h5"),
+    "synthesize --plot": (["synthesize", "{graph.h5}", "-n", 2, "-m", 20, "-o", "{out}", "--plot", "{dir}",
+                           "--plot-count", 1, "-q"], "h5"),
+    "build-graph --plot": (["build-graph", "{skin.h5}", "-o", "{out}", "--edge-threshold", 0.5, "--plot", "{dir}",
+                            "-q"], "h5"),
+}
+#: Names a user's file may have: the names the commands write themselves among them.
+USER_FILE_NAMES = st.one_of(
+    st.sampled_from(["notes.txt", "project.blend", "vat.json", "rest.obj", "rest.glb", "animation.exr",
+                     "character_000.exr", "animation_0000.usdc", "animation_0000.png", "bone_graph.png",
+                     ".skinsynth-folder.json", ".hidden", "sub/take.h5"]),
+    st.text(alphabet="abcxyz_.-", min_size=1, max_size=8).filter(lambda n: n not in (".", "..")))
+
+
+def _files(folder):
+    found = {}
+    for top, _, names in os.walk(folder):
+        for name in names:
+            found[os.path.relpath(os.path.join(top, name), folder)] = digest(os.path.join(top, name))
+    return found
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(command=st.sampled_from(sorted(FOLDER_OUTPUTS)), made_before=st.booleans(),
+       user_files=st.one_of(st.just({}), st.dictionaries(USER_FILE_NAMES, st.binary(max_size=32), min_size=1,
+                                                          max_size=3)),
+       inside=st.sampled_from(["nothing", "nothing", "an input", "the file output"]))
+def test_a_folder_output_leaves_every_file_of_the_user_as_it_was_or_refuses(chain, command, made_before, user_files,
+                                                                             inside):
+    """Whatever a folder output's target holds (a folder skinsynth wrote before or not, a user's
+    files, the command's own input or file output), every file that was there is byte-identical
+    afterwards, or the command refused in one line; and it refuses exactly when something of the
+    user's is at stake."""
+    import tempfile
+
+    template, file_output = FOLDER_OUTPUTS[command]
+    with tempfile.TemporaryDirectory() as work:
+        target = os.path.join(work, "target")
+
+        def arguments(source_inside, out_inside):
+            args = []
+            for a in template:
+                if a in ("{dir}", "{dir}/"):
+                    args.append(target + a[len("{dir}"):])
+                elif a == "{out}":
+                    args.append(os.path.join(target if out_inside else work, "out.h5"))
+                elif isinstance(a, str) and a.startswith("{"):
+                    name = a[1:-1]
+                    args.append(source_inside if source_inside and name == template[1][1:-1] else str(chain / name))
+                else:
+                    args.append(a)
+            return args
+
+        if made_before:
+            assert_ok(cli(*arguments(None, False)))
+            if os.path.exists(os.path.join(work, "out.h5")):
+                os.remove(os.path.join(work, "out.h5"))
+        os.makedirs(target, exist_ok=True)
+        for name, content in user_files.items():
+            os.makedirs(os.path.dirname(os.path.join(target, name)), exist_ok=True)
+            with open(os.path.join(target, name), "wb") as handle:
+                handle.write(content)
+        source_inside = None
+        if inside == "an input":
+            source_inside = os.path.join(target, "input" + os.path.splitext(template[1][1:-1])[1])
+            with open(source_inside, "wb") as handle:
+                handle.write((chain / template[1][1:-1]).read_bytes())
+        at_stake = bool(user_files) or inside == "an input" or (inside == "the file output" and file_output)
+        event(f"{command}: {'refused' if at_stake else 'replaced' if made_before else 'written'}")
+        before = _files(work)
+        result = cli(*arguments(source_inside, inside == "the file output"))
+        if at_stake:
+            assert_user_error(result)
+            assert _files(work) == before  # refused before any work: nothing at all was touched
+        else:
+            assert_ok(result)
+            after = _files(work)
+            assert all(after.get(name) == sha for name, sha in before.items() if not name.startswith("target/"))
+            assert ".skinsynth-folder.json" in os.listdir(target)
+            assert [n for n in os.listdir(work) if n.startswith(".")] == []  # no temporary left
 
 
 # -- signals at random moments ---------------------------------------------------------------------

@@ -77,7 +77,7 @@ def test_export_and_play_write_the_folder(tmp_path):
     fitted_bar(tmp_path, frames=24, bones=4, iterations=6)
     assert_ok(cli("export", tmp_path / "skin.h5", "-o", f"{tmp_path / 'skin_vat'}/", "--half"))
     names = sorted(p.name for p in (tmp_path / "skin_vat").iterdir())
-    assert names == ["animation.exr", "animation_normals.exr", "rest.glb", "rest.obj", "vat.json"]
+    assert names == [".skinsynth-folder.json", "animation.exr", "animation_normals.exr", "rest.glb", "rest.obj", "vat.json"]
     assert_ok(cli("select-controls", tmp_path / "skin.h5", "-o", tmp_path / "c.h5", "--count", 6, "-q"))
     assert_ok(cli("train-kcca", tmp_path / "c.h5", "-o", tmp_path / "p.h5", "-q"))
     assert_ok(cli("play", tmp_path / "p.h5", "-c", tmp_path / "bar.npz", "-o", f"{tmp_path / 'crowd'}/",
