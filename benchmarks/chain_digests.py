@@ -55,8 +55,22 @@ def digest(path, cwd):
     path = pathlib.Path(cwd) / path
     if path.is_dir():
         return {p.name: file_digest(p) for p in sorted(path.iterdir())}
-    if path.suffix == ".h5":
-        return json.loads(skinsynth("inspect", path, "--digests", "--json", cwd=cwd))
+    if path.suffix == ".h5" and path.name != "play.h5":
+        return json.loads(skinsynth("inspect", path, "--digests", "--json", cwd=cwd))["digests"]
+    if path.suffix == ".h5":  # play's vertex animation is no model file: every dataset and attribute
+        import h5py
+
+        found = {}
+        with h5py.File(path, "r") as f:
+            def each(name, item):
+                if isinstance(item, h5py.Dataset):
+                    values = item[()]
+                    data = repr(values.tolist()).encode() if values.dtype.kind == "O" else values.tobytes()
+                    found[name] = hashlib.sha256(data).hexdigest()
+
+            f.visititems(each)
+            found.update({f"@{k}": repr(v) for k, v in f.attrs.items()})
+        return found
     return file_digest(path)
 
 

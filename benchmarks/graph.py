@@ -29,8 +29,8 @@ def _datasets():
 
 
 def main():
-    from skinsynth.pipeline.graph import build_graph
-    from skinsynth.pipeline.skin_fit import fit_skin
+    from skinsynth.pipeline.synthesis import build_graph
+    from skinsynth.pipeline.skin import fit_skin
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", help="run only this dataset name")

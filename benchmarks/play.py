@@ -121,6 +121,8 @@ def real_puppets(work):
     from datasets import BONES, captures, run
 
     from skinsynth.formats.puppet_file import read_puppet
+
+    from skinsynth.pipeline.puppet import puppet_from_record
     from skinsynth.formats.usd import read_skel_points
     from skinsynth.pipeline.puppet import predict_vertices
 
@@ -138,7 +140,8 @@ def real_puppets(work):
         bake, usd = os.path.join(work, f"{name}.play.h5"), os.path.join(work, f"{name}.play.usdc")
         _, _, _, stdout = run(["play", puppet_path, "-c", spec, "-o", bake, "--json"], work)
         run(["play", puppet_path, "-c", spec, "-o", usd, "--as", "skel"], work)
-        puppet, _, _ = read_puppet(puppet_path)
+        record, _, _ = read_puppet(puppet_path)
+        puppet = puppet_from_record(record)
         with h5py.File(puppet_path, "r") as f:
             examples = f["examples/vertices"][()]
         reference = predict_vertices(puppet, examples[:, puppet.control_indices])

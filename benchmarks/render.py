@@ -25,7 +25,7 @@ def main():
     args = parser.parse_args()
     width, height = (int(v) for v in args.size.split("x"))
     from skinsynth.formats.meshseq import read_mesh_sequence
-    from skinsynth.pipeline.render import frame_bounds, ground_layer, render
+    from skinsynth.pipeline.view import frame_bounds, ground_layer, render
 
     work = tempfile.mkdtemp(prefix="skinsynth-render-")
     for name, path in captures(work):

@@ -49,7 +49,7 @@ def bake(skin, F, t):
 
 def frame_accel(vertices):
     """Largest vertex acceleration per frame 1..M−2: (M−2,)."""
-    from skinsynth.pipeline.evaluation import frame_accelerations
+    from skinsynth.pipeline.geometry import frame_accelerations
 
     return frame_accelerations(vertices)[1:-1]
 
@@ -72,7 +72,7 @@ def read_skin(path):
 
 
 def measure(name, spec, single, work, args):
-    from skinsynth.pipeline.motion_graph import walk_statistics
+    from skinsynth.pipeline.synthesis import walk_statistics
 
     mode = "single_component" if single else "multi_component"
     skin_path = os.path.join(work, f"{name}.skin.h5")

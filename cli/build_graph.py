@@ -60,8 +60,8 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.graph import bone_layout, build_graph as analyse, validate_graph_options
-    from skinsynth.pipeline.motion_graph import default_min_segment
+    from skinsynth.pipeline.synthesis import bone_layout, build_graph as analyse, validate_graph_options
+    from skinsynth.pipeline.synthesis import default_min_segment
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
     folders = FolderOutputs([path], [output, plot_dir])

@@ -39,11 +39,13 @@ def evaluate(path, as_json, quiet, plot, skinning, pca_components, extrapolate):
       skinsynth evaluate horse.puppet.h5 --json --plot horse_errors.png
     """
     from skinsynth.formats.puppet_file import read_puppet
-    from skinsynth.pipeline.evaluation import evaluate_extrapolation, evaluate_puppet, extrapolation_split
+    from skinsynth.pipeline.puppet import puppet_from_record
+    from skinsynth.pipeline.puppet import evaluate_extrapolation, evaluate_puppet, extrapolation_split
 
     if plot is not None:
         check_output_path(plot, (".png",), inputs=[path])
-    puppet, test_frames, skin, options = read_puppet(path, with_options=True)
+    record, test_frames, skin, options = read_puppet(path, with_options=True)
+    puppet = puppet_from_record(record)
     if len(test_frames) == 0:
         fail(f"{path}: no held-out frames (trained with --train-frames covering every example); "
              "retrain leaving some out, e.g. --train-frames every:4")

@@ -59,7 +59,8 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
     from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.rotations import align_hemispheres, rigid_to_dual_quaternion
-    from skinsynth.pipeline.skin_fit import bone_rest_frames, bounding_box_diagonal, fit_skin as fit, validate_fit_options
+    from skinsynth.pipeline.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.skin import bone_rest_frames, fit_skin as fit, validate_fit_options
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[input_spec])
     if fps is not None and not 0 < fps < float("inf"):

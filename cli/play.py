@@ -59,11 +59,12 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
       skinsynth play bar.puppet.h5 -c bar.npz --instances 16 -o crowd_vat/
     """
     from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.pipeline.puppet import puppet_from_record
     from skinsynth.formats.trajectories import read_control_trajectories
     from skinsynth.gpu import DevicePuppet, resolve_device, run_puppet
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.evaluation import largest_side
-    from skinsynth.pipeline.playback import grid_offsets, host_inputs, instance_trajectories, world_bones
+    from skinsynth.pipeline.geometry import grid_offsets, largest_side
+    from skinsynth.pipeline.puppet import host_inputs, instance_trajectories, world_bones
 
     to_folder = output.endswith(("/", os.sep))
     folders = FolderOutputs([path, *control_files], [output])
@@ -72,7 +73,8 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     else:
         check_output_path(output, OUTPUTS, inputs=[path, *control_files])
     device = resolve_device(device)
-    puppet, _, skin = read_puppet(path)
+    record, _, skin = read_puppet(path)
+    puppet = puppet_from_record(record)
     if translation_solver and puppet.translations is None:
         raise OptionError(f"{path}: trained without the translation solver; play with --no-translation-solver")
     count = len(puppet.control_indices)

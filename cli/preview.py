@@ -74,7 +74,7 @@ def preview(path, output, animations, examples, compare, error_scale, size, fps,
     """
     from skinsynth.formats.video import SUFFIXES, sheet_indices, write_frames
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.preview import Preview
+    from skinsynth.pipeline.view import Preview
 
     check_output_path(output, SUFFIXES, inputs=[path])
     if fps is not None and not 0 < fps <= 240:
@@ -112,7 +112,7 @@ def _panels(path, animations, examples, compare, error_scale):
     from skinsynth.formats.meshseq import read_mesh_sequence, read_played_characters
     from skinsynth.formats.model import read_header
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.preview import Panel
+    from skinsynth.pipeline.view import Panel
 
     lower = str(path).lower()
     if (examples or compare) and not lower.endswith((".h5", ".hdf5")):
@@ -149,8 +149,8 @@ def _model_panels(path, stage, animations, examples, compare, error_scale):
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.preview import Panel, error_colors
-    from skinsynth.pipeline.skin_fit import bounding_box_diagonal
+    from skinsynth.pipeline.view import Panel, error_colors
+    from skinsynth.pipeline.geometry import bounding_box_diagonal
 
     if animations and stage != "synthesis":
         raise OptionError("--animation applies to synthesis files")
@@ -179,12 +179,15 @@ def _model_panels(path, stage, animations, examples, compare, error_scale):
 
 def _puppet_panels(path, error_scale):
     from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.pipeline.puppet import puppet_from_record
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.preview import Panel, error_colors
+    from skinsynth.pipeline.view import Panel, error_colors
     from skinsynth.pipeline.puppet import predict_vertices
-    from skinsynth.pipeline.skin_fit import bounding_box_diagonal
+    from skinsynth.pipeline.geometry import bounding_box_diagonal
 
-    puppet, test_frames, skin = read_puppet(path)
+    record, test_frames, skin = read_puppet(path)
+
+    puppet = puppet_from_record(record)
     if len(test_frames) == 0:
         raise OptionError(f"{path}: the puppet has no held-out frames to show (train with --train-frames)")
     truth = skin.examples[test_frames]
@@ -200,7 +203,7 @@ def _synthesis_panels(path, skin, animations):
     from skinsynth.formats.synthesis_file import open_motions, read_sources
     from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.preview import Panel
+    from skinsynth.pipeline.view import Panel
 
     sources = read_sources(path)  # (C, N, M)
     count = sources.shape[1]

@@ -47,7 +47,7 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.controls import select_controls as select
+    from skinsynth.pipeline.puppet import select_controls as select
     from skinsynth.pipeline.errors import OptionError
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[input_path])

@@ -146,9 +146,9 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.synthesis_file import synthesis_groups
     from skinsynth.gpu import resolve_device
-    from skinsynth.pipeline.collisions import build_obstacles, colliding, vertex_subset
+    from skinsynth.pipeline.synthesis import build_obstacles, colliding, vertex_subset
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.motion_graph import default_min_segment
+    from skinsynth.pipeline.synthesis import default_min_segment
     from skinsynth.pipeline.synthesis import Request, component_from_file, synthesize as make, validate_request
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path, *obstacles])
@@ -192,7 +192,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
             subset = vertex_subset(skin.rest_vertices.shape[0])
             request.forbidden = colliding(request.obstacles, skin.examples[:, subset])
         if single_component and len(graph_file.components) > 1:
-            from skinsynth.pipeline.graph import build_graph  # networkx: only imported when needed
+            from skinsynth.pipeline.synthesis import build_graph  # networkx: only imported when needed
 
             analysis = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
                                    skin.rotations, skin.translations, single_component=True,
@@ -275,7 +275,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
 def _cluster_starting(address):
     from skinsynth.pipeline.execution import Cluster
 
-    return Cluster.starting(address, preload=("skinsynth.pipeline.synthesis",))
+    return Cluster.starting(address, preload=("skinsynth.pipeline.synthesis.synthesis",))
 
 
 def _shards(output, record, frames, bones):
@@ -354,7 +354,7 @@ def _write_plots(folder, skin, result, count, device, folders):
     from skinsynth.formats.output_folder import atomic_folder
     from skinsynth.formats.plots import write_synthesis_plot
     from skinsynth.gpu import lbs
-    from skinsynth.pipeline.evaluation import frame_accelerations
+    from skinsynth.pipeline.geometry import frame_accelerations
 
     largest = np.nanmax(frame_accelerations(skin.examples))
     written = []
@@ -374,8 +374,7 @@ def _write_plots(folder, skin, result, count, device, folders):
 
 
 def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, folders, threads=1, texture=None):
-    from skinsynth.pipeline.evaluation import largest_side
-    from skinsynth.pipeline.playback import grid_offsets
+    from skinsynth.pipeline.geometry import grid_offsets, largest_side
 
     count = result.F.shape[0]
     none = np.zeros((count, 3))

@@ -60,7 +60,7 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     from skinsynth.formats.puppet_file import puppet_groups
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.kcca import KERNELS
+    from skinsynth.pipeline.puppet import KERNELS
     from skinsynth.pipeline.puppet import parse_frame_spec, train_puppet
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])

@@ -23,6 +23,8 @@ Copies forward ``/mesh``, ``/examples``, ``/skin`` and ``/controls`` and adds:
   ``/training/@correctives_reason`` says why they are on or off.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .controls_file import read_controls
@@ -80,14 +82,37 @@ def training_options(model):
     return {name: parameters[name] for name in TRAINING_OPTIONS if name in parameters}
 
 
-def read_puppet(path, with_options=False):
-    """(Puppet, test_frames (n_t,), skin: SkinModel) from a puppet file, and with ``with_options``
-    also train-kcca's options (:func:`training_options`); FormatError if not one."""
-    from skinsynth.pipeline.correctives import Correctives
-    from skinsynth.pipeline.kcca import ControlKernel, KccaRegression
-    from skinsynth.pipeline.poisson import TranslationOperator
-    from skinsynth.pipeline.puppet import Puppet
+@dataclass
+class PuppetRecord:
+    """A puppet file's run-time contents as plain arrays and values (``pipeline.puppet``'s
+    ``puppet_from_record`` builds the Puppet): the Puppet's fields, with ``kernel`` {kind, mean,
+    scale, offset, degree}, ``regression`` {predictor (B, 8, n_p), bias (B, 8), correlations,
+    regularization}, ``translations`` {rotation_operator, control_operator, prior_operator} or
+    None, and ``correctives`` {weights, offsets, ridge, power, tail, axes, reason} or None."""
 
+    rest_vertices: np.ndarray
+    bone_indices: np.ndarray
+    bone_weights: np.ndarray
+    control_indices: np.ndarray
+    reference_controls: np.ndarray
+    global_motion: str
+    kernel: dict
+    training_controls: np.ndarray
+    regression: dict
+    translations: dict | None
+    beta: float
+    train_frames: np.ndarray
+    global_motion_reason: str
+    translation_prior: float
+    translation_prior_reason: str
+    kernel_width_reason: str
+    correctives: dict | None
+    correctives_reason: str
+
+
+def read_puppet(path, with_options=False):
+    """(PuppetRecord, test_frames (n_t,), skin: SkinModel) from a puppet file, and with
+    ``with_options`` also train-kcca's options (:func:`training_options`); FormatError if not one."""
     model = read_model(path, stages=("puppet",))
     skin = read_skin(path, model)
     controls = read_controls(path, model)
@@ -100,14 +125,15 @@ def read_puppet(path, with_options=False):
     bones = skin.bones
     if kcca["predictor"].shape[0] != 8 * bones:
         raise FormatError(path, f"/kcca/predictor has {kcca['predictor'].shape[0]} rows, expected 8 × {bones} bones")
-    kernel = ControlKernel(kind=str(kcca["@kernel"]), mean=kcca["control_mean"], scale=float(kcca["@scale"]),
-                           offset=float(kcca["@offset"]), degree=int(kcca["@degree"]))
-    regression = KccaRegression(predictor=kcca["predictor"].reshape(bones, 8, -1), bias=kcca["bias"].reshape(bones, 8),
-                                correlations=kcca["correlations"], regularization=kcca["regularization"])
+    kernel = dict(kind=str(kcca["@kernel"]), mean=kcca["control_mean"], scale=float(kcca["@scale"]),
+                  offset=float(kcca["@offset"]), degree=int(kcca["@degree"]))
+    regression = dict(predictor=kcca["predictor"].reshape(bones, 8, -1), bias=kcca["bias"].reshape(bones, 8),
+                      correlations=kcca["correlations"], regularization=kcca["regularization"])
     operator, beta, prior, prior_reason = None, float("nan"), float("nan"), ""
     if "poisson" in model:
         pois = require(model, path, "poisson", ("rotation_operator", "control_operator", "prior_operator"))
-        operator = TranslationOperator(pois["rotation_operator"], pois["control_operator"], pois["prior_operator"])
+        operator = dict(rotation_operator=pois["rotation_operator"], control_operator=pois["control_operator"],
+                        prior_operator=pois["prior_operator"])
         beta = float(pois.get("@beta", np.nan))
         prior, prior_reason = float(pois.get("@prior", np.nan)), str(pois.get("@prior_reason", ""))
     correctives = None
@@ -115,18 +141,19 @@ def read_puppet(path, with_options=False):
         group = require(model, path, "correctives", ("weights", "offsets"))
         if ("tail" in group) != ("axes" in group):
             raise FormatError(path, "/correctives has one of tail and axes without the other")
-        correctives = Correctives(weights=group["weights"], offsets=group["offsets"], ridge=float(group["@ridge"]),
-                                  power=float(group.get("@power", 1.0)), tail=group.get("tail"),
-                                  axes=group.get("axes"), reason=str(group.get("@reason", "")))
-    puppet = Puppet(rest_vertices=skin.rest_vertices, bone_indices=skin.bone_indices, bone_weights=skin.bone_weights,
-                    control_indices=np.asarray(controls.vertex_indices), reference_controls=training["reference_controls"],
-                    global_motion=str(training.get("@global_motion", "control-frame")), kernel=kernel,
-                    training_controls=kcca["training_controls"], regression=regression, translations=operator,
-                    beta=beta, train_frames=training["train_frames"],
-                    global_motion_reason=str(training.get("@global_motion_reason", "")),
-                    translation_prior=prior, translation_prior_reason=prior_reason,
-                    kernel_width_reason=str(kcca.get("@width_reason", "")), correctives=correctives,
-                    correctives_reason=str(training.get("@correctives_reason", "")))
+        correctives = dict(weights=group["weights"], offsets=group["offsets"], ridge=float(group["@ridge"]),
+                           power=float(group.get("@power", 1.0)), tail=group.get("tail"), axes=group.get("axes"),
+                           reason=str(group.get("@reason", "")))
+    puppet = PuppetRecord(rest_vertices=skin.rest_vertices, bone_indices=skin.bone_indices,
+                          bone_weights=skin.bone_weights, control_indices=np.asarray(controls.vertex_indices),
+                          reference_controls=training["reference_controls"],
+                          global_motion=str(training.get("@global_motion", "control-frame")), kernel=kernel,
+                          training_controls=kcca["training_controls"], regression=regression, translations=operator,
+                          beta=beta, train_frames=training["train_frames"],
+                          global_motion_reason=str(training.get("@global_motion_reason", "")),
+                          translation_prior=prior, translation_prior_reason=prior_reason,
+                          kernel_width_reason=str(kcca.get("@width_reason", "")), correctives=correctives,
+                          correctives_reason=str(training.get("@correctives_reason", "")))
     if with_options:
         return puppet, training["test_frames"], skin, training_options(model)
     return puppet, training["test_frames"], skin

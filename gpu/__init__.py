@@ -4,7 +4,10 @@ Public API (resolved lazily, so importing this package neither imports nor initi
 lbs, lbs_reference, dqs_reference, vertex_dual_quaternions, resolve_device, available_devices, DeviceError; the puppet's
 run-time path (puppet_kernels): kernel_vectors, predict_dual_quaternions, normalise_dual_quaternions,
 solve_translations, corrective_offsets, dq_skin, run_puppet, reference_run_puppet, PuppetArrays, DevicePuppet, and the
-stage references *_reference.
+stage references *_reference; fit-skin's two warp solves (skin_fit_kernels):
+solve_vertex_weights_warp, sweep_bone_transforms_warp; and the quaternion and dual-quaternion
+arithmetic its references share with pipeline.rotations (dual_quaternions, numpy only):
+quaternion_to_matrix, quaternion_multiply, dual_quaternion_to_rigid, with_translations.
 """
 
 import importlib
@@ -30,6 +33,12 @@ _EXPORTS = {
     "predict_dual_quaternions_reference": "puppet_kernels",
     "normalise_dual_quaternions_reference": "puppet_kernels",
     "solve_translations_reference": "puppet_kernels",
+    "solve_vertex_weights_warp": "skin_fit_kernels",
+    "sweep_bone_transforms_warp": "skin_fit_kernels",
+    "quaternion_to_matrix": "dual_quaternions",
+    "quaternion_multiply": "dual_quaternions",
+    "dual_quaternion_to_rigid": "dual_quaternions",
+    "with_translations": "dual_quaternions",
     "resolve_device": "runtime",
     "available_devices": "runtime",
     "DeviceError": "runtime",

@@ -244,7 +244,7 @@ def _kernels():
 
 def solve_vertex_weights_warp(products, rest_h, chosen, linear, start, squared_norm, max_influences, device,
                               ridge=1e-10, tolerance=1e-12):
-    """:func:`skinsynth.pipeline.vertex_weights.solve_vertex_weights` as one warp launch on
+    """:func:`skinsynth.pipeline.skin.vertex_weights.solve_vertex_weights` as one warp launch on
     ``device``: (bone_indices (V, K) int32, bone_weights (V, K), squared error (V,))."""
     wp = runtime.warp()
     vertex_weights, _ = _kernels()
@@ -280,7 +280,7 @@ def solve_vertex_weights_warp(products, rest_h, chosen, linear, start, squared_n
 
 
 def sweep_bone_transforms_warp(transforms, p, q, device):
-    """:func:`skinsynth.pipeline.transform_sweep.sweep_bone_transforms` as one warp launch (a
+    """:func:`skinsynth.pipeline.skin.transform_sweep.sweep_bone_transforms` as one warp launch (a
     thread per frame) on ``device``: the updated transforms (F, B, 3, 4)."""
     wp = runtime.warp()
     _, bone_sweep = _kernels()

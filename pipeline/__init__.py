@@ -1,1 +1,14 @@
-"""skinsynth.pipeline."""
+"""skinsynth.pipeline: the algorithms, on arrays; no file is opened here.
+
+One package per stage, over one shared floor (docs/architecture.md):
+
+- :mod:`.skin`: fit-skin (Le & Deng's rigid-bone LBS decomposition, Zheng §3.1);
+- :mod:`.puppet`: select-controls, train-kcca, evaluate and play's prediction (Feng 2008);
+- :mod:`.synthesis`: build-graph and synthesize (Zheng 2013);
+- :mod:`.view`: headless rendering and previews;
+- the floor, which every stage may import: :mod:`.geometry`, :mod:`.rotations` (with the
+  quaternion and dual-quaternion maths), :mod:`.errors`, :mod:`.examples`, :mod:`.execution`.
+
+Stages never import each other; ``pipeline`` imports ``gpu`` through its public API and never
+``formats`` or ``cli``.
+"""

@@ -11,7 +11,7 @@ Conventions (the whole project uses them, and docs/format.md states them):
 import numpy as np
 
 # The quaternion arithmetic sits below the pipeline, where the kernels' references use it too.
-from skinsynth.gpu.dual_quaternions import (  # noqa: F401 (re-exported)
+from skinsynth.gpu import (  # noqa: F401 (re-exported)
     dual_quaternion_to_rigid, quaternion_multiply, quaternion_to_matrix, with_translations)
 
 

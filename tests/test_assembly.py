@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from test_splicing import chain_clip
 
-from skinsynth.pipeline.assembly import assemble
-from skinsynth.pipeline.graph import build_graph
-from skinsynth.pipeline.splicing import splice_local
+from skinsynth.pipeline.synthesis.assembly import assemble
+from skinsynth.pipeline.synthesis.graph import build_graph
+from skinsynth.pipeline.synthesis.splicing import splice_local
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +70,7 @@ def test_merged_components_are_carried_rigidly(components):
 
 
 def test_merge_order_starts_each_piece_at_its_most_central_component():
-    from skinsynth.pipeline.assembly import merge_order
+    from skinsynth.pipeline.synthesis.assembly import merge_order
 
     # A chain of three components (the middle one is central), a pair, and a lone component.
     order = merge_order([[0, 1, 2], [2, 3], [3, 4, 5], [10, 11], [11, 12, 13, 14], [20]])

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from skinsynth.formats.plots import write_error_plot
-from skinsynth.pipeline.alignment import apply_frames
-from skinsynth.pipeline.baselines import (
+from skinsynth.pipeline.puppet.alignment import apply_frames
+from skinsynth.pipeline.puppet.baselines import (
     fit_pca_blendshape,
     fit_rbf,
     predict_pca_blendshape,

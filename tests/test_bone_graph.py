@@ -4,7 +4,7 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.bone_graph import (bone_components, bone_graph_weights, decompose,
+from skinsynth.pipeline.synthesis.bone_graph import (bone_components, bone_graph_weights, decompose,
                                            prune_weak_edges)
 from skinsynth.pipeline.examples import synthetic_lbs
 

@@ -11,9 +11,10 @@ import pytest
 
 from skinsynth.formats.exr import read_vat
 from skinsynth.formats.puppet_file import read_puppet
+from skinsynth.pipeline.puppet import puppet_from_record
 from skinsynth.formats.usd import read_points_cache, read_skel_characters
 from skinsynth.gpu import available_devices
-from skinsynth.pipeline.puppet import predict_vertices
+from skinsynth.pipeline.puppet.puppet import predict_vertices
 
 from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
 
@@ -34,7 +35,8 @@ def test_play_h5_matches_the_numpy_reference(files, tmp_path):
     assert report["frames"] == 24 and report["characters"] == 1
     assert report["seconds"] > 0 and report["frames_per_second"] > 0
     played = h5py.File(tmp_path / "v.h5")["vertices"][()]
-    puppet, _, skin = read_puppet(files / "puppet.h5")
+    record, _, skin = read_puppet(files / "puppet.h5")
+    puppet = puppet_from_record(record)
     expected = predict_vertices(puppet, skin.examples[:, puppet.control_indices])
     scale = np.ptp(skin.rest_vertices, axis=0).max()
     assert np.abs(played - expected).max() < 1e-5 * scale * 10  # float32 device arithmetic
@@ -76,7 +78,8 @@ def test_instances_points_cache_and_exr(files, tmp_path):
 
 def test_several_control_files_and_csv(files, tmp_path):
     skin_vertices = np.load(files / "bar.npz")["vertices"]
-    puppet, _, _ = read_puppet(files / "puppet.h5")
+    record, _, _ = read_puppet(files / "puppet.h5")
+    puppet = puppet_from_record(record)
     controls = skin_vertices[:, puppet.control_indices]
     np.save(tmp_path / "a.npy", controls)
     rows = [(f, p, *controls[f, p]) for f in range(controls.shape[0]) for p in range(controls.shape[1])]

@@ -25,7 +25,7 @@ def test_pipeline_and_evaluate_json(files, tmp_path):
     assert result["test_frames"] == [f for f in range(24) if f % 4]
     assert all(0.0 <= result[k] < 0.05 for k in ("kcca", "pca_blendshape", "rbf"))
     assert (tmp_path / "e.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    from skinsynth.pipeline.poisson import PRIOR_GRID
+    from skinsynth.pipeline.puppet.poisson import PRIOR_GRID
 
     assert result["translation_prior"] in PRIOR_GRID  # cross-validated by default
     text = assert_ok(cli("evaluate", files / "puppet.h5")).stdout
@@ -101,7 +101,9 @@ def test_the_documented_numpy_recipe_reproduces_predict_vertices(files, tmp_path
     import re
 
     from skinsynth.formats.puppet_file import read_puppet
-    from skinsynth.pipeline.puppet import predict_vertices
+
+    from skinsynth.pipeline.puppet import puppet_from_record
+    from skinsynth.pipeline.puppet.puppet import predict_vertices
 
     path = tmp_path / "puppet.h5"
     assert_ok(cli("train-kcca", files / "controls.h5", "-o", path, "-q", "--correctives",
@@ -118,7 +120,8 @@ def test_the_documented_numpy_recipe_reproduces_predict_vertices(files, tmp_path
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1).replace("bar.puppet.h5", str(path))
     namespace = {}
     exec(compile(code, "docs/format.md", "exec"), namespace)
-    puppet, test_frames, skin = read_puppet(str(path))
+    record, test_frames, skin = read_puppet(str(path))
+    puppet = puppet_from_record(record)
     assert (puppet.correctives is None) == (correctives == "off")
     controls = skin.examples[:, puppet.control_indices]
     expected = predict_vertices(puppet, controls)

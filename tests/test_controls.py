@@ -16,13 +16,13 @@ import pytest
 from skinsynth.formats.controls_file import controls_groups, read_controls
 from skinsynth.formats.errors import FormatError
 from skinsynth.formats.model import read_model, write_model
-from skinsynth.pipeline.controls import (align_in_place, choose_controls, pca_bases, representative_vertices,
+from skinsynth.pipeline.puppet.controls import (align_in_place, choose_controls, pca_bases, representative_vertices,
                                          select_controls)
 from skinsynth.pipeline.errors import OptionError
 from skinsynth.pipeline.rotations import rotation_exp
 
 from cli_helpers import assert_ok, cli
-from skinsynth.pipeline.varimax import varimax
+from skinsynth.pipeline.puppet.varimax import varimax
 
 statsmodels_rotation = pytest.importorskip("statsmodels.multivariate.factor_rotation")
 

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from skinsynth.gpu import dqs_reference, puppet_kernels as pk
-from skinsynth.pipeline.correctives import (POWER_GRID, RIDGE_GRID, Model, blend_weights, choose_model,
+from skinsynth.pipeline.puppet.correctives import (POWER_GRID, RIDGE_GRID, Model, blend_weights, choose_model,
                                             fit_correctives, rest_offsets)
 from skinsynth.pipeline.examples import synthetic_lbs
-from skinsynth.pipeline.puppet import predict_vertices, train_puppet
+from skinsynth.pipeline.puppet.puppet import predict_vertices, train_puppet
 from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
 
 from rigs import random_skin
@@ -134,7 +134,7 @@ def test_corrective_kernels_match_their_reference_on_the_cpu():
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_run_puppet_plays_the_correctives(threads):
-    from skinsynth.pipeline.playback import host_inputs
+    from skinsynth.pipeline.puppet.playback import host_inputs
 
     data = bulging_tube()
     puppet = _train(data, np.arange(0, 40, 2), "auto")
@@ -146,7 +146,7 @@ def test_run_puppet_plays_the_correctives(threads):
 
 def test_usdskel_plays_the_correctives_as_blend_shapes(tmp_path):
     from skinsynth.formats.usd import read_skel_characters, write_skel_characters
-    from skinsynth.pipeline.playback import world_bones
+    from skinsynth.pipeline.puppet.playback import world_bones
 
     data = bulging_tube()
     puppet = _train(data, np.arange(0, 40, 2), "auto")

@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skinsynth.pipeline.deformation_gradients import (deformation_gradients, gradient_operator, pack_positions,
+from skinsynth.pipeline.synthesis.deformation_gradients import (deformation_gradients, gradient_operator, pack_positions,
                                                       rotation_strain, rotation_strain_to_matrix)
 from skinsynth.pipeline.examples import synthetic_lbs
-from skinsynth.pipeline.key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
+from skinsynth.pipeline.synthesis.key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
 from skinsynth.pipeline.rotations import rotation_log
 
 from test_key_vertices import irregular_sphere, random_sparse_weights

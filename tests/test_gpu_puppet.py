@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from skinsynth.gpu import puppet_kernels as pk
-from skinsynth.pipeline.playback import host_inputs
+from skinsynth.pipeline.puppet.playback import host_inputs
 from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
 
 from rigs import random_skin
@@ -214,7 +214,7 @@ def test_run_puppet_rejects_bad_input():
 @pytest.fixture(scope="module")
 def trained_puppet():
     from skinsynth.pipeline.examples import synthetic_lbs
-    from skinsynth.pipeline.puppet import train_puppet
+    from skinsynth.pipeline.puppet.puppet import train_puppet
 
     data = synthetic_lbs(bones=5, frames=24, rings=16, segments=8)
     return data, train_puppet(data["vertices"], data["rest"], data["faces"], data["bone_indices"],
@@ -224,7 +224,7 @@ def trained_puppet():
 
 @pytest.mark.parametrize("solver", [True, False])
 def test_run_puppet_matches_predict_vertices(trained_puppet, solver):
-    from skinsynth.pipeline.puppet import predict_vertices
+    from skinsynth.pipeline.puppet.puppet import predict_vertices
 
     data, puppet = trained_puppet
     rng = np.random.default_rng(0)

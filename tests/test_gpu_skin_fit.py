@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from skinsynth.gpu.skin_fit_kernels import sweep_bone_transforms_warp
-from skinsynth.pipeline.bone_transforms import update_bone_transforms
-from skinsynth.pipeline.skin_fit import fit_skin
-from skinsynth.pipeline.skin_weights import update_weights
+from skinsynth.pipeline.skin.bone_transforms import update_bone_transforms
+from skinsynth.pipeline.skin.skin_fit import fit_skin
+from skinsynth.pipeline.skin.skin_weights import update_weights
 
 from cli_helpers import assert_user_error, cli
 from test_vertex_weights import random_problem, sweep_problem

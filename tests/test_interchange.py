@@ -185,8 +185,10 @@ def test_play_linear_skinning_is_what_usdskel_plays_and_the_reference_computes(c
     import h5py
 
     from skinsynth.formats.puppet_file import read_puppet
+
+    from skinsynth.pipeline.puppet import puppet_from_record
     from skinsynth.formats.usd import read_skel_points
-    from skinsynth.pipeline.puppet import predict_vertices
+    from skinsynth.pipeline.puppet.puppet import predict_vertices
 
     puppet_path = tmp_path / "corrected.h5"
     assert_ok(cli("train-kcca", chain / "controls.h5", "-o", puppet_path, "-q", "--correctives", "1e-4"))
@@ -197,7 +199,8 @@ def test_play_linear_skinning_is_what_usdskel_plays_and_the_reference_computes(c
     stage = Usd.Stage.Open(str(tmp_path / "linear.usda"))
     mesh = stage.GetPrimAtPath("/characters/character_000/Mesh")
     assert UsdSkel.BindingAPI(mesh).GetSkinningMethodAttr().Get() == "classicLinear"
-    puppet, _, skin = read_puppet(str(puppet_path))
+    record, _, skin = read_puppet(str(puppet_path))
+    puppet = puppet_from_record(record)
     reference = predict_vertices(puppet, skin.examples[:, puppet.control_indices], skinning="linear")
     with h5py.File(tmp_path / "linear.h5") as f:
         baked = f["vertices"][()].reshape(reference.shape)  # one character

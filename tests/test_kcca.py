@@ -4,13 +4,14 @@ import numpy as np
 import pytest
 
 from skinsynth.gpu.skinning import lbs_reference
-from skinsynth.pipeline.alignment import apply_frames, control_frames
+from skinsynth.pipeline.puppet.alignment import apply_frames, control_frames
 from skinsynth.pipeline.errors import OptionError
 from skinsynth.pipeline.examples import synthetic_lbs
-from skinsynth.pipeline.kcca import choose_regularization, control_kernel, fit_kcca, predict
-from skinsynth.pipeline.poisson import (fit_edge_weights, mesh_edges, solve_translations,
+from skinsynth.pipeline.puppet.kcca import choose_regularization, control_kernel, fit_kcca, predict
+from skinsynth.pipeline.geometry import mesh_edges
+from skinsynth.pipeline.puppet.poisson import (fit_edge_weights, solve_translations,
                                         translation_operator)
-from skinsynth.pipeline.puppet import parse_frame_spec, predict_vertices, train_puppet
+from skinsynth.pipeline.puppet.puppet import parse_frame_spec, predict_vertices, train_puppet
 from skinsynth.pipeline.rotations import rotation_exp
 
 
@@ -96,7 +97,7 @@ def test_translation_solver_returns_true_translations_of_an_lbs_pose():
 
 
 def test_translation_prior_moves_the_solve_from_feng_to_the_regression_and_is_cross_validated():
-    from skinsynth.pipeline.poisson import (PRIOR_GRID, choose_translation_prior, operator_from_system,
+    from skinsynth.pipeline.puppet.poisson import (PRIOR_GRID, choose_translation_prior, operator_from_system,
                                             translation_system)
 
     data = synthetic_lbs(bones=5, frames=6, rings=16, segments=8, seed=5)
@@ -171,7 +172,7 @@ def test_control_frame_mode_follows_rigid_motion_of_the_controls():
 def test_cross_validation_folds_keep_a_repeated_pose_together():
     """A clip holding its cycle twice (each pose again up to rounding) must not let a fold test a
     pose whose twin it trained on: then every fold only tests memory."""
-    from skinsynth.pipeline.kcca import cv_folds, repeat_groups
+    from skinsynth.pipeline.puppet.kcca import cv_folds, repeat_groups
 
     rng = np.random.default_rng(3)
     poses = rng.normal(size=(6, 9))
@@ -215,7 +216,7 @@ def test_kernel_width_is_chosen_on_held_out_vertices_and_repeats_do_not_fool_it(
 def test_global_motion_is_cross_validated_even_with_five_training_frames():
     """Five training frames (the horse at every:10) leave too few for 4 folds; leave-one-out still
     decides, instead of falling back to control-frame unseen."""
-    from skinsynth.pipeline.puppet import choose_global_motion
+    from skinsynth.pipeline.puppet.puppet import choose_global_motion
 
     data = synthetic_lbs(bones=5, frames=24, rings=16, segments=8)
     controls = [3, 30, 60, 90, 110, 125]

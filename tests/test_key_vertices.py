@@ -3,7 +3,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from skinsynth.pipeline.examples import cylinder_mesh, synthetic_lbs
-from skinsynth.pipeline.key_vertices import (gather_weights, key_vertices, related_bones, vertex_neighbours,
+from skinsynth.pipeline.synthesis.key_vertices import (gather_weights, key_vertices, related_bones, vertex_neighbours,
                                              weight_gradients)
 
 

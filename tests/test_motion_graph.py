@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from skinsynth.pipeline.errors import OptionError
-from skinsynth.pipeline.motion_graph import (MotionGraph, constrained_walks, diversity_filter, overlap,
+from skinsynth.pipeline.synthesis.motion_graph import (MotionGraph, constrained_walks, diversity_filter, overlap,
                                              random_walks, seams)
 
 

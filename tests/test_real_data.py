@@ -6,7 +6,8 @@ import pytest
 from skinsynth.formats.errors import FormatError
 from skinsynth.formats.meshseq import read_mesh_sequence
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.skin_fit import bounding_box_diagonal, fit_skin
+from skinsynth.pipeline.geometry import bounding_box_diagonal
+from skinsynth.pipeline.skin.skin_fit import fit_skin
 
 pytestmark = pytest.mark.slow
 
@@ -47,9 +48,9 @@ def _read(shared_data, name):
 def test_samba_synthesis_has_no_visible_seams_and_plays_the_whole_clip(shared_data, single):
     # The capture where the issue measured 16.9× the input's acceleration at seams (multi-component).
     from skinsynth.gpu import lbs
-    from skinsynth.pipeline.evaluation import frame_accelerations
-    from skinsynth.pipeline.graph import build_graph
-    from skinsynth.pipeline.synthesis import Request, synthesize
+    from skinsynth.pipeline.geometry import frame_accelerations
+    from skinsynth.pipeline.synthesis.graph import build_graph
+    from skinsynth.pipeline.synthesis.synthesis import Request, synthesize
 
     seq = _read(shared_data, "vlasic_samba")
     fit = fit_skin(seq.vertices, bones=22, iterations=10, seed=0)
@@ -68,8 +69,8 @@ def test_samba_synthesis_has_no_visible_seams_and_plays_the_whole_clip(shared_da
 
 def test_horse_stays_on_the_ground_over_long_animations(shared_data):
     from skinsynth.gpu import lbs
-    from skinsynth.pipeline.graph import build_graph
-    from skinsynth.pipeline.synthesis import Request, synthesize
+    from skinsynth.pipeline.synthesis.graph import build_graph
+    from skinsynth.pipeline.synthesis.synthesis import Request, synthesize
 
     seq = _read(shared_data, "horse_gallop")
     fit = fit_skin(seq.vertices, bones=22, iterations=10, seed=0)
@@ -89,10 +90,10 @@ def test_horse_puppet_beats_its_baselines_and_plays_as_evaluated(shared_data):
     lowest of evaluate's rows at every:4 and every:10 and within 0.8× the PCA baseline (before: 1.39×
     and 0.81×), and play's float32 device path matches the float64 reference (before: 1.7e-3)."""
     from skinsynth.gpu import DevicePuppet, run_puppet
-    from skinsynth.pipeline.controls import select_controls
-    from skinsynth.pipeline.evaluation import evaluate_puppet
-    from skinsynth.pipeline.playback import host_inputs
-    from skinsynth.pipeline.puppet import parse_frame_spec, predict_vertices, train_puppet
+    from skinsynth.pipeline.puppet.controls import select_controls
+    from skinsynth.pipeline.puppet.evaluation import evaluate_puppet
+    from skinsynth.pipeline.puppet.playback import host_inputs
+    from skinsynth.pipeline.puppet.puppet import parse_frame_spec, predict_vertices, train_puppet
 
     seq = _read(shared_data, "horse_gallop")
     fit = fit_skin(seq.vertices, bones=22, iterations=30, seed=0)

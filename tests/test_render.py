@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from skinsynth.pipeline.render import (BACKGROUND, MESH_COLOR, Camera, frame_bounds, lambert, look_at, project,
+from skinsynth.pipeline.view.rasteriser import (BACKGROUND, MESH_COLOR, Camera, frame_bounds, lambert, look_at, project,
                                        render)
 
 W, H = 160, 120

@@ -3,7 +3,7 @@ import itertools
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.simplex_qp import solve_simplex_qp
+from skinsynth.pipeline.skin.simplex_qp import solve_simplex_qp
 
 
 def brute_force(gram, linear):

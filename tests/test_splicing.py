@@ -2,13 +2,13 @@ import numpy as np
 import pytest
 
 from skinsynth.gpu.skinning import lbs_reference
-from skinsynth.pipeline.alignment import control_frames
+from skinsynth.pipeline.puppet.alignment import control_frames
 from skinsynth.pipeline.examples import bending_bar, synthetic_lbs
-from skinsynth.pipeline.graph import build_graph
+from skinsynth.pipeline.synthesis.graph import build_graph
 from skinsynth.pipeline.rotations import rotation_exp
-from skinsynth.pipeline.skin_fit import fit_skin
-from skinsynth.pipeline.splicing import blend_series, seam_windows, splice, walk_sources
-from skinsynth.pipeline.transitions import bone_centroids, candidate_transitions
+from skinsynth.pipeline.skin.skin_fit import fit_skin
+from skinsynth.pipeline.synthesis.splicing import blend_series, seam_windows, splice, walk_sources
+from skinsynth.pipeline.synthesis.transitions import bone_centroids, candidate_transitions
 
 
 def chain_clip(bones=6, frames=60, period=20.0, second=None, drift=0.0, seed=0, max_influences=4):
@@ -310,9 +310,9 @@ def test_fitted_bending_bar_loop():
 
 @pytest.mark.parametrize("blend", ["bones", "key-vertices"])
 def test_each_distinct_window_is_solved_once_and_matches_a_per_window_solve(drifting_real_clip, blend):
-    from skinsynth.pipeline.deformation_gradients import rotation_times_strain
-    from skinsynth.pipeline.splicing import distinct_windows, gradient_series, reference_alignment
-    from skinsynth.pipeline.transitions import local_frame_positions
+    from skinsynth.pipeline.synthesis.deformation_gradients import rotation_times_strain
+    from skinsynth.pipeline.synthesis.splicing import distinct_windows, gradient_series, reference_alignment
+    from skinsynth.pipeline.synthesis.transitions import local_frame_positions
 
     clip, window = drifting_real_clip, 4
     component = clip["component"]

@@ -5,7 +5,7 @@ from scipy.spatial.transform import Rotation
 from skinsynth.pipeline.errors import OptionError
 from skinsynth.pipeline.examples import synthetic_lbs
 from skinsynth.pipeline.rotations import rotation_exp, rotation_log
-from skinsynth.pipeline.transitions import (bone_coordinate_matrix, candidate_transitions, find_transitions,
+from skinsynth.pipeline.synthesis.transitions import (bone_coordinate_matrix, candidate_transitions, find_transitions,
                                             local_frame_positions, pairwise_squared_distances,
                                             reduced_coordinates, reference_bone, reference_motion,
                                             transition_costs, transition_threshold)

@@ -4,9 +4,9 @@ import numba
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.bone_transforms import Trajectories
+from skinsynth.pipeline.skin.bone_transforms import Trajectories
 from skinsynth.pipeline.rotations import rotation_exp
-from skinsynth.pipeline.skin_weights import update_weights
+from skinsynth.pipeline.skin.skin_weights import update_weights
 
 
 def random_problem(seed, frames=12, count=400, bones=7, noise=0.02):
@@ -30,7 +30,7 @@ def random_problem(seed, frames=12, count=400, bones=7, noise=0.02):
 def sweep_problem(seed, frames, unused):
     """(start transforms (F, B, 3, 4) off the truth, P, Q) of a random problem's fitted weights,
     bone ``unused`` given no weight (it must keep its transform)."""
-    from skinsynth.pipeline.bone_transforms import weighted_sums
+    from skinsynth.pipeline.skin.bone_transforms import weighted_sums
 
     transforms, data, indices, weights = random_problem(seed, frames=frames)
     indices, weights, _ = update_weights(transforms, data, indices, weights, 3, solver="numpy")
@@ -76,8 +76,8 @@ def test_the_thread_count_changes_nothing():
 
 
 def test_compiled_bone_sweep_equals_the_numpy_sweep_for_any_thread_count():
-    from skinsynth.pipeline.bone_transforms import update_bone_transforms
-    from skinsynth.pipeline.transform_sweep import sweep_bone_transforms
+    from skinsynth.pipeline.skin.bone_transforms import update_bone_transforms
+    from skinsynth.pipeline.skin.transform_sweep import sweep_bone_transforms
 
     start, p, q = sweep_problem(7, frames=20, unused=4)
     reference = update_bone_transforms(start, p, q)
@@ -99,8 +99,8 @@ def test_compiled_bone_sweep_equals_the_numpy_sweep_for_any_thread_count():
 
 
 def test_compiled_sums_equal_the_sparse_matrix_sums_for_any_thread_count():
-    from skinsynth.pipeline.bone_transforms import weighted_sums
-    from skinsynth.pipeline.transform_sweep import sparse_weighted_sums
+    from skinsynth.pipeline.skin.bone_transforms import weighted_sums
+    from skinsynth.pipeline.skin.transform_sweep import sparse_weighted_sums
 
     transforms, data, indices, weights = random_problem(8)
     indices, weights, _ = update_weights(transforms, data, indices, weights, 3, solver="numpy")

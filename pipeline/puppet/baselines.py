@@ -23,7 +23,7 @@ import numpy as np
 from scipy.interpolate import RBFInterpolator
 
 from .alignment import apply_frames, control_frames, invert_frames
-from .errors import OptionError
+from ..errors import OptionError
 
 GLOBAL_MOTIONS = ("control-frame", "world")
 

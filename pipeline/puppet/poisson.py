@@ -32,12 +32,6 @@ import numpy as np
 import scipy.sparse as sp
 
 
-def mesh_edges(faces):
-    """Unique undirected edges (E, 2), lower index first, of triangles faces (T, 3)."""
-    pairs = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    return np.unique(np.sort(pairs, axis=1), axis=0)
-
-
 def fit_edge_weights(rest, edges, bone_indices, bone_weights, rotations, edge_vectors, edge_ridge=1e-6):
     """Edge skinning weights by Feng eq. 10.
 
@@ -174,7 +168,7 @@ def choose_translation_prior(system, rotations, controls, predicted, vertex_erro
 def solve_translations(operator, rotations, controls, predicted_translations):
     """rotations (F, B, 3, 3), controls (F, n_c, 3), predicted_translations (F, B, 3) -> (F, B, 3)
     (Feng §6.2; the run time's own reference computes it)."""
-    from skinsynth.gpu.puppet_kernels import solve_translations_reference
+    from skinsynth.gpu import solve_translations_reference
 
     return solve_translations_reference(rotations, controls, predicted_translations, operator.rotation_operator,
                                         operator.control_operator, operator.prior_operator)

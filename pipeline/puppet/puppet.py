@@ -18,12 +18,13 @@ import numpy as np
 from .alignment import apply_frames, control_frames, frame_conditioning, invert_frames
 from .correctives import (POWER_GRID, Correctives, Model, choose_model, corrective_offsets, cross_validated_errors,
                           fit_correctives, rest_offsets)
-from .errors import OptionError
+from ..errors import OptionError
+from ..geometry import mesh_edges
 from .kcca import (WIDTH_GRID, ControlKernel, KccaRegression, choose_regularization, control_kernel, cv_folds,
                    fit_kcca, predict)
-from .poisson import (PRIOR_GRID, TranslationOperator, choose_translation_prior, fit_edge_weights, mesh_edges,
+from .poisson import (PRIOR_GRID, TranslationOperator, choose_translation_prior, fit_edge_weights,
                       operator_from_system, solve_translations, translation_system)
-from .rotations import dual_quaternion_to_rigid, rigid_to_dual_quaternion, with_translations
+from ..rotations import dual_quaternion_to_rigid, rigid_to_dual_quaternion, with_translations
 
 GLOBAL_MOTION = ("auto", "control-frame", "world")
 #: A frame fitted to the controls is trusted only above this conditioning (s₂/s₁, every frame).
@@ -104,6 +105,21 @@ class Puppet:
     kernel_width_reason: str = ""
     correctives: Correctives | None = None
     correctives_reason: str = ""
+
+
+def puppet_from_record(record):
+    """The :class:`Puppet` of a stage file's plain record (``formats.puppet_file.PuppetRecord``:
+    the same fields, with the kernel, regression, translation operator and correctives as dicts)."""
+    import dataclasses
+
+    fields = {f.name: getattr(record, f.name) for f in dataclasses.fields(Puppet)}
+    fields["kernel"] = ControlKernel(**record.kernel)
+    fields["regression"] = KccaRegression(**record.regression)
+    if record.translations is not None:
+        fields["translations"] = TranslationOperator(**record.translations)
+    if record.correctives is not None:
+        fields["correctives"] = Correctives(**record.correctives)
+    return Puppet(**fields)
 
 
 def parse_frame_spec(spec, frames):

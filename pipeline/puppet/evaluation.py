@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .baselines import fit_pca_blendshape, fit_rbf, predict_pca_blendshape, predict_rbf
-from .errors import OptionError
+from ..errors import OptionError
+from ..geometry import largest_side
 from .puppet import predict_vertices, train_puppet
 
 
@@ -24,20 +25,6 @@ class Evaluation:
     test_frames: np.ndarray
     scale: float
     notes: dict = field(default_factory=dict)
-
-
-def largest_side(points):
-    """Largest side of the axis-aligned bounding box of points (N, 3)."""
-    return float(np.ptp(points, axis=0).max())
-
-
-def frame_accelerations(vertices):
-    """Largest vertex acceleration ‖x(m+1) − 2 x(m) + x(m−1)‖ per frame: vertices (M, V, 3) ->
-    (M,), NaN at the first and last frame (no second difference there)."""
-    out = np.full(vertices.shape[0], np.nan)
-    if vertices.shape[0] >= 3:
-        out[1:-1] = np.linalg.norm(np.diff(vertices, n=2, axis=0), axis=-1).max(axis=1)
-    return out
 
 
 def relative_errors(predicted, truth, scale):

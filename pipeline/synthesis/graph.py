@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .deformation_gradients import deformation_gradients, gradient_operator, rotation_strain
-from .errors import OptionError
+from ..errors import OptionError
 from .key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
 from .transitions import bone_centroids, find_transitions, local_frame_positions
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .render import frame_bounds, ground_layer, render
+from .rasteriser import frame_bounds, ground_layer, render
 
 ERROR_LOW = np.array([0.72, 0.74, 0.80])
 ERROR_HIGH = np.array([0.85, 0.12, 0.10])

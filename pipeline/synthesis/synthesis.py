@@ -21,8 +21,8 @@ import numpy as np
 from .assembly import assemble, cut_bones, merge_order
 from .collisions import colliding, vertex_subset
 from .deformation_gradients import gradient_operator
-from .errors import OptionError
-from .execution import concatenate_rows, run_batches
+from ..errors import OptionError
+from ..execution import concatenate_rows, run_batches
 from .graph import ComponentAnalysis
 from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks, walk_statistics
 from .splicing import splice_local

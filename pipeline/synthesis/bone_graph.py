@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
-from .errors import OptionError
+from ..errors import OptionError
 
 
 def bone_graph_weights(bone_indices, bone_weights, bones):

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import OptionError
+from ..errors import OptionError
 
 KERNELS = ("gaussian", "polynomial", "linear")
 REGULARIZATION_GRID = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
@@ -51,7 +51,7 @@ class ControlKernel:
     def matrix(self, x, y):
         """Kernel values (n, m) between standardised vectors x (n, d) and y (m, d) (standardised
         inputs have σ = 1, so the Gaussian is exp(-|x-y|²/2)); the run time's own reference."""
-        from skinsynth.gpu.puppet_kernels import kernel_vectors_reference
+        from skinsynth.gpu import kernel_vectors_reference
 
         return kernel_vectors_reference(x, y, self.kind, self.offset, self.degree)
 

@@ -10,10 +10,10 @@ stays inside the region it was trained on.
 import numpy as np
 
 from .alignment import apply_frames, invert_frames
-from .errors import OptionError
+from ..errors import OptionError
 from .correctives import blend_weights
 from .puppet import in_place, predict_bones
-from .rotations import dual_quaternion_to_rigid
+from ..rotations import dual_quaternion_to_rigid
 
 
 def instance_trajectories(trajectories, instances=1):
@@ -32,16 +32,6 @@ def instance_trajectories(trajectories, instances=1):
     shifts = (np.arange(instances) * frames) // instances
     order = (np.arange(frames)[None, :] + shifts[:, None]) % frames
     return base[order]
-
-
-def grid_offsets(characters, spacing, up_axis="Y"):
-    """offsets (C, 3): a near-square grid on the ground plane (x–z for Y-up, x–y for Z-up)."""
-    columns = int(np.ceil(np.sqrt(characters)))
-    index = np.arange(characters)
-    offsets = np.zeros((characters, 3))
-    offsets[:, 0] = (index % columns) * spacing
-    offsets[:, 2 if up_axis == "Y" else 1] = (index // columns) * spacing
-    return offsets
 
 
 def world_bones(puppet, controls, translation_solver=True):

@@ -112,7 +112,7 @@ import numpy as np
 import scipy.linalg
 
 from .deformation_gradients import rotation_times_strain
-from .rotations import apply_rigid_into, heading_and_posture, rotation_exp, rotation_log
+from ..rotations import apply_rigid_into, heading_and_posture, rotation_exp, rotation_log
 from .transitions import local_frame_positions
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .bone_transforms import Trajectories, fit_cluster_transforms, refine_bone_transforms
-from .errors import OptionError
+from ..errors import OptionError
 from .skin_init import initial_clusters
 from .skin_weights import update_weights
 from .transform_sweep import sparse_weighted_sums, sweep_bone_transforms
@@ -119,7 +119,7 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
     if device is None:
         sweep = sweep_bone_transforms
     else:
-        from skinsynth.gpu.skin_fit_kernels import sweep_bone_transforms_warp
+        from skinsynth.gpu import sweep_bone_transforms_warp
 
         def sweep(transforms, p, q):
             return sweep_bone_transforms_warp(transforms, p, q, device)
@@ -171,8 +171,3 @@ def bone_rest_frames(rest_vertices, bone_indices, bone_weights, bones):
     frames = np.tile(np.eye(4), (bones, 1, 1))
     frames[:, :3, 3] = centre
     return frames
-
-
-def bounding_box_diagonal(points):
-    """Length of the axis-aligned bounding-box diagonal of points (N, 3)."""
-    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .poisson import mesh_edges
+from ..geometry import mesh_edges
 
 
 @dataclass

@@ -58,7 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import OptionError
+from ..errors import OptionError
 
 NO_CYCLE_MESSAGE = ("the clip has no repeated states at this threshold: no transition leads back; "
                     "try a larger --threshold-scale")

@@ -41,8 +41,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import minimum_filter
 
-from .errors import OptionError
-from .rotations import heading_and_posture, rotation_log
+from ..errors import OptionError
+from ..rotations import heading_and_posture, rotation_log
 
 THRESHOLD_REFERENCES = ("median-step", "max-step")
 

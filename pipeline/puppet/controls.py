@@ -11,7 +11,7 @@ The steps, as built:
 
 1. **In place.** Examples may travel and turn. Each frame is brought onto the rest pose by the
    rigid Procrustes fit of all its vertices (:func:`align_in_place`, the same fit as
-   :func:`skinsynth.pipeline.alignment.control_frames` with every vertex as a control), so PCA
+   :func:`skinsynth.pipeline.puppet.alignment.control_frames` with every vertex as a control), so PCA
    sees deformation, not global motion.
 2. **PCA** of the in-place positions, each frame a 3V vector, centred over frames
    (:func:`pca_bases`). Default number of bases K: the smallest explaining ≥ 99 % of the
@@ -19,7 +19,7 @@ The steps, as built:
    [1, min(F − 1, 3V)] and to the numerical rank of the data. In the automatic mode without
    ``--components``, K then grows one basis at a time until the candidates hold n_c distinct
    vertices (several bases can share a representative, e.g. the free end of a bending bar).
-3. **Varimax** (raw, no Kaiser normalisation; :mod:`skinsynth.pipeline.varimax`) of the K
+3. **Varimax** (raw, no Kaiser normalisation; :mod:`skinsynth.pipeline.puppet.varimax`) of the K
    orthonormal bases (3V × K). The rotated bases are still orthonormal and span the same
    subspace; the variance share of rotated basis j is Σ_i share_i R_ij² (it sums to the
    explained total). Bases are renumbered by that share, largest first.
@@ -41,8 +41,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .alignment import apply_frames, control_frames
-from .errors import OptionError
-from .skin_fit import bounding_box_diagonal
+from ..errors import OptionError
+from ..geometry import bounding_box_diagonal
 from .varimax import varimax
 
 #: Feng et al. use 8 control points for most of their examples.

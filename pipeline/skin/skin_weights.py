@@ -75,7 +75,7 @@ def update_weights(transforms, data, bone_indices, bone_weights, max_influences,
             from .vertex_weights import solve_vertex_weights
 
             return solve_vertex_weights(*problem)
-        from skinsynth.gpu.skin_fit_kernels import solve_vertex_weights_warp
+        from skinsynth.gpu import solve_vertex_weights_warp
 
         return solve_vertex_weights_warp(*problem, device=device)
     gram = _gram(products, data.homogeneous, chosen)

@@ -1,0 +1,42 @@
+"""Geometry every stage measures by: bounding boxes, mesh edges, accelerations, crowd layout.
+
+The lowest floor of ``pipeline`` with :mod:`.rotations`: the stages (skin, puppet, synthesis,
+view) import it and never each other.
+"""
+
+import numpy as np
+
+
+def bounding_box_diagonal(points):
+    """Length of the axis-aligned bounding-box diagonal of points (N, 3)."""
+    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+
+
+def largest_side(points):
+    """Largest side of the axis-aligned bounding box of points (N, 3)."""
+    return float(np.ptp(points, axis=0).max())
+
+
+def frame_accelerations(vertices):
+    """Largest vertex acceleration ‖x(m+1) − 2 x(m) + x(m−1)‖ per frame: vertices (M, V, 3) ->
+    (M,), NaN at the first and last frame (no second difference there)."""
+    out = np.full(vertices.shape[0], np.nan)
+    if vertices.shape[0] >= 3:
+        out[1:-1] = np.linalg.norm(np.diff(vertices, n=2, axis=0), axis=-1).max(axis=1)
+    return out
+
+
+def mesh_edges(faces):
+    """Unique undirected edges (E, 2), lower index first, of triangles faces (T, 3)."""
+    pairs = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    return np.unique(np.sort(pairs, axis=1), axis=0)
+
+
+def grid_offsets(characters, spacing, up_axis="Y"):
+    """offsets (C, 3): a near-square grid on the ground plane (x–z for Y-up, x–y for Z-up)."""
+    columns = int(np.ceil(np.sqrt(characters)))
+    index = np.arange(characters)
+    offsets = np.zeros((characters, 3))
+    offsets[:, 0] = (index % columns) * spacing
+    offsets[:, 2 if up_axis == "Y" else 1] = (index // columns) * spacing
+    return offsets

@@ -1,0 +1,22 @@
+"""Puppetry (Feng 2008): control points chosen by PCA and varimax (:mod:`.controls`,
+:mod:`.varimax`, §3), per-bone kernel CCA (:mod:`.kcca`, §4, §7), the Poisson translation solve
+(:mod:`.poisson`, §5, §6.2), pose-space correctives (:mod:`.correctives`), training and
+prediction (:mod:`.puppet`, §6), control frames (:mod:`.alignment`), Feng's baselines and the
+held-out evaluation (:mod:`.baselines`, :mod:`.evaluation`), and many characters at once
+(:mod:`.playback`).
+
+Public: select_controls, train_puppet, predict_vertices, parse_frame_spec, Puppet, puppet_from_record, KccaRegression,
+ControlKernel, KERNELS, TranslationOperator, Correctives, evaluate_puppet, evaluate_extrapolation,
+extrapolation_split, instance_trajectories, host_inputs, world_bones.
+"""
+
+from .._lazy import lazy_exports
+
+_EXPORTS = {"select_controls": "controls", "train_puppet": "puppet", "predict_vertices": "puppet",
+            "parse_frame_spec": "puppet", "Puppet": "puppet", "puppet_from_record": "puppet", "KccaRegression": "kcca", "ControlKernel": "kcca",
+            "KERNELS": "kcca", "TranslationOperator": "poisson", "Correctives": "correctives",
+            "evaluate_puppet": "evaluation", "evaluate_extrapolation": "evaluation",
+            "extrapolation_split": "evaluation", "instance_trajectories": "playback", "host_inputs": "playback",
+            "world_bones": "playback"}
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

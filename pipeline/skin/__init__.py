@@ -1,0 +1,15 @@
+"""fit-skin: a rigid-bone linear-blend skin fitted to a mesh sequence (Zheng §3.1, after Le & Deng
+2012): clustering initialisation (:mod:`.skin_init`), per-bone weighted Procrustes
+(:mod:`.bone_transforms`, :mod:`.transform_sweep`), per-vertex non-negative, affine, sparse
+weights (:mod:`.skin_weights`, :mod:`.vertex_weights`, :mod:`.simplex_qp`), alternated to
+convergence (:mod:`.skin_fit`).
+
+Public: fit_skin, validate_fit_options, bone_rest_frames, SkinFit.
+"""
+
+from .._lazy import lazy_exports
+
+_EXPORTS = {"fit_skin": "skin_fit", "validate_fit_options": "skin_fit", "bone_rest_frames": "skin_fit",
+            "SkinFit": "skin_fit"}
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

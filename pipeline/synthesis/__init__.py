@@ -1,0 +1,20 @@
+"""One-to-many synthesis (Zheng 2013): the analysis build-graph stores (:mod:`.graph`: transitions
+:mod:`.transitions` §3.2 eq. 2–6, the bone graph and its cut nodes :mod:`.bone_graph` eq. 11, key
+vertices :mod:`.key_vertices` App. A, deformation gradients :mod:`.deformation_gradients` eq. 8),
+and synthesize (:mod:`.synthesis`): walks on the motion graph (:mod:`.motion_graph`), splicing
+with Poisson blending (:mod:`.splicing`, eq. 7–10), the multi-component merge
+(:mod:`.assembly`, Alg. 1, eq. 12–14) and obstacles (:mod:`.collisions`, §3.4).
+
+Public: build_graph, validate_graph_options, bone_layout, default_min_segment, walk_statistics,
+synthesize, Request, validate_request, component_from_file, build_obstacles, colliding,
+vertex_subset.
+"""
+
+from .._lazy import lazy_exports
+
+_EXPORTS = {"build_graph": "graph", "validate_graph_options": "graph", "bone_layout": "graph",
+            "default_min_segment": "motion_graph", "walk_statistics": "motion_graph", "synthesize": "synthesis",
+            "Request": "synthesis", "validate_request": "synthesis", "component_from_file": "synthesis",
+            "build_obstacles": "collisions", "colliding": "collisions", "vertex_subset": "collisions"}
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
