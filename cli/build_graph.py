@@ -5,36 +5,41 @@ import time
 
 import click
 
+from skinsynth.pipeline.synthesis.graph_options import GraphOptions
+
 from .common import FolderOutputs, report, summary_options, check_output_path, command_line, tool_version, user_errors
+
+DEFAULTS = GraphOptions()
 
 
 @click.command("build-graph")
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Graph file to write (.h5).")
-@click.option("--threshold-scale", default=3.0, show_default=True, type=float,
+@click.option("--threshold-scale", default=DEFAULTS.threshold_scale, show_default=True, type=float,
               help="Transition threshold T_c as a multiple of the playback step cost D(i, i−1) (see --threshold-reference).")
-@click.option("--threshold-reference", type=click.Choice(["median-step", "max-step"]), default="median-step",
+@click.option("--threshold-reference", type=click.Choice(["median-step", "max-step"]),
+              default=DEFAULTS.threshold_reference,
               show_default=True,
               help="Step the scale multiplies: the median, or the maximum as in Zheng (whose 40 × max admits "
                    "almost every pair on real clips).")
-@click.option("--edge-threshold", default=0.1, show_default=True, type=float,
+@click.option("--edge-threshold", default=DEFAULTS.edge_threshold, show_default=True, type=float,
               help="Drop bone-graph edges weaker than this fraction of the strongest (never disconnecting the graph).")
 @click.option("--single-component", is_flag=True, help="Treat the whole mesh as one component (no cut-node split).")
-@click.option("--svd-threshold", default=0.005, show_default=True, type=float,
+@click.option("--svd-threshold", default=DEFAULTS.svd_threshold, show_default=True, type=float,
               help="Keep reduced coordinates whose singular value is at least this fraction of the largest.")
-@click.option("--min-gap", default=2, show_default=True, type=int, help="Smallest |i − j| of a transition.")
+@click.option("--min-gap", default=DEFAULTS.min_gap, show_default=True, type=int, help="Smallest |i − j| of a transition.")
 @click.option("--min-segment", type=int, default=None,
               help="Shortest stretch (frames) walks play between two seams; transitions closer than half of it "
                    "to a cheaper one are dropped. Stored as synthesize's default.  [default: half a second at the "
                    "clip's frame rate]")
-@click.option("--coverage", default=0.95, show_default=True, type=float,
+@click.option("--coverage", default=DEFAULTS.coverage, show_default=True, type=float,
               help="Admit transitions above the threshold (cheapest first, only those that help) until this share "
                    "of the frames lies on one strongly connected part of the motion graph, so walks can reach "
                    "the whole clip.")
 @click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
               help="The clip's up axis: synthesize places segments by a turn about it and a shift on the ground "
                    "(default: the input's, as fit-skin recorded it; Y for files from before).")
-@click.option("--posture-weight", default=1.0, show_default=True, type=float,
+@click.option("--posture-weight", default=DEFAULTS.posture_weight, show_default=True, type=float,
               help="Weight of the reference bone's tilt and height in the transition cost (balanced like "
                    "Zheng's α, β; 0: his eq. 5 alone, for synthesize --alignment full).")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,

@@ -174,9 +174,9 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         graph_file = read_graph(path)
         skin = graph_file.skin
         if up_axis is None:
-            up_axis = str(graph_file.graph.get("@up_axis", "Y"))
+            up_axis = str(graph_file.options.get("up_axis", "Y"))
         if min_segment is None:
-            min_segment = int(graph_file.graph.get("@min_segment", default_min_segment(skin.fps)))
+            min_segment = int(graph_file.options.get("min_segment", default_min_segment(skin.fps)))
         request = Request(count=count, frames=frames, seed=seed, targets=list(targets), start=start_frame,
                           end=end_frame, min_difference=min_difference, window=window, spread_velocity=spread_velocity,
                           cut_damping=cut_damping, min_segment=min_segment, blend=blend, alignment=alignment,
@@ -196,7 +196,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
 
             analysis = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
                                    skin.rotations, skin.translations, single_component=True,
-                                   **_graph_options(graph_file.graph))
+                                   **_graph_options(graph_file.options))
             components = analysis.components
         else:
             components = [component_from_file(c, skin.rest_vertices) for c in graph_file.components]
@@ -323,13 +323,16 @@ def _motions(output, result, remote):
         yield dataclasses.replace(result, F=F, t=t)
 
 
-def _graph_options(graph):
-    return dict(threshold_scale=float(graph.get("@threshold_scale", 3.0)),
-                threshold_reference=str(graph.get("@threshold_reference", "median-step")),
-                edge_threshold=float(graph.get("@edge_threshold", 0.1)), svd_threshold=float(graph.get("@svd_threshold", 0.005)),
-                min_gap=int(graph.get("@min_gap", 2)), min_segment=int(graph.get("@min_segment", 12)),
-                coverage=float(graph.get("@coverage", 0.95)), up_axis="XYZ".index(str(graph.get("@up_axis", "Y"))),
-                posture_weight=float(graph.get("@posture_weight", 1.0)))
+def _graph_options(recorded):
+    """build-graph's options as a graph file recorded them (``GraphOptions``' defaults for the
+    rest), for rebuilding the analysis as one component."""
+    from skinsynth.pipeline.synthesis import GraphOptions
+
+    names = ("threshold_scale", "threshold_reference", "edge_threshold", "svd_threshold", "min_gap", "min_segment",
+             "coverage", "posture_weight")
+    options = {name: type(getattr(GraphOptions, name))(recorded[name]) for name in names if name in recorded}
+    options["up_axis"] = "XYZ".index(str(recorded.get("up_axis", "Y")))
+    return options
 
 
 def _read_obstacle(path):

@@ -70,15 +70,63 @@ def graph_groups(model, analysis):
     return groups
 
 
+#: build-graph's options as /graph records them (attribute names without "@").
+GRAPH_OPTIONS = ("threshold_scale", "threshold_reference", "edge_threshold", "svd_threshold", "min_gap", "min_bones",
+                 "single_component", "min_segment", "coverage", "up_axis", "posture_weight")
+
+
+@dataclass
+class ComponentRecord:
+    """One /graph/component_NNN as read (Zheng §3.2, §3.3): its bones (b,) and local_bones,
+    the reference bone, reduced coordinates q (F, r) with basis, singular values and the
+    reference motion (None in files that lack them), the cost matrix costs (F, F), transitions
+    (n, 2) with transition_costs (n,), the threshold T_c and the cost balance alpha, beta; key
+    vertices (k,) with key_bones, key_weights, weight_gradients and rotation_strain; and the
+    ridge of the eq. 9 solve."""
+
+    bones: np.ndarray
+    local_bones: np.ndarray
+    reference: int
+    reduced_coordinates: np.ndarray
+    basis: np.ndarray | None
+    singular: np.ndarray | None
+    reference_motion: np.ndarray | None
+    costs: np.ndarray
+    transitions: np.ndarray
+    transition_costs: np.ndarray
+    threshold: float
+    alpha: float
+    beta: float
+    key_vertices: np.ndarray
+    key_bones: np.ndarray
+    key_weights: np.ndarray
+    weight_gradients: np.ndarray
+    rotation_strain: np.ndarray
+    ridge: float
+
+
 @dataclass
 class GraphFile:
-    """A graph file as read: skin (SkinModel), graph (the /graph dict), components (list of dicts),
-    provenance (the file's records)."""
+    """A graph file as read: skin (SkinModel), graph (the /graph dict), options (build-graph's
+    options the file records, {name: value}, ``up_axis`` as "Y" or "Z"), components
+    (list of :class:`ComponentRecord`), provenance (the file's records)."""
 
     skin: object
     graph: dict
+    options: dict
     components: list
     provenance: list
+
+
+def _component_record(data):
+    return ComponentRecord(
+        bones=data["bones"], local_bones=data["local_bones"], reference=int(data["@reference"]),
+        reduced_coordinates=data["reduced_coordinates"], basis=data.get("basis"), singular=data.get("singular"),
+        reference_motion=data.get("reference_motion"), costs=data["costs"], transitions=data["transitions"],
+        transition_costs=data["transition_costs"], threshold=float(data.get("@threshold", 0.0)),
+        alpha=float(data.get("@alpha", 1.0)), beta=float(data.get("@beta", 1.0)), key_vertices=data["key_vertices"],
+        key_bones=data["key_bones"], key_weights=data["key_weights"], weight_gradients=data["weight_gradients"],
+        rotation_strain=data["rotation_strain"], ridge=float(data.get("@ridge", 1e-9)))
 
 
 def read_graph(path):
@@ -95,5 +143,6 @@ def read_graph(path):
         missing = [d for d in _COMPONENT_DATASETS if d not in graph[name]]
         if missing:
             raise FormatError(path, f"/graph/{name} lacks {', '.join(missing)}: the file is incomplete")
-        components.append(graph[name])
-    return GraphFile(skin=skin, graph=graph, components=components, provenance=model["provenance"])
+        components.append(_component_record(graph[name]))
+    options = {name: graph[f"@{name}"] for name in GRAPH_OPTIONS if f"@{name}" in graph}
+    return GraphFile(skin=skin, graph=graph, options=options, components=components, provenance=model["provenance"])

@@ -31,7 +31,7 @@ def test_build_graph_finds_the_loop_and_summarises(files, tmp_path):
     assert summary["stage"] == "graph" and summary["components"] >= 1 and summary["transitions"] > 0
     graph = read_graph(tmp_path / "g.h5")
     for component in graph.components:
-        pairs = component["transitions"]
+        pairs = component.transitions
         # Two exact cycles of 20 frames: frames 20 apart are the same state.
         assert np.all(np.abs(pairs[:, 0] - pairs[:, 1]) % 20 == 0)
     pngs = sorted(p.name for p in (tmp_path / "plots").iterdir() if p.name != ".skinsynth-folder.json")

@@ -15,7 +15,11 @@ import numpy as np
 from .deformation_gradients import deformation_gradients, gradient_operator, rotation_strain
 from ..errors import OptionError
 from .key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
+from .graph_options import GraphOptions
 from .transitions import bone_centroids, find_transitions, local_frame_positions
+
+
+_DEFAULT = GraphOptions()
 
 
 @dataclass
@@ -99,10 +103,12 @@ def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotat
                              operator=operator)
 
 
-def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations, threshold_scale=3.0,
-                threshold_reference="median-step", edge_threshold=0.1, single_component=False,
-                svd_threshold=0.005, min_gap=2, min_bones=3, min_segment=12, coverage=0.95, up_axis=1,
-                posture_weight=1.0):
+def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations,
+                threshold_scale=_DEFAULT.threshold_scale, threshold_reference=_DEFAULT.threshold_reference,
+                edge_threshold=_DEFAULT.edge_threshold, single_component=_DEFAULT.single_component,
+                svd_threshold=_DEFAULT.svd_threshold, min_gap=_DEFAULT.min_gap, min_bones=_DEFAULT.min_bones,
+                min_segment=_DEFAULT.min_segment, coverage=_DEFAULT.coverage, up_axis=_DEFAULT.up_axis,
+                posture_weight=_DEFAULT.posture_weight):
     """Analyse a skin fit for synthesis. rest (V, 3); faces (T, 3); bone_indices/bone_weights
     (V, K); rotations (F, B, 3, 3); translations (F, B, 3). min_segment: the shortest stretch
     walks play between seams (frames); transitions closer than half of it to a cheaper one are

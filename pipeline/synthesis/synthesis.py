@@ -33,24 +33,25 @@ MAX_ROUNDS = 20
 
 
 def component_from_file(data, rest):
-    """ComponentAnalysis from a graph file's /graph/component_NNN dict (the eq. 9 operator is
-    rebuilt from the stored key-vertex data: cheap and exactly what build-graph computed)."""
-    local = np.asarray(data["local_bones"], dtype=np.int64)
-    reference = int(data["@reference"])
-    operator = gradient_operator(local, reference, rest, data["key_vertices"], data["key_bones"], data["key_weights"],
-                                 data["weight_gradients"], ridge=float(data.get("@ridge", 1e-9)))
-    transitions = Transitions(reference=reference, bones=[int(b) for b in data["bones"]],
-                              local_bones=[int(b) for b in local], q=data["reduced_coordinates"],
-                              basis=data.get("basis"), singular=data.get("singular"), r=data.get("reference_motion"),
-                              alpha=float(data.get("@alpha", 1.0)), beta=float(data.get("@beta", 1.0)),
-                              D=data["costs"], threshold=float(data.get("@threshold", 0.0)),
-                              pairs=np.asarray(data["transitions"], dtype=np.int64).reshape(-1, 2),
-                              costs=data["transition_costs"])
-    return ComponentAnalysis(bones=[int(b) for b in data["bones"]], transitions=transitions,
-                             key=np.asarray(data["key_vertices"]), key_bones=np.asarray(data["key_bones"]),
-                             key_weights=np.asarray(data["key_weights"]),
-                             key_gradients=np.asarray(data["weight_gradients"]),
-                             strain=np.asarray(data["rotation_strain"]), operator=operator)
+    """ComponentAnalysis from a graph file's component record (``formats.graph_file.ComponentRecord``;
+    the eq. 9 operator is rebuilt from the stored key-vertex data: cheap and exactly what
+    build-graph computed)."""
+    local = np.asarray(data.local_bones, dtype=np.int64)
+    reference = int(data.reference)
+    operator = gradient_operator(local, reference, rest, data.key_vertices, data.key_bones, data.key_weights,
+                                 data.weight_gradients, ridge=float(data.ridge))
+    transitions = Transitions(reference=reference, bones=[int(b) for b in data.bones],
+                              local_bones=[int(b) for b in local], q=data.reduced_coordinates,
+                              basis=data.basis, singular=data.singular, r=data.reference_motion,
+                              alpha=float(data.alpha), beta=float(data.beta),
+                              D=data.costs, threshold=float(data.threshold),
+                              pairs=np.asarray(data.transitions, dtype=np.int64).reshape(-1, 2),
+                              costs=data.transition_costs)
+    return ComponentAnalysis(bones=[int(b) for b in data.bones], transitions=transitions,
+                             key=np.asarray(data.key_vertices), key_bones=np.asarray(data.key_bones),
+                             key_weights=np.asarray(data.key_weights),
+                             key_gradients=np.asarray(data.weight_gradients),
+                             strain=np.asarray(data.rotation_strain), operator=operator)
 
 
 @dataclass

@@ -1,0 +1,26 @@
+"""build-graph's options and their defaults, stated once (no heavy import: the CLI reads its
+option defaults from here)."""
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class GraphOptions:
+    """build-graph's options, each default stated here once (the CLI's defaults, :func:`build_graph`'s,
+    and what synthesize assumes for a file that does not record one): threshold_scale and
+    threshold_reference (T_c, :func:`.transitions.find_transitions`), edge_threshold, min_bones and
+    single_component (:mod:`.bone_graph`), svd_threshold (eq. 3–4), min_gap, min_segment (frames;
+    the CLI's default is half a second, :func:`.motion_graph.default_min_segment`), coverage,
+    up_axis (0, 1, 2) and posture_weight (:func:`.transitions.posture_costs`)."""
+
+    threshold_scale: float = 3.0
+    threshold_reference: str = "median-step"
+    edge_threshold: float = 0.1
+    single_component: bool = False
+    svd_threshold: float = 0.005
+    min_gap: int = 2
+    min_bones: int = 3
+    min_segment: int = 12
+    coverage: float = 0.95
+    up_axis: int = 1
+    posture_weight: float = 1.0
