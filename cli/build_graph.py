@@ -8,6 +8,7 @@ import click
 from skinsynth.pipeline.synthesis.graph_options import GraphOptions
 
 from .common import FolderOutputs, report, summary_options, check_output_path, command_line, tool_version, user_errors
+from .options import up_axis_option
 
 DEFAULTS = GraphOptions()
 
@@ -36,9 +37,8 @@ DEFAULTS = GraphOptions()
               help="Admit transitions above the threshold (cheapest first, only those that help) until this share "
                    "of the frames lies on one strongly connected part of the motion graph, so walks can reach "
                    "the whole clip.")
-@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
-              help="The clip's up axis: synthesize places segments by a turn about it and a shift on the ground "
-                   "(default: the input's, as fit-skin recorded it; Y for files from before).")
+@up_axis_option("The clip's up axis: synthesize places segments by a turn about it and a shift on the ground "
+                "(default: the input's, as fit-skin recorded it; Y for files from before).")
 @click.option("--posture-weight", default=DEFAULTS.posture_weight, show_default=True, type=float,
               help="Weight of the reference bone's tilt and height in the transition cost (balanced like "
                    "Zheng's α, β; 0: his eq. 5 alone, for synthesize --alignment full).")

@@ -4,7 +4,8 @@ import os
 
 import click
 
-from .common import FolderOutputs, report, summary_options, check_output_path, fail, user_errors
+from .options import check_max_width, device_option, texture_options, up_axis_option
+from .common import FolderOutputs, report, summary_options, check_output_path, user_errors
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
 
@@ -16,11 +17,10 @@ USD_SUFFIXES = (".usd", ".usda", ".usdc")
                    "an engine-ready one: textures, normals, the rest mesh with texel UVs (.obj/.glb), vat.json.")
 @click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
               help="USD only: UsdSkel skeleton with joint weights (editable), or a baked time-sampled mesh.")
-@click.option("--device", default="auto", show_default=True, help="Where the skinning kernel runs: auto, cpu, cuda or cuda:N.")
-@click.option("--half", is_flag=True, help="Textures only: store 16-bit half floats instead of 32-bit.")
-@click.option("--max-width", default=8192, show_default=True, type=int, help="EXR only: texture width limit; vertices wrap to more rows.")
-@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
-              help="USD stage up axis (default: the input's, as fit-skin recorded it).")
+@device_option("Where the skinning kernel runs: auto, cpu, cuda or cuda:N.")
+@texture_options("Textures only: store 16-bit half floats instead of 32-bit.",
+                 "EXR only: texture width limit; vertices wrap to more rows.")
+@up_axis_option("USD stage up axis (default: the input's, as fit-skin recorded it).")
 @summary_options
 @user_errors
 def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json):
@@ -47,8 +47,7 @@ def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json)
         folders.check(output)
     else:
         check_output_path(output, USD_SUFFIXES + (".exr",), inputs=[path])
-    if max_width < 1:
-        fail(f"--max-width must be at least 1 (got {max_width})")
+    check_max_width(max_width)
     device = resolve_device(device)
     skin = read_skin(path)
     to_exr = output.lower().endswith(".exr") or to_folder
@@ -66,10 +65,10 @@ def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json)
         frames = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
                      skin.translations, device=device)
         if to_exr:
-            from skinsynth.formats.exr import HALF_MAX, write_vat
+            from skinsynth.formats.exr import check_half_range, write_vat
 
-            if half and abs(frames - skin.rest_vertices).max() > HALF_MAX:
-                fail(f"{output}: offsets from the rest pose exceed the half-float range ({HALF_MAX:g}); drop --half")
+            if half:
+                check_half_range(output, frames - skin.rest_vertices)
 
             if to_folder:
                 from skinsynth.formats.vat_bundle import write_vat_folder

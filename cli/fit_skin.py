@@ -7,6 +7,7 @@ import click
 import numpy as np
 
 from .common import Progress, check_output_path, command_line, report, summary_options, tool_version, user_errors
+from .options import device_option, up_axis_option
 
 
 @click.command("fit-skin")
@@ -25,7 +26,7 @@ from .common import Progress, check_output_path, command_line, report, summary_o
 @click.option("--transform-steps", default=0, show_default=True, type=int,
               help="Joint Levenberg-Marquardt steps on all bones of a frame per iteration (0: per-bone updates only; "
                    "a step costs about four iterations and gains less than they do on the real captures).")
-@click.option("--device", default="cpu", show_default=True,
+@device_option(default="cpu",
               help="Where the weight solve and the bone sweep run: cpu (compiled, every core), cuda or cuda:N (warp "
                    "kernels on that GPU; the same fit to rounding), or auto (a GPU when there is one).")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
@@ -33,8 +34,7 @@ from .common import Progress, check_output_path, command_line, report, summary_o
 @click.option("--meters-per-unit", default=None, type=float,
               help="Units of the input's coordinates (USD metersPerUnit; 0.01 for centimetres). Default: what a "
                    "USD input states, else 1. Every USD written downstream states it again.")
-@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
-              help="The input's up axis. Default: what a USD input states, else Y.")
+@up_axis_option("The input's up axis. Default: what a USD input states, else Y.")
 @click.option("--start-frame", default=None, type=float,
               help="Time code of the input's first frame. Default: a USD input's first sample, else 0.")
 @summary_options

@@ -6,6 +6,7 @@ import time
 import click
 import numpy as np
 
+from .options import check_max_width, device_option, texture_options, up_axis_option
 from .common import report, summary_options, check_output_path, FolderOutputs, user_errors
 
 OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
@@ -30,17 +31,15 @@ OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
               help="Dual quaternions (Feng §6.3) or linear blend skinning, for every output. UsdSkel's "
                    "dualQuaternion is ignored by Blender's importer (it skins linearly: 1.7e-2 of the diagonal "
                    "away on the horse); linear gives a rig every DCC and engine plays as computed.")
-@click.option("--half", is_flag=True, help="Textures (-o DIR/ or .exr): 16-bit half floats instead of 32-bit.")
-@click.option("--max-width", default=8192, show_default=True, type=int,
-              help="Textures: width limit; vertices wrap to more rows.")
+@texture_options("Textures (-o DIR/ or .exr): 16-bit half floats instead of 32-bit.",
+                 "Textures: width limit; vertices wrap to more rows.")
 @click.option("--spacing", default=None, type=float,
               help="Grid spacing between characters on the ground plane (default 1.5 × the largest rest bounding-box side).")
 @click.option("--translation-solver/--no-translation-solver", default=True, show_default=True,
               help="Recompute bone translations with the Poisson solve (needs a puppet trained with it).")
-@click.option("--device", default="auto", show_default=True, help="auto, cpu, cuda or cuda:N.")
+@device_option("auto, cpu, cuda or cuda:N.")
 @click.option("--threads", default=0, type=int, help="CPU threads for the kernels (default: all cores).")
-@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
-              help="Ground plane and USD up axis (default: the input's, as fit-skin recorded it).")
+@up_axis_option("Ground plane and USD up axis (default: the input's, as fit-skin recorded it).")
 @summary_options
 @user_errors
 def play(path, control_files, output, instances, kind, skinning, half, max_width, spacing, translation_solver, device,
@@ -82,8 +81,7 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
                     for f in control_files]
     controls = instance_trajectories(trajectories, instances)  # (C, F, n_c, 3)
     characters, frames = controls.shape[:2]
-    if max_width < 1:
-        raise OptionError(f"--max-width must be at least 1 (got {max_width})")
+    check_max_width(max_width)
     if output.lower().endswith(".exr") or to_folder:
         from skinsynth.formats.vat_bundle import check_texture_size
 
@@ -152,7 +150,7 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
                                     scene=skin.scene)
         written = [output]
     elif lower.endswith(".exr") or to_folder:
-        from skinsynth.formats.exr import HALF_MAX, write_vat
+        from skinsynth.formats.exr import check_half_range, write_vat
         from skinsynth.formats.vat_bundle import write_vat_folder
 
         if to_folder:  # engine-ready: textures, normals, the rest mesh with texel UVs, vat.json
@@ -161,8 +159,8 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
                              [(name, vertices[c] - offsets[c].astype(np.float32)) for c, name in enumerate(names)],
                              skin.fps, skin.scene, max_width=max_width, half=half, **folders.guard(output))
         else:
-            if half and np.abs(vertices[0] - skin.rest_vertices).max() > HALF_MAX:
-                raise OptionError(f"{output}: offsets exceed the half-float range ({HALF_MAX:g}); drop --half")
+            if half:
+                check_half_range(output, vertices[0] - skin.rest_vertices)
             write_vat(output, skin.rest_vertices, vertices[0], skin.fps, max_width=max_width, half=half)
         written = [output]
     else:

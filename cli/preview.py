@@ -7,6 +7,7 @@ import click
 import numpy as np
 
 from .common import Progress, check_output_path, report, summary_options, user_errors
+from .options import up_axis_option
 
 MESH_SUFFIXES = (".npz", ".usd", ".usda", ".usdc")
 
@@ -50,8 +51,7 @@ def _frame_range(text):
 @click.option("--camera", type=click.Choice(["three-quarter", "front", "side"]), default="three-quarter",
               show_default=True, help="Where the camera stands; it frames the whole animation.")
 @click.option("--flat", is_flag=True, help="Flat shading (one normal per face) instead of smooth.")
-@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
-              help="Up axis.  [default: the file's (USD, skinsynth files), else Y]")
+@up_axis_option("Up axis.  [default: the file's (USD, skinsynth files), else Y]")
 @click.option("--sheet-frames", default=12, show_default=True, type=click.IntRange(min=1),
               help=".png: frames on the contact sheet (4 per row).")
 @summary_options

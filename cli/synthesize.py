@@ -1,13 +1,13 @@
 """``skinsynth synthesize``: one clip in, many different animations out (Zheng 2013)."""
 
 import contextlib
-import functools
 import os
 import time
 
 import click
 import numpy as np
 
+from .options import check_max_width, device_option, texture_options, up_axis_option
 from .common import report, summary_options, Progress, check_output_path, FolderOutputs, command_line, tool_version, user_errors
 
 
@@ -19,50 +19,6 @@ def _target(text):
         return int(frame), int(when)
     except ValueError:
         raise click.BadParameter(f"{text!r}: expected FRAME@TIME, e.g. 12@100") from None
-
-
-class _LazyCrowd:
-    """Each animation's vertices (M, V, 3), skinned by the warp LBS kernel only when asked for.
-
-    Asked in order (as the writers do), it skins the next ``threads`` animations in worker
-    threads while the current one is written (CPU only: a CPU kernel launch runs in its calling
-    thread, outside the GIL, so two threads skin about twice as fast on two cores)."""
-
-    def __init__(self, skin, F, t, offsets, device, threads=1):
-        self.skin, self.F, self.t, self.offsets, self.device = skin, F, t, offsets, device
-        self.threads = threads if str(device).startswith("cpu") else 1
-        self._pool, self._pending = None, {}
-
-    def __len__(self):
-        return self.F.shape[0]
-
-    def _skin(self, a):
-        from skinsynth.gpu import lbs
-
-        s = self.skin
-        return lbs(s.rest_vertices, s.bone_indices, s.bone_weights, self.F[a], self.t[a], device=self.device) \
-            + self.offsets[a]
-
-    def __getitem__(self, a):
-        if self.threads <= 1:
-            return self._skin(a)
-        if self._pool is None:
-            from concurrent.futures import ThreadPoolExecutor
-
-            self._pool = ThreadPoolExecutor(self.threads)
-        for stale in [b for b in self._pending if b < a]:
-            self._pending.pop(stale).cancel()
-        for b in range(a, min(len(self), a + self.threads + 1)):
-            if b not in self._pending:
-                self._pending[b] = self._pool.submit(self._skin, b)
-        return self._pending.pop(a).result()
-
-    def close(self):
-        if self._pool is not None:
-            for future in self._pending.values():
-                future.cancel()
-            self._pool.shutdown()
-            self._pool, self._pending = None, {}
 
 
 @click.command("synthesize")
@@ -104,16 +60,14 @@ class _LazyCrowd:
 @click.option("--exr", "exr_dir", type=click.Path(file_okay=False), default=None,
               help="Also write an engine-ready vertex animation here: per animation offsets and normals textures, "
                    "the rest mesh with texel UVs (rest.obj, rest.glb), vat.json (docs/vat.md).")
-@click.option("--half", is_flag=True, help="--exr: 16-bit half floats instead of 32-bit.")
-@click.option("--max-width", default=8192, show_default=True, type=int,
-              help="--exr: texture width limit; vertices wrap to more rows.")
+@texture_options("--exr: 16-bit half floats instead of 32-bit.",
+                 "--exr: texture width limit; vertices wrap to more rows.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,
               help="Write PNGs here for the first --plot-count animations: the input frame each component plays "
                    "at each output frame, seams marked, and the largest vertex acceleration against the input's.")
 @click.option("--plot-count", default=4, show_default=True, type=int, help="Animations --plot draws.")
-@click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None,
-              help="Up axis (ground alignment, ground plane, crowd grid, USD).  [default: the graph's, Y]")
-@click.option("--device", default="auto", show_default=True, help="Where vertex caches are skinned: auto, cpu, cuda or cuda:N.")
+@up_axis_option("Up axis (ground alignment, ground plane, crowd grid, USD).  [default: the graph's, Y]")
+@device_option("Where vertex caches are skinned: auto, cpu, cuda or cuda:N.")
 @click.option("--jobs", "-j", default=None, type=int,
               help="Worker processes for the bone motions, and threads skinning the caches on the CPU (the "
                    "result does not depend on it).  [default: all cores]")
@@ -142,6 +96,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
       skinsynth synthesize cloth.graph.h5 -o c.h5 -n 60 -m 480 --obstacle sphere.obj --usd cloths/
     """
     from skinsynth.formats.graph_file import read_graph
+    from skinsynth.formats.obstacles import read_obstacle
     from skinsynth.formats.model import write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.synthesis_file import synthesis_groups
@@ -154,7 +109,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     check_output_path(output, (".h5", ".hdf5"), inputs=[path, *obstacles])
     if crowd is not None:
         check_output_path(crowd, (".usd", ".usda", ".usdc"), inputs=[path, *obstacles, output])
-    from skinsynth.formats.synthesis_shards import shard_folder
+    from skinsynth.formats.synthesis_shards import kept_shard_folder, run_shards, shard_folder
 
     folders = FolderOutputs([path, *obstacles], [output, crowd, usd_dir, exr_dir, plot_dir,
                                                  shard_folder(output) if cluster else None])
@@ -166,8 +121,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         raise OptionError(f"--jobs must be at least 1 (got {jobs})")
     if plot_count < 1:
         raise OptionError(f"--plot-count must be at least 1 (got {plot_count})")
-    if max_width < 1:
-        raise OptionError(f"--max-width must be at least 1 (got {max_width})")
+    check_max_width(max_width)
     device = resolve_device(device) if (usd_dir or crowd or exr_dir or plot_dir) else None
     # a cluster starts (local:N) or is reached in the background while the graph is read
     with (_cluster_starting(cluster) if cluster else contextlib.nullcontext()) as joined:
@@ -184,7 +138,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         validate_request(request, skin.rotations.shape[0])
         up = 1 if up_axis == "Y" else 2
         if obstacles or ground_plane:
-            meshes = [_read_obstacle(o) for o in obstacles]
+            meshes = [read_obstacle(o) for o in obstacles]
             ground = (up, float(skin.examples[..., up].min())) if ground_plane else None
             # Splices may dip a hair below the clip's lowest point: allow 0.1% of the rest pose's size.
             request.obstacles = build_obstacles(meshes, ground=ground,
@@ -208,10 +162,10 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           blend=blend, alignment=alignment, up_axis=up_axis)
         record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(),
                                    seed)
-        shards = _shards(output, record, frames, skin.rotations.shape[1]) if cluster else None
+        shards = run_shards(output, record, frames, skin.rotations.shape[1]) if cluster else None
 
         started = time.perf_counter()
-        with (_shard_folder(shards["folder"]) if cluster else contextlib.nullcontext()), \
+        with (kept_shard_folder(shards["folder"]) if cluster else contextlib.nullcontext()), \
                 Progress(count, "synthesize", quiet or as_json) as bar:
             done = [0]
 
@@ -278,36 +232,6 @@ def _cluster_starting(address):
     return Cluster.starting(address, preload=("skinsynth.pipeline.synthesis.synthesis",))
 
 
-def _shards(output, record, frames, bones):
-    """The shard folder of ``output`` (created), the run's shard record, the shards an earlier
-    run finished with the same record, and the store the workers call."""
-    from skinsynth.formats.synthesis_shards import shard_folder, shard_record, stored_shards, write_synthesis_shard
-
-    folder = shard_folder(output)
-    # what a batch's animations depend on: not the total count or the obstacles' paths (their bytes count)
-    parameters = {k: v for k, v in record["parameters"].items() if k not in ("count", "obstacles")}
-    shard = shard_record(record["inputs"], parameters, record["tool_version"])
-    return {"folder": folder, "stored": stored_shards(folder, shard, frames, bones),
-            "store": functools.partial(write_synthesis_shard, folder, shard)}
-
-
-@contextlib.contextmanager
-def _shard_folder(folder):
-    """The shard folder, made for the run and removed again if the run fails before any shard
-    is in it (a failed command leaves nothing new behind; finished shards stay for a rerun)."""
-    from skinsynth.formats.synthesis_shards import check_shard_folder
-
-    existed = os.path.isdir(folder)
-    check_shard_folder(folder)
-    try:
-        yield
-    except BaseException:
-        if not existed:
-            with contextlib.suppress(OSError):
-                os.rmdir(folder)  # only when empty
-        raise
-
-
 @contextlib.contextmanager
 def _motions(output, result, remote):
     """``result``, with its bone motions readable by animation: as they are, or (a cluster run)
@@ -333,22 +257,6 @@ def _graph_options(recorded):
     options = {name: type(getattr(GraphOptions, name))(recorded[name]) for name in names if name in recorded}
     options["up_axis"] = "XYZ".index(str(recorded.get("up_axis", "Y")))
     return options
-
-
-def _read_obstacle(path):
-    import trimesh
-
-    from skinsynth.formats.errors import FormatError
-
-    if not os.path.isfile(path):
-        raise FormatError(path, "no such obstacle file")
-    try:
-        mesh = trimesh.load(path, force="mesh", process=True)
-    except Exception as error:  # trimesh raises anything from parsing errors to ValueError
-        raise FormatError(path, f"cannot load the obstacle mesh: {error}") from None
-    if len(getattr(mesh, "faces", [])) == 0:
-        raise FormatError(path, "the obstacle has no faces")
-    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
 
 def _write_plots(folder, skin, result, count, device, folders):
@@ -377,6 +285,7 @@ def _write_plots(folder, skin, result, count, device, folders):
 
 
 def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, folders, threads=1, texture=None):
+    from skinsynth.pipeline.synthesis import SkinnedAnimations
     from skinsynth.pipeline.geometry import grid_offsets, largest_side
 
     count = result.F.shape[0]
@@ -389,7 +298,7 @@ def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, folder
             check_texture_size(exr_dir, skin.rest_vertices.shape[0], result.F.shape[1], texture["max_width"])
         from skinsynth.formats.output_folder import atomic_folder
 
-        frames = _LazyCrowd(skin, result.F, result.t, none, device, threads)
+        frames = SkinnedAnimations(skin, result.F, result.t, none, device, threads)
         usd_folder = atomic_folder(usd_dir, **folders.guard(usd_dir)) if usd_dir else contextlib.nullcontext()
 
         def each(usd_tmp):  # every animation skinned once, for both outputs
@@ -419,7 +328,7 @@ def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, folder
         from skinsynth.formats.usd import write_points_characters
 
         offsets = grid_offsets(count, 1.5 * largest_side(skin.rest_vertices), up_axis)
-        characters = _LazyCrowd(skin, result.F, result.t, offsets, device, threads)
+        characters = SkinnedAnimations(skin, result.F, result.t, offsets, device, threads)
         try:
             write_points_characters(crowd, characters, skin.faces, skin.fps,
                                     names=[f"animation_{a:04d}" for a in range(count)], up_axis=up_axis,

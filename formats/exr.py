@@ -28,6 +28,12 @@ HALF_MAX = float(np.finfo(np.float16).max)
 _INT_KEYS = ("vat_vertex_count", "vat_frame_count", "vat_rows_per_frame", "vat_width")
 
 
+def check_half_range(path, offsets, what="offsets from the rest pose"):
+    """FormatError naming ``path`` when ``offsets`` (any shape) do not fit in half floats (--half)."""
+    if np.abs(offsets).max() > HALF_MAX:
+        raise FormatError(path, f"{what} exceed the half-float range ({HALF_MAX:g}); drop --half")
+
+
 def write_vat(path, rest_vertices, vertices, fps, max_width=8192, half=False) -> dict:
     """Write offsets ``vertices - rest_vertices`` as a VAT; return the ``vat_*`` metadata written.
 
@@ -51,8 +57,8 @@ def write_vat(path, rest_vertices, vertices, fps, max_width=8192, half=False) ->
         raise FormatError(path, "a vertex animation texture must end in .exr")
 
     offsets = vertices - rest
-    if half and np.abs(offsets).max() > HALF_MAX:
-        raise ValueError(f"offsets exceed the half-float range ({HALF_MAX:g}); write float32")
+    if half:
+        check_half_range(path, offsets)
     offsets = offsets.astype(np.float16 if half else np.float32)
     frames, count = offsets.shape[:2]
     width = int(min(count, max_width))

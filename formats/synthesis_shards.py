@@ -16,6 +16,8 @@ A shard is ``batch_NNNNNN_<key prefix>.h5``; only its attributes say what it hol
 A rerun reuses a shard whose ``key`` matches (whatever it is called) and computes the rest.
 """
 
+import contextlib
+import functools
 import hashlib
 import json
 import os
@@ -121,3 +123,31 @@ def check_shard_folder(folder):
         raise FormatError(folder, f"cannot create the shard folder: {error.strerror}") from None
     if not os.access(folder, os.W_OK):
         raise FormatError(folder, "the shard folder is not writable")
+
+
+def run_shards(output, record, frames, bones):
+    """{folder, stored, store} of a ``synthesize --cluster`` run writing ``output``: the shard
+    folder, the shards an earlier run finished with the same record (``record``: the output's
+    provenance record; what a batch depends on is kept, not the total count or the obstacles'
+    paths), and the store the workers call (:func:`write_synthesis_shard` with that record)."""
+    folder = shard_folder(output)
+    # what a batch's animations depend on: not the total count or the obstacles' paths (their bytes count)
+    parameters = {k: v for k, v in record["parameters"].items() if k not in ("count", "obstacles")}
+    shard = shard_record(record["inputs"], parameters, record["tool_version"])
+    return {"folder": folder, "stored": stored_shards(folder, shard, frames, bones),
+            "store": functools.partial(write_synthesis_shard, folder, shard)}
+
+
+@contextlib.contextmanager
+def kept_shard_folder(folder):
+    """The shard folder, made for the run and removed again if the run fails before any shard
+    is in it (a failed command leaves nothing new behind; finished shards stay for a rerun)."""
+    existed = os.path.isdir(folder)
+    check_shard_folder(folder)
+    try:
+        yield
+    except BaseException:
+        if not existed:
+            with contextlib.suppress(OSError):
+                os.rmdir(folder)  # only when empty
+        raise

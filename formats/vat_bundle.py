@@ -110,7 +110,7 @@ def write_vat_folder(folder, rest_vertices, faces, animations, fps, scene, max_w
     and ``outputs``: the command's input files and other outputs, which the folder must not hold
     (:func:`~skinsynth.formats.output_folder.atomic_folder`). Returns the sidecar dict."""
     from .output_folder import atomic_folder
-    from .exr import HALF_MAX, write_vat
+    from .exr import check_half_range, write_vat
 
     count = len(rest_vertices)
     names, bounds, layout = [], [], None
@@ -119,8 +119,8 @@ def write_vat_folder(folder, rest_vertices, faces, animations, fps, scene, max_w
             if layout is None:
                 frames = len(vertices)
                 layout = check_texture_size(folder, count, frames, max_width)
-            if half and np.abs(vertices - rest_vertices).max() > HALF_MAX:
-                raise FormatError(folder, f"{name}: offsets exceed the half-float range ({HALF_MAX:g}); drop --half")
+            if half:
+                check_half_range(folder, vertices - rest_vertices, f"{name}: offsets from the rest pose")
             meta = write_vat(os.path.join(tmp, f"{name}.exr"), rest_vertices, vertices, fps, max_width, half)
             names.append(name)
             bounds.append((meta["vat_bounds_min"], meta["vat_bounds_max"]))
