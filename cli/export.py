@@ -1,13 +1,10 @@
 """``skinsynth export``: the animation a model file holds, as USD or an OpenEXR vertex-animation texture."""
 
-import os
-
 import click
 
 from .options import check_max_width, device_option, texture_options, up_axis_option
-from .common import FolderOutputs, report, summary_options, check_output_path, user_errors
-
-USD_SUFFIXES = (".usd", ".usda", ".usdc")
+from .common import FolderOutputs, report, summary_options, user_errors
+from .outputs import TEXTURES, check_animation_output, check_texture_output, write_textures
 
 
 @click.command("export")
@@ -41,20 +38,13 @@ def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json)
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs, resolve_device
 
-    to_folder = output.endswith(("/", os.sep))
     folders = FolderOutputs([path], [output])
-    if to_folder:
-        folders.check(output)
-    else:
-        check_output_path(output, USD_SUFFIXES + (".exr",), inputs=[path])
+    output_kind = check_animation_output(output, ("usd", "exr", "folder"), [path], folders)
     check_max_width(max_width)
     device = resolve_device(device)
     skin = read_skin(path)
-    to_exr = output.lower().endswith(".exr") or to_folder
-    if to_exr:
-        from skinsynth.formats.vat_bundle import check_texture_size
-
-        check_texture_size(output, skin.rest_vertices.shape[0], skin.rotations.shape[0], max_width)
+    to_exr = output_kind in TEXTURES
+    check_texture_output(output, output_kind, skin.rest_vertices.shape[0], skin.rotations.shape[0], max_width)
     if kind == "skel" and not to_exr:
         from skinsynth.formats.usd import write_skel_cache
 
@@ -65,18 +55,8 @@ def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json)
         frames = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
                      skin.translations, device=device)
         if to_exr:
-            from skinsynth.formats.exr import check_half_range, write_vat
-
-            if half:
-                check_half_range(output, frames - skin.rest_vertices)
-
-            if to_folder:
-                from skinsynth.formats.vat_bundle import write_vat_folder
-
-                write_vat_folder(output, skin.rest_vertices, skin.faces, [("animation", frames)], skin.fps,
-                                 skin.scene, max_width=max_width, half=half, **folders.guard(output))
-            else:
-                write_vat(output, skin.rest_vertices, frames, skin.fps, max_width=max_width, half=half)
+            write_textures(output, output_kind, skin.rest_vertices, skin.faces, [("animation", frames)], skin.fps,
+                           skin.scene, half, max_width, folders.guard(output))
         else:
             from skinsynth.formats.usd import write_points_cache
 

@@ -4,7 +4,6 @@ import time
 from dataclasses import replace
 
 import click
-import numpy as np
 
 from .common import Progress, check_output_path, command_line, report, summary_options, tool_version, user_errors
 from .options import device_option, up_axis_option
@@ -56,11 +55,9 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
     from skinsynth.formats.model import write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import skin_groups
-    from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.rotations import align_hemispheres, rigid_to_dual_quaternion
     from skinsynth.pipeline.geometry import bounding_box_diagonal
-    from skinsynth.pipeline.skin import bone_rest_frames, fit_skin as fit, validate_fit_options
+    from skinsynth.pipeline.skin import finish_fit, fit_skin as fit, validate_fit_options
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[input_spec])
     if fps is not None and not 0 < fps < float("inf"):
@@ -98,14 +95,7 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
                      progress=progress)
     seconds = time.perf_counter() - started
 
-    # The reported error is measured on a direct reconstruction, not the fit's running sum.
-    recon = lbs_reference(result.rest_vertices, result.bone_indices, result.bone_weights,
-                          result.rotations, result.translations)
-    sq = np.sum((recon - sequence.vertices) ** 2, axis=2)
-    result.rmse = float(np.sqrt(sq.mean()))
-    frame_rmse = np.sqrt(sq.mean(axis=1))
-    dq = align_hemispheres(rigid_to_dual_quaternion(result.rotations, result.translations), axis=0)
-    rest_frames = bone_rest_frames(result.rest_vertices, result.bone_indices, result.bone_weights, bones)
+    frame_rmse, dq, rest_frames = finish_fit(result, sequence.vertices)
     scene = sequence.scene
     parameters = dict(bones=bones, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
                       patience=patience, device=device,

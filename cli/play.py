@@ -1,15 +1,12 @@
 """``skinsynth play``: drive the trained puppet with control trajectories, many characters at once."""
 
-import os
-import time
-
 import click
 import numpy as np
 
-from .options import check_max_width, device_option, texture_options, up_axis_option
-from .common import report, summary_options, check_output_path, FolderOutputs, user_errors
+from .options import device_option, texture_options, up_axis_option
+from .common import report, summary_options, FolderOutputs, user_errors
+from .outputs import TEXTURES, check_animation_output, check_texture_output, write_textures
 
-OUTPUTS = (".usd", ".usda", ".usdc", ".exr", ".h5", ".hdf5")
 
 
 @click.command("play")
@@ -60,17 +57,13 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.pipeline.puppet import puppet_from_record
     from skinsynth.formats.trajectories import read_control_trajectories
-    from skinsynth.gpu import DevicePuppet, resolve_device, run_puppet
+    from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.geometry import grid_offsets, largest_side
-    from skinsynth.pipeline.puppet import host_inputs, instance_trajectories, world_bones
+    from skinsynth.pipeline.puppet import instance_trajectories, play_characters, world_bones
 
-    to_folder = output.endswith(("/", os.sep))
     folders = FolderOutputs([path, *control_files], [output])
-    if to_folder:
-        folders.check(output)
-    else:
-        check_output_path(output, OUTPUTS, inputs=[path, *control_files])
+    output_kind = check_animation_output(output, ("usd", "exr", "h5", "folder"), [path, *control_files], folders)
     device = resolve_device(device)
     record, _, skin = read_puppet(path)
     puppet = puppet_from_record(record)
@@ -81,14 +74,7 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
                     for f in control_files]
     controls = instance_trajectories(trajectories, instances)  # (C, F, n_c, 3)
     characters, frames = controls.shape[:2]
-    check_max_width(max_width)
-    if output.lower().endswith(".exr") or to_folder:
-        from skinsynth.formats.vat_bundle import check_texture_size
-
-        check_texture_size(output, skin.rest_vertices.shape[0], frames, max_width)
-    if output.lower().endswith(".exr") and characters > 1:
-        raise OptionError(f"{output}: {characters} characters make {characters} textures; give a folder "
-                          f"(-o {output[:-4]}/) for one texture each")
+    check_texture_output(output, output_kind, skin.rest_vertices.shape[0], frames, max_width, characters)
     spacing = 1.5 * largest_side(skin.rest_vertices) if spacing is None else spacing
     if not np.isfinite(spacing) or spacing < 0.0:
         raise OptionError(f"--spacing must be a finite distance ≥ 0 (got {spacing})")
@@ -96,37 +82,11 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     offsets = grid_offsets(characters, spacing, up_axis) if characters > 1 else np.zeros((1, 3))
 
     flat = controls.reshape(-1, count, 3)
-    bones = None
-    if skinning == "linear":
-        from skinsynth.gpu import corrective_offsets_reference, lbs
-
-        still = (np.tile(np.eye(3), (1, skin.bones, 1, 1)), np.zeros((1, skin.bones, 3)))
-        lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, *still, device,
-            None if puppet.correctives is None else np.zeros((1,) + skin.rest_vertices.shape))  # warm-up, untimed
-        started = time.perf_counter()
-        bones = world_bones(puppet, flat, translation_solver)
-        rotations, translations, shape_weights = bones
-        shift = None if shape_weights is None else corrective_offsets_reference(shape_weights,
-                                                                               puppet.correctives.offsets)
-        vertices = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations, translations, device,
-                       shift).astype(np.float32)
-    else:
-        device_puppet = DevicePuppet(puppet, device)
-        threads = threads or os.cpu_count() or 1
-        # Warm-up on one frame: warp compiles (or loads) its kernels on first launch, which is not
-        # the compute being timed.
-        run_puppet(device_puppet, *host_inputs(puppet, flat[:1]), translation_solver=translation_solver)
-        started = time.perf_counter()
-        x, placed, world = host_inputs(puppet, flat)
-        vertices = np.empty((characters * frames, skin.rest_vertices.shape[0], 3), dtype=np.float32)
-        run_puppet(device_puppet, x, placed, world, translation_solver=translation_solver, out=vertices,
-                   threads=threads)
-    seconds = time.perf_counter() - started
+    vertices, bones, seconds = play_characters(puppet, flat, device, skinning, translation_solver, threads)
     vertices = vertices.reshape(characters, frames, -1, 3) + offsets[:, None, None, :].astype(np.float32)
 
-    lower = output.lower()
     names = [f"character_{c:03d}" for c in range(characters)]
-    if lower.endswith((".usd", ".usda", ".usdc")):
+    if output_kind == "usd":
         if kind == "skel":
             from skinsynth.formats.usd import write_skel_characters
 
@@ -149,19 +109,11 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
             write_points_characters(output, vertices, skin.faces, skin.fps, names=names, up_axis=up_axis,
                                     scene=skin.scene)
         written = [output]
-    elif lower.endswith(".exr") or to_folder:
-        from skinsynth.formats.exr import check_half_range, write_vat
-        from skinsynth.formats.vat_bundle import write_vat_folder
-
-        if to_folder:  # engine-ready: textures, normals, the rest mesh with texel UVs, vat.json
-            # each character's offsets from its own grid cell, so one rest mesh serves them all
-            write_vat_folder(output, skin.rest_vertices, skin.faces,
-                             [(name, vertices[c] - offsets[c].astype(np.float32)) for c, name in enumerate(names)],
-                             skin.fps, skin.scene, max_width=max_width, half=half, **folders.guard(output))
-        else:
-            if half:
-                check_half_range(output, vertices[0] - skin.rest_vertices)
-            write_vat(output, skin.rest_vertices, vertices[0], skin.fps, max_width=max_width, half=half)
+    elif output_kind in TEXTURES:
+        # each character's offsets from its own grid cell, so one rest mesh serves them all
+        write_textures(output, output_kind, skin.rest_vertices, skin.faces,
+                       ((name, vertices[c] - offsets[c].astype(np.float32)) for c, name in enumerate(names)),
+                       skin.fps, skin.scene, half, max_width, folders.guard(output))
         written = [output]
     else:
         from skinsynth.formats.meshseq import write_vertex_animation

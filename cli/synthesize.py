@@ -8,6 +8,7 @@ import click
 import numpy as np
 
 from .options import check_max_width, device_option, texture_options, up_axis_option
+from .outputs import check_texture_output, write_textures
 from .common import report, summary_options, Progress, check_output_path, FolderOutputs, command_line, tool_version, user_errors
 
 
@@ -136,6 +137,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           cut_damping=cut_damping, min_segment=min_segment, blend=blend, alignment=alignment,
                           up_axis=1 if up_axis == "Y" else 2)
         validate_request(request, skin.rotations.shape[0])
+        if exr_dir:  # the texture's size, before any work
+            check_texture_output(exr_dir, "folder", skin.rest_vertices.shape[0], frames, max_width)
         up = 1 if up_axis == "Y" else 2
         if obstacles or ground_plane:
             meshes = [read_obstacle(o) for o in obstacles]
@@ -292,10 +295,6 @@ def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, folder
     none = np.zeros((count, 3))
     written = []
     if usd_dir or exr_dir:
-        from skinsynth.formats.vat_bundle import check_texture_size, write_vat_folder
-
-        if exr_dir:
-            check_texture_size(exr_dir, skin.rest_vertices.shape[0], result.F.shape[1], texture["max_width"])
         from skinsynth.formats.output_folder import atomic_folder
 
         frames = SkinnedAnimations(skin, result.F, result.t, none, device, threads)
@@ -316,8 +315,8 @@ def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, folder
         try:
             with usd_folder as usd_tmp:
                 if exr_dir:
-                    write_vat_folder(exr_dir, skin.rest_vertices, skin.faces, each(usd_tmp), skin.fps, skin.scene,
-                                     **texture, **folders.guard(exr_dir))
+                    write_textures(exr_dir, "folder", skin.rest_vertices, skin.faces, each(usd_tmp), skin.fps,
+                                   skin.scene, texture["half"], texture["max_width"], folders.guard(exr_dir))
                     written.append(exr_dir)
                 else:
                     for _ in each(usd_tmp):

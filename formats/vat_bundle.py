@@ -25,7 +25,6 @@ import json
 import os
 
 import numpy as np
-import scipy.sparse
 
 from .errors import FormatError
 
@@ -48,19 +47,6 @@ def check_texture_size(path, vertex_count, frame_count, max_width, limit=MAX_TEX
                                 f"rows); engines load at most {limit} on a side: play fewer frames or split the "
                                 f"animation (--max-width {max_width} already)")
     return width, rows, height
-
-
-def vertex_normals(vertices, faces):
-    """Unit area-weighted vertex normals (F, V, 3) of vertices (F, V, 3) and faces (T, 3)."""
-    frames, count = vertices.shape[:2]
-    corners = vertices[:, faces]  # (F, T, 3, 3)
-    face_normals = np.cross(corners[:, :, 1] - corners[:, :, 0], corners[:, :, 2] - corners[:, :, 0])  # area × 2
-    incidence = scipy.sparse.csr_matrix((np.ones(faces.size), (faces.ravel(), np.repeat(np.arange(len(faces)), 3))),
-                                        shape=(count, len(faces)))
-    summed = (incidence @ face_normals.transpose(1, 0, 2).reshape(len(faces), -1)).reshape(count, frames, 3)
-    summed = summed.transpose(1, 0, 2)
-    length = np.linalg.norm(summed, axis=-1, keepdims=True)
-    return np.where(length > 0.0, summed / np.where(length > 0.0, length, 1.0), 0.0)
 
 
 def vertex_uvs(vertex_count, width, height):
@@ -104,7 +90,8 @@ def sidecar(animations, count, width, rows, height, frames, fps, half, scene, bo
 
 def write_vat_folder(folder, rest_vertices, faces, animations, fps, scene, max_width=8192, half=False, inputs=(),
                      outputs=()):
-    """Write the folder: ``animations`` yields (name, vertices (F, V, 3)) of one rest mesh, and is
+    """Write the folder: ``animations`` yields (name, vertices (F, V, 3), unit vertex normals
+    (F, V, 3)) of one rest mesh (``pipeline.geometry.vertex_normals`` computes them), and is
     consumed once (it may skin each animation only when asked: a crowd never has to fit in
     memory). The texture size is checked on the first (:func:`check_texture_size`). ``inputs``
     and ``outputs``: the command's input files and other outputs, which the folder must not hold
@@ -115,7 +102,7 @@ def write_vat_folder(folder, rest_vertices, faces, animations, fps, scene, max_w
     count = len(rest_vertices)
     names, bounds, layout = [], [], None
     with atomic_folder(folder, inputs, outputs) as tmp:
-        for name, vertices in animations:
+        for name, vertices, normals in animations:
             if layout is None:
                 frames = len(vertices)
                 layout = check_texture_size(folder, count, frames, max_width)
@@ -124,8 +111,8 @@ def write_vat_folder(folder, rest_vertices, faces, animations, fps, scene, max_w
             meta = write_vat(os.path.join(tmp, f"{name}.exr"), rest_vertices, vertices, fps, max_width, half)
             names.append(name)
             bounds.append((meta["vat_bounds_min"], meta["vat_bounds_max"]))
-            write_vat(os.path.join(tmp, f"{name}_normals.exr"), np.zeros_like(rest_vertices),
-                      vertex_normals(np.asarray(vertices, dtype=np.float64), faces), fps, max_width, half)
+            write_vat(os.path.join(tmp, f"{name}_normals.exr"), np.zeros_like(rest_vertices), normals, fps,
+                      max_width, half)
         if layout is None:
             raise ValueError("no animations to write")
         width, rows, height = layout

@@ -1,10 +1,12 @@
-"""Geometry every stage measures by: bounding boxes, mesh edges, accelerations, crowd layout.
+"""Geometry every stage measures by: bounding boxes, mesh edges, vertex normals, accelerations, crowd
+layout.
 
 The lowest floor of ``pipeline`` with :mod:`.rotations`: the stages (skin, puppet, synthesis,
 view) import it and never each other.
 """
 
 import numpy as np
+import scipy.sparse
 
 
 def bounding_box_diagonal(points):
@@ -40,3 +42,18 @@ def grid_offsets(characters, spacing, up_axis="Y"):
     offsets[:, 0] = (index % columns) * spacing
     offsets[:, 2 if up_axis == "Y" else 1] = (index // columns) * spacing
     return offsets
+
+
+def vertex_normals(vertices, faces):
+    """Unit area-weighted vertex normals (F, V, 3) of vertices (F, V, 3) and faces (T, 3), in
+    float64 (a vertex no face touches, or whose faces cancel, gets 0)."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    frames, count = vertices.shape[:2]
+    corners = vertices[:, faces]  # (F, T, 3, 3)
+    face_normals = np.cross(corners[:, :, 1] - corners[:, :, 0], corners[:, :, 2] - corners[:, :, 0])  # area × 2
+    incidence = scipy.sparse.csr_matrix((np.ones(faces.size), (faces.ravel(), np.repeat(np.arange(len(faces)), 3))),
+                                        shape=(count, len(faces)))
+    summed = (incidence @ face_normals.transpose(1, 0, 2).reshape(len(faces), -1)).reshape(count, frames, 3)
+    summed = summed.transpose(1, 0, 2)
+    length = np.linalg.norm(summed, axis=-1, keepdims=True)
+    return np.where(length > 0.0, summed / np.where(length > 0.0, length, 1.0), 0.0)

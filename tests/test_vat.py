@@ -10,7 +10,8 @@ import trimesh
 
 from skinsynth.formats.errors import FormatError
 from skinsynth.formats.scene import Scene
-from skinsynth.formats.vat_bundle import check_texture_size, vertex_normals, write_vat_folder
+from skinsynth.formats.vat_bundle import check_texture_size, write_vat_folder
+from skinsynth.pipeline.geometry import vertex_normals
 from skinsynth.pipeline.examples import bending_bar
 
 from cli_helpers import assert_ok, assert_user_error, cli
@@ -39,7 +40,7 @@ def shader_decode(folder, name, mesh_file):
 def test_a_shader_decode_gives_back_the_animation(tmp_path, half, tolerance, mesh_file):
     vertices, faces = bending_bar(frames=7, rings=12, segments=8)
     folder = tmp_path / "vat"
-    write_vat_folder(folder, vertices[0], faces, [("walk", vertices)], 24.0, Scene(), max_width=20, half=half)
+    write_vat_folder(folder, vertices[0], faces, [("walk", vertices, vertex_normals(vertices, faces))], 24.0, Scene(), max_width=20, half=half)
     decoded = shader_decode(folder, "walk", mesh_file)
     diagonal = np.linalg.norm(np.ptp(vertices[0], axis=0))
     assert np.abs(decoded - vertices).max() < tolerance * diagonal
@@ -59,7 +60,7 @@ def test_normals_texture_holds_unit_normals_of_each_frame(tmp_path):
         reference[[a, b, c]] += n
     reference /= np.linalg.norm(reference, axis=1, keepdims=True)
     assert np.abs(normals[2] - reference).max() < 1e-12
-    write_vat_folder(tmp_path / "n", vertices[0], faces, [("a", vertices)], 24.0, Scene())
+    write_vat_folder(tmp_path / "n", vertices[0], faces, [("a", vertices, normals)], 24.0, Scene())
     with OpenEXR.File(str(tmp_path / "n" / "a_normals.exr")) as exr:
         image = np.array(exr.channels()["RGB"].pixels)
     assert np.allclose(image.reshape(3, -1, 3)[:, :len(vertices[0])], normals, atol=1e-6)

@@ -158,6 +158,24 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
         bones_without_weight=int((totals <= 0.0).sum()))
 
 
+def finish_fit(fit, vertices):
+    """What the skin file keeps beyond the fit itself, for the fit of vertices (F, V, 3): the
+    error measured on a direct reconstruction, not the fit's running sum (sets ``fit.rmse``);
+    returns (per-frame RMSE (F,), the bones as dual quaternions (F, B, 8) on one hemisphere per
+    bone over the frames (Feng §4.3), the bones' rest frames (B, 4, 4))."""
+    from skinsynth.gpu import lbs_reference
+
+    from ..rotations import align_hemispheres, rigid_to_dual_quaternion
+
+    reconstruction = lbs_reference(fit.rest_vertices, fit.bone_indices, fit.bone_weights, fit.rotations,
+                                   fit.translations)
+    squared = np.sum((reconstruction - vertices) ** 2, axis=2)
+    fit.rmse = float(np.sqrt(squared.mean()))
+    dual_quaternions = align_hemispheres(rigid_to_dual_quaternion(fit.rotations, fit.translations), axis=0)
+    rest_frames = bone_rest_frames(fit.rest_vertices, fit.bone_indices, fit.bone_weights, fit.rotations.shape[1])
+    return np.sqrt(squared.mean(axis=1)), dual_quaternions, rest_frames
+
+
 def bone_rest_frames(rest_vertices, bone_indices, bone_weights, bones):
     """frames (B, 4, 4): world-from-bone rest transforms for a skeleton export.
 

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ..geometry import vertex_normals as geometry_vertex_normals
+
 BACKGROUND = (0.92, 0.93, 0.95)
 MESH_COLOR = (0.72, 0.74, 0.80)
 GROUND_COLOR = (0.80, 0.80, 0.78)
@@ -90,12 +92,8 @@ def face_normals(vertices, faces):
 
 
 def vertex_normals(vertices, faces):
-    """Area-weighted vertex normals (V, 3)."""
-    n = _area_normals(vertices, faces)
-    out = np.zeros_like(vertices, dtype=np.float64)
-    for corner in range(3):
-        np.add.at(out, faces[:, corner], n)
-    return _unit(out)
+    """Area-weighted unit vertex normals (V, 3) of one frame (:func:`skinsynth.pipeline.geometry.vertex_normals`)."""
+    return geometry_vertex_normals(vertices[None], faces)[0]
 
 
 def lambert(normals, light, ambient=0.3):
