@@ -102,15 +102,14 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.synthesis_file import synthesis_groups
     from skinsynth.gpu import resolve_device
-    from skinsynth.pipeline.synthesis import build_obstacles, colliding, vertex_subset
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.synthesis import default_min_segment
-    from skinsynth.pipeline.synthesis import Request, component_from_file, synthesize as make, validate_request
+    from skinsynth.pipeline.synthesis import (Request, avoid_obstacles, default_min_segment, synthesis_components,
+                                              validate_request)
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path, *obstacles])
     if crowd is not None:
         check_output_path(crowd, (".usd", ".usda", ".usdc"), inputs=[path, *obstacles, output])
-    from skinsynth.formats.synthesis_shards import kept_shard_folder, run_shards, shard_folder
+    from skinsynth.formats.synthesis_shards import run_shards, shard_folder
 
     folders = FolderOutputs([path, *obstacles], [output, crowd, usd_dir, exr_dir, plot_dir,
                                                  shard_folder(output) if cluster else None])
@@ -139,24 +138,10 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         validate_request(request, skin.rotations.shape[0])
         if exr_dir:  # the texture's size, before any work
             check_texture_output(exr_dir, "folder", skin.rest_vertices.shape[0], frames, max_width)
-        up = 1 if up_axis == "Y" else 2
         if obstacles or ground_plane:
-            meshes = [read_obstacle(o) for o in obstacles]
-            ground = (up, float(skin.examples[..., up].min())) if ground_plane else None
-            # Splices may dip a hair below the clip's lowest point: allow 0.1% of the rest pose's size.
-            request.obstacles = build_obstacles(meshes, ground=ground,
-                                                tolerance=1e-3 * float(np.ptp(skin.rest_vertices)))
-            subset = vertex_subset(skin.rest_vertices.shape[0])
-            request.forbidden = colliding(request.obstacles, skin.examples[:, subset])
-        if single_component and len(graph_file.components) > 1:
-            from skinsynth.pipeline.synthesis import build_graph  # networkx: only imported when needed
-
-            analysis = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
-                                   skin.rotations, skin.translations, single_component=True,
-                                   **_graph_options(graph_file.options))
-            components = analysis.components
-        else:
-            components = [component_from_file(c, skin.rest_vertices) for c in graph_file.components]
+            avoid_obstacles(request, skin, [read_obstacle(o) for o in obstacles], ground_plane)
+        components = synthesis_components(skin, graph_file.components, single_component,
+                                          _graph_options(graph_file.options))
 
         parameters = dict(count=count, frames=frames, seed=seed, start_frame=start_frame, end_frame=end_frame,
                           targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,
@@ -168,25 +153,9 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         shards = run_shards(output, record, frames, skin.rotations.shape[1]) if cluster else None
 
         started = time.perf_counter()
-        with (kept_shard_folder(shards["folder"]) if cluster else contextlib.nullcontext()), \
-                Progress(count, "synthesize", quiet or as_json) as bar:
-            done = [0]
-
-            def progress(finished):
-                bar.update(finished - done[0], f"{finished}/{count} animations")
-                done[0] = finished
-
-            remote = on_cluster = None
-            if cluster:
-                on_cluster = joined()
-                from skinsynth.pipeline.execution import Remote
-
-                remote = Remote(on_cluster, shards["store"], shards["stored"])
-                if on_cluster.dashboard and not (quiet or as_json):
-                    click.echo(f"Dask dashboard: {on_cluster.dashboard}", err=True)
-            result = make(components, skin.rotations, skin.translations, skin.rest_vertices, skin.bone_indices,
-                          skin.bone_weights, request, jobs=jobs, progress=progress, remote=remote)
-            workers = on_cluster.workers if on_cluster is not None else None
+        result, remote, on_cluster = _make(components, skin, request, jobs, joined if cluster else None, shards,
+                                           quiet or as_json)
+        workers = on_cluster.workers if on_cluster is not None else None
         seconds = time.perf_counter() - started
     write_model(output, "synthesis",
                 synthesis_groups(path, result, components, request, skin.fps,
@@ -199,6 +168,51 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                                      texture=dict(half=half, max_width=max_width))
         if plot_dir is not None:
             written += _write_plots(plot_dir, skin, motions, min(plot_count, count), device, folders)
+    summary, lines = _summary(output, result, components, frames, min_segment, jobs, seconds, written)
+    if remote is not None:
+        from skinsynth.formats.synthesis_shards import remove_unused_shards
+
+        remove_unused_shards(shards["folder"], {handle for handle, _ in result.F.pieces})
+        summary["cluster"] = {"address": cluster, "workers": workers, "tasks": remote.tasks,
+                              "reused_batches": remote.reused, "retries": remote.retries,
+                              "dashboard": on_cluster.dashboard, "shards": shards["folder"]}
+        lines.append(f"cluster {cluster}: {workers} workers, {remote.tasks} tasks, {remote.retries} re-run after a "
+                     f"lost worker, {remote.reused} batches reused; shards in {shards['folder']}")
+    if len(written) > 1:
+        lines.append(f"also wrote: {', '.join(written[1:]) if len(written) < 6 else written[1] + ' …'}")
+    report(summary, lines, as_json, quiet)
+
+
+def _make(components, skin, request, jobs, joined, shards, quiet):
+    """Synthesise, here (``joined`` None) or on the cluster ``joined()`` returns, whose workers
+    write their batches to the run's ``shards``, with a progress bar; (result, remote or None,
+    cluster or None)."""
+    from skinsynth.formats.synthesis_shards import kept_shard_folder
+    from skinsynth.pipeline.synthesis import synthesize
+
+    with (kept_shard_folder(shards["folder"]) if joined else contextlib.nullcontext()), \
+            Progress(request.count, "synthesize", quiet) as bar:
+        done = [0]
+
+        def progress(finished):
+            bar.update(finished - done[0], f"{finished}/{request.count} animations")
+            done[0] = finished
+
+        remote = on_cluster = None
+        if joined:
+            on_cluster = joined()
+            from skinsynth.pipeline.execution import Remote
+
+            remote = Remote(on_cluster, shards["store"], shards["stored"])
+            if on_cluster.dashboard and not quiet:
+                click.echo(f"Dask dashboard: {on_cluster.dashboard}", err=True)
+        result = synthesize(components, skin.rotations, skin.translations, skin.rest_vertices, skin.bone_indices,
+                            skin.bone_weights, request, jobs=jobs, progress=progress, remote=remote)
+    return result, remote, on_cluster
+
+
+def _summary(output, result, components, frames, min_segment, jobs, seconds, written):
+    """The command's summary (--json) and its text lines."""
     stats = result.statistics
     summary = {"animations": int(result.F.shape[0]), "frames": int(frames), "seconds": round(seconds, 3),
               "distinct": result.distinct, "transitions_used": int(np.sum(result.seams_used)),
@@ -215,18 +229,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
              f"segments: mean {', '.join(f'{m:.1f}' for m in stats['mean_segment_frames'])} frames, shortest "
              f"{', '.join(map(str, stats['shortest_segment']))} (≥ {min_segment} asked); input frames played: "
              f"{', '.join(f'{c:.0%}' for c in stats['coverage'])} (per component)"]
-    if remote is not None:
-        from skinsynth.formats.synthesis_shards import remove_unused_shards
-
-        remove_unused_shards(shards["folder"], {handle for handle, _ in result.F.pieces})
-        summary["cluster"] = {"address": cluster, "workers": workers, "tasks": remote.tasks,
-                              "reused_batches": remote.reused, "retries": remote.retries,
-                              "dashboard": on_cluster.dashboard, "shards": shards["folder"]}
-        lines.append(f"cluster {cluster}: {workers} workers, {remote.tasks} tasks, {remote.retries} re-run after a "
-                     f"lost worker, {remote.reused} batches reused; shards in {shards['folder']}")
-    if len(written) > 1:
-        lines.append(f"also wrote: {', '.join(written[1:]) if len(written) < 6 else written[1] + ' …'}")
-    report(summary, lines, as_json, quiet)
+    return summary, lines
 
 
 def _cluster_starting(address):

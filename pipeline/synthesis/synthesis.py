@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .assembly import assemble, cut_bones, merge_order
-from .collisions import colliding, vertex_subset
+from .collisions import build_obstacles, colliding, vertex_subset
 from .deformation_gradients import gradient_operator
 from ..errors import OptionError
 from ..execution import concatenate_rows, run_batches
@@ -52,6 +52,32 @@ def component_from_file(data, rest):
                              key_weights=np.asarray(data.key_weights),
                              key_gradients=np.asarray(data.weight_gradients),
                              strain=np.asarray(data.rotation_strain), operator=operator)
+
+
+def synthesis_components(skin, records, single_component=False, graph_options=None):
+    """The components synthesize walks: each of a graph file's component records
+    (:func:`component_from_file`), or with ``single_component`` (and more than one in the file)
+    the whole rig analysed again as one (:func:`.graph.build_graph` with the file's
+    ``graph_options``). ``skin``: rest_vertices (V, 3), faces, bone_indices and bone_weights
+    (V, K), rotations (F, B, 3, 3), translations (F, B, 3)."""
+    if single_component and len(records) > 1:
+        from .graph import build_graph  # networkx: only imported when needed
+
+        return build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
+                           skin.translations, single_component=True, **(graph_options or {})).components
+    return [component_from_file(record, skin.rest_vertices) for record in records]
+
+
+def avoid_obstacles(request, skin, meshes, ground_plane=False):
+    """Set ``request.obstacles`` (Zheng §3.4) from obstacle meshes [(vertices (N, 3), faces (T, 3))]
+    and, with ``ground_plane``, the plane of the clip's lowest point about ``request.up_axis``, and
+    ``request.forbidden`` (F,): the input frames (examples (F, V, 3) of ``skin``) that collide.
+    Splices may dip a hair below the clip's lowest point: 0.1 % of the rest pose's size is allowed."""
+    up = request.up_axis
+    ground = (up, float(skin.examples[..., up].min())) if ground_plane else None
+    request.obstacles = build_obstacles(meshes, ground=ground, tolerance=1e-3 * float(np.ptp(skin.rest_vertices)))
+    subset = vertex_subset(skin.rest_vertices.shape[0])
+    request.forbidden = colliding(request.obstacles, skin.examples[:, subset])
 
 
 @dataclass
