@@ -65,7 +65,7 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.synthesis import bone_layout, build_graph as analyse, validate_graph_options
+    from skinsynth.pipeline.synthesis import build_graph as analyse, validate_graph_options
     from skinsynth.pipeline.synthesis import default_min_segment
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
@@ -92,21 +92,35 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     record = provenance_record("graph", command_line(), parameters, [path], tool_version())
     write_model(output, "graph", graph_groups(model, analysis), model["provenance"] + [record], tool_version())
     if plot_dir is not None:
-        from skinsynth.formats.plots import write_bone_graph_plot, write_cost_matrix_plot
+        _write_plots(plot_dir, skin, analysis, folders)
+    summary, lines = _summary(output, analysis, min_segment, up_axis, seconds)
+    report(summary, lines, as_json, quiet)
+    if analysis.transition_count == 0:
+        click.echo("warning: no candidate transitions: the clip has no repeated states at this threshold; "
+                   "try a larger --threshold-scale", err=True)
 
-        from skinsynth.formats.output_folder import atomic_folder
 
-        with atomic_folder(plot_dir, **folders.guard(plot_dir)) as tmp:
-            for number, component in enumerate(analysis.components):
-                t = component.transitions
-                write_cost_matrix_plot(os.path.join(tmp, f"costs_component_{number:03d}.png"), t.D, t.pairs,
-                                       t.threshold, f"component {number}: {len(component.bones)} bones, "
-                                       f"{len(t.pairs)} transitions (T_c = {t.threshold:.3g})")
-            positions = bone_layout(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
-            write_bone_graph_plot(os.path.join(tmp, "bone_graph.png"), positions, analysis.weights,
-                                  analysis.kept_edges, [c.bones for c in analysis.components], analysis.cut_nodes,
-                                  f"bone graph: {len(analysis.components)} component(s), "
-                                  f"{len(analysis.cut_nodes)} cut node(s)")
+def _write_plots(plot_dir, skin, analysis, folders):
+    """The folder of PNGs: each component's transition-cost matrix and the bone graph."""
+    from skinsynth.formats.output_folder import atomic_folder
+    from skinsynth.formats.plots import write_bone_graph_plot, write_cost_matrix_plot
+    from skinsynth.pipeline.synthesis import bone_layout
+
+    with atomic_folder(plot_dir, **folders.guard(plot_dir)) as tmp:
+        for number, component in enumerate(analysis.components):
+            t = component.transitions
+            write_cost_matrix_plot(os.path.join(tmp, f"costs_component_{number:03d}.png"), t.D, t.pairs,
+                                   t.threshold, f"component {number}: {len(component.bones)} bones, "
+                                   f"{len(t.pairs)} transitions (T_c = {t.threshold:.3g})")
+        positions = bone_layout(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
+        write_bone_graph_plot(os.path.join(tmp, "bone_graph.png"), positions, analysis.weights,
+                              analysis.kept_edges, [c.bones for c in analysis.components], analysis.cut_nodes,
+                              f"bone graph: {len(analysis.components)} component(s), "
+                              f"{len(analysis.cut_nodes)} cut node(s)")
+
+
+def _summary(output, analysis, min_segment, up_axis, seconds):
+    """The command's summary (--json) and its text lines."""
     lines = [f"wrote {output}: {len(analysis.components)} component(s), cut nodes {analysis.cut_nodes}, "
              f"{analysis.transition_count} transitions, segments ≥ {min_segment} frames; {seconds:.1f} s"]
     components = []
@@ -122,7 +136,4 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     summary = {"output": output, "components": components, "cut_nodes": list(analysis.cut_nodes),
                "transitions": int(analysis.transition_count), "min_segment": int(min_segment), "up_axis": up_axis,
                "seconds": round(seconds, 3)}
-    report(summary, lines, as_json, quiet)
-    if analysis.transition_count == 0:
-        click.echo("warning: no candidate transitions: the clip has no repeated states at this threshold; "
-                   "try a larger --threshold-scale", err=True)
+    return summary, lines

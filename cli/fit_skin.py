@@ -104,6 +104,17 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
     record = provenance_record("skin", command_line(), parameters, [input_spec], tool_version(), seed)
     write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal),
                 [record], tool_version())
+    summary, lines = _summary(output, sequence, bones, result, diagonal, seconds, device, history)
+    report(summary, lines, as_json, quiet)
+    if result.bones_without_weight:
+        click.echo(f"warning: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
+                   "has fewer independently moving parts than --bones", err=True)
+
+
+def _summary(output, sequence, bones, result, diagonal, seconds, device, history):
+    """The command's summary (--json) and its text lines."""
+    frames, count = sequence.vertices.shape[:2]
+    scene = sequence.scene
     state = result.stopped
     summary = {"output": output, "bones": bones, "vertices": int(count), "frames": int(frames), "fps": sequence.fps,
                "rmse": result.rmse, "rmse_over_diagonal": result.rmse / diagonal, "iterations": int(result.iterations),
@@ -112,11 +123,9 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
                "bones_without_weight": int(result.bones_without_weight), "meters_per_unit": scene.meters_per_unit,
                "up_axis": scene.up_axis, "start_frame": scene.start_frame, "prim_path": scene.prim_path,
                "history": [[t, float(f"{e:.6g}")] for t, e in history]}
-    report(summary, [f"wrote {output}: {bones} bones, {count} vertices, {frames} frames; "
-                     f"RMSE {result.rmse:.4g} = {result.rmse / diagonal:.2e} of the bounding-box diagonal "
-                     f"({result.iterations} iterations, {state}, {seconds:.1f} s)",
-                     f"scene: {scene.describe(frames)} at {sequence.fps:g} fps (stated again by every USD written "
-                     "from it; --meters-per-unit, --up-axis, --start-frame override)"], as_json, quiet)
-    if result.bones_without_weight:
-        click.echo(f"warning: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
-                   "has fewer independently moving parts than --bones", err=True)
+    lines = [f"wrote {output}: {bones} bones, {count} vertices, {frames} frames; "
+             f"RMSE {result.rmse:.4g} = {result.rmse / diagonal:.2e} of the bounding-box diagonal "
+             f"({result.iterations} iterations, {state}, {seconds:.1f} s)",
+             f"scene: {scene.describe(frames)} at {sequence.fps:g} fps (stated again by every USD written "
+             "from it; --meters-per-unit, --up-axis, --start-frame override)"]
+    return summary, lines

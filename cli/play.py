@@ -88,21 +88,8 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     names = [f"character_{c:03d}" for c in range(characters)]
     if output_kind == "usd":
         if kind == "skel":
-            from skinsynth.formats.usd import write_skel_characters
-
-            rotations, translations, shape_weights = bones or world_bones(puppet, flat, translation_solver)
-            rotations = rotations.reshape(characters, frames, *rotations.shape[1:])
-            translations = translations.reshape(characters, frames, -1, 3) + offsets[:, None, None, :]
-            shapes = None  # the correctives are blend shapes, played before skinning
-            if shape_weights is not None:
-                shapes = (puppet.correctives.offsets, shape_weights.reshape(characters, frames, -1))
-            write_skel_characters(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
-                                  rotations, translations, skin.bone_rest_frames[:, :3, 3], skin.fps, names=names,
-                                  up_axis=up_axis, skinning=skinning, blend_shapes=shapes, scene=skin.scene)
-            if skinning == "dual-quaternion":
-                click.echo("warning: Blender's USD importer ignores skinningMethod dualQuaternion and skins this rig "
-                           "linearly, away from what skinsynth computed; --skinning linear gives a rig every DCC "
-                           "plays as computed", err=True)
+            _write_rig(output, skin, puppet, bones or world_bones(puppet, flat, translation_solver), offsets, names,
+                       up_axis, skinning)
         else:
             from skinsynth.formats.usd import write_points_characters
 
@@ -128,3 +115,24 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     report(summary, [f"played {characters} character(s) × {frames} frames on {device} in {seconds:.3f} s: "
                      f"{summary['frames_per_second']:.0f} frames/s, {summary['character_frames_per_second']:.0f} "
                      f"character-frames/s (compute only); wrote {', '.join(written)}"], as_json, quiet)
+
+
+def _write_rig(output, skin, puppet, bones, offsets, names, up_axis, skinning):
+    """The characters as UsdSkel rigs: world bones (rotations (C·F, B, 3, 3), translations
+    (C·F, B, 3), corrective blend weights or None) placed by offsets (C, 3)."""
+    from skinsynth.formats.usd import write_skel_characters
+
+    characters, frames = len(names), len(bones[0]) // len(names)
+    rotations, translations, shape_weights = bones
+    rotations = rotations.reshape(characters, frames, *rotations.shape[1:])
+    translations = translations.reshape(characters, frames, -1, 3) + offsets[:, None, None, :]
+    shapes = None  # the correctives are blend shapes, played before skinning
+    if shape_weights is not None:
+        shapes = (puppet.correctives.offsets, shape_weights.reshape(characters, frames, -1))
+    write_skel_characters(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
+                          rotations, translations, skin.bone_rest_frames[:, :3, 3], skin.fps, names=names,
+                          up_axis=up_axis, skinning=skinning, blend_shapes=shapes, scene=skin.scene)
+    if skinning == "dual-quaternion":
+        click.echo("warning: Blender's USD importer ignores skinningMethod dualQuaternion and skins this rig "
+                   "linearly, away from what skinsynth computed; --skinning linear gives a rig every DCC "
+                   "plays as computed", err=True)

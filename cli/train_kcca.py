@@ -92,6 +92,12 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     record = provenance_record("puppet", command_line(), parameters, [path], tool_version())
     write_model(output, "puppet", puppet_groups(model, puppet, test, "auto" if regularization == "auto" else "fixed"),
                 model["provenance"] + [record], tool_version())
+    summary, lines = _summary(output, skin, controls, train, test, kernel, translation_solver, puppet, seconds)
+    report(summary, lines, as_json, quiet)
+
+
+def _summary(output, skin, controls, train, test, kernel, translation_solver, puppet, seconds):
+    """The command's summary (--json) and its text lines."""
     corr = puppet.regression.correlations
     lines = [f"wrote {output}: {skin.bones} bones, {len(controls.vertex_indices)} controls, "
              f"{len(train)} training / {len(test)} held-out frames, {kernel} kernel, "
@@ -112,7 +118,7 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
                "translation_prior_reason": puppet.translation_prior_reason,
                "correctives": puppet.correctives is not None, "correctives_reason": puppet.correctives_reason,
                "seconds": round(seconds, 3)}
-    report(summary, lines, as_json, quiet)
+    return summary, lines
 
 
 def _number_or_auto(option, value, what, low_open=False):
