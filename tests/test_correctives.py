@@ -4,7 +4,8 @@ short, played the same by numpy, warp and UsdSkel."""
 import numpy as np
 import pytest
 
-from skinsynth.gpu import dqs_reference, puppet_kernels as pk
+from skinsynth.gpu import (corrective_offsets, corrective_offsets_reference, dq_skin, dqs_reference,
+                           reference_run_puppet, run_puppet)
 from skinsynth.pipeline.puppet.correctives import (POWER_GRID, RIDGE_GRID, Model, blend_weights, choose_model,
                                             fit_correctives, rest_offsets)
 from skinsynth.pipeline.examples import synthetic_lbs
@@ -124,11 +125,11 @@ def test_the_affine_tail_reproduces_offsets_linear_in_the_controls():
 def test_corrective_kernels_match_their_reference_on_the_cpu():
     rng = np.random.default_rng(4)
     w, offsets = rng.normal(size=(9, 12)) * 50.0, rng.normal(size=(12, 70, 3)) * 0.01
-    expected = pk.corrective_offsets_reference(w, offsets)
-    assert np.abs(pk.corrective_offsets(w, offsets) - expected).max() < 1e-6 * np.abs(expected).max()
+    expected = corrective_offsets_reference(w, offsets)
+    assert np.abs(corrective_offsets(w, offsets) - expected).max() < 1e-6 * np.abs(expected).max()
     rest, idx, weights = random_skin(rng, 70, 5, 3)
     dq = random_dual_quaternions(rng, 9, 5)
-    got = pk.dq_skin(rest, idx, weights, dq, rest_offsets=expected)
+    got = dq_skin(rest, idx, weights, dq, rest_offsets=expected)
     assert np.abs(got - dqs_reference(rest, idx, weights, dq, expected)).max() < 1e-5
 
 
@@ -140,7 +141,7 @@ def test_run_puppet_plays_the_correctives(threads):
     puppet = _train(data, np.arange(0, 40, 2), "auto")
     controls = data["vertices"][:, CONTROLS]
     expected = predict_vertices(puppet, controls)
-    got = pk.run_puppet(puppet, *host_inputs(puppet, controls), threads=threads)
+    got = run_puppet(puppet, *host_inputs(puppet, controls), threads=threads)
     assert np.abs(got - expected).max() < 1e-5 * np.ptp(data["rest"], axis=0).max()
 
 
@@ -188,6 +189,6 @@ def test_run_puppet_plays_any_corrective_model_as_its_reference(tail, threads):
         corrective_axes=np.linalg.qr(rng.normal(size=(d, 3)))[0].T if tail else None)
     samples = 150  # more than one fixed block of the CPU path
     x, c, frames = rng.normal(size=(samples, d)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
-    expected = pk.reference_run_puppet(puppet, x, c, frames)
-    got = pk.run_puppet(puppet, x, c, frames, threads=threads)
+    expected = reference_run_puppet(puppet, x, c, frames)
+    got = run_puppet(puppet, x, c, frames, threads=threads)
     assert np.abs(got - expected).max() < 1e-5 * np.abs(expected).max()

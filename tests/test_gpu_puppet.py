@@ -1,10 +1,12 @@
-"""skinsynth.gpu.puppet_kernels: each run-time stage on warp's CPU device against its numpy
+"""The puppet's run time in skinsynth.gpu: each stage on warp's CPU device against its numpy
 reference, and the whole path against pipeline.puppet.predict_vertices for a trained puppet."""
 
 import numpy as np
 import pytest
 
-from skinsynth.gpu import puppet_kernels as pk
+import skinsynth.gpu as gpu
+from skinsynth.gpu import puppet_run, skinning
+from skinsynth.gpu.validation import KERNEL_KINDS
 from skinsynth.pipeline.puppet.playback import host_inputs
 from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
 
@@ -33,20 +35,20 @@ def random_dual_quaternions(rng, samples, bones, flip=True, scale=1.0):
     return dq * scale
 
 
-@pytest.mark.parametrize("kind", pk.KERNEL_KINDS)
+@pytest.mark.parametrize("kind", KERNEL_KINDS)
 @pytest.mark.parametrize("samples", [1, 7, 50])
 def test_kernel_vectors(kind, samples):
     rng = np.random.default_rng(samples)
     x, training = rng.normal(size=(samples, 24)) * 0.2, rng.normal(size=(38, 24)) * 0.2
-    expected = pk.kernel_vectors_reference(x, training, kind, offset=0.3, degree=5)
-    got = pk.kernel_vectors(x, training, kind, offset=0.3, degree=5, device="cpu")
+    expected = gpu.kernel_vectors_reference(x, training, kind, offset=0.3, degree=5)
+    got = gpu.kernel_vectors(x, training, kind, offset=0.3, degree=5, device="cpu")
     assert relative_error(got, expected) < TOL
 
 
 def test_kernel_vectors_other_degree():
     rng = np.random.default_rng(3)
     x, training = rng.normal(size=(5, 6)) * 0.3, rng.normal(size=(9, 6)) * 0.3
-    got = pk.kernel_vectors(x, training, "polynomial", offset=0.1, degree=3)
+    got = gpu.kernel_vectors(x, training, "polynomial", offset=0.1, degree=3)
     assert relative_error(got, (x @ training.T + 0.1) ** 3) < TOL
 
 
@@ -55,9 +57,9 @@ def test_predict_dual_quaternions(samples):
     rng = np.random.default_rng(samples)
     bones, n_p = 11, 27
     xi, predictor, bias = rng.random((samples, n_p)), rng.normal(size=(8 * bones, n_p)), rng.normal(size=8 * bones)
-    got = pk.predict_dual_quaternions(xi, predictor, bias)
+    got = gpu.predict_dual_quaternions(xi, predictor, bias)
     assert got.shape == (samples, bones, 8)
-    assert relative_error(got, pk.predict_dual_quaternions_reference(xi, predictor, bias)) < TOL
+    assert relative_error(got, gpu.predict_dual_quaternions_reference(xi, predictor, bias)) < TOL
     # row b·8 + m of M is bone b's m-th number
     assert np.allclose(got[0, 3, 5], predictor[29] @ xi[0] + bias[29], rtol=1e-5)
 
@@ -71,19 +73,19 @@ def test_predictions_with_large_cancelling_coefficients_stay_exact():
     twin = rng.normal(size=(8 * bones, n_p // 2)) * 2.5e4
     predictor = np.concatenate([twin, -twin * (1.0 + 1e-4)], axis=1)  # columns of twin poses nearly cancel
     bias = random_dual_quaternions(rng, 1, bones, flip=False).reshape(-1)
-    raw = pk.predict_dual_quaternions(xi, predictor, bias)
-    expected = pk.predict_dual_quaternions_reference(xi, predictor, bias)
+    raw = gpu.predict_dual_quaternions(xi, predictor, bias)
+    expected = gpu.predict_dual_quaternions_reference(xi, predictor, bias)
     assert np.abs(raw - expected).max() < 1e-9 * np.abs(predictor).max()
-    unit = pk.normalise_dual_quaternions(raw)[0]
-    assert np.abs(unit - pk.normalise_dual_quaternions_reference(expected)[0]).max() < 1e-6
+    unit = gpu.normalise_dual_quaternions(raw)[0]
+    assert np.abs(unit - gpu.normalise_dual_quaternions_reference(expected)[0]).max() < 1e-6
 
 
 @pytest.mark.parametrize("samples", [1, 40])
 def test_normalise_dual_quaternions(samples):
     rng = np.random.default_rng(samples)
     d = random_dual_quaternions(rng, samples, 9) * rng.uniform(0.5, 2.0, size=(samples, 9, 1))
-    got = pk.normalise_dual_quaternions(d)
-    expected = pk.normalise_dual_quaternions_reference(d)
+    got = gpu.normalise_dual_quaternions(d)
+    expected = gpu.normalise_dual_quaternions_reference(d)
     for g, e in zip(got, expected):
         assert relative_error(g, e) < TOL
 
@@ -95,8 +97,8 @@ def test_solve_translations(samples):
     args = (random_rotations(rng, (samples, bones)), rng.normal(size=(samples, n_c, 3)),
             rng.normal(size=(samples, bones, 3)), rng.normal(size=(bones, bones, 3)), rng.normal(size=(bones, n_c)),
             rng.normal(size=(bones, bones)) * 1e-3)
-    got = pk.solve_translations(*args)
-    assert relative_error(got, pk.solve_translations_reference(*args)) < TOL
+    got = gpu.solve_translations(*args)
+    assert relative_error(got, gpu.solve_translations_reference(*args)) < TOL
     # the index convention, spelled out for one entry
     rot, c, t_hat, gamma, q, prior = args
     n, b, a = samples - 1, 7, 2
@@ -111,8 +113,8 @@ def test_dq_skin(influences, samples):
     rng = np.random.default_rng(10 * influences + samples)
     rest, idx, w = random_skin(rng, 500, 13, influences)
     dq = random_dual_quaternions(rng, samples, 13, scale=1.7)  # non-unit and sign-flipped
-    expected = pk.dqs_reference(rest, idx, w, dq)
-    got = pk.dq_skin(rest, idx, w, dq, device="cpu")
+    expected = gpu.dqs_reference(rest, idx, w, dq)
+    got = gpu.dq_skin(rest, idx, w, dq, device="cpu")
     assert relative_error(got, expected) < TOL
 
 
@@ -124,17 +126,17 @@ def test_dq_skin_hemisphere_rule_matters():
     idx[:] = [0, 1]
     one = random_dual_quaternions(rng, 1, 1, flip=False)
     dq = np.concatenate([one, -one], axis=1)
-    got = pk.dq_skin(rest, idx, w, dq)
-    rigid = pk.dq_skin(rest, idx[:, :1], np.ones((200, 1)), one)
+    got = gpu.dq_skin(rest, idx, w, dq)
+    rigid = gpu.dq_skin(rest, idx[:, :1], np.ones((200, 1)), one)
     assert relative_error(got, rigid) < TOL
 
 
 def test_dq_skin_chunks(monkeypatch):
-    monkeypatch.setattr(pk, "_DEVICE_CHUNK", 1000)  # 3 samples per launch over 300 vertices
+    monkeypatch.setattr(skinning, "_DEVICE_CHUNK", 1000)  # 3 samples per launch over 300 vertices
     rng = np.random.default_rng(5)
     rest, idx, w = random_skin(rng, 300, 7, 3)
     dq = random_dual_quaternions(rng, 10, 7)
-    assert relative_error(pk.dq_skin(rest, idx, w, dq), pk.dqs_reference(rest, idx, w, dq)) < TOL
+    assert relative_error(gpu.dq_skin(rest, idx, w, dq), gpu.dqs_reference(rest, idx, w, dq)) < TOL
 
 
 def random_rigid_frames(rng, samples):
@@ -149,7 +151,7 @@ def random_puppet(rng, kind, influences=4, verts=400, bones=10, n_p=15, n_c=4, s
     rest, idx, w = random_skin(rng, verts, bones, influences)
     # M, m around a unit dual quaternion per bone, so predictions stay away from |q0| = 0
     base = random_dual_quaternions(rng, 1, bones)[0].reshape(-1)
-    return pk.PuppetArrays(
+    return gpu.PuppetArrays(
         rest_vertices=rest, bone_indices=idx, bone_weights=w, training_controls=rng.normal(size=(n_p, 3 * n_c)) * 0.3,
         kernel=kind, offset=0.2, degree=5, predictor=rng.normal(size=(8 * bones, n_p)) * 0.05, bias=base,
         rotation_operator=rng.normal(size=(bones, bones, 3)) * 0.1 if solver else None,
@@ -157,7 +159,7 @@ def random_puppet(rng, kind, influences=4, verts=400, bones=10, n_p=15, n_c=4, s
         prior_operator=rng.normal(size=(bones, bones)) * 1e-4 if solver else None)
 
 
-@pytest.mark.parametrize("kind", pk.KERNEL_KINDS)
+@pytest.mark.parametrize("kind", KERNEL_KINDS)
 @pytest.mark.parametrize("solver", [True, False])
 @pytest.mark.parametrize("framed", [True, False])
 def test_run_puppet_matches_reference(kind, solver, framed):
@@ -167,8 +169,8 @@ def test_run_puppet_matches_reference(kind, solver, framed):
     x = rng.normal(size=(samples, 12)) * 0.3
     c = rng.normal(size=(samples, 4, 3))
     frames = random_rigid_frames(rng, samples) if framed else None
-    expected = pk.reference_run_puppet(puppet, x, c, frames, translation_solver=solver)
-    got = pk.run_puppet(puppet, x, c, frames, translation_solver=solver, device="cpu")
+    expected = gpu.reference_run_puppet(puppet, x, c, frames, translation_solver=solver)
+    got = gpu.run_puppet(puppet, x, c, frames, translation_solver=solver, device="cpu")
     assert relative_error(got, expected) < TOL
 
 
@@ -177,14 +179,14 @@ def test_run_puppet_chunks_threads_and_out(monkeypatch):
     puppet = random_puppet(rng, "gaussian", influences=3)
     samples = 23
     x, c, frames = rng.normal(size=(samples, 12)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
-    expected = pk.reference_run_puppet(puppet, x, c, frames)
-    device_puppet = pk.DevicePuppet(puppet, "cpu")
-    monkeypatch.setattr(pk, "_DEVICE_CHUNK", 2000)  # 5 samples per chunk over 400 vertices
+    expected = gpu.reference_run_puppet(puppet, x, c, frames)
+    device_puppet = gpu.DevicePuppet(puppet, "cpu")
+    monkeypatch.setattr(puppet_run, "_DEVICE_CHUNK", 2000)  # 5 samples per chunk over 400 vertices
     for threads in (1, 2, 3):
-        assert relative_error(pk.run_puppet(device_puppet, x, c, frames, threads=threads), expected) < TOL
+        assert relative_error(gpu.run_puppet(device_puppet, x, c, frames, threads=threads), expected) < TOL
     out = np.zeros((samples, 400, 3), dtype=np.float32)
     timings = {}
-    assert pk.run_puppet(device_puppet, x, c, frames, out=out, timings=timings) is out
+    assert gpu.run_puppet(device_puppet, x, c, frames, out=out, timings=timings) is out
     assert relative_error(out.astype(np.float64), expected) < TOL
     assert {"kernel_vectors", "predict", "solve_translations", "skin"} <= set(timings)
 
@@ -195,8 +197,8 @@ def test_run_puppet_takes_any_sample_count_over_threads(samples):
     rng = np.random.default_rng(samples)
     puppet = random_puppet(rng, "gaussian", influences=3)
     x, c, frames = rng.normal(size=(samples, 12)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
-    expected = pk.reference_run_puppet(puppet, x, c, frames)
-    assert relative_error(pk.run_puppet(puppet, x, c, frames, threads=2), expected) < TOL
+    expected = gpu.reference_run_puppet(puppet, x, c, frames)
+    assert relative_error(gpu.run_puppet(puppet, x, c, frames, threads=2), expected) < TOL
 
 
 def test_run_puppet_rejects_bad_input():
@@ -204,11 +206,11 @@ def test_run_puppet_rejects_bad_input():
     puppet = random_puppet(rng, "linear", solver=False)
     x = rng.normal(size=(3, 12))
     with pytest.raises(ValueError, match="translation operator"):
-        pk.run_puppet(puppet, x, None, translation_solver=True)
+        gpu.run_puppet(puppet, x, None, translation_solver=True)
     with pytest.raises(ValueError, match="world_frames"):
-        pk.run_puppet(puppet, x, None, np.eye(4)[None], translation_solver=False)
+        gpu.run_puppet(puppet, x, None, np.eye(4)[None], translation_solver=False)
     with pytest.raises(ValueError, match="standardised_controls"):
-        pk.run_puppet(puppet, x[:, :5], None, translation_solver=False)
+        gpu.run_puppet(puppet, x[:, :5], None, translation_solver=False)
 
 
 @pytest.fixture(scope="module")
@@ -235,26 +237,28 @@ def test_run_puppet_matches_predict_vertices(trained_puppet, solver):
     controls = np.concatenate([controls, moved])
     expected = predict_vertices(puppet, controls, translation_solver=solver)
     x, placed, frames = host_inputs(puppet, controls)
-    got = pk.run_puppet(puppet, x, placed, frames, translation_solver=solver, device="cpu")
+    got = gpu.run_puppet(puppet, x, placed, frames, translation_solver=solver, device="cpu")
     assert relative_error(got, expected) < TOL
-    reference = pk.reference_run_puppet(puppet, x, placed, frames, translation_solver=solver)
+    reference = gpu.reference_run_puppet(puppet, x, placed, frames, translation_solver=solver)
     assert relative_error(reference, expected) < 1e-10
 
 
 def test_the_kernels_sit_below_the_pipeline():
-    """Layers point one way (cli → pipeline → gpu): no module of gpu/ imports the pipeline, not even
-    inside a function."""
+    """Layers point one way (cli → pipeline → gpu): no module of gpu/ (its subpackages too) imports
+    the pipeline or climbs out of gpu with a relative import, not even inside a function."""
     import ast
     import pathlib
 
     import skinsynth.gpu
 
-    for path in pathlib.Path(skinsynth.gpu.__file__).parent.glob("*.py"):
+    root = pathlib.Path(skinsynth.gpu.__file__).parent
+    for path in root.rglob("*.py"):
+        depth = len(path.relative_to(root).parts) - 1  # 0 for gpu/x.py, 1 for gpu/kernels/x.py
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.ImportFrom):
-                names = [("." * node.level) + (node.module or "")]
+                names, level = [node.module or ""], node.level
             elif isinstance(node, ast.Import):
-                names = [alias.name for alias in node.names]
+                names, level = [alias.name for alias in node.names], 0
             else:
                 continue
-            assert not [n for n in names if "pipeline" in n or n.startswith("..")], (path.name, names)
+            assert level <= depth + 1 and not [n for n in names if "pipeline" in n], (path.name, level, names)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from skinsynth.gpu.skin_fit_kernels import sweep_bone_transforms_warp
+from skinsynth.gpu import sweep_bone_transforms_warp
 from skinsynth.pipeline.skin.bone_transforms import update_bone_transforms
 from skinsynth.pipeline.skin.skin_fit import fit_skin
 from skinsynth.pipeline.skin.skin_weights import update_weights

@@ -10,6 +10,7 @@ import pytest
 
 from skinsynth.gpu import DeviceError, available_devices, lbs, lbs_reference, resolve_device
 from skinsynth.gpu import runtime, skinning
+from skinsynth.gpu.references import skinning as skinning_reference
 
 from rigs import random_skin
 
@@ -56,7 +57,7 @@ def test_affine_bones_and_frame_chunks(monkeypatch):
     rig = random_rig(np.random.default_rng(7), 50, 5, 7, 4, rigid=False)
     expected = lbs_reference(*rig)
     monkeypatch.setattr(skinning, "_DEVICE_CHUNK", 3 * 50 + 1)  # chunks of 3, 3, 1 frames
-    monkeypatch.setattr(skinning, "_REFERENCE_CHUNK", 2 * 9 * 50)  # chunks of 2 frames
+    monkeypatch.setattr(skinning_reference, "_REFERENCE_CHUNK", 2 * 9 * 50)  # chunks of 2 frames
     assert relative_error(lbs(*rig, device="cpu"), expected) < 1e-5
     np.testing.assert_allclose(lbs_reference(*rig), expected, rtol=0, atol=1e-12)
 
@@ -127,12 +128,22 @@ def run_python(code, **env):
 
 
 def test_import_does_not_import_warp():
+    """Only gpu/kernels/ imports warp (through runtime.warp()): the package, every public name and
+    every launcher and reference module import without it."""
     run_python(
         """
-        import sys
+        import importlib, pathlib, sys
         import skinsynth.gpu
         from skinsynth.gpu import lbs, lbs_reference, resolve_device, DeviceError, available_devices
         assert "warp" not in sys.modules, "importing skinsynth.gpu imported warp"
+        for name in skinsynth.gpu.__all__:
+            getattr(skinsynth.gpu, name)
+        root = pathlib.Path(skinsynth.gpu.__file__).parent
+        for path in sorted(root.rglob("*.py")):
+            parts = path.relative_to(root).with_suffix("").parts
+            if parts[0] != "kernels" or parts == ("kernels", "__init__"):
+                importlib.import_module(".".join(("skinsynth.gpu",) + parts).removesuffix(".__init__"))
+                assert "warp" not in sys.modules, f"importing {path.name} imported warp"
         """
     )
 
