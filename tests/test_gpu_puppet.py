@@ -1,5 +1,6 @@
-"""The puppet's run time in skinsynth.gpu: each stage on warp's CPU device against its numpy
-reference, and the whole path against pipeline.puppet.predict_vertices for a trained puppet."""
+"""The puppet's run time in skinsynth.gpu: each stage on every warp device (the ``device`` fixture)
+against its numpy reference, and the whole path against pipeline.puppet.predict_vertices for a
+trained puppet."""
 
 import numpy as np
 import pytest
@@ -37,34 +38,34 @@ def random_dual_quaternions(rng, samples, bones, flip=True, scale=1.0):
 
 @pytest.mark.parametrize("kind", KERNEL_KINDS)
 @pytest.mark.parametrize("samples", [1, 7, 50])
-def test_kernel_vectors(kind, samples):
+def test_kernel_vectors(kind, samples, device):
     rng = np.random.default_rng(samples)
     x, training = rng.normal(size=(samples, 24)) * 0.2, rng.normal(size=(38, 24)) * 0.2
     expected = gpu.kernel_vectors_reference(x, training, kind, offset=0.3, degree=5)
-    got = gpu.kernel_vectors(x, training, kind, offset=0.3, degree=5, device="cpu")
+    got = gpu.kernel_vectors(x, training, kind, offset=0.3, degree=5, device=device)
     assert relative_error(got, expected) < TOL
 
 
-def test_kernel_vectors_other_degree():
+def test_kernel_vectors_other_degree(device):
     rng = np.random.default_rng(3)
     x, training = rng.normal(size=(5, 6)) * 0.3, rng.normal(size=(9, 6)) * 0.3
-    got = gpu.kernel_vectors(x, training, "polynomial", offset=0.1, degree=3)
+    got = gpu.kernel_vectors(x, training, "polynomial", offset=0.1, degree=3, device=device)
     assert relative_error(got, (x @ training.T + 0.1) ** 3) < TOL
 
 
 @pytest.mark.parametrize("samples", [1, 13, 100])
-def test_predict_dual_quaternions(samples):
+def test_predict_dual_quaternions(samples, device):
     rng = np.random.default_rng(samples)
     bones, n_p = 11, 27
     xi, predictor, bias = rng.random((samples, n_p)), rng.normal(size=(8 * bones, n_p)), rng.normal(size=8 * bones)
-    got = gpu.predict_dual_quaternions(xi, predictor, bias)
+    got = gpu.predict_dual_quaternions(xi, predictor, bias, device=device)
     assert got.shape == (samples, bones, 8)
     assert relative_error(got, gpu.predict_dual_quaternions_reference(xi, predictor, bias)) < TOL
     # row b·8 + m of M is bone b's m-th number
     assert np.allclose(got[0, 3, 5], predictor[29] @ xi[0] + bias[29], rtol=1e-5)
 
 
-def test_predictions_with_large_cancelling_coefficients_stay_exact():
+def test_predictions_with_large_cancelling_coefficients_stay_exact(device):
     """Nearly repeated training poses give predictors whose entries reach 1e4 and cancel (the
     horse's): d = M ξ + m must keep float64's precision, not float32's (which lost 3e-3)."""
     rng = np.random.default_rng(7)
@@ -73,31 +74,31 @@ def test_predictions_with_large_cancelling_coefficients_stay_exact():
     twin = rng.normal(size=(8 * bones, n_p // 2)) * 2.5e4
     predictor = np.concatenate([twin, -twin * (1.0 + 1e-4)], axis=1)  # columns of twin poses nearly cancel
     bias = random_dual_quaternions(rng, 1, bones, flip=False).reshape(-1)
-    raw = gpu.predict_dual_quaternions(xi, predictor, bias)
+    raw = gpu.predict_dual_quaternions(xi, predictor, bias, device=device)
     expected = gpu.predict_dual_quaternions_reference(xi, predictor, bias)
     assert np.abs(raw - expected).max() < 1e-9 * np.abs(predictor).max()
-    unit = gpu.normalise_dual_quaternions(raw)[0]
+    unit = gpu.normalise_dual_quaternions(raw, device=device)[0]
     assert np.abs(unit - gpu.normalise_dual_quaternions_reference(expected)[0]).max() < 1e-6
 
 
 @pytest.mark.parametrize("samples", [1, 40])
-def test_normalise_dual_quaternions(samples):
+def test_normalise_dual_quaternions(samples, device):
     rng = np.random.default_rng(samples)
     d = random_dual_quaternions(rng, samples, 9) * rng.uniform(0.5, 2.0, size=(samples, 9, 1))
-    got = gpu.normalise_dual_quaternions(d)
+    got = gpu.normalise_dual_quaternions(d, device=device)
     expected = gpu.normalise_dual_quaternions_reference(d)
     for g, e in zip(got, expected):
         assert relative_error(g, e) < TOL
 
 
 @pytest.mark.parametrize("samples", [1, 17])
-def test_solve_translations(samples):
+def test_solve_translations(samples, device):
     rng = np.random.default_rng(samples)
     bones, n_c = 12, 5
     args = (random_rotations(rng, (samples, bones)), rng.normal(size=(samples, n_c, 3)),
             rng.normal(size=(samples, bones, 3)), rng.normal(size=(bones, bones, 3)), rng.normal(size=(bones, n_c)),
             rng.normal(size=(bones, bones)) * 1e-3)
-    got = gpu.solve_translations(*args)
+    got = gpu.solve_translations(*args, device=device)
     assert relative_error(got, gpu.solve_translations_reference(*args)) < TOL
     # the index convention, spelled out for one entry
     rot, c, t_hat, gamma, q, prior = args
@@ -109,16 +110,16 @@ def test_solve_translations(samples):
 
 @pytest.mark.parametrize("influences", [1, 2, 3, 4])
 @pytest.mark.parametrize("samples", [1, 6])
-def test_dq_skin(influences, samples):
+def test_dq_skin(influences, samples, device):
     rng = np.random.default_rng(10 * influences + samples)
     rest, idx, w = random_skin(rng, 500, 13, influences)
     dq = random_dual_quaternions(rng, samples, 13, scale=1.7)  # non-unit and sign-flipped
     expected = gpu.dqs_reference(rest, idx, w, dq)
-    got = gpu.dq_skin(rest, idx, w, dq, device="cpu")
+    got = gpu.dq_skin(rest, idx, w, dq, device=device)
     assert relative_error(got, expected) < TOL
 
 
-def test_dq_skin_hemisphere_rule_matters():
+def test_dq_skin_hemisphere_rule_matters(device):
     # Two bones with nearly the same rotation but opposite signs: without the sign rule the blend
     # cancels. The kernel must agree with the reference (and be rigid when both bones agree).
     rng = np.random.default_rng(1)
@@ -126,17 +127,17 @@ def test_dq_skin_hemisphere_rule_matters():
     idx[:] = [0, 1]
     one = random_dual_quaternions(rng, 1, 1, flip=False)
     dq = np.concatenate([one, -one], axis=1)
-    got = gpu.dq_skin(rest, idx, w, dq)
-    rigid = gpu.dq_skin(rest, idx[:, :1], np.ones((200, 1)), one)
+    got = gpu.dq_skin(rest, idx, w, dq, device=device)
+    rigid = gpu.dq_skin(rest, idx[:, :1], np.ones((200, 1)), one, device=device)
     assert relative_error(got, rigid) < TOL
 
 
-def test_dq_skin_chunks(monkeypatch):
+def test_dq_skin_chunks(monkeypatch, device):
     monkeypatch.setattr(skinning, "_DEVICE_CHUNK", 1000)  # 3 samples per launch over 300 vertices
     rng = np.random.default_rng(5)
     rest, idx, w = random_skin(rng, 300, 7, 3)
     dq = random_dual_quaternions(rng, 10, 7)
-    assert relative_error(gpu.dq_skin(rest, idx, w, dq), gpu.dqs_reference(rest, idx, w, dq)) < TOL
+    assert relative_error(gpu.dq_skin(rest, idx, w, dq, device=device), gpu.dqs_reference(rest, idx, w, dq)) < TOL
 
 
 def random_rigid_frames(rng, samples):
@@ -162,7 +163,7 @@ def random_puppet(rng, kind, influences=4, verts=400, bones=10, n_p=15, n_c=4, s
 @pytest.mark.parametrize("kind", KERNEL_KINDS)
 @pytest.mark.parametrize("solver", [True, False])
 @pytest.mark.parametrize("framed", [True, False])
-def test_run_puppet_matches_reference(kind, solver, framed):
+def test_run_puppet_matches_reference(kind, solver, framed, device):
     rng = np.random.default_rng(len(kind) + 2 * solver + 4 * framed)
     puppet = random_puppet(rng, kind)
     samples = 9
@@ -170,17 +171,17 @@ def test_run_puppet_matches_reference(kind, solver, framed):
     c = rng.normal(size=(samples, 4, 3))
     frames = random_rigid_frames(rng, samples) if framed else None
     expected = gpu.reference_run_puppet(puppet, x, c, frames, translation_solver=solver)
-    got = gpu.run_puppet(puppet, x, c, frames, translation_solver=solver, device="cpu")
+    got = gpu.run_puppet(puppet, x, c, frames, translation_solver=solver, device=device)
     assert relative_error(got, expected) < TOL
 
 
-def test_run_puppet_chunks_threads_and_out(monkeypatch):
+def test_run_puppet_chunks_threads_and_out(monkeypatch, device):
     rng = np.random.default_rng(7)
     puppet = random_puppet(rng, "gaussian", influences=3)
     samples = 23
     x, c, frames = rng.normal(size=(samples, 12)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
     expected = gpu.reference_run_puppet(puppet, x, c, frames)
-    device_puppet = gpu.DevicePuppet(puppet, "cpu")
+    device_puppet = gpu.DevicePuppet(puppet, device)
     monkeypatch.setattr(puppet_run, "_DEVICE_CHUNK", 2000)  # 5 samples per chunk over 400 vertices
     for threads in (1, 2, 3):
         assert relative_error(gpu.run_puppet(device_puppet, x, c, frames, threads=threads), expected) < TOL
@@ -192,13 +193,13 @@ def test_run_puppet_chunks_threads_and_out(monkeypatch):
 
 
 @pytest.mark.parametrize("samples", [3, 17])
-def test_run_puppet_takes_any_sample_count_over_threads(samples):
+def test_run_puppet_takes_any_sample_count_over_threads(samples, device):
     # Thread bounds are numpy integers; a chunk smaller than the step used one as warp's shape.
     rng = np.random.default_rng(samples)
     puppet = random_puppet(rng, "gaussian", influences=3)
     x, c, frames = rng.normal(size=(samples, 12)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
     expected = gpu.reference_run_puppet(puppet, x, c, frames)
-    assert relative_error(gpu.run_puppet(puppet, x, c, frames, threads=2), expected) < TOL
+    assert relative_error(gpu.run_puppet(puppet, x, c, frames, threads=2, device=device), expected) < TOL
 
 
 def test_run_puppet_rejects_bad_input():
@@ -225,7 +226,7 @@ def trained_puppet():
 
 
 @pytest.mark.parametrize("solver", [True, False])
-def test_run_puppet_matches_predict_vertices(trained_puppet, solver):
+def test_run_puppet_matches_predict_vertices(trained_puppet, solver, device):
     from skinsynth.pipeline.puppet.puppet import predict_vertices
 
     data, puppet = trained_puppet
@@ -237,7 +238,7 @@ def test_run_puppet_matches_predict_vertices(trained_puppet, solver):
     controls = np.concatenate([controls, moved])
     expected = predict_vertices(puppet, controls, translation_solver=solver)
     x, placed, frames = host_inputs(puppet, controls)
-    got = gpu.run_puppet(puppet, x, placed, frames, translation_solver=solver, device="cpu")
+    got = gpu.run_puppet(puppet, x, placed, frames, translation_solver=solver, device=device)
     assert relative_error(got, expected) < TOL
     reference = gpu.reference_run_puppet(puppet, x, placed, frames, translation_solver=solver)
     assert relative_error(reference, expected) < 1e-10
