@@ -37,6 +37,7 @@ def kernel_seconds(rig, device, repeats):
         wp.array(w.astype(np.float32), dtype=wp.float32, device=device),
         wp.array(rot.astype(np.float32), dtype=wp.mat33, device=device),
         wp.array(trans.astype(np.float32), dtype=wp.vec3, device=device),
+        wp.empty((1, 1), dtype=wp.vec3, device=device),  # rest offsets, unread without correctives
     ]
     out = wp.empty((rot.shape[0], rest.shape[0]), dtype=wp.vec3, device=device)
 
