@@ -12,7 +12,7 @@ import json
 
 import numpy as np
 
-from skinsynth.gpu import available_devices, lbs, lbs_reference, skinning
+from skinsynth.gpu import available_devices, lbs, lbs_reference
 from skinsynth.gpu.runtime import warp
 from timing import median_seconds
 
@@ -28,6 +28,8 @@ def random_rig(rng, verts, bones, frames, influences):
 
 def kernel_seconds(rig, device, repeats):
     wp = warp()
+    from skinsynth.gpu.kernels.skinning import lbs_kernel
+
     rest, idx, w, rot, trans = rig
     args = [
         wp.array(rest.astype(np.float32), dtype=wp.vec3, device=device),
@@ -35,11 +37,12 @@ def kernel_seconds(rig, device, repeats):
         wp.array(w.astype(np.float32), dtype=wp.float32, device=device),
         wp.array(rot.astype(np.float32), dtype=wp.mat33, device=device),
         wp.array(trans.astype(np.float32), dtype=wp.vec3, device=device),
+        wp.empty((1, 1), dtype=wp.vec3, device=device),  # rest offsets, unread without correctives
     ]
     out = wp.empty((rot.shape[0], rest.shape[0]), dtype=wp.vec3, device=device)
 
     def launch():
-        wp.launch(skinning._kernel(idx.shape[1]), dim=out.shape, inputs=args, outputs=[out], device=device)
+        wp.launch(lbs_kernel(idx.shape[1]), dim=out.shape, inputs=args, outputs=[out], device=device)
         wp.synchronize_device(device)
 
     return median_seconds(launch, repeats)

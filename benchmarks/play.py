@@ -1,4 +1,4 @@
-"""Benchmark the puppet's run-time path (gpu.puppet_kernels): numpy reference vs warp on the CPU
+"""Benchmark the puppet's run-time path (gpu.puppet_run): numpy reference vs warp on the CPU
 (1 and 2 Python threads) and on CUDA when present, per stage and end to end.
 
 One JSON line per (model, layout, solver). Models: "face" (V=23,728, B=260, n_c=8, n_p=38,
@@ -30,8 +30,8 @@ import time
 
 import numpy as np
 
+import skinsynth.gpu as gpu
 from skinsynth.gpu import available_devices
-from skinsynth.gpu import puppet_kernels as pk
 from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
 from timing import median_seconds
 
@@ -55,7 +55,7 @@ def random_puppet(rng, verts, bones, controls, examples, influences, correctives
     w = rng.random((verts, influences)) ** 2
     w /= w.sum(axis=1, keepdims=True)
     base = rigid_to_dual_quaternion(rotations(rng, (bones,)), rng.normal(size=(bones, 3))).reshape(-1)
-    return pk.PuppetArrays(
+    return gpu.PuppetArrays(
         rest_vertices=rest, bone_indices=idx, bone_weights=w,
         training_controls=rng.normal(size=(examples, 3 * controls)) / np.sqrt(3 * controls), kernel="gaussian",
         predictor=rng.normal(size=(8 * bones, examples)) * 0.05, bias=base,
@@ -78,8 +78,7 @@ def random_inputs(rng, samples, puppet):
 
 def numpy_reference(puppet, x, c, frames, solver):
     """Stage seconds of the numpy reference (composing the stage references)."""
-    from skinsynth.gpu.skinning import dqs_reference
-    from skinsynth.gpu.dual_quaternions import with_translations
+    from skinsynth.gpu import dqs_reference, with_translations
 
     stages, t0 = {}, time.perf_counter()
 
@@ -89,22 +88,22 @@ def numpy_reference(puppet, x, c, frames, solver):
         stages[name] = now - t0
         t0 = now
 
-    xi = pk.kernel_vectors_reference(x, puppet.training_controls, puppet.kernel)
+    xi = gpu.kernel_vectors_reference(x, puppet.training_controls, puppet.kernel)
     mark("kernel_vectors")
-    d = pk.predict_dual_quaternions_reference(xi, puppet.predictor, puppet.bias)
+    d = gpu.predict_dual_quaternions_reference(xi, puppet.predictor, puppet.bias)
     mark("predict")
-    d, rot, trans = pk.normalise_dual_quaternions_reference(d)
+    d, rot, trans = gpu.normalise_dual_quaternions_reference(d)
     mark("normalise")
     if solver:
-        trans = pk.solve_translations_reference(rot, c, trans, puppet.rotation_operator, puppet.control_operator,
+        trans = gpu.solve_translations_reference(rot, c, trans, puppet.rotation_operator, puppet.control_operator,
                                                 puppet.prior_operator)
         mark("solve_translations")
         d = with_translations(d, trans)
         mark("compose")
     offsets = None
     if puppet.has_correctives:
-        offsets = pk.corrective_offsets_reference(
-            pk.corrective_weights_reference(xi, x, puppet.corrective_weights), puppet.corrective_offsets)
+        offsets = gpu.corrective_offsets_reference(
+            gpu.corrective_weights_reference(xi, x, puppet.corrective_weights), puppet.corrective_offsets)
         mark("correctives")
     placed = dqs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, d, offsets)
     mark("skin")
@@ -177,7 +176,7 @@ def main():
         if opts.only and name != opts.only:
             continue
         puppet = random_puppet(rng, **size)
-        on_device = {device: pk.DevicePuppet(puppet, device) for device in devices}
+        on_device = {device: gpu.DevicePuppet(puppet, device) for device in devices}
         for layout_index, (frames_per_character, characters) in enumerate(LAYOUTS):
             samples = frames_per_character * characters
             x, c, frames = random_inputs(rng, samples, puppet)
@@ -191,22 +190,22 @@ def main():
                 seconds = (time.perf_counter() - t0) * samples / m
                 record["numpy"] = {"measured_samples": m, "seconds": seconds, "frames_per_s": samples / seconds,
                                    "stages": {k: v * samples / m for k, v in stages.items()}}
-                check = pk.reference_run_puppet(puppet, x[:8], c[:8], frames[:8], translation_solver=solver)
+                check = gpu.reference_run_puppet(puppet, x[:8], c[:8], frames[:8], translation_solver=solver)
                 scale = np.abs(check).max()
                 for device, dev_puppet in on_device.items():
                     for threads in (opts.threads if device == "cpu" else [1]):
-                        run = lambda: pk.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out,
+                        run = lambda: gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out,
                                                     threads=threads)
                         seconds = median_seconds(run, opts.repeats)
                         err = float(np.abs(out[:8] - check).max() / scale)
                         entry = {"seconds": seconds, "frames_per_s": samples / seconds, "max_rel_error": err}
                         if threads == 1:
                             timings = {}
-                            pk.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out,
+                            gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out,
                                           timings=timings)
                             entry["stages"] = timings
                             if layout_index == 0:
-                                s64 = median_seconds(lambda: pk.run_puppet(dev_puppet, x, c, frames,
+                                s64 = median_seconds(lambda: gpu.run_puppet(dev_puppet, x, c, frames,
                                                                            translation_solver=solver), 1)
                                 entry["f64_frames_per_s"] = samples / s64
                         label = "warp-cpu" if device == "cpu" else "warp-cuda"

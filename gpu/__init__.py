@@ -1,44 +1,52 @@
 """skinsynth.gpu: warp kernels with numpy references, and the device choice.
 
 Public API (resolved lazily, so importing this package neither imports nor initialises warp):
-lbs, lbs_reference, dqs_reference, vertex_dual_quaternions, resolve_device, available_devices, DeviceError; the puppet's
-run-time path (puppet_kernels): kernel_vectors, predict_dual_quaternions, normalise_dual_quaternions,
-solve_translations, corrective_offsets, dq_skin, run_puppet, reference_run_puppet, PuppetArrays, DevicePuppet, and the
-stage references *_reference; fit-skin's two warp solves (skin_fit_kernels):
-solve_vertex_weights_warp, sweep_bone_transforms_warp; and the quaternion and dual-quaternion
-arithmetic its references share with pipeline.rotations (dual_quaternions, numpy only):
-quaternion_to_matrix, quaternion_multiply, dual_quaternion_to_rigid, with_translations.
+lbs, dq_skin (skinning), lbs_reference, dqs_reference, vertex_dual_quaternions
+(references.skinning), resolve_device, available_devices, DeviceError (runtime); the puppet's
+run-time path: kernel_vectors, predict_dual_quaternions, normalise_dual_quaternions,
+solve_translations, corrective_offsets (puppet_stages, one launch each), run_puppet (puppet_run),
+DevicePuppet (device_puppet), PuppetArrays (puppet_arrays), and their numpy references
+(references.puppet): the stage references *_reference and reference_run_puppet; fit-skin's two
+warp solves (skin_fit): solve_vertex_weights_warp, sweep_bone_transforms_warp; and the quaternion
+and dual-quaternion arithmetic the references share with pipeline.rotations
+(references.dual_quaternions, numpy only): quaternion_to_matrix, quaternion_multiply,
+dual_quaternion_to_rigid, with_translations.
+
+Three kinds of module: references/ (numpy only), kernels/ (the warp kernels at module level;
+each imports and initialises warp, through runtime, when imported), and the launchers here
+(host code: validation, uploads, chunks, BLAS threads, launches), which import kernels/ only
+inside their functions. runtime.py is the one place that imports and initialises warp.
 """
 
 import importlib
 
 _EXPORTS = {
     "lbs": "skinning",
-    "lbs_reference": "skinning",
-    "dqs_reference": "skinning",
-    "vertex_dual_quaternions": "skinning",
-    "kernel_vectors": "puppet_kernels",
-    "predict_dual_quaternions": "puppet_kernels",
-    "normalise_dual_quaternions": "puppet_kernels",
-    "solve_translations": "puppet_kernels",
-    "dq_skin": "puppet_kernels",
-    "corrective_offsets": "puppet_kernels",
-    "corrective_offsets_reference": "puppet_kernels",
-    "corrective_weights_reference": "puppet_kernels",
-    "run_puppet": "puppet_kernels",
-    "reference_run_puppet": "puppet_kernels",
-    "PuppetArrays": "puppet_kernels",
-    "DevicePuppet": "puppet_kernels",
-    "kernel_vectors_reference": "puppet_kernels",
-    "predict_dual_quaternions_reference": "puppet_kernels",
-    "normalise_dual_quaternions_reference": "puppet_kernels",
-    "solve_translations_reference": "puppet_kernels",
-    "solve_vertex_weights_warp": "skin_fit_kernels",
-    "sweep_bone_transforms_warp": "skin_fit_kernels",
-    "quaternion_to_matrix": "dual_quaternions",
-    "quaternion_multiply": "dual_quaternions",
-    "dual_quaternion_to_rigid": "dual_quaternions",
-    "with_translations": "dual_quaternions",
+    "lbs_reference": "references.skinning",
+    "dqs_reference": "references.skinning",
+    "vertex_dual_quaternions": "references.skinning",
+    "kernel_vectors": "puppet_stages",
+    "predict_dual_quaternions": "puppet_stages",
+    "normalise_dual_quaternions": "puppet_stages",
+    "solve_translations": "puppet_stages",
+    "dq_skin": "skinning",
+    "corrective_offsets": "puppet_stages",
+    "corrective_offsets_reference": "references.puppet",
+    "corrective_weights_reference": "references.puppet",
+    "run_puppet": "puppet_run",
+    "reference_run_puppet": "references.puppet",
+    "PuppetArrays": "puppet_arrays",
+    "DevicePuppet": "device_puppet",
+    "kernel_vectors_reference": "references.puppet",
+    "predict_dual_quaternions_reference": "references.puppet",
+    "normalise_dual_quaternions_reference": "references.puppet",
+    "solve_translations_reference": "references.puppet",
+    "solve_vertex_weights_warp": "skin_fit",
+    "sweep_bone_transforms_warp": "skin_fit",
+    "quaternion_to_matrix": "references.dual_quaternions",
+    "quaternion_multiply": "references.dual_quaternions",
+    "dual_quaternion_to_rigid": "references.dual_quaternions",
+    "with_translations": "references.dual_quaternions",
     "resolve_device": "runtime",
     "available_devices": "runtime",
     "DeviceError": "runtime",

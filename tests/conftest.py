@@ -23,3 +23,26 @@ def shared_data():
     if not SHARED_DATA.is_dir() or not any(SHARED_DATA.iterdir()):
         pytest.skip(f"real data not found at {SHARED_DATA} (read-only folder beside the checkout)")
     return SHARED_DATA
+
+
+# The warp devices of the kernel tests: a test taking ``device`` runs once per device here.
+import functools  # noqa: E402 (this block stands alone)
+
+
+@functools.cache
+def _warp_devices():
+    """["cpu"], plus "cuda:0" where warp sees a GPU (warp is imported on the first call only)."""
+    from skinsynth.gpu import available_devices
+
+    return ["cpu"] + (["cuda:0"] if "cuda:0" in available_devices() else [])
+
+
+def pytest_generate_tests(metafunc):
+    if "device" in metafunc.fixturenames:
+        metafunc.parametrize("device", _warp_devices(), indirect=True)
+
+
+@pytest.fixture
+def device(request):
+    """A warp device name, "cpu" or "cuda:0": each kernel test runs on every one present."""
+    return request.param

@@ -29,9 +29,9 @@ def files(tmp_path_factory):
     return root
 
 
-def test_play_h5_matches_the_numpy_reference(files, tmp_path):
+def test_play_h5_matches_the_numpy_reference(files, tmp_path, device):
     report = json.loads(assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o",
-                                      tmp_path / "v.h5", "--json", "--device", "cpu")).stdout)
+                                      tmp_path / "v.h5", "--json", "--device", device)).stdout)
     assert report["frames"] == 24 and report["characters"] == 1
     assert report["seconds"] > 0 and report["frames_per_second"] > 0
     played = h5py.File(tmp_path / "v.h5")["vertices"][()]

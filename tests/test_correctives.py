@@ -4,7 +4,8 @@ short, played the same by numpy, warp and UsdSkel."""
 import numpy as np
 import pytest
 
-from skinsynth.gpu import dqs_reference, puppet_kernels as pk
+from skinsynth.gpu import (corrective_offsets, corrective_offsets_reference, dq_skin, dqs_reference,
+                           reference_run_puppet, run_puppet)
 from skinsynth.pipeline.puppet.correctives import (POWER_GRID, RIDGE_GRID, Model, blend_weights, choose_model,
                                             fit_correctives, rest_offsets)
 from skinsynth.pipeline.examples import synthetic_lbs
@@ -121,26 +122,26 @@ def test_the_affine_tail_reproduces_offsets_linear_in_the_controls():
     assert np.abs(np.einsum("fj,jvc->fvc", blend_weights(c, xi, far), c.offsets) - expected).max() < 1e-8
 
 
-def test_corrective_kernels_match_their_reference_on_the_cpu():
+def test_corrective_kernels_match_their_reference(device):
     rng = np.random.default_rng(4)
     w, offsets = rng.normal(size=(9, 12)) * 50.0, rng.normal(size=(12, 70, 3)) * 0.01
-    expected = pk.corrective_offsets_reference(w, offsets)
-    assert np.abs(pk.corrective_offsets(w, offsets) - expected).max() < 1e-6 * np.abs(expected).max()
+    expected = corrective_offsets_reference(w, offsets)
+    assert np.abs(corrective_offsets(w, offsets, device=device) - expected).max() < 1e-6 * np.abs(expected).max()
     rest, idx, weights = random_skin(rng, 70, 5, 3)
     dq = random_dual_quaternions(rng, 9, 5)
-    got = pk.dq_skin(rest, idx, weights, dq, rest_offsets=expected)
+    got = dq_skin(rest, idx, weights, dq, device=device, rest_offsets=expected)
     assert np.abs(got - dqs_reference(rest, idx, weights, dq, expected)).max() < 1e-5
 
 
 @pytest.mark.parametrize("threads", [1, 2])
-def test_run_puppet_plays_the_correctives(threads):
+def test_run_puppet_plays_the_correctives(threads, device):
     from skinsynth.pipeline.puppet.playback import host_inputs
 
     data = bulging_tube()
     puppet = _train(data, np.arange(0, 40, 2), "auto")
     controls = data["vertices"][:, CONTROLS]
     expected = predict_vertices(puppet, controls)
-    got = pk.run_puppet(puppet, *host_inputs(puppet, controls), threads=threads)
+    got = run_puppet(puppet, *host_inputs(puppet, controls), threads=threads, device=device)
     assert np.abs(got - expected).max() < 1e-5 * np.ptp(data["rest"], axis=0).max()
 
 
@@ -173,7 +174,7 @@ def test_usdskel_plays_the_correctives_as_blend_shapes(tmp_path):
 
 @pytest.mark.parametrize("tail", [False, True])
 @pytest.mark.parametrize("threads", [1, 3])
-def test_run_puppet_plays_any_corrective_model_as_its_reference(tail, threads):
+def test_run_puppet_plays_any_corrective_model_as_its_reference(tail, threads, device):
     import dataclasses
 
     from test_gpu_puppet import random_puppet, random_rigid_frames
@@ -188,6 +189,6 @@ def test_run_puppet_plays_any_corrective_model_as_its_reference(tail, threads):
         corrective_axes=np.linalg.qr(rng.normal(size=(d, 3)))[0].T if tail else None)
     samples = 150  # more than one fixed block of the CPU path
     x, c, frames = rng.normal(size=(samples, d)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
-    expected = pk.reference_run_puppet(puppet, x, c, frames)
-    got = pk.run_puppet(puppet, x, c, frames, threads=threads)
+    expected = reference_run_puppet(puppet, x, c, frames)
+    got = run_puppet(puppet, x, c, frames, threads=threads, device=device)
     assert np.abs(got - expected).max() < 1e-5 * np.abs(expected).max()

@@ -1,10 +1,13 @@
-"""skinsynth.gpu.puppet_kernels: each run-time stage on warp's CPU device against its numpy
-reference, and the whole path against pipeline.puppet.predict_vertices for a trained puppet."""
+"""The puppet's run time in skinsynth.gpu: each stage on every warp device (the ``device`` fixture)
+against its numpy reference, and the whole path against pipeline.puppet.predict_vertices for a
+trained puppet."""
 
 import numpy as np
 import pytest
 
-from skinsynth.gpu import puppet_kernels as pk
+import skinsynth.gpu as gpu
+from skinsynth.gpu import puppet_run, skinning
+from skinsynth.gpu.validation import KERNEL_KINDS
 from skinsynth.pipeline.puppet.playback import host_inputs
 from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
 
@@ -33,36 +36,36 @@ def random_dual_quaternions(rng, samples, bones, flip=True, scale=1.0):
     return dq * scale
 
 
-@pytest.mark.parametrize("kind", pk.KERNEL_KINDS)
+@pytest.mark.parametrize("kind", KERNEL_KINDS)
 @pytest.mark.parametrize("samples", [1, 7, 50])
-def test_kernel_vectors(kind, samples):
+def test_kernel_vectors(kind, samples, device):
     rng = np.random.default_rng(samples)
     x, training = rng.normal(size=(samples, 24)) * 0.2, rng.normal(size=(38, 24)) * 0.2
-    expected = pk.kernel_vectors_reference(x, training, kind, offset=0.3, degree=5)
-    got = pk.kernel_vectors(x, training, kind, offset=0.3, degree=5, device="cpu")
+    expected = gpu.kernel_vectors_reference(x, training, kind, offset=0.3, degree=5)
+    got = gpu.kernel_vectors(x, training, kind, offset=0.3, degree=5, device=device)
     assert relative_error(got, expected) < TOL
 
 
-def test_kernel_vectors_other_degree():
+def test_kernel_vectors_other_degree(device):
     rng = np.random.default_rng(3)
     x, training = rng.normal(size=(5, 6)) * 0.3, rng.normal(size=(9, 6)) * 0.3
-    got = pk.kernel_vectors(x, training, "polynomial", offset=0.1, degree=3)
+    got = gpu.kernel_vectors(x, training, "polynomial", offset=0.1, degree=3, device=device)
     assert relative_error(got, (x @ training.T + 0.1) ** 3) < TOL
 
 
 @pytest.mark.parametrize("samples", [1, 13, 100])
-def test_predict_dual_quaternions(samples):
+def test_predict_dual_quaternions(samples, device):
     rng = np.random.default_rng(samples)
     bones, n_p = 11, 27
     xi, predictor, bias = rng.random((samples, n_p)), rng.normal(size=(8 * bones, n_p)), rng.normal(size=8 * bones)
-    got = pk.predict_dual_quaternions(xi, predictor, bias)
+    got = gpu.predict_dual_quaternions(xi, predictor, bias, device=device)
     assert got.shape == (samples, bones, 8)
-    assert relative_error(got, pk.predict_dual_quaternions_reference(xi, predictor, bias)) < TOL
+    assert relative_error(got, gpu.predict_dual_quaternions_reference(xi, predictor, bias)) < TOL
     # row b·8 + m of M is bone b's m-th number
     assert np.allclose(got[0, 3, 5], predictor[29] @ xi[0] + bias[29], rtol=1e-5)
 
 
-def test_predictions_with_large_cancelling_coefficients_stay_exact():
+def test_predictions_with_large_cancelling_coefficients_stay_exact(device):
     """Nearly repeated training poses give predictors whose entries reach 1e4 and cancel (the
     horse's): d = M ξ + m must keep float64's precision, not float32's (which lost 3e-3)."""
     rng = np.random.default_rng(7)
@@ -71,32 +74,32 @@ def test_predictions_with_large_cancelling_coefficients_stay_exact():
     twin = rng.normal(size=(8 * bones, n_p // 2)) * 2.5e4
     predictor = np.concatenate([twin, -twin * (1.0 + 1e-4)], axis=1)  # columns of twin poses nearly cancel
     bias = random_dual_quaternions(rng, 1, bones, flip=False).reshape(-1)
-    raw = pk.predict_dual_quaternions(xi, predictor, bias)
-    expected = pk.predict_dual_quaternions_reference(xi, predictor, bias)
+    raw = gpu.predict_dual_quaternions(xi, predictor, bias, device=device)
+    expected = gpu.predict_dual_quaternions_reference(xi, predictor, bias)
     assert np.abs(raw - expected).max() < 1e-9 * np.abs(predictor).max()
-    unit = pk.normalise_dual_quaternions(raw)[0]
-    assert np.abs(unit - pk.normalise_dual_quaternions_reference(expected)[0]).max() < 1e-6
+    unit = gpu.normalise_dual_quaternions(raw, device=device)[0]
+    assert np.abs(unit - gpu.normalise_dual_quaternions_reference(expected)[0]).max() < 1e-6
 
 
 @pytest.mark.parametrize("samples", [1, 40])
-def test_normalise_dual_quaternions(samples):
+def test_normalise_dual_quaternions(samples, device):
     rng = np.random.default_rng(samples)
     d = random_dual_quaternions(rng, samples, 9) * rng.uniform(0.5, 2.0, size=(samples, 9, 1))
-    got = pk.normalise_dual_quaternions(d)
-    expected = pk.normalise_dual_quaternions_reference(d)
+    got = gpu.normalise_dual_quaternions(d, device=device)
+    expected = gpu.normalise_dual_quaternions_reference(d)
     for g, e in zip(got, expected):
         assert relative_error(g, e) < TOL
 
 
 @pytest.mark.parametrize("samples", [1, 17])
-def test_solve_translations(samples):
+def test_solve_translations(samples, device):
     rng = np.random.default_rng(samples)
     bones, n_c = 12, 5
     args = (random_rotations(rng, (samples, bones)), rng.normal(size=(samples, n_c, 3)),
             rng.normal(size=(samples, bones, 3)), rng.normal(size=(bones, bones, 3)), rng.normal(size=(bones, n_c)),
             rng.normal(size=(bones, bones)) * 1e-3)
-    got = pk.solve_translations(*args)
-    assert relative_error(got, pk.solve_translations_reference(*args)) < TOL
+    got = gpu.solve_translations(*args, device=device)
+    assert relative_error(got, gpu.solve_translations_reference(*args)) < TOL
     # the index convention, spelled out for one entry
     rot, c, t_hat, gamma, q, prior = args
     n, b, a = samples - 1, 7, 2
@@ -107,16 +110,16 @@ def test_solve_translations(samples):
 
 @pytest.mark.parametrize("influences", [1, 2, 3, 4])
 @pytest.mark.parametrize("samples", [1, 6])
-def test_dq_skin(influences, samples):
+def test_dq_skin(influences, samples, device):
     rng = np.random.default_rng(10 * influences + samples)
     rest, idx, w = random_skin(rng, 500, 13, influences)
     dq = random_dual_quaternions(rng, samples, 13, scale=1.7)  # non-unit and sign-flipped
-    expected = pk.dqs_reference(rest, idx, w, dq)
-    got = pk.dq_skin(rest, idx, w, dq, device="cpu")
+    expected = gpu.dqs_reference(rest, idx, w, dq)
+    got = gpu.dq_skin(rest, idx, w, dq, device=device)
     assert relative_error(got, expected) < TOL
 
 
-def test_dq_skin_hemisphere_rule_matters():
+def test_dq_skin_hemisphere_rule_matters(device):
     # Two bones with nearly the same rotation but opposite signs: without the sign rule the blend
     # cancels. The kernel must agree with the reference (and be rigid when both bones agree).
     rng = np.random.default_rng(1)
@@ -124,17 +127,17 @@ def test_dq_skin_hemisphere_rule_matters():
     idx[:] = [0, 1]
     one = random_dual_quaternions(rng, 1, 1, flip=False)
     dq = np.concatenate([one, -one], axis=1)
-    got = pk.dq_skin(rest, idx, w, dq)
-    rigid = pk.dq_skin(rest, idx[:, :1], np.ones((200, 1)), one)
+    got = gpu.dq_skin(rest, idx, w, dq, device=device)
+    rigid = gpu.dq_skin(rest, idx[:, :1], np.ones((200, 1)), one, device=device)
     assert relative_error(got, rigid) < TOL
 
 
-def test_dq_skin_chunks(monkeypatch):
-    monkeypatch.setattr(pk, "_DEVICE_CHUNK", 1000)  # 3 samples per launch over 300 vertices
+def test_dq_skin_chunks(monkeypatch, device):
+    monkeypatch.setattr(skinning, "_DEVICE_CHUNK", 1000)  # 3 samples per launch over 300 vertices
     rng = np.random.default_rng(5)
     rest, idx, w = random_skin(rng, 300, 7, 3)
     dq = random_dual_quaternions(rng, 10, 7)
-    assert relative_error(pk.dq_skin(rest, idx, w, dq), pk.dqs_reference(rest, idx, w, dq)) < TOL
+    assert relative_error(gpu.dq_skin(rest, idx, w, dq, device=device), gpu.dqs_reference(rest, idx, w, dq)) < TOL
 
 
 def random_rigid_frames(rng, samples):
@@ -149,7 +152,7 @@ def random_puppet(rng, kind, influences=4, verts=400, bones=10, n_p=15, n_c=4, s
     rest, idx, w = random_skin(rng, verts, bones, influences)
     # M, m around a unit dual quaternion per bone, so predictions stay away from |q0| = 0
     base = random_dual_quaternions(rng, 1, bones)[0].reshape(-1)
-    return pk.PuppetArrays(
+    return gpu.PuppetArrays(
         rest_vertices=rest, bone_indices=idx, bone_weights=w, training_controls=rng.normal(size=(n_p, 3 * n_c)) * 0.3,
         kernel=kind, offset=0.2, degree=5, predictor=rng.normal(size=(8 * bones, n_p)) * 0.05, bias=base,
         rotation_operator=rng.normal(size=(bones, bones, 3)) * 0.1 if solver else None,
@@ -157,46 +160,46 @@ def random_puppet(rng, kind, influences=4, verts=400, bones=10, n_p=15, n_c=4, s
         prior_operator=rng.normal(size=(bones, bones)) * 1e-4 if solver else None)
 
 
-@pytest.mark.parametrize("kind", pk.KERNEL_KINDS)
+@pytest.mark.parametrize("kind", KERNEL_KINDS)
 @pytest.mark.parametrize("solver", [True, False])
 @pytest.mark.parametrize("framed", [True, False])
-def test_run_puppet_matches_reference(kind, solver, framed):
+def test_run_puppet_matches_reference(kind, solver, framed, device):
     rng = np.random.default_rng(len(kind) + 2 * solver + 4 * framed)
     puppet = random_puppet(rng, kind)
     samples = 9
     x = rng.normal(size=(samples, 12)) * 0.3
     c = rng.normal(size=(samples, 4, 3))
     frames = random_rigid_frames(rng, samples) if framed else None
-    expected = pk.reference_run_puppet(puppet, x, c, frames, translation_solver=solver)
-    got = pk.run_puppet(puppet, x, c, frames, translation_solver=solver, device="cpu")
+    expected = gpu.reference_run_puppet(puppet, x, c, frames, translation_solver=solver)
+    got = gpu.run_puppet(puppet, x, c, frames, translation_solver=solver, device=device)
     assert relative_error(got, expected) < TOL
 
 
-def test_run_puppet_chunks_threads_and_out(monkeypatch):
+def test_run_puppet_chunks_threads_and_out(monkeypatch, device):
     rng = np.random.default_rng(7)
     puppet = random_puppet(rng, "gaussian", influences=3)
     samples = 23
     x, c, frames = rng.normal(size=(samples, 12)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
-    expected = pk.reference_run_puppet(puppet, x, c, frames)
-    device_puppet = pk.DevicePuppet(puppet, "cpu")
-    monkeypatch.setattr(pk, "_DEVICE_CHUNK", 2000)  # 5 samples per chunk over 400 vertices
+    expected = gpu.reference_run_puppet(puppet, x, c, frames)
+    device_puppet = gpu.DevicePuppet(puppet, device)
+    monkeypatch.setattr(puppet_run, "_DEVICE_CHUNK", 2000)  # 5 samples per chunk over 400 vertices
     for threads in (1, 2, 3):
-        assert relative_error(pk.run_puppet(device_puppet, x, c, frames, threads=threads), expected) < TOL
+        assert relative_error(gpu.run_puppet(device_puppet, x, c, frames, threads=threads), expected) < TOL
     out = np.zeros((samples, 400, 3), dtype=np.float32)
     timings = {}
-    assert pk.run_puppet(device_puppet, x, c, frames, out=out, timings=timings) is out
+    assert gpu.run_puppet(device_puppet, x, c, frames, out=out, timings=timings) is out
     assert relative_error(out.astype(np.float64), expected) < TOL
     assert {"kernel_vectors", "predict", "solve_translations", "skin"} <= set(timings)
 
 
 @pytest.mark.parametrize("samples", [3, 17])
-def test_run_puppet_takes_any_sample_count_over_threads(samples):
+def test_run_puppet_takes_any_sample_count_over_threads(samples, device):
     # Thread bounds are numpy integers; a chunk smaller than the step used one as warp's shape.
     rng = np.random.default_rng(samples)
     puppet = random_puppet(rng, "gaussian", influences=3)
     x, c, frames = rng.normal(size=(samples, 12)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
-    expected = pk.reference_run_puppet(puppet, x, c, frames)
-    assert relative_error(pk.run_puppet(puppet, x, c, frames, threads=2), expected) < TOL
+    expected = gpu.reference_run_puppet(puppet, x, c, frames)
+    assert relative_error(gpu.run_puppet(puppet, x, c, frames, threads=2, device=device), expected) < TOL
 
 
 def test_run_puppet_rejects_bad_input():
@@ -204,11 +207,11 @@ def test_run_puppet_rejects_bad_input():
     puppet = random_puppet(rng, "linear", solver=False)
     x = rng.normal(size=(3, 12))
     with pytest.raises(ValueError, match="translation operator"):
-        pk.run_puppet(puppet, x, None, translation_solver=True)
+        gpu.run_puppet(puppet, x, None, translation_solver=True)
     with pytest.raises(ValueError, match="world_frames"):
-        pk.run_puppet(puppet, x, None, np.eye(4)[None], translation_solver=False)
+        gpu.run_puppet(puppet, x, None, np.eye(4)[None], translation_solver=False)
     with pytest.raises(ValueError, match="standardised_controls"):
-        pk.run_puppet(puppet, x[:, :5], None, translation_solver=False)
+        gpu.run_puppet(puppet, x[:, :5], None, translation_solver=False)
 
 
 @pytest.fixture(scope="module")
@@ -223,7 +226,7 @@ def trained_puppet():
 
 
 @pytest.mark.parametrize("solver", [True, False])
-def test_run_puppet_matches_predict_vertices(trained_puppet, solver):
+def test_run_puppet_matches_predict_vertices(trained_puppet, solver, device):
     from skinsynth.pipeline.puppet.puppet import predict_vertices
 
     data, puppet = trained_puppet
@@ -235,26 +238,28 @@ def test_run_puppet_matches_predict_vertices(trained_puppet, solver):
     controls = np.concatenate([controls, moved])
     expected = predict_vertices(puppet, controls, translation_solver=solver)
     x, placed, frames = host_inputs(puppet, controls)
-    got = pk.run_puppet(puppet, x, placed, frames, translation_solver=solver, device="cpu")
+    got = gpu.run_puppet(puppet, x, placed, frames, translation_solver=solver, device=device)
     assert relative_error(got, expected) < TOL
-    reference = pk.reference_run_puppet(puppet, x, placed, frames, translation_solver=solver)
+    reference = gpu.reference_run_puppet(puppet, x, placed, frames, translation_solver=solver)
     assert relative_error(reference, expected) < 1e-10
 
 
 def test_the_kernels_sit_below_the_pipeline():
-    """Layers point one way (cli → pipeline → gpu): no module of gpu/ imports the pipeline, not even
-    inside a function."""
+    """Layers point one way (cli → pipeline → gpu): no module of gpu/ (its subpackages too) imports
+    the pipeline or climbs out of gpu with a relative import, not even inside a function."""
     import ast
     import pathlib
 
     import skinsynth.gpu
 
-    for path in pathlib.Path(skinsynth.gpu.__file__).parent.glob("*.py"):
+    root = pathlib.Path(skinsynth.gpu.__file__).parent
+    for path in root.rglob("*.py"):
+        depth = len(path.relative_to(root).parts) - 1  # 0 for gpu/x.py, 1 for gpu/kernels/x.py
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.ImportFrom):
-                names = [("." * node.level) + (node.module or "")]
+                names, level = [node.module or ""], node.level
             elif isinstance(node, ast.Import):
-                names = [alias.name for alias in node.names]
+                names, level = [alias.name for alias in node.names], 0
             else:
                 continue
-            assert not [n for n in names if "pipeline" in n or n.startswith("..")], (path.name, names)
+            assert level <= depth + 1 and not [n for n in names if "pipeline" in n], (path.name, level, names)

@@ -1,4 +1,5 @@
-"""skinsynth.gpu: warp LBS against its numpy reference, the reference against a plain loop, devices."""
+"""skinsynth.gpu: warp LBS on every warp device against its numpy reference, the reference against a
+plain loop, devices, and warp imported only where kernels are."""
 
 import os
 import subprocess
@@ -10,6 +11,7 @@ import pytest
 
 from skinsynth.gpu import DeviceError, available_devices, lbs, lbs_reference, resolve_device
 from skinsynth.gpu import runtime, skinning
+from skinsynth.gpu.references import skinning as skinning_reference
 
 from rigs import random_skin
 
@@ -44,20 +46,20 @@ def relative_error(a, b):
 
 
 @pytest.mark.parametrize("influences", [1, 2, 3, 4])
-def test_warp_cpu_matches_reference(influences):
+def test_warp_matches_reference(influences, device):
     rig = random_rig(np.random.default_rng(influences), 700, 13, 6, influences)
     expected = lbs_reference(*rig)
-    got = lbs(*rig, device="cpu")
+    got = lbs(*rig, device=device)
     assert got.shape == (6, 700, 3) and got.dtype == np.float64
     assert relative_error(got, expected) < 1e-5
 
 
-def test_affine_bones_and_frame_chunks(monkeypatch):
+def test_affine_bones_and_frame_chunks(monkeypatch, device):
     rig = random_rig(np.random.default_rng(7), 50, 5, 7, 4, rigid=False)
     expected = lbs_reference(*rig)
     monkeypatch.setattr(skinning, "_DEVICE_CHUNK", 3 * 50 + 1)  # chunks of 3, 3, 1 frames
-    monkeypatch.setattr(skinning, "_REFERENCE_CHUNK", 2 * 9 * 50)  # chunks of 2 frames
-    assert relative_error(lbs(*rig, device="cpu"), expected) < 1e-5
+    monkeypatch.setattr(skinning_reference, "_REFERENCE_CHUNK", 2 * 9 * 50)  # chunks of 2 frames
+    assert relative_error(lbs(*rig, device=device), expected) < 1e-5
     np.testing.assert_allclose(lbs_reference(*rig), expected, rtol=0, atol=1e-12)
 
 
@@ -73,10 +75,10 @@ def test_reference_matches_brute_force_loop():
     np.testing.assert_allclose(lbs_reference(rest, idx, w, mats, trans), expected, rtol=1e-12, atol=1e-12)
 
 
-def test_identity_pose_returns_rest():
+def test_identity_pose_returns_rest(device):
     rest, idx, w, _, _ = random_rig(np.random.default_rng(4), 20, 3, 2, 2)
     mats = np.broadcast_to(np.eye(3), (2, 3, 3, 3))
-    got = lbs(rest, idx, w, mats, np.zeros((2, 3, 3)))
+    got = lbs(rest, idx, w, mats, np.zeros((2, 3, 3)), device=device)
     np.testing.assert_allclose(got, np.broadcast_to(rest, (2, 20, 3)), atol=1e-5)
 
 
@@ -127,12 +129,22 @@ def run_python(code, **env):
 
 
 def test_import_does_not_import_warp():
+    """Only gpu/kernels/ imports warp (through runtime.warp()): the package, every public name and
+    every launcher and reference module import without it."""
     run_python(
         """
-        import sys
+        import importlib, pathlib, sys
         import skinsynth.gpu
         from skinsynth.gpu import lbs, lbs_reference, resolve_device, DeviceError, available_devices
         assert "warp" not in sys.modules, "importing skinsynth.gpu imported warp"
+        for name in skinsynth.gpu.__all__:
+            getattr(skinsynth.gpu, name)
+        root = pathlib.Path(skinsynth.gpu.__file__).parent
+        for path in sorted(root.rglob("*.py")):
+            parts = path.relative_to(root).with_suffix("").parts
+            if parts[0] != "kernels" or parts == ("kernels", "__init__"):
+                importlib.import_module(".".join(("skinsynth.gpu",) + parts).removesuffix(".__init__"))
+                assert "warp" not in sys.modules, f"importing {path.name} imported warp"
         """
     )
 

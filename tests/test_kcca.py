@@ -3,7 +3,7 @@ import re
 import numpy as np
 import pytest
 
-from skinsynth.gpu.skinning import lbs_reference
+from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.puppet.alignment import apply_frames, control_frames
 from skinsynth.pipeline.errors import OptionError
 from skinsynth.pipeline.examples import synthetic_lbs

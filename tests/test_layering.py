@@ -104,8 +104,8 @@ def test_a_planted_wrong_way_import_is_named(tmp_path):
         "pipeline/geometry.py": ("def f():\n    from .synthesis import graph\n",
                                  "pipeline/geometry.py:2: the floor imports skinsynth.pipeline.synthesis, of the stage "
                                  "synthesis"),
-        "pipeline/puppet/kcca.py": ("from skinsynth.gpu.puppet_kernels import dq_skin\n",
-                                    "pipeline/puppet/kcca.py:1: pipeline imports skinsynth.gpu.puppet_kernels; "
+        "pipeline/puppet/kcca.py": ("from skinsynth.gpu.skinning import dq_skin\n",
+                                    "pipeline/puppet/kcca.py:1: pipeline imports skinsynth.gpu.skinning; "
                                     "pipeline uses gpu through its public API"),
         "formats/model.py": ("import skinsynth.cli.common\n",
                              "formats/model.py:1: formats imports skinsynth.cli.common"),

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from skinsynth.gpu.skinning import lbs_reference
+from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.puppet.alignment import control_frames
 from skinsynth.pipeline.examples import bending_bar, synthetic_lbs
 from skinsynth.pipeline.synthesis.graph import build_graph

@@ -103,7 +103,7 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
 
     The weight solve and the bone sweep run compiled on every core (:mod:`.vertex_weights`,
     :mod:`.transform_sweep`), or with ``device`` (a warp device, e.g. "cuda:0") as warp kernels
-    there (``gpu.skin_fit_kernels``: the same steps, equal to 1e-14 on the CPU); each vertex and
+    there (``gpu.skin_fit``: the same steps, equal to 1e-14 on the CPU); each vertex and
     each frame is solved on its own, so the result does not depend on the thread count.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
