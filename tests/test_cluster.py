@@ -14,17 +14,14 @@ from distributed import WorkerPlugin
 from skinsynth.formats.model import content_digests
 from skinsynth.pipeline.execution import StoredRows, concatenate_rows
 
-from cli_helpers import assert_ok, assert_user_error, cli, fitted_bar
+from cli_helpers import assert_ok, assert_user_error, cli
 
 COUNT, FRAMES = 600, 60  # three batches: 250, 250, 100
 
 
 @pytest.fixture(scope="module")
-def graph(tmp_path_factory):
-    root = tmp_path_factory.mktemp("cluster")
-    fitted_bar(root, frames=40, bones=4, iterations=10, cycles=2)
-    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4, "-q"))
-    return root / "graph.h5"
+def graph(stage_files):
+    return stage_files(frames=40, bones=4, iterations=10, cycles=2, graph=("--min-segment", 4)) / "graph.h5"
 
 
 @pytest.fixture(scope="module")

@@ -17,24 +17,21 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
 
 SKINSYNTH = [sys.executable, "-c", "import sys; from skinsynth.cli.main import main; sys.argv[0] = 'skinsynth'; "
                                    "sys.exit(main())"]
 
 
 @pytest.fixture(scope="module")
-def chain(tmp_path_factory):
+def chain(stage_files, tmp_path_factory):
     """bar.npz → skin.h5 → graph.h5 (two components) → bones.h5, controls.h5 → puppet.h5, and controls.csv."""
-    root = tmp_path_factory.mktemp("faults")
-    vertices, _ = fitted_bar(root, frames=48, bones=6, iterations=8, cycles=2)
-    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4,
-                  "--edge-threshold", 0.5, "-q"))
+    stages = stage_files(frames=48, bones=6, iterations=8, cycles=2, graph=("--min-segment", 4, "--edge-threshold", 0.5),
+                         controls=("--count", 4), puppet=(), synthesis=("-n", 2, "-m", 30))
+    root = stages.copy_to(tmp_path_factory.mktemp("faults"))  # controls.csv beside them
+    vertices = stages.vertices
     with h5py.File(root / "graph.h5") as f:
         assert f["graph"].attrs["components"] >= 2
-    assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 4))
-    assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5"))
-    assert_ok(cli("synthesize", root / "graph.h5", "-o", root / "bones.h5", "-n", 2, "-m", 30, "-q"))
     with h5py.File(root / "controls.h5") as f:
         ids = f["controls/vertex_indices"][()]
     rows = [f"{frame},{p},{x},{y},{z}" for frame in range(6) for p, (x, y, z) in enumerate(vertices[frame, ids])]
