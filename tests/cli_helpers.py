@@ -42,15 +42,3 @@ def assert_folder_holds(folder, names=()):
     """The folder holds exactly ``names``: no output, and no ``.*.tmp*`` file left by a writer."""
     assert sorted(os.listdir(folder)) == sorted(names)
 
-
-def fitted_bar(root, frames, bones, iterations, cycles=1):
-    """A small bending bar (10 rings × 8 segments) written to ``root/bar.npz`` and fitted with
-    ``skinsynth fit-skin`` to ``root/skin.h5``; returns its (vertices (F, V, 3), faces (T, 3))."""
-    from skinsynth.formats.meshseq import write_array_sequence
-    from skinsynth.pipeline.examples import bending_bar
-
-    vertices, faces = bending_bar(frames=frames, rings=10, segments=8, cycles=cycles)
-    write_array_sequence(root / "bar.npz", vertices, faces, 24.0)
-    assert_ok(cli("fit-skin", root / "bar.npz", "-o", root / "skin.h5", "--bones", bones, "--iterations", iterations,
-                  "-q"))
-    return vertices, faces

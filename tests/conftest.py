@@ -1,4 +1,5 @@
-"""Shared test set-up: warp's kernel cache in a per-run folder, and where the real data lives."""
+"""Shared test set-up: warp's kernel cache in a per-run folder, where the real data lives, and the
+stage files of small bending bars (``stage_files``), built once per session."""
 
 import os
 import pathlib
@@ -23,6 +24,117 @@ def shared_data():
     if not SHARED_DATA.is_dir() or not any(SHARED_DATA.iterdir()):
         pytest.skip(f"real data not found at {SHARED_DATA} (read-only folder beside the checkout)")
     return SHARED_DATA
+
+
+# -- stage files -----------------------------------------------------------------------------------
+
+#: Each stage file the factory makes: the file it reads and the command that writes it.
+STAGES = {"skin.h5": ("bar.npz", "fit-skin"), "controls.h5": ("skin.h5", "select-controls"),
+          "puppet.h5": ("controls.h5", "train-kcca"), "graph.h5": ("skin.h5", "build-graph"),
+          "bones.h5": ("graph.h5", "synthesize")}
+
+
+class Stages:
+    """One recipe's stage files, all in ``folder``: bar.npz (the bending bar, whose ``vertices``
+    (F, V, 3) and ``faces`` (T, 3) are kept here too), skin.h5 and those the recipe asked for.
+    Shared by every test that asks for the same recipe: read them, never change them (a test that
+    must, works on ``copy_to(its folder)``)."""
+
+    def __init__(self, folder, names, vertices, faces):
+        self.folder, self.names, self.vertices, self.faces = folder, tuple(names), vertices, faces
+
+    def __truediv__(self, name):
+        return self.folder / name
+
+    def copy_to(self, folder):
+        """Copies of the stage files in ``folder`` (made if needed), for a test or a module that
+        changes them or writes beside them; returns ``folder``."""
+        import shutil
+
+        folder.mkdir(parents=True, exist_ok=True)
+        for name in self.names:
+            shutil.copyfile(self.folder / name, folder / name)
+        return folder
+
+
+class StageFiles:
+    """``stage_files(frames=, bones=, iterations=, cycles=1, rings=10, segments=8, controls=None,
+    puppet=None, graph=None, synthesis=None)``: the stage files of a small bending bar (``rings`` ×
+    ``segments`` vertices, ``frames`` frames, ``cycles`` bend-and-twist cycles, at 24 fps) fitted
+    with ``fit-skin --bones --iterations``, and, for each of the other options given (a tuple of
+    command-line options; ``()`` for the defaults), controls.h5 (``select-controls``), puppet.h5
+    (``train-kcca``, from controls.h5), graph.h5 (``build-graph``) and bones.h5 (``synthesize``,
+    from graph.h5). Each recipe is built once per session; a file two recipes share (same file,
+    same options, same inputs) is made once and copied. The files must stay as they were built:
+    the session ends with an error naming any that a test changed, removed or added."""
+
+    def __init__(self, root):
+        self.root, self.recipes, self.made, self.digests = root, {}, {}, {}
+
+    def __call__(self, *, frames, bones, iterations, cycles=1, rings=10, segments=8, controls=None, puppet=None,
+                 graph=None, synthesis=None):
+        options = {"skin.h5": ("--bones", bones, "--iterations", iterations), "controls.h5": controls,
+                   "puppet.h5": puppet, "graph.h5": graph, "bones.h5": synthesis}
+        keys = {"bar.npz": ("bar.npz", frames, rings, segments, cycles)}  # a file's key: its recipe and its inputs'
+        for name, (source, command) in STAGES.items():
+            if options[name] is not None:
+                if source not in keys:
+                    raise ValueError(f"{name} ({command}) reads {source}: ask for it too")
+                keys[name] = (name, tuple(str(o) for o in options[name]), keys[source])
+        recipe = tuple(keys.values())
+        if recipe not in self.recipes:
+            self.recipes[recipe] = self._build(self.root / f"recipe_{len(self.recipes):02d}", keys, options)
+        return self.recipes[recipe]
+
+    def _build(self, folder, keys, options):
+        import shutil
+
+        from cli_helpers import assert_ok, cli
+        from skinsynth.formats.meshseq import write_array_sequence
+        from skinsynth.pipeline.examples import bending_bar
+
+        folder.mkdir()
+        _, frames, rings, segments, cycles = keys["bar.npz"]
+        vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
+        for name, key in keys.items():
+            if key in self.made:  # the same file in another recipe's folder
+                shutil.copyfile(self.made[key], folder / name)
+            elif name == "bar.npz":
+                write_array_sequence(folder / name, vertices, faces, 24.0)
+            else:
+                source, command = STAGES[name]
+                assert_ok(cli(command, folder / source, "-o", folder / name, *options[name], "-q"))
+            self.made.setdefault(key, folder / name)
+            self.digests[folder / name] = _sha256(folder / name)
+        return Stages(folder, keys, vertices, faces)
+
+    def changed(self):
+        """The stage files (and strays beside them) not as built, one line each."""
+        problems = []
+        for path, digest in self.digests.items():
+            if not path.exists():
+                problems.append(f"{path}: removed")
+            elif _sha256(path) != digest:
+                problems.append(f"{path}: changed")
+        for stages in self.recipes.values():
+            problems += [f"{stages / name}: added" for name in os.listdir(stages.folder) if name not in stages.names]
+        return problems
+
+
+def _sha256(path):
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.fixture(scope="session")
+def stage_files(tmp_path_factory):
+    """The session's :class:`StageFiles` factory; at the end, an error if a test changed its files."""
+    factory = StageFiles(tmp_path_factory.mktemp("stages"))
+    yield factory
+    problems = factory.changed()
+    assert not problems, "tests changed shared stage files (give them stage_files(…).copy_to(tmp_path)):\n" + \
+        "\n".join(problems)
 
 
 # The warp devices of the kernel tests: a test taking ``device`` runs once per device here.

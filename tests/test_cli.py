@@ -72,14 +72,11 @@ def h5_datasets(path):
 
 
 @pytest.fixture(scope="module")
-def data(tmp_path_factory):
-    """bar.npz (written by ``skinsynth example``) and skin.h5 fitted to it; tests must not modify them."""
-    folder = tmp_path_factory.mktemp("data")
-    bar, skin = folder / "bar.npz", folder / "skin.h5"
-    assert_ok(cli("example", "bending-bar", "-o", bar, "--frames", FRAMES, "--rings", RINGS,
-                  "--segments", SEGMENTS))
-    assert_ok(cli("fit-skin", bar, "-o", skin, *FIT))
-    return {"folder": folder, "bar": bar, "skin": skin}
+def data(stage_files):
+    """bar.npz (what ``skinsynth example bending-bar --frames FRAMES --rings RINGS --segments SEGMENTS``
+    writes) and skin.h5 fitted to it with FIT; tests must not modify them."""
+    stages = stage_files(frames=FRAMES, rings=RINGS, segments=SEGMENTS, bones=BONES, iterations=FIT[-1])
+    return {"folder": stages.folder, "bar": stages / "bar.npz", "skin": stages / "skin.h5"}
 
 
 @pytest.fixture

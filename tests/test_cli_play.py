@@ -16,15 +16,13 @@ from skinsynth.formats.usd import read_points_cache, read_skel_characters
 from skinsynth.gpu import available_devices
 from skinsynth.pipeline.puppet.puppet import predict_vertices
 
-from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
-    root = tmp_path_factory.mktemp("play")
-    fitted_bar(root, frames=24, bones=4, iterations=8, cycles=2)
-    assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 6, "-q"))
-    assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5", "-q"))
+def files(stage_files, tmp_path_factory):
+    stages = stage_files(frames=24, bones=4, iterations=8, cycles=2, controls=("--count", 6), puppet=())
+    root = stages.copy_to(tmp_path_factory.mktemp("play"))  # plain.h5 beside them
     assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "plain.h5", "--no-translation-solver", "-q"))
     return root
 

@@ -6,16 +6,12 @@ import h5py
 import numpy as np
 import pytest
 
-from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
-    root = tmp_path_factory.mktemp("puppet")
-    fitted_bar(root, frames=24, bones=4, iterations=8)
-    assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 6))
-    assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5", "-q"))
-    return root
+def files(stage_files):
+    return stage_files(frames=24, bones=4, iterations=8, controls=("--count", 6), puppet=()).folder
 
 
 def test_pipeline_and_evaluate_json(files, tmp_path):

@@ -12,14 +12,14 @@ from skinsynth.formats.exr import read_vat
 from skinsynth.formats.usd import read_points_cache
 from skinsynth.gpu import lbs_reference
 
-from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
-    root = tmp_path_factory.mktemp("synth")
-    vertices, faces = fitted_bar(root, frames=40, bones=4, iterations=10, cycles=2)
-    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4, "-q"))
+def files(stage_files, tmp_path_factory):
+    stages = stage_files(frames=40, bones=4, iterations=10, cycles=2, graph=("--min-segment", 4))
+    root = stages.copy_to(tmp_path_factory.mktemp("synth"))  # the once* files beside them
+    vertices, faces = stages.vertices, stages.faces
     # A clip without repeated states: one bend, no return.
     write_array_sequence(root / "once.npz", vertices[:12], faces, 24.0)
     assert_ok(cli("fit-skin", root / "once.npz", "-o", root / "once_skin.h5", "--bones", 3, "--iterations", 4, "-q"))

@@ -14,17 +14,14 @@ from distributed import WorkerPlugin
 from skinsynth.formats.model import content_digests
 from skinsynth.pipeline.execution import StoredRows, concatenate_rows
 
-from cli_helpers import assert_ok, assert_user_error, cli, fitted_bar
+from cli_helpers import assert_ok, assert_user_error, cli
 
 COUNT, FRAMES = 600, 60  # three batches: 250, 250, 100
 
 
 @pytest.fixture(scope="module")
-def graph(tmp_path_factory):
-    root = tmp_path_factory.mktemp("cluster")
-    fitted_bar(root, frames=40, bones=4, iterations=10, cycles=2)
-    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4, "-q"))
-    return root / "graph.h5"
+def graph(stage_files):
+    return stage_files(frames=40, bones=4, iterations=10, cycles=2, graph=("--min-segment", 4)) / "graph.h5"
 
 
 @pytest.fixture(scope="module")
@@ -133,6 +130,10 @@ def test_a_rerun_reuses_finished_shards_by_their_provenance(graph, reference, sc
 
 
 def test_an_interrupted_run_leaves_its_finished_shards_and_resumes_from_them(graph, reference, tmp_path):
+    """A run stopped (SIGTERM) with one batch stored and the rest still to come. Its worker runs
+    tests/cluster_hold.py: it stores its first batch and holds the next (made, not stored) until it
+    is closed, so the run cannot finish before the signal lands, nor store a second shard."""
+    import hashlib
     import signal
     import subprocess
     import sys
@@ -142,24 +143,33 @@ def test_an_interrupted_run_leaves_its_finished_shards_and_resumes_from_them(gra
     command = [sys.executable, "-c", "import sys; from skinsynth.cli.main import main; sys.exit(main())",
                "synthesize", str(graph), "-o", str(out), "-n", str(COUNT), "-m", str(FRAMES), "--seed", "4",
                "--cluster", "local:1", "-q"]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    hold = os.path.join(os.path.dirname(__file__), "cluster_hold.py")
+    held = tmp_path / "held"  # made by the worker once it holds its second batch
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env={**os.environ, "DASK_DISTRIBUTED__WORKER__PRELOAD": json.dumps([hold]),
+                                    "CLUSTER_HOLD_MARKER": str(held)})
     folder = tmp_path / "many.shards"
-    deadline = time.monotonic() + 120
-    while process.poll() is None and time.monotonic() < deadline:
-        if folder.is_dir() and any(p.name.startswith("batch_") for p in folder.iterdir()):
-            process.send_signal(signal.SIGTERM)
-            break
-        time.sleep(0.02)
-    _, stderr = process.communicate(timeout=120)
-    if process.returncode == 0:
-        pytest.skip("the run finished before it could be interrupted")
-    assert process.returncode == 128 + signal.SIGTERM and stderr.strip().splitlines()[-1].endswith(
-        "interrupted (SIGTERM); no output written"), stderr
+    try:
+        deadline = time.monotonic() + 120
+        while not (held.exists() and any(p.name.startswith("batch_") for p in folder.iterdir())):
+            assert process.poll() is None, f"the run ended (exit {process.returncode}) before it was held"
+            assert time.monotonic() < deadline, "no shard and held batch within 120 s"
+            time.sleep(0.02)
+        assert process.poll() is None  # still going: a batch made and held, unstored, until its worker closes
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        process.kill()  # a no-op when it has ended
+        process.communicate()
+    assert process.returncode == 128 + signal.SIGTERM, stderr
+    assert stderr.strip().splitlines() == ["skinsynth: interrupted (SIGTERM); no output written"], stderr
     assert not out.exists()
-    finished = len(shards_of(out))
-    assert 1 <= finished < 3
+    [finished] = shards_of(out)  # the first batch's, and no other
+    kept = hashlib.sha256(finished.read_bytes()).hexdigest()
     summary = run_cluster(graph, out, "local:1")
-    assert summary["cluster"]["reused_batches"] == finished and summary["cluster"]["tasks"] == 3 - finished
+    assert summary["cluster"]["reused_batches"] == 1 and summary["cluster"]["tasks"] == 2
+    assert finished in shards_of(out) and hashlib.sha256(finished.read_bytes()).hexdigest() == kept
+    assert len(shards_of(out)) == 3
     assert contents(out) == contents(reference)
 
 

@@ -303,13 +303,9 @@ def test_controls_file_round_trip_with_utf8_reasons(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def skin(tmp_path_factory):
+def skin(stage_files):
     """A skin file fitted to a small bending bar (tests must not modify it)."""
-    folder = tmp_path_factory.mktemp("skin")
-    bar, path = folder / "bar.npz", folder / "skin.h5"
-    assert_ok(cli("example", "bending-bar", "-o", bar, "--frames", 16, "--rings", 10, "--segments", 8))
-    assert_ok(cli("fit-skin", bar, "-o", path, "--bones", 3, "--iterations", 3, "-q"))
-    return path
+    return stage_files(frames=16, bones=3, iterations=3) / "skin.h5"
 
 
 def test_cli_select_controls_happy_path(skin, tmp_path):

@@ -17,24 +17,21 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli, fitted_bar
+from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
 
 SKINSYNTH = [sys.executable, "-c", "import sys; from skinsynth.cli.main import main; sys.argv[0] = 'skinsynth'; "
                                    "sys.exit(main())"]
 
 
 @pytest.fixture(scope="module")
-def chain(tmp_path_factory):
+def chain(stage_files, tmp_path_factory):
     """bar.npz → skin.h5 → graph.h5 (two components) → bones.h5, controls.h5 → puppet.h5, and controls.csv."""
-    root = tmp_path_factory.mktemp("faults")
-    vertices, _ = fitted_bar(root, frames=48, bones=6, iterations=8, cycles=2)
-    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4,
-                  "--edge-threshold", 0.5, "-q"))
+    stages = stage_files(frames=48, bones=6, iterations=8, cycles=2, graph=("--min-segment", 4, "--edge-threshold", 0.5),
+                         controls=("--count", 4), puppet=(), synthesis=("-n", 2, "-m", 30))
+    root = stages.copy_to(tmp_path_factory.mktemp("faults"))  # controls.csv beside them
+    vertices = stages.vertices
     with h5py.File(root / "graph.h5") as f:
         assert f["graph"].attrs["components"] >= 2
-    assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 4))
-    assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5"))
-    assert_ok(cli("synthesize", root / "graph.h5", "-o", root / "bones.h5", "-n", 2, "-m", 30, "-q"))
     with h5py.File(root / "controls.h5") as f:
         ids = f["controls/vertex_indices"][()]
     rows = [f"{frame},{p},{x},{y},{z}" for frame in range(6) for p, (x, y, z) in enumerate(vertices[frame, ids])]
@@ -497,19 +494,44 @@ def test_mesh_sequences_cannot_declare_more_than_they_hold(tmp_path):
     assert not (tmp_path / "out.h5").exists()
 
 
-def test_library_warnings_stay_off_a_commands_stderr_unless_asked(monkeypatch):
+# ``skinsynth`` whose example command meets a library warning while it works (numpy's overflow in
+# a float32 product, as a hostile input would cause): its bending_bar is wrapped to do one first.
+WARNING_SKINSYNTH = [sys.executable, "-c", "import sys; import numpy as np; import skinsynth.pipeline.examples as ex; "
+                                           "bar = ex.bending_bar; ex.bending_bar = lambda **options: "
+                                           "(np.float32(1e30) * np.float32(1e30), bar(**options))[1]; "
+                                           "from skinsynth.cli.main import main; sys.argv[0] = 'skinsynth'; "
+                                           "sys.exit(main())"]
+
+
+def test_library_warnings_stay_off_a_commands_stderr_unless_asked(monkeypatch, tmp_path):
     import warnings
 
     from skinsynth.cli.main import _warnings_policy
 
     monkeypatch.delenv("SKINSYNTH_WARNINGS", raising=False)
     monkeypatch.setattr(sys, "warnoptions", [])
-    with _warnings_policy():
-        warnings.warn("overflow encountered in cast", RuntimeWarning)  # the suite's filter would make it an error
-        np.float32(1e30) * np.float32(1e30)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")  # what the policy does not hide would be recorded here
+        with _warnings_policy():
+            warnings.warn("overflow encountered in cast", RuntimeWarning)  # the suite's filter would make it an error
+            np.float32(1e30) * np.float32(1e30)
+    assert seen == []
     monkeypatch.setenv("SKINSYNTH_WARNINGS", "1")
     with pytest.warns(RuntimeWarning), _warnings_policy():
         warnings.warn("shown when asked", RuntimeWarning)
+    # a real command, as a user runs it: quiet by default; SKINSYNTH_WARNINGS=1 or Python's -W shows the warning
+    plain = {k: v for k, v in os.environ.items() if k not in ("SKINSYNTH_WARNINGS", "PYTHONWARNINGS")}
+    for name, python, env in (("quiet", [], plain), ("asked", [], {**plain, "SKINSYNTH_WARNINGS": "1"}),
+                              ("python-w", ["-W", "default"], plain)):
+        out = tmp_path / f"{name}.npz"
+        done = subprocess.run(WARNING_SKINSYNTH[:1] + python + WARNING_SKINSYNTH[1:] + [
+            "example", "bending-bar", "-o", str(out), "--frames", "4", "--rings", "2", "--segments", "3", "-q"],
+            capture_output=True, text=True, env=env)
+        assert done.returncode == 0 and done.stdout == "" and out.is_file(), done.stderr
+        if name == "quiet":
+            assert done.stderr == ""
+        else:
+            assert "RuntimeWarning: overflow encountered in scalar multiply" in done.stderr, done.stderr
 
 
 def test_controls_beyond_float32_range_are_refused(chain, tmp_path):

@@ -131,7 +131,7 @@ def run_python(code, **env):
 def test_import_does_not_import_warp():
     """Only gpu/kernels/ imports warp (through runtime.warp()): the package, every public name and
     every launcher and reference module import without it."""
-    run_python(
+    done = run_python(
         """
         import importlib, pathlib, sys
         import skinsynth.gpu
@@ -145,8 +145,10 @@ def test_import_does_not_import_warp():
             if parts[0] != "kernels" or parts == ("kernels", "__init__"):
                 importlib.import_module(".".join(("skinsynth.gpu",) + parts).removesuffix(".__init__"))
                 assert "warp" not in sys.modules, f"importing {path.name} imported warp"
+        print(sorted(name for name in sys.modules if name.split(".")[0] == "warp"))
         """
     )
+    assert done.stdout == b"[]\n"  # no warp module loaded, not merely no top-level "warp"
 
 
 def test_first_use_is_quiet_and_uses_cache_dir(warp_cache):

@@ -96,7 +96,7 @@ def test_vertex_neighbours_match_faces():
         assert indices[indptr[v]:indptr[v + 1]].tolist() == sorted(ring[v])
 
 
-def _sum_rule(rest, faces, idx, w, vertices):
+def assert_gradients_sum_to_zero(rest, faces, idx, w, vertices):
     neighbours = vertex_neighbours(faces, rest.shape[0])
     bones, grads = weight_gradients(rest, neighbours, idx, w, vertices)
     assert np.all(grads[bones < 0] == 0.0)
@@ -110,14 +110,14 @@ def test_gradients_sum_to_zero_on_irregular_mesh():
     rest, faces = irregular_sphere(300, seed=2)
     idx, w = random_sparse_weights(rest.shape[0], 8, 4, seed=2)
     kv = key_vertices(idx, w, 8)
-    _sum_rule(rest, faces, idx, w, kv.vertices)
-    _sum_rule(rest, faces, idx, w, np.arange(rest.shape[0]))  # every vertex, not only key ones
+    assert_gradients_sum_to_zero(rest, faces, idx, w, kv.vertices)
+    assert_gradients_sum_to_zero(rest, faces, idx, w, np.arange(rest.shape[0]))  # every vertex, not only key ones
 
 
 def test_gradients_sum_to_zero_on_tube():
     model = synthetic_lbs(bones=6, max_influences=4)
     kv = key_vertices(model["bone_indices"], model["bone_weights"], 6)
-    neighbours, bones, grads = _sum_rule(model["rest"], model["faces"], model["bone_indices"],
+    neighbours, bones, grads = assert_gradients_sum_to_zero(model["rest"], model["faces"], model["bone_indices"],
                                          model["bone_weights"], kv.vertices)
     # Related bones: every bone with weight at the vertex or its ring, own bones first.
     indptr, indices = neighbours

@@ -210,7 +210,7 @@ def test_usd_left_handed_winding_is_flipped(tmp_path):
 # ---------------------------------------------------------------- errors
 
 
-def _expect(spec, *words, **kwargs):
+def assert_format_error(spec, *words, **kwargs):
     with pytest.raises(FormatError) as caught:
         read_mesh_sequence(str(spec), **kwargs)
     message = str(caught.value)
@@ -220,31 +220,31 @@ def _expect(spec, *words, **kwargs):
 
 
 def test_error_missing_path(tmp_path):
-    _expect(tmp_path / "nothing", tmp_path / "nothing", "no such file")
+    assert_format_error(tmp_path / "nothing", tmp_path / "nothing", "no such file")
 
 
 def test_error_empty_folder_and_glob(tmp_path):
     (tmp_path / "empty").mkdir()
-    _expect(tmp_path / "empty", tmp_path / "empty", "no .obj")
-    _expect(tmp_path / "x-*.obj", "x-*.obj", "matches no files")
+    assert_format_error(tmp_path / "empty", tmp_path / "empty", "no .obj")
+    assert_format_error(tmp_path / "x-*.obj", "x-*.obj", "matches no files")
 
 
 def test_error_glob_matching_a_non_frame_file(tmp_path):
     write_frames(tmp_path)
     (tmp_path / "frame.txt").write_text("x")
-    _expect(tmp_path / "frame*", tmp_path / "frame.txt", "not a frame file")
+    assert_format_error(tmp_path / "frame*", tmp_path / "frame.txt", "not a frame file")
 
 
 def test_error_unknown_extension_and_single_frame(tmp_path):
     (tmp_path / "a.fbx").write_text("x")
-    _expect(tmp_path / "a.fbx", tmp_path / "a.fbx", "unknown extension")
+    assert_format_error(tmp_path / "a.fbx", tmp_path / "a.fbx", "unknown extension")
     write_obj(tmp_path / "one.obj", SQUARE)
-    _expect(tmp_path / "one.obj", tmp_path / "one.obj", "single frame")
+    assert_format_error(tmp_path / "one.obj", tmp_path / "one.obj", "single frame")
 
 
 def test_error_fewer_than_two_frames(tmp_path):
     folder = write_frames(tmp_path / "f", numbers=(1,))
-    _expect(folder, folder, "at least 2")
+    assert_format_error(folder, folder, "at least 2")
 
 
 def test_error_vertex_count_mismatch_names_first_offending_frame(tmp_path):
@@ -252,7 +252,7 @@ def test_error_vertex_count_mismatch_names_first_offending_frame(tmp_path):
     bad = folder / "frame3.obj"
     write_obj(bad, np.vstack([frame_positions(0), [[5, 5, 5]]]))
     write_obj(folder / "frame4.obj", np.vstack([frame_positions(0), [[5, 5, 5]]]))
-    message = _expect(folder, bad, "6 vertices", "frame1.obj")
+    message = assert_format_error(folder, bad, "6 vertices", "frame1.obj")
     assert "frame4" not in message
 
 
@@ -260,21 +260,21 @@ def test_error_faces_mismatch(tmp_path):
     folder = write_frames(tmp_path / "f")
     bad = folder / "frame2.obj"
     write_obj(bad, frame_positions(1), [[0, 1, 2], [0, 2, 3], [1, 4, 2]])  # same count, other split
-    _expect(folder, bad, "faces differ")
+    assert_format_error(folder, bad, "faces differ")
 
 
 def test_error_nan_in_a_frame_file(tmp_path):
     folder = write_frames(tmp_path / "f")
     bad = folder / "frame10.obj"
     write_obj(bad, np.vstack([[np.nan, 0, 0], SQUARE[1:]]))
-    _expect(folder, bad, "NaN")
+    assert_format_error(folder, bad, "NaN")
 
 
 def test_error_unreadable_frame_file(tmp_path):
     folder = write_frames(tmp_path / "f")
     bad = folder / "frame2.ply"
     bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 9\nend_header\n\x00")
-    _expect(folder, bad)
+    assert_format_error(folder, bad)
 
 
 @pytest.mark.parametrize("arrays,words", [
@@ -292,14 +292,14 @@ def test_error_unreadable_frame_file(tmp_path):
 def test_error_bad_npz_contents(tmp_path, arrays, words):
     path = tmp_path / "bad.npz"
     np.savez(path, **arrays)
-    _expect(path, path, *words)
+    assert_format_error(path, path, *words)
 
 
 def test_error_nan_in_npz_names_frame(tmp_path):
     vertices = np.zeros((4, 3, 3))
     vertices[2, 1, 0] = np.nan
     np.savez(tmp_path / "n.npz", vertices=vertices, faces=[[0, 1, 2]])
-    _expect(tmp_path / "n.npz", "frame 2")
+    assert_format_error(tmp_path / "n.npz", "frame 2")
 
 
 @pytest.mark.parametrize("name,words", [("garbage.npz", "not an .npz"), ("garbage.h5", "cannot read as HDF5"),
@@ -307,46 +307,46 @@ def test_error_nan_in_npz_names_frame(tmp_path):
 def test_error_unreadable_container(tmp_path, name, words):
     path = tmp_path / name
     path.write_bytes(b"\x00\x01 this is not the right format at all")
-    _expect(path, path, words)
+    assert_format_error(path, path, words)
 
 
 def test_error_usda_syntax_error_is_one_line(tmp_path):
     path = tmp_path / "broken.usda"
     path.write_text('#usda 1.0\ndef Mesh "m" {\n  point3f[] points = [(1, 2\n}\n')
-    message = _expect(path, path, "parse error")
+    message = assert_format_error(path, path, "parse error")
     assert "\n" not in message and "pxrInternal" not in message
 
 
 def test_error_h5_without_arrays(tmp_path):
     with h5py.File(tmp_path / "e.h5", "w") as f:
         f.create_group("vertices")  # a group, not an array
-    _expect(tmp_path / "e.h5", "no 'vertices'")
+    assert_format_error(tmp_path / "e.h5", "no 'vertices'")
 
 
 def test_error_usd_prim_problems(tmp_path):
     path = write_usd_sequence(tmp_path / "anim.usdc")
-    _expect(path, path, "no prim at /nope", prim="/nope")
-    _expect(path, path, "/world is a Xform, not a Mesh", prim="/world")
-    _expect(path, path, "/a_static", "at least 2", prim="/a_static")
-    _expect(path, path, "not an absolute prim path", prim="world/body")
+    assert_format_error(path, path, "no prim at /nope", prim="/nope")
+    assert_format_error(path, path, "/world is a Xform, not a Mesh", prim="/world")
+    assert_format_error(path, path, "/a_static", "at least 2", prim="/a_static")
+    assert_format_error(path, path, "not an absolute prim path", prim="world/body")
     write_obj(tmp_path / "x.obj", SQUARE)
-    _expect(tmp_path / "*.obj", "prim path applies only to USD", prim="/world")
+    assert_format_error(tmp_path / "*.obj", "prim path applies only to USD", prim="/world")
 
 
 def test_error_usd_without_animated_mesh(tmp_path):
     stage = Usd.Stage.CreateNew(str(tmp_path / "still.usda"))
     UsdGeom.Mesh.Define(stage, "/m").CreatePointsAttr(Vt.Vec3fArray.FromNumpy(SQUARE.astype(np.float32)))
     stage.GetRootLayer().Save()
-    _expect(tmp_path / "still.usda", "still.usda", "no Mesh with time-sampled points")
+    assert_format_error(tmp_path / "still.usda", "still.usda", "no Mesh with time-sampled points")
     stage = Usd.Stage.CreateNew(str(tmp_path / "empty.usda"))
     UsdGeom.Xform.Define(stage, "/x")
     stage.GetRootLayer().Save()
-    _expect(tmp_path / "empty.usda", "empty.usda", "no Mesh prim")
+    assert_format_error(tmp_path / "empty.usda", "empty.usda", "no Mesh prim")
 
 
 def test_error_usd_single_time_sample(tmp_path):
     path = write_usd_sequence(tmp_path / "one.usda", frames=1, static_first=False)
-    _expect(path, path, "1 time sample")
+    assert_format_error(path, path, "1 time sample")
 
 
 def test_fps_argument_must_be_positive(tmp_path):

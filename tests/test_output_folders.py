@@ -9,21 +9,17 @@ import signal
 
 import pytest
 
-from cli_helpers import assert_ok, assert_user_error, cli, fitted_bar
+from cli_helpers import assert_ok, assert_user_error, cli
 from skinsynth.formats.output_folder import MANIFEST, atomic_folder, unowned_entries
 
 VAT_FILES = [MANIFEST, "animation.exr", "animation_normals.exr", "rest.glb", "rest.obj", "vat.json"]
 
 
 @pytest.fixture(scope="module")
-def chain(tmp_path_factory):
+def chain(stage_files):
     """bar.npz → skin.h5 → graph.h5, controls.h5 → puppet.h5."""
-    root = tmp_path_factory.mktemp("folders")
-    fitted_bar(root, frames=48, bones=4, iterations=4, cycles=2)
-    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4, "-q"))
-    assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 4, "-q"))
-    assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5", "-q"))
-    return root
+    return stage_files(frames=48, bones=4, iterations=4, cycles=2, graph=("--min-segment", 4), controls=("--count", 4),
+                       puppet=()).folder
 
 
 def tree(folder):

@@ -8,21 +8,20 @@ import pytest
 import trimesh
 from PIL import Image
 
-from cli_helpers import assert_ok, assert_user_error, cli, fitted_bar
+from cli_helpers import assert_ok, assert_user_error, cli
 
 SMALL = ("--size", "96x64")
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
-    root = tmp_path_factory.mktemp("preview")
-    vertices, faces = fitted_bar(root, frames=24, bones=4, iterations=8, cycles=2)
+def files(stage_files, tmp_path_factory):
+    stages = stage_files(frames=24, bones=4, iterations=8, cycles=2, controls=("--count", 6), puppet=(),
+                         graph=("--min-segment", 4))
+    root = stages.copy_to(tmp_path_factory.mktemp("preview"))  # every other kind of file beside them
+    vertices, faces = stages.vertices, stages.faces
     (root / "frames").mkdir()
     for f in range(6):
         trimesh.Trimesh(vertices[f], faces, process=False).export(root / "frames" / f"bar_{f}.obj")
-    assert_ok(cli("select-controls", root / "skin.h5", "-o", root / "controls.h5", "--count", 6, "-q"))
-    assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "puppet.h5", "-q"))
-    assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "--min-segment", 4, "-q"))
     assert_ok(cli("synthesize", root / "graph.h5", "-o", root / "bones.h5", "-n", 3, "-m", 30, "--crowd",
                   root / "crowd.usda", "--device", "cpu", "-q"))
     assert_ok(cli("play", root / "puppet.h5", "-c", root / "bar.npz", "-o", root / "played.h5", "--instances", 2,

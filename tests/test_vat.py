@@ -72,19 +72,15 @@ def test_textures_past_what_engines_load_are_refused_with_a_clear_message():
     assert check_texture_size("ok", 10_000, 100, 8192) == (8192, 2, 200)
 
 
-def test_export_and_play_write_the_folder(tmp_path):
-    from cli_helpers import fitted_bar
-
-    fitted_bar(tmp_path, frames=24, bones=4, iterations=6)
-    assert_ok(cli("export", tmp_path / "skin.h5", "-o", f"{tmp_path / 'skin_vat'}/", "--half"))
+def test_export_and_play_write_the_folder(stage_files, tmp_path):
+    stages = stage_files(frames=24, bones=4, iterations=6, controls=("--count", 6), puppet=())
+    assert_ok(cli("export", stages / "skin.h5", "-o", f"{tmp_path / 'skin_vat'}/", "--half"))
     names = sorted(p.name for p in (tmp_path / "skin_vat").iterdir())
     assert names == [".skinsynth-folder.json", "animation.exr", "animation_normals.exr", "rest.glb", "rest.obj", "vat.json"]
-    assert_ok(cli("select-controls", tmp_path / "skin.h5", "-o", tmp_path / "c.h5", "--count", 6, "-q"))
-    assert_ok(cli("train-kcca", tmp_path / "c.h5", "-o", tmp_path / "p.h5", "-q"))
-    assert_ok(cli("play", tmp_path / "p.h5", "-c", tmp_path / "bar.npz", "-o", f"{tmp_path / 'crowd'}/",
+    assert_ok(cli("play", stages / "puppet.h5", "-c", stages / "bar.npz", "-o", f"{tmp_path / 'crowd'}/",
                   "--instances", 2, "--max-width", 50))
     sidecar = json.loads((tmp_path / "crowd" / "vat.json").read_text())
     assert [a["name"] for a in sidecar["animations"]] == ["character_000", "character_001"]
     assert sidecar["width"] == 50
-    assert_user_error(cli("play", tmp_path / "p.h5", "-c", tmp_path / "bar.npz", "-o", f"{tmp_path / 'x'}/",
+    assert_user_error(cli("play", stages / "puppet.h5", "-c", stages / "bar.npz", "-o", f"{tmp_path / 'x'}/",
                           "--max-width", 0), "--max-width")
