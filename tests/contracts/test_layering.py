@@ -12,7 +12,7 @@ import ast
 import pathlib
 import shutil
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 PACKAGES = ("cli", "formats", "pipeline", "gpu")
 STAGES = ("skin", "puppet", "synthesis", "view")
 RULES = {"pipeline": "pipeline imports only gpu, never formats or cli", "formats": "formats imports nothing else of "

@@ -10,7 +10,7 @@ from skinsynth.pipeline.skin.skin_fit import fit_skin
 from skinsynth.pipeline.skin.skin_weights import update_weights
 
 from cli_helpers import assert_user_error, cli
-from test_vertex_weights import random_problem, sweep_problem
+from rigs import random_problem, sweep_problem
 
 
 def test_the_weight_kernel_equals_the_numpy_reference(device):

@@ -111,7 +111,7 @@ def test_the_documented_numpy_recipe_reproduces_predict_vertices(files, tmp_path
             f["correctives"].attrs["power"] = 4.0
             f["correctives"].create_dataset("tail", data=rng.normal(size=(n_p, 4)))
             f["correctives"].create_dataset("axes", data=np.linalg.qr(rng.normal(size=(d, 3)))[0].T)
-    text = (pathlib.Path(__file__).parents[1] / "docs" / "format.md").read_text()
+    text = (pathlib.Path(__file__).parents[2] / "docs" / "format.md").read_text()
     section = text[text.index("## Evaluating a puppet in numpy"):]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1).replace("bar.puppet.h5", str(path))
     namespace = {}
