@@ -78,7 +78,8 @@ def random_inputs(rng, samples, puppet):
 
 def numpy_reference(puppet, x, c, frames, solver):
     """Stage seconds of the numpy reference (composing the stage references)."""
-    from skinsynth.gpu import dqs_reference, with_translations
+    from skinsynth.gpu import dqs_reference
+    from skinsynth.pipeline.rotations import with_translations
 
     stages, t0 = {}, time.perf_counter()
 

@@ -7,10 +7,9 @@ run-time path: kernel_vectors, predict_dual_quaternions, normalise_dual_quaterni
 solve_translations, corrective_offsets (puppet_stages, one launch each), run_puppet (puppet_run),
 DevicePuppet (device_puppet), PuppetArrays (puppet_arrays), and their numpy references
 (references.puppet): the stage references *_reference and reference_run_puppet; fit-skin's two
-warp solves (skin_fit): solve_vertex_weights_warp, sweep_bone_transforms_warp; and the quaternion
-and dual-quaternion arithmetic the references share with pipeline.rotations
-(references.dual_quaternions, numpy only): quaternion_to_matrix, quaternion_multiply,
-dual_quaternion_to_rigid, with_translations.
+warp solves (skin_fit): solve_vertex_weights_warp, sweep_bone_transforms_warp. The quaternion and
+dual-quaternion arithmetic is pipeline.rotations' (the floor of the algorithms); the references
+here write the few closed forms they need themselves, as independent oracles.
 
 Three kinds of module: references/ (numpy only), kernels/ (the warp kernels at module level;
 each imports and initialises warp, through runtime, when imported), and the launchers here
@@ -43,10 +42,6 @@ _EXPORTS = {
     "solve_translations_reference": "references.puppet",
     "solve_vertex_weights_warp": "skin_fit",
     "sweep_bone_transforms_warp": "skin_fit",
-    "quaternion_to_matrix": "references.dual_quaternions",
-    "quaternion_multiply": "references.dual_quaternions",
-    "dual_quaternion_to_rigid": "references.dual_quaternions",
-    "with_translations": "references.dual_quaternions",
     "resolve_device": "runtime",
     "available_devices": "runtime",
     "DeviceError": "runtime",

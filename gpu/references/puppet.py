@@ -12,7 +12,6 @@ import numpy as np
 
 from ..puppet_arrays import host_arrays
 from ..validation import check_kind, checked_run_inputs
-from .dual_quaternions import dual_quaternion_to_rigid, with_translations
 from .skinning import dqs_reference
 
 
@@ -38,12 +37,25 @@ def predict_dual_quaternions_reference(xi, predictor, bias):
             + np.asarray(bias, dtype=np.float64).reshape(bones, 8))
 
 
+def _hamilton(a, b):
+    """Hamilton products a ⊗ b of (..., 4) quaternions, (w, x, y, z)."""
+    w = a[..., :1] * b[..., :1] - np.sum(a[..., 1:] * b[..., 1:], axis=-1, keepdims=True)
+    v = a[..., :1] * b[..., 1:] + b[..., :1] * a[..., 1:] + np.cross(a[..., 1:], b[..., 1:])
+    return np.concatenate([w, v], axis=-1)
+
+
 def normalise_dual_quaternions_reference(d):
-    """(unit d (N, B, 8), rotations (N, B, 3, 3), translations (N, B, 3)), dividing by |q0|."""
+    """(unit d (N, B, 8), rotations (N, B, 3, 3), translations (N, B, 3)), dividing by |q0|: the
+    rotation in closed form from the unit real part q0 = (w, x, y, z), the translation
+    t = 2 qe q0* (Kavan et al. 2007); an oracle independent of ``pipeline.rotations``."""
     d = np.asarray(d, dtype=np.float64)
     unit = d / np.linalg.norm(d[..., :4], axis=-1, keepdims=True)
-    rotations, translations = dual_quaternion_to_rigid(unit)
-    return unit, rotations, translations
+    w, x, y, z = np.moveaxis(unit[..., :4], -1, 0)
+    rotations = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+                          np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+                          np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+    conjugate = unit[..., :4] * np.array([1.0, -1.0, -1.0, -1.0])
+    return unit, rotations, 2.0 * _hamilton(unit[..., 4:], conjugate)[..., 1:]
 
 
 def solve_translations_reference(rotations, controls, predicted_translations, rotation_operator,
@@ -93,7 +105,8 @@ def reference_run_puppet(puppet, standardised_controls, controls_in_place, world
     if translation_solver:
         trans = solve_translations_reference(rot, c, trans, arrays.rotation_operator, arrays.control_operator,
                                              arrays.prior_operator)
-        d = with_translations(d, trans)
+        pure = np.concatenate([np.zeros(trans.shape[:-1] + (1,)), trans], axis=-1)
+        d = np.concatenate([d[..., :4], 0.5 * _hamilton(pure, d[..., :4])], axis=-1)
     offsets = None
     if arrays.has_correctives:
         offsets = corrective_offsets_reference(blend_weights(arrays, xi, x), arrays.corrective_offsets)
