@@ -75,7 +75,7 @@ def _target(text):
 @click.option("--cluster", default=None, metavar="ADDRESS",
               help="Make the animations on a Dask cluster: a running scheduler (tcp://host:8786) or local:N (N "
                    "worker processes here, started and closed by the command). Each batch of 250 is written by its "
-                   "worker to OUT's shard folder (<OUT without .h5>.shards/, on a file system every worker sees at "
+                   "worker to OUT's shard folder (<OUT>.shards/, on a file system every worker sees at "
                    "the same path), which OUT then maps (HDF5 virtual datasets): keep the two together. A rerun "
                    "reuses the finished shards. Same datasets as without it (docs/cluster.md).")
 @summary_options

@@ -1,7 +1,7 @@
 """Shards of a synthesis run on a cluster (``synthesize --cluster``): one HDF5 file per batch of
 animations, written (atomically) by the worker that made the batch.
 
-They live in ``<OUT stem>.shards/`` beside the output, which maps their bone motions as HDF5
+They live in ``<OUT>.shards/`` beside the output (``take.h5.shards/``), which maps their bone motions as HDF5
 virtual datasets (:class:`~skinsynth.formats.model.VirtualRows`), so the shards must stay there.
 A shard is ``batch_NNNNNN_<key prefix>.h5``; only its attributes say what it holds:
 
@@ -26,7 +26,7 @@ import h5py
 import numpy as np
 
 from .atomic import atomic_output
-from .errors import FormatError
+from .errors import FormatError, all_finite
 
 SHARD_FORMAT = "skinsynth-shard"
 SHARD_VERSION = 1
@@ -36,8 +36,9 @@ _REJECTED = ("collisions", "too_similar", "merges")
 
 
 def shard_folder(output):
-    """Where the shards of ``output`` live: ``<output without suffix>.shards`` beside it."""
-    return os.path.splitext(os.path.abspath(output))[0] + ".shards"
+    """Where the shards of ``output`` live: ``<output>.shards`` beside it (the whole name, so
+    ``take.h5`` and ``take.hdf5`` never share a folder, nor remove each other's shards)."""
+    return os.path.abspath(output) + ".shards"
 
 
 def shard_record(inputs, parameters, tool_version):
@@ -76,7 +77,8 @@ def write_synthesis_shard(folder, record, batch, count, outcome):
 def stored_shards(folder, record, frames, bones):
     """{(batch, count): (name, [sources, choice, rejected])} for every complete shard in
     ``folder`` whose key matches ``record`` (names are not trusted: a shard is what its
-    attributes and shapes say). Files that are not such shards are left alone."""
+    attributes and shapes say), and whose motions are finite (a damaged shard is computed again, as
+    a fresh batch with NaN would be refused). Files that are not such shards are left alone."""
     found = {}
     if not os.path.isdir(folder):
         return found
@@ -93,6 +95,8 @@ def stored_shards(folder, record, frames, bones):
                 shapes = {"bone_matrices": (count, frames, bones, 3, 3), "bone_translations": (count, frames, bones, 3)}
                 if any(f[d].shape != shape or f[d].id.get_storage_size() != 4 * int(np.prod(shape))
                        for d, shape in shapes.items()):
+                    continue
+                if not all(all_finite(f[d][()]) for d in shapes):  # checked as a fresh batch is: never reused
                     continue
                 rest = [f["sources"][()], f["choice"][()], {r: int(f.attrs[f"rejected_{r}"]) for r in _REJECTED}]
         except (OSError, KeyError, ValueError, TypeError):

@@ -44,7 +44,7 @@ def run_cluster(graph, out, address, *extra):
 
 
 def shards_of(out):
-    return sorted((out.parent / (out.stem + ".shards")).iterdir())
+    return sorted((out.parent / (out.name + ".shards")).iterdir())
 
 
 def test_a_local_cluster_gives_the_single_machine_datasets(graph, reference, tmp_path):
@@ -148,7 +148,7 @@ def test_an_interrupted_run_leaves_its_finished_shards_and_resumes_from_them(gra
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                env={**os.environ, "DASK_DISTRIBUTED__WORKER__PRELOAD": json.dumps([hold]),
                                     "CLUSTER_HOLD_MARKER": str(held)})
-    folder = tmp_path / "many.shards"
+    folder = tmp_path / "many.h5.shards"
     try:
         deadline = time.monotonic() + 120
         while not (held.exists() and any(p.name.startswith("batch_") for p in folder.iterdir())):
@@ -244,3 +244,29 @@ def test_stored_rows_select_and_concatenate_as_arrays_do():
             assert rows == data[name].shape[0]
             rebuilt[at:at + length] = data[name][first:first + length]
         assert np.array_equal(rebuilt, expected)
+
+
+def test_outputs_differing_only_in_suffix_keep_their_shards_apart(tmp_path):
+    """take.h5 and take.hdf5 shared take.shards/ (issue 27): writing one removed the other's shards."""
+    from skinsynth.formats.synthesis_shards import shard_folder
+
+    assert shard_folder(tmp_path / "take.h5") != shard_folder(tmp_path / "take.hdf5")
+    assert shard_folder(tmp_path / "take.h5") == str(tmp_path / "take.h5.shards")
+
+
+def test_a_stored_shard_holding_nan_is_computed_again_not_reused(tmp_path):
+    """A reused shard passes the check a fresh batch does (issue 27): NaN in a shard with the
+    right key is never taken for finished work."""
+    from skinsynth.formats.synthesis_shards import shard_record, stored_shards, write_synthesis_shard
+
+    record = shard_record([{"sha256": "0" * 64}], {"seed": 0}, "test")
+    count, frames, bones = 2, 5, 3
+    F = np.tile(np.eye(3, dtype=np.float32), (count, frames, bones, 1, 1))
+    t = np.zeros((count, frames, bones, 3), dtype=np.float32)
+    rest = [np.zeros((1, count, frames), np.int64), np.zeros((count, 1), np.int64),
+            {"collisions": 0, "too_similar": 0, "merges": 0}]
+    write_synthesis_shard(str(tmp_path), record, 0, count, [F, t, *rest])
+    assert list(stored_shards(str(tmp_path), record, frames, bones)) == [(0, count)]
+    t[1, 2, 0, 1] = np.nan
+    write_synthesis_shard(str(tmp_path), record, 1, count, [F, t, *rest])
+    assert list(stored_shards(str(tmp_path), record, frames, bones)) == [(0, count)]
