@@ -200,6 +200,7 @@ def _puppet_panels(path, error_scale):
 
 
 def _synthesis_panels(path, skin, animations):
+    from skinsynth.formats.errors import require_finite
     from skinsynth.formats.synthesis_file import open_motions, read_sources
     from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.errors import OptionError
@@ -213,7 +214,10 @@ def _synthesis_panels(path, skin, animations):
     panels = []
     with open_motions(path) as (F, t):
         for a in animations:
-            vertices = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, F[a], t[a])
+            rotations, translations = F[a], t[a]
+            require_finite(path, f"/synthesis animation {a}'s bone motions", rotations)  # a damaged shard
+            require_finite(path, f"/synthesis animation {a}'s bone motions", translations)
+            vertices = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations, translations)
             played = sources[:, a]  # (C, M)
             seams = np.zeros(played.shape[1], dtype=bool)
             seams[1:] = np.any(played[:, 1:] != played[:, :-1] + 1, axis=0)

@@ -106,6 +106,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.pipeline.synthesis import (Request, avoid_obstacles, default_min_segment, synthesis_components,
                                               validate_request)
 
+    if cluster is not None and not cluster.strip():
+        raise OptionError("--cluster needs an address: tcp://HOST:PORT of a running scheduler, or local:N")
     check_output_path(output, (".h5", ".hdf5"), inputs=[path, *obstacles])
     if crowd is not None:
         check_output_path(crowd, (".usd", ".usda", ".usdc"), inputs=[path, *obstacles, output])

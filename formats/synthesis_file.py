@@ -25,7 +25,8 @@ import json
 import h5py
 import numpy as np
 
-from .model import CopyFrom, Uncompressed, VirtualRows
+from .model import CopyFrom, DeclaredTooLarge, Uncompressed, VirtualRows, virtual_storage
+from .errors import FormatError
 from .synthesis_shards import MOTIONS
 
 
@@ -69,9 +70,18 @@ def synthesis_groups(source, result, components, request, fps, shards=None):
 @contextlib.contextmanager
 def open_motions(path):
     """(bone_matrices, bone_translations) of a synthesis file as h5py datasets, read one
-    animation at a time (``F[a]``): a cluster run's motions need not fit in memory."""
+    animation at a time (``F[a]``): a cluster run's motions need not fit in memory. The shards a
+    cluster run's motions map are checked first (present, readable, this run's): FormatError
+    naming the file otherwise, as every reader of the file says."""
     with h5py.File(path, "r") as f:
-        yield f["synthesis"][MOTIONS[0]], f["synthesis"][MOTIONS[1]]
+        motions = f["synthesis"][MOTIONS[0]], f["synthesis"][MOTIONS[1]]
+        try:
+            for dataset in motions:
+                if dataset.is_virtual:
+                    virtual_storage(dataset)
+        except DeclaredTooLarge as exc:
+            raise FormatError(path, f"damaged model file: {exc}") from None
+        yield motions
 
 
 def read_sources(path):

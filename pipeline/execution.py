@@ -20,6 +20,7 @@ cluster) is decided here and nowhere else, and never changes the result:
 """
 
 import contextlib
+import os
 import uuid
 
 import numpy as np
@@ -250,6 +251,11 @@ class Cluster:
             count = address[len("local:"):]
             if not count.isdigit() or int(count) < 1:
                 raise OptionError(f"--cluster {address}: expected local:N with N ≥ 1 worker processes")
+            cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+            if int(count) > 4 * cores:  # each worker is a process of its own (~200 MB): refused before one starts
+                raise OptionError(f"--cluster {address}: {count} worker processes on a machine with {cores} cores "
+                                  f"(local:N takes at most {4 * cores} here); for more, start a scheduler and "
+                                  "workers on other machines (docs/cluster.md)")
             try:
                 self._local = LocalCluster(n_workers=int(count), threads_per_worker=1, processes=True,
                                            silence_logs=logging.ERROR,
@@ -395,7 +401,6 @@ def _roomy_allocator():
     try:
         yield
     finally:
-        import os
 
         mallopt(M_TRIM_THRESHOLD, int(os.environ.get("MALLOC_TRIM_THRESHOLD_", 128 << 10)))
         libc.malloc_trim(0)

@@ -205,7 +205,8 @@ def test_a_missing_shard_is_an_error_not_zeros(graph, tmp_path):
 
 @pytest.mark.parametrize("address, needle", [("local:0", "local:N"), ("local:two", "local:N"),
                                              ("nonsense:port", "not a scheduler address"),
-                                             ("tcp://127.0.0.1:1", "cannot reach")])
+                                             ("tcp://127.0.0.1:1", "cannot reach"), ("", "needs an address"),
+                                             ("local:100000", "worker processes")])
 def test_a_bad_cluster_address_is_one_line_and_leaves_nothing(graph, tmp_path, address, needle):
     assert_user_error(cli("synthesize", graph, "-o", tmp_path / "o.h5", "-n", 3, "-m", 20, "--cluster", address),
                       address, needle, folder=tmp_path)
@@ -270,3 +271,24 @@ def test_a_stored_shard_holding_nan_is_computed_again_not_reused(tmp_path):
     t[1, 2, 0, 1] = np.nan
     write_synthesis_shard(str(tmp_path), record, 1, count, [F, t, *rest])
     assert list(stored_shards(str(tmp_path), record, frames, bones)) == [(0, count)]
+
+
+def test_another_runs_shard_under_this_runs_name_is_refused_by_every_reader(graph, scheduler, tmp_path):
+    """Issue 27: a shard of another seed planted under the name of one of this run's shards was
+    read as this run's animations (inspect --digests exit 0); a shard holding NaN made preview
+    render empty frames. Every reader now says so in one line."""
+    out, other = tmp_path / "many.h5", tmp_path / "other.h5"
+    run_cluster(graph, out, scheduler.scheduler_address)
+    run_cluster(graph, other, scheduler.scheduler_address, "--seed", 5)
+    mine, theirs = shards_of(out)[1], shards_of(other)[1]
+    shutil.copy(theirs, mine)  # same batch, same shapes, another run's key
+    for args in (("inspect", out, "--digests"), ("preview", out, "-o", tmp_path / "p.png", "--animation", 3,
+                                                 "--size", "64x48")):
+        assert_user_error(cli(*args), str(out), "another run's batch", folder=None)
+    assert not (tmp_path / "p.png").exists()
+    run_cluster(graph, out, scheduler.scheduler_address)  # a rerun makes this run's shard again
+    with h5py.File(mine, "r+") as f:  # a damaged shard: this run's key, NaN motions
+        f["bone_translations"][0, 0, 0, 0] = np.nan
+    assert_user_error(cli("preview", out, "-o", tmp_path / "p.png", "--animation", 250, "--size", "64x48"),
+                      "animation 250", "NaN")  # the first animation of the second batch
+    assert not (tmp_path / "p.png").exists()
