@@ -401,7 +401,6 @@ def _roomy_allocator():
     try:
         yield
     finally:
-
         mallopt(M_TRIM_THRESHOLD, int(os.environ.get("MALLOC_TRIM_THRESHOLD_", 128 << 10)))
         libc.malloc_trim(0)
 
