@@ -142,16 +142,36 @@ def run_shards(output, record, frames, bones):
             "store": functools.partial(write_synthesis_shard, folder, shard)}
 
 
+#: The lock a run holds on its shard folder (hidden: no reader takes it for a shard).
+LOCK = ".lock"
+
+
 @contextlib.contextmanager
 def kept_shard_folder(folder):
     """The shard folder, made for the run and removed again if the run fails before any shard
-    is in it (a failed command leaves nothing new behind; finished shards stay for a rerun)."""
+    is in it (a failed command leaves nothing new behind; finished shards stay for a rerun).
+
+    The run holds an exclusive lock on the folder (``flock`` on :data:`LOCK`, released however
+    the process ends): a second run writing the same output at once is refused in one line
+    instead of mixing its shards with the first's. (On a network file system without working
+    ``flock``, runs are not kept apart.)"""
+    import fcntl
+
     existed = os.path.isdir(folder)
     check_shard_folder(folder)
+    lock = os.open(os.path.join(folder, LOCK), os.O_RDWR | os.O_CREAT, 0o666)
     try:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise FormatError(folder, "another synthesize is writing this output now (its shard folder is locked): "
+                                      "wait for it to end, or write another file") from None
         yield
     except BaseException:
         if not existed:
             with contextlib.suppress(OSError):
+                os.remove(os.path.join(folder, LOCK))
                 os.rmdir(folder)  # only when empty
         raise
+    finally:
+        os.close(lock)

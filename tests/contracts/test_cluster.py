@@ -44,7 +44,7 @@ def run_cluster(graph, out, address, *extra):
 
 
 def shards_of(out):
-    return sorted((out.parent / (out.name + ".shards")).iterdir())
+    return sorted(p for p in (out.parent / (out.name + ".shards")).iterdir() if not p.name.startswith("."))
 
 
 def test_a_local_cluster_gives_the_single_machine_datasets(graph, reference, tmp_path):
@@ -292,3 +292,21 @@ def test_another_runs_shard_under_this_runs_name_is_refused_by_every_reader(grap
     assert_user_error(cli("preview", out, "-o", tmp_path / "p.png", "--animation", 250, "--size", "64x48"),
                       "animation 250", "NaN")  # the first animation of the second batch
     assert not (tmp_path / "p.png").exists()
+
+
+def test_a_second_run_writing_the_same_output_at_once_is_refused(graph, tmp_path):
+    """Issue 27: two runs writing one output at once both exited 0 and left an output that did not
+    read. The run holds a lock on its shard folder; a second one is refused in one line."""
+    import fcntl
+
+    from skinsynth.formats.synthesis_shards import LOCK, shard_folder
+
+    out = tmp_path / "many.h5"
+    folder = shard_folder(out)
+    os.makedirs(folder)
+    with open(os.path.join(folder, LOCK), "w") as held:  # as the first run holds it
+        fcntl.flock(held, fcntl.LOCK_EX)
+        assert_user_error(cli("synthesize", graph, "-o", out, "-n", 3, "-m", 20, "--cluster", "local:1"),
+                          "another synthesize is writing this output")
+    assert not out.exists() and os.listdir(folder) == [LOCK]
+    assert_ok(cli("synthesize", graph, "-o", out, "-n", 3, "-m", 20, "--cluster", "local:1", "-q"))  # released
