@@ -239,7 +239,9 @@ class Cluster:
     scheduler (``tcp://host:8786``, as ``dask scheduler`` prints), which must have a worker
     within ``worker_timeout`` seconds. Unreachable or empty: OptionError (one line)."""
 
-    def __init__(self, address, preload=(), connect_timeout=20.0, worker_timeout=60.0):
+    CONNECT_TIMEOUT, WORKER_TIMEOUT = 20.0, 60.0
+
+    def __init__(self, address, preload=(), connect_timeout=CONNECT_TIMEOUT, worker_timeout=WORKER_TIMEOUT):
         import logging
 
         from distributed import Client, LocalCluster
@@ -288,18 +290,46 @@ class Cluster:
 
     @classmethod
     @contextlib.contextmanager
-    def starting(cls, address, preload=()):
+    def starting(cls, address, preload=(), timeout=None):
         """Start (or reach) the cluster in a thread while the caller goes on; yields a callable
-        that waits for it and returns it (raising what starting raised). Closed on leaving."""
-        from concurrent.futures import ThreadPoolExecutor
+        that waits for it and returns it (raising what starting raised). Closed on leaving.
 
-        with ThreadPoolExecutor(1) as pool:
-            future = pool.submit(cls, address, preload)
+        The wait is bounded (``timeout``: by default the connection's and the first worker's
+        together, and 10 s more) and a signal ends it: the thread is a daemon, so a scheduler
+        that accepts a connection and never answers can neither hang the command nor keep it
+        from exiting (an executor's thread would be joined at exit)."""
+        import threading
+
+        from .errors import OptionError
+
+        timeout = timeout if timeout is not None else cls.CONNECT_TIMEOUT + cls.WORKER_TIMEOUT + 10.0
+        started, done = {}, threading.Event()
+
+        def start():
             try:
-                yield future.result
+                started["cluster"] = cls(address, preload)
+            except BaseException as error:  # handed to the caller's thread
+                started["error"] = error
             finally:
-                if future.exception() is None:
-                    future.result().close()
+                done.set()
+
+        threading.Thread(target=start, name="skinsynth-cluster", daemon=True).start()
+
+        def joined():
+            if not done.wait(timeout):
+                raise OptionError(f"--cluster {address}: no answer within {timeout:.0f} s (is a Dask scheduler "
+                                  "listening there?)")
+            if "error" in started:
+                raise started["error"]
+            return started["cluster"]
+
+        try:
+            yield joined
+        finally:
+            if address.startswith("local:"):  # its worker processes are ours: let them start, to close them
+                done.wait(cls.CONNECT_TIMEOUT)
+            if "cluster" in started:
+                started["cluster"].close()
 
     @property
     def workers(self):

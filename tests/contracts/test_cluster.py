@@ -310,3 +310,38 @@ def test_a_second_run_writing_the_same_output_at_once_is_refused(graph, tmp_path
                           "another synthesize is writing this output")
     assert not out.exists() and os.listdir(folder) == [LOCK]
     assert_ok(cli("synthesize", graph, "-o", out, "-n", 3, "-m", 20, "--cluster", "local:1", "-q"))  # released
+
+
+def test_a_scheduler_that_never_answers_does_not_keep_the_command_from_a_signal(graph, tmp_path):
+    """Issue 27: --cluster tcp:// to a listener that accepts but never answers hung for minutes,
+    ignoring SIGTERM (the thread reaching it was joined at exit). Now SIGTERM ends the command at
+    once, with its one line."""
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import time
+
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(8)  # accepts (the kernel does), never answers
+    process = None
+    try:
+        address = f"tcp://127.0.0.1:{listener.getsockname()[1]}"
+        command = [sys.executable, "-c", "import sys; from skinsynth.cli.main import main; sys.argv[0] = 'skinsynth'; "
+                   "sys.exit(main())", "synthesize", str(graph), "-o", str(tmp_path / "o.h5"), "-n", "3", "-m", "20",
+                   "--cluster", address, "-q"]
+        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(4)  # the graph read, the command waiting for the scheduler
+        assert process.poll() is None
+        started = time.monotonic()
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=30)
+        assert time.monotonic() - started < 10
+        assert process.returncode == 143 and stderr.strip().splitlines() == [
+            "skinsynth: interrupted (SIGTERM); no output written"], stderr
+        assert not (tmp_path / "o.h5").exists()
+    finally:
+        if process is not None and process.poll() is None:
+            process.kill()
+        listener.close()
