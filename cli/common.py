@@ -135,6 +135,41 @@ class FolderOutputs:
         return {"inputs": self.inputs, "outputs": self.outputs[:index] + self.outputs[index + 1:]}
 
 
+def available_memory():
+    """Bytes of memory a new allocation can have (MemAvailable), or None where unknown."""
+    try:
+        with open("/proc/meminfo") as meminfo:
+            for row in meminfo:
+                if row.startswith("MemAvailable:"):
+                    return int(row.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_memory(needed, what, available=None):
+    """Refuse, before allocating, a request whose arrays (``needed`` bytes, an estimate from its
+    shapes) exceed the memory available (or ``available`` bytes): one line naming the sizes."""
+    available = available_memory() if available is None else available
+    if available is not None and needed > available:
+        raise OptionError(f"{what} needs about {needed / 2 ** 30:.1f} GiB of memory, and {available / 2 ** 30:.1f} "
+                          "GiB is available: ask for fewer")
+
+
+def check_disk(needed, folder, what):
+    """Refuse, before any work, a request whose files (``needed`` bytes) exceed the free space in
+    ``folder``: one line naming the sizes."""
+    import shutil
+
+    free = shutil.disk_usage(folder).free
+    if needed > free:
+        raise OptionError(f"{what} needs about {needed / 2 ** 30:.1f} GiB of disk in {folder}, and "
+                          f"{free / 2 ** 30:.1f} GiB is free: ask for fewer")
+
+
 def check_not_an_input(path, inputs):
     """Refuse an output that is one of the input files (same device and inode)."""
     try:

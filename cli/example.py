@@ -2,7 +2,7 @@
 
 import click
 
-from .common import report, summary_options, check_output_path, fail, user_errors
+from .common import check_memory, report, summary_options, check_output_path, fail, user_errors
 
 EXAMPLES = ("bending-bar",)
 
@@ -34,6 +34,7 @@ def example(name, output, frames, rings, segments, cycles, fps, quiet, as_json):
     check_output_path(output, (".npz",))
     if frames < 2 or rings < 2 or segments < 3 or cycles < 1 or not fps > 0:
         fail("--frames and --rings must be at least 2, --segments at least 3, --cycles at least 1, --fps positive")
+    check_memory(frames * (rings * segments + 2) * 3 * 8 * 3, f"{frames} frames of {rings} × {segments} vertices")
     vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
     write_array_sequence(output, vertices, faces, fps)
     report({"output": output, "name": name, "frames": frames, "vertices": int(vertices.shape[1]), "fps": fps},

@@ -8,6 +8,9 @@ import click
 from .common import Progress, check_output_path, command_line, report, summary_options, tool_version, user_errors
 from .options import device_option, up_axis_option
 
+#: More joint steps per iteration than this is a typo, not a fit (one step costs about 5 iterations).
+MAX_TRANSFORM_STEPS = 100
+
 
 @click.command("fit-skin")
 @click.argument("input_spec", metavar="INPUT")
@@ -64,6 +67,9 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
         raise OptionError(f"--fps must be positive and finite (got {fps})")
     if tolerance < 0 or transform_steps < 0:
         raise OptionError("--tolerance and --transform-steps must not be negative")
+    if transform_steps > MAX_TRANSFORM_STEPS:  # each is a joint solve of every bone of every frame
+        raise OptionError(f"--transform-steps {transform_steps}: at most {MAX_TRANSFORM_STEPS} per iteration (each "
+                          "is a joint solve of every bone of every frame; 0 or 1 is the useful range)")
     if device != "cpu":  # "cpu" runs numba's loops and never imports warp (about 1 s)
         from skinsynth.gpu import resolve_device
 

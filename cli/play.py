@@ -4,7 +4,7 @@ import click
 import numpy as np
 
 from .options import device_option, texture_options, up_axis_option
-from .common import report, summary_options, FolderOutputs, user_errors
+from .common import check_memory, report, summary_options, FolderOutputs, user_errors
 from .outputs import TEXTURES, check_animation_output, check_texture_output, write_textures
 
 
@@ -72,6 +72,10 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     count = len(puppet.control_indices)
     trajectories = [read_control_trajectories(f, count, puppet.control_indices, skin.rest_vertices.shape[0])
                     for f in control_files]
+    if instances > 0 and trajectories:  # the vertices (float32, and their placed copy) before any is allocated
+        played = max(len(trajectories), instances) * trajectories[0].shape[0]
+        check_memory(played * (skin.rest_vertices.shape[0] * 3 * 4 * 2 + count * 3 * 8 * 3),
+                     f"{max(len(trajectories), instances)} character(s) × {trajectories[0].shape[0]} frames")
     controls = instance_trajectories(trajectories, instances)  # (C, F, n_c, 3)
     characters, frames = controls.shape[:2]
     check_texture_output(output, output_kind, skin.rest_vertices.shape[0], frames, max_width, characters)

@@ -6,7 +6,7 @@ import time
 import click
 import numpy as np
 
-from .common import Progress, check_output_path, report, summary_options, user_errors
+from .common import Progress, check_memory, check_output_path, report, summary_options, user_errors
 from .options import up_axis_option
 
 MESH_SUFFIXES = (".npz", ".usd", ".usda", ".usdc")
@@ -89,6 +89,11 @@ def preview(path, output, animations, examples, compare, error_scale, size, fps,
         raise OptionError(f"--frames {frame_range[0]}:{frame_range[1]} selects none of the {count} frames")
     if output.lower().endswith(".png"):
         frames = frames[sheet_indices(len(frames), sheet_frames)]
+    # an RGB image per frame of the panel grid, all held for a .gif or a contact sheet (twice:
+    # quantised, or the sheet), and the rasteriser's float buffers per pixel: before any is made
+    pixels = len(panels) * size[0] * size[1]
+    held = 2 * len(frames) if output.lower().endswith((".png", ".gif")) else 1
+    check_memory(pixels * (3 * held + 48), f"{len(frames)} frame(s) of {len(panels)} panel(s) at {size[0]}×{size[1]}")
     movie = Preview(panels, size=size, frames=frames, preset=camera, smooth=not flat, up_axis=up)
     started = time.perf_counter()
     with Progress(len(movie), "preview", quiet or as_json) as bar:

@@ -9,7 +9,7 @@ import numpy as np
 
 from .options import check_max_width, device_option, texture_options, up_axis_option
 from .outputs import check_texture_output, write_textures
-from .common import report, summary_options, Progress, check_output_path, FolderOutputs, command_line, tool_version, user_errors
+from .common import check_disk, check_memory, report, summary_options, Progress, check_output_path, FolderOutputs, command_line, tool_version, user_errors
 
 
 def _target(text):
@@ -138,6 +138,14 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           cut_damping=cut_damping, min_segment=min_segment, blend=blend, alignment=alignment,
                           up_axis=1 if up_axis == "Y" else 2)
         validate_request(request, skin.rotations.shape[0])
+        # the bone motions (float32 3×3 + 3 per bone) and sources (int32 per component), in memory
+        # or, on a cluster, in the shards on disk: refused before any is allocated
+        motions = count * frames * (skin.rotations.shape[1] * 12 * 4 + len(graph_file.components) * 4)
+        what = f"{count} animations × {frames} frames of {skin.rotations.shape[1]} bones"
+        if cluster:
+            check_disk(motions, os.path.dirname(os.path.abspath(output)), what)
+        else:
+            check_memory(motions, what)
         if exr_dir:  # the texture's size, before any work
             check_texture_output(exr_dir, "folder", skin.rest_vertices.shape[0], frames, max_width)
         if obstacles or ground_plane:

@@ -540,3 +540,39 @@ def test_controls_beyond_float32_range_are_refused(chain, tmp_path):
     np.save(tmp_path / "far.npy", controls)
     assert_user_error(cli("play", chain / "puppet.h5", "-c", tmp_path / "far.npy", "-o", tmp_path / "o.h5"),
                       "far.npy", "frame 1, point 2", "float32", folder=tmp_path, keep=["far.npy"])
+
+
+# -- requests that would allocate without bounds (issue 27, group 3) -------------------------------
+
+@pytest.mark.parametrize("args, needle", [
+    (["synthesize", "{graph.h5}", "-o", "{out}/b.h5", "-n", 1000000000, "-m", 600], "1000000000 animations × 600"),
+    (["synthesize", "{graph.h5}", "-o", "{out}/b.h5", "-n", 100000000, "-m", 600, "--crowd", "{out}/c.usdc"],
+     "100000000 animations"),
+    (["play", "{puppet.h5}", "-c", "{controls.csv}", "--instances", 10000000000, "-o", "{out}/p.h5"],
+     "10000000000 character(s)"),
+    (["example", "bending-bar", "-o", "{out}/x.npz", "--frames", 1000000000], "1000000000 frames"),
+], ids=["synthesize 1e9", "synthesize 1e8 crowd", "play 1e10 instances", "example 1e9 frames"])
+def test_a_request_larger_than_memory_is_refused_before_allocating(chain, tmp_path, args, needle):
+    """Each asks for terabytes (more than any machine has): refused in one line, nothing written."""
+    args = [str(chain / a[1:-1]) if isinstance(a, str) and a.startswith("{") and a != "{out}" and "{out}" not in a
+            else (a.replace("{out}", str(tmp_path)) if isinstance(a, str) else a) for a in args]
+    assert_user_error(cli(*args), needle, "GiB of memory", "ask for fewer", folder=tmp_path)
+
+
+def test_the_memory_and_disk_checks_compare_the_estimate_with_what_there_is(tmp_path):
+    from skinsynth.cli.common import check_disk, check_memory
+    from skinsynth.pipeline.errors import OptionError
+
+    check_memory(2 ** 30, "a request", available=2 ** 31)  # fits: nothing said
+    with pytest.raises(OptionError, match=r"a request needs about 2\.0 GiB of memory, and 1\.0 GiB is available"):
+        check_memory(2 ** 31, "a request", available=2 ** 30)
+    with pytest.raises(OptionError, match="GiB of disk in"):
+        check_disk(2 ** 60, str(tmp_path), "a request")
+
+
+def test_a_preview_larger_than_memory_and_endless_transform_steps_are_refused(chain, tmp_path):
+    many = [a for _ in range(64) for a in ("--animation", 0)]
+    assert_user_error(cli("preview", chain / "bones.h5", "-o", tmp_path / "p.gif", "--size", "8192x8192", *many),
+                      "64 panel(s) at 8192×8192", "GiB of memory", folder=tmp_path)
+    assert_user_error(cli("fit-skin", chain / "bar.npz", "-o", tmp_path / "s.h5", "--bones", 3, "--transform-steps",
+                          1000000000), "--transform-steps 1000000000", "at most 100", folder=tmp_path)
