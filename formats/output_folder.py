@@ -104,10 +104,9 @@ def check_folder_output(path, inputs=(), outputs=()):
         unowned = unowned_entries(target)
         if unowned:
             raise FormatError(path, _unowned_message(unowned))
-    existing = target
-    while not os.path.exists(existing):
-        existing = os.path.dirname(existing)
-    writable = os.path.dirname(target) if os.path.isdir(os.path.dirname(target)) else existing
+    writable = os.path.dirname(target)  # where the swap renames, or the nearest folder that exists above it
+    while not os.path.exists(writable):
+        writable = os.path.dirname(writable)
     if not os.access(writable, os.W_OK | os.X_OK):
         raise FormatError(path, f"cannot write here: {writable} is not writable")
     return target
@@ -272,8 +271,9 @@ def atomic_folder(path, inputs=(), outputs=()):
     try:
         yield tmp
         write_manifest(tmp)
-        if os.path.isdir(target) and unowned_entries(target):  # changed while this command worked
-            raise FormatError(path, _unowned_message(unowned_entries(target)))
+        unowned = unowned_entries(target) if os.path.isdir(target) else []  # changed while this command worked
+        if unowned:
+            raise FormatError(path, _unowned_message(unowned))
         with held_signals() as pending:
             old = _swap_in(tmp, target)
             if old is not None:
