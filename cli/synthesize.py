@@ -103,8 +103,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.formats.synthesis_file import synthesis_groups
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.synthesis import (Request, avoid_obstacles, default_min_segment, synthesis_components,
-                                              validate_request)
+    from skinsynth.pipeline.synthesis import (GraphOptions, Request, avoid_obstacles, default_min_segment,
+                                              synthesis_components, validate_request)
 
     if cluster is not None and not cluster.strip():
         raise OptionError("--cluster needs an address: tcp://HOST:PORT of a running scheduler, or local:N")
@@ -151,7 +151,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         if obstacles or ground_plane:
             avoid_obstacles(request, skin, [read_obstacle(o) for o in obstacles], ground_plane)
         components = synthesis_components(skin, graph_file.components, single_component,
-                                          _graph_options(graph_file.options))
+                                          GraphOptions.recorded(graph_file.options))
 
         parameters = dict(count=count, frames=frames, seed=seed, start_frame=start_frame, end_frame=end_frame,
                           targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,
@@ -261,18 +261,6 @@ def _motions(output, result, remote):
 
     with open_motions(output) as (F, t):
         yield dataclasses.replace(result, F=F, t=t)
-
-
-def _graph_options(recorded):
-    """build-graph's options as a graph file recorded them (``GraphOptions``' defaults for the
-    rest), for rebuilding the analysis as one component."""
-    from skinsynth.pipeline.synthesis import GraphOptions
-
-    names = ("threshold_scale", "threshold_reference", "edge_threshold", "svd_threshold", "min_gap", "min_segment",
-             "coverage", "posture_weight")
-    options = {name: type(getattr(GraphOptions, name))(recorded[name]) for name in names if name in recorded}
-    options["up_axis"] = "XYZ".index(str(recorded.get("up_axis", "Y")))
-    return options
 
 
 def _write_plots(folder, skin, result, count, device, folders):

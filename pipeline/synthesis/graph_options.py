@@ -1,6 +1,7 @@
 """build-graph's options and their defaults, stated once (no heavy import: the CLI reads its
 option defaults from here)."""
 
+import dataclasses
 from dataclasses import dataclass
 
 
@@ -24,3 +25,12 @@ class GraphOptions:
     coverage: float = 0.95
     up_axis: int = 1
     posture_weight: float = 1.0
+
+    @classmethod
+    def recorded(cls, values):
+        """The options a graph file records ({name: value}, ``up_axis`` as "X", "Y" or "Z"), with
+        these defaults for any it does not."""
+        fields = {f.name: f for f in dataclasses.fields(cls)}
+        known = {name: value for name, value in values.items() if name in fields and name != "up_axis"}
+        options = {name: type(fields[name].default)(value) for name, value in known.items()}
+        return cls(**options, up_axis="XYZ".index(str(values.get("up_axis", "Y"))))

@@ -58,13 +58,18 @@ def synthesis_components(skin, records, single_component=False, graph_options=No
     """The components synthesize walks: each of a graph file's component records
     (:func:`component_from_file`), or with ``single_component`` (and more than one in the file)
     the whole rig analysed again as one (:func:`.graph.build_graph` with the file's
-    ``graph_options``). ``skin``: rest_vertices (V, 3), faces, bone_indices and bone_weights
-    (V, K), rotations (F, B, 3, 3), translations (F, B, 3)."""
+    ``graph_options``, a :class:`.graph_options.GraphOptions`). ``skin``: rest_vertices (V, 3),
+    faces, bone_indices and bone_weights (V, K), rotations (F, B, 3, 3), translations (F, B, 3)."""
     if single_component and len(records) > 1:
-        from .graph import build_graph  # networkx: only imported when needed
+        import dataclasses
 
+        from .graph import build_graph  # networkx: only imported when needed
+        from .graph_options import GraphOptions
+
+        options = dataclasses.asdict(graph_options or GraphOptions())
+        options["single_component"] = True
         return build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
-                           skin.translations, single_component=True, **(graph_options or {})).components
+                           skin.translations, **options).components
     return [component_from_file(record, skin.rest_vertices) for record in records]
 
 

@@ -576,3 +576,17 @@ def test_a_preview_larger_than_memory_and_endless_transform_steps_are_refused(ch
                       "64 panel(s) at 8192×8192", "GiB of memory", folder=tmp_path)
     assert_user_error(cli("fit-skin", chain / "bar.npz", "-o", tmp_path / "s.h5", "--bones", 3, "--transform-steps",
                           1000000000), "--transform-steps 1000000000", "at most 100", folder=tmp_path)
+
+
+def test_synthesize_single_component_rebuilds_what_build_graph_would_store(chain, tmp_path):
+    """synthesize --single-component on a two-component graph analyses the rig again as one, with
+    the options the graph file records: the same animations as from build-graph --single-component."""
+    assert_ok(cli("build-graph", chain / "skin.h5", "-o", tmp_path / "one.h5", "--min-segment", 4, "--edge-threshold",
+                  0.5, "--single-component", "-q"))
+    for graph, extra, out in ((chain / "graph.h5", ["--single-component"], "rebuilt.h5"), (tmp_path / "one.h5", [],
+                                                                                              "stored.h5")):
+        assert_ok(cli("synthesize", graph, "-o", tmp_path / out, "-n", 3, "-m", 40, "--seed", 2, "-q", *extra))
+    with h5py.File(tmp_path / "rebuilt.h5") as a, h5py.File(tmp_path / "stored.h5") as b:
+        assert a["synthesis/bone_matrices"].shape[1:] == (40, 6, 3, 3)
+        for name in ("bone_matrices", "bone_translations", "sources"):
+            assert np.array_equal(a[f"synthesis/{name}"][()], b[f"synthesis/{name}"][()]), name
