@@ -1,6 +1,8 @@
 """What every command shares: user-error handling, exit codes, progress, provenance."""
 
+import errno
 import functools
+import io
 import os
 import sys
 from importlib.metadata import PackageNotFoundError, version
@@ -32,10 +34,12 @@ def user_errors(command):
     """Turn the errors a user can cause into one stderr line and exit 2 (never a traceback)."""
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
+        from skinsynth.formats.atomic import stop_if_received
         from skinsynth.gpu import DeviceError
 
         try:
             result = command(*args, **kwargs)
+            stop_if_received()  # a signal whose exception a library swallowed still ends the command
             sys.stdout.flush()  # a full disk or a closed pipe on stdout shows here, not at exit
             return result
         except (FormatError, OptionError, DeviceError) as error:
@@ -84,6 +88,38 @@ def interrupted(stop):
     done = f"wrote only {', '.join(WRITTEN)}" if WRITTEN else "no output written"
     click.echo(f"skinsynth: interrupted ({name}); {done}", err=True)
     sys.exit(128 + number)
+
+
+class _ClosedStream(io.TextIOBase):
+    """sys.stdout for a command started with stdout closed (``>&-``): writing to it is the
+    OSError a closed pipe gives, so it ends as one line naming stdout (``-q`` writes nothing)."""
+
+    encoding = "utf-8"
+
+    def writable(self):
+        return True
+
+    def write(self, text):
+        raise OSError(errno.EBADF, "closed (the command was started with stdout closed, as by >&-): the report "
+                                   "cannot be written; use -q to write none")
+
+
+def guard_standard_streams():
+    """Open the null device on any of file descriptors 0–2 the command was started without, so
+    that no file the command opens takes their number (a library writing to fd 1 or 2 would
+    write into it); a closed stdout then fails on the first write (:class:`_ClosedStream`)."""
+    for fd, mode in ((0, os.O_RDONLY), (1, os.O_WRONLY), (2, os.O_WRONLY)):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, mode)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+            if fd == 1:
+                sys.stdout = _ClosedStream()
+            elif fd == 2:
+                sys.stderr = open(fd, "w", closefd=False)
 
 
 def raise_interrupted(signum, frame):

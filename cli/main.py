@@ -58,12 +58,16 @@ class SkinsynthGroup(click.Group):
 
     def main(self, args=None, prog_name=None, **extra):
         args = list(sys.argv[1:] if args is None else args)
+        common.guard_standard_streams()
         common.INVOCATION[:] = ["skinsynth"] + [str(a) for a in args]
-        from skinsynth.formats.atomic import WRITTEN
+        from skinsynth.formats.atomic import RECEIVED, WRITTEN
 
         WRITTEN.clear()  # what this command writes (several run in one process under tests)
+        RECEIVED.clear()
         if threading.current_thread() is threading.main_thread():
-            for name in ("SIGTERM", "SIGHUP"):
+            # SIGINT too: Python's own handler raises a KeyboardInterrupt that leaves no record
+            # when a library swallows it; ours records the signal (formats.atomic.RECEIVED)
+            for name in ("SIGINT", "SIGTERM", "SIGHUP"):
                 if hasattr(signal, name) and signal.getsignal(getattr(signal, name)) is not signal.SIG_IGN:
                     signal.signal(getattr(signal, name), common.raise_interrupted)
         try:

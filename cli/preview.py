@@ -10,6 +10,8 @@ from .common import Progress, check_memory, check_output_path, report, summary_o
 from .options import up_axis_option
 
 MESH_SUFFIXES = (".npz", ".usd", ".usda", ".usdc")
+#: Frame rates a video may play at: a GIF holds at most 655 s per frame, players show at most 240.
+PLAYABLE_FPS = (0.1, 240.0)
 
 
 def _size(text):
@@ -45,7 +47,8 @@ def _frame_range(text):
 @click.option("--error-scale", default=0.01, show_default=True, type=float,
               help="Error shown full red, as a fraction of the rest pose's bounding-box diagonal (--compare, puppets).")
 @click.option("--size", default="640x480", show_default=True, type=_size, metavar="WxH", help="Size of each panel.")
-@click.option("--fps", default=None, type=float, help="Frames per second of the video.  [default: the file's]")
+@click.option("--fps", default=None, type=float,
+              help="Frames per second of the video, 0.1 to 240.  [default: the file's]")
 @click.option("--frames", "frame_range", default=None, type=_frame_range, metavar="A:B",
               help="Only frames A to B−1 (Python slice; either end may be left out).")
 @click.option("--camera", type=click.Choice(["three-quarter", "front", "side"]), default="three-quarter",
@@ -77,8 +80,10 @@ def preview(path, output, animations, examples, compare, error_scale, size, fps,
     from skinsynth.pipeline.view import Preview
 
     check_output_path(output, SUFFIXES, inputs=[path])
-    if fps is not None and not 0 < fps <= 240:
-        raise OptionError(f"--fps must lie in (0, 240] (got {fps})")
+    low, high = PLAYABLE_FPS
+    if fps is not None and not low <= fps <= high:
+        raise OptionError(f"--fps must lie in [{low:g}, {high:g}] (got {fps:g}): slower is a still, faster than "
+                          "players show")
     if not error_scale > 0:
         raise OptionError(f"--error-scale must be positive (got {error_scale})")
     panels, file_fps, file_up = _panels(path, list(animations), examples, compare, error_scale)
@@ -89,6 +94,8 @@ def preview(path, output, animations, examples, compare, error_scale, size, fps,
         raise OptionError(f"--frames {frame_range[0]}:{frame_range[1]} selects none of the {count} frames")
     if output.lower().endswith(".png"):
         frames = frames[sheet_indices(len(frames), sheet_frames)]
+    elif fps is None and not low <= file_fps <= high:
+        raise OptionError(f"{path}: its frame rate {file_fps:g} lies outside [{low:g}, {high:g}]: give --fps")
     # an RGB image per frame of the panel grid, all held for a .gif or a contact sheet (twice:
     # quantised, or the sheet), and the rasteriser's float buffers per pixel: before any is made
     pixels = len(panels) * size[0] * size[1]

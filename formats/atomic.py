@@ -24,12 +24,26 @@ WRITTEN = []
 _HELD = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s is not None)
 
 
+#: The signals that have raised :class:`Interrupted` in this command, in order. Libraries may
+#: swallow the exception (trimesh wraps its optional imports and some of its code in ``except
+#: BaseException``), so outputs and the command's end check here too (:func:`stop_if_received`).
+RECEIVED = []
+
+
 class Interrupted(KeyboardInterrupt):
     """A signal (SIGINT, SIGTERM, SIGHUP) stopped the command; ``signum`` says which."""
 
     def __init__(self, signum):
         super().__init__(signum)
         self.signum = int(signum)
+        RECEIVED.append(self.signum)
+
+
+def stop_if_received():
+    """Raise :class:`Interrupted` again for a signal that arrived earlier, in case the exception
+    it raised then was swallowed on its way out."""
+    if RECEIVED:
+        raise Interrupted(RECEIVED[0])
 
 
 @contextlib.contextmanager
@@ -100,7 +114,7 @@ def _megabytes(count):
 
 
 @contextlib.contextmanager
-def atomic_output(path, expected_bytes=0):
+def atomic_output(path, expected_bytes=0, interruptible=False):
     """Yield a temporary path in the target's folder with the target's suffix.
 
     The suffix is kept because USD and OpenEXR choose their encoding from the extension.
@@ -112,6 +126,12 @@ def atomic_output(path, expected_bytes=0):
     Space: ``expected_bytes`` (the writer's estimate, an upper bound) is checked against the
     free space first, because HDF5 does not fail cleanly on a full disk (it crashed the process
     and left the temporary); a full disk met anyway is one FormatError line.
+
+    Signals: SIGINT, SIGTERM and SIGHUP are held back while the body writes (a library stopped
+    inside a C call may leave its file or its state broken) and acted on once the file is in
+    place or abandoned. ``interruptible`` writers (pure Python, or a child process they stop
+    themselves, like a long video encode) are stopped at once instead; the rename is held back
+    either way.
     """
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
@@ -136,15 +156,18 @@ def atomic_output(path, expected_bytes=0):
     os.close(fd)
     # mkstemp makes the file private (0600); give it the permissions a plain open() would.
     os.chmod(tmp, 0o666 & ~_umask())
-    with held_signals() as pending:
+    with (contextlib.nullcontext([]) if interruptible else held_signals()) as pending:
         try:
             yield tmp
             if pending:  # stopped while writing: abandon the file, keep the old one
                 raise Interrupted(pending[0])
-            with open(tmp, "rb+") as handle:
-                os.fsync(handle.fileno())
-            os.replace(tmp, path)
-            WRITTEN.append(path)
+            stop_if_received()
+            with held_signals() as renaming:
+                with open(tmp, "rb+") as handle:
+                    os.fsync(handle.fileno())
+                os.replace(tmp, path)
+                WRITTEN.append(path)
+            pending += renaming
         except BaseException as error:
             with contextlib.suppress(FileNotFoundError):
                 os.remove(tmp)

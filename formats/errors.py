@@ -28,6 +28,32 @@ def all_finite(array):
     return bool(np.isfinite(array).all())  # the sum overflowed, or a value is NaN or inf: look
 
 
+#: skinsynth writes float32 (largest value 3.4e38) and squares distances on the way (float64 sums
+#: of squares overflow from 1e154): no input coordinate may reach 1e18, far beyond any real unit,
+#: so no result is ever inf and no fit fails to converge on overflowing sums.
+MAX_COORDINATE = 1e18
+
+
+def require_coordinates(path, points, item="point"):
+    """FormatError naming ``path``, the frame and the ``item`` unless every coordinate of
+    ``points (F, N, 3)`` is finite and below :data:`MAX_COORDINATE` in magnitude."""
+    import numpy as np
+
+    points = np.asarray(points)
+    peak = np.abs(points).max(axis=(1, 2)) if points.size else np.zeros(0)
+    if (peak < MAX_COORDINATE).all():  # NaN compares false: caught here too
+        return
+    frame = int(np.argmin(peak < MAX_COORDINATE))
+    magnitude = np.abs(points[frame]).max(axis=1)
+    index = int(np.argmin(magnitude < MAX_COORDINATE))
+    value = magnitude[index]
+    if not np.isfinite(value) or not np.isfinite(points[frame, index]).all():
+        raise FormatError(path, f"non-finite coordinates (NaN or inf) at frame {frame}, {item} {index}")
+    raise FormatError(path, f"coordinate {value:.3g} at frame {frame}, {item} {index}: coordinates must stay below "
+                            f"{MAX_COORDINATE:.0e} in magnitude (skinsynth squares them and writes float32); "
+                            "rescale the input")
+
+
 def require_finite(path, what, array):
     """FormatError naming ``path`` and ``what`` unless ``array`` is finite: a result that went out
     of range is never written."""

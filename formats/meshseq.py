@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from skinsynth.formats.errors import FormatError, declared_size_problem, require_finite
+from skinsynth.formats.errors import FormatError, declared_size_problem, require_coordinates, require_finite
 from skinsynth.formats.scene import Scene
 
 FRAME_EXTENSIONS = (".obj", ".ply", ".off")
@@ -96,9 +96,7 @@ def sequence_from_arrays(source, vertices, faces, fps=None) -> MeshSequence:
     if count == 0:
         raise FormatError(source, "the mesh has no vertices")
     vertices = vertices.astype(np.float64, copy=False)
-    finite = np.isfinite(vertices).all(axis=(1, 2))
-    if not finite.all():
-        raise FormatError(source, f"non-finite vertex coordinates (NaN or inf) in frame {int(np.argmin(finite))}")
+    require_coordinates(source, vertices, "vertex")
     if faces.ndim != 2 or faces.shape[1] != 3:
         raise FormatError(source, f"faces must have shape (triangles, 3), got {faces.shape}")
     if len(faces) == 0:
@@ -187,8 +185,7 @@ def _read_frame(path):
         raise FormatError(path, "the mesh has no vertices")
     if len(faces) == 0:
         raise FormatError(path, "the mesh has no faces")
-    if not np.isfinite(vertices).all():
-        raise FormatError(path, "non-finite vertex coordinates (NaN or inf)")
+    require_coordinates(path, np.asarray(vertices)[None], "vertex")
     return vertices, faces
 
 
@@ -265,16 +262,26 @@ def _read_h5(path) -> MeshSequence:
             found = {name: data[name] for name in ("vertices", "faces", "fps")
                      if isinstance(data.get(name), h5py.Dataset)}
             for name, item in found.items():
-                problem = declared_size_problem(f"'{name}'", item.size * item.dtype.itemsize,
-                                                item.id.get_storage_size())
-                if problem:
-                    raise FormatError(path, problem)
+                _check_stored(path, f"'{name}'", item)
             arrays = {name: item[()] for name, item in found.items()}
             if "fps" not in arrays and "fps" in data.attrs:
                 arrays["fps"] = data.attrs["fps"]
     except OSError as error:
         raise FormatError(path, f"cannot read as HDF5: {error}") from None
     return _from_named_arrays(path, arrays)
+
+
+def _check_stored(path, what, dataset):
+    """FormatError unless the file (or a virtual dataset's sources) holds ``dataset``'s data:
+    HDF5 reads what is missing as fill values, and a small file must not declare gigabytes."""
+    from .hdf5_storage import DeclaredTooLarge, held_bytes
+
+    try:
+        problem = declared_size_problem(what, dataset.size * dataset.dtype.itemsize, held_bytes(dataset))
+    except DeclaredTooLarge as error:
+        problem = str(error)
+    if problem:
+        raise FormatError(path, problem)
 
 
 def _from_named_arrays(path, arrays) -> MeshSequence:
@@ -333,9 +340,7 @@ def read_played_characters(path):
                 raise FormatError(path, "no 'vertices' array of shape (F, V, 3) or (C, F, V, 3)")
             if not isinstance(faces, h5py.Dataset):
                 raise FormatError(path, "no 'faces' array")
-            problem = declared_size_problem("'vertices'", item.size * item.dtype.itemsize, item.id.get_storage_size())
-            if problem:
-                raise FormatError(path, problem)
+            _check_stored(path, "'vertices'", item)
             vertices = np.asarray(item[()], dtype=np.float64)
             faces = faces[()]
             fps = data.attrs.get("fps", None)

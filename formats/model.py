@@ -23,6 +23,7 @@ import numpy as np
 
 from .atomic import atomic_output
 from .errors import FormatError, declared_size_problem, require_finite
+from .hdf5_storage import DeclaredTooLarge, held_bytes
 
 FORMAT_NAME = "skinsynth"
 FORMAT_VERSION = 1
@@ -156,17 +157,13 @@ def write_model(path, stage, groups, provenance, tool_version):
                 _write_group(f.create_group(name, track_order=True), contents)
 
 
-class DeclaredTooLarge(ValueError):
-    """A dataset declares far more data than its file holds."""
-
-
 def _read_group(group):
     out = {f"@{k}": (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
     for name, item in group.items():
         if isinstance(item, h5py.Dataset):
             # Sizes are checked against what the file holds before anything is allocated: a
             # small file must not make a reader ask for gigabytes (unwritten chunks read as fill).
-            held = virtual_storage(item) if item.is_virtual else item.id.get_storage_size()
+            held = held_bytes(item)
             problem = declared_size_problem(item.name, item.size * item.dtype.itemsize, held)
             if problem:
                 raise DeclaredTooLarge(problem)
@@ -174,37 +171,6 @@ def _read_group(group):
         elif isinstance(item, h5py.Group):
             out[name] = _read_group(item)
     return out
-
-
-#: A source file that names its key (a cluster run's shard: ``batch_NNNNNN_<first 16 hex of its key>.h5``).
-_KEYED_SOURCE = re.compile(r"batch_\d+_([0-9a-f]{16})\.h5$")
-
-
-def virtual_storage(dataset):
-    """Bytes the files a virtual dataset maps hold for it; DeclaredTooLarge naming the first
-    one that is missing or lacks its dataset (HDF5 would read it as fill values, silently), or
-    that is not the file the output mapped: a shard must carry the key its name gives (another
-    run's shard planted under its name would be read as this run's animations)."""
-    folder = os.path.dirname(os.path.abspath(dataset.file.filename))
-    held, seen = 0, set()
-    for mapping in dataset.virtual_sources():
-        key = (mapping.file_name, mapping.dset_name)
-        if key in seen:
-            continue
-        seen.add(key)
-        source = os.path.join(folder, mapping.file_name)
-        try:
-            with h5py.File(source, "r") as f:
-                held += f[mapping.dset_name].id.get_storage_size()
-                named = _KEYED_SOURCE.search(mapping.file_name)
-                carried = f.attrs.get("key", "")
-        except (OSError, KeyError):
-            raise DeclaredTooLarge(f"{dataset.name} maps {mapping.file_name} (a shard of the run), which is missing or "
-                                   f"unreadable: keep the shard folder beside the file") from None
-        if named and not str(carried.decode() if isinstance(carried, bytes) else carried).startswith(named.group(1)):
-            raise DeclaredTooLarge(f"{dataset.name} maps {mapping.file_name}, which holds another run's batch (its key "
-                                   "is not the one its name gives): rerun the command to make this run's shard")
-    return held
 
 
 def read_header(path):
@@ -287,8 +253,7 @@ def content_digests(path, block_bytes=64 << 20):
         for key, value in sorted(item.attrs.items()):
             digests[f"{name}@{key}"] = hashlib.sha256(repr(value).encode()).hexdigest()
         if isinstance(item, h5py.Dataset):
-            if item.is_virtual:
-                virtual_storage(item)  # a missing shard would read as fill values
+            held_bytes(item)  # a virtual dataset's missing source would read as fill values
             digest = hashlib.sha256(f"{item.dtype.str} {item.shape}".encode())
             if item.shape and item.dtype.kind != "O":
                 step = max(1, block_bytes // max(1, item.dtype.itemsize * int(np.prod(item.shape[1:]))))

@@ -32,7 +32,7 @@ import os
 import shutil
 import tempfile
 
-from .atomic import WRITTEN, Interrupted, _out_of_space, _sweep_stale, _umask, held_signals
+from .atomic import WRITTEN, Interrupted, _out_of_space, _sweep_stale, _umask, held_signals, stop_if_received
 from .errors import FormatError
 from .provenance import file_sha256
 
@@ -270,6 +270,7 @@ def atomic_folder(path, inputs=(), outputs=()):
     mark = len(WRITTEN)
     try:
         yield tmp
+        stop_if_received()
         write_manifest(tmp)
         unowned = unowned_entries(target) if os.path.isdir(target) else []  # changed while this command worked
         if unowned:

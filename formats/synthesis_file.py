@@ -25,7 +25,8 @@ import json
 import h5py
 import numpy as np
 
-from .model import CopyFrom, DeclaredTooLarge, Uncompressed, VirtualRows, virtual_storage
+from .hdf5_storage import DeclaredTooLarge, held_bytes
+from .model import CopyFrom, Uncompressed, VirtualRows
 from .errors import FormatError
 from .synthesis_shards import MOTIONS
 
@@ -77,8 +78,7 @@ def open_motions(path):
         motions = f["synthesis"][MOTIONS[0]], f["synthesis"][MOTIONS[1]]
         try:
             for dataset in motions:
-                if dataset.is_virtual:
-                    virtual_storage(dataset)
+                held_bytes(dataset)
         except DeclaredTooLarge as exc:
             raise FormatError(path, f"damaged model file: {exc}") from None
         yield motions

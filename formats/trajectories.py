@@ -11,12 +11,7 @@ import os
 
 import numpy as np
 
-from .errors import FormatError
-
-#: play skins and writes float32 (largest value 3.4e38) and squares distances on the way: no
-#: coordinate may reach 1e18, far beyond any real unit, so a result is never inf.
-MAX_COORDINATE = 1e18
-
+from .errors import FormatError, require_coordinates
 
 def _check(path, controls, count):
     if controls.ndim != 3 or controls.shape[2] != 3:
@@ -25,16 +20,7 @@ def _check(path, controls, count):
         raise FormatError(path, "no frames")
     if controls.shape[1] != count:
         raise FormatError(path, f"{controls.shape[1]} control points per frame, but the puppet has {count}")
-    bad = ~np.isfinite(controls)
-    if bad.any():
-        frame, point, _ = np.argwhere(bad)[0]
-        raise FormatError(path, f"non-finite position (NaN or inf) at frame {frame}, point {point}")
-    far = np.abs(controls) >= MAX_COORDINATE
-    if far.any():
-        frame, point, _ = np.argwhere(far)[0]
-        raise FormatError(path, f"position {np.abs(controls[frame, point]).max():.3g} away at frame {frame}, point "
-                                f"{point}: coordinates must stay below {MAX_COORDINATE:.0e} (the kernels compute in "
-                                "float32)")
+    require_coordinates(path, controls)
     return controls
 
 

@@ -6,8 +6,11 @@ Skinning convention of skinsynth (column vectors): for vertex i with influences 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
+import sys
+import tempfile
 
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
@@ -439,7 +442,11 @@ def read_scene(path, prim=None):
     stage = _open(path)
     mesh = _find_mesh(path, stage, prim)
     times = mesh.GetPointsAttr().GetTimeSamples()
-    return Scene(meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)),
+    meters_per_unit = float(UsdGeom.GetStageMetersPerUnit(stage))
+    if not (np.isfinite(meters_per_unit) and meters_per_unit > 0.0):
+        raise FormatError(path, f"metersPerUnit is {meters_per_unit:g}: it must be a positive number of metres "
+                                "(the stage says so; fix it in the file)")
+    return Scene(meters_per_unit=meters_per_unit,
                  up_axis="Z" if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z else "Y",
                  start_frame=float(times[0]) if times else 0.0, prim_path=str(mesh.GetPath()))
 
@@ -501,12 +508,45 @@ def _open(path):
     if not os.path.isfile(path):
         raise FormatError(path, "no such file")
     try:
-        stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
+        with _native_stderr_filtered():
+            stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
     except Exception as error:  # pxr.Tf.ErrorException
         raise FormatError(path, f"cannot open as USD: {_usd_reason(error)}") from None
     if stage is None:
         raise FormatError(path, "cannot open as USD")
     return stage
+
+
+#: What USD's C++ prints straight to the process's stderr while mapping a damaged crate file
+#: (advice to the kernel that failed: the read that follows fails or succeeds on its own).
+_NATIVE_NOISE = re.compile(rb"^failed call to posix_madvise\(.*$\n?", flags=re.MULTILINE)
+
+
+@contextlib.contextmanager
+def _native_stderr_filtered():
+    """Run the body with file descriptor 2 sent to a temporary file, then pass on what it wrote
+    except :data:`_NATIVE_NOISE`: USD's C++ writes there directly, past Python's sys.stderr, and a
+    user error must stay one line."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no stderr to protect
+        yield
+        return
+    with tempfile.TemporaryFile() as captured:
+        os.dup2(captured.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            captured.seek(0)
+            rest = _NATIVE_NOISE.sub(b"", captured.read())
+            if rest:
+                try:
+                    os.write(2, rest)
+                except OSError:
+                    pass
 
 
 def _stage_bytes(stage):
