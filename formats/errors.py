@@ -12,6 +12,9 @@ class FormatError(Exception):
         self.problem = problem
         super().__init__(f"{self.path}: {problem}")
 
+    def __reduce__(self):  # pickled by a cluster worker to the client: rebuilt from its two parts
+        return type(self), (self.path, self.problem)
+
 
 def all_finite(array):
     """Whether a numeric array holds no NaN or inf: one float64 sum first (NaN and inf propagate

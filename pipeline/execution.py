@@ -183,6 +183,18 @@ def _signals_blocked():
 # --- Dask -------------------------------------------------------------------------------------
 
 
+def dask_setup(worker):
+    """Run by each worker process of a ``local:N`` cluster as it starts (this module is its
+    preload): ignore SIGINT there. The workers share the terminal's process group, so a Ctrl-C
+    reached every one of them, and each printed its event loop's KeyboardInterrupt traceback
+    (about 60 lines) before the command's one line; the command closes its workers itself."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 class StoredRows:
     """Rows of one output that stay where the workers stored them: ``pieces`` [(handle, count)]
     one per batch, ``rows`` (N,) indices into the pieces' rows laid end to end (a selection:
@@ -244,6 +256,7 @@ class Cluster:
     def __init__(self, address, preload=(), connect_timeout=CONNECT_TIMEOUT, worker_timeout=WORKER_TIMEOUT):
         import logging
 
+        import dask
         from distributed import Client, LocalCluster
 
         from .errors import OptionError
@@ -261,6 +274,7 @@ class Cluster:
             try:
                 self._local = LocalCluster(n_workers=int(count), threads_per_worker=1, processes=True,
                                            silence_logs=logging.ERROR,
+                                           preload=list(dask.config.get("distributed.worker.preload", [])) + [__name__],
                                            dashboard_address=":0")  # a free port: 8787 may be another's
             except (RuntimeError, OSError, TimeoutError) as error:  # e.g. a worker process that cannot start
                 raise OptionError(f"--cluster {address}: the local cluster did not start ({error})") from None
@@ -397,14 +411,33 @@ class Remote:
         return self._shipped[1]
 
 
+class BatchFailed:
+    """What a worker returns instead of raising: the exception its batch raised (with the
+    worker's traceback as a note), raised again by the client. A task that raises is logged by
+    every Dask worker as "Compute Failed" with its traceback, on the stderr the command shares
+    with its local workers: a full disk would be seven lines instead of one."""
+
+    def __init__(self, error):
+        import traceback
+
+        self.error = error
+        try:
+            error.add_note("on the worker:\n" + "".join(traceback.format_exception(error)))
+        except AttributeError:  # Python < 3.11
+            pass
+
+
 def _stored_batch(make, store, count_outputs, args, batch, count):
     """Worker: make one batch with one BLAS thread (as every other path), store it, return
-    (handle, the rest of its outcome)."""
+    (handle, the rest of its outcome), or :class:`BatchFailed`."""
     from threadpoolctl import threadpool_limits
 
-    with threadpool_limits(limits=1, user_api="blas"), _roomy_allocator():
-        outcome = make(*args, batch, count)
-        return store(batch, count, outcome), outcome[count_outputs:]
+    try:
+        with threadpool_limits(limits=1, user_api="blas"), _roomy_allocator():
+            outcome = make(*args, batch, count)
+            return store(batch, count, outcome), outcome[count_outputs:]
+    except Exception as error:
+        return BatchFailed(error)
 
 
 @contextlib.contextmanager
@@ -461,11 +494,14 @@ def _run_remote(make, args, batches, output_shapes, progress, remote):
             for future in as_completed(list(pending)):
                 i = pending[future]
                 try:
-                    handles[i], rests[i] = future.result()
+                    result = future.result()
                 except (KilledWorker, CancelledError) as error:
                     raise OptionError(f"--cluster: batch {batches[i][0]} was lost ({type(error).__name__}: it ended "
                                       "every worker that ran it, or the scheduler went away); the finished batches "
                                       "are kept: run the command again to go on") from None
+                if isinstance(result, BatchFailed):
+                    raise result.error
+                handles[i], rests[i] = result
                 remote.stored[batches[i]] = (handles[i], rests[i])
                 done += batches[i][1]
                 if progress is not None:

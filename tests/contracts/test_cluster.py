@@ -345,3 +345,70 @@ def test_a_scheduler_that_never_answers_does_not_keep_the_command_from_a_signal(
         if process is not None and process.poll() is None:
             process.kill()
         listener.close()
+
+
+def _synthesize_process(graph, out, address, env=None, **kwargs):
+    import subprocess
+    import sys
+
+    command = [sys.executable, "-c", "import sys; from skinsynth.cli.main import main; sys.argv[0] = 'skinsynth'; "
+               "sys.exit(main())", "synthesize", str(graph), "-o", str(out), "-n", str(COUNT), "-m", str(FRAMES),
+               "--seed", "4", "--cluster", address, "-q"]
+    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, **(env or {})}, **kwargs)
+
+
+@pytest.mark.parametrize("fault, needles", [("deleted", ["does not exist"]), ("full", ["No space left"])])
+def test_a_shard_folder_deleted_or_full_mid_run_is_one_line(graph, tmp_path, fault, needles):
+    """Issue 27: a worker whose shard write failed was logged by Dask ("distributed.worker - ERROR -
+    Compute Failed" and its traceback) on the command's stderr: seven lines before the one line.
+    A batch's failure now travels to the client as a value and is raised there alone."""
+    out = tmp_path / "many.h5"
+    preload = os.path.join(os.path.dirname(__file__), "cluster_faults.py")
+    process = _synthesize_process(graph, out, "local:1", env={"DASK_DISTRIBUTED__WORKER__PRELOAD": json.dumps([preload]),
+                                                              "CLUSTER_FAULT": fault})
+    _, stderr = process.communicate(timeout=300)
+    lines = stderr.strip().splitlines()
+    assert process.returncode == 2 and len(lines) == 1, stderr
+    assert lines[0].startswith("skinsynth: error: ") and str(tmp_path / "many.h5.shards") in lines[0], lines[0]
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    assert not out.exists()
+
+
+def test_ctrl_c_to_a_local_clusters_process_group_is_one_line(graph, tmp_path):
+    """Issue 27: Ctrl-C reached every worker of a local:N cluster (they share the terminal's process
+    group), and each printed its event loop's KeyboardInterrupt traceback: about 60 lines before the
+    command's one. The workers now ignore SIGINT (the command closes them), and none is left."""
+    import signal
+    import time
+
+    out = tmp_path / "many.h5"
+    hold = os.path.join(os.path.dirname(__file__), "cluster_hold.py")
+    held = tmp_path / "held"
+    process = _synthesize_process(graph, out, "local:2", start_new_session=True,
+                                  env={"DASK_DISTRIBUTED__WORKER__PRELOAD": json.dumps([hold]),
+                                       "CLUSTER_HOLD_MARKER": str(held)})
+    try:
+        deadline = time.monotonic() + 120
+        while not held.exists():  # both workers started, one holding a batch: the run cannot end alone
+            assert process.poll() is None, process.communicate()[1]
+            assert time.monotonic() < deadline, "no batch held within 120 s"
+            time.sleep(0.05)
+        os.killpg(process.pid, signal.SIGINT)  # what a terminal's Ctrl-C does
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.communicate()
+    assert process.returncode == 130, stderr
+    assert stderr.strip().splitlines() == ["skinsynth: interrupted (SIGINT); no output written"], stderr
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:  # the group's processes (the workers) gone with the command
+        try:
+            os.killpg(process.pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.2)
+    else:
+        pytest.fail("worker processes outlived the command")
