@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import click
 
-from .common import Progress, check_output_path, command_line, report, summary_options, tool_version, user_errors
+from .common import Progress, check_memory, check_output_path, command_line, report, summary_options, tool_version, user_errors
 from .options import device_option, up_axis_option
 
 #: More joint steps per iteration than this is a typo, not a fit (one step costs about 5 iterations).
@@ -60,7 +60,7 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
     from skinsynth.formats.skin_file import skin_groups
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.geometry import bounding_box_diagonal
-    from skinsynth.pipeline.skin import finish_fit, fit_skin as fit, validate_fit_options
+    from skinsynth.pipeline.skin import finish_fit, fit_memory_bytes, fit_skin as fit, validate_fit_options
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[input_spec])
     if fps is not None and not 0 < fps < float("inf"):
@@ -82,6 +82,9 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
         raise OptionError(str(error)) from None
     frames, count = sequence.vertices.shape[:2]
     validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
+    check_memory(fit_memory_bytes(frames, count, bones, transform_steps),
+                 f"fit-skin --bones {bones} on {count} vertices × {frames} frames"
+                 + (f" with --transform-steps {transform_steps}" if transform_steps else ""))
     rest_frame = rest_frame % frames
     diagonal = bounding_box_diagonal(sequence.vertices[rest_frame])
     if not diagonal > 0.0:

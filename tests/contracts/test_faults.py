@@ -580,6 +580,21 @@ def test_a_preview_larger_than_memory_and_endless_transform_steps_are_refused(ch
                           1000000000), "--transform-steps 1000000000", "at most 100", folder=tmp_path)
 
 
+def test_a_fit_with_more_bones_than_memory_holds_is_refused_before_it_starts(tmp_path):
+    """Issue 27: fit-skin --bones 8000 on the 8,431-vertex horse grew past 2.5 GB with no estimate.
+    Its bone-pair sums grow as B²: 200,000 bones on a 200,000-vertex mesh would need ~20 TB."""
+    from skinsynth.pipeline.skin import fit_memory_bytes
+
+    rng = np.random.default_rng(0)
+    vertices = rng.normal(size=(2, 200_000, 3))
+    np.savez(tmp_path / "cloud.npz", vertices=vertices, faces=np.array([[0, 1, 2]]), fps=24.0)
+    assert_user_error(cli("fit-skin", tmp_path / "cloud.npz", "-o", tmp_path / "s.h5", "--bones", 200_000),
+                      "--bones 200000 on 200000 vertices × 2 frames", "GiB of memory", "ask for fewer",
+                      folder=tmp_path, keep=["cloud.npz"])
+    assert fit_memory_bytes(48, 8431, 2000) > fit_memory_bytes(48, 8431, 1000) > fit_memory_bytes(48, 8431, 100)
+    assert fit_memory_bytes(48, 8431, 8000) > 30 * 2 ** 30  # the campaign's request: over 30 GiB
+
+
 def test_synthesize_single_component_rebuilds_what_build_graph_would_store(chain, tmp_path):
     """synthesize --single-component on a two-component graph analyses the rig again as one, with
     the options the graph file records: the same animations as from build-graph --single-component."""
