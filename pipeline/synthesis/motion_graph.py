@@ -339,7 +339,7 @@ def overlap(a, b):
     return float(np.mean(a == b)) if a.size else 1.0
 
 
-def diversity_filter(sources, min_difference, block_elements=1 << 24):
+def diversity_filter(sources, min_difference, block_elements=1 << 24, kept_before=0):
     """Greedy diversity filter -> keep mask (N,) bool.
 
     sources (N, M). Walks are visited in order; walk n is kept unless its :func:`overlap` with an
@@ -347,6 +347,8 @@ def diversity_filter(sources, min_difference, block_elements=1 << 24):
     ``1`` keeps only walks that never show the same frame at the same time as a kept one).
     Pairwise equality counts are computed in blocks of rows against all kept rows (about
     ``block_elements`` comparisons per block), then resolved greedily inside the block.
+    ``kept_before``: the first rows are known to be kept already (an earlier call's result): they
+    are not compared with one another again.
     """
     sources = np.asarray(sources)
     if sources.ndim != 2:
@@ -359,8 +361,9 @@ def diversity_filter(sources, min_difference, block_elements=1 << 24):
         return keep
     # overlap > 1 − d  ⇔  equal count > (1 − d) M; compare integers to avoid round-off
     limit = (1.0 - min_difference) * m
-    kept_rows = np.zeros((0, m), sources.dtype)
-    start = 0
+    kept_rows = sources[:kept_before]
+    keep[:kept_before] = True
+    start = kept_before
     while start < n:
         block = max(1, min(n - start, block_elements // max(1, (kept_rows.shape[0] + 64) * m)))
         rows = sources[start:start + block]

@@ -196,7 +196,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
         if rounds > MAX_ROUNDS:
             raise OptionError(f"could not make {count} acceptable animations in {MAX_ROUNDS} rounds "
                               f"({rejected}); relax --min-difference or the obstacles")
-        tries = need if rounds == 1 else 2 * need
+        tries = need if rounds == 1 else _replacements(need, rounds - 1, count)
         sources = np.stack([_walks(g, request, tries, rng) for g in graphs])  # (C, tries, M)
         parts = [splice_local(c, rotations, translations, sources[k], window=request.window, dtype=np.float32,
                               reference_motion=k not in carried, spread_velocity=request.spread_velocity,
@@ -264,6 +264,55 @@ def _run_batches(args, batches, jobs, progress, done_before, remote):
     return [F, t, sources, choice, rejected]
 
 
+def _replacements(need, round_, count):
+    """Animations a replacement round makes for ``need`` dropped ones: twice as many each round
+    (``need`` · 2^round, at most 4 × ``count``), the first kept ones taken. Near the clip's
+    variety most fresh walks repeat a kept one, so asking for ``need`` alone found the last few in
+    no reasonable number of rounds (the test bar, 100 frames at 0.03: 500 asked failed after 20
+    rounds although 1,975 such animations exist)."""
+    return max(need, min(need << round_, 4 * count))
+
+
+def _out_of_reach(found, need, round_, capped):
+    """Whether the rounds left cannot make up ``need``: once a round draws its most (``capped``),
+    each later round draws as many and finds no more than this one's ``found`` (fresh walks
+    repeat kept ones ever more often), so fewer than ``need`` over the rounds left is final."""
+    return capped and found * (MAX_ROUNDS - 1 - round_) < need
+
+
+def check_diversity_reachable(graphs, request):
+    """OptionError, before any animation is made, when ``request.min_difference`` cannot be met:
+    the clip's own variety bounds how many walks differ that much from one another.
+
+    The check plays the request's rounds on walks alone (no splicing, so it costs a small part
+    of the run): ``count`` walks per component (paired by index into animations), filtered as
+    :func:`synthesize` filters, then twice what a replacement round of the run draws
+    (:func:`_replacements`), up to :data:`MAX_ROUNDS` rounds. Its walks come from their own random stream, so it is an estimate of what the run
+    meets: the run's own rounds stay the judge (and still fail, late, in the rare case the
+    estimate passed and they do not). It stops early once the rounds left cannot make up the
+    shortfall (:func:`_out_of_reach`)."""
+    if request.min_difference <= 0.0:
+        return
+    rng = np.random.default_rng([request.seed, 0x6469766572])  # "diver": apart from every batch's stream
+    small = max(g.frames for g in graphs) < np.iinfo(np.int16).max  # int16: a quarter of the comparisons' bytes
+    kept = np.zeros((0, len(graphs) * request.frames), dtype=np.int16 if small else np.int64)
+    need = request.count
+    for round_ in range(MAX_ROUNDS):
+        tries = need if round_ == 0 else 2 * _replacements(need, round_, request.count)  # as generous as the run
+        walks = np.stack([_walks(g, request, tries, rng) for g in graphs])  # (C, tries, M)
+        joint = np.concatenate([kept, walks.transpose(1, 0, 2).reshape(tries, -1).astype(kept.dtype)])
+        before = kept.shape[0]
+        kept = joint[diversity_filter(joint, request.min_difference, kept_before=before)]
+        need = request.count - kept.shape[0]
+        if need <= 0:
+            return
+        if _out_of_reach(kept.shape[0] - before, need, round_, tries >= 8 * request.count):
+            break
+    raise OptionError(f"--min-difference {request.min_difference:g}: the clip's walks give about {kept.shape[0]} "
+                      f"animations of {request.frames} frames that differ this much, not the {request.count} asked "
+                      f"(found in {round_ + 1} rounds of walks, before making any); lower it or ask for fewer")
+
+
 def synthesize(components, rotations, translations, rest, bone_indices, bone_weights, request, jobs=1, progress=None,
                remote=None):
     """Make ``request.count`` animations. components: list of ComponentAnalysis. Returns Synthesis.
@@ -278,26 +327,40 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     the number of animations finished after each batch."""
     validate_request(request, rotations.shape[0])
     graphs = motion_graphs(components, request.forbidden)
+    check_diversity_reachable(graphs, request)
     args = (components, graphs, rotations, translations, rest, bone_indices, bone_weights, request)
     results, next_batch, need = [], 0, request.count
-    for _ in range(MAX_ROUNDS):
-        batches = [(next_batch + b, min(BATCH, need - b * BATCH)) for b in range(-(-need // BATCH))]
+    for round_ in range(MAX_ROUNDS):
+        ask = need if round_ == 0 else _replacements(need, round_, request.count)
+        batches = [(next_batch + b, min(BATCH, ask - b * BATCH)) for b in range(-(-ask // BATCH))]
         next_batch += len(batches)
-        results.append(_run_batches(args, batches, jobs, progress, request.count - need, remote))
+        done = request.count - need
+        results.append(_run_batches(args, batches, jobs,
+                                    None if progress is None else (lambda rows: progress(min(request.count, rows))),
+                                    done, remote))
         if request.min_difference <= 0.0:
             break
         joint = np.concatenate([r[2] for r in results], axis=1)
         joint = joint.transpose(1, 0, 2).reshape(joint.shape[1], -1)
-        keep = diversity_filter(joint, request.min_difference)
-        need = int((~keep).sum())
-        if need == 0:
-            break
-        results[0][4]["too_similar"] += need
+        keep = diversity_filter(joint, request.min_difference, kept_before=done)
+        results[0][4]["too_similar"] += int((~keep).sum())
+        surplus = int(keep.sum()) - request.count
+        if surplus > 0:  # the last round's extra animations: the first kept ones are taken
+            keep[np.flatnonzero(keep)[-surplus:]] = False
+        found = int(keep[done:].sum())
+        need = request.count - int(keep.sum())
         offset = 0
-        for r in results:  # drop the repeats batch by batch
+        for r in results:  # drop the repeats (and the surplus) batch by batch
             mine = keep[offset:offset + r[0].shape[0]]
             offset += r[0].shape[0]
-            r[0:4] = [r[0][mine], r[1][mine], r[2][:, mine], r[3][mine]]
+            if not mine.all():
+                r[0:4] = [r[0][mine], r[1][mine], r[2][:, mine], r[3][mine]]
+        if need == 0:
+            break
+        if _out_of_reach(found, need, round_, ask >= 4 * request.count):
+            raise OptionError(f"could not make {request.count} animations that differ by --min-difference "
+                              f"{request.min_difference}: {round_ + 1} rounds made {request.count - need}, and the "
+                              f"last found only {found} new ones; lower it")
     else:
         raise OptionError(f"could not make {request.count} animations that differ by --min-difference "
                           f"{request.min_difference} in {MAX_ROUNDS} rounds; lower it")

@@ -182,6 +182,32 @@ def test_inspect_summarises_a_synthesis_file(files, tmp_path):
     assert summary["distinct"] >= 1 and "transitions_used" in summary
 
 
+def _overlaps(sources):
+    """Pairwise share of equal entries of the joint walks (C, N, M) -> (N, N)."""
+    joint = sources.transpose(1, 0, 2).reshape(sources.shape[1], -1)
+    return (joint[:, None, :] == joint[None, :, :]).mean(axis=2)
+
+
+def test_a_diversity_request_near_the_clips_variety_is_met(files, tmp_path):
+    """Issue 27: rounds that asked only for the animations dropped found the last few rarely (the
+    fresh walks repeat kept ones) and failed after all their work, though the clip had enough
+    variety. Rounds now ask for twice as many each time; every pair differs as asked."""
+    done = assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 150, "-m", 40,
+                         "--min-difference", 0.2, "--json"))  # failed after 20 rounds before
+    assert json.loads(done.stdout)["rejected"]["too_similar"] > 150  # replacement rounds ran
+    overlaps = _overlaps(bones(tmp_path / "b.h5")[2])
+    assert overlaps.shape == (150, 150)
+    assert (overlaps[~np.eye(150, dtype=bool)] <= 0.8 + 1e-12).all()
+
+
+def test_a_diversity_request_beyond_the_clips_variety_is_refused_before_any_work(files, tmp_path):
+    """Issue 27: such a request failed after all its work ("could not make 250 acceptable
+    animations in 20 rounds … too_similar 4793"); it is now refused from the walks alone."""
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2000, "-m", 40,
+                          "--min-difference", 0.1), "--min-difference 0.1", "not the 2000 asked",
+                      "before making any", folder=tmp_path)
+
+
 def test_result_does_not_depend_on_jobs(files, tmp_path, monkeypatch):
     for name, jobs in (("one.h5", 1), ("two.h5", 2)):
         assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / name, "-n", 260, "-m", 60, "--seed", 9,

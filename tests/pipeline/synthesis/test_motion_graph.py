@@ -232,6 +232,19 @@ def test_diversity_filter_matches_brute_force(min_difference):
         np.testing.assert_array_equal(diversity_filter(sources, min_difference, block_elements), expected)
 
 
+@pytest.mark.parametrize("min_difference", [0.3, 0.5])
+def test_diversity_filter_resumes_from_rows_already_kept(min_difference):
+    """kept_before=K (the first K rows a kept set): the same mask as filtering everything again."""
+    rng = np.random.default_rng(12)
+    base = rng.integers(0, 3, size=(6, 40))
+    sources = np.where(rng.random((300, 40)) < 0.3, rng.integers(0, 3, size=(300, 40)),
+                       base[rng.integers(0, 6, size=300)])
+    first = sources[:150][diversity_filter(sources[:150], min_difference)]
+    joint = np.concatenate([first, sources[150:]])
+    np.testing.assert_array_equal(diversity_filter(joint, min_difference, kept_before=len(first)),
+                                  diversity_filter(joint, min_difference))
+
+
 def test_seams_lists_transitions_used():
     k, pairs = seams([3, 4, 5, 10, 11, 2, 3])
     assert k.tolist() == [3, 5]
