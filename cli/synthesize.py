@@ -103,7 +103,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.formats.synthesis_file import synthesis_groups
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.synthesis import (GraphOptions, Request, avoid_obstacles, default_min_segment,
+    from skinsynth.pipeline.synthesis import (BATCH_REVISION, GraphOptions, Request, avoid_obstacles, default_min_segment,
                                               synthesis_components, validate_request)
 
     if cluster is not None and not cluster.strip():
@@ -160,7 +160,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           blend=blend, alignment=alignment, up_axis=up_axis)
         record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(),
                                    seed)
-        shards = run_shards(output, record, frames, skin.rotations.shape[1]) if cluster else None
+        shards = run_shards(output, record, frames, skin.rotations.shape[1], BATCH_REVISION) if cluster else None
 
         started = time.perf_counter()
         result, remote, on_cluster = _make(components, skin, request, jobs, joined if cluster else None, shards,

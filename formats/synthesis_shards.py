@@ -41,11 +41,13 @@ def shard_folder(output):
     return os.path.abspath(output) + ".shards"
 
 
-def shard_record(inputs, parameters, tool_version):
+def shard_record(inputs, parameters, tool_version, batch_revision=0):
     """What every batch of a run depends on (batch id and size are added per shard):
-    ``inputs`` [{path, sha256}], ``parameters`` (the options that change animations)."""
+    ``inputs`` [{path, sha256}], ``parameters`` (the options that change animations), the tool's
+    version and ``batch_revision``, the revision of the code that makes a batch (a change of
+    code between versions never reuses shards the older code made)."""
     return {"inputs": [item["sha256"] for item in inputs], "parameters": parameters, "tool_version": tool_version,
-            "shard_version": SHARD_VERSION}
+            "shard_version": SHARD_VERSION, "batch_revision": int(batch_revision)}
 
 
 def _key(record, batch, count):
@@ -129,7 +131,7 @@ def check_shard_folder(folder):
         raise FormatError(folder, "the shard folder is not writable")
 
 
-def run_shards(output, record, frames, bones):
+def run_shards(output, record, frames, bones, batch_revision=0):
     """{folder, stored, store} of a ``synthesize --cluster`` run writing ``output``: the shard
     folder, the shards an earlier run finished with the same record (``record``: the output's
     provenance record; what a batch depends on is kept, not the total count or the obstacles'
@@ -137,7 +139,7 @@ def run_shards(output, record, frames, bones):
     folder = shard_folder(output)
     # what a batch's animations depend on: not the total count or the obstacles' paths (their bytes count)
     parameters = {k: v for k, v in record["parameters"].items() if k not in ("count", "obstacles")}
-    shard = shard_record(record["inputs"], parameters, record["tool_version"])
+    shard = shard_record(record["inputs"], parameters, record["tool_version"], batch_revision)
     return {"folder": folder, "stored": stored_shards(folder, shard, frames, bones),
             "store": functools.partial(write_synthesis_shard, folder, shard)}
 

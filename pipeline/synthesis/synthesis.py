@@ -30,6 +30,10 @@ from .transitions import Transitions, bone_centroids
 
 BATCH = 250
 MAX_ROUNDS = 20
+#: The revision of :func:`make_batch`'s output for given inputs: raised whenever a change of code
+#: changes it, so a cluster run never reuses a shard older code made (the shard key holds it).
+#: 2: replacement rounds ask for twice as many animations each round (:func:`_replacements`).
+BATCH_REVISION = 2
 
 
 def component_from_file(data, rest):

@@ -271,6 +271,9 @@ def test_a_stored_shard_holding_nan_is_computed_again_not_reused(tmp_path):
     t[1, 2, 0, 1] = np.nan
     write_synthesis_shard(str(tmp_path), record, 1, count, [F, t, *rest])
     assert list(stored_shards(str(tmp_path), record, frames, bones)) == [(0, count)]
+    # made by another revision of the batch code: never reused, whatever the version says
+    newer = shard_record([{"sha256": "0" * 64}], {"seed": 0}, "test", batch_revision=1)
+    assert list(stored_shards(str(tmp_path), newer, frames, bones)) == []
 
 
 def test_another_runs_shard_under_this_runs_name_is_refused_by_every_reader(graph, scheduler, tmp_path):
