@@ -182,7 +182,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     if remote is not None:
         from skinsynth.formats.synthesis_shards import remove_unused_shards
 
-        remove_unused_shards(shards["folder"], {handle for handle, _ in result.F.pieces})
+        if remove_unused_shards(shards["folder"], {handle for handle, _ in result.F.pieces}) is None:
+            lines.append("the old output's shards are kept: something still reads it (the next run removes them)")
         summary["cluster"] = {"address": cluster, "workers": workers, "tasks": remote.tasks,
                               "reused_batches": remote.reused, "retries": remote.retries,
                               "dashboard": on_cluster.dashboard, "shards": shards["folder"]}

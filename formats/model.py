@@ -24,6 +24,7 @@ import numpy as np
 from .atomic import atomic_output
 from .errors import FormatError, declared_size_problem, require_finite
 from .hdf5_storage import DeclaredTooLarge, held_bytes
+from .synthesis_shards import reading_output
 
 FORMAT_NAME = "skinsynth"
 FORMAT_VERSION = 1
@@ -212,7 +213,7 @@ def read_model(path, stages=None, groups=None):
         raise FormatError(path, f"is a '{stage}' file (from {made}); this command needs {wanted}")
     model = {"stage": stage, "format_version": version, "provenance": []}
     try:
-        with h5py.File(path, "r") as f:
+        with reading_output(path), h5py.File(path, "r") as f:
             for _, g in f.get("provenance", {}).items():
                 record = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
                 record["parameters"] = json.loads(record.get("parameters", "{}"))
@@ -265,7 +266,7 @@ def content_digests(path, block_bytes=64 << 20):
             digests[name] = digest.hexdigest()
 
     try:
-        with h5py.File(path, "r") as f:
+        with reading_output(path), h5py.File(path, "r") as f:
             f.visititems(visit)
     except DeclaredTooLarge as exc:
         raise FormatError(path, f"damaged model file: {exc}") from None

@@ -28,7 +28,7 @@ import numpy as np
 from .hdf5_storage import DeclaredTooLarge, held_bytes
 from .model import CopyFrom, Uncompressed, VirtualRows
 from .errors import FormatError
-from .synthesis_shards import MOTIONS
+from .synthesis_shards import MOTIONS, reading_output
 
 
 def _motion(rows, name, shards):
@@ -74,7 +74,7 @@ def open_motions(path):
     animation at a time (``F[a]``): a cluster run's motions need not fit in memory. The shards a
     cluster run's motions map are checked first (present, readable, this run's): FormatError
     naming the file otherwise, as every reader of the file says."""
-    with h5py.File(path, "r") as f:
+    with reading_output(path), h5py.File(path, "r") as f:
         motions = f["synthesis"][MOTIONS[0]], f["synthesis"][MOTIONS[1]]
         try:
             for dataset in motions:

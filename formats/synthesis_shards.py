@@ -28,6 +28,18 @@ import numpy as np
 from .atomic import atomic_output
 from .errors import FormatError, all_finite
 
+#: The lock a run holds on its shard folder (hidden: no reader takes it for a shard).
+LOCK = ".lock"
+#: Readers of a cluster run's output hold a shared lock on this file while they read
+#: (:func:`reading_output`); a rerun removes the shards only the old output mapped under the
+#: exclusive lock (:func:`remove_unused_shards`). HDF5 opens a virtual dataset's sources when it
+#: reads them, so a reader that opened the old output just before the new one was renamed in
+#: found its shards gone (1 read in 4 failed during a rerun).
+READERS = ".readers"
+#: How long a rerun waits for readers of the old output before it leaves the old shards to the
+#: next run (which removes every shard its output does not map).
+READERS_WAIT = 10.0
+
 SHARD_FORMAT = "skinsynth-shard"
 SHARD_VERSION = 1
 #: The outcome's large arrays, in order, as the shards and the output's /synthesis name them.
@@ -107,9 +119,35 @@ def stored_shards(folder, record, frames, bones):
     return found
 
 
-def remove_unused_shards(folder, used):
+def remove_unused_shards(folder, used, wait=None):
     """Remove the shards in ``folder`` that no output maps any more (``used``: file names);
-    other files are left alone."""
+    other files are left alone. Done under the exclusive readers' lock (:data:`READERS`): while a
+    reader still reads the old output after ``wait`` seconds (default :data:`READERS_WAIT`),
+    nothing is removed (the next run does it). Returns the number of shards removed, or None
+    when they were left."""
+    import fcntl
+    import time
+
+    handle = os.open(os.path.join(folder, READERS), os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        deadline = time.monotonic() + (READERS_WAIT if wait is None else wait)
+        while True:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    return None
+                time.sleep(0.05)
+            except OSError:  # no flock here (some network file systems): remove as before
+                break
+        return _remove_unused(folder, used)
+    finally:
+        os.close(handle)
+
+
+def _remove_unused(folder, used):
+    removed = 0
     for name in os.listdir(folder):
         if name.startswith("batch_") and name.endswith(".h5") and name not in used:
             try:
@@ -119,6 +157,8 @@ def remove_unused_shards(folder, used):
                 continue
             if ours:
                 os.remove(os.path.join(folder, name))
+                removed += 1
+    return removed
 
 
 def check_shard_folder(folder):
@@ -144,8 +184,23 @@ def run_shards(output, record, frames, bones, batch_revision=0):
             "store": functools.partial(write_synthesis_shard, folder, shard)}
 
 
-#: The lock a run holds on its shard folder (hidden: no reader takes it for a shard).
-LOCK = ".lock"
+@contextlib.contextmanager
+def reading_output(path):
+    """Hold the shared readers' lock of ``path``'s shard folder, if it has one, while the body
+    opens and reads ``path`` (a no-op for a file without shards, or where ``flock`` fails)."""
+    import fcntl
+
+    try:
+        handle = os.open(os.path.join(shard_folder(path), READERS), os.O_RDONLY)
+    except OSError:
+        yield
+        return
+    try:
+        with contextlib.suppress(OSError):
+            fcntl.flock(handle, fcntl.LOCK_SH)  # waits only while a run removes old shards
+        yield
+    finally:
+        os.close(handle)
 
 
 @contextlib.contextmanager
@@ -168,11 +223,13 @@ def kept_shard_folder(folder):
         except BlockingIOError:
             raise FormatError(folder, "another synthesize is writing this output now (its shard folder is locked): "
                                       "wait for it to end, or write another file") from None
+        os.close(os.open(os.path.join(folder, READERS), os.O_RDWR | os.O_CREAT, 0o666))  # readers lock it
         yield
     except BaseException:
         if not existed:
             with contextlib.suppress(OSError):
-                os.remove(os.path.join(folder, LOCK))
+                for name in (LOCK, READERS):
+                    os.remove(os.path.join(folder, name))
                 os.rmdir(folder)  # only when empty
         raise
     finally:
