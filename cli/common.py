@@ -191,8 +191,8 @@ def check_memory(needed, what, available=None):
     shapes) exceed the memory available (or ``available`` bytes): one line naming the sizes."""
     available = available_memory() if available is None else available
     if available is not None and needed > available:
-        raise OptionError(f"{what} needs about {needed / 2 ** 30:.1f} GiB of memory, and {available / 2 ** 30:.1f} "
-                          "GiB is available: ask for fewer")
+        raise OptionError(f"{what} needs about {_size(needed)} of memory, and {_size(available)} is available: "
+                          "ask for fewer")
 
 
 def check_disk(needed, folder, what):
@@ -202,8 +202,13 @@ def check_disk(needed, folder, what):
 
     free = shutil.disk_usage(folder).free
     if needed > free:
-        raise OptionError(f"{what} needs about {needed / 2 ** 30:.1f} GiB of disk in {folder}, and "
-                          f"{free / 2 ** 30:.1f} GiB is free: ask for fewer")
+        raise OptionError(f"{what} needs about {_size(needed)} of disk in {folder}, and {_size(free)} is free: "
+                          "ask for fewer")
+
+
+def _size(count):
+    """Bytes as people read them: GiB from one GiB up, MiB below (a 64 MB disk is not "0.0 GiB")."""
+    return f"{count / 2 ** 30:.1f} GiB" if count >= 2 ** 30 else f"{count / 2 ** 20:.1f} MiB"
 
 
 def check_not_an_input(path, inputs):

@@ -570,6 +570,8 @@ def test_the_memory_and_disk_checks_compare_the_estimate_with_what_there_is(tmp_
         check_memory(2 ** 31, "a request", available=2 ** 30)
     with pytest.raises(OptionError, match="GiB of disk in"):
         check_disk(2 ** 60, str(tmp_path), "a request")
+    with pytest.raises(OptionError, match=r"needs about 5\.0 MiB of memory, and 1\.0 MiB is available"):
+        check_memory(5 * 2 ** 20, "a request", available=2 ** 20)  # not "0.0 GiB"
 
 
 def test_a_preview_larger_than_memory_and_endless_transform_steps_are_refused(chain, tmp_path):
