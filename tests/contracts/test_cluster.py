@@ -440,3 +440,36 @@ def test_a_reader_of_the_old_output_keeps_its_shards_through_a_rerun(graph, tmp_
                                        "--cluster", "local:1", "--json")).stdout)
     assert summary["cluster"]["reused_batches"] == 3 and not set(old_shards) & set(shards_of(out))
     assert len(shards_of(out)) == 3
+
+
+def test_a_run_killed_outright_resumes_to_the_uninterrupted_datasets(graph, reference, tmp_path):
+    """Issue 27 asks that a rerun after SIGKILL equal an uninterrupted run. The command and its
+    local workers are killed at once (SIGKILL to the process group) while the first shard is
+    stored and a second batch held unstored (tests/cluster_hold.py); the rerun reuses the stored
+    shard, ignores the dead run's temporaries, and gives the reference's datasets."""
+    import signal
+    import time
+
+    out = tmp_path / "many.h5"
+    hold = os.path.join(os.path.dirname(__file__), "cluster_hold.py")
+    held = tmp_path / "held"
+    process = _synthesize_process(graph, out, "local:1", start_new_session=True,
+                                  env={"DASK_DISTRIBUTED__WORKER__PRELOAD": json.dumps([hold]),
+                                       "CLUSTER_HOLD_MARKER": str(held)})
+    try:
+        deadline = time.monotonic() + 120
+        while not held.exists():
+            assert process.poll() is None, process.communicate()[1]
+            assert time.monotonic() < deadline, "no batch held within 120 s"
+            time.sleep(0.05)
+        os.killpg(process.pid, signal.SIGKILL)
+        process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.communicate()
+    assert process.returncode == -signal.SIGKILL and not out.exists()
+    [finished] = shards_of(out)
+    summary = run_cluster(graph, out, "local:1")
+    assert summary["cluster"]["reused_batches"] == 1 and summary["cluster"]["tasks"] == 2
+    assert contents(out) == contents(reference)
