@@ -1,4 +1,6 @@
-"""``skinsynth export``: the animation a model file holds, as USD or an OpenEXR vertex-animation texture."""
+"""``skinsynth export``: any animation a file holds, as USD or an OpenEXR vertex-animation texture."""
+
+import contextlib
 
 import click
 
@@ -7,63 +9,210 @@ from .common import FolderOutputs, report, summary_options, user_errors
 from .outputs import TEXTURES, check_animation_output, check_texture_output, write_textures
 
 
+def _selection(text):
+    """``N`` or ``A:B`` (animations A to B−1, as ``preview --frames``; either end may be left out)."""
+    first, sep, last = text.partition(":")
+    try:
+        if not sep:
+            return (int(first), int(first) + 1)
+        return (int(first) if first else None, int(last) if last else None)
+    except ValueError:
+        raise click.BadParameter(f"{text!r}: expected N or A:B, e.g. 7 or 0:10") from None
+
+
 @click.command("export")
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(),
               help="Output: .usd/.usda/.usdc, .exr for a vertex-animation texture, or a folder (ending in /) for "
                    "an engine-ready one: textures, normals, the rest mesh with texel UVs (.obj/.glb), vat.json.")
-@click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
-              help="USD only: UsdSkel skeleton with joint weights (editable), or a baked time-sampled mesh.")
+@click.option("--animation", "selections", multiple=True, type=_selection, metavar="N|A:B",
+              help="Synthesis file: which animations; play .h5: which characters (repeatable; A:B is A to B−1). "
+                   "A USD file or an .exr holds one, a folder any number.  [default: all]")
+@click.option("--as", "kind", type=click.Choice(["skel", "points"]), default=None,
+              help="USD only: UsdSkel skeleton with joint weights (editable), or a baked time-sampled mesh.  "
+                   "[default: skel where the file has a skeleton (skin and synthesis files), else points]")
 @device_option("Where the skinning kernel runs: auto, cpu, cuda or cuda:N.")
 @texture_options("Textures only: store 16-bit half floats instead of 32-bit.",
                  "EXR only: texture width limit; vertices wrap to more rows.")
 @up_axis_option("USD stage up axis (default: the input's, as fit-skin recorded it).")
 @summary_options
 @user_errors
-def export(path, output, kind, device, half, max_width, up_axis, quiet, as_json):
-    """Export the animation of a model file.
+def export(path, output, selections, kind, device, half, max_width, up_axis, quiet, as_json):
+    """Export any animation a file holds.
 
-    For a skin file this is the LBS reconstruction of the example frames, at the input's units,
-    up axis, time codes and mesh prim path (as fit-skin recorded them): as UsdSkel (--as
-    skel: joints, bind/rest transforms, animation and joint weights, so animators get curves),
-    as a time-sampled mesh (--as points), or as an OpenEXR vertex-animation texture (.exr:
-    per-vertex offsets from the rest pose, one row block per frame, bounds in the header).
+    \b
+    - a skin file (and controls, puppet and graph files, which carry it): the LBS reconstruction
+      of the example frames;
+    - a synthesis file: its animations (--animation), read one at a time, so a cluster run of
+      any size exports in bounded memory;
+    - play's .h5: its characters (--animation), as point caches or textures.
+
+    At the input's units, up axis, time codes and mesh prim path (as fit-skin recorded them): as
+    UsdSkel (--as skel: joints, bind/rest transforms, animation and joint weights, so animators
+    get curves), as a time-sampled mesh (--as points), or as an OpenEXR vertex-animation texture
+    (.exr: per-vertex offsets from the rest pose, one row block per frame, bounds in the header;
+    a folder holds every animation chosen, one clip each).
 
     \b
     Examples:
       skinsynth export skin.h5 -o skin.usdc
       skinsynth export skin.h5 -o skin.usda --as points
       skinsynth export skin.h5 -o skin_vat.exr --half
+      skinsynth export bones.h5 --animation 7 -o walk_7.usdc
+      skinsynth export bones.h5 --animation 0:16 -o crowd_vat/
     """
-    from skinsynth.formats.skin_file import read_skin
-    from skinsynth.gpu import lbs, resolve_device
+    from skinsynth.gpu import resolve_device
+    from skinsynth.pipeline.errors import OptionError
 
     folders = FolderOutputs([path], [output])
     output_kind = check_animation_output(output, ("usd", "exr", "folder"), [path], folders)
     check_max_width(max_width)
     device = resolve_device(device)
-    skin = read_skin(path)
-    to_exr = output_kind in TEXTURES
-    check_texture_output(output, output_kind, skin.rest_vertices.shape[0], skin.rotations.shape[0], max_width)
-    if kind == "skel" and not to_exr:
-        from skinsynth.formats.usd import write_skel_cache
-
-        write_skel_cache(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
-                         skin.rotations, skin.translations, skin.bone_rest_frames[:, :3, 3], skin.fps,
-                         up_axis=up_axis, scene=skin.scene)
-    else:
-        frames = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
-                     skin.translations, device=device)
+    with contextlib.ExitStack() as stack:
+        source = stack.enter_context(_animations(path, device))
+        chosen = _chosen(source, selections)
+        if output_kind != "folder" and len(chosen) != 1:
+            raise OptionError(f"{output}: {len(chosen)} {source.what}s chosen, and a {output_kind.upper()} file holds "
+                              f"one: give --animation N, or a folder (-o {_stem(output)}/) for several")
+        kind = kind or ("skel" if source.has_skeleton else "points")
+        if kind == "skel" and output_kind == "usd" and not source.has_skeleton:
+            raise OptionError(f"{path}: --as skel needs a skeleton, and {source.what}s of a played file are "
+                              "vertices only: use --as points")
+        to_exr = output_kind in TEXTURES
+        check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames * len(chosen),
+                             max_width)
         if to_exr:
-            write_textures(output, output_kind, skin.rest_vertices, skin.faces, [("animation", frames)], skin.fps,
-                           skin.scene, half, max_width, folders.guard(output))
+            frames = ((source.names[a], source.vertices(a)) for a in chosen)
+            write_textures(output, output_kind, source.rest_vertices, source.faces, frames, source.fps,
+                           source.scene, half, max_width, folders.guard(output))
+        elif kind == "skel":
+            from skinsynth.formats.usd import write_skel_cache
+
+            skin = source.skin
+            rotations, translations = source.motions(chosen[0])
+            write_skel_cache(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, rotations,
+                             translations, skin.bone_rest_frames[:, :3, 3], skin.fps, up_axis=up_axis,
+                             scene=skin.scene)
         else:
             from skinsynth.formats.usd import write_points_cache
 
-            write_points_cache(output, frames, skin.faces, skin.fps, up_axis=up_axis, scene=skin.scene)
+            write_points_cache(output, source.vertices(chosen[0]), source.faces, source.fps, up_axis=up_axis,
+                               scene=source.scene)
     what = "vertex-animation texture" if to_exr else ("UsdSkel" if kind == "skel" else "point cache")
-    summary = {"output": output, "frames": int(skin.rotations.shape[0]), "vertices": int(skin.rest_vertices.shape[0]),
-               "kind": what, "joints": skin.bones if what == "UsdSkel" else None}
-    report(summary, [f"wrote {output}: {skin.rotations.shape[0]} frames, {skin.rest_vertices.shape[0]} vertices"
-                     + ("" if to_exr else f" ({'UsdSkel, ' + str(skin.bones) + ' joints' if kind == 'skel' else 'point cache'})")],
-           as_json, quiet)
+    joints = int(source.skin.rotations.shape[1]) if what == "UsdSkel" else None
+    summary = {"output": output, "frames": int(source.frames), "vertices": int(source.rest_vertices.shape[0]),
+               "kind": what, "joints": joints, "animations": [int(a) for a in chosen],
+               "names": [source.names[a] for a in chosen]}
+    detail = "" if to_exr else f" ({'UsdSkel, ' + str(joints) + ' joints' if kind == 'skel' else 'point cache'})"
+    chosen_text = "" if source.count == 1 else f" of {len(chosen)} {source.what}(s) ({_ranges(chosen)})"
+    report(summary, [f"wrote {output}: {source.frames} frames{chosen_text}, {source.rest_vertices.shape[0]} vertices"
+                     + detail], as_json, quiet)
+
+
+def _stem(path):
+    text = str(path)
+    return text[:text.rfind(".")] if "." in text else text
+
+
+def _chosen(source, selections):
+    """The animation indices ``selections`` [(first, last)] name, in the order given, each once;
+    all of them when none is given. OptionError for one out of range."""
+    from skinsynth.pipeline.errors import OptionError
+
+    if not selections:
+        return list(range(source.count))
+    chosen = []
+    for first, last in selections:
+        start = 0 if first is None else first
+        stop = source.count if last is None else last
+        if not (0 <= start < source.count and start < stop <= source.count):
+            given = f"{first}" if last == (first or 0) + 1 and first is not None else \
+                f"{'' if first is None else first}:{'' if last is None else last}"
+            raise OptionError(f"--animation {given}: {source.path} holds {source.what}s 0..{source.count - 1}")
+        chosen += [a for a in range(start, stop) if a not in chosen]
+    return chosen
+
+
+def _ranges(indices):
+    """[0, 1, 2, 7] -> "0–2, 7"."""
+    parts, start = [], None
+    for i, a in enumerate(indices):
+        if start is None:
+            start = a
+        if i + 1 == len(indices) or indices[i + 1] != a + 1:
+            parts.append(f"{start}" if start == a else f"{start}–{a}")
+            start = None
+    return ", ".join(parts)
+
+
+class _Source:
+    """What a file holds to export: ``count`` animations of ``frames`` frames named ``names``,
+    ``vertices(a)`` (frames, V, 3) of one, and where there is a skeleton (``skin``)
+    ``motions(a)``: its bone rotations (frames, B, 3, 3) and translations (frames, B, 3)."""
+
+    def __init__(self, path, what, names, frames, rest_vertices, faces, fps, scene, vertices, motions=None,
+                 skin=None):
+        self.path, self.what, self.names, self.frames = path, what, names, frames
+        self.rest_vertices, self.faces, self.fps, self.scene = rest_vertices, faces, fps, scene
+        self.vertices, self.motions, self.skin = vertices, motions, skin
+
+    @property
+    def count(self):
+        return len(self.names)
+
+    @property
+    def has_skeleton(self):
+        return self.skin is not None
+
+
+@contextlib.contextmanager
+def _animations(path, device):
+    """The :class:`_Source` of any file that holds animation (a synthesis's motions stay in the
+    file, read one animation at a time)."""
+    import numpy as np
+
+    from skinsynth.formats.errors import FormatError
+    from skinsynth.formats.model import read_header, read_model
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.gpu import lbs
+
+    try:
+        stage, _ = read_header(path)
+    except FormatError as error:
+        if "not a skinsynth model file" not in str(error):
+            raise
+        stage = None
+    if stage is None:  # play's .h5: characters of vertices
+        from skinsynth.formats.meshseq import read_played_characters
+
+        try:
+            names, vertices, faces, fps = read_played_characters(path)
+        except FormatError as error:
+            if not error.problem.startswith("no '"):
+                raise
+            raise FormatError(path, "not a skinsynth model file, nor a played animation (an HDF5 file with "
+                                    f"'vertices' and 'faces'): {error.problem}") from None
+        from skinsynth.formats.scene import Scene
+
+        yield _Source(path, "character", list(names), vertices.shape[1], vertices[0, 0], faces, fps, Scene(),
+                      vertices=lambda a: vertices[a])
+        return
+    skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
+    if stage != "synthesis":
+        yield _Source(path, "animation", ["animation"], skin.rotations.shape[0], skin.rest_vertices, skin.faces,
+                      skin.fps, skin.scene, skin=skin, motions=lambda a: (skin.rotations, skin.translations),
+                      vertices=lambda a: lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
+                                             skin.translations, device=device))
+        return
+    from skinsynth.formats.synthesis_file import open_motions
+    from skinsynth.pipeline.synthesis import SkinnedAnimations
+
+    with open_motions(path) as (F, t):
+        count, frames = F.shape[:2]
+        skinned = SkinnedAnimations(skin, F, t, np.zeros((count, 3)), device)  # as synthesize --usd skins them
+        try:
+            yield _Source(path, "animation", [f"animation_{a:04d}" for a in range(count)], frames, skin.rest_vertices,
+                          skin.faces, skin.fps, skin.scene, skin=skin, motions=lambda a: (F[a], t[a]),
+                          vertices=lambda a: skinned[a])
+        finally:
+            skinned.close()
