@@ -6,7 +6,14 @@ DEMO   := build/demo
 
 .PHONY: setup demo test test-fast bench clean
 
-setup: $(VENV)/.installed
+JS     := tests/contracts/js
+
+setup: $(VENV)/.installed $(JS)/node_modules/.installed
+
+# The JavaScript clients the tests check glTF outputs with (Khronos glTF-Validator, three.js).
+$(JS)/node_modules/.installed: $(JS)/package.json
+	cd $(JS) && npm install --no-audit --no-fund --loglevel=error
+	touch $@
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)

@@ -23,11 +23,15 @@ def _selection(text):
 @click.command("export")
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(),
-              help="Output: .usd/.usda/.usdc, .exr for a vertex-animation texture, or a folder (ending in /) for "
-                   "an engine-ready one: textures, normals, the rest mesh with texel UVs (.obj/.glb), vat.json.")
+              help="Output: .usd/.usda/.usdc, .glb (glTF 2.0: the skinned mesh, one clip per animation), .exr for a "
+                   "vertex-animation texture, or a folder (ending in /) for an engine-ready one: textures, normals, "
+                   "the rest mesh with texel UVs (.obj/.glb), vat.json.")
 @click.option("--animation", "selections", multiple=True, type=_selection, metavar="N|A:B",
               help="Synthesis file: which animations; play .h5: which characters (repeatable; A:B is A to B−1). "
-                   "A USD file or an .exr holds one, a folder any number.  [default: all]")
+                   "A USD file or an .exr holds one, a .glb or a folder any number.  [default: all]")
+@click.option("--quantize", type=click.Choice(["8", "16"]), default=None,
+              help=".glb only: vertex weights as normalised 8- or 16-bit integers (rows summing exactly to one).  "
+                   "[default: 32-bit floats]")
 @click.option("--as", "kind", type=click.Choice(["skel", "points"]), default=None,
               help="USD only: UsdSkel skeleton with joint weights (editable), or a baked time-sampled mesh.  "
                    "[default: skel where the file has a skeleton (skin and synthesis files), else points]")
@@ -37,7 +41,7 @@ def _selection(text):
 @up_axis_option("USD stage up axis (default: the input's, as fit-skin recorded it).")
 @summary_options
 @user_errors
-def export(path, output, selections, kind, device, half, max_width, up_axis, quiet, as_json):
+def export(path, output, selections, kind, quantize, device, half, max_width, up_axis, quiet, as_json):
     """Export any animation a file holds.
 
     \b
@@ -65,23 +69,30 @@ def export(path, output, selections, kind, device, half, max_width, up_axis, qui
     from skinsynth.pipeline.errors import OptionError
 
     folders = FolderOutputs([path], [output])
-    output_kind = check_animation_output(output, ("usd", "exr", "folder"), [path], folders)
+    output_kind = check_animation_output(output, ("usd", "gltf", "exr", "folder"), [path], folders)
+    if quantize is not None and output_kind != "gltf":
+        raise OptionError(f"--quantize is for .glb outputs (got {output})")
     check_max_width(max_width)
     device = resolve_device(device)
     with contextlib.ExitStack() as stack:
         source = stack.enter_context(_animations(path, device))
         chosen = _chosen(source, selections)
-        if output_kind != "folder" and len(chosen) != 1:
+        if output_kind not in ("folder", "gltf") and len(chosen) != 1:
             raise OptionError(f"{output}: {len(chosen)} {source.what}s chosen, and a {output_kind.upper()} file holds "
                               f"one: give --animation N, or a folder (-o {_stem(output)}/) for several")
         kind = kind or ("skel" if source.has_skeleton else "points")
+        if output_kind == "gltf" and not source.has_skeleton:
+            raise OptionError(f"{path}: a glTF skin needs a skeleton, and {source.what}s of a played file are "
+                              "vertices only: export them to USD points or to textures (a folder)")
         if kind == "skel" and output_kind == "usd" and not source.has_skeleton:
             raise OptionError(f"{path}: --as skel needs a skeleton, and {source.what}s of a played file are "
                               "vertices only: use --as points")
         to_exr = output_kind in TEXTURES
         check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames * len(chosen),
                              max_width)
-        if to_exr:
+        if output_kind == "gltf":
+            _write_gltf(output, source, chosen, None if quantize is None else int(quantize))
+        elif to_exr:
             frames = ((source.names[a], source.vertices(a)) for a in chosen)
             write_textures(output, output_kind, source.rest_vertices, source.faces, frames, source.fps,
                            source.scene, half, max_width, folders.guard(output))
@@ -98,15 +109,34 @@ def export(path, output, selections, kind, device, half, max_width, up_axis, qui
 
             write_points_cache(output, source.vertices(chosen[0]), source.faces, source.fps, up_axis=up_axis,
                                scene=source.scene)
-    what = "vertex-animation texture" if to_exr else ("UsdSkel" if kind == "skel" else "point cache")
-    joints = int(source.skin.rotations.shape[1]) if what == "UsdSkel" else None
+    what = "vertex-animation texture" if to_exr else "glTF" if output_kind == "gltf" else \
+        ("UsdSkel" if kind == "skel" else "point cache")
+    joints = int(source.skin.rotations.shape[1]) + (what == "glTF") if what in ("UsdSkel", "glTF") else None
     summary = {"output": output, "frames": int(source.frames), "vertices": int(source.rest_vertices.shape[0]),
                "kind": what, "joints": joints, "animations": [int(a) for a in chosen],
                "names": [source.names[a] for a in chosen]}
-    detail = "" if to_exr else f" ({'UsdSkel, ' + str(joints) + ' joints' if kind == 'skel' else 'point cache'})"
+    detail = "" if to_exr else f" ({what}, {joints} joints)" if joints else " (point cache)"
     chosen_text = "" if source.count == 1 else f" of {len(chosen)} {source.what}(s) ({_ranges(chosen)})"
     report(summary, [f"wrote {output}: {source.frames} frames{chosen_text}, {source.rest_vertices.shape[0]} vertices"
                      + detail], as_json, quiet)
+
+
+def _write_gltf(output, source, chosen, quantize):
+    """The skinned mesh and one clip per chosen animation, in glTF's Y up and metres."""
+    from skinsynth.formats.gltf import Clip, SkinnedScene, write_skinned_glb
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.skeleton import gltf_clip, gltf_rig
+
+    skin, scene = source.skin, source.scene
+    centres = skin.bone_rest_frames[:, :3, 3]
+    axes = dict(up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit)
+    try:
+        rig = gltf_rig(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, centres, **axes,
+                       quantize=quantize)
+    except ValueError as error:
+        raise OptionError(f"{source.path}: {error}") from None
+    clips = [Clip(**gltf_clip(source.names[a], *source.motions(a), centres, skin.fps, **axes)) for a in chosen]
+    write_skinned_glb(output, SkinnedScene(**rig, clips=clips, mesh_name=scene.prim_path.rsplit("/", 1)[-1] or "mesh"))
 
 
 def _stem(path):

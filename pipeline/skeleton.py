@@ -1,0 +1,136 @@
+"""A fitted rig as an engine skeleton: one root joint with every rigid bone under it, the bones'
+per-frame transforms as joint-local rotation and translation (scale 1), bind matrices, and the
+vertex influences a skinned-mesh format carries (glTF 2.0: four per vertex, heaviest first).
+
+Skinning identity (LBS, the model ``fit-skin`` fits): vertex v_i(f) = Σ_j w_ij (R_j(f) r_i + t_j(f))
+for rest positions r_i. An engine skins with joint world matrices J_j(f) times inverse bind
+matrices B_j⁻¹. With each bone's bind transform a translation to its rest centre c_j,
+J_j(f) = [R_j(f) | R_j(f) c_j + t_j(f)] makes J_j(f) B_j⁻¹ = [R_j(f) | t_j(f)] exactly. The root's
+bind is the identity; its world transform P(f) (identity, or the ground motion with root motion)
+is divided out of every bone: local_j(f) = P(f)⁻¹ J_j(f).
+"""
+
+import numpy as np
+
+from .rotations import align_hemispheres, matrix_to_quaternion
+
+#: Influences per vertex a glTF skin carries in JOINTS_0/WEIGHTS_0 (engines read no more).
+GLTF_INFLUENCES = 4
+
+
+def bone_world(rotations, translations, centres):
+    """Joint world transforms of the bones: rotations (F, B, 3, 3) unchanged, positions (F, B, 3)
+    R_j c_j + t_j for bone centres (B, 3)."""
+    positions = np.einsum("fbij,bj->fbi", rotations, centres) + translations
+    return np.asarray(rotations, dtype=np.float64), positions
+
+
+def joint_locals(rotations, translations, centres, root_rotations=None, root_translations=None):
+    """Each bone's transform local to the root joint, per frame.
+
+    rotations (F, B, 3, 3), translations (F, B, 3): the LBS bone transforms; centres (B, 3); the
+    root's world transform per frame (root_rotations (F, 3, 3), root_translations (F, 3)), None
+    for a fixed root at the origin. Returns (quaternions (F, B, 4) as (x, y, z, w), each bone's
+    sequence on one hemisphere so that interpolation takes the short way, and translations
+    (F, B, 3))."""
+    world_r, world_t = bone_world(rotations, translations, centres)
+    if root_rotations is not None:
+        inverse = np.swapaxes(root_rotations, -1, -2)
+        world_r = np.einsum("fij,fbjk->fbik", inverse, world_r)
+        world_t = np.einsum("fij,fbj->fbi", inverse, world_t - root_translations[:, None, :])
+    wxyz = align_hemispheres(matrix_to_quaternion(world_r), axis=0)
+    return np.concatenate([wxyz[..., 1:], wxyz[..., :1]], axis=-1), world_t
+
+
+def inverse_bind_matrices(centres):
+    """(B + 1, 4, 4): the root's (identity) then each bone's, a translation by −c_j."""
+    matrices = np.tile(np.eye(4), (len(centres) + 1, 1, 1))
+    matrices[1:, :3, 3] = -np.asarray(centres, dtype=np.float64)
+    return matrices
+
+
+def four_influences(bone_indices, bone_weights):
+    """(joints (V, 4), weights (V, 4)) for a skin of at most :data:`GLTF_INFLUENCES` influences:
+    bone indices shifted by one (joint 0 is the root, which carries no vertex), heaviest first,
+    unused slots joint 0 with weight 0, rows summing to 1. ValueError for wider skins."""
+    count, width = bone_indices.shape
+    if width > GLTF_INFLUENCES:
+        heavy = int(np.count_nonzero(bone_weights > 0.0, axis=1).max())
+        if heavy > GLTF_INFLUENCES:
+            raise ValueError(f"the skin has up to {heavy} influences per vertex, and glTF carries "
+                             f"{GLTF_INFLUENCES}: fit it again with --max-influences {GLTF_INFLUENCES}")
+    order = np.argsort(-bone_weights, axis=1, kind="stable")[:, :GLTF_INFLUENCES]
+    weights = np.take_along_axis(bone_weights, order, axis=1)
+    joints = np.take_along_axis(bone_indices, order, axis=1).astype(np.int64) + 1
+    joints[weights <= 0.0] = 0
+    weights = np.where(weights > 0.0, weights, 0.0)
+    if weights.shape[1] < GLTF_INFLUENCES:
+        pad = GLTF_INFLUENCES - weights.shape[1]
+        weights = np.pad(weights, ((0, 0), (0, pad)))
+        joints = np.pad(joints, ((0, 0), (0, pad)))
+    return joints, weights / weights.sum(axis=1, keepdims=True)
+
+
+def quantized_weights(weights, bits):
+    """weights (V, 4) as unsigned normalised integers of ``bits`` (8 or 16) whose rows sum to
+    exactly 2^bits − 1 (what glTF asks of normalised weights): rounded, then the rounding's
+    remainder given to the heaviest slot (the first). Returns uint8 or uint16 (V, 4)."""
+    top = (1 << bits) - 1
+    levels = np.rint(np.asarray(weights, dtype=np.float64) * top).astype(np.int64)
+    levels[:, 0] += top - levels.sum(axis=1)
+    return levels.astype(np.uint8 if bits == 8 else np.uint16)
+
+
+def float_weights(weights):
+    """weights (V, 4) float32 whose rows sum to 1 as closely as float32 holds (the remainder of
+    the rounding to float32 given to the heaviest slot)."""
+    out = np.asarray(weights, dtype=np.float32).copy()
+    out[:, 0] += (1.0 - out.astype(np.float64).sum(axis=1)).astype(np.float32)
+    return out
+
+
+def to_gltf_axes(up_axis, meters_per_unit):
+    """(rotation (3, 3), scale): what takes a scene of ``up_axis`` ("Y"/"Z") and units of
+    ``meters_per_unit`` to glTF's, Y up in metres (Z up: x, y, z → x, z, −y)."""
+    rotation = np.eye(3) if up_axis == "Y" else np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
+    return rotation, float(meters_per_unit)
+
+
+def _converted(up_axis, meters_per_unit, points):
+    rotation, scale = to_gltf_axes(up_axis, meters_per_unit)
+    return scale * (np.asarray(points, dtype=np.float64) @ rotation.T)
+
+
+def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis="Y", meters_per_unit=1.0,
+             quantize=None):
+    """What a glTF skin needs of a fitted rig, in glTF's axes and metres (:func:`to_gltf_axes`):
+    {positions, normals (V, 3), faces, joints (V, 4), weights (V, 4) (float32, or ``quantize`` 8
+    or 16 bits), inverse_binds (B + 1, 4, 4), bind_translations (B + 1, 3), joint_names}: joint 0
+    the root ("root"), joint j + 1 bone j ("bone_NNN"). rest_vertices (V, 3); bone_indices and
+    bone_weights (V, K); centres (B, 3) the bones' rest centres. ValueError for more than four
+    influences per vertex."""
+    from .geometry import vertex_normals
+
+    positions = _converted(up_axis, meters_per_unit, rest_vertices)
+    normals = vertex_normals(positions[None], faces)[0]
+    normals[np.linalg.norm(normals, axis=1) == 0.0] = (0.0, 1.0, 0.0)  # glTF normals are unit vectors
+    joints, weights = four_influences(np.asarray(bone_indices), np.asarray(bone_weights, dtype=np.float64))
+    weights = float_weights(weights) if quantize is None else quantized_weights(weights, quantize)
+    joints[weights == 0] = 0  # a slot whose weight rounded to nothing names no joint
+    bone_centres = _converted(up_axis, meters_per_unit, centres)
+    return {"positions": positions, "normals": normals, "faces": np.asarray(faces), "joints": joints,
+            "weights": weights, "inverse_binds": inverse_bind_matrices(bone_centres),
+            "bind_translations": np.vstack([np.zeros((1, 3)), bone_centres]),
+            "joint_names": ["root"] + [f"bone_{j:03d}" for j in range(len(centres))]}
+
+
+def gltf_clip(name, rotations, translations, centres, fps, up_axis="Y", meters_per_unit=1.0):
+    """One glTF animation clip of an LBS animation: rotations (F, B, 3, 3), translations (F, B, 3)
+    in the rig's axes and units, as :func:`gltf_rig`; {name, times (F,) seconds at ``fps``,
+    rotations (F, B, 4) (x, y, z, w), translations (F, B, 3)} local to a fixed root."""
+    rotation, scale = to_gltf_axes(up_axis, meters_per_unit)
+    turned = np.einsum("ij,fbjk,lk->fbil", rotation, np.asarray(rotations, dtype=np.float64), rotation)
+    moved = scale * (np.asarray(translations, dtype=np.float64) @ rotation.T)
+    quaternions, locals_ = joint_locals(turned, moved, _converted(up_axis, meters_per_unit, centres))
+    return {"name": name, "times": np.arange(len(turned)) / float(fps), "rotations": quaternions,
+            "translations": locals_}

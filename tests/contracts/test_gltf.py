@@ -1,0 +1,150 @@
+"""glTF 2.0 export (issue 23): Khronos glTF-Validator finds no error in any .glb skinsynth writes,
+and three.js (GLTFLoader, AnimationMixer, CPU skinning) plays every clip to skinsynth's own LBS.
+
+The JavaScript clients are installed by ``make setup`` into tests/contracts/js/node_modules."""
+
+import json
+import os
+import shutil
+import subprocess
+
+import h5py
+import numpy as np
+import pytest
+
+from skinsynth.formats.model import read_model
+from skinsynth.formats.skin_file import read_skin
+from skinsynth.gpu import lbs
+
+from cli_helpers import assert_ok, assert_user_error, cli
+
+JS = os.path.join(os.path.dirname(__file__), "js")
+if shutil.which("node") is None or not os.path.isdir(os.path.join(JS, "node_modules", "three")):
+    pytest.skip("node and tests/contracts/js/node_modules (three, gltf-validator) are needed: run make setup",
+                allow_module_level=True)
+
+
+def validate(path):
+    done = subprocess.run(["node", os.path.join(JS, "gltf_validate.mjs"), str(path)], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+def three_positions(path, fps, frames, tmp_path):
+    """(clips, frames, V, 3) float32 as three.js skins them, and the clip names."""
+    out = tmp_path / "three.bin"
+    done = subprocess.run(["node", os.path.join(JS, "gltf_three.mjs"), str(path), str(out), str(fps),
+                           *[str(f) for f in frames]], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    info = json.loads(done.stdout)
+    return np.fromfile(out, dtype=np.float32).reshape(len(info["clips"]), len(frames), info["vertices"], 3), \
+        info["clips"]
+
+
+def skin_of(path):
+    return read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
+
+
+def in_gltf_axes(vertices, scene):
+    """What glTF holds of skinsynth's vertices: Y up, metres."""
+    vertices = np.asarray(vertices, dtype=np.float64) * scene.meters_per_unit
+    return vertices if scene.up_axis == "Y" else np.stack([vertices[..., 0], vertices[..., 2], -vertices[..., 1]], -1)
+
+
+@pytest.fixture(scope="module")
+def files(stage_files, tmp_path_factory):
+    stages = stage_files(frames=40, bones=4, iterations=6, cycles=2, graph=())
+    root = stages.copy_to(tmp_path_factory.mktemp("gltf"))
+    assert_ok(cli("synthesize", root / "graph.h5", "-o", root / "bones.h5", "-n", 4, "-m", 30, "--seed", 3, "-q"))
+    # the same clip recorded Z up in centimetres: glTF's axes and metres come from the conversion
+    assert_ok(cli("fit-skin", root / "bar.npz", "-o", root / "zup.h5", "--bones", 4, "--iterations", 4,
+                  "--up-axis", "Z", "--meters-per-unit", 0.01, "-q"))
+    return root
+
+
+CASES = {  # name: (export arguments after the input, the input)
+    "skin fit": ([], "skin.h5"),
+    "synthesis, three clips": (["--animation", "0:3"], "bones.h5"),
+    "weights 8 bits": (["--quantize", 8], "skin.h5"),
+    "weights 16 bits": (["--quantize", 16, "--animation", 1, "--animation", 3], "bones.h5"),
+    "Z up, centimetres": ([], "zup.h5"),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_every_glb_is_valid_and_three_js_plays_it_as_skinsynth_skins_it(files, tmp_path, case):
+    extra, source = CASES[case]
+    out = tmp_path / "out.glb"
+    summary = json.loads(assert_ok(cli("export", files / source, "-o", out, "--json", *extra)).stdout)
+    report = validate(out)
+    assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
+    skin = skin_of(files / source)
+    if source == "bones.h5":
+        with h5py.File(files / source) as f:
+            motions = [(f["synthesis/bone_matrices"][a], f["synthesis/bone_translations"][a])
+                       for a in summary["animations"]]
+    else:
+        motions = [(skin.rotations, skin.translations)]
+    count = motions[0][0].shape[0]
+    frames = [0, count // 2, count - 1]
+    played, names = three_positions(out, skin.fps, frames, tmp_path)
+    assert names == summary["names"] and played.shape[:2] == (len(motions), 3)
+    truth_rest = in_gltf_axes(skin.rest_vertices, skin.scene)
+    diagonal = np.linalg.norm(np.ptp(truth_rest, axis=0))
+    for clip, (rotations, translations) in enumerate(motions):
+        truth = in_gltf_axes(lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights,
+                                 np.asarray(rotations, np.float64), np.asarray(translations, np.float64),
+                                 device="cpu")[frames], skin.scene)
+        tolerance = 1e-5 if "bits" not in case else 3e-3  # quantised weights move vertices by their rounding
+        assert np.abs(played[clip] - truth).max() <= tolerance * diagonal, (case, clip)
+
+
+def test_quantised_weights_sum_exactly_to_one_and_name_no_joint_at_zero(files, tmp_path):
+    import struct
+
+    for bits, dtype in ((8, np.uint8), (16, np.uint16)):
+        out = tmp_path / f"q{bits}.glb"
+        assert_ok(cli("export", files / "skin.h5", "-o", out, "--quantize", bits, "-q"))
+        data = out.read_bytes()
+        length = struct.unpack_from("<I", data, 12)[0]
+        document = json.loads(data[20:20 + length])
+        binary = data[20 + length + 8:]
+        attributes = document["meshes"][0]["primitives"][0]["attributes"]
+
+        def read(index, width, kind):
+            accessor = document["accessors"][index]
+            view = document["bufferViews"][accessor["bufferView"]]
+            start = view["byteOffset"] + accessor.get("byteOffset", 0)
+            return np.frombuffer(binary, kind, accessor["count"] * width, start).reshape(-1, width)
+
+        weights = read(attributes["WEIGHTS_0"], 4, dtype)
+        joints = read(attributes["JOINTS_0"], 4, np.uint8)
+        assert (weights.astype(np.int64).sum(axis=1) == (1 << bits) - 1).all()
+        assert (joints[weights == 0] == 0).all()
+        assert (np.diff(weights.astype(np.int64), axis=1) <= 0).all()  # heaviest first
+
+
+@pytest.mark.parametrize("args, needles", [
+    (["--quantize", 7], ["--quantize"]),
+    (["--quantize", 8, "-o", "{out}/a.usdc"], ["--quantize is for .glb"]),
+    (["--animation", 9], ["--animation 9", "animations 0..3"]),
+], ids=["quantize 7", "quantize to usd", "animation out of range"])
+def test_bad_gltf_requests_are_one_line(files, tmp_path, args, needles):
+    if "-o" not in args:
+        args = args + ["-o", "{out}/a.glb"]
+    args = [a.replace("{out}", str(tmp_path)) if isinstance(a, str) else a for a in args]
+    assert_user_error(cli("export", files / "bones.h5", *args), *needles, folder=tmp_path)
+
+
+def test_more_influences_than_gltf_carries_are_refused(files, tmp_path):
+    assert_ok(cli("fit-skin", files / "bar.npz", "-o", tmp_path / "wide.h5", "--bones", 8, "--max-influences", 8,
+                  "--iterations", 6, "-q"))
+    with h5py.File(tmp_path / "wide.h5") as f:
+        widest = int((f["skin/bone_weights"][()] > 0).sum(axis=1).max())
+    out = tmp_path / "out"
+    out.mkdir()
+    if widest <= 4:
+        pytest.skip("this fit happened to keep at most 4 influences per vertex")
+    assert_user_error(cli("export", tmp_path / "wide.h5", "-o", out / "a.glb"), "glTF carries 4",
+                      "--max-influences 4", folder=out)
