@@ -111,7 +111,7 @@ def export(path, output, selections, kind, quantize, device, half, max_width, up
                                scene=source.scene)
     what = "vertex-animation texture" if to_exr else "glTF" if output_kind == "gltf" else \
         ("UsdSkel" if kind == "skel" else "point cache")
-    joints = int(source.skin.rotations.shape[1]) + (what == "glTF") if what in ("UsdSkel", "glTF") else None
+    joints = int(source.skin.rotations.shape[1]) + 1 if what in ("UsdSkel", "glTF") else None  # bones and the root
     summary = {"output": output, "frames": int(source.frames), "vertices": int(source.rest_vertices.shape[0]),
                "kind": what, "joints": joints, "animations": [int(a) for a in chosen],
                "names": [source.names[a] for a in chosen]}

@@ -90,8 +90,8 @@ def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rot
     and translations (F, B, 3), the per-frame bone transforms; bind_centers (B, 3), each bone's
     joint in the rest pose; skinning "linear" (classicLinear) or "dual-quaternion"; ``scene``,
     ``prim_name`` and ``up_axis`` as :func:`write_points_cache`. Layout: the mesh keeps the
-    scene's prim path and its parent becomes the SkelRoot, holding ``Skeleton`` (B root joints
-    ``bone_000``...) and ``Skeleton/Animation``; a mesh at the root (``/mesh``) cannot have a
+    scene's prim path and its parent becomes the SkelRoot, holding ``Skeleton`` (one root joint
+    ``root`` at the origin, the bones ``root/bone_000``... under it) and ``Skeleton/Animation``; a mesh at the root (``/mesh``) cannot have a
     SkelRoot above it, so there the SkelRoot is ``/mesh`` and the mesh ``/mesh/Mesh``.
 
     Each joint's bind transform is a translation to its centre c. In Gf's row-vector form the
@@ -106,6 +106,8 @@ def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rot
 
 
 SKINNING_METHODS = {"linear": "classicLinear", "dual-quaternion": "dualQuaternion"}
+#: The one root joint of every skeleton written; the bones are ``root/bone_NNN``.
+ROOT_JOINT = "root"
 
 
 def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
@@ -145,11 +147,14 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
         shape_offsets, shape_weights = _unit_range_shapes(shape_offsets, shape_weights)
         shape_names = Vt.TokenArray([f"shape_{j:03d}{s}" for j in range(len(shape_offsets) // 2) for s in "pn"])
 
-    joints = Vt.TokenArray([f"bone_{b:03d}" for b in range(bones)])
-    bind = np.tile(np.eye(4), (bones, 1, 1))
-    bind[:, 3, :3] = centers
+    # One root joint with every bone under it (engines such as Unreal refuse several roots); the
+    # root stays at the origin, so each bone's parent-local transform is its world transform.
+    joints = Vt.TokenArray([ROOT_JOINT] + [f"{ROOT_JOINT}/bone_{b:03d}" for b in range(bones)])
+    bind = np.tile(np.eye(4), (bones + 1, 1, 1))
+    bind[1:, 3, :3] = centers
     bind = Vt.Matrix4dArray.FromNumpy(bind)
-    ones = Vt.Vec3hArray.FromNumpy(np.ones((bones, 3), dtype=np.float16))
+    ones = Vt.Vec3hArray.FromNumpy(np.ones((bones + 1, 3), dtype=np.float16))
+    indices = indices + 1  # joint 0 is the root, which carries no vertex
 
     with atomic_output(path) as tmp:
         stage = _new_stage(tmp, fps, frames, scene)
@@ -217,18 +222,22 @@ def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translatio
     skeleton.CreateJointsAttr(joints)
     skeleton.CreateJointNamesAttr(joints)
     skeleton.CreateBindTransformsAttr(bind)
-    skeleton.CreateRestTransformsAttr(bind)  # flat skeleton: parent-local equals world
+    skeleton.CreateRestTransformsAttr(bind)  # the root at the origin: parent-local equals world
 
     animation = UsdSkel.Animation.Define(stage, skeleton.GetPath().AppendChild("Animation"))
     animation.CreateJointsAttr(joints)
     anim_translations = animation.CreateTranslationsAttr()
     anim_rotations = animation.CreateRotationsAttr()
     animation.CreateScalesAttr(ones)  # without scales DCCs ignore the animation
+    root_translation = np.zeros((1, 3), dtype=np.float32)
+    root_rotation = np.array([[0.0, 0.0, 0.0, 1.0]], dtype=np.float32)  # x, y, z, w
     for frame in range(frames):  # one attribute at a time, as in write_points_cache
-        anim_translations.Set(Vt.Vec3fArray.FromNumpy(joint_translations[frame].astype(np.float32)),
+        anim_translations.Set(Vt.Vec3fArray.FromNumpy(np.vstack([root_translation,
+                                                                 joint_translations[frame].astype(np.float32)])),
                               Usd.TimeCode(start + frame))
     for frame in range(frames):
-        anim_rotations.Set(Vt.QuatfArray.FromNumpy(quats[frame]), Usd.TimeCode(start + frame))
+        anim_rotations.Set(Vt.QuatfArray.FromNumpy(np.vstack([root_rotation, quats[frame]])),
+                           Usd.TimeCode(start + frame))
     UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
     return animation
 

@@ -121,9 +121,12 @@ def test_skel_cache_layout_for_dccs(tmp_path, rig):
     assert stage.GetDefaultPrim().IsA(UsdSkel.Root)
     assert stage.GetTimeCodesPerSecond() == 25.0 and stage.GetEndTimeCode() == 5
     skeleton = UsdSkel.Skeleton(stage.GetPrimAtPath("/horse/Skeleton"))
-    assert list(skeleton.GetJointsAttr().Get()) == [f"bone_{b:03d}" for b in range(5)]
+    # one root joint with the bones under it (Unreal refuses several roots)
+    assert list(skeleton.GetJointsAttr().Get()) == ["root"] + [f"root/bone_{b:03d}" for b in range(5)]
+    topology = UsdSkel.Topology(skeleton.GetJointsAttr().Get())
+    assert [topology.IsRoot(j) for j in range(6)] == [True] + [False] * 5
     animation = UsdSkel.Animation(stage.GetPrimAtPath("/horse/Skeleton/Animation"))
-    assert len(animation.GetScalesAttr().Get()) == 5  # DCCs drop animations without scales
+    assert len(animation.GetScalesAttr().Get()) == 6  # DCCs drop animations without scales
     assert animation.GetRotationsAttr().GetNumTimeSamples() == 6
     binding = UsdSkel.BindingAPI(stage.GetPrimAtPath("/horse/Mesh"))
     assert binding.GetJointIndicesPrimvar().GetElementSize() == 4
