@@ -29,6 +29,10 @@ def _selection(text):
 @click.option("--animation", "selections", multiple=True, type=_selection, metavar="N|A:B",
               help="Synthesis file: which animations; play .h5: which characters (repeatable; A:B is A to B−1). "
                    "A USD file or an .exr holds one, a .glb or a folder any number.  [default: all]")
+@click.option("--root-motion", is_flag=True,
+              help=".glb and UsdSkel: the root joint carries the character's ground motion (its turn about the up "
+                   "axis and its ground-plane travel, as synthesize's ground alignment defines it) and the bones move "
+                   "in place under it.  [default: the root stays at the origin]")
 @click.option("--quantize", type=click.Choice(["8", "16"]), default=None,
               help=".glb only: vertex weights as normalised 8- or 16-bit integers (rows summing exactly to one).  "
                    "[default: 32-bit floats]")
@@ -41,7 +45,7 @@ def _selection(text):
 @up_axis_option("USD stage up axis (default: the input's, as fit-skin recorded it).")
 @summary_options
 @user_errors
-def export(path, output, selections, kind, quantize, device, half, max_width, up_axis, quiet, as_json):
+def export(path, output, selections, kind, root_motion, quantize, device, half, max_width, up_axis, quiet, as_json):
     """Export any animation a file holds.
 
     \b
@@ -65,6 +69,8 @@ def export(path, output, selections, kind, quantize, device, half, max_width, up
       skinsynth export bones.h5 --animation 7 -o walk_7.usdc
       skinsynth export bones.h5 --animation 0:16 -o crowd_vat/
     """
+    import numpy as np
+
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
 
@@ -81,6 +87,9 @@ def export(path, output, selections, kind, quantize, device, half, max_width, up
             raise OptionError(f"{output}: {len(chosen)} {source.what}s chosen, and a {output_kind.upper()} file holds "
                               f"one: give --animation N, or a folder (-o {_stem(output)}/) for several")
         kind = kind or ("skel" if source.has_skeleton else "points")
+        if root_motion and not (output_kind == "gltf" or (output_kind == "usd" and kind == "skel")):
+            raise OptionError(f"--root-motion moves a skeleton's root: it is for .glb and UsdSkel outputs (got {output}"
+                              + (" --as points)" if output_kind == "usd" else ")"))
         if output_kind == "gltf" and not source.has_skeleton:
             raise OptionError(f"{path}: a glTF skin needs a skeleton, and {source.what}s of a played file are "
                               "vertices only: export them to USD points or to textures (a folder)")
@@ -91,7 +100,7 @@ def export(path, output, selections, kind, quantize, device, half, max_width, up
         check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames * len(chosen),
                              max_width)
         if output_kind == "gltf":
-            _write_gltf(output, source, chosen, None if quantize is None else int(quantize))
+            _write_gltf(output, source, chosen, None if quantize is None else int(quantize), root_motion)
         elif to_exr:
             frames = ((source.names[a], source.vertices(a)) for a in chosen)
             write_textures(output, output_kind, source.rest_vertices, source.faces, frames, source.fps,
@@ -101,9 +110,16 @@ def export(path, output, selections, kind, quantize, device, half, max_width, up
 
             skin = source.skin
             rotations, translations = source.motions(chosen[0])
+            root = None
+            if root_motion:
+                from skinsynth.pipeline.skeleton import ground_motion
+
+                up = np.eye(3)["XYZ".index(up_axis or skin.scene.up_axis)]
+                root = ground_motion(np.asarray(rotations, np.float64), np.asarray(translations, np.float64),
+                                     skin.rest_vertices, skin.bone_indices, skin.bone_weights, up)
             write_skel_cache(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, rotations,
                              translations, skin.bone_rest_frames[:, :3, 3], skin.fps, up_axis=up_axis,
-                             scene=skin.scene)
+                             scene=skin.scene, root_motion=root)
         else:
             from skinsynth.formats.usd import write_points_cache
 
@@ -121,7 +137,7 @@ def export(path, output, selections, kind, quantize, device, half, max_width, up
                      + detail], as_json, quiet)
 
 
-def _write_gltf(output, source, chosen, quantize):
+def _write_gltf(output, source, chosen, quantize, root_motion):
     """The skinned mesh and one clip per chosen animation, in glTF's Y up and metres."""
     from skinsynth.formats.gltf import Clip, SkinnedScene, write_skinned_glb
     from skinsynth.pipeline.errors import OptionError
@@ -135,7 +151,9 @@ def _write_gltf(output, source, chosen, quantize):
                        quantize=quantize)
     except ValueError as error:
         raise OptionError(f"{source.path}: {error}") from None
-    clips = [Clip(**gltf_clip(source.names[a], *source.motions(a), centres, skin.fps, **axes)) for a in chosen]
+    ground = (skin.rest_vertices, skin.bone_indices, skin.bone_weights) if root_motion else None
+    clips = [Clip(**gltf_clip(source.names[a], *source.motions(a), centres, skin.fps, **axes, ground=ground))
+             for a in chosen]
     write_skinned_glb(output, SkinnedScene(**rig, clips=clips, mesh_name=scene.prim_path.rsplit("/", 1)[-1] or "mesh"))
 
 

@@ -82,7 +82,8 @@ def write_points_characters(path, vertices, faces, fps, names=None, up_axis=None
 
 
 def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
-                     bind_centers, fps, prim_name=None, up_axis=None, skinning="linear", scene=None) -> None:
+                     bind_centers, fps, prim_name=None, up_axis=None, skinning="linear", scene=None,
+                     root_motion=None) -> None:
     """Write a rigid-bone animation as UsdSkel so that UsdSkel's skinning reproduces skinsynth's.
 
     rest_vertices (V, 3); faces (T, 3); bone_indices (V, K) int and bone_weights (V, K)
@@ -97,12 +98,16 @@ def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rot
     Each joint's bind transform is a translation to its centre c. In Gf's row-vector form the
     skinning transform is inverse(bind) * joint, and it must equal our A(t) = [R^T 0; t 1]; so
     joint = bind * A(t) = [R^T 0; c R^T + t 1]: the joint turns by R and sits at R c + t.
+
+    ``root_motion``: (rotations (F, 3, 3), translations (F, 3)), the root joint's world transform
+    per frame (the bones' are divided by it); None keeps the root at the origin.
     """
     scene = _scene(scene, up_axis, prim_name)
     rotations = _float_array("rotations", rotations, (None, None, 3, 3))
     write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations[None],
                           np.asarray(translations)[None], bind_centers, fps, names=[scene.prim_name],
-                          skinning=skinning, group=None, scene=scene)
+                          skinning=skinning, group=None, scene=scene,
+                          root_motion=None if root_motion is None else tuple(np.asarray(a)[None] for a in root_motion))
 
 
 SKINNING_METHODS = {"linear": "classicLinear", "dual-quaternion": "dualQuaternion"}
@@ -112,7 +117,7 @@ ROOT_JOINT = "root"
 
 def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
                           bind_centers, fps, names=None, up_axis=None, skinning="linear", group="characters",
-                          blend_shapes=None, scene=None) -> None:
+                          blend_shapes=None, scene=None, root_motion=None) -> None:
     """Several characters sharing one rig, each with its own bone animation, as UsdSkel.
 
     rotations (C, F, B, 3, 3), translations (C, F, B, 3); the rest as :func:`write_skel_cache`.
@@ -165,8 +170,9 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
             UsdSkel.Root.Define(stage, root_path)
             if group is None and c == 0:
                 _set_default_prim(stage, root_path)
+            root = None if root_motion is None else (root_motion[0][c], root_motion[1][c])
             animation = _define_skeleton(stage, root_path, joints, bind, ones, rotations[c], translations[c], centers,
-                                         start)
+                                         start, root)
             mesh = _define_mesh(stage, mesh_path, faces)
             mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(rest.astype(np.float32)))
             mesh.GetExtentAttr().Set(_extent(rest))
@@ -206,17 +212,23 @@ def _unit_range_shapes(offsets, weights):
     return both.reshape(-1, *offsets.shape[1:]), split.reshape(*weights.shape[:2], -1)
 
 
-def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translations, centers, start=0.0):
-    """Skeleton and Animation of one character: rotations (F, B, 3, 3), translations (F, B, 3).
+def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translations, centers, start=0.0, root=None):
+    """Skeleton and Animation of one character: rotations (F, B, 3, 3), translations (F, B, 3);
+    root None (the root joint at the origin) or its (rotations (F, 3, 3), translations (F, 3)).
     Returns the UsdSkel.Animation."""
     frames, bones = rotations.shape[:2]
     joint_translations = np.einsum("fbij,bj->fbi", rotations, centers) + translations
-    joint_matrices = np.zeros((frames * bones, 4, 4))
+    if root is not None:  # each bone local to the moving root: root⁻¹ ∘ world
+        inverse = np.swapaxes(np.asarray(root[0], dtype=np.float64), -1, -2)
+        rotations = np.einsum("fij,fbjk->fbik", inverse, rotations)
+        joint_translations = np.einsum("fij,fbj->fbi", inverse, joint_translations - np.asarray(root[1])[:, None])
+        rotations = np.concatenate([np.asarray(root[0])[:, None], rotations], axis=1)
+    joint_matrices = np.zeros((rotations.shape[0] * rotations.shape[1], 4, 4))
     joint_matrices[:, :3, :3] = rotations.reshape(-1, 3, 3).transpose(0, 2, 1)  # row-vector form
     joint_matrices[:, 3, 3] = 1.0
     # UsdSkel's own decomposition gives quaternions in its conventions, in one C++ call.
     _, quats, _ = UsdSkel.DecomposeTransforms(Vt.Matrix4dArray.FromNumpy(joint_matrices))
-    quats = np.asarray(quats, dtype=np.float32).reshape(frames, bones, 4)  # x, y, z, w
+    quats = np.asarray(quats, dtype=np.float32).reshape(frames, -1, 4)  # x, y, z, w
 
     skeleton = UsdSkel.Skeleton.Define(stage, root_path.AppendChild("Skeleton"))
     skeleton.CreateJointsAttr(joints)
@@ -229,15 +241,14 @@ def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translatio
     anim_translations = animation.CreateTranslationsAttr()
     anim_rotations = animation.CreateRotationsAttr()
     animation.CreateScalesAttr(ones)  # without scales DCCs ignore the animation
-    root_translation = np.zeros((1, 3), dtype=np.float32)
-    root_rotation = np.array([[0.0, 0.0, 0.0, 1.0]], dtype=np.float32)  # x, y, z, w
+    root_translations = np.zeros((frames, 1, 3)) if root is None else np.asarray(root[1])[:, None]
+    joint_translations = np.concatenate([root_translations, joint_translations], axis=1).astype(np.float32)
+    if root is None:
+        quats = np.concatenate([np.tile(np.array([0.0, 0.0, 0.0, 1.0], np.float32), (frames, 1, 1)), quats], axis=1)
     for frame in range(frames):  # one attribute at a time, as in write_points_cache
-        anim_translations.Set(Vt.Vec3fArray.FromNumpy(np.vstack([root_translation,
-                                                                 joint_translations[frame].astype(np.float32)])),
-                              Usd.TimeCode(start + frame))
+        anim_translations.Set(Vt.Vec3fArray.FromNumpy(joint_translations[frame]), Usd.TimeCode(start + frame))
     for frame in range(frames):
-        anim_rotations.Set(Vt.QuatfArray.FromNumpy(np.vstack([root_rotation, quats[frame]])),
-                           Usd.TimeCode(start + frame))
+        anim_rotations.Set(Vt.QuatfArray.FromNumpy(np.ascontiguousarray(quats[frame])), Usd.TimeCode(start + frame))
     UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
     return animation
 

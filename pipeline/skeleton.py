@@ -12,7 +12,8 @@ is divided out of every bone: local_j(f) = P(f)⁻¹ J_j(f).
 
 import numpy as np
 
-from .rotations import align_hemispheres, matrix_to_quaternion
+from .influence import bone_centroids, most_influential_bone
+from .rotations import align_hemispheres, heading_and_posture, matrix_to_quaternion
 
 #: Influences per vertex a glTF skin carries in JOINTS_0/WEIGHTS_0 (engines read no more).
 GLTF_INFLUENCES = 4
@@ -124,13 +125,38 @@ def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis=
             "joint_names": ["root"] + [f"bone_{j:03d}" for j in range(len(centres))]}
 
 
-def gltf_clip(name, rotations, translations, centres, fps, up_axis="Y", meters_per_unit=1.0):
+def ground_motion(rotations, translations, rest, bone_indices, bone_weights, up):
+    """The root's world transform under ``--root-motion``: the character's ground motion as
+    synthesize's ground alignment defines it (:func:`.rotations.heading_and_posture`), the turn
+    about ``up`` (3,) and the ground-plane shift of the most influential bone about its rest
+    centroid. rotations (F, B, 3, 3), translations (F, B, 3), rest (V, 3), bone_indices and
+    bone_weights (V, K) -> (rotations (F, 3, 3), translations (F, 3))."""
+    bones = rotations.shape[1]
+    bone = most_influential_bone(bone_indices, bone_weights, bones)
+    pivot = bone_centroids(rest, bone_indices, bone_weights, bones)[bone]
+    turn, shift, _, _ = heading_and_posture(rotations[:, bone], translations[:, bone], pivot, up)
+    return turn, shift
+
+
+def gltf_clip(name, rotations, translations, centres, fps, up_axis="Y", meters_per_unit=1.0, ground=None):
     """One glTF animation clip of an LBS animation: rotations (F, B, 3, 3), translations (F, B, 3)
     in the rig's axes and units, as :func:`gltf_rig`; {name, times (F,) seconds at ``fps``,
-    rotations (F, B, 4) (x, y, z, w), translations (F, B, 3)} local to a fixed root."""
+    rotations (F, B, 4) (x, y, z, w), translations (F, B, 3)} local to the root. ``ground``: the
+    rig's (rest (V, 3), bone_indices, bone_weights) to give the root the ground motion
+    (:func:`ground_motion`, Y up) and ``root_rotations`` (F, 4), ``root_translations`` (F, 3);
+    None for a root fixed at the origin."""
     rotation, scale = to_gltf_axes(up_axis, meters_per_unit)
     turned = np.einsum("ij,fbjk,lk->fbil", rotation, np.asarray(rotations, dtype=np.float64), rotation)
     moved = scale * (np.asarray(translations, dtype=np.float64) @ rotation.T)
-    quaternions, locals_ = joint_locals(turned, moved, _converted(up_axis, meters_per_unit, centres))
-    return {"name": name, "times": np.arange(len(turned)) / float(fps), "rotations": quaternions,
+    root_r = root_t = None
+    if ground is not None:
+        rest, bone_indices, bone_weights = ground
+        root_r, root_t = ground_motion(turned, moved, _converted(up_axis, meters_per_unit, rest), bone_indices,
+                                       bone_weights, np.array([0.0, 1.0, 0.0]))
+    quaternions, locals_ = joint_locals(turned, moved, _converted(up_axis, meters_per_unit, centres), root_r, root_t)
+    clip = {"name": name, "times": np.arange(len(turned)) / float(fps), "rotations": quaternions,
             "translations": locals_}
+    if ground is not None:
+        wxyz = align_hemispheres(matrix_to_quaternion(root_r), axis=0)
+        clip.update(root_rotations=np.concatenate([wxyz[:, 1:], wxyz[:, :1]], axis=-1), root_translations=root_t)
+    return clip

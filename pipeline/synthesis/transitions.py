@@ -42,6 +42,7 @@ import numpy as np
 from scipy.ndimage import minimum_filter
 
 from ..errors import OptionError
+from ..influence import bone_centroids, weight_sums  # noqa: F401 (bone_centroids: part of this module's API)
 from ..rotations import heading_and_posture, rotation_log
 
 THRESHOLD_REFERENCES = ("median-step", "max-step")
@@ -59,22 +60,6 @@ def reference_bone(bone_indices, bone_weights, bones, subset=None):
         raise OptionError("cannot choose a reference bone from an empty set of bones")
     # argmax returns the first maximum; candidates are sorted, so ties go to the lowest id.
     return int(candidates[np.argmax(totals[candidates])])
-
-
-def weight_sums(bone_indices, bone_weights, bones):
-    """Σ_v w_vb per bone: bone_indices (V, K), bone_weights (V, K) -> (B,)."""
-    return np.bincount(np.asarray(bone_indices).ravel(), weights=np.asarray(bone_weights, float).ravel(),
-                       minlength=bones)[:bones]
-
-
-def bone_centroids(rest, bone_indices, bone_weights, bones):
-    """Each bone's weighted rest centroid Σ_v w_vb ū_v / Σ_v w_vb: rest (V, 3) -> (B, 3) (a bone
-    without weight gets the origin)."""
-    mass = weight_sums(bone_indices, bone_weights, bones)
-    centre = np.stack([np.bincount(np.asarray(bone_indices).ravel(), minlength=bones,
-                                   weights=(np.asarray(bone_weights, float) * np.asarray(rest)[:, a, None]).ravel())[:bones]
-                       for a in range(3)], axis=1)
-    return centre / np.maximum(mass, 1e-300)[:, None]
 
 
 def local_frame_positions(rotations, translations, reference, bones_subset=None):

@@ -39,6 +39,21 @@ def test_an_animation_of_a_synthesis_as_a_usdskel_rig_plays_the_same_points(file
     assert played.shape == written.shape and np.abs(played - written).max() < 1e-5 * diagonal
 
 
+def test_a_usdskel_rig_with_root_motion_plays_the_same_points(files, tmp_path):
+    """--root-motion: the root joint carries the ground motion and the bones are divided by it."""
+    from pxr import Usd, UsdSkel
+
+    assert_ok(cli("export", files / "bones.h5", "--animation", 5, "-o", tmp_path / "a.usda", "--root-motion", "-q"))
+    played = read_skel_points(tmp_path / "a.usda")
+    written, _, _ = read_points_cache(files / "usd" / "animation_0005.usdc")
+    diagonal = np.linalg.norm(np.ptp(written[0], axis=0))
+    assert np.abs(played - written).max() < 1e-5 * diagonal
+    stage = Usd.Stage.Open(str(tmp_path / "a.usda"))
+    animation = UsdSkel.Animation(next(p for p in stage.Traverse() if p.IsA(UsdSkel.Animation)))
+    travel = np.array([animation.GetTranslationsAttr().Get(f)[0] for f in range(30)])
+    assert np.abs(travel[:, 1]).max() < 1e-6 and np.abs(travel).max() > 0  # Y up: on the ground, moving
+
+
 def test_indices_and_ranges_choose_the_animations_of_a_folder_in_order(files, tmp_path):
     done = assert_ok(cli("export", files / "bones.h5", "--animation", "2:5", "--animation", 8, "--animation", 3,
                          "-o", f"{tmp_path / 'vat'}/", "--json"))

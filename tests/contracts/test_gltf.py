@@ -69,6 +69,8 @@ CASES = {  # name: (export arguments after the input, the input)
     "weights 8 bits": (["--quantize", 8], "skin.h5"),
     "weights 16 bits": (["--quantize", 16, "--animation", 1, "--animation", 3], "bones.h5"),
     "Z up, centimetres": ([], "zup.h5"),
+    "root motion": (["--animation", "0:2", "--root-motion"], "bones.h5"),
+    "root motion, Z up": (["--root-motion"], "zup.h5"),
 }
 
 
@@ -100,16 +102,39 @@ def test_every_glb_is_valid_and_three_js_plays_it_as_skinsynth_skins_it(files, t
         assert np.abs(played[clip] - truth).max() <= tolerance * diagonal, (case, clip)
 
 
-def test_quantised_weights_sum_exactly_to_one_and_name_no_joint_at_zero(files, tmp_path):
+def _document(path):
+    """(the JSON, the BIN chunk) of a .glb."""
     import struct
 
+    data = path.read_bytes()
+    length = struct.unpack_from("<I", data, 12)[0]
+    return json.loads(data[20:20 + length]), data[20 + length + 8:]
+
+
+def test_with_root_motion_the_root_travels_on_the_ground_and_without_it_stays(files, tmp_path):
+    for flag in ([], ["--root-motion"]):
+        out = tmp_path / f"root{len(flag)}.glb"
+        assert_ok(cli("export", files / "bones.h5", "--animation", 0, "-o", out, "-q", *flag))
+        document, binary = _document(out)
+        root = document["skins"][0]["skeleton"]
+        assert document["nodes"][root]["name"] == "root" and len(document["scenes"][0]["nodes"]) == 2
+        channels = [c for c in document["animations"][0]["channels"] if c["target"]["node"] == root]
+        assert len(channels) == (2 if flag else 0)
+        for c in channels:
+            if c["target"]["path"] == "translation":
+                sampler = document["animations"][0]["samplers"][c["sampler"]]
+                accessor = document["accessors"][sampler["output"]]
+                view = document["bufferViews"][accessor["bufferView"]]
+                travel = np.frombuffer(binary, np.float32, 3 * accessor["count"],
+                                       view["byteOffset"] + accessor.get("byteOffset", 0)).reshape(-1, 3)
+                assert np.abs(travel[:, 1]).max() < 1e-6 and np.abs(travel[:, [0, 2]]).max() > 0  # on the ground
+
+
+def test_quantised_weights_sum_exactly_to_one_and_name_no_joint_at_zero(files, tmp_path):
     for bits, dtype in ((8, np.uint8), (16, np.uint16)):
         out = tmp_path / f"q{bits}.glb"
         assert_ok(cli("export", files / "skin.h5", "-o", out, "--quantize", bits, "-q"))
-        data = out.read_bytes()
-        length = struct.unpack_from("<I", data, 12)[0]
-        document = json.loads(data[20:20 + length])
-        binary = data[20 + length + 8:]
+        document, binary = _document(out)
         attributes = document["meshes"][0]["primitives"][0]["attributes"]
 
         def read(index, width, kind):
@@ -129,7 +154,8 @@ def test_quantised_weights_sum_exactly_to_one_and_name_no_joint_at_zero(files, t
     (["--quantize", 7], ["--quantize"]),
     (["--quantize", 8, "-o", "{out}/a.usdc"], ["--quantize is for .glb"]),
     (["--animation", 9], ["--animation 9", "animations 0..3"]),
-], ids=["quantize 7", "quantize to usd", "animation out of range"])
+    (["--animation", 1, "--root-motion", "-o", "{out}/a.usdc", "--as", "points"], ["--root-motion", "--as points"]),
+], ids=["quantize 7", "quantize to usd", "animation out of range", "root motion of points"])
 def test_bad_gltf_requests_are_one_line(files, tmp_path, args, needles):
     if "-o" not in args:
         args = args + ["-o", "{out}/a.glb"]
