@@ -6,7 +6,7 @@ import click
 
 from .options import check_max_width, device_option, texture_options, up_axis_option
 from .common import FolderOutputs, report, summary_options, user_errors
-from .outputs import TEXTURES, check_animation_output, check_texture_output, write_textures
+from .outputs import TEXTURES, check_animation_output, check_texture_output, write_gltf, write_textures
 
 
 def _selection(text):
@@ -42,7 +42,8 @@ def _selection(text):
 @device_option("Where the skinning kernel runs: auto, cpu, cuda or cuda:N.")
 @texture_options("Textures only: store 16-bit half floats instead of 32-bit.",
                  "EXR only: texture width limit; vertices wrap to more rows.")
-@up_axis_option("USD stage up axis (default: the input's, as fit-skin recorded it).")
+@up_axis_option("USD stage up axis; for .glb, the axis the input is up along (glTF is Y up).  [default: the input's, "
+                "as fit-skin recorded it]")
 @summary_options
 @user_errors
 def export(path, output, selections, kind, root_motion, quantize, device, half, max_width, up_axis, quiet, as_json):
@@ -100,7 +101,9 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
         check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames * len(chosen),
                              max_width)
         if output_kind == "gltf":
-            _write_gltf(output, source, chosen, None if quantize is None else int(quantize), root_motion)
+            write_gltf(output, source.skin, ((source.names[a], *source.motions(a)) for a in chosen),
+                       up_axis or source.scene.up_axis, None if quantize is None else int(quantize), root_motion,
+                       label=source.path)
         elif to_exr:
             frames = ((source.names[a], source.vertices(a)) for a in chosen)
             write_textures(output, output_kind, source.rest_vertices, source.faces, frames, source.fps,
@@ -135,26 +138,6 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
     chosen_text = "" if source.count == 1 else f" of {len(chosen)} {source.what}(s) ({_ranges(chosen)})"
     report(summary, [f"wrote {output}: {source.frames} frames{chosen_text}, {source.rest_vertices.shape[0]} vertices"
                      + detail], as_json, quiet)
-
-
-def _write_gltf(output, source, chosen, quantize, root_motion):
-    """The skinned mesh and one clip per chosen animation, in glTF's Y up and metres."""
-    from skinsynth.formats.gltf import Clip, SkinnedScene, write_skinned_glb
-    from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.skeleton import gltf_clip, gltf_rig
-
-    skin, scene = source.skin, source.scene
-    centres = skin.bone_rest_frames[:, :3, 3]
-    axes = dict(up_axis=scene.up_axis, meters_per_unit=scene.meters_per_unit)
-    try:
-        rig = gltf_rig(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, centres, **axes,
-                       quantize=quantize)
-    except ValueError as error:
-        raise OptionError(f"{source.path}: {error}") from None
-    ground = (skin.rest_vertices, skin.bone_indices, skin.bone_weights) if root_motion else None
-    clips = [Clip(**gltf_clip(source.names[a], *source.motions(a), centres, skin.fps, **axes, ground=ground))
-             for a in chosen]
-    write_skinned_glb(output, SkinnedScene(**rig, clips=clips, mesh_name=scene.prim_path.rsplit("/", 1)[-1] or "mesh"))
 
 
 def _stem(path):

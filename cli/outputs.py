@@ -74,3 +74,26 @@ def write_textures(path, kind, rest_vertices, faces, animations, fps, scene, hal
     if half:
         check_half_range(path, vertices - rest_vertices)
     return write_vat(path, rest_vertices, vertices, fps, max_width=max_width, half=half)
+
+
+def write_gltf(path, skin, clips, up_axis, quantize=None, root_motion=False, label=None):
+    """Write a skin's rig and ``clips`` ((name, rotations (F, B, 3, 3), translations (F, B, 3)),
+    consumed in order) as one .glb, in glTF's Y up and metres from ``up_axis`` and the skin's
+    metersPerUnit; ``quantize`` 8 or 16 bit weights; ``root_motion`` the ground motion on the
+    root (``pipeline.skeleton``). ``label`` names the input in a refusal (a skin too wide)."""
+    from skinsynth.formats.gltf import Clip, SkinnedScene, write_skinned_glb
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.skeleton import gltf_clip, gltf_rig
+
+    centres = skin.bone_rest_frames[:, :3, 3]
+    axes = dict(up_axis=up_axis, meters_per_unit=skin.scene.meters_per_unit)
+    try:
+        rig = gltf_rig(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, centres, **axes,
+                       quantize=quantize)
+    except ValueError as error:
+        raise OptionError(f"{label or path}: {error}") from None
+    ground = (skin.rest_vertices, skin.bone_indices, skin.bone_weights) if root_motion else None
+    clips = [Clip(**gltf_clip(name, rotations, translations, centres, skin.fps, **axes, ground=ground))
+             for name, rotations, translations in clips]
+    write_skinned_glb(path, SkinnedScene(**rig, clips=clips,
+                                         mesh_name=skin.scene.prim_path.rsplit("/", 1)[-1] or "mesh"))

@@ -8,7 +8,7 @@ import click
 import numpy as np
 
 from .options import check_max_width, device_option, texture_options, up_axis_option
-from .outputs import check_texture_output, write_textures
+from .outputs import check_texture_output, write_gltf, write_textures
 from .common import check_disk, check_memory, report, summary_options, Progress, check_output_path, FolderOutputs, command_line, tool_version, user_errors
 
 
@@ -58,6 +58,10 @@ def _target(text):
                    "guidance, the input's own accelerations).")
 @click.option("--usd", "usd_dir", type=click.Path(file_okay=False), default=None, help="Also write one USD point cache per animation here.")
 @click.option("--crowd", type=click.Path(dir_okay=False), default=None, help="Also write one USD stage with every animation on a grid.")
+@click.option("--gltf", type=click.Path(dir_okay=False), default=None, metavar="FILE.glb",
+              help="Also write the rig as one glTF 2.0 skinned mesh with every animation as a clip (Y up, metres).")
+@click.option("--root-motion", is_flag=True,
+              help="--gltf: the root joint carries each animation's ground motion, the bones move in place under it.")
 @click.option("--exr", "exr_dir", type=click.Path(file_okay=False), default=None,
               help="Also write an engine-ready vertex animation here: per animation offsets and normals textures, "
                    "the rest mesh with texel UVs (rest.obj, rest.glb), vat.json (docs/vat.md).")
@@ -81,7 +85,7 @@ def _target(text):
 @summary_options
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
-               min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, usd_dir, crowd, exr_dir, half,
+               min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, usd_dir, crowd, gltf, root_motion, exr_dir, half,
                max_width, up_axis, plot_dir, plot_count, device, jobs, cluster, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
@@ -111,9 +115,13 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     check_output_path(output, (".h5", ".hdf5"), inputs=[path, *obstacles])
     if crowd is not None:
         check_output_path(crowd, (".usd", ".usda", ".usdc"), inputs=[path, *obstacles, output])
+    if gltf is not None:
+        check_output_path(gltf, (".glb",), inputs=[path, *obstacles, output])
+    if root_motion and gltf is None:
+        raise OptionError("--root-motion is for the --gltf output: give --gltf FILE.glb")
     from skinsynth.formats.synthesis_shards import run_shards, shard_folder
 
-    folders = FolderOutputs([path, *obstacles], [output, crowd, usd_dir, exr_dir, plot_dir,
+    folders = FolderOutputs([path, *obstacles], [output, crowd, gltf, usd_dir, exr_dir, plot_dir,
                                                  shard_folder(output) if cluster else None])
     for folder in (usd_dir, exr_dir, plot_dir):  # side folders: safe to write before any work
         folders.check(folder)
@@ -176,6 +184,10 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         if usd_dir or crowd or exr_dir:
             written += _write_caches(skin, motions, usd_dir, crowd, exr_dir, up_axis, device, folders, threads=jobs,
                                      texture=dict(half=half, max_width=max_width))
+        if gltf is not None:
+            write_gltf(gltf, skin, ((f"animation_{a:04d}", motions.F[a], motions.t[a]) for a in range(count)),
+                       up_axis, root_motion=root_motion, label=path)
+            written.append(gltf)
         if plot_dir is not None:
             written += _write_plots(plot_dir, skin, motions, min(plot_count, count), device, folders)
     summary, lines = _summary(output, result, components, frames, min_segment, jobs, seconds, written)

@@ -174,3 +174,22 @@ def test_more_influences_than_gltf_carries_are_refused(files, tmp_path):
         pytest.skip("this fit happened to keep at most 4 influences per vertex")
     assert_user_error(cli("export", tmp_path / "wide.h5", "-o", out / "a.glb"), "glTF carries 4",
                       "--max-influences 4", folder=out)
+
+
+@pytest.mark.parametrize("flag", [[], ["--root-motion"]], ids=["fixed root", "root motion"])
+def test_synthesize_writes_the_glb_export_writes_of_its_file(files, tmp_path, flag):
+    """synthesize --gltf at run time and export afterwards give the same bytes (one writer)."""
+    assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 3, "-m", 20, "--seed", 5,
+                  "--gltf", tmp_path / "run.glb", "-q", *flag))
+    assert_ok(cli("export", tmp_path / "b.h5", "-o", tmp_path / "later.glb", "-q", *flag))
+    assert (tmp_path / "run.glb").read_bytes() == (tmp_path / "later.glb").read_bytes()
+    assert validate(tmp_path / "run.glb")["errors"] == 0
+
+
+def test_synthesize_root_motion_needs_a_gltf_output(files, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", out / "b.h5", "-n", 3, "-m", 20, "--root-motion"),
+                      "--root-motion", "--gltf", folder=out)
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", out / "b.h5", "-n", 3, "-m", 20, "--gltf",
+                          out / "b.usdc"), "must end in .glb", folder=out)
