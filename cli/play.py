@@ -5,7 +5,7 @@ import numpy as np
 
 from .options import device_option, texture_options, up_axis_option
 from .common import check_memory, report, summary_options, FolderOutputs, user_errors
-from .outputs import TEXTURES, check_animation_output, check_texture_output, write_textures
+from .outputs import TEXTURES, check_animation_output, check_texture_output, write_gltf, write_textures
 
 
 
@@ -15,9 +15,10 @@ from .outputs import TEXTURES, check_animation_output, check_texture_output, wri
               help="Control trajectories: CSV (frame,point,x,y,z), .npy (F, n_c, 3), or a mesh sequence whose "
                    "control vertices are used. Repeat for several characters.")
 @click.option("-o", "--output", required=True, type=click.Path(),
-              help="USD (.usd/.usda/.usdc), an OpenEXR vertex-animation texture (.exr, one character), a folder "
-                   "(ending in /: engine-ready textures per character, normals, the rest mesh with texel UVs "
-                   "as .obj/.glb and vat.json), or .h5 vertices.")
+              help="USD (.usd/.usda/.usdc), glTF (.glb: the rig, one clip per character; --skinning linear), an "
+                   "OpenEXR vertex-animation texture (.exr, one character), a folder (ending in /: engine-ready "
+                   "textures per character, normals, the rest mesh with texel UVs as .obj/.glb and vat.json), or "
+                   ".h5 vertices.")
 @click.option("--instances", default=1, show_default=True, type=int,
               help="Characters from one --controls file, each starting a fraction of the clip later.")
 @click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
@@ -63,10 +64,17 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     from skinsynth.pipeline.puppet import instance_trajectories, play_characters, world_bones
 
     folders = FolderOutputs([path, *control_files], [output])
-    output_kind = check_animation_output(output, ("usd", "exr", "h5", "folder"), [path, *control_files], folders)
+    output_kind = check_animation_output(output, ("usd", "gltf", "exr", "h5", "folder"), [path, *control_files],
+                                         folders)
+    if output_kind == "gltf" and skinning != "linear":
+        raise OptionError(f"{output}: glTF skins linearly, and this plays {skinning} skinning: give --skinning linear")
     device = resolve_device(device)
     record, _, skin = read_puppet(path)
     puppet = puppet_from_record(record)
+    if output_kind == "gltf" and puppet.correctives is not None:
+        raise OptionError(f"{path}: the puppet's pose-space correctives ({len(puppet.correctives.offsets)} shapes) "
+                          "are not written to glTF yet: train it with --correctives off for .glb, or write UsdSkel "
+                          "(-o X.usdc), which carries them as blend shapes")
     if translation_solver and puppet.translations is None:
         raise OptionError(f"{path}: trained without the translation solver; play with --no-translation-solver")
     count = len(puppet.control_indices)
@@ -90,7 +98,13 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     vertices = vertices.reshape(characters, frames, -1, 3) + offsets[:, None, None, :].astype(np.float32)
 
     names = [f"character_{c:03d}" for c in range(characters)]
-    if output_kind == "usd":
+    if output_kind == "gltf":  # one rig, each character a clip in its own place (no grid: clips alternate)
+        rotations, translations, _ = bones or world_bones(puppet, flat, translation_solver)
+        rotations = rotations.reshape(characters, frames, *rotations.shape[1:])
+        translations = translations.reshape(characters, frames, *translations.shape[1:])
+        write_gltf(output, skin, ((name, rotations[c], translations[c]) for c, name in enumerate(names)), up_axis)
+        written = [output]
+    elif output_kind == "usd":
         if kind == "skel":
             _write_rig(output, skin, puppet, bones or world_bones(puppet, flat, translation_solver), offsets, names,
                        up_axis, skinning)

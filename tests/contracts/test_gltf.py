@@ -193,3 +193,40 @@ def test_synthesize_root_motion_needs_a_gltf_output(files, tmp_path):
                       "--root-motion", "--gltf", folder=out)
     assert_user_error(cli("synthesize", files / "graph.h5", "-o", out / "b.h5", "-n", 3, "-m", 20, "--gltf",
                           out / "b.usdc"), "must end in .glb", folder=out)
+
+
+@pytest.fixture(scope="module")
+def puppets(stage_files, tmp_path_factory):
+    """Two puppets of the test bar: without correctives (a glTF rig) and with them."""
+    stages = stage_files(frames=40, bones=4, iterations=6, cycles=2, controls=("--count", 4),
+                         puppet=("--correctives", "off"))
+    root = stages.copy_to(tmp_path_factory.mktemp("puppets"))
+    assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "corrected.h5", "--correctives", "1e-6", "-q"))
+    return root
+
+
+def test_a_played_linear_puppet_as_gltf_is_what_play_computes(puppets, tmp_path):
+    args = ["play", puppets / "puppet.h5", "-c", puppets / "bar.npz", "--instances", 2, "--spacing", 0,
+            "--skinning", "linear", "-q"]
+    assert_ok(cli(*args, "-o", tmp_path / "played.glb"))
+    assert_ok(cli(*args, "-o", tmp_path / "played.h5"))
+    report = validate(tmp_path / "played.glb")
+    assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
+    with h5py.File(tmp_path / "played.h5") as f:
+        vertices, fps = f["vertices"][()], float(f.attrs["fps"])
+    frames = [0, vertices.shape[1] // 2, vertices.shape[1] - 1]
+    played, names = three_positions(tmp_path / "played.glb", fps, frames, tmp_path)
+    assert names == ["character_000", "character_001"]
+    skin = skin_of(puppets / "puppet.h5")
+    truth = in_gltf_axes(vertices[:, frames], skin.scene)
+    diagonal = np.linalg.norm(np.ptp(in_gltf_axes(skin.rest_vertices, skin.scene), axis=0))
+    assert np.abs(played - truth).max() <= 1e-5 * diagonal
+
+
+def test_a_played_puppet_to_gltf_must_skin_linearly_and_have_no_correctives(puppets, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    assert_user_error(cli("play", puppets / "puppet.h5", "-c", puppets / "bar.npz", "-o", out / "p.glb"),
+                      "glTF skins linearly", "--skinning linear", folder=out)
+    assert_user_error(cli("play", puppets / "corrected.h5", "-c", puppets / "bar.npz", "-o", out / "p.glb",
+                          "--skinning", "linear"), "correctives", "--correctives off", folder=out)
