@@ -5,8 +5,8 @@ For each capture (its bone count from ``datasets.BONES``): fit-skin, build-graph
 with ``--root-motion``, and the skin fit's own clip), Khronos glTF-Validator's error and warning
 counts, three.js's CPU-skinned positions (GLTFLoader, AnimationMixer) against skinsynth's LBS at
 the first, middle and last frame of every clip (largest error over the rest pose's diagonal), and
-bytes per animation against the VAT folder of the same animations (``export -o vat/``, float and
-``--half``). One JSON line per capture.
+bytes per animation on disk against the VAT folder and the bone-texture folder of the same
+animations (``export -o vat/``, ``--as bones``; float and ``--half``). One JSON line per capture.
 
     python benchmarks/gltf.py [--count 8] [--frames 600] [--clips 4] [--work DIR]
 
@@ -111,6 +111,11 @@ def main():
                 run(["export", synth, "--animation", "0", "-o", vat_one, "-q", *extra], work)
                 run(["export", synth, "--animation", "0:2", "-o", vat_two, "-q", *extra], work)
                 sizes[key] = folder_bytes(vat_two) - folder_bytes(vat_one)
+            for key, extra in (("bones_float_per_animation", []), ("bones_half_per_animation", ["--half"])):
+                one_dir, two_dir = (os.path.join(work, f"{name}.bones{k}{len(extra)}/") for k in (1, 2))
+                run(["export", synth, "--animation", "0", "-o", one_dir, "--as", "bones", "-q", *extra], work)
+                run(["export", synth, "--animation", "0:2", "-o", two_dir, "--as", "bones", "-q", *extra], work)
+                sizes[key] = folder_bytes(two_dir) - folder_bytes(one_dir)
             sizes["frames"] = args.frames
             sizes["vat_float_over_glb"] = round(sizes["vat_float_per_animation"] / sizes["glb_per_animation"], 1)
             line["sizes"] = sizes

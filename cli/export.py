@@ -36,8 +36,10 @@ def _selection(text):
 @click.option("--quantize", type=click.Choice(["8", "16"]), default=None,
               help=".glb only: vertex weights as normalised 8- or 16-bit integers (rows summing exactly to one).  "
                    "[default: 32-bit floats]")
-@click.option("--as", "kind", type=click.Choice(["skel", "points"]), default=None,
-              help="USD only: UsdSkel skeleton with joint weights (editable), or a baked time-sampled mesh.  "
+@click.option("--as", "kind", type=click.Choice(["skel", "points", "bones"]), default=None,
+              help="USD: UsdSkel skeleton with joint weights (editable), or a baked time-sampled mesh. A folder: "
+                   "bones writes bone-animation textures (every animation's bone motion in one bones.exr, the "
+                   "influences on rest.glb, a clip table in bones.json) instead of vertex-animation textures.  "
                    "[default: skel where the file has a skeleton (skin and synthesis files), else points]")
 @device_option("Where the skinning kernel runs: auto, cpu, cuda or cuda:N.")
 @texture_options("Textures only: store 16-bit half floats instead of 32-bit.",
@@ -77,6 +79,8 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
 
     folders = FolderOutputs([path], [output])
     output_kind = check_animation_output(output, ("usd", "gltf", "exr", "folder"), [path], folders)
+    if kind == "bones" and output_kind != "folder":
+        raise OptionError(f"--as bones writes a folder of bone-animation textures: end -o with / (-o {_stem(output)}/)")
     if quantize is not None and output_kind != "gltf":
         raise OptionError(f"--quantize is for .glb outputs (got {output})")
     check_max_width(max_width)
@@ -88,6 +92,9 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
             raise OptionError(f"{output}: {len(chosen)} {source.what}s chosen, and a {output_kind.upper()} file holds "
                               f"one: give --animation N, or a folder (-o {_stem(output)}/) for several")
         kind = kind or ("skel" if source.has_skeleton else "points")
+        if kind == "bones" and not source.has_skeleton:
+            raise OptionError(f"{path}: bone textures need a skeleton, and {source.what}s of a played file are "
+                              "vertices only: export them as vertex-animation textures (without --as bones)")
         if root_motion and not (output_kind == "gltf" or (output_kind == "usd" and kind == "skel")):
             raise OptionError(f"--root-motion moves a skeleton's root: it is for .glb and UsdSkel outputs (got {output}"
                               + (" --as points)" if output_kind == "usd" else ")"))
@@ -98,9 +105,16 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
             raise OptionError(f"{path}: --as skel needs a skeleton, and {source.what}s of a played file are "
                               "vertices only: use --as points")
         to_exr = output_kind in TEXTURES
-        check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames * len(chosen),
-                             max_width)
-        if output_kind == "gltf":
+        if kind == "bones":
+            from skinsynth.formats.bone_textures import check_bone_texture_size
+
+            check_bone_texture_size(output, source.skin.rotations.shape[1], source.frames * len(chosen), max_width)
+        else:
+            check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames * len(chosen),
+                                 max_width)
+        if kind == "bones":
+            bytes_per_animation = _write_bone_textures(output, source, chosen, half, max_width, folders)
+        elif output_kind == "gltf":
             write_gltf(output, source.skin, ((source.names[a], *source.motions(a)) for a in chosen),
                        up_axis or source.scene.up_axis, None if quantize is None else int(quantize), root_motion,
                        label=source.path)
@@ -128,16 +142,43 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
 
             write_points_cache(output, source.vertices(chosen[0]), source.faces, source.fps, up_axis=up_axis,
                                scene=source.scene)
-    what = "vertex-animation texture" if to_exr else "glTF" if output_kind == "gltf" else \
-        ("UsdSkel" if kind == "skel" else "point cache")
+    what = "bone-animation texture" if kind == "bones" else "vertex-animation texture" if to_exr else \
+        "glTF" if output_kind == "gltf" else ("UsdSkel" if kind == "skel" else "point cache")
     joints = int(source.skin.rotations.shape[1]) + 1 if what in ("UsdSkel", "glTF") else None  # bones and the root
     summary = {"output": output, "frames": int(source.frames), "vertices": int(source.rest_vertices.shape[0]),
                "kind": what, "joints": joints, "animations": [int(a) for a in chosen],
                "names": [source.names[a] for a in chosen]}
     detail = "" if to_exr else f" ({what}, {joints} joints)" if joints else " (point cache)"
     chosen_text = "" if source.count == 1 else f" of {len(chosen)} {source.what}(s) ({_ranges(chosen)})"
-    report(summary, [f"wrote {output}: {source.frames} frames{chosen_text}, {source.rest_vertices.shape[0]} vertices"
-                     + detail], as_json, quiet)
+    lines = [f"wrote {output}: {source.frames} frames{chosen_text}, {source.rest_vertices.shape[0]} vertices" + detail]
+    if kind == "bones":
+        texel = 2 if half else 4
+        raw = source.frames * 2 * source.skin.rotations.shape[1] * 4 * texel
+        vat = 2 * source.frames * source.rest_vertices.shape[0] * 3 * texel  # offsets and normals
+        summary.update(bytes_per_animation=bytes_per_animation, texel_bytes_per_animation=raw,
+                       vat_texel_bytes_per_animation=vat)
+        lines.append(f"bone textures: {raw / 1e6:.3f} MB of texels per animation ({bytes_per_animation / 1e6:.3f} MB "
+                     f"compressed on disk); a vertex-animation folder: {vat / 1e6:.1f} MB of texels per animation")
+    report(summary, lines, as_json, quiet)
+
+
+def _write_bone_textures(output, source, chosen, half, max_width, folders):
+    """The bone-animation texture folder of the chosen animations; returns its bytes per animation."""
+    import os
+
+    from skinsynth.formats.bone_textures import write_bone_texture_folder
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.skeleton import bone_texels, texture_influences
+
+    skin = source.skin
+    try:
+        influences = texture_influences(skin.bone_indices, skin.bone_weights)
+    except ValueError as error:
+        raise OptionError(f"{source.path}: {error}") from None
+    clips = ((source.names[a], bone_texels(*source.motions(a))) for a in chosen)
+    write_bone_texture_folder(output, skin.rest_vertices, skin.faces, influences, clips, skin.rotations.shape[1],
+                              skin.fps, skin.scene, max_width, half, **folders.guard(output))
+    return os.path.getsize(os.path.join(output, "bones.exr")) // len(chosen)
 
 
 def _stem(path):

@@ -182,3 +182,20 @@ def _write_glb(handle, document, parts, length):
     for part in parts:
         handle.write(part)
     handle.write(b"\0" * pad)
+
+
+def write_static_glb(path, positions, faces, attributes=None):
+    """A .glb of one unskinned mesh: positions (V, 3), faces (T, 3) and ``attributes`` {glTF
+    attribute name (e.g. "TEXCOORD_1"): float32 (V, n)} (atomic)."""
+    buffer = _Buffer()
+    positions = np.asarray(positions, dtype=np.float32)
+    primitive = {"attributes": {"POSITION": buffer.array(positions, _ARRAY_BUFFER, bounds=True)}, "mode": 4}
+    for name, values in (attributes or {}).items():
+        primitive["attributes"][name] = buffer.array(np.asarray(values, dtype=np.float32), _ARRAY_BUFFER)
+    primitive["indices"] = buffer.array(np.asarray(faces, dtype=np.uint32).reshape(-1), _ELEMENT_ARRAY_BUFFER)
+    document = {"asset": {"version": "2.0", "generator": "skinsynth"}, "scene": 0, "scenes": [{"nodes": [0]}],
+                "nodes": [{"name": "rest", "mesh": 0}], "meshes": [{"name": "rest", "primitives": [primitive]}],
+                "accessors": buffer.accessors, "bufferViews": buffer.views, "buffers": [{"byteLength": buffer.length}]}
+    with atomic_output(path, expected_bytes=buffer.length + (1 << 20)) as tmp:
+        with open(tmp, "wb") as handle:
+            _write_glb(handle, document, buffer.parts, buffer.length)

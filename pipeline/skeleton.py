@@ -160,3 +160,26 @@ def gltf_clip(name, rotations, translations, centres, fps, up_axis="Y", meters_p
         wxyz = align_hemispheres(matrix_to_quaternion(root_r), axis=0)
         clip.update(root_rotations=np.concatenate([wxyz[:, 1:], wxyz[:, :1]], axis=-1), root_translations=root_t)
     return clip
+
+
+def bone_texels(rotations, translations):
+    """What a bone-animation texture holds of one animation: (F, B, 2, 4) float64, per frame and
+    bone the LBS transform itself, texel 0 its rotation as a unit quaternion (x, y, z, w) (each
+    bone's sequence on one hemisphere, so that a shader blending two frames takes the short way)
+    and texel 1 its translation (x, y, z, 1). A vertex shader then skins rest position r with
+    v = Σ_k w_k (rotate(q_k, r) + t_k) over the vertex's four influences; rotate(q, r) =
+    r + 2 q.xyz × (q.xyz × r + q.w r)."""
+    wxyz = align_hemispheres(matrix_to_quaternion(np.asarray(rotations, dtype=np.float64)), axis=0)
+    frames, bones = wxyz.shape[:2]
+    texels = np.empty((frames, bones, 2, 4))
+    texels[:, :, 0, :3], texels[:, :, 0, 3] = wxyz[..., 1:], wxyz[..., 0]
+    texels[:, :, 1, :3], texels[:, :, 1, 3] = translations, 1.0
+    return texels
+
+
+def texture_influences(bone_indices, bone_weights):
+    """(bones (V, 4), weights (V, 4)) for a bone-animation texture's rest mesh: the four heaviest
+    influences, heaviest first, bone ids as fitted (unused slots bone 0 with weight 0), rows
+    summing to 1. ValueError for more than four per vertex (as :func:`four_influences`)."""
+    joints, weights = four_influences(bone_indices, bone_weights)
+    return np.maximum(joints - 1, 0), weights

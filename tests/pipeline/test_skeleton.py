@@ -79,3 +79,20 @@ def test_a_z_up_rig_in_centimetres_becomes_y_up_metres():
     truth = np.einsum("fij,vj->fvi", rotations[:, 0], rest) + translations[:, 0, None]
     np.testing.assert_allclose(posed, 0.01 * np.stack([truth[..., 0], truth[..., 2], -truth[..., 1]], -1), atol=1e-12)
     np.testing.assert_allclose(clip["times"], [0, 1 / 24, 2 / 24])
+
+
+def test_bone_texels_rotate_as_the_shader_formula_says():
+    """rotate(q, r) = r + 2 q.xyz × (q.xyz × r + q.w r) with texel 0, plus texel 1, is R r + t."""
+    from skinsynth.pipeline.skeleton import bone_texels, texture_influences
+
+    rng = np.random.default_rng(3)
+    rotations, translations = random_rotations(rng, (5, 4)), rng.normal(size=(5, 4, 3))
+    texels = bone_texels(rotations, translations)
+    r = rng.normal(size=3)
+    xyz, w = texels[..., 0, :3], texels[..., 0, 3:]
+    shader = r + 2.0 * np.cross(xyz, np.cross(xyz, r) + w * r) + texels[..., 1, :3]
+    np.testing.assert_allclose(shader, rotations @ r + translations, atol=1e-12)
+    assert (texels[..., 1, 3] == 1.0).all()
+    bones, weights = texture_influences(np.array([[2, 0, 1]]), np.array([[0.2, 0.5, 0.3]]))
+    np.testing.assert_array_equal(bones, [[0, 1, 2, 0]])
+    np.testing.assert_allclose(weights, [[0.5, 0.3, 0.2, 0.0]])

@@ -1,0 +1,107 @@
+"""Bone-animation textures (issue 23): decoded as a vertex shader would (texel -> bone rotation and
+translation -> linear blend skinning of the rest mesh's four influences), every clip of the folder
+is the animation itself: within 1e-5 of the diagonal in float, 1e-3 in half."""
+
+import json
+import struct
+
+import h5py
+import numpy as np
+import pytest
+
+from skinsynth.formats.bone_textures import read_bone_texture
+from skinsynth.formats.model import read_model
+from skinsynth.formats.skin_file import read_skin
+from skinsynth.gpu import lbs
+
+from cli_helpers import assert_ok, assert_user_error, cli
+
+
+@pytest.fixture(scope="module")
+def files(stage_files, tmp_path_factory):
+    stages = stage_files(frames=40, bones=4, iterations=6, cycles=2, graph=())
+    root = stages.copy_to(tmp_path_factory.mktemp("bones"))
+    assert_ok(cli("synthesize", root / "graph.h5", "-o", root / "b.h5", "-n", 5, "-m", 30, "--seed", 8, "-q"))
+    return root
+
+
+def glb_attributes(path):
+    """{attribute name: (V, n) float32} of the first primitive of a .glb."""
+    data = path.read_bytes()
+    length = struct.unpack_from("<I", data, 12)[0]
+    document = json.loads(data[20:20 + length])
+    binary = data[20 + length + 8:]
+    widths = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+    out = {}
+    for name, index in document["meshes"][0]["primitives"][0]["attributes"].items():
+        accessor = document["accessors"][index]
+        view = document["bufferViews"][accessor["bufferView"]]
+        width = widths[accessor["type"]]
+        out[name] = np.frombuffer(binary, np.float32, accessor["count"] * width,
+                                  view["byteOffset"] + accessor.get("byteOffset", 0)).reshape(-1, width)
+    return out
+
+
+def shader_decode(folder, clip, frame):
+    """What a vertex shader computes for ``frame`` of clip number ``clip`` (bones.json's layout)."""
+    layout = json.loads((folder / "bones.json").read_text())
+    image = read_bone_texture(folder / "bones.exr").astype(np.float64)
+    attributes = glb_attributes(folder / "rest.glb")
+    rest = attributes["POSITION"].astype(np.float64)
+    bones = np.concatenate([attributes["TEXCOORD_1"], attributes["TEXCOORD_2"]], axis=1).astype(int)
+    weights = np.concatenate([attributes["TEXCOORD_3"], attributes["TEXCOORD_4"]], axis=1).astype(np.float64)
+    g = layout["clips"][clip]["first"] + frame
+    assert g <= layout["clips"][clip]["last"]
+    per_row, count = layout["frames_per_row"], 2 * layout["bones"]
+    x0, y = (g % per_row) * count, g // per_row
+    q = image[y, x0 + 2 * bones]  # (V, 4, 4): each influence's rotation texel
+    t = image[y, x0 + 2 * bones + 1][..., :3]
+    xyz, w = q[..., :3], q[..., 3:]
+    r = rest[:, None, :]
+    rotated = r + 2.0 * np.cross(xyz, np.cross(xyz, r) + w * r)
+    return np.einsum("vk,vkc->vc", weights, rotated + t)
+
+
+@pytest.mark.parametrize("half, tolerance", [(False, 1e-5), (True, 1e-3)], ids=["float", "half"])
+def test_every_clip_decodes_to_its_animation(files, tmp_path, half, tolerance):
+    folder = tmp_path / "bones"
+    extra = ["--half"] if half else []
+    done = assert_ok(cli("export", files / "b.h5", "--animation", 1, "--animation", "3:5", "-o", f"{folder}/",
+                         "--as", "bones", "--json", *extra))
+    summary = json.loads(done.stdout)
+    assert summary["texel_bytes_per_animation"] < summary["vat_texel_bytes_per_animation"]
+    layout = json.loads((folder / "bones.json").read_text())
+    assert [c["name"] for c in layout["clips"]] == ["animation_0001", "animation_0003", "animation_0004"]
+    assert [(c["first"], c["last"]) for c in layout["clips"]] == [(0, 29), (30, 59), (60, 89)]  # inclusive
+    skin = read_skin(files / "b.h5", read_model(files / "b.h5", groups=("mesh", "examples", "skin")))
+    diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
+    with h5py.File(files / "b.h5") as f:
+        for clip, animation in enumerate((1, 3, 4)):
+            truth = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights,
+                        f["synthesis/bone_matrices"][animation].astype(np.float64),
+                        f["synthesis/bone_translations"][animation].astype(np.float64), device="cpu")
+            for frame in (0, 14, 29):  # first, middle, last (the clip's inclusive end)
+                error = np.abs(shader_decode(folder, clip, frame) - truth[frame]).max() / diagonal
+                assert error <= tolerance, (clip, frame, error)
+
+
+def test_many_frames_wrap_to_more_rows(files, tmp_path):
+    folder = tmp_path / "narrow"
+    assert_ok(cli("export", files / "b.h5", "-o", f"{folder}/", "--as", "bones", "--max-width", 40, "-q"))
+    layout = json.loads((folder / "bones.json").read_text())
+    assert layout["frames_per_row"] == 5 and layout["width"] == 40 and layout["height"] == 30  # 150 frames
+    skin = read_skin(files / "b.h5", read_model(files / "b.h5", groups=("mesh", "examples", "skin")))
+    with h5py.File(files / "b.h5") as f:
+        truth = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, f["synthesis/bone_matrices"][4].astype(
+            np.float64), f["synthesis/bone_translations"][4].astype(np.float64), device="cpu")
+    diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
+    assert np.abs(shader_decode(folder, 4, 29) - truth[29]).max() <= 1e-5 * diagonal
+
+
+@pytest.mark.parametrize("args, needles", [
+    (["-o", "{out}/b.usdc", "--as", "bones"], ["--as bones writes a folder"]),
+    (["-o", "{out}/b/", "--as", "bones", "--max-width", 1], ["takes 8 texels, more than --max-width 1"]),
+], ids=["not a folder", "too wide"])
+def test_bad_bone_texture_requests_are_one_line(files, tmp_path, args, needles):
+    args = [a.replace("{out}", str(tmp_path)) if isinstance(a, str) else a for a in args]
+    assert_user_error(cli("export", files / "b.h5", *args), *needles, folder=tmp_path)
