@@ -361,6 +361,30 @@ def _synthesize_process(graph, out, address, env=None, **kwargs):
                             env={**os.environ, **(env or {})}, **kwargs)
 
 
+def _held_run(graph, out, address, tmp_path):
+    """A synthesize run in its own process group whose worker stores its first batch and holds the
+    next (tests/cluster_hold.py), returned once a batch is held: it cannot end on its own."""
+    import time
+
+    held = tmp_path / "held"
+    hold = os.path.join(os.path.dirname(__file__), "cluster_hold.py")
+    process = _synthesize_process(graph, out, address, start_new_session=True,
+                                  env={"DASK_DISTRIBUTED__WORKER__PRELOAD": json.dumps([hold]),
+                                       "CLUSTER_HOLD_MARKER": str(held)})
+    deadline = time.monotonic() + 120
+    try:
+        while not held.exists():
+            assert process.poll() is None, process.communicate()[1]
+            assert time.monotonic() < deadline, "no batch held within 120 s"
+            time.sleep(0.05)
+    except BaseException:
+        if process.poll() is None:
+            os.killpg(process.pid, 9)
+            process.communicate()
+        raise
+    return process
+
+
 @pytest.mark.parametrize("fault, needles", [("deleted", ["does not exist"]), ("full", ["No space left"])])
 def test_a_shard_folder_deleted_or_full_mid_run_is_one_line(graph, tmp_path, fault, needles):
     """Issue 27: a worker whose shard write failed was logged by Dask ("distributed.worker - ERROR -
@@ -387,17 +411,8 @@ def test_ctrl_c_to_a_local_clusters_process_group_is_one_line(graph, tmp_path):
     import time
 
     out = tmp_path / "many.h5"
-    hold = os.path.join(os.path.dirname(__file__), "cluster_hold.py")
-    held = tmp_path / "held"
-    process = _synthesize_process(graph, out, "local:2", start_new_session=True,
-                                  env={"DASK_DISTRIBUTED__WORKER__PRELOAD": json.dumps([hold]),
-                                       "CLUSTER_HOLD_MARKER": str(held)})
+    process = _held_run(graph, out, "local:2", tmp_path)
     try:
-        deadline = time.monotonic() + 120
-        while not held.exists():  # both workers started, one holding a batch: the run cannot end alone
-            assert process.poll() is None, process.communicate()[1]
-            assert time.monotonic() < deadline, "no batch held within 120 s"
-            time.sleep(0.05)
         os.killpg(process.pid, signal.SIGINT)  # what a terminal's Ctrl-C does
         _, stderr = process.communicate(timeout=120)
     finally:
@@ -448,20 +463,10 @@ def test_a_run_killed_outright_resumes_to_the_uninterrupted_datasets(graph, refe
     stored and a second batch held unstored (tests/cluster_hold.py); the rerun reuses the stored
     shard, ignores the dead run's temporaries, and gives the reference's datasets."""
     import signal
-    import time
 
     out = tmp_path / "many.h5"
-    hold = os.path.join(os.path.dirname(__file__), "cluster_hold.py")
-    held = tmp_path / "held"
-    process = _synthesize_process(graph, out, "local:1", start_new_session=True,
-                                  env={"DASK_DISTRIBUTED__WORKER__PRELOAD": json.dumps([hold]),
-                                       "CLUSTER_HOLD_MARKER": str(held)})
+    process = _held_run(graph, out, "local:1", tmp_path)
     try:
-        deadline = time.monotonic() + 120
-        while not held.exists():
-            assert process.poll() is None, process.communicate()[1]
-            assert time.monotonic() < deadline, "no batch held within 120 s"
-            time.sleep(0.05)
         os.killpg(process.pid, signal.SIGKILL)
         process.communicate(timeout=60)
     finally:
