@@ -85,33 +85,17 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
         raise OptionError(f"--quantize is for .glb outputs (got {output})")
     check_max_width(max_width)
     device = resolve_device(device)
-    with contextlib.ExitStack() as stack:
-        source = stack.enter_context(_animations(path, device))
+    with _animations(path, device) as source:
         chosen = _chosen(source, selections)
-        if output_kind not in ("folder", "gltf") and len(chosen) != 1:
-            raise OptionError(f"{output}: {len(chosen)} {source.what}s chosen, and a {output_kind.upper()} file holds "
-                              f"one: give --animation N, or a folder (-o {_stem(output)}/) for several")
         kind = kind or ("skel" if source.has_skeleton else "points")
-        if kind == "bones" and not source.has_skeleton:
-            raise OptionError(f"{path}: bone textures need a skeleton, and {source.what}s of a played file are "
-                              "vertices only: export them as vertex-animation textures (without --as bones)")
-        if root_motion and not (output_kind == "gltf" or (output_kind == "usd" and kind == "skel")):
-            raise OptionError(f"--root-motion moves a skeleton's root: it is for .glb and UsdSkel outputs (got {output}"
-                              + (" --as points)" if output_kind == "usd" else ")"))
-        if output_kind == "gltf" and not source.has_skeleton:
-            raise OptionError(f"{path}: a glTF skin needs a skeleton, and {source.what}s of a played file are "
-                              "vertices only: export them to USD points or to textures (a folder)")
-        if kind == "skel" and output_kind == "usd" and not source.has_skeleton:
-            raise OptionError(f"{path}: --as skel needs a skeleton, and {source.what}s of a played file are "
-                              "vertices only: use --as points")
+        _check_request(path, output, output_kind, kind, source, chosen, root_motion)
         to_exr = output_kind in TEXTURES
         if kind == "bones":
             from skinsynth.formats.bone_textures import check_bone_texture_size
 
             check_bone_texture_size(output, source.skin.rotations.shape[1], source.frames * len(chosen), max_width)
-        else:
-            check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames * len(chosen),
-                                 max_width)
+        else:  # a folder holds one texture per animation
+            check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames, max_width)
         if kind == "bones":
             bytes_per_animation = _write_bone_textures(output, source, chosen, half, max_width, folders)
         elif output_kind == "gltf":
@@ -160,6 +144,24 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
         lines.append(f"bone textures: {raw / 1e6:.3f} MB of texels per animation ({bytes_per_animation / 1e6:.3f} MB "
                      f"compressed on disk); a vertex-animation folder: {vat / 1e6:.1f} MB of texels per animation")
     report(summary, lines, as_json, quiet)
+
+
+def _check_request(path, output, output_kind, kind, source, chosen, root_motion):
+    """Refuse, before any work, what the chosen animations cannot become in ``output``."""
+    from skinsynth.pipeline.errors import OptionError
+
+    if output_kind not in ("folder", "gltf") and len(chosen) != 1:
+        raise OptionError(f"{output}: {len(chosen)} {source.what}s chosen, and a {output_kind.upper()} file holds "
+                          f"one: give --animation N, or a .glb or a folder (-o {_stem(output)}/) for several")
+    if not source.has_skeleton:
+        needs = "a glTF skin" if output_kind == "gltf" else "bone textures" if kind == "bones" else \
+            "--as skel" if kind == "skel" and output_kind == "usd" else None
+        if needs:
+            raise OptionError(f"{path}: {needs} needs a skeleton, and the {source.what}s of a played file are "
+                              "vertices only: export them as USD points or vertex-animation textures")
+    if root_motion and not (output_kind == "gltf" or (output_kind == "usd" and kind == "skel")):
+        raise OptionError(f"--root-motion moves a skeleton's root: it is for .glb and UsdSkel outputs (got {output}"
+                          + (" --as points)" if output_kind == "usd" else ")"))
 
 
 def _write_bone_textures(output, source, chosen, half, max_width, folders):

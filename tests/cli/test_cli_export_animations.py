@@ -85,3 +85,10 @@ def test_bad_choices_are_one_line_and_write_nothing(files, tmp_path, args, needl
     args = [str(files / a) if a in ("bones.h5", "crowd.h5") else
             (a.replace("{out}", str(tmp_path)) if isinstance(a, str) else a) for a in args]
     assert_user_error(cli("export", *args), *needles, folder=tmp_path)
+
+
+def test_a_folder_of_many_animations_checks_each_texture_not_their_sum(files, tmp_path):
+    """Each animation of a folder is its own texture: 10 × 30 frames at one texel a row is 10
+    textures of 2,460 rows, not one of 24,600 (over the 16,384 engines load)."""
+    assert_ok(cli("export", files / "bones.h5", "-o", f"{tmp_path / 'vat'}/", "--max-width", 1, "-q"))
+    assert len([n for n in (tmp_path / "vat").iterdir() if n.name.endswith("_normals.exr")]) == 10
