@@ -123,7 +123,8 @@ def guard_standard_streams():
 
 
 def raise_interrupted(signum, frame):
-    """Signal handler: SIGTERM and SIGHUP end the command as Ctrl-C does (outputs cleaned up)."""
+    """Signal handler: SIGINT, SIGTERM and SIGHUP end the command alike (outputs cleaned up), each
+    recorded (formats.atomic.RECEIVED) in case a library swallows the exception."""
     from skinsynth.formats.atomic import Interrupted
 
     raise Interrupted(signum)

@@ -92,8 +92,9 @@ def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rot
     joint in the rest pose; skinning "linear" (classicLinear) or "dual-quaternion"; ``scene``,
     ``prim_name`` and ``up_axis`` as :func:`write_points_cache`. Layout: the mesh keeps the
     scene's prim path and its parent becomes the SkelRoot, holding ``Skeleton`` (one root joint
-    ``root`` at the origin, the bones ``root/bone_000``... under it) and ``Skeleton/Animation``; a mesh at the root (``/mesh``) cannot have a
-    SkelRoot above it, so there the SkelRoot is ``/mesh`` and the mesh ``/mesh/Mesh``.
+    ``root`` at the origin, the bones ``root/bone_000``... under it) and ``Skeleton/Animation``;
+    a mesh at the root (``/mesh``) cannot have a SkelRoot above it, so there the SkelRoot is
+    ``/mesh`` and the mesh ``/mesh/Mesh``.
 
     Each joint's bind transform is a translation to its centre c. In Gf's row-vector form the
     skinning transform is inverse(bind) * joint, and it must equal our A(t) = [R^T 0; t 1]; so
