@@ -8,11 +8,14 @@ zeros (or NaN) as if they were the user's data, so every reader sizes a dataset 
 :func:`held_bytes` before reading it.
 """
 
+import contextlib
 import math
 import os
 import re
 
 import h5py
+
+from .errors import declared_size_problem
 
 
 class DeclaredTooLarge(ValueError):
@@ -42,13 +45,22 @@ def held_bytes(dataset):
     return held
 
 
+def check_stored(dataset, what):
+    """DeclaredTooLarge unless the file (or a virtual dataset's sources) holds ``dataset``'s data:
+    what is missing would read as fill values, and a small file must not make a reader allocate
+    gigabytes (:func:`~skinsynth.formats.errors.declared_size_problem`). ``what`` names it."""
+    problem = declared_size_problem(what, dataset.size * dataset.dtype.itemsize, held_bytes(dataset))
+    if problem:
+        raise DeclaredTooLarge(problem)
+
+
 def _source_bytes(dataset, folder, mapping):
     named = _KEYED_SOURCE.search(mapping.file_name)
     hint = "keep the shard folder beside the file" if named else "the virtual dataset's sources must be beside it"
     same_file = mapping.file_name == "."
     source = dataset.file.filename if same_file else os.path.join(folder, mapping.file_name)
     try:
-        with (h5py.File(source, "r") if not same_file else _borrowed(dataset.file)) as f:
+        with (h5py.File(source, "r") if not same_file else contextlib.nullcontext(dataset.file)) as f:
             item = f.get(mapping.dset_name)
             if not isinstance(item, h5py.Dataset):
                 raise KeyError(mapping.dset_name)
@@ -65,19 +77,6 @@ def _source_bytes(dataset, folder, mapping):
         raise DeclaredTooLarge(f"{dataset.name} maps {mapping.file_name}, which holds another run's batch (its key "
                                "is not the one its name gives): rerun the command to make this run's shard")
     return held
-
-
-class _borrowed:
-    """An open file used as a context without closing it (a source in the virtual dataset's own file)."""
-
-    def __init__(self, handle):
-        self.handle = handle
-
-    def __enter__(self):
-        return self.handle
-
-    def __exit__(self, *exc):
-        return False
 
 
 def _covers(shape, mapping):

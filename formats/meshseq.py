@@ -274,14 +274,12 @@ def _read_h5(path) -> MeshSequence:
 def _check_stored(path, what, dataset):
     """FormatError unless the file (or a virtual dataset's sources) holds ``dataset``'s data:
     HDF5 reads what is missing as fill values, and a small file must not declare gigabytes."""
-    from .hdf5_storage import DeclaredTooLarge, held_bytes
+    from .hdf5_storage import DeclaredTooLarge, check_stored
 
     try:
-        problem = declared_size_problem(what, dataset.size * dataset.dtype.itemsize, held_bytes(dataset))
+        check_stored(dataset, what)
     except DeclaredTooLarge as error:
-        problem = str(error)
-    if problem:
-        raise FormatError(path, problem)
+        raise FormatError(path, str(error)) from None
 
 
 def _from_named_arrays(path, arrays) -> MeshSequence:

@@ -16,14 +16,13 @@ inputs and seed give byte-identical datasets.
 
 import json
 import os
-import re
 
 import h5py
 import numpy as np
 
 from .atomic import atomic_output
-from .errors import FormatError, declared_size_problem, require_finite
-from .hdf5_storage import DeclaredTooLarge, held_bytes
+from .errors import FormatError, require_finite
+from .hdf5_storage import DeclaredTooLarge, check_stored, held_bytes
 from .synthesis_shards import reading_output
 
 FORMAT_NAME = "skinsynth"
@@ -164,10 +163,7 @@ def _read_group(group):
         if isinstance(item, h5py.Dataset):
             # Sizes are checked against what the file holds before anything is allocated: a
             # small file must not make a reader ask for gigabytes (unwritten chunks read as fill).
-            held = held_bytes(item)
-            problem = declared_size_problem(item.name, item.size * item.dtype.itemsize, held)
-            if problem:
-                raise DeclaredTooLarge(problem)
+            check_stored(item, item.name)
             out[name] = item[()]
         elif isinstance(item, h5py.Group):
             out[name] = _read_group(item)

@@ -19,6 +19,14 @@ from .rotations import align_hemispheres, heading_and_posture, matrix_to_quatern
 GLTF_INFLUENCES = 4
 
 
+def _xyzw(rotations):
+    """Unit quaternions (..., 4) as (x, y, z, w), glTF's and shaders' order, of rotations
+    (F, ..., 3, 3), each sequence along the first axis on one hemisphere (interpolation between
+    frames takes the short way)."""
+    wxyz = align_hemispheres(matrix_to_quaternion(np.asarray(rotations, dtype=np.float64)), axis=0)
+    return np.concatenate([wxyz[..., 1:], wxyz[..., :1]], axis=-1)
+
+
 def bone_world(rotations, translations, centres):
     """Joint world transforms of the bones: rotations (F, B, 3, 3) unchanged, positions (F, B, 3)
     R_j c_j + t_j for bone centres (B, 3)."""
@@ -39,8 +47,7 @@ def joint_locals(rotations, translations, centres, root_rotations=None, root_tra
         inverse = np.swapaxes(root_rotations, -1, -2)
         world_r = np.einsum("fij,fbjk->fbik", inverse, world_r)
         world_t = np.einsum("fij,fbj->fbi", inverse, world_t - root_translations[:, None, :])
-    wxyz = align_hemispheres(matrix_to_quaternion(world_r), axis=0)
-    return np.concatenate([wxyz[..., 1:], wxyz[..., :1]], axis=-1), world_t
+    return _xyzw(world_r), world_t
 
 
 def inverse_bind_matrices(centres):
@@ -157,8 +164,7 @@ def gltf_clip(name, rotations, translations, centres, fps, up_axis="Y", meters_p
     clip = {"name": name, "times": np.arange(len(turned)) / float(fps), "rotations": quaternions,
             "translations": locals_}
     if ground is not None:
-        wxyz = align_hemispheres(matrix_to_quaternion(root_r), axis=0)
-        clip.update(root_rotations=np.concatenate([wxyz[:, 1:], wxyz[:, :1]], axis=-1), root_translations=root_t)
+        clip.update(root_rotations=_xyzw(root_r), root_translations=root_t)
     return clip
 
 
@@ -169,10 +175,9 @@ def bone_texels(rotations, translations):
     and texel 1 its translation (x, y, z, 1). A vertex shader then skins rest position r with
     v = Σ_k w_k (rotate(q_k, r) + t_k) over the vertex's four influences; rotate(q, r) =
     r + 2 q.xyz × (q.xyz × r + q.w r)."""
-    wxyz = align_hemispheres(matrix_to_quaternion(np.asarray(rotations, dtype=np.float64)), axis=0)
-    frames, bones = wxyz.shape[:2]
-    texels = np.empty((frames, bones, 2, 4))
-    texels[:, :, 0, :3], texels[:, :, 0, 3] = wxyz[..., 1:], wxyz[..., 0]
+    quaternions = _xyzw(rotations)
+    texels = np.empty(quaternions.shape[:2] + (2, 4))
+    texels[:, :, 0] = quaternions
     texels[:, :, 1, :3], texels[:, :, 1, 3] = translations, 1.0
     return texels
 
