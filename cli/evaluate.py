@@ -17,8 +17,9 @@ METHODS = {
 @click.command("evaluate")
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, help="Write per-frame error curves to this PNG.")
-@click.option("--skinning", type=click.Choice(["dual-quaternion", "linear"]), default="dual-quaternion", show_default=True,
-              help="Skinning of the predicted bones: dual quaternions (Feng §6.3) or linear (the fitted model).")
+@click.option("--skinning", type=click.Choice(["dual-quaternion", "linear"]), default=None,
+              help="Skinning of the predicted bones: dual quaternions (Feng §6.3) or linear (the fitted model).  "
+                   "[default: the one the puppet was trained for (train-kcca --skinning)]")
 @click.option("--pca-components", type=int, default=None,
               help="Blendshape count of the PCA baseline (default: leave-one-out cross-validation on the training frames).")
 @click.option("--extrapolate", type=float, default=None, metavar="FRACTION",
@@ -51,6 +52,7 @@ def evaluate(path, as_json, quiet, plot, skinning, pca_components, extrapolate):
              "retrain leaving some out, e.g. --train-frames every:4")
     split = None if extrapolate is None else extrapolation_split(skin.examples.shape[0], extrapolate)
     result = evaluate_puppet(puppet, skin.examples, test_frames, skinning=skinning, pca_components=pca_components)
+    skinning = result.notes["skinning"]
     beyond = None
     if split is not None:
         beyond = evaluate_extrapolation(skin, puppet.control_indices, options, *split, skinning, pca_components)

@@ -24,11 +24,11 @@ from .outputs import TEXTURES, check_animation_output, check_texture_output, wri
 @click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
               help="USD: UsdSkel with dual-quaternion skinning (editable bones; a puppet's correctives as "
                    "blend shapes), or baked time-sampled meshes.")
-@click.option("--skinning", type=click.Choice(["dual-quaternion", "linear"]), default="dual-quaternion",
-              show_default=True,
+@click.option("--skinning", type=click.Choice(["dual-quaternion", "linear"]), default=None,
               help="Dual quaternions (Feng §6.3) or linear blend skinning, for every output. UsdSkel's "
                    "dualQuaternion is ignored by Blender's importer (it skins linearly: 1.7e-2 of the diagonal "
-                   "away on the horse); linear gives a rig every DCC and engine plays as computed.")
+                   "away on the horse); linear gives a rig every DCC and engine plays as computed.  [default: the "
+                   "one the puppet was trained for (train-kcca --skinning)]")
 @texture_options("Textures (-o DIR/ or .exr): 16-bit half floats instead of 32-bit.",
                  "Textures: width limit; vertices wrap to more rows.")
 @click.option("--spacing", default=None, type=float,
@@ -66,11 +66,14 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     folders = FolderOutputs([path, *control_files], [output])
     output_kind = check_animation_output(output, ("usd", "gltf", "exr", "h5", "folder"), [path, *control_files],
                                          folders)
-    if output_kind == "gltf" and skinning != "linear":
-        raise OptionError(f"{output}: glTF skins linearly, and this plays {skinning} skinning: give --skinning linear")
     device = resolve_device(device)
     record, _, skin = read_puppet(path)
     puppet = puppet_from_record(record)
+    skinning = skinning or puppet.skinning
+    if output_kind == "gltf" and skinning != "linear":
+        raise OptionError(f"{output}: glTF skins linearly, and this plays {skinning} skinning (the puppet was trained "
+                          f"for {puppet.skinning}): train it with train-kcca --skinning linear, or give --skinning "
+                          "linear")
     if output_kind == "gltf" and puppet.correctives is not None:
         raise OptionError(f"{path}: the puppet's pose-space correctives ({len(puppet.correctives.offsets)} shapes) "
                           "are not written to glTF yet: train it with --correctives off for .glb, or write UsdSkel "

@@ -36,10 +36,15 @@ from .common import report, summary_options, check_output_path, command_line, to
               help="Pose-space correctives: what skinning misses at each example, kept in the rest pose and "
                    "interpolated over the controls (n_p blend shapes). A ridge relative to the kernel's mean "
                    "diagonal, 'off', or 'auto' (1e-6…1 or off, by cross-validation on the training frames; printed).")
+@click.option("--skinning", type=click.Choice(["dual-quaternion", "linear"]), default="dual-quaternion",
+              show_default=True,
+              help="The skinning the puppet is trained for and plays with: dual quaternions (Feng §6.3), or linear "
+                   "blend skinning, which glTF, game engines and Blender play (needed for play -o X.glb and bone "
+                   "textures). The cross-validated choices and the correctives are fitted for it.")
 @summary_options
 @user_errors
 def train_kcca(path, output, kernel, kernel_width, bases, regularization, translation_solver, beta, translation_prior, train_frames,
-               global_motion, correctives, quiet, as_json):
+               global_motion, correctives, skinning, quiet, as_json):
     """Train the puppet: per-bone kernel CCA from control points to bone dual quaternions.
 
     PATH is a controls file from select-controls. The examples are brought in place by a rigid
@@ -84,11 +89,13 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
                           skin.rotations, skin.translations, np.asarray(controls.vertex_indices), train,
                           kernel=kernel, bases=bases, regularization=regularization,
                           translation_solver=translation_solver, beta=beta, global_motion=global_motion,
-                          translation_prior=translation_prior, kernel_width=kernel_width, correctives=correctives)
+                          translation_prior=translation_prior, kernel_width=kernel_width, correctives=correctives,
+                          skinning=skinning)
     seconds = time.perf_counter() - started
     parameters = dict(kernel=kernel, bases=bases, regularization=regularization, translation_solver=translation_solver,
                       beta=beta, translation_prior=translation_prior, train_frames=train_frames,
-                      global_motion=global_motion, kernel_width=kernel_width, correctives=correctives)
+                      global_motion=global_motion, kernel_width=kernel_width, correctives=correctives,
+                      skinning=skinning)
     record = provenance_record("puppet", command_line(), parameters, [path], tool_version())
     write_model(output, "puppet", puppet_groups(model, puppet, test, "auto" if regularization == "auto" else "fixed"),
                 model["provenance"] + [record], tool_version())
@@ -102,7 +109,8 @@ def _summary(output, skin, controls, train, test, kernel, translation_solver, pu
     lines = [f"wrote {output}: {skin.bones} bones, {len(controls.vertex_indices)} controls, "
              f"{len(train)} training / {len(test)} held-out frames, {kernel} kernel, "
              f"{corr.shape[1]} bases (mean first correlation {corr[:, 0].mean():.3f}), "
-             f"translation solver {'on' if translation_solver else 'off'}; {seconds:.1f} s",
+             f"translation solver {'on' if translation_solver else 'off'}, {puppet.skinning} skinning; "
+             f"{seconds:.1f} s",
              f"global motion: {puppet.global_motion} ({puppet.global_motion_reason})"]
     if puppet.kernel_width_reason:
         lines.append(f"kernel width: {puppet.kernel_width_reason}")
@@ -117,6 +125,7 @@ def _summary(output, skin, controls, train, test, kernel, translation_solver, pu
                "translation_prior": puppet.translation_prior if translation_solver else None,
                "translation_prior_reason": puppet.translation_prior_reason,
                "correctives": puppet.correctives is not None, "correctives_reason": puppet.correctives_reason,
+               "skinning": puppet.skinning,
                "seconds": round(seconds, 3)}
     return summary, lines
 

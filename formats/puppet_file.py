@@ -4,7 +4,9 @@ Copies forward ``/mesh``, ``/examples``, ``/skin`` and ``/controls`` and adds:
 
 - ``/training``: ``train_frames (n_p,)``, ``test_frames (n_t,)`` int64 (example frames held out),
   ``reference_controls (n_c, 3)`` (rest-frame control positions defining "in place");
-  ``@global_motion`` ("control-frame" | "world"), ``@global_motion_reason`` (why, for auto).
+  ``@global_motion`` ("control-frame" | "world"), ``@global_motion_reason`` (why, for auto),
+  ``@skinning`` ("dual-quaternion" | "linear": the skinning the puppet was trained for and plays
+  with; absent in files written before it existed, which are dual-quaternion).
 - ``/kcca``: ``predictor (8B, n_p)`` the concatenated M of Feng §6.1 (rows bone-major: bone b
   owns rows 8b..8b+7, its dual quaternion (w, x, y, z, w_e, x_e, y_e, z_e)), ``bias (8B,)``,
   ``training_controls (n_p, 3 n_c)`` standardised, ``control_mean (3 n_c,)``,
@@ -43,7 +45,8 @@ def puppet_groups(model, puppet, test_frames, regularization_mode):
                           "reference_controls": puppet.reference_controls,
                           "@global_motion": puppet.global_motion,
                           "@global_motion_reason": puppet.global_motion_reason,
-                          "@correctives_reason": puppet.correctives_reason}
+                          "@correctives_reason": puppet.correctives_reason,
+                          "@skinning": puppet.skinning}
     k = puppet.kernel
     groups["kcca"] = {"predictor": puppet.regression.predictor.reshape(bones * 8, -1),
                       "bias": puppet.regression.bias.reshape(-1),
@@ -71,7 +74,7 @@ def puppet_groups(model, puppet, test_frames, regularization_mode):
 
 #: train-kcca's options that ``train_puppet`` takes, as recorded in the puppet's provenance.
 TRAINING_OPTIONS = ("kernel", "kernel_width", "bases", "regularization", "translation_solver", "beta",
-                    "translation_prior", "global_motion", "correctives")
+                    "translation_prior", "global_motion", "correctives", "skinning")
 
 
 def training_options(model):
@@ -108,6 +111,7 @@ class PuppetRecord:
     kernel_width_reason: str
     correctives: dict | None
     correctives_reason: str
+    skinning: str = "dual-quaternion"
 
 
 def read_puppet(path, with_options=False):
@@ -153,7 +157,17 @@ def read_puppet(path, with_options=False):
                           global_motion_reason=str(training.get("@global_motion_reason", "")),
                           translation_prior=prior, translation_prior_reason=prior_reason,
                           kernel_width_reason=str(kcca.get("@width_reason", "")), correctives=correctives,
-                          correctives_reason=str(training.get("@correctives_reason", "")))
+                          correctives_reason=str(training.get("@correctives_reason", "")),
+                          skinning=_skinning(path, training))
     if with_options:
         return puppet, training["test_frames"], skin, training_options(model)
     return puppet, training["test_frames"], skin
+
+
+def _skinning(path, training):
+    """The skinning a puppet was trained for: ``/training/@skinning``, "dual-quaternion" where a
+    file written before the attribute existed has none; FormatError for any other value."""
+    skinning = str(training.get("@skinning", "dual-quaternion"))
+    if skinning not in ("dual-quaternion", "linear"):
+        raise FormatError(path, f"/training/@skinning is {skinning!r}; expected dual-quaternion or linear")
+    return skinning

@@ -7,9 +7,15 @@ RBF regression, which has no skin, was 4× better than the puppet). Park and Hod
 by Feng §2, follow their skinning with "RBF-based interpolation of the residual errors"; Lewis et
 al. (2000) keep such residuals in the rest pose, so they turn with the skin. Here:
 
-1. At each training example j the puppet's own prediction is skinned. Each vertex's blended dual
-   quaternion is a rigid motion (R, t), so the residual carried back to the rest pose,
-   ``o_j = Rᵀ (y_j − t) − rest`` (V, 3), makes skinning reproduce the example: skin(rest + o_j) = y_j.
+1. At each training example j the puppet's own prediction is skinned, with the skinning the
+   puppet is trained for. Under dual quaternions each vertex's blended dual quaternion is a rigid
+   motion (R, t), so the residual carried back to the rest pose, ``o_j = Rᵀ (y_j − t) − rest``
+   (V, 3), makes skinning reproduce the example: skin(rest + o_j) = y_j. Under linear blend
+   skinning each vertex moves by an affine map ``p ↦ A p + t`` (A = Σ_b w_b R_b, t = Σ_b w_b t_b),
+   which is not rigid and can be near singular where bones twist apart (the candy wrapper), so
+   ``o_j = (AᵀA + ε I)⁻¹ Aᵀ (y_j − t − A rest)`` with ε = LINEAR_RIDGE: exact to ~ε/σ_min² of
+   what the skin misses where A is well conditioned, and where it collapses the least offset that
+   does what it can (0 where the skin already fits).
 2. Over control space the offsets are interpolated by kernel ridge regression with an optional
    affine tail, on the standardised control vector x and Feng's kernel vector ξ (so the run time
    has both already): ``o(x) = Σ_j w_j(x) o_j`` with blend weights
@@ -43,6 +49,8 @@ RIDGE_GRID = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 POWER_GRID = (1.0, 4.0, 16.0)
 #: Frames per chunk when carrying residuals back to the rest pose (bounds the (f, V, K, 8) gather).
 _CHUNK_VALUES = 1 << 22
+#: ε of the regularised inverse of a vertex's linear-blend map A (entries of order 1: A blends rotations).
+LINEAR_RIDGE = 1e-6
 
 
 @dataclass
@@ -75,17 +83,33 @@ class Model:
             ", affine tail" if self.tail else "")
 
 
-def rest_offsets(rest, bone_indices, bone_weights, dual_quaternions, targets):
-    """Rest-pose offsets (F, V, 3) that make dual-quaternion skinning with dual_quaternions
-    (F, B, 8) reproduce targets (F, V, 3) exactly: o = Rᵀ (y − t) − rest per vertex."""
+def rest_offsets(rest, bone_indices, bone_weights, dual_quaternions, targets, skinning="dual-quaternion"):
+    """Rest-pose offsets (F, V, 3) that make ``skinning`` ("dual-quaternion" or "linear") with the
+    bones dual_quaternions (F, B, 8) reproduce targets (F, V, 3): per vertex o = Rᵀ (y − t) − rest
+    (rigid, exact), or the regularised inverse of the vertex's linear-blend map (module docstring)."""
     frames, verts = targets.shape[:2]
     out = np.empty((frames, verts, 3))
     step = max(1, _CHUNK_VALUES // max(1, 8 * verts * bone_indices.shape[1]))
     for f0 in range(0, frames, step):
+        chunk = slice(f0, f0 + step)
+        if skinning == "linear":
+            maps, trans = linear_vertex_maps(bone_indices, bone_weights, dual_quaternions[chunk])
+            missed = targets[chunk] - trans - np.einsum("fvij,vj->fvi", maps, rest)  # what LBS of the rest misses
+            normal = np.einsum("fvki,fvkj->fvij", maps, maps) + LINEAR_RIDGE * np.eye(3)
+            out[chunk] = np.linalg.solve(normal, np.einsum("fvji,fvj->fvi", maps, missed)[..., None])[..., 0]
+            continue
         rot, trans = dual_quaternion_to_rigid(
-            vertex_dual_quaternions(bone_indices, bone_weights, dual_quaternions[f0:f0 + step]))
-        out[f0:f0 + step] = np.einsum("fvji,fvj->fvi", rot, targets[f0:f0 + step] - trans) - rest
+            vertex_dual_quaternions(bone_indices, bone_weights, dual_quaternions[chunk]))
+        out[chunk] = np.einsum("fvji,fvj->fvi", rot, targets[chunk] - trans) - rest
     return out
+
+
+def linear_vertex_maps(bone_indices, bone_weights, dual_quaternions):
+    """Each vertex's linear-blend map: (A (F, V, 3, 3), t (F, V, 3)) with A = Σ_k w_k R_(b_k) and
+    t = Σ_k w_k t_(b_k), for bones dual_quaternions (F, B, 8), so LBS moves p to A p + t."""
+    rotations, translations = dual_quaternion_to_rigid(dual_quaternions)
+    maps = np.einsum("vk,fvkij->fvij", bone_weights, rotations[:, bone_indices])
+    return maps, np.einsum("vk,fvki->fvi", bone_weights, translations[:, bone_indices])
 
 
 def tail_axes(x, n_p=None):
@@ -143,7 +167,7 @@ def corrective_offsets(correctives, kernel_vectors, x):
 
 
 def cross_validated_errors(kernel_matrix, x, folds, fold_predictions, targets, rest, bone_indices, bone_weights,
-                           powers=(1.0,), ridges=RIDGE_GRID):
+                           powers=(1.0,), ridges=RIDGE_GRID, skinning="dual-quaternion"):
     """{Model: RMS vertex error} over held-out rows, ``Model(inf)`` meaning no correctives.
 
     kernel_matrix (n, n) of the training rows, x (n, d) their standardised controls; folds: list
@@ -151,14 +175,18 @@ def cross_validated_errors(kernel_matrix, x, folds, fold_predictions, targets, r
     of a puppet trained without that fold's rows, for all n rows; targets (n, V', 3) the examples
     in place (a vertex subset, with rest (V', 3) and the skin's bone_indices / bone_weights rows to
     match). Each fold's correctives are fitted from its own training rows' residuals, as training
-    does; errors are measured in the rest pose (skinning is rigid per vertex, so lengths agree)."""
+    does. Under dual quaternions errors are measured in the rest pose (skinning is rigid per vertex,
+    so lengths agree); under linear skinning each held-out offset error is carried through its
+    vertex's map A (:func:`linear_vertex_maps`), so the error is the posed one."""
     n = kernel_matrix.shape[0]
     models = [Model(ridge, power, tail) for tail in (False, True) for power in powers for ridge in ridges]
     total = dict.fromkeys([Model(np.inf)] + models, 0.0)
     for test, d in zip(folds, fold_predictions):
         train = np.setdiff1d(np.arange(n), test)
-        offsets = rest_offsets(rest, bone_indices, bone_weights, d, targets).reshape(n, -1)
-        total[Model(np.inf)] += float(np.sum(offsets[test] ** 2))
+        offsets = rest_offsets(rest, bone_indices, bone_weights, d, targets, skinning).reshape(n, -1)
+        error = _held_out_error(offsets[test], None if skinning != "linear" else
+                                (*linear_vertex_maps(bone_indices, bone_weights, d[test]), rest, targets[test]))
+        total[Model(np.inf)] += error(0.0)
         axes = tail_axes(x[train])
         features = _features(x, axes)
         for model in models:
@@ -169,9 +197,23 @@ def cross_validated_errors(kernel_matrix, x, folds, fold_predictions, targets, r
                 total[model] = np.inf
                 continue
             weights = k[np.ix_(test, train)] @ a.T + (features[test] @ b.T if model.tail else 0.0)
-            total[model] += float(np.sum((offsets[test] - weights @ offsets[train]) ** 2))
+            total[model] += error(weights @ offsets[train])
     count = n * rest.shape[0]
     return {model: float(np.sqrt(error / count)) for model, error in total.items()}
+
+
+def _held_out_error(offsets, linear=None):
+    """The summed squared error of predicted rest offsets (T, 3V) against the held-out rows' own
+    ``offsets`` (T, 3V): in the rest pose where skinning is rigid (``linear`` None), else posed,
+    ``linear`` = (maps A (T, V, 3, 3), shifts t (T, V, 3), rest (V, 3), targets (T, V, 3)): the
+    error of A (rest + predicted) + t against the targets, which also counts what no offset
+    reaches where a map is near singular."""
+    if linear is None:
+        return lambda predicted: float(np.sum((offsets - predicted) ** 2))
+    maps, shifts, rest, targets = linear
+    reach = shifts - targets + np.einsum("tvij,vj->tvi", maps, rest)
+    return lambda predicted: float(np.sum((np.einsum("tvij,tvj->tvi", maps, np.broadcast_to(
+        predicted, offsets.shape).reshape(reach.shape)) + reach) ** 2))
 
 
 def choose_model(errors):

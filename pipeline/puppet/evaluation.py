@@ -33,13 +33,14 @@ def relative_errors(predicted, truth, scale):
     return np.sqrt(squared.mean(axis=1)) / scale, float(np.sqrt(squared.mean()) / scale)
 
 
-def evaluate_puppet(puppet, examples, test_frames, skinning="dual-quaternion", pca_components=None):
+def evaluate_puppet(puppet, examples, test_frames, skinning=None, pca_components=None):
     """Errors of the puppet (with and without the translation solver) and of the baselines.
 
     examples (F, V, 3) the example frames the puppet was trained from; test_frames (T,) the
-    held-out ones. Returns :class:`Evaluation` with methods ``kcca``,
-    ``kcca_no_translation_solver``, ``pca_blendshape``, ``rbf``.
+    held-out ones; skinning None for the puppet's own. Returns :class:`Evaluation` with methods
+    ``kcca``, ``kcca_no_translation_solver``, ``pca_blendshape``, ``rbf``.
     """
+    skinning = skinning or puppet.skinning
     test_frames = np.asarray(test_frames)
     if test_frames.size == 0:
         raise OptionError("no held-out frames: train with --train-frames leaving some examples out")
@@ -82,7 +83,7 @@ def extrapolation_split(frames, fraction):
     return np.arange(count), np.arange(count, frames)
 
 
-def evaluate_extrapolation(skin, control_indices, options, train, test, skinning="dual-quaternion",
+def evaluate_extrapolation(skin, control_indices, options, train, test, skinning=None,
                            pca_components=None):
     """A contiguous hold-out (:func:`extrapolation_split`): a puppet trained with ``options``
     (train_puppet's keywords) on ``train``, every method tested on ``test``, so on poses no method

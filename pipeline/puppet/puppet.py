@@ -7,8 +7,14 @@ precompute the Poisson translation operator (:mod:`.poisson`).
 
 Run time (:func:`predict_vertices`, the numpy reference of the whole path): align the controls,
 kernel vector ξ, ``d = M ξ + m`` for all bones, normalise each dual quaternion and take its
-rotation, recompute translations with ``t = Γ·R + Q·c`` (optional), dual-quaternion skinning,
-and carry the result back to the world with the inverse control frame.
+rotation, recompute translations with ``t = Γ·R + Q·c`` (optional), skinning, and carry the
+result back to the world with the inverse control frame.
+
+A puppet is trained for one skinning (``Puppet.skinning``): Feng §6.3's dual quaternions, or the
+linear blend skinning the weights were fitted for and that glTF, engines and Blender play. The
+bones are regressed as dual quaternions either way (Feng §4.3: the better-interpolating, smaller
+representation); the skinning decides what the cross-validation scores (the kernel width, the
+translation prior, the global-motion mode) and what the pose-space correctives are fitted to.
 """
 
 from dataclasses import dataclass
@@ -27,12 +33,13 @@ from .poisson import (PRIOR_GRID, TranslationOperator, choose_translation_prior,
 from ..rotations import dual_quaternion_to_rigid, rigid_to_dual_quaternion, with_translations
 
 GLOBAL_MOTION = ("auto", "control-frame", "world")
+SKINNING = ("dual-quaternion", "linear")
 #: A frame fitted to the controls is trusted only above this conditioning (s₂/s₁, every frame).
 FRAME_CONDITIONING = 0.15
 
 
 def choose_global_motion(examples, rest, faces, bone_indices, bone_weights, rotations, translations,
-                         control_indices, train_frames, kernel, folds=4):
+                         control_indices, train_frames, kernel, folds=4, skinning="dual-quaternion"):
     """("control-frame" | "world", reason) for ``--global-motion auto``.
 
     A frame fitted to the controls removes travel and turns, but it also adds a nonlinear
@@ -41,7 +48,8 @@ def choose_global_motion(examples, rest, faces, bone_indices, bone_weights, rota
     controls fix a rotation poorly in some training frame (conditioning ≤ FRAME_CONDITIONING),
     world; otherwise the mode with the lower vertex error in ``folds``-fold cross-validation over
     the training frames (interleaved folds, leave-one-out when a fold would leave fewer than the 4
-    frames a puppet needs; fixed κ = 1e-2, width σ and no translation solver, to keep it cheap).
+    frames a puppet needs; fixed κ = 1e-2, width σ and no translation solver, to keep it cheap;
+    vertices skinned as ``skinning``).
     With 5 training frames (the horse at every:10) the old 4-fold rule fell back to control-frame
     without looking, and the horse's error was 6× world's.
     """
@@ -65,7 +73,7 @@ def choose_global_motion(examples, rest, faces, bone_indices, bone_weights, rota
             puppet = train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, translations,
                                   control_indices, train, kernel=kernel, regularization=1e-2,
                                   translation_solver=False, global_motion=mode, kernel_width=1.0,
-                                  correctives="off")
+                                  correctives="off", skinning=skinning)
             pred = predict_vertices(puppet, examples[test][:, control_indices], translation_solver=False)
             total += float(np.sum((pred - examples[test]) ** 2))
         errors[mode] = np.sqrt(total / (len(train_frames) * rest.shape[0]))
@@ -84,7 +92,8 @@ class Puppet:
     standardised; regression: KccaRegression (predictor (B, 8, n_p), bias (B, 8));
     translations: TranslationOperator or None; beta; translation_prior (relative γ of
     :mod:`.poisson`, and why: translation_prior_reason); train_frames (n_p,); correctives:
-    :class:`.correctives.Correctives` or None (rest-pose offsets added before skinning).
+    :class:`.correctives.Correctives` or None (rest-pose offsets added before skinning);
+    skinning: "dual-quaternion" | "linear", the skinning it was trained for and plays with.
     """
 
     rest_vertices: np.ndarray
@@ -105,6 +114,7 @@ class Puppet:
     kernel_width_reason: str = ""
     correctives: Correctives | None = None
     correctives_reason: str = ""
+    skinning: str = "dual-quaternion"
 
 
 def puppet_from_record(record):
@@ -171,14 +181,17 @@ def _bone_dual_quaternions(rotations, translations):
 def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, translations, control_indices,
                  train_frames, kernel="gaussian", bases=8, regularization="auto", translation_solver=True,
                  beta=100.0, global_motion="auto", translation_prior="auto", kernel_width="auto",
-                 correctives="auto"):
+                 correctives="auto", skinning="dual-quaternion"):
     """Train a puppet from a skin fit. examples (F, V, 3); rotations (F, B, 3, 3), translations
     (F, B, 3) the fitted bones; control_indices (n_c,); train_frames (n_p,); translation_prior:
     the Poisson solve's pull towards the regression's translations (:mod:`.poisson`), a number or
     "auto" (cross-validated); kernel_width: the Gaussian's width as a multiple of the controls'
     spread σ, or "auto" (cross-validated, :func:`_choose_width_and_kappa`); correctives: the
     pose-space correctives' relative ridge (:mod:`.correctives`), "auto" (cross-validated) or
-    "off". Returns Puppet."""
+    "off"; skinning: "dual-quaternion" or "linear", what every cross-validated choice and the
+    correctives are fitted for and what the puppet plays with. Returns Puppet."""
+    if skinning not in SKINNING:
+        raise OptionError(f"--skinning must be one of {', '.join(SKINNING)} (got {skinning!r})")
     if global_motion not in GLOBAL_MOTION:
         raise OptionError(f"--global-motion must be one of {', '.join(GLOBAL_MOTION)}")
     if len(train_frames) < 4:
@@ -193,7 +206,8 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
     reason = f"chosen by the user (--global-motion {global_motion})"
     if global_motion == "auto":
         global_motion, reason = choose_global_motion(examples, rest, faces, bone_indices, bone_weights, rotations,
-                                                     translations, control_indices, np.asarray(train_frames), kernel)
+                                                     translations, control_indices, np.asarray(train_frames), kernel,
+                                                     skinning=skinning)
     reference = rest[control_indices]
     controls = examples[train_frames][:, control_indices]
     frame_r, frame_t = in_place(controls, reference, global_motion)
@@ -224,7 +238,7 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
     kappa, scores, width_reason = _choose_width_and_kappa(kern, kernel_width, regularization, translation_prior,
                                                           correctives == "auto", flat_controls, targets, bases,
                                                           system, placed, placed_controls, rest, bone_indices,
-                                                          bone_weights)
+                                                          bone_weights, skinning)
     x = kern.standardise(flat_controls)
     kernel_matrix = kern.matrix(x, x)
     regression = fit_kcca(kernel_matrix, targets, bases=bases, regularization=kappa)
@@ -245,7 +259,7 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
                     global_motion=global_motion, kernel=kern, training_controls=x, regression=regression,
                     translations=operator, beta=float(beta), train_frames=np.asarray(train_frames),
                     global_motion_reason=reason, translation_prior=float(prior), translation_prior_reason=prior_reason,
-                    kernel_width_reason=width_reason)
+                    kernel_width_reason=width_reason, skinning=skinning)
     if correctives == "off":
         model, puppet.correctives_reason = None, "off, chosen by the user (--correctives off)"
     elif correctives == "auto":
@@ -255,7 +269,7 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
         puppet.correctives_reason = f"{model}, chosen by the user (--correctives)"
     if model is not None:
         d = predict_bones(puppet, controls)[0]
-        offsets = rest_offsets(rest, bone_indices, bone_weights, d, placed)
+        offsets = rest_offsets(rest, bone_indices, bone_weights, d, placed, skinning)
         puppet.correctives = fit_correctives(kernel_matrix, x, offsets, model, puppet.correctives_reason)
     return puppet
 
@@ -275,7 +289,8 @@ class _Scores:
 
 
 def _choose_width_and_kappa(kern, kernel_width, regularization, translation_prior, correctives, flat_controls,
-                            targets, bases, system, placed, placed_controls, rest, bone_indices, bone_weights):
+                            targets, bases, system, placed, placed_controls, rest, bone_indices, bone_weights,
+                            skinning="dual-quaternion"):
     """(κ (B,) or scalar, :class:`_Scores` or None, width reason); sets ``kern.scale``.
 
     Feng §7 takes the Gaussian's σ from the data, but no fixed multiple suits every capture
@@ -299,7 +314,8 @@ def _choose_width_and_kappa(kern, kernel_width, regularization, translation_prio
         scores = None
         if len(widths) > 1 or (system is not None and len(priors) > 1) or correctives:
             scores = _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kappa, placed,
-                                                    placed_controls, rest, bone_indices, bone_weights, correctives)
+                                                    placed_controls, rest, bone_indices, bone_weights, correctives,
+                                                    skinning=skinning)
         tried[width] = (kappa, scores)
     width = min(widths, key=lambda w: (tried[w][1].best, w)) if len(widths) > 1 else widths[0]
     kern.scale = base_scale * width
@@ -317,15 +333,15 @@ PRIOR_VERTICES = 4096
 
 
 def _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kappa, placed, placed_controls, rest,
-                                   bone_indices, bone_weights, correctives=False, folds=5):
-    """:class:`_Scores` of the dual-quaternion-skinned vertices of out-of-fold predictions, with
+                                   bone_indices, bone_weights, correctives=False, folds=5, skinning="dual-quaternion"):
+    """:class:`_Scores` of the skinned vertices (``skinning``) of out-of-fold predictions, with
     the Poisson translations at each prior (``system`` None: the regression's own translations,
     keyed by 0.0), and with ``correctives`` also each corrective model at the best prior
     (:func:`.correctives.cross_validated_errors`: each fold's puppet predicts every row, its own
     rows giving the residuals it learns). Folds keep repeated poses together
     (:func:`.kcca.cv_folds`); κ per bone as chosen; the edge weights and the kernel's parameters
     are those fitted on all training frames. Scored on PRIOR_VERTICES evenly spaced vertices."""
-    from skinsynth.gpu import dqs_reference
+    from skinsynth.gpu import dqs_reference, lbs_reference
 
     n = x.shape[0]
     kernel_matrix = kern.matrix(x, x)
@@ -344,8 +360,11 @@ def _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kapp
     subset = _vertex_subset(rest.shape[0])
 
     def vertex_error(rotations, translations):
-        skinned = dqs_reference(rest[subset], bone_indices[subset], bone_weights[subset],
-                                rigid_to_dual_quaternion(rotations, translations))
+        if skinning == "linear":
+            skinned = lbs_reference(rest[subset], bone_indices[subset], bone_weights[subset], rotations, translations)
+        else:
+            skinned = dqs_reference(rest[subset], bone_indices[subset], bone_weights[subset],
+                                    rigid_to_dual_quaternion(rotations, translations))
         return np.sum((skinned - placed[:, subset]) ** 2)
 
     if system is None:
@@ -362,7 +381,8 @@ def _cross_validated_vertex_errors(system, priors, kern, x, targets, bases, kapp
                 every_row[i] = with_translations(rows, solve_translations(operator, r, placed_controls, t))
         corrective_errors = cross_validated_errors(kernel_matrix, x, fold_tests, every_row, placed[:, subset],
                                                    rest[subset], bone_indices[subset], bone_weights[subset],
-                                                   powers=POWER_GRID if kern.kind == "gaussian" else (1.0,))
+                                                   powers=POWER_GRID if kern.kind == "gaussian" else (1.0,),
+                                                   skinning=skinning)
     return _Scores(priors=errors, correctives=corrective_errors)
 
 
@@ -390,18 +410,17 @@ def predict_bones(puppet, controls, translation_solver=True):
     return d, frame_r, frame_t, (xi, x)
 
 
-SKINNING = ("dual-quaternion", "linear")
-
-
-def predict_vertices(puppet, controls, translation_solver=True, skinning="dual-quaternion"):
+def predict_vertices(puppet, controls, translation_solver=True, skinning=None):
     """The whole run-time prediction in numpy: controls (F, n_c, 3) -> vertices (F, V, 3).
 
-    ``skinning``: "dual-quaternion" as Feng §6.3 (no candy-wrapper collapse), or "linear", the
-    model the skin weights were fitted for (exact on LBS data; see ``skinsynth evaluate``).
-    The puppet's correctives (if any) are added to the rest pose first; they were fitted for
-    dual-quaternion skinning, so with "linear" they reproduce the examples only approximately."""
+    ``skinning``: None for the puppet's own (``Puppet.skinning``), "dual-quaternion" as Feng §6.3
+    (no candy-wrapper collapse), or "linear", the model the skin weights were fitted for (exact on
+    LBS data; see ``skinsynth evaluate``). The puppet's correctives (if any) are added to the rest
+    pose first; they were fitted for the puppet's own skinning, so under the other one they
+    reproduce the examples only approximately."""
     from skinsynth.gpu import dqs_reference, lbs_reference
 
+    skinning = skinning or puppet.skinning
     if skinning not in SKINNING:
         raise OptionError(f"skinning must be one of {', '.join(SKINNING)}")
     d, frame_r, frame_t, (xi, x) = predict_bones(puppet, controls, translation_solver)

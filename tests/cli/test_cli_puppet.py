@@ -89,10 +89,12 @@ def test_evaluate_extrapolates_with_the_puppets_own_options(files, tmp_path):
         assert_user_error(cli("evaluate", files / "puppet.h5", "--extrapolate", bad), "--extrapolate")
 
 
+@pytest.mark.parametrize("skinning", ["dual-quaternion", "linear"])
 @pytest.mark.parametrize("correctives", ["off", "1e-4", "tail"])
-def test_the_documented_numpy_recipe_reproduces_predict_vertices(files, tmp_path, correctives):
+def test_the_documented_numpy_recipe_reproduces_predict_vertices(files, tmp_path, correctives, skinning):
     """docs/format.md's third-party implementation (h5py and numpy only), run as written, on a
-    puppet without correctives, with them, and with a power and an affine tail written in."""
+    puppet without correctives, with them, and with a power and an affine tail written in, for
+    either skinning."""
     import pathlib
     import re
 
@@ -103,7 +105,7 @@ def test_the_documented_numpy_recipe_reproduces_predict_vertices(files, tmp_path
 
     path = tmp_path / "puppet.h5"
     assert_ok(cli("train-kcca", files / "controls.h5", "-o", path, "-q", "--correctives",
-                  "1e-4" if correctives == "tail" else correctives))
+                  "1e-4" if correctives == "tail" else correctives, "--skinning", skinning))
     if correctives == "tail":
         rng = np.random.default_rng(0)
         with h5py.File(path, "r+") as f:
@@ -118,8 +120,57 @@ def test_the_documented_numpy_recipe_reproduces_predict_vertices(files, tmp_path
     exec(compile(code, "docs/format.md", "exec"), namespace)
     record, test_frames, skin = read_puppet(str(path))
     puppet = puppet_from_record(record)
-    assert (puppet.correctives is None) == (correctives == "off")
+    assert (puppet.correctives is None) == (correctives == "off") and puppet.skinning == skinning
     controls = skin.examples[:, puppet.control_indices]
     expected = predict_vertices(puppet, controls)
     got = np.stack([namespace["evaluate"](c) for c in controls])
     assert np.abs(got - expected).max() < 1e-9 * np.ptp(skin.rest_vertices, axis=0).max()
+
+
+def test_a_linear_puppet_is_evaluated_and_played_linearly_by_default(files, tmp_path):
+    """train-kcca --skinning linear is recorded; evaluate and play use it unless told otherwise;
+    a dual-quaternion puppet to glTF is one line naming --skinning linear."""
+    from skinsynth.formats.meshseq import read_played_characters
+    from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.pipeline.puppet import predict_vertices, puppet_from_record
+
+    linear = tmp_path / "linear.h5"
+    summary = json.loads(assert_ok(cli("train-kcca", files / "controls.h5", "-o", linear, "--skinning", "linear",
+                                       "--correctives", "off", "--json")).stdout)
+    assert summary["skinning"] == "linear"
+    with h5py.File(linear) as f:
+        assert f["training"].attrs["skinning"] == "linear"
+    evaluated = json.loads(assert_ok(cli("evaluate", linear, "--json")).stdout)
+    assert evaluated["skinning"] == "linear"
+    dual = json.loads(assert_ok(cli("evaluate", linear, "--json", "--skinning", "dual-quaternion")).stdout)
+    assert dual["skinning"] == "dual-quaternion" and dual["kcca"] != evaluated["kcca"]
+    assert json.loads(assert_ok(cli("evaluate", files / "puppet.h5", "--json")).stdout)["skinning"] == "dual-quaternion"
+
+    record, _, skin = read_puppet(str(linear))
+    puppet = puppet_from_record(record)
+    np.save(tmp_path / "c.npy", skin.examples[:, puppet.control_indices])
+    played = json.loads(assert_ok(cli("play", linear, "-c", tmp_path / "c.npy", "-o", tmp_path / "p.h5",
+                                      "--json")).stdout)
+    assert played["skinning"] == "linear"
+    vertices = read_played_characters(str(tmp_path / "p.h5"))[1][0]  # (F, V, 3)
+    expected = predict_vertices(puppet, skin.examples[:, puppet.control_indices], skinning="linear")
+    assert np.abs(vertices - expected).max() < 1e-5 * np.ptp(skin.rest_vertices, axis=0).max()
+    assert_ok(cli("play", linear, "-c", tmp_path / "c.npy", "-o", tmp_path / "p.glb", "-q"))
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert_user_error(cli("play", files / "puppet.h5", "-c", tmp_path / "c.npy", "-o", tmp_path / "d.glb"),
+                      "d.glb", "train-kcca --skinning linear", folder=tmp_path, keep=before)
+
+
+def test_a_puppet_written_before_skinning_was_recorded_is_dual_quaternion(files, tmp_path):
+    import shutil
+
+    from skinsynth.formats.puppet_file import read_puppet
+
+    old = tmp_path / "old.h5"
+    shutil.copy(files / "puppet.h5", old)
+    with h5py.File(old, "r+") as f:
+        del f["training"].attrs["skinning"]
+    assert read_puppet(str(old))[0].skinning == "dual-quaternion"
+    with h5py.File(old, "r+") as f:
+        f["training"].attrs["skinning"] = "cubic"
+    assert_user_error(cli("evaluate", old), "old.h5", "/training/@skinning", "'cubic'")
