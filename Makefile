@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 DEMO   := build/demo
 
-.PHONY: setup demo test test-fast bench clean
+.PHONY: setup demo test test-fast bench blender clean
 
 JS     := tests/contracts/js
 
@@ -72,6 +72,23 @@ bench: setup
 	$(BIN)/python benchmarks/cluster.py
 	$(BIN)/python benchmarks/lbs.py
 	$(BIN)/python benchmarks/render.py
+
+# Optional: Blender 5 as the bpy module (~370 MB) in a venv of its own, for tests/contracts/test_dcc_blender.py.
+# bpy 5.0 wheels are built for Python 3.11 only; not part of setup.
+BLENDER_VENV ?= .venv-blender
+PYTHON311    ?= python3.11
+
+blender: $(BLENDER_VENV)/.installed
+	@echo
+	@echo "Blender (bpy) is in $(BLENDER_VENV); run the Blender tests with:"
+	@echo "  SKINSYNTH_BLENDER_PYTHON=$(BLENDER_VENV)/bin/python make test"
+
+$(BLENDER_VENV)/.installed:
+	$(PYTHON311) -m venv $(BLENDER_VENV)
+	$(BLENDER_VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(BLENDER_VENV)/bin/python -m pip install --quiet bpy==5.0.1
+	$(BLENDER_VENV)/bin/python -c "import bpy; print('bpy', bpy.app.version_string)"
+	touch $@
 
 clean:
 	rm -rf build $(VENV) *.egg-info

@@ -1,7 +1,7 @@
-"""A real DCC plays our USD: Blender (as the bpy module) imports the exports and we compare vertices.
+"""A real DCC plays our USD and glTF: Blender (as the bpy module) imports the exports and we compare vertices.
 
-Optional: set SKINSYNTH_BLENDER_PYTHON to a Python that can `import bpy` (e.g. a venv with
-`pip install bpy==5.0.1`, ~370 MB); skipped otherwise.
+Optional: set SKINSYNTH_BLENDER_PYTHON to a Python that can `import bpy` (`make blender` makes one,
+.venv-blender, with `pip install bpy==5.0.1`, ~370 MB); skipped otherwise.
 """
 
 import json
@@ -9,6 +9,7 @@ import os
 import pathlib
 import subprocess
 
+import h5py
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -16,12 +17,30 @@ from click.testing import CliRunner
 from skinsynth.cli.main import main
 from skinsynth.formats.meshseq import write_array_sequence
 from skinsynth.formats.skin_file import read_skin
-from skinsynth.gpu import lbs_reference
+from skinsynth.gpu import lbs, lbs_reference
 from skinsynth.pipeline.examples import bending_bar
 
+from cli_helpers import assert_ok, cli
+
 BLENDER_PYTHON = os.environ.get("SKINSYNTH_BLENDER_PYTHON")
+if BLENDER_PYTHON:  # a path relative to where the tests started stays right wherever a test runs
+    BLENDER_PYTHON = os.path.abspath(BLENDER_PYTHON) if os.sep in BLENDER_PYTHON else BLENDER_PYTHON
 pytestmark = [pytest.mark.slow,
               pytest.mark.skipif(not BLENDER_PYTHON, reason="SKINSYNTH_BLENDER_PYTHON (a Python with bpy) not set")]
+
+
+def probe(script, *args):
+    """What ``script`` (a probe beside this file, run by Blender's Python) printed after PROBE."""
+    run = subprocess.run([BLENDER_PYTHON, str(pathlib.Path(__file__).with_name(script)), *[str(a) for a in args]],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and "PROBE" in run.stdout, run.stderr[-4000:]
+    return json.loads(run.stdout.split("PROBE", 1)[1])
+
+
+def z_up(points):
+    """Blender's view of Y-up points: it converts Y up to its Z up, (x, y, z) -> (x, -z, y)."""
+    points = np.asarray(points)
+    return np.stack([points[..., 0], -points[..., 2], points[..., 1]], axis=-1)
 
 
 @pytest.mark.parametrize("kind", ["skel", "points"])
@@ -35,17 +54,10 @@ def test_blender_plays_exported_usd(tmp_path, kind):
     assert runner.invoke(main, ["export", str(tmp_path / "s.h5"), "-o", str(usd), "--as", kind]).exit_code == 0
     skin = read_skin(tmp_path / "s.h5")
     expected = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations, skin.translations)
-    probe = pathlib.Path(__file__).with_name("blender_probe.py")
-    run = subprocess.run([BLENDER_PYTHON, str(probe), str(usd), "0", "5", "11"], capture_output=True, text=True,
-                         timeout=300)
-    played = json.loads(run.stdout.split("PROBE", 1)[1])
+    played = probe("blender_probe.py", usd, 0, 5, 11)
     diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
     for frame, points in played.items():
-        got = np.array(points)
-        want = expected[int(frame)]
-        # Blender converts the stage's Y-up to its Z-up: (x, y, z) -> (x, -z, y).
-        want_z_up = np.stack([want[:, 0], -want[:, 2], want[:, 1]], axis=1)
-        assert np.abs(got - want_z_up).max() < 1e-4 * diagonal
+        assert np.abs(np.array(points) - z_up(expected[int(frame)])).max() < 1e-4 * diagonal
 
 
 def test_blender_plays_the_linear_puppet_rig_as_computed(tmp_path):
@@ -53,8 +65,6 @@ def test_blender_plays_the_linear_puppet_rig_as_computed(tmp_path):
     included, matches play's bake to 1e-4 of the diagonal (measured 3e-7; the dual-quaternion rig,
     which Blender skins linearly, was 1.7e-2 away on the horse; signed shape weights, before they
     were split into ± pairs in [0, 1], 1e-3)."""
-    import h5py
-
     vertices, faces = bending_bar(frames=24, rings=10, segments=8)
     write_array_sequence(tmp_path / "bar.npz", vertices, faces, 24.0)
     runner = CliRunner()
@@ -67,15 +77,10 @@ def test_blender_plays_the_linear_puppet_rig_as_computed(tmp_path):
         assert result.exit_code == 0, result.output
     with h5py.File(tmp_path / "bake.h5") as f:
         expected = f["vertices"][()].reshape(24, -1, 3)
-    probe = pathlib.Path(__file__).with_name("blender_probe.py")
-    run = subprocess.run([BLENDER_PYTHON, str(probe), str(tmp_path / "rig.usdc"), "0", "7", "19"],
-                         capture_output=True, text=True, timeout=300)
-    played = json.loads(run.stdout.split("PROBE", 1)[1])
+    played = probe("blender_probe.py", tmp_path / "rig.usdc", 0, 7, 19)
     diagonal = np.linalg.norm(np.ptp(vertices[0], axis=0))
     for frame, points in played.items():
-        want = expected[int(frame)]
-        want_z_up = np.stack([want[:, 0], -want[:, 2], want[:, 1]], axis=1)  # Blender's Y-up to Z-up
-        assert np.abs(np.array(points) - want_z_up).max() < 1e-4 * diagonal
+        assert np.abs(np.array(points) - z_up(expected[int(frame)])).max() < 1e-4 * diagonal
 
 
 def test_blender_shows_a_centimetre_z_up_capture_at_its_size_axis_and_frames(tmp_path):
@@ -93,8 +98,80 @@ def test_blender_shows_a_centimetre_z_up_capture_at_its_size_axis_and_frames(tmp
         assert runner.invoke(main, args).exit_code == 0
     stage = Usd.Stage.Open(str(tmp_path / "points.usdc"))
     written = np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath("/World/body")).GetPointsAttr().Get(1010))
-    probe = pathlib.Path(__file__).with_name("blender_probe.py")
-    run = subprocess.run([BLENDER_PYTHON, str(probe), str(tmp_path / "points.usdc"), "1010"], capture_output=True,
-                         text=True, timeout=300)
-    played = np.array(json.loads(run.stdout.split("PROBE", 1)[1])["1010"])
+    played = np.array(probe("blender_probe.py", tmp_path / "points.usdc", 1010)["1010"])
     assert np.abs(played - 0.01 * written).max() < 1e-4 * np.linalg.norm(np.ptp(0.01 * written, axis=0))
+
+
+# -- glTF (issue 23): Blender's own glTF importer plays each .glb skinsynth writes ----------------------
+
+@pytest.fixture(scope="module")
+def stages(stage_files):
+    """The test bar of tests/contracts/test_gltf.py: its skin fit, 3 synthesized clips, a linear puppet."""
+    return stage_files(frames=40, bones=4, iterations=6, cycles=2, graph=(),
+                       synthesis=("-n", 3, "-m", 30, "--seed", 3), controls=("--count", 4),
+                       puppet=("--correctives", "off"))
+
+
+def _skinned(skin, rotations, translations):
+    return lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, np.asarray(rotations, np.float64),
+               np.asarray(translations, np.float64), device="cpu")
+
+
+def _skin_fit(stages, out, skin):
+    assert_ok(cli("export", stages / "skin.h5", "-o", out, "-q"))
+    return _skinned(skin, skin.rotations, skin.translations)[None]
+
+
+def _root_motion_synthesis(stages, out, skin):
+    assert_ok(cli("export", stages / "bones.h5", "-o", out, "--root-motion", "-q"))  # every clip
+    with h5py.File(stages / "bones.h5") as f:
+        rotations, translations = f["synthesis/bone_matrices"][()], f["synthesis/bone_translations"][()]
+    assert len(rotations) >= 2
+    return np.stack([_skinned(skin, r, t) for r, t in zip(rotations, translations)])
+
+
+def _linear_puppet(stages, out, skin):
+    args = ["play", stages / "puppet.h5", "-c", stages / "bar.npz", "--instances", 2, "--spacing", 0,
+            "--skinning", "linear", "--device", "cpu", "-q"]
+    assert_ok(cli(*args, "-o", out))
+    assert_ok(cli(*args, "-o", out.with_suffix(".h5")))
+    with h5py.File(out.with_suffix(".h5")) as f:
+        return f["vertices"][()]  # play's own linear skinning, (characters, F, V, 3)
+
+
+GLTF_CASES = {"skin fit": _skin_fit, "root motion, 3 synthesized clips": _root_motion_synthesis,
+              "linear puppet played": _linear_puppet}
+
+
+@pytest.mark.parametrize("case", list(GLTF_CASES))
+def test_blender_plays_the_glb_as_skinsynth_skins_it(stages, tmp_path, case):
+    """Blender's glTF import of each clip, at its first, a middle and its last frame, is skinsynth's
+    own LBS of that clip to 1e-4 of the diagonal, vertex for vertex (measured 2e-7, 3e-7 and 1e-7:
+    float32)."""
+    from test_gltf import in_gltf_axes, skin_of
+
+    skin = skin_of(stages / "skin.h5")  # the rig of every case: the synthesis's and the puppet's are this fit's
+    out = tmp_path / "out.glb"
+    truth = GLTF_CASES[case](stages, out, skin)  # (clips, F, V, 3) in the skin's own axes and units
+    frames = [0, truth.shape[1] // 2, truth.shape[1] - 1]
+    played = probe("blender_gltf_probe.py", out, round(skin.fps), *frames)
+    rest = z_up(in_gltf_axes(skin.rest_vertices, skin.scene))
+    diagonal = np.linalg.norm(np.ptp(rest, axis=0))
+    assert played["vertices"] == len(rest) and np.abs(np.array(played["rest"]) - rest).max() < 1e-6 * diagonal
+    assert len(played["animations"]) == len(truth)
+    for clip, (name, by_frame) in enumerate(played["animations"].items()):
+        for frame in frames:
+            want = z_up(in_gltf_axes(truth[clip, frame], skin.scene))
+            error = np.abs(np.array(by_frame[str(frame)]) - want).max() / diagonal
+            assert error < 1e-4, (case, name, frame, error)
+
+
+def test_blender_finds_one_root_in_the_usdskel_rig(stages, tmp_path):
+    """export --as skel: after Blender's USD import the armature has exactly one bone without a
+    parent, the root, and every bone of the fit under it."""
+    assert_ok(cli("export", stages / "skin.h5", "-o", tmp_path / "rig.usdc", "--as", "skel", "-q"))
+    armatures = probe("blender_probe.py", tmp_path / "rig.usdc", "--bones")
+    assert len(armatures) == 1
+    (bones,) = armatures.values()
+    assert [name for name, parent in bones.items() if parent is None] == ["root"]
+    assert len(bones) == 1 + read_skin(stages / "skin.h5").rotations.shape[1]
