@@ -107,9 +107,16 @@ def rest_offsets(rest, bone_indices, bone_weights, dual_quaternions, targets, sk
 def linear_vertex_maps(bone_indices, bone_weights, dual_quaternions):
     """Each vertex's linear-blend map: (A (F, V, 3, 3), t (F, V, 3)) with A = Σ_k w_k R_(b_k) and
     t = Σ_k w_k t_(b_k), for bones dual_quaternions (F, B, 8), so LBS moves p to A p + t."""
+    from scipy.sparse import csr_matrix
+
     rotations, translations = dual_quaternion_to_rigid(dual_quaternions)
-    maps = np.einsum("vk,fvkij->fvij", bone_weights, rotations[:, bone_indices])
-    return maps, np.einsum("vk,fvki->fvi", bone_weights, translations[:, bone_indices])
+    frames, bones = rotations.shape[:2]
+    verts = bone_indices.shape[0]
+    used = bone_weights > 0.0  # a zero-weight slot is padding: its index may be anything
+    blend = csr_matrix((bone_weights[used], (np.nonzero(used)[0], bone_indices[used])), shape=(verts, bones))
+    motion = np.concatenate([rotations.reshape(frames, bones, 9), translations], axis=2)  # (F, B, 12)
+    blended = (blend @ motion.transpose(1, 0, 2).reshape(bones, -1)).reshape(verts, frames, 12).transpose(1, 0, 2)
+    return blended[..., :9].reshape(frames, verts, 3, 3), blended[..., 9:]
 
 
 def tail_axes(x, n_p=None):
@@ -184,9 +191,13 @@ def cross_validated_errors(kernel_matrix, x, folds, fold_predictions, targets, r
     for test, d in zip(folds, fold_predictions):
         train = np.setdiff1d(np.arange(n), test)
         offsets = rest_offsets(rest, bone_indices, bone_weights, d, targets, skinning).reshape(n, -1)
-        error = _held_out_error(offsets[test], None if skinning != "linear" else
-                                (*linear_vertex_maps(bone_indices, bone_weights, d[test]), rest, targets[test]))
-        total[Model(np.inf)] += error(0.0)
+        if skinning == "linear":
+            error = _posed_error(offsets[train], *linear_vertex_maps(bone_indices, bone_weights, d[test]), rest,
+                                 targets[test])
+            total[Model(np.inf)] += error(np.zeros((len(test), len(train))))
+        else:
+            error = _rest_pose_error(offsets[test], offsets[train])
+            total[Model(np.inf)] += float(np.sum(offsets[test] ** 2))
         axes = tail_axes(x[train])
         features = _features(x, axes)
         for model in models:
@@ -197,23 +208,36 @@ def cross_validated_errors(kernel_matrix, x, folds, fold_predictions, targets, r
                 total[model] = np.inf
                 continue
             weights = k[np.ix_(test, train)] @ a.T + (features[test] @ b.T if model.tail else 0.0)
-            total[model] += error(weights @ offsets[train])
+            total[model] += error(weights)
     count = n * rest.shape[0]
     return {model: float(np.sqrt(error / count)) for model, error in total.items()}
 
 
-def _held_out_error(offsets, linear=None):
-    """The summed squared error of predicted rest offsets (T, 3V) against the held-out rows' own
-    ``offsets`` (T, 3V): in the rest pose where skinning is rigid (``linear`` None), else posed,
-    ``linear`` = (maps A (T, V, 3, 3), shifts t (T, V, 3), rest (V, 3), targets (T, V, 3)): the
-    error of A (rest + predicted) + t against the targets, which also counts what no offset
-    reaches where a map is near singular."""
-    if linear is None:
-        return lambda predicted: float(np.sum((offsets - predicted) ** 2))
-    maps, shifts, rest, targets = linear
-    reach = shifts - targets + np.einsum("tvij,vj->tvi", maps, rest)
-    return lambda predicted: float(np.sum((np.einsum("tvij,tvj->tvi", maps, np.broadcast_to(
-        predicted, offsets.shape).reshape(reach.shape)) + reach) ** 2))
+def _rest_pose_error(held_out, shapes):
+    """weights (T, n) ↦ the summed squared error of the blended shapes (n, 3V) against the
+    held-out rows' own offsets (T, 3V), in the rest pose (skinning rigid per vertex)."""
+    return lambda weights: float(np.sum((held_out - weights @ shapes) ** 2))
+
+
+def _posed_error(shapes, maps, shifts, rest, targets):
+    """weights (T, n) ↦ the summed squared error of linear blend skinning with the blended
+    shapes (n, V·3) added to the rest pose (V, 3), against targets (T, V, 3), each held-out row
+    skinned by its vertices' maps A (T, V, 3, 3) and shifts t (T, V, 3): Σ_t ‖Σ_j w_tj A_t O_j +
+    (A_t rest + t_t − y_t)‖², which also counts what no offset reaches where a map is near
+    singular. Expanded once per fold into each row's Gram matrix (G_t G_tᵀ, G_t = A_t O_j for
+    the n shapes), so every model costs O(T n²) instead of a pass over the vertices."""
+    shapes = shapes.reshape(len(shapes), *rest.shape)
+    missed = (np.einsum("tvab,vb->tva", maps, rest) + shifts - targets).reshape(len(maps), -1)  # (T, 3V)
+    gram, cross = np.empty((len(maps),) + (len(shapes),) * 2), np.empty((len(maps), len(shapes)))
+    step = max(1, _CHUNK_VALUES // max(1, shapes.size))  # rows per chunk of the (t, n, V, 3) products
+    for t0 in range(0, len(maps), step):
+        rows = slice(t0, t0 + step)
+        moved = np.einsum("tvab,jvb->tjva", maps[rows], shapes).reshape(-1, len(shapes), missed.shape[1])
+        gram[rows] = np.einsum("tjx,tkx->tjk", moved, moved)
+        cross[rows] = np.einsum("tjx,tx->tj", moved, missed[rows])
+    constant = float(np.sum(missed ** 2))
+    return lambda weights: float(np.einsum("tj,tjk,tk->", weights, gram, weights)
+                                 + 2.0 * np.sum(weights * cross) + constant)
 
 
 def choose_model(errors):
