@@ -130,6 +130,17 @@ def raise_interrupted(signum, frame):
     raise Interrupted(signum)
 
 
+def quiet_interruptions(unraisable, default=sys.__unraisablehook__):
+    """``sys.unraisablehook``: a signal's :class:`~skinsynth.formats.atomic.Interrupted` raised where
+    Python cannot raise it (a weakref callback, a ``__del__``) is recorded and stops the command
+    at its next check (``stop_if_received``), so Python's "Exception ignored in …" traceback would
+    only be noise on stderr; anything else goes to the default hook."""
+    from skinsynth.formats.atomic import Interrupted
+
+    if not isinstance(unraisable.exc_value, Interrupted):
+        default(unraisable)
+
+
 def check_output_path(path, suffixes, inputs=()):
     """Refuse, before any work, an output path whose extension this command cannot write, whose
     folder is missing or not writable, or that is one of ``inputs`` (the same file by device and

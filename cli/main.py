@@ -1,6 +1,7 @@
 """The ``skinsynth`` command: one click group, one module per subcommand."""
 
 import contextlib
+import functools
 import os
 import signal
 import sys
@@ -70,6 +71,9 @@ class SkinsynthGroup(click.Group):
             for name in ("SIGINT", "SIGTERM", "SIGHUP"):
                 if hasattr(signal, name) and signal.getsignal(getattr(signal, name)) is not signal.SIG_IGN:
                     signal.signal(getattr(signal, name), common.raise_interrupted)
+            if not getattr(sys.unraisablehook, "quiet_interruptions", False):  # once, over whatever hook was set
+                sys.unraisablehook = functools.partial(common.quiet_interruptions, default=sys.unraisablehook)
+                sys.unraisablehook.quiet_interruptions = True
         try:
             return super().main(args, prog_name=prog_name or "skinsynth", standalone_mode=False, **extra)
         except click.exceptions.Exit as done:  # --help, --version

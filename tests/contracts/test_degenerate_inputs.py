@@ -262,3 +262,30 @@ def test_ctrl_c_to_previews_process_group_is_one_line(stages, tmp_path, delay):
     lines = stderr.strip().splitlines()
     assert process.returncode == 130 and lines == ["skinsynth: interrupted (SIGINT); no output written"], stderr
     assert_folder_holds(tmp_path)
+
+
+UNRAISABLE_UNDER_CTRL_C = """
+import gc, os, signal, sys, weakref
+from skinsynth.cli import common, main as entry
+
+class Noisy:
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)  # the signal lands inside a finaliser, where Python cannot raise it
+
+@entry.main.command("noisy")
+def noisy():
+    Noisy()
+    gc.collect()
+    from skinsynth.formats.atomic import stop_if_received
+    stop_if_received()
+
+entry.main(["noisy"])
+"""
+
+
+def test_a_signal_inside_a_finaliser_is_one_line():
+    """A signal whose Interrupted Python can only report as 'Exception ignored' (a weakref callback
+    or a __del__: seen once under load, in preview) is recorded and ends the command quietly."""
+    done = subprocess.run([sys.executable, "-c", UNRAISABLE_UNDER_CTRL_C], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 130 and done.stderr.strip().splitlines() == [
+        "skinsynth: interrupted (SIGINT); no output written"], done.stderr
