@@ -49,7 +49,7 @@ demo: setup
 	@echo "  controls.h5      8 control vertices chosen by PCA + varimax"
 	@echo "  puppet.h5        kernel-CCA puppet driven by those controls"
 	@echo "  puppet_errors.png held-out error of the puppet vs PCA blendshapes and RBF"
-	@echo "  crowd.usdc       16 puppets played from the example's control points (UsdSkel, dual-quaternion)"
+	@echo "  crowd.usdc       16 puppets played from the example's control points (UsdSkel, linear blend skinning)"
 	@echo "  graph.h5         transitions, bone graph and splicing operators (plots in graph_plots/)"
 	@echo "  bones.h5         16 new animations of 240 frames spliced from the example"
 	@echo "  synthesized_crowd.usdc  those 16 animations on a grid (USD point caches): open it in a DCC"

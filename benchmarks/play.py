@@ -1,7 +1,9 @@
 """Benchmark the puppet's run-time path (gpu.puppet_run): numpy reference vs warp on the CPU
 (1 and 2 Python threads) and on CUDA when present, per stage and end to end.
 
-One JSON line per (model, layout, solver). Models: "face" (V=23,728, B=260, n_c=8, n_p=38,
+One JSON line per (model, layout, solver, skinning). Skinnings: "dual-quaternion" (Feng §6.3)
+and "linear" (each bone's rigid transform from its composed dual quaternion, then linear-blend
+skinning), both the whole path on the device (``run_puppet(skinning=…)``). Models: "face" (V=23,728, B=260, n_c=8, n_p=38,
 K=4), "face+correctives" (the same with 38 pose-space corrective blend shapes) and "horse"
 (V=8,431, B=150, n_c=8, n_p=27, K=4), random but well-formed (unit dual
 quaternions around which M ξ + m varies, weights summing to 1, Gaussian kernel). Layouts: 1000
@@ -21,7 +23,8 @@ and a UsdSkel file; ``bake_error`` and ``usdskel_error`` are the largest vertex 
 the float64 reference (``pipeline.puppet.predict_vertices``) over the rest diagonal (goal
 ≤ 1e-5), next to play's own frames per second (``--json``, compute only, the machine's threads).
 
-    python benchmarks/play.py [--repeats 3] [--only face] [--numpy-samples 200] [--real DIR]
+    python benchmarks/play.py [--repeats 3] [--only face] [--skinning linear] [--layout 0]
+                              [--numpy-samples 200] [--real DIR]
 """
 
 import argparse
@@ -41,6 +44,7 @@ MODELS = {
     "horse": dict(verts=8431, bones=150, controls=8, examples=27, influences=4),
 }
 LAYOUTS = [(1000, 1), (100, 100)]
+SKINNINGS = ("dual-quaternion", "linear")
 
 
 def rotations(rng, shape, angle=1.0):
@@ -76,9 +80,9 @@ def random_inputs(rng, samples, puppet):
     return x, c, frames
 
 
-def numpy_reference(puppet, x, c, frames, solver):
+def numpy_reference(puppet, x, c, frames, solver, skinning="dual-quaternion"):
     """Stage seconds of the numpy reference (composing the stage references)."""
-    from skinsynth.gpu import dqs_reference
+    from skinsynth.gpu import dqs_reference, lbs_reference
     from skinsynth.pipeline.rotations import with_translations
 
     stages, t0 = {}, time.perf_counter()
@@ -106,7 +110,12 @@ def numpy_reference(puppet, x, c, frames, solver):
         offsets = gpu.corrective_offsets_reference(
             gpu.corrective_weights_reference(xi, x, puppet.corrective_weights), puppet.corrective_offsets)
         mark("correctives")
-    placed = dqs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, d, offsets)
+    if skinning == "linear":
+        _, rot, trans = gpu.normalise_dual_quaternions_reference(d)
+        mark("rigid")
+        placed = lbs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, rot, trans, offsets)
+    else:
+        placed = dqs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, d, offsets)
     mark("skin")
     np.einsum("nab,nvb->nva", frames[:, :3, :3], placed) + frames[:, None, :3, 3]
     mark("world_frames")
@@ -164,6 +173,10 @@ def main():
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--numpy-samples", type=int, default=100)
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--skinning", choices=SKINNINGS, help="only this skinning (default: both)")
+    parser.add_argument("--layout", type=int, choices=range(len(LAYOUTS)),
+                        help=f"only this layout (index into {LAYOUTS})")
+    parser.add_argument("--solver", choices=["on", "off"], help="only with / without the translation solver")
     parser.add_argument("--real", metavar="DIR", help="also play a puppet of every real capture (work folder)")
     parser.add_argument("--real-only", action="store_true", help="only the real puppets")
     opts = parser.parse_args()
@@ -180,38 +193,53 @@ def main():
         on_device = {device: gpu.DevicePuppet(puppet, device) for device in devices}
         for layout_index, (frames_per_character, characters) in enumerate(LAYOUTS):
             samples = frames_per_character * characters
-            x, c, frames = random_inputs(rng, samples, puppet)
+            x, c, frames = random_inputs(rng, samples, puppet)  # drawn for every layout: same inputs when filtered
+            if opts.layout is not None and layout_index != opts.layout:
+                continue
             out = np.empty((samples, size["verts"], 3), dtype=np.float32)
             for solver in (True, False):
-                record = {"model": name, **size, "frames": frames_per_character, "characters": characters,
-                          "samples": samples, "translation_solver": solver}
-                m = min(samples, opts.numpy_samples)
-                t0 = time.perf_counter()
-                stages = numpy_reference(puppet, x[:m], c[:m], frames[:m], solver)
-                seconds = (time.perf_counter() - t0) * samples / m
-                record["numpy"] = {"measured_samples": m, "seconds": seconds, "frames_per_s": samples / seconds,
-                                   "stages": {k: v * samples / m for k, v in stages.items()}}
-                check = gpu.reference_run_puppet(puppet, x[:8], c[:8], frames[:8], translation_solver=solver)
-                scale = np.abs(check).max()
-                for device, dev_puppet in on_device.items():
-                    for threads in (opts.threads if device == "cpu" else [1]):
-                        run = lambda: gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out,
-                                                    threads=threads)
-                        seconds = median_seconds(run, opts.repeats)
-                        err = float(np.abs(out[:8] - check).max() / scale)
-                        entry = {"seconds": seconds, "frames_per_s": samples / seconds, "max_rel_error": err}
-                        if threads == 1:
-                            timings = {}
-                            gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out,
-                                          timings=timings)
-                            entry["stages"] = timings
-                            if layout_index == 0:
-                                s64 = median_seconds(lambda: gpu.run_puppet(dev_puppet, x, c, frames,
-                                                                           translation_solver=solver), 1)
-                                entry["f64_frames_per_s"] = samples / s64
-                        label = "warp-cpu" if device == "cpu" else "warp-cuda"
-                        record[label if threads == 1 else f"{label}-{threads}threads"] = entry
-                print(json.dumps(record), flush=True)
+                if opts.solver is not None and solver != (opts.solver == "on"):
+                    continue
+                for skinning in SKINNINGS:
+                    if opts.skinning is not None and skinning != opts.skinning:
+                        continue
+                    print(json.dumps(_record(opts, name, size, puppet, on_device, layout_index, x, c, frames, out,
+                                             solver, skinning)), flush=True)
+
+
+def _record(opts, name, size, puppet, on_device, layout_index, x, c, frames, out, solver, skinning):
+    """One JSON record: the numpy reference and warp on each device, for one solver and skinning."""
+    frames_per_character, characters = LAYOUTS[layout_index]
+    samples = frames_per_character * characters
+    record = {"model": name, **size, "frames": frames_per_character, "characters": characters,
+              "samples": samples, "translation_solver": solver, "skinning": skinning}
+    m = min(samples, opts.numpy_samples)
+    t0 = time.perf_counter()
+    stages = numpy_reference(puppet, x[:m], c[:m], frames[:m], solver, skinning)
+    seconds = (time.perf_counter() - t0) * samples / m
+    record["numpy"] = {"measured_samples": m, "seconds": seconds, "frames_per_s": samples / seconds,
+                       "stages": {k: v * samples / m for k, v in stages.items()}}
+    check = gpu.reference_run_puppet(puppet, x[:8], c[:8], frames[:8], translation_solver=solver, skinning=skinning)
+    scale = np.abs(check).max()
+    for device, dev_puppet in on_device.items():
+        for threads in (opts.threads if device == "cpu" else [1]):
+            run = lambda: gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out,
+                                         threads=threads, skinning=skinning)
+            seconds = median_seconds(run, opts.repeats)
+            err = float(np.abs(out[:8] - check).max() / scale)
+            entry = {"seconds": seconds, "frames_per_s": samples / seconds, "max_rel_error": err}
+            if threads == 1:
+                timings = {}
+                gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out, timings=timings,
+                               skinning=skinning)
+                entry["stages"] = timings
+                if layout_index == 0:
+                    s64 = median_seconds(lambda: gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver,
+                                                                skinning=skinning), 1)
+                    entry["f64_frames_per_s"] = samples / s64
+            label = "warp-cpu" if device == "cpu" else "warp-cuda"
+            record[label if threads == 1 else f"{label}-{threads}threads"] = entry
+    return record
 
 
 if __name__ == "__main__":

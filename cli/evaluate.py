@@ -46,6 +46,7 @@ def evaluate(path, as_json, quiet, plot, skinning, pca_components, extrapolate):
     if plot is not None:
         check_output_path(plot, (".png",), inputs=[path])
     record, test_frames, skin, options = read_puppet(path, with_options=True)
+    options.setdefault("skinning", record.skinning)  # a file from before the option: its own
     puppet = puppet_from_record(record)
     if len(test_frames) == 0:
         fail(f"{path}: no held-out frames (trained with --train-frames covering every example); "

@@ -6,7 +6,8 @@ import click
 
 from .options import check_max_width, device_option, texture_options, up_axis_option
 from .common import FolderOutputs, report, summary_options, user_errors
-from .outputs import TEXTURES, check_animation_output, check_texture_output, write_gltf, write_textures
+from .outputs import (TEXTURES, check_animation_output, check_bone_texture_output, check_texture_output,
+                      write_bone_textures, write_gltf, write_textures)
 
 
 def _selection(text):
@@ -91,13 +92,13 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
         _check_request(path, output, output_kind, kind, source, chosen, root_motion)
         to_exr = output_kind in TEXTURES
         if kind == "bones":
-            from skinsynth.formats.bone_textures import check_bone_texture_size
-
-            check_bone_texture_size(output, source.skin.rotations.shape[1], source.frames * len(chosen), max_width)
+            check_bone_texture_output(output, source.skin.rotations.shape[1], source.frames * len(chosen), max_width)
         else:  # a folder holds one texture per animation
             check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames, max_width)
         if kind == "bones":
-            bytes_per_animation = _write_bone_textures(output, source, chosen, half, max_width, folders)
+            bytes_per_animation = write_bone_textures(output, source.skin, ((source.names[a], *source.motions(a))
+                                                                            for a in chosen), half, max_width,
+                                                      folders.guard(output), label=source.path) // len(chosen)
         elif output_kind == "gltf":
             write_gltf(output, source.skin, ((source.names[a], *source.motions(a)) for a in chosen),
                        up_axis or source.scene.up_axis, None if quantize is None else int(quantize), root_motion,
@@ -162,25 +163,6 @@ def _check_request(path, output, output_kind, kind, source, chosen, root_motion)
     if root_motion and not (output_kind == "gltf" or (output_kind == "usd" and kind == "skel")):
         raise OptionError(f"--root-motion moves a skeleton's root: it is for .glb and UsdSkel outputs (got {output}"
                           + (" --as points)" if output_kind == "usd" else ")"))
-
-
-def _write_bone_textures(output, source, chosen, half, max_width, folders):
-    """The bone-animation texture folder of the chosen animations; returns its bytes per animation."""
-    import os
-
-    from skinsynth.formats.bone_textures import write_bone_texture_folder
-    from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.skeleton import bone_texels, texture_influences
-
-    skin = source.skin
-    try:
-        influences = texture_influences(skin.bone_indices, skin.bone_weights)
-    except ValueError as error:
-        raise OptionError(f"{source.path}: {error}") from None
-    clips = ((source.names[a], bone_texels(*source.motions(a))) for a in chosen)
-    write_bone_texture_folder(output, skin.rest_vertices, skin.faces, influences, clips, skin.rotations.shape[1],
-                              skin.fps, skin.scene, max_width, half, **folders.guard(output))
-    return os.path.getsize(os.path.join(output, "bones.exr")) // len(chosen)
 
 
 def _stem(path):

@@ -57,6 +57,41 @@ def check_texture_output(path, kind, vertex_count, frame_count, max_width, chara
                           f"(-o {str(path)[:-4]}/) for one texture each")
 
 
+def check_bone_texture_output(path, bones, frame_count, max_width):
+    """Before any work, for a bone-animation texture folder (``--as bones``): ``--max-width``,
+    and the texture of ``frame_count`` frames (every clip's, end to end) of ``bones`` bones."""
+    from skinsynth.formats.bone_textures import check_bone_texture_size
+
+    check_max_width(max_width)
+    check_bone_texture_size(path, bones, frame_count, max_width)
+
+
+def write_bone_textures(path, skin, clips, half, max_width, guard, label=None):
+    """Write ``clips`` ((name, rotations (F, B, 3, 3), translations (F, B, 3)) of the skin's
+    bones, their LBS transforms, consumed in order) as a bone-animation texture folder
+    (:mod:`skinsynth.formats.bone_textures`: every clip in one bones.exr, the skin's four
+    influences on rest.glb). ``guard``: the folder's inputs and other outputs
+    (:meth:`~skinsynth.cli.common.FolderOutputs.guard`); ``label`` names the input in a refusal
+    (a skin too wide). Returns the bytes of bones.exr."""
+    from skinsynth.formats.bone_textures import write_bone_texture_folder
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.skeleton import bone_texels, texture_influences
+
+    try:
+        influences = texture_influences(skin.bone_indices, skin.bone_weights)
+    except ValueError as error:
+        raise OptionError(f"{label or path}: {error}") from None
+    texels = ((name, bone_texels(rotations, translations)) for name, rotations, translations in clips)
+    uv_split = None
+    if skin.face_uvs is not None:  # the rest mesh's material UVs, one per vertex in rest.glb
+        from skinsynth.pipeline.uv_seams import split_uv_seams
+
+        uv_split = split_uv_seams(skin.faces, skin.face_uvs, len(skin.rest_vertices))
+    write_bone_texture_folder(path, skin.rest_vertices, skin.faces, influences, texels, skin.rotations.shape[1],
+                              skin.fps, skin.scene, max_width, half, **guard, uv_split=uv_split)
+    return os.path.getsize(os.path.join(path, "bones.exr"))
+
+
 def write_textures(path, kind, rest_vertices, faces, animations, fps, scene, half, max_width, guard):
     """Write ``animations`` ((name, vertices (F, V, 3)) pairs of one rest mesh, consumed once) as
     textures: the engine-ready folder (with each frame's vertex normals), or, for .exr, the one
@@ -76,24 +111,42 @@ def write_textures(path, kind, rest_vertices, faces, animations, fps, scene, hal
     return write_vat(path, rest_vertices, vertices, fps, max_width=max_width, half=half)
 
 
-def write_gltf(path, skin, clips, up_axis, quantize=None, root_motion=False, label=None):
+def write_gltf(path, skin, clips, up_axis, quantize=None, root_motion=False, label=None, morph=None):
     """Write a skin's rig and ``clips`` ((name, rotations (F, B, 3, 3), translations (F, B, 3)),
     consumed in order) as one .glb, in glTF's Y up and metres from ``up_axis`` and the skin's
     metersPerUnit; ``quantize`` 8 or 16 bit weights; ``root_motion`` the ground motion on the
-    root (``pipeline.skeleton``). ``label`` names the input in a refusal (a skin too wide)."""
+    root (``pipeline.skeleton``). ``label`` names the input in a refusal (a skin too wide).
+    ``morph``: (targets (k, V, 3), weights [(F, k) per clip, in the clips' order]), rest-pose
+    displacements in the skin's axes and units played before skinning (a puppet's correctives,
+    ``pipeline.morph_targets``), written as 2k glTF morph targets "corrective_Np" and
+    "corrective_Nn", ± pairs weighted in [0, 1] (``pipeline.morph_targets.unit_range_pairs``:
+    Blender's importer clamps weights to a range it takes from the first key); None for none."""
     from skinsynth.formats.gltf import Clip, SkinnedScene, write_skinned_glb
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.skeleton import gltf_clip, gltf_rig
+
+    if morph is not None:  # one scale per target over every clip: the targets are shared
+        import numpy as np
+
+        from skinsynth.pipeline.morph_targets import unit_range_pairs
+
+        lengths = [len(w) for w in morph[1]]
+        targets, weights = unit_range_pairs(morph[0], np.concatenate(morph[1]))
+        morph = targets, np.split(weights, np.cumsum(lengths)[:-1])
 
     centres = skin.bone_rest_frames[:, :3, 3]
     axes = dict(up_axis=up_axis, meters_per_unit=skin.scene.meters_per_unit)
     try:
         rig = gltf_rig(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, centres, **axes,
-                       quantize=quantize)
+                       quantize=quantize, face_uvs=skin.face_uvs,  # UVs split at seams (pipeline.uv_seams)
+                       morph_targets=None if morph is None else morph[0])
     except ValueError as error:
         raise OptionError(f"{label or path}: {error}") from None
     ground = (skin.rest_vertices, skin.bone_indices, skin.bone_weights) if root_motion else None
-    clips = [Clip(**gltf_clip(name, rotations, translations, centres, skin.fps, **axes, ground=ground))
+    morph_weights = iter(() if morph is None else morph[1])
+    clips = [Clip(**gltf_clip(name, rotations, translations, centres, skin.fps, **axes, ground=ground),
+                  morph_weights=None if morph is None else next(morph_weights))
              for name, rotations, translations in clips]
-    write_skinned_glb(path, SkinnedScene(**rig, clips=clips,
+    names = None if morph is None else [f"corrective_{i}{s}" for i in range(len(morph[0]) // 2) for s in "pn"]
+    write_skinned_glb(path, SkinnedScene(**rig, clips=clips, target_names=names,
                                          mesh_name=skin.scene.prim_path.rsplit("/", 1)[-1] or "mesh"))

@@ -1,11 +1,14 @@
 """``skinsynth play``: drive the trained puppet with control trajectories, many characters at once."""
 
+import os
+
 import click
 import numpy as np
 
 from .options import device_option, texture_options, up_axis_option
 from .common import check_memory, report, summary_options, FolderOutputs, user_errors
-from .outputs import TEXTURES, check_animation_output, check_texture_output, write_gltf, write_textures
+from .outputs import (TEXTURES, check_animation_output, check_bone_texture_output, check_texture_output,
+                      write_bone_textures, write_gltf, write_textures)
 
 
 
@@ -15,15 +18,18 @@ from .outputs import TEXTURES, check_animation_output, check_texture_output, wri
               help="Control trajectories: CSV (frame,point,x,y,z), .npy (F, n_c, 3), or a mesh sequence whose "
                    "control vertices are used. Repeat for several characters.")
 @click.option("-o", "--output", required=True, type=click.Path(),
-              help="USD (.usd/.usda/.usdc), glTF (.glb: the rig, one clip per character; --skinning linear), an "
-                   "OpenEXR vertex-animation texture (.exr, one character), a folder (ending in /: engine-ready "
-                   "textures per character, normals, the rest mesh with texel UVs as .obj/.glb and vat.json), or "
-                   ".h5 vertices.")
+              help="USD (.usd/.usda/.usdc), glTF (.glb: the rig, one clip per character, a puppet's correctives "
+                   "as at most 8 morph targets; --skinning linear), an OpenEXR vertex-animation texture (.exr, one "
+                   "character), a folder (ending in /: engine-ready textures per character, normals, the rest mesh "
+                   "with texel UVs as .obj/.glb and vat.json; with --as bones, bone-animation textures), or .h5 "
+                   "vertices.")
 @click.option("--instances", default=1, show_default=True, type=int,
               help="Characters from one --controls file, each starting a fraction of the clip later.")
-@click.option("--as", "kind", type=click.Choice(["skel", "points"]), default="skel", show_default=True,
+@click.option("--as", "kind", type=click.Choice(["skel", "points", "bones"]), default="skel", show_default=True,
               help="USD: UsdSkel with dual-quaternion skinning (editable bones; a puppet's correctives as "
-                   "blend shapes), or baked time-sampled meshes.")
+                   "blend shapes), or baked time-sampled meshes. A folder: bones writes bone-animation textures "
+                   "(each character a clip of one bones.exr, in place; --skinning linear, no correctives; "
+                   "docs/bone_textures.md) instead of vertex-animation textures.")
 @click.option("--skinning", type=click.Choice(["dual-quaternion", "linear"]), default=None,
               help="Dual quaternions (Feng §6.3) or linear blend skinning, for every output. UsdSkel's "
                    "dualQuaternion is ignored by Blender's importer (it skins linearly: 1.7e-2 of the diagonal "
@@ -66,18 +72,23 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     folders = FolderOutputs([path, *control_files], [output])
     output_kind = check_animation_output(output, ("usd", "gltf", "exr", "h5", "folder"), [path, *control_files],
                                          folders)
+    bone_textures = kind == "bones"
+    if bone_textures and output_kind != "folder":
+        raise OptionError(f"--as bones writes a folder of bone-animation textures: end -o with / "
+                          f"(-o {os.path.splitext(output)[0]}/)")
     device = resolve_device(device)
     record, _, skin = read_puppet(path)
     puppet = puppet_from_record(record)
     skinning = skinning or puppet.skinning
-    if output_kind == "gltf" and skinning != "linear":
-        raise OptionError(f"{output}: glTF skins linearly, and this plays {skinning} skinning (the puppet was trained "
+    if (output_kind == "gltf" or bone_textures) and skinning != "linear":
+        what = "glTF skins" if output_kind == "gltf" else "bone textures skin"
+        raise OptionError(f"{output}: {what} linearly, and this plays {skinning} skinning (the puppet was trained "
                           f"for {puppet.skinning}): train it with train-kcca --skinning linear, or give --skinning "
                           "linear")
-    if output_kind == "gltf" and puppet.correctives is not None:
+    if bone_textures and puppet.correctives is not None:
         raise OptionError(f"{path}: the puppet's pose-space correctives ({len(puppet.correctives.offsets)} shapes) "
-                          "are not written to glTF yet: train it with --correctives off for .glb, or write UsdSkel "
-                          "(-o X.usdc), which carries them as blend shapes")
+                          "move vertices, and bone textures carry bones only: train it with train-kcca --correctives "
+                          f"off, or write the vertex-animation folder (-o {output} without --as bones)")
     if translation_solver and puppet.translations is None:
         raise OptionError(f"{path}: trained without the translation solver; play with --no-translation-solver")
     count = len(puppet.control_indices)
@@ -89,7 +100,10 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
                      f"{max(len(trajectories), instances)} character(s) × {trajectories[0].shape[0]} frames")
     controls = instance_trajectories(trajectories, instances)  # (C, F, n_c, 3)
     characters, frames = controls.shape[:2]
-    check_texture_output(output, output_kind, skin.rest_vertices.shape[0], frames, max_width, characters)
+    if bone_textures:  # every character a clip of one texture
+        check_bone_texture_output(output, skin.rotations.shape[1], frames * characters, max_width)
+    else:
+        check_texture_output(output, output_kind, skin.rest_vertices.shape[0], frames, max_width, characters)
     spacing = 1.5 * largest_side(skin.rest_vertices) if spacing is None else spacing
     if not np.isfinite(spacing) or spacing < 0.0:
         raise OptionError(f"--spacing must be a finite distance ≥ 0 (got {spacing})")
@@ -97,19 +111,25 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     offsets = grid_offsets(characters, spacing, up_axis) if characters > 1 else np.zeros((1, 3))
 
     flat = controls.reshape(-1, count, 3)
-    vertices, bones, seconds = play_characters(puppet, flat, device, skinning, translation_solver, threads)
+    vertices, seconds = play_characters(puppet, flat, device, skinning, translation_solver, threads)
     vertices = vertices.reshape(characters, frames, -1, 3) + offsets[:, None, None, :].astype(np.float32)
 
     names = [f"character_{c:03d}" for c in range(characters)]
-    if output_kind == "gltf":  # one rig, each character a clip in its own place (no grid: clips alternate)
-        rotations, translations, _ = bones or world_bones(puppet, flat, translation_solver)
+    morph = None
+    if output_kind == "gltf" or bone_textures:  # one rig, each character a clip in place (no grid: clips alternate)
+        rotations, translations, shape_weights = world_bones(puppet, flat, translation_solver)
         rotations = rotations.reshape(characters, frames, *rotations.shape[1:])
         translations = translations.reshape(characters, frames, *translations.shape[1:])
-        write_gltf(output, skin, ((name, rotations[c], translations[c]) for c, name in enumerate(names)), up_axis)
+        clips = ((name, rotations[c], translations[c]) for c, name in enumerate(names))
+        if bone_textures:
+            write_bone_textures(output, skin, clips, half, max_width, folders.guard(output), label=path)
+        else:
+            morph = _corrective_morph_targets(path, skin, puppet, shape_weights, characters)
+            write_gltf(output, skin, clips, up_axis, morph=morph[:2] if morph and len(morph[0]) else None)
         written = [output]
     elif output_kind == "usd":
         if kind == "skel":
-            _write_rig(output, skin, puppet, bones or world_bones(puppet, flat, translation_solver), offsets, names,
+            _write_rig(output, skin, puppet, world_bones(puppet, flat, translation_solver), offsets, names,
                        up_axis, skinning)
         else:
             from skinsynth.formats.usd import write_points_characters
@@ -133,9 +153,34 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
               "character_frames_per_second": round(characters * frames / seconds, 1),
               "device": device, "translation_solver": bool(translation_solver), "skinning": skinning,
               "outputs": written}
-    report(summary, [f"played {characters} character(s) × {frames} frames on {device} in {seconds:.3f} s: "
-                     f"{summary['frames_per_second']:.0f} frames/s, {summary['character_frames_per_second']:.0f} "
-                     f"character-frames/s (compute only); wrote {', '.join(written)}"], as_json, quiet)
+    lines = [f"played {characters} character(s) × {frames} frames on {device} in {seconds:.3f} s: "
+             f"{summary['frames_per_second']:.0f} frames/s, {summary['character_frames_per_second']:.0f} "
+             f"character-frames/s (compute only); wrote {', '.join(written)}"]
+    if morph is not None:
+        summary.update(morph_targets=len(morph[0]), morph_target_error=morph[2])
+        lines.append(f"correctives: {len(puppet.correctives.offsets)} shapes as {len(morph[0])} morph target(s), "
+                     f"{morph[2]:.2g} of the diagonal away at most")
+    report(summary, lines, as_json, quiet)
+
+
+def _corrective_morph_targets(path, skin, puppet, shape_weights, characters):
+    """A puppet's correctives, played with blend weights shape_weights (C·F, n_p) or None, as
+    glTF morph targets (``pipeline.morph_targets``): (targets (k, V, 3), [weights (F, k) per
+    character], the largest vertex error relative to the rest diagonal; k = 0 when no played
+    blend needs one), or None for a puppet without correctives; OptionError (one line) when more
+    than ``pipeline.morph_targets.MAX_MORPH_TARGETS`` would be needed."""
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.morph_targets import corrective_morph_targets
+
+    if shape_weights is None:
+        return None
+    try:
+        targets, weights, error = corrective_morph_targets(puppet.correctives.offsets, shape_weights,
+                                                           bounding_box_diagonal(skin.rest_vertices))
+    except ValueError as problem:
+        raise OptionError(f"{path}: {problem}") from None
+    return targets, list(weights.reshape(characters, -1, len(targets))), error
 
 
 def _write_rig(output, skin, puppet, bones, offsets, names, up_axis, skinning):
@@ -147,9 +192,12 @@ def _write_rig(output, skin, puppet, bones, offsets, names, up_axis, skinning):
     rotations, translations, shape_weights = bones
     rotations = rotations.reshape(characters, frames, *rotations.shape[1:])
     translations = translations.reshape(characters, frames, -1, 3) + offsets[:, None, None, :]
-    shapes = None  # the correctives are blend shapes, played before skinning
+    shapes = None  # the correctives are blend shapes, played before skinning, as ± pairs in [0, 1]
     if shape_weights is not None:
-        shapes = (puppet.correctives.offsets, shape_weights.reshape(characters, frames, -1))
+        from skinsynth.pipeline.morph_targets import unit_range_pairs
+
+        pairs, weights = unit_range_pairs(puppet.correctives.offsets, shape_weights.reshape(characters, frames, -1))
+        shapes = (pairs, weights, [f"shape_{j:03d}{s}" for j in range(len(pairs) // 2) for s in "pn"])
     write_skel_characters(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
                           rotations, translations, skin.bone_rest_frames[:, :3, 3], skin.fps, names=names,
                           up_axis=up_axis, skinning=skinning, blend_shapes=shapes, scene=skin.scene)

@@ -36,8 +36,7 @@ from .common import report, summary_options, check_output_path, command_line, to
               help="Pose-space correctives: what skinning misses at each example, kept in the rest pose and "
                    "interpolated over the controls (n_p blend shapes). A ridge relative to the kernel's mean "
                    "diagonal, 'off', or 'auto' (1e-6…1 or off, by cross-validation on the training frames; printed).")
-@click.option("--skinning", type=click.Choice(["dual-quaternion", "linear"]), default="dual-quaternion",
-              show_default=True,
+@click.option("--skinning", type=click.Choice(["linear", "dual-quaternion"]), default="linear", show_default=True,
               help="The skinning the puppet is trained for and plays with: dual quaternions (Feng §6.3), or linear "
                    "blend skinning, which glTF, game engines and Blender play (needed for play -o X.glb and bone "
                    "textures). The cross-validated choices and the correctives are fitted for it.")

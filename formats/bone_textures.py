@@ -8,8 +8,11 @@ A folder (written whole, with its manifest, :func:`~skinsynth.formats.output_fol
   translation (x, y, z, 1) of the bone's LBS transform (``pipeline.skeleton.bone_texels``);
 - ``rest.glb``: the rest mesh, vertices in skinsynth's order, with the four influences in extra
   UV sets: TEXCOORD_1 = bones 0, 1 and TEXCOORD_2 = bones 2, 3 (as floats), TEXCOORD_3 = weights
-  0, 1 and TEXCOORD_4 = weights 2, 3 (TEXCOORD_0, the material UVs, is zero: glTF numbers UV sets
-  from 0, and the inputs carry no UVs yet); ``rest.obj`` the same mesh without them;
+  0, 1 and TEXCOORD_4 = weights 2, 3; TEXCOORD_0 holds the material UVs in glTF's convention
+  (u, 1 − v), its vertices split at UV seams (the originals first, in order, then the copies,
+  each with its original's influences), or zero when the input had no UVs (glTF numbers UV sets
+  from 0); ``rest.obj`` the same mesh without the influences, with the UVs as ``vt`` (v up, OBJ's
+  convention) and its vertices unsplit;
 - ``bones.json``: the layout, the units and up axis, and the clip table: each clip's name, its
   first and last global frame (both inclusive) and fps, so that many clips share one texture.
 
@@ -47,9 +50,11 @@ def check_bone_texture_size(path, bones, frame_count, max_width, limit=MAX_TEXTU
 
 
 def write_bone_texture_folder(folder, rest_vertices, faces, influences, clips, bones, fps, scene, max_width=8192,
-                              half=False, inputs=(), outputs=()):
+                              half=False, inputs=(), outputs=(), uv_split=None):
     """Write the folder. ``influences``: (bone ids (V, 4), weights (V, 4)); ``clips``: (name,
-    texels (F, B, 2, 4)) pairs (``pipeline.skeleton.bone_texels``). Returns the bones.json dict."""
+    texels (F, B, 2, 4)) pairs (``pipeline.skeleton.bone_texels``); ``uv_split``: None, or the
+    material UVs split at seams (``pipeline.uv_seams.split_uv_seams``: vertex_map (V',), faces
+    (T, 3) into the V' vertices, uvs (V', 2) v up). Returns the bones.json dict."""
     import OpenEXR
 
     from .gltf import write_static_glb
@@ -84,7 +89,10 @@ def write_bone_texture_folder(folder, rest_vertices, faces, influences, clips, b
                               "k = 0: rotation quaternion (x, y, z, w); k = 1: translation (x, y, z, 1)"},
         "decode": "v = sum_k w_k (rotate(q_k, rest) + t_k), rotate(q, r) = r + 2 q.xyz x (q.xyz x r + q.w r)",
         "clips": [{"name": n, "first": int(a), "last": int(b), "fps": float(fps)} for n, (a, b) in zip(names, spans)],
-        "rest_mesh": {"glb": "rest.glb", "obj": "rest.obj", "uv": "TEXCOORD_0 (zero: no material UVs)",
+        "rest_mesh": {"glb": "rest.glb", "obj": "rest.obj",
+                      "uv": "TEXCOORD_0 (zero: no material UVs)" if uv_split is None else
+                      "TEXCOORD_0 (material UVs, glTF's (u, 1 - v); rest.glb's vertices split at UV seams: the "
+                      "originals first, then the copies)",
                       "bones": "TEXCOORD_1 (0, 1), TEXCOORD_2 (2, 3)",
                       "weights": "TEXCOORD_3 (0, 1), TEXCOORD_4 (2, 3)"},
         "vertex_count": int(len(rest_vertices)), "meters_per_unit": float(scene.meters_per_unit),
@@ -96,14 +104,24 @@ def write_bone_texture_folder(folder, rest_vertices, faces, influences, clips, b
             exr.write(os.path.join(tmp, "bones.exr"))
         ids = np.asarray(bone_ids, dtype=np.float32)
         weights = np.asarray(weights, dtype=np.float32)
-        write_static_glb(os.path.join(tmp, "rest.glb"), rest_vertices, faces,
-                         {"TEXCOORD_0": np.zeros((len(ids), 2), np.float32),  # material UVs: none carried yet
-                          "TEXCOORD_1": ids[:, :2], "TEXCOORD_2": ids[:, 2:], "TEXCOORD_3": weights[:, :2],
-                          "TEXCOORD_4": weights[:, 2:]})
+        if uv_split is None:
+            glb_vertices, glb_faces, texcoords = rest_vertices, faces, np.zeros((len(ids), 2), np.float32)
+        else:  # glTF's UV origin is the top left: v' = 1 − v
+            vertex_map, glb_faces, uvs = uv_split
+            glb_vertices, ids, weights = np.asarray(rest_vertices)[vertex_map], ids[vertex_map], weights[vertex_map]
+            texcoords = np.stack([uvs[:, 0], 1.0 - uvs[:, 1]], axis=1)
+        write_static_glb(os.path.join(tmp, "rest.glb"), glb_vertices, glb_faces,
+                         {"TEXCOORD_0": texcoords, "TEXCOORD_1": ids[:, :2], "TEXCOORD_2": ids[:, 2:],
+                          "TEXCOORD_3": weights[:, :2], "TEXCOORD_4": weights[:, 2:]})
         with open(os.path.join(tmp, "rest.obj"), "w") as handle:
             handle.write("# skinsynth rest mesh of a bone animation texture (bones.json); influences in rest.glb\n")
             np.savetxt(handle, rest_vertices, fmt="v %.9g %.9g %.9g")
-            np.savetxt(handle, np.asarray(faces) + 1, fmt="f %d %d %d")
+            if uv_split is None:
+                np.savetxt(handle, np.asarray(faces) + 1, fmt="f %d %d %d")
+            else:  # OBJ keeps a UV per corner: the vertices stay unsplit, the split vertices are the vt
+                np.savetxt(handle, uvs, fmt="vt %.9g %.9g")
+                corners = np.stack([np.asarray(faces), glb_faces], axis=2).reshape(len(faces), 6) + 1
+                np.savetxt(handle, corners, fmt="f %d/%d %d/%d %d/%d")
         with open(os.path.join(tmp, "bones.json"), "w") as handle:
             json.dump(description, handle, indent=2)
     return description

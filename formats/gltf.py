@@ -6,6 +6,17 @@ Layout: scene 0 holds the mesh node (with the skin) and the root joint node; the
 nodes are children of the root, their default TRS the bind pose (a translation to each bone's
 centre). One animation per clip, LINEAR samplers keyed at each frame's time (frame / fps), a
 translation and a rotation channel per moving joint. All data in one buffer, the GLB's BIN chunk.
+
+Morph targets (§3.7.2.2), when the scene has them: POSITION displacements of the rest pose, added
+before skinning, each a float32 accessor with its min and max (as the spec requires of POSITION);
+the mesh's default ``weights`` zeros and ``extras.targetNames`` their names (three.js, Blender and
+Babylon.js name the targets from it); per clip that has them, one ``weights`` channel on the mesh
+node whose LINEAR sampler outputs frames × targets scalars, frame-major (§3.11: the output count
+is the input count times the number of targets). The targets carry no NORMAL displacements:
+normals are not linear in the positions, so no displacement blended by the weights gives the
+normals of the blended shape; engines skin the rest normals, so the lighting does not follow a
+corrective's change of shape (the positions do). A scene without morph targets is written byte
+for byte as before they existed.
 """
 
 import json
@@ -28,13 +39,16 @@ _TYPE = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
 class Clip:
     """One animation: ``name``; ``times`` (F,) seconds; bones' local ``rotations`` (F, B, 4)
     (x, y, z, w) and ``translations`` (F, B, 3); the root's ``root_rotations`` (F, 4) and
-    ``root_translations`` (F, 3), or None for a root that does not move."""
+    ``root_translations`` (F, 3), or None for a root that does not move; ``morph_weights`` (F, k)
+    the weights of the scene's k morph targets per frame, or None (they stay at the mesh's
+    default weights, zero)."""
     name: str
     times: np.ndarray
     rotations: np.ndarray
     translations: np.ndarray
     root_rotations: np.ndarray | None = None
     root_translations: np.ndarray | None = None
+    morph_weights: np.ndarray | None = None
 
 
 @dataclass
@@ -42,7 +56,9 @@ class SkinnedScene:
     """positions, normals (V, 3); faces (T, 3); joints (V, 4) into ``joint_names``; weights
     (V, 4) float32 or normalised uint8/uint16; inverse_binds (J, 4, 4); bind_translations (J, 3)
     each joint's default translation (the root's its parent's frame, the bones' the root's);
-    uvs (V, 2) or None; clips [Clip]; ``mesh_name``."""
+    uvs (V, 2) or None; clips [Clip]; ``mesh_name``; morph_targets (k, V, 3) POSITION
+    displacements added before skinning, or None, named ``target_names`` (k,) (default
+    "target_N")."""
     positions: np.ndarray
     normals: np.ndarray
     faces: np.ndarray
@@ -54,6 +70,8 @@ class SkinnedScene:
     clips: list = field(default_factory=list)
     uvs: np.ndarray | None = None
     mesh_name: str = "mesh"
+    morph_targets: np.ndarray | None = None
+    target_names: list | None = None
 
 
 class _Buffer:
@@ -102,6 +120,7 @@ def write_skinned_glb(path, scene: SkinnedScene):
     require_finite(path, "the vertex positions", scene.positions)
     for clip in scene.clips:
         require_finite(path, f"the animation {clip.name!r}", clip.translations)
+    morph_count = _check_morph_targets(path, scene)
     buffer = _Buffer()
     positions = np.asarray(scene.positions, dtype=np.float32)
     attributes = {"POSITION": buffer.array(positions, _ARRAY_BUFFER, bounds=True),
@@ -113,6 +132,13 @@ def write_skinned_glb(path, scene: SkinnedScene):
     weights = np.asarray(scene.weights)
     attributes["WEIGHTS_0"] = buffer.array(weights, _ARRAY_BUFFER, normalized=weights.dtype != np.float32)
     indices = buffer.array(np.asarray(scene.faces, dtype=np.uint32).reshape(-1), _ELEMENT_ARRAY_BUFFER)
+    primitive = {"attributes": attributes, "indices": indices, "mode": 4}
+    mesh = {"name": scene.mesh_name, "primitives": [primitive]}
+    if morph_count:
+        targets = np.asarray(scene.morph_targets, dtype=np.float32)
+        primitive["targets"] = [{"POSITION": buffer.array(target, _ARRAY_BUFFER, bounds=True)} for target in targets]
+        mesh["weights"] = [0.0] * morph_count
+        mesh["extras"] = {"targetNames": list(scene.target_names or [f"target_{i}" for i in range(morph_count)])}
 
     bones = len(scene.joint_names) - 1
     mesh_node, root_node = 0, 1
@@ -127,13 +153,12 @@ def write_skinned_glb(path, scene: SkinnedScene):
     ibm = np.ascontiguousarray(np.swapaxes(np.asarray(scene.inverse_binds, dtype=np.float32), 1, 2))  # column-major
     skin = {"joints": joint_nodes, "skeleton": root_node,
             "inverseBindMatrices": buffer.array(ibm.reshape(len(ibm), 16))}
-    animations = [_animation(buffer, clip, root_node, joint_nodes[1:]) for clip in scene.clips]
+    animations = [_animation(buffer, clip, root_node, joint_nodes[1:], mesh_node) for clip in scene.clips]
 
     document = {
         "asset": {"version": "2.0", "generator": "skinsynth"},
         "scene": 0, "scenes": [{"nodes": [mesh_node, root_node]}], "nodes": nodes,
-        "meshes": [{"name": scene.mesh_name, "primitives": [{"attributes": attributes, "indices": indices,
-                                                              "mode": 4}]}],
+        "meshes": [mesh],
         "skins": [skin], "accessors": buffer.accessors, "bufferViews": buffer.views,
         "buffers": [{"byteLength": buffer.length}],
     }
@@ -144,7 +169,28 @@ def write_skinned_glb(path, scene: SkinnedScene):
             _write_glb(handle, document, buffer.parts, buffer.length)
 
 
-def _animation(buffer, clip, root_node, bone_nodes):
+def _check_morph_targets(path, scene):
+    """The scene's number of morph targets (0 for none), after checking that they and every
+    clip's weights are finite and of matching shapes (ValueError for a mismatch)."""
+    count = 0 if scene.morph_targets is None else len(scene.morph_targets)
+    if count:
+        targets = np.asarray(scene.morph_targets)
+        if targets.shape != (count, len(scene.positions), 3):
+            raise ValueError(f"morph targets must have shape (k, {len(scene.positions)}, 3), got {targets.shape}")
+        if scene.target_names is not None and len(scene.target_names) != count:
+            raise ValueError(f"{len(scene.target_names)} target names for {count} morph targets")
+        require_finite(path, "the morph targets", targets)
+    for clip in scene.clips:
+        if clip.morph_weights is None:
+            continue
+        if np.shape(clip.morph_weights) != (len(clip.times), count) or not count:
+            raise ValueError(f"the morph weights of {clip.name!r} must have shape ({len(clip.times)}, {count}) "
+                             f"(frames, morph targets), got {np.shape(clip.morph_weights)}")
+        require_finite(path, f"the morph weights of {clip.name!r}", clip.morph_weights)
+    return count
+
+
+def _animation(buffer, clip, root_node, bone_nodes, mesh_node):
     times = np.asarray(clip.times, dtype=np.float32)
     frames = len(times)
     time_accessor = buffer.array(times, bounds=True)
@@ -166,6 +212,9 @@ def _animation(buffer, clip, root_node, bone_nodes):
     for b, node in enumerate(bone_nodes):
         channel(node, "rotation", rotation_view, rotations[b], b * frames * 16)
         channel(node, "translation", translation_view, translations[b], b * frames * 12)
+    if clip.morph_weights is not None:  # frames × targets scalars, frame-major (§3.11)
+        weights = np.asarray(clip.morph_weights, dtype=np.float32).reshape(-1)
+        channel(mesh_node, "weights", buffer.view(weights), weights, 0)
     return {"name": clip.name, "samplers": samplers, "channels": channels}
 
 

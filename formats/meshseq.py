@@ -27,14 +27,17 @@ DEFAULT_FPS = 24.0
 
 @dataclass(frozen=True)
 class MeshSequence:
-    """vertices (F, V, 3) float64, faces (T, 3) int64 triangles, fps, the input as given, and
-    its scene (units, up axis, first frame, prim path; USD states them, other inputs default)."""
+    """vertices (F, V, 3) float64, faces (T, 3) int64 triangles, fps, the input as given, its
+    scene (units, up axis, first frame, prim path; USD states them, other inputs default), and
+    face_uvs (T, 3, 2) float64, the material UVs of each face corner (OBJ ``vt``, USD
+    ``primvars:st``; v up, as both store them), or None when the input has none."""
 
     vertices: np.ndarray
     faces: np.ndarray
     fps: float
     source: str
     scene: Scene = field(default_factory=Scene)
+    face_uvs: np.ndarray | None = None
 
 
 def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = None) -> MeshSequence:
@@ -60,9 +63,11 @@ def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = N
         sequence = _read_frame_files(spec, _glob_frames(spec))
     elif ext in USD_EXTENSIONS:
         # pxr takes a third of a second to import: pay for it only when reading USD.
-        from skinsynth.formats.usd import read_points_cache, read_scene
+        from skinsynth.formats.usd import read_face_uvs, read_points_cache, read_scene
 
-        sequence = replace(sequence_from_arrays(spec, *read_points_cache(spec, prim)), scene=read_scene(spec, prim))
+        sequence = sequence_from_arrays(spec, *read_points_cache(spec, prim))
+        sequence = replace(sequence, scene=read_scene(spec, prim),
+                           face_uvs=checked_face_uvs(spec, read_face_uvs(spec, prim), sequence.faces))
     elif ext == ".npz":
         sequence = _read_npz(spec)
     elif ext in (".h5", ".hdf5"):
@@ -112,6 +117,20 @@ def sequence_from_arrays(source, vertices, faces, fps=None) -> MeshSequence:
     return MeshSequence(vertices, faces.astype(np.int64, copy=False), float(fps), source)
 
 
+def checked_face_uvs(source, face_uvs, faces):
+    """face_uvs (T, 3, 2) read from ``source`` for faces (T, 3) as float64, or None for None;
+    FormatError for a wrong shape or a NaN or inf."""
+    if face_uvs is None:
+        return None
+    face_uvs = np.asarray(face_uvs)
+    if face_uvs.shape != (len(faces), 3, 2) or not np.issubdtype(face_uvs.dtype, np.number):
+        raise FormatError(source, f"texture coordinates must be numbers of shape ({len(faces)}, 3, 2) (per triangle "
+                                  f"corner), got {face_uvs.dtype} {face_uvs.shape}")
+    face_uvs = face_uvs.astype(np.float64, copy=False)
+    require_finite(source, "the texture coordinates", face_uvs)
+    return face_uvs
+
+
 def natural_key(path):
     """Sort key putting frame2 before frame10: digit runs compare as numbers."""
     name = os.path.basename(path)
@@ -155,7 +174,10 @@ def _read_frame_files(source, paths) -> MeshSequence:
         if not np.array_equal(frame_faces, faces):
             raise FormatError(path, f"faces differ from the first frame {os.path.basename(paths[0])}")
         vertices[index] = frame_vertices
-    return sequence_from_arrays(source, vertices, faces)
+    sequence = sequence_from_arrays(source, vertices, faces)
+    if os.path.splitext(paths[0])[1].lower() == ".obj":  # UVs are the first frame's
+        sequence = replace(sequence, face_uvs=checked_face_uvs(paths[0], obj_face_uvs(paths[0], faces), faces))
+    return sequence
 
 
 def _read_frame(path):
@@ -187,6 +209,92 @@ def _read_frame(path):
         raise FormatError(path, "the mesh has no faces")
     require_coordinates(path, np.asarray(vertices)[None], "vertex")
     return vertices, faces
+
+
+def fan_corners(counts):
+    """Polygons of counts (P,) corners, fan-triangulated in polygon order: (T, 3) int64, each
+    triangle corner as its position in the polygons' corners laid end to end."""
+    counts = np.asarray(counts, dtype=np.int64)
+    starts = np.cumsum(counts) - counts
+    fans = counts - 2
+    polygon = np.repeat(np.arange(len(counts)), fans)
+    corner = np.arange(fans.sum()) - np.repeat(np.cumsum(fans) - fans, fans) + 1  # 1..n-2 within a polygon
+    first = starts[polygon]
+    return np.stack([first, first + corner, first + corner + 1], axis=1)
+
+
+def obj_face_uvs(path, faces):
+    """The corner UVs (T, 3, 2) float64 of an OBJ file for ``faces`` (T, 3) as :func:`_read_frame`
+    read them (trimesh's triangles, grouped by material), or None unless every face corner names
+    a ``vt``.
+
+    trimesh keeps vertex order only by keeping one UV per vertex, so the file's own ``f`` lines
+    give the corners: each polygon fan-triangulated, its triangles matched to trimesh's as equal
+    vertex triples up to a rotation of their corners (how trimesh splits a quad). FormatError when
+    a ``vt`` index is out of range or the triangles do not match."""
+    with open(path, encoding="utf-8", errors="replace") as handle:
+        text = handle.read()
+    texcoords = re.findall(r"^[ \t]*vt[ \t]+(\S+)(?:[ \t]+(\S+))?", text, flags=re.MULTILINE)  # (u, v or "")
+    if not texcoords:
+        return None
+    texcoords = np.array(texcoords)
+    texcoords[texcoords == ""] = "0"  # OBJ's v defaults to 0
+    try:
+        texcoords = texcoords.astype(np.float64)
+    except ValueError as error:
+        raise FormatError(path, f"a vt line is not numbers: {error}") from None
+    lines = re.findall(r"^[ \t]*f[ \t]+([^\n]*)", text, flags=re.MULTILINE)
+    counts = np.array([len(line.split()) for line in lines], dtype=np.int64)
+    # each corner "v/vt" or "v/vt/vn", at the start of a token
+    refs = re.findall(r"(?<!\S)(-?\d+)/(-?\d*)", " ".join(lines))
+    if len(refs) != counts.sum() or not refs or any(not vt for _, vt in refs):
+        return None  # a corner without a UV (or no faces): the mesh has none as a whole
+    refs = np.array(refs).astype(np.int64)  # (C, 2) vertex and vt of each corner, one-based
+    kept = np.repeat(counts >= 3, counts)  # trimesh skips faces of fewer corners too
+    corners = refs[kept][fan_corners(counts[counts >= 3])]  # (T, 3, 2)
+    corners_v, corners_t = corners[..., 0].copy(), corners[..., 1].copy()  # corners keeps the file's numbers
+    if not len(corners_v):
+        return None
+    corners_v[corners_v > 0] -= 1  # one-based; a negative index counts from the end of the list, as in trimesh
+    corners_t[corners_t > 0] -= 1
+    corners_v[corners_v < 0] += len(re.findall(r"^[ \t]*v[ \t]", text, flags=re.MULTILINE))
+    corners_t[corners_t < 0] += len(texcoords)
+    outside = (corners_t < 0) | (corners_t >= len(texcoords))
+    if outside.any():
+        raise FormatError(path, f"a face names texture coordinate (vt) {int(corners[..., 1][outside][0])}, beyond "
+                                f"the {len(texcoords)} in the file")
+    file_uvs = texcoords[corners_t]  # (T, 3, 2)
+
+    def canonical(triangles):
+        """The rotation of each triangle's corners that is least as a triple, and its shift."""
+        rotations = np.stack([np.roll(triangles, -r, axis=1) for r in range(3)], axis=1)  # (T, shift, 3)
+        rows = np.arange(len(triangles))
+        best = np.zeros(len(triangles), dtype=np.int64)
+        for r in (1, 2):
+            a, b = rotations[:, r], rotations[rows, best]
+            less = (a[:, 0] < b[:, 0]) | ((a[:, 0] == b[:, 0]) & ((a[:, 1] < b[:, 1]) |
+                                                                  ((a[:, 1] == b[:, 1]) & (a[:, 2] < b[:, 2]))))
+            best[less] = r
+        return rotations[rows, best], best
+
+    faces = np.asarray(faces, dtype=np.int64)
+    mismatch = FormatError(path, "its texture coordinates (vt) cannot be matched to the triangles read; remove the "
+                                 "vt lines to read it without UVs")
+    if len(corners_v) != len(faces):
+        raise mismatch
+    file_key, file_shift = canonical(corners_v)
+    read_key, read_shift = canonical(faces)
+    file_order = np.lexsort(file_key.T[::-1])
+    read_order = np.lexsort(read_key.T[::-1])
+    if not np.array_equal(file_key[file_order], read_key[read_order]):
+        raise mismatch
+    match = np.empty(len(faces), dtype=np.int64)  # read triangle -> file triangle
+    match[read_order] = file_order
+    # corner k of a read triangle is corner (k − its shift) of the canonical triangle, which is
+    # corner (k − its shift + the file triangle's shift) of the file's
+    k = np.arange(3)
+    corner = (k[None, :] - read_shift[:, None] + file_shift[match][:, None]) % 3
+    return file_uvs[match[:, None], corner]
 
 
 def _merge_geometry(path, loaded):

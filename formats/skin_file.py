@@ -2,7 +2,8 @@
 
 Groups (all arrays float64 unless noted; conventions in docs/format.md):
 
-- ``/mesh``: ``rest_vertices (V, 3)``, ``faces (T, 3)`` int64; ``@rest_frame``.
+- ``/mesh``: ``rest_vertices (V, 3)``, ``faces (T, 3)`` int64; ``@rest_frame``; and only when the
+  input had material UVs, ``face_uvs (T, 3, 2)`` (each face corner's (u, v), v up).
 - ``/examples``: ``vertices (F, V, 3)``; ``@fps``, ``@source``, and the input's scene
   (:mod:`.scene`): ``@meters_per_unit``, ``@up_axis``, ``@start_frame``, ``@prim_path``.
 - ``/skin``: ``bone_indices (V, K)`` int32, ``bone_weights (V, K)`` (≥ 0, rows sum to 1, sorted
@@ -45,6 +46,7 @@ class SkinModel:
     rmse_over_diagonal: float
     provenance: list
     scene: Scene = field(default_factory=Scene)
+    face_uvs: np.ndarray | None = None
 
     @property
     def bones(self):
@@ -53,9 +55,11 @@ class SkinModel:
 
 def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, frame_rmse, diagonal):
     """The HDF5 groups of a skin file, from a MeshSequence and a pipeline SkinFit."""
+    mesh = {"rest_vertices": fit.rest_vertices, "faces": sequence.faces.astype(np.int64)}
+    if sequence.face_uvs is not None:  # only then: a file without UVs keeps its datasets
+        mesh["face_uvs"] = np.asarray(sequence.face_uvs, dtype=np.float64)
     return {
-        "mesh": {"rest_vertices": fit.rest_vertices, "faces": sequence.faces.astype(np.int64),
-                 "@rest_frame": int(rest_frame)},
+        "mesh": {**mesh, "@rest_frame": int(rest_frame)},
         "examples": {"vertices": sequence.vertices, "@fps": float(sequence.fps), "@source": sequence.source,
                      **sequence.scene.attributes()},
         "skin": {
@@ -100,4 +104,4 @@ def read_skin(path, model=None):
         translations=skin["translations"], dual_quaternions=skin["dual_quaternions"],
         bone_rest_frames=skin["bone_rest_frames"], rmse=float(skin.get("@rmse", np.nan)),
         rmse_over_diagonal=float(skin.get("@rmse_over_diagonal", np.nan)), provenance=model["provenance"],
-        scene=Scene.from_attributes(examples))
+        scene=Scene.from_attributes(examples), face_uvs=mesh.get("face_uvs"))

@@ -17,7 +17,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 from skinsynth.formats.atomic import atomic_output
 from skinsynth.formats.errors import FormatError, declared_size_problem, require_finite
-from skinsynth.formats.meshseq import USD_EXTENSIONS
+from skinsynth.formats.meshseq import USD_EXTENSIONS, fan_corners
 
 
 
@@ -125,10 +125,11 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
     Each character is a SkelRoot ``/<group>/<name>`` holding its ``Mesh`` (group None: one
     character laid out as :func:`write_skel_cache`; names default to character_000...). World
     placement is part of the bone transforms. ``scene`` and ``up_axis`` as :func:`write_points_cache`.
-    blend_shapes: optional (offsets (S, V, 3), weights (C, F, S)): rest-pose offsets that UsdSkel
-    adds, weighted per frame, before skinning (a puppet's pose-space correctives); the shapes are
-    written once, under the first character's mesh, and every character's mesh targets them,
-    each as a ± pair with weights in [0, 1] (:func:`_unit_range_shapes`).
+    blend_shapes: optional (offsets (S, V, 3), weights (C, F, S), names (S,)): rest-pose offsets
+    that UsdSkel adds, weighted per frame, before skinning (a puppet's pose-space correctives, as
+    ± pairs with weights in [0, 1], ``pipeline.morph_targets.unit_range_pairs``: Blender's shape
+    keys clamp to [0, 1]); the shapes are written once, under the first character's mesh, and
+    every character's mesh targets them.
     """
     rest = _float_array("rest_vertices", rest_vertices, (None, 3))
     count = len(rest)
@@ -150,8 +151,9 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
         shape_offsets = _float_array("blend shape offsets", blend_shapes[0], (None, count, 3), path)
         shape_weights = _float_array("blend shape weights", blend_shapes[1],
                                      (characters, frames, shape_offsets.shape[0]), path)
-        shape_offsets, shape_weights = _unit_range_shapes(shape_offsets, shape_weights)
-        shape_names = Vt.TokenArray([f"shape_{j:03d}{s}" for j in range(len(shape_offsets) // 2) for s in "pn"])
+        if len(blend_shapes[2]) != len(shape_offsets):
+            raise ValueError(f"{len(blend_shapes[2])} blend shape names for {len(shape_offsets)} shapes")
+        shape_names = Vt.TokenArray(list(blend_shapes[2]))
 
     # One root joint with every bone under it (engines such as Unreal refuse several roots); the
     # root stays at the origin, so each bone's parent-local transform is its world transform.
@@ -199,18 +201,6 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
                                   Usd.TimeCode(start + frame))
         stage.GetRootLayer().Save()
         del stage
-
-
-def _unit_range_shapes(offsets, weights):
-    """The same deformation with every weight in [0, 1]: shape j becomes ``+k_j O_j`` and
-    ``−k_j O_j`` (names ``shape_NNNp``, ``shape_NNNn``) weighted ``max(±w_j, 0) / k_j``, with
-    k_j the largest |w_j|. Blender's shape keys clamp to [0, 1], and a puppet's blend weights
-    are signed (measured: −0.13…0.50 put Blender 1e-3 of the diagonal off). offsets (S, V, 3),
-    weights (C, F, S) -> (2S, V, 3), (C, F, 2S)."""
-    scale = np.maximum(np.abs(weights).max(axis=(0, 1)), np.finfo(np.float32).tiny)  # (S,)
-    both = np.stack([offsets * scale[:, None, None], -offsets * scale[:, None, None]], axis=1)
-    split = np.stack([np.maximum(weights, 0.0), np.maximum(-weights, 0.0)], axis=-1) / scale[:, None]
-    return both.reshape(-1, *offsets.shape[1:]), split.reshape(*weights.shape[:2], -1)
 
 
 def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translations, centers, start=0.0, root=None):
@@ -609,6 +599,13 @@ def _find_mesh(path, stage, prim):
 
 def _triangles(path, mesh, time):
     """Fan-triangulate the mesh's polygons, in polygon order: faces (T, 3) int64."""
+    corners, indices = _triangle_corners(path, mesh, time)
+    return indices[corners]
+
+
+def _triangle_corners(path, mesh, time):
+    """(corners (T, 3) int64, faceVertexIndices (N,) int64): the polygons fan-triangulated in
+    polygon order, each triangle corner as its position in faceVertexIndices."""
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(time) or [], dtype=np.int64)
     indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(time) or [], dtype=np.int64)
     if counts.sum() != len(indices):
@@ -616,15 +613,52 @@ def _triangles(path, mesh, time):
                                 f"but there are {len(indices)} faceVertexIndices")
     if (counts < 3).any():
         raise FormatError(path, f"{mesh.GetPath()}: a face has fewer than 3 vertices")
-    starts = np.cumsum(counts) - counts
-    fans = counts - 2
-    polygon = np.repeat(np.arange(len(counts)), fans)
-    corner = np.arange(fans.sum()) - np.repeat(np.cumsum(fans) - fans, fans) + 1  # 1..n-2 within a polygon
-    first = starts[polygon]
-    triangles = np.stack([indices[first], indices[first + corner], indices[first + corner + 1]], axis=1)
+    corners = fan_corners(counts)
     if mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
-        triangles = triangles[:, [0, 2, 1]]  # keep outward normals right-handed like the other readers
-    return triangles
+        corners = corners[:, [0, 2, 1]]  # keep outward normals right-handed like the other readers
+    return corners, indices
+
+
+#: primvars:st interpolations read as material UVs: per point, or per face corner.
+_UV_INTERPOLATIONS = (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying, UsdGeom.Tokens.faceVarying)
+
+
+def read_face_uvs(path, prim=None):
+    """The material UVs of the mesh :func:`read_points_cache` reads, per corner of its triangles:
+    face_uvs (T, 3, 2) float64 from ``primvars:st`` (indexed or not, at the first points sample),
+    or None when the mesh has no ``st`` or one of another interpolation than vertex, varying or
+    faceVarying (constant and uniform UVs texture nothing). FormatError for a malformed ``st``."""
+    stage = _open(path)
+    mesh = _find_mesh(path, stage, prim)
+    primvar = UsdGeom.PrimvarsAPI(mesh.GetPrim()).GetPrimvar("st")
+    if not primvar or not primvar.HasValue() or primvar.GetInterpolation() not in _UV_INTERPOLATIONS:
+        return None
+    times = mesh.GetPointsAttr().GetTimeSamples()
+    code = Usd.TimeCode(times[0]) if times else Usd.TimeCode.Default()
+    where = f"{mesh.GetPath()}.primvars:st"
+    values = primvar.Get(code)
+    values = np.asarray(values if values is not None else [], dtype=np.float64)
+    if values.ndim != 2 or values.shape[1] != 2:
+        raise FormatError(path, f"{where}: must hold 2 numbers per element, got shape {values.shape}")
+    if primvar.IsIndexed():  # flattened here: pxr's ComputeFlattened prints its complaints to stderr
+        element = np.asarray(primvar.GetIndices(code) or [], dtype=np.int64)
+        if element.size and (element.min() < 0 or element.max() >= len(values)):
+            bad = element[(element < 0) | (element >= len(values))][0]
+            raise FormatError(path, f"{where}:indices holds {bad}, outside its {len(values)} values")
+        values = values[element]
+    corners, indices = _triangle_corners(path, mesh, code)
+    if primvar.GetInterpolation() == UsdGeom.Tokens.faceVarying:
+        wanted, per_corner = len(indices), values
+    else:
+        wanted = len(mesh.GetPointsAttr().Get(code) or [])
+        per_corner = values[indices] if len(values) == wanted and (not indices.size or indices.max() < wanted) \
+            else None
+    if len(values) != wanted or per_corner is None:
+        raise FormatError(path, f"{where}: {len(values)} values for {primvar.GetInterpolation()} interpolation, "
+                                f"which needs {wanted}")
+    face_uvs = per_corner[corners]
+    require_finite(path, where, face_uvs)
+    return face_uvs
 
 
 def read_skel_animation(path):

@@ -101,7 +101,8 @@ def _shape_text(shape):
     return "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
 
 
-MESH = {"rest_vertices": Field("float", ("V", 3)), "faces": Field("int", ("T", 3), low=0, high="V")}
+MESH = {"rest_vertices": Field("float", ("V", 3)), "faces": Field("int", ("T", 3), low=0, high="V"),
+        "face_uvs": Field("float", ("T", 3, 2), optional=True)}
 EXAMPLES = {"vertices": Field("float", ("F", "V", 3))}
 SKIN = {
     "bone_indices": Field("int", ("V", "K"), low=0, high="B"),

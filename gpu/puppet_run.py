@@ -3,7 +3,9 @@ the stages of ``gpu.puppet_stages`` chained with the arrays staying on the devic
 launches, in chunks of samples, over Python threads on the CPU.
 
 A per-sample rigid world transform is folded into every bone's dual quaternion before skinning
-(so the skinning writes world positions directly); ``reference_run_puppet`` is the same in numpy
+(so the skinning writes world positions directly); the skinning is dual-quaternion (Feng §6.3) or
+linear-blend (each composed dual quaternion turned into its rotation and translation by one more
+kernel, then the LBS kernel); ``reference_run_puppet`` is the same in numpy
 (it applies the world transforms to the skinned vertices instead). The host side of the run time
 stays in numpy: aligning the controls (``pipeline.puppet.in_place``) and standardising them;
 ``pipeline.playback.host_inputs`` does both for a ``Puppet`` and world controls.
@@ -18,7 +20,7 @@ from . import runtime
 from .cpu_blas import cpu_corrective_offsets, in_threads, solve_with_blas
 from .device_arrays import float32_array, float64_array
 from .device_puppet import DevicePuppet, Workspace
-from .references.puppet import blend_weights
+from .references.puppet import blend_weights, check_skinning
 from .validation import checked_run_inputs
 
 # Samples per chunk: at most 2**24 skinned vertices (a 192 MiB float32 output buffer) per launch,
@@ -28,13 +30,13 @@ _DEVICE_CHUNK = 1 << 24
 _timings_lock = threading.Lock()
 
 
-def _run_chunk(puppet, space, x, c, f, out, device, timings=None, offsets_host=None):
+def _run_chunk(puppet, space, x, c, f, out, device, timings=None, offsets_host=None, skinning="dual-quaternion"):
     """Run the whole path for one chunk of n samples: numpy inputs in, skinned (n, V, 3) into `out`.
     offsets_host: on the CPU, the chunk's corrective offsets (n, V, 3) float32, already computed
     (``cpu_corrective_offsets``; may be ``out`` itself: each vertex is read, then written)."""
     wp = runtime.warp()
     from .kernels.puppet import (compose_kernel, corrective_offsets_kernel, frames_kernel, kernel_vector_kernel,
-                                 normalise_kernel, predict_kernel, solve_kernel)
+                                 normalise_kernel, predict_kernel, rigid_kernel, solve_kernel)
 
     host = puppet.host
     n = x.shape[0]
@@ -77,6 +79,9 @@ def _run_chunk(puppet, space, x, c, f, out, device, timings=None, offsets_host=N
               inputs=[unit, space.solved[:n], space.frames[:n], int(solve), int(f is not None)],
               outputs=[space.final[:n]], device=device)
     mark("compose")
+    if skinning == "linear":  # rot and trans are free once composed: each bone's rigid transform goes there
+        wp.launch(rigid_kernel, dim=(n, bones), inputs=[space.final[:n]], outputs=[rot, trans], device=device)
+        mark("rigid")
     offsets = None
     if offsets_host is not None:
         offsets = wp.array(offsets_host, dtype=wp.vec3, device="cpu", copy=False)
@@ -92,7 +97,10 @@ def _run_chunk(puppet, space, x, c, f, out, device, timings=None, offsets_host=N
         target = wp.array(out.reshape(n, -1, 3), dtype=wp.vec3, device="cpu", copy=False)
     else:
         target = space.out[:n]
-    puppet.skin.launch(space.final[:n], target, device, offsets)
+    if skinning == "linear":
+        puppet.skin.launch_linear(rot, trans, target, device, offsets)
+    else:
+        puppet.skin.launch(space.final[:n], target, device, offsets)
     mark("skin")
     if not direct:
         out[...] = target.numpy()
@@ -100,7 +108,7 @@ def _run_chunk(puppet, space, x, c, f, out, device, timings=None, offsets_host=N
 
 
 def run_puppet(puppet, standardised_controls, controls_in_place=None, world_frames=None, translation_solver=True,
-               device="cpu", out=None, threads=1, timings=None) -> np.ndarray:
+               device="cpu", out=None, threads=1, timings=None, skinning="dual-quaternion") -> np.ndarray:
     """The trained puppet's whole run-time path on a device: vertices (N, V, 3).
 
     puppet: a ``pipeline.puppet.Puppet``, ``PuppetArrays`` or :class:`DevicePuppet` (uploaded
@@ -113,8 +121,10 @@ def run_puppet(puppet, standardised_controls, controls_in_place=None, world_fram
 
     Stages (all on the device, arrays stay there between launches): ξ, d = M ξ + m,
     normalise, [t = Γ·R + Q·c + Π·t̂], rebuild each bone's dual quaternion with t and compose
-    it with the sample's world frame, dual-quaternion skinning. Samples go in chunks of at most
-    2**24 skinned vertices.
+    it with the sample's world frame, then skinning: ``skinning`` "dual-quaternion" (Feng §6.3) or
+    "linear" (each bone's rotation and translation from its composed unit dual quaternion, then
+    linear-blend skinning; the correctives' rest offsets are added to the rest pose first either
+    way). Samples go in chunks of at most 2**24 skinned vertices.
 
     out: optional (N, V, 3) array to fill (float32 avoids the float64 conversion; on the CPU a
     C-contiguous float32 ``out`` is written in place by the kernel); returned. Default: a new
@@ -122,6 +132,7 @@ def run_puppet(puppet, standardised_controls, controls_in_place=None, world_fram
     releases the GIL during CPU launches; each thread runs the whole path on its slice).
     timings: optional dict, accumulates seconds per stage (synchronises after each stage).
     """
+    check_skinning(skinning)
     dev_puppet = puppet if isinstance(puppet, DevicePuppet) else DevicePuppet(puppet, device)
     device = dev_puppet.device
     x, c, f = checked_run_inputs(dev_puppet.host, standardised_controls, controls_in_place, world_frames,
@@ -147,7 +158,7 @@ def run_puppet(puppet, standardised_controls, controls_in_place=None, world_fram
             n1 = min(n0 + step, hi)
             _run_chunk(dev_puppet, space, x[n0:n1], None if c is None else c[n0:n1],
                        None if f is None else f[n0:n1], out[n0:n1], device, timings,
-                       None if offsets is None else offsets[n0:n1])
+                       None if offsets is None else offsets[n0:n1], skinning)
 
     if threads == 1:
         work(0, samples)

@@ -70,7 +70,8 @@ def skin_arrays(rest_vertices, bone_indices, bone_weights, bones):
 
 class SkinBuffers:
     """Rest (V,) vec3, bone indices and weights (V, K), slots sorted by :func:`skin_arrays`, on the
-    device, for dual-quaternion skinning."""
+    device, for dual-quaternion skinning (:meth:`launch`) or linear-blend skinning
+    (:meth:`launch_linear`)."""
 
     def __init__(self, rest, idx, w, device):
         wp = runtime.warp()
@@ -90,6 +91,19 @@ class SkinBuffers:
             offsets = wp.empty((1, 1), dtype=wp.vec3, device=device)
         wp.launch(dq_skin_kernel(self.influences, corrected), dim=out.shape,
                   inputs=[self.rest, self.idx, self.w, dual_quaternions, offsets], outputs=[out], device=device)
+
+    def launch_linear(self, rotations, translations, out, device, offsets=None):
+        """Linear-blend skin into out (n, V) vec3 by rotations (n, B) mat33 and translations (n, B)
+        vec3; offsets (n, V) vec3 added to the rest pose first, or None."""
+        wp = runtime.warp()
+        from .kernels.skinning import lbs_kernel
+
+        corrected = offsets is not None
+        if not corrected:
+            offsets = wp.empty((1, 1), dtype=wp.vec3, device=device)
+        wp.launch(lbs_kernel(self.influences, corrected), dim=out.shape,
+                  inputs=[self.rest, self.idx, self.w, rotations, translations, offsets], outputs=[out],
+                  device=device)
 
 
 def dq_skin(rest_vertices, bone_indices, bone_weights, dual_quaternions, device="cpu", rest_offsets=None) -> np.ndarray:

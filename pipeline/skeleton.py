@@ -110,13 +110,23 @@ def _converted(up_axis, meters_per_unit, points):
 
 
 def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis="Y", meters_per_unit=1.0,
-             quantize=None):
+             quantize=None, face_uvs=None, morph_targets=None):
     """What a glTF skin needs of a fitted rig, in glTF's axes and metres (:func:`to_gltf_axes`):
     {positions, normals (V, 3), faces, joints (V, 4), weights (V, 4) (float32, or ``quantize`` 8
     or 16 bits), inverse_binds (B + 1, 4, 4), bind_translations (B + 1, 3), joint_names}: joint 0
     the root ("root"), joint j + 1 bone j ("bone_NNN"). rest_vertices (V, 3); bone_indices and
     bone_weights (V, K); centres (B, 3) the bones' rest centres. ValueError for more than four
-    influences per vertex."""
+    influences per vertex.
+
+    ``face_uvs`` (T, 3, 2), the material UVs per face corner (v up), adds ``uvs`` (V', 2) in
+    glTF's convention (u, 1 − v) and splits the vertices at UV seams
+    (:func:`.uv_seams.split_uv_seams`: the V originals first, then the copies); every per-vertex
+    array then has V' rows, a copy's position, normal (the unsplit mesh's, so shading stays
+    smooth across a seam), joints and weights its original's. The joints and binds are unchanged.
+
+    ``morph_targets`` (k, V, 3), rest-pose displacements in the rig's axes and units (a puppet's
+    correctives, :mod:`.morph_targets`), adds ``morph_targets`` (k, V', 3) in glTF's: they turn
+    and scale as positions do (no translation), and a copy at a seam takes its original's."""
     from .geometry import vertex_normals
 
     positions = _converted(up_axis, meters_per_unit, rest_vertices)
@@ -126,10 +136,21 @@ def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis=
     weights = float_weights(weights) if quantize is None else quantized_weights(weights, quantize)
     joints[weights == 0] = 0  # a slot whose weight rounded to nothing names no joint
     bone_centres = _converted(up_axis, meters_per_unit, centres)
-    return {"positions": positions, "normals": normals, "faces": np.asarray(faces), "joints": joints,
-            "weights": weights, "inverse_binds": inverse_bind_matrices(bone_centres),
-            "bind_translations": np.vstack([np.zeros((1, 3)), bone_centres]),
-            "joint_names": ["root"] + [f"bone_{j:03d}" for j in range(len(centres))]}
+    rig = {"positions": positions, "normals": normals, "faces": np.asarray(faces), "joints": joints,
+           "weights": weights, "inverse_binds": inverse_bind_matrices(bone_centres),
+           "bind_translations": np.vstack([np.zeros((1, 3)), bone_centres]),
+           "joint_names": ["root"] + [f"bone_{j:03d}" for j in range(len(centres))]}
+    if morph_targets is not None:
+        rig["morph_targets"] = _converted(up_axis, meters_per_unit, morph_targets)
+    if face_uvs is not None:
+        from .uv_seams import gltf_texcoords, split_uv_seams
+
+        vertex_map, split_faces, uvs = split_uv_seams(faces, face_uvs, len(positions))
+        rig.update({name: rig[name][vertex_map] for name in ("positions", "normals", "joints", "weights")},
+                   faces=split_faces, uvs=gltf_texcoords(uvs))
+        if morph_targets is not None:
+            rig["morph_targets"] = rig["morph_targets"][:, vertex_map]
+    return rig
 
 
 def ground_motion(rotations, translations, rest, bone_indices, bone_weights, up):

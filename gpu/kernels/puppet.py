@@ -144,6 +144,22 @@ def compose_kernel(
 
 
 @wp.kernel
+def rigid_kernel(
+    dual_quaternions: wp.array2d(dtype=vec8),  # (N, B) unit: compose_kernel's output
+    rotations: wp.array2d(dtype=wp.mat33),
+    translations: wp.array2d(dtype=wp.vec3),
+):
+    """Each bone's rigid transform for linear-blend skinning: the rotation of the unit real part
+    q0 and t = 2 (qe q0*).xyz (the composed dual quaternions are unit up to float32 rounding)."""
+    n, b = wp.tid()
+    v = dual_quaternions[n, b]
+    q0 = dq_real(v)
+    p = dq_dual(v) * wp.quat(-q0[0], -q0[1], -q0[2], q0[3])  # qe q0*
+    rotations[n, b] = wp.quat_to_matrix(q0)
+    translations[n, b] = 2.0 * wp.vec3(p[0], p[1], p[2])
+
+
+@wp.kernel
 def corrective_offsets_kernel(w: wp.array2d(dtype=wp.float64), offsets: wp.array2d(dtype=wp.vec3),
                               out: wp.array2d(dtype=wp.vec3)):
     """Σ_j w_j O_j (N, V) in float32 (offsets are small; w, which can be large and cancel, is

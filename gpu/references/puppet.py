@@ -4,15 +4,25 @@ reference, and :func:`reference_run_puppet`, their composition.
 Per sample n (frames × characters, flattened): ξ = k(x, training) (N, n_p), d = M ξ + m (N, B, 8)
 (Feng §6.1), unit d with its rotations (N, B, 3, 3) and translations (N, B, 3), the Poisson
 translations t = Γ·R + Q·c + Π·t̂ (N, B, 3) (Feng §6.2), the pose-space correctives' rest offsets
-Σ_j w_j O_j (N, V, 3), dual-quaternion skinning (N, V, 3) (Feng §6.3). The device versions are in
-``gpu.puppet_stages`` and ``gpu.puppet_run``; the pipeline's own computations call these.
+Σ_j w_j O_j (N, V, 3), dual-quaternion skinning (N, V, 3) (Feng §6.3) or linear-blend skinning by
+each bone's rigid transform. The device versions are in ``gpu.puppet_stages`` and
+``gpu.puppet_run``; the pipeline's own computations call these.
 """
 
 import numpy as np
 
 from ..puppet_arrays import host_arrays
 from ..validation import check_kind, checked_run_inputs
-from .skinning import dqs_reference
+from .skinning import dqs_reference, lbs_reference
+
+#: The skinnings a puppet plays with (``run_puppet``'s ``skinning``).
+SKINNINGS = ("dual-quaternion", "linear")
+
+
+def check_skinning(skinning):
+    """Raise ValueError unless ``skinning`` is one of SKINNINGS."""
+    if skinning not in SKINNINGS:
+        raise ValueError(f"skinning must be one of {', '.join(SKINNINGS)}, got {skinning!r}")
 
 
 def kernel_vectors_reference(x, training, kind, offset=0.0, degree=5):
@@ -91,12 +101,15 @@ def blend_weights(arrays, xi, x):
 
 
 def reference_run_puppet(puppet, standardised_controls, controls_in_place, world_frames=None,
-                         translation_solver=True):
+                         translation_solver=True, skinning="dual-quaternion"):
     """numpy reference of ``run_puppet`` (same arguments, no device): vertices (N, V, 3).
 
-    Composes the stage references; the world frames are applied to the skinned vertices, as
-    ``pipeline.puppet.predict_vertices`` does (the device version folds them into the bones).
+    Composes the stage references; skinning "dual-quaternion" (``dqs_reference``) or "linear"
+    (``lbs_reference`` by the rigid transforms of the unit dual quaternions). The world frames are
+    applied to the skinned vertices, as ``pipeline.puppet.predict_vertices`` does (the device
+    version folds them into the bones).
     """
+    check_skinning(skinning)
     arrays = host_arrays(puppet)
     x, c, f = checked_run_inputs(arrays, standardised_controls, controls_in_place, world_frames, translation_solver)
     xi = kernel_vectors_reference(x, arrays.training_controls, arrays.kernel, arrays.offset, arrays.degree)
@@ -110,7 +123,11 @@ def reference_run_puppet(puppet, standardised_controls, controls_in_place, world
     offsets = None
     if arrays.has_correctives:
         offsets = corrective_offsets_reference(blend_weights(arrays, xi, x), arrays.corrective_offsets)
-    placed = dqs_reference(arrays.rest_vertices, arrays.bone_indices, arrays.bone_weights, d, offsets)
+    if skinning == "linear":
+        _, rot, trans = normalise_dual_quaternions_reference(d)  # d is unit: its rigid transforms
+        placed = lbs_reference(arrays.rest_vertices, arrays.bone_indices, arrays.bone_weights, rot, trans, offsets)
+    else:
+        placed = dqs_reference(arrays.rest_vertices, arrays.bone_indices, arrays.bone_weights, d, offsets)
     if f is None:
         return placed
     return np.einsum("nab,nvb->nva", f[:, :3, :3], placed) + f[:, None, :3, 3]

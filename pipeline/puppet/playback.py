@@ -67,35 +67,23 @@ def host_inputs(puppet, controls):
     return standardised, placed, frames
 
 
-def play_characters(puppet, controls, device, skinning="dual-quaternion", translation_solver=True, threads=0):
+def play_characters(puppet, controls, device, skinning=None, translation_solver=True, threads=0):
     """Every vertex of every frame of controls (C·F, n_c, 3) played through the puppet on
-    ``device``: (vertices (C·F, V, 3) float32, world bones (rotations, translations, blend
-    weights) for linear skinning else None, seconds of compute). Dual-quaternion skinning runs the
-    whole run-time path in warp kernels (Feng §6, ``gpu.run_puppet``, ``threads`` CPU threads, 0:
-    all cores); linear skinning predicts the bones on the host and skins them with the LBS kernel.
-    The kernels are compiled (or loaded) on a one-frame warm-up first, outside the time."""
-    from skinsynth.gpu import DevicePuppet, corrective_offsets_reference, lbs, run_puppet
+    ``device``: (vertices (C·F, V, 3) float32, seconds of compute). Both skinnings run the whole
+    run-time path in warp kernels (Feng §6, ``gpu.run_puppet(skinning=…)``, ``threads`` CPU
+    threads, 0: all cores). The kernels are compiled (or loaded) on a one-frame warm-up first,
+    outside the time. ``skinning``: "dual-quaternion", "linear", or None for the puppet's own
+    (``Puppet.skinning``). Rig outputs take the world bones from :func:`world_bones`."""
+    from skinsynth.gpu import DevicePuppet, run_puppet
 
-    rest, indices, weights = puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights
-    bones = None
-    if skinning == "linear":
-        count = puppet.regression.predictor.shape[0]
-        still = (np.tile(np.eye(3), (1, count, 1, 1)), np.zeros((1, count, 3)))
-        lbs(rest, indices, weights, *still, device,
-            None if puppet.correctives is None else np.zeros((1,) + rest.shape))  # warm-up, untimed
-        started = time.perf_counter()
-        bones = world_bones(puppet, controls, translation_solver)
-        rotations, translations, shape_weights = bones
-        shift = None if shape_weights is None else corrective_offsets_reference(shape_weights,
-                                                                               puppet.correctives.offsets)
-        vertices = lbs(rest, indices, weights, rotations, translations, device, shift).astype(np.float32)
-    else:
-        device_puppet = DevicePuppet(puppet, device)
-        threads = threads or os.cpu_count() or 1
-        run_puppet(device_puppet, *host_inputs(puppet, controls[:1]), translation_solver=translation_solver)
-        started = time.perf_counter()
-        x, placed, world = host_inputs(puppet, controls)
-        vertices = np.empty((len(controls), rest.shape[0], 3), dtype=np.float32)
-        run_puppet(device_puppet, x, placed, world, translation_solver=translation_solver, out=vertices,
-                   threads=threads)
-    return vertices, bones, time.perf_counter() - started
+    skinning = skinning or puppet.skinning
+    device_puppet = DevicePuppet(puppet, device)
+    threads = threads or os.cpu_count() or 1
+    run_puppet(device_puppet, *host_inputs(puppet, controls[:1]), translation_solver=translation_solver,
+               skinning=skinning)  # warm-up, untimed
+    started = time.perf_counter()
+    x, placed, world = host_inputs(puppet, controls)
+    vertices = np.empty((len(controls), puppet.rest_vertices.shape[0], 3), dtype=np.float32)
+    run_puppet(device_puppet, x, placed, world, translation_solver=translation_solver, out=vertices,
+               threads=threads, skinning=skinning)
+    return vertices, time.perf_counter() - started

@@ -144,7 +144,7 @@ def test_a_linear_puppet_is_evaluated_and_played_linearly_by_default(files, tmp_
     assert evaluated["skinning"] == "linear"
     dual = json.loads(assert_ok(cli("evaluate", linear, "--json", "--skinning", "dual-quaternion")).stdout)
     assert dual["skinning"] == "dual-quaternion" and dual["kcca"] != evaluated["kcca"]
-    assert json.loads(assert_ok(cli("evaluate", files / "puppet.h5", "--json")).stdout)["skinning"] == "dual-quaternion"
+    assert json.loads(assert_ok(cli("evaluate", files / "puppet.h5", "--json")).stdout)["skinning"] == "linear"  # default
 
     record, _, skin = read_puppet(str(linear))
     puppet = puppet_from_record(record)
@@ -156,8 +156,11 @@ def test_a_linear_puppet_is_evaluated_and_played_linearly_by_default(files, tmp_
     expected = predict_vertices(puppet, skin.examples[:, puppet.control_indices], skinning="linear")
     assert np.abs(vertices - expected).max() < 1e-5 * np.ptp(skin.rest_vertices, axis=0).max()
     assert_ok(cli("play", linear, "-c", tmp_path / "c.npy", "-o", tmp_path / "p.glb", "-q"))
+    assert_ok(cli("train-kcca", files / "controls.h5", "-o", tmp_path / "dual.h5", "--skinning", "dual-quaternion",
+                  "-q"))
+    assert json.loads(assert_ok(cli("evaluate", tmp_path / "dual.h5", "--json")).stdout)["skinning"] == "dual-quaternion"
     before = sorted(p.name for p in tmp_path.iterdir())
-    assert_user_error(cli("play", files / "puppet.h5", "-c", tmp_path / "c.npy", "-o", tmp_path / "d.glb"),
+    assert_user_error(cli("play", tmp_path / "dual.h5", "-c", tmp_path / "c.npy", "-o", tmp_path / "d.glb"),
                       "d.glb", "train-kcca --skinning linear", folder=tmp_path, keep=before)
 
 

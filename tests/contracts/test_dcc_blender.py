@@ -139,8 +139,20 @@ def _linear_puppet(stages, out, skin):
         return f["vertices"][()]  # play's own linear skinning, (characters, F, V, 3)
 
 
+def _linear_puppet_with_correctives(stages, out, skin):
+    """A puppet trained for linear skinning with correctives: their morph targets, ± pairs in [0, 1]."""
+    puppet = out.with_name("corrected.h5")
+    assert_ok(cli("train-kcca", stages / "controls.h5", "-o", puppet, "--skinning", "linear", "--correctives",
+                  "1e-3", "-q"))
+    args = ["play", puppet, "-c", stages / "bar.npz", "--instances", 2, "--spacing", 0, "--device", "cpu", "-q"]
+    assert_ok(cli(*args, "-o", out))
+    assert_ok(cli(*args, "-o", out.with_suffix(".h5")))
+    with h5py.File(out.with_suffix(".h5")) as f:
+        return f["vertices"][()]
+
+
 GLTF_CASES = {"skin fit": _skin_fit, "root motion, 3 synthesized clips": _root_motion_synthesis,
-              "linear puppet played": _linear_puppet}
+              "linear puppet played": _linear_puppet, "linear puppet with correctives": _linear_puppet_with_correctives}
 
 
 @pytest.mark.parametrize("case", list(GLTF_CASES))

@@ -195,14 +195,24 @@ def test_synthesize_root_motion_needs_a_gltf_output(files, tmp_path):
                           out / "b.usdc"), "must end in .glb", folder=out)
 
 
+#: The test bar's stage recipe up to its controls, for the puppets below.
+BAR_PUPPET = dict(frames=40, bones=4, iterations=6, cycles=2, controls=("--count", 4))
+
+
 @pytest.fixture(scope="module")
 def puppets(stage_files, tmp_path_factory):
-    """Two puppets of the test bar: without correctives (a glTF rig) and with them."""
-    stages = stage_files(frames=40, bones=4, iterations=6, cycles=2, controls=("--count", 4),
-                         puppet=("--correctives", "off"))
-    root = stages.copy_to(tmp_path_factory.mktemp("puppets"))
-    assert_ok(cli("train-kcca", root / "controls.h5", "-o", root / "corrected.h5", "--correctives", "1e-6", "-q"))
-    return root
+    """A puppet of the test bar without correctives (a glTF rig)."""
+    stages = stage_files(**BAR_PUPPET, puppet=("--correctives", "off"))
+    return stages.copy_to(tmp_path_factory.mktemp("puppets"))
+
+
+def _accessor(document, binary, index):
+    """(count, width) float32 of a float accessor of a .glb (_document's parts)."""
+    accessor = document["accessors"][index]
+    view = document["bufferViews"][accessor["bufferView"]]
+    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[accessor["type"]]
+    return np.frombuffer(binary, np.float32, accessor["count"] * width,
+                         view["byteOffset"] + accessor.get("byteOffset", 0)).reshape(-1, width)
 
 
 def test_a_played_linear_puppet_as_gltf_is_what_play_computes(puppets, tmp_path):
@@ -223,10 +233,66 @@ def test_a_played_linear_puppet_as_gltf_is_what_play_computes(puppets, tmp_path)
     assert np.abs(played - truth).max() <= 1e-5 * diagonal
 
 
-def test_a_played_puppet_to_gltf_must_skin_linearly_and_have_no_correctives(puppets, tmp_path):
+def test_a_played_puppets_correctives_are_morph_targets_three_js_plays_as_play_computes(stage_files, tmp_path):
+    """A linear puppet with pose-space correctives: at most 8 principal components as ± pairs of
+    morph targets weighted in [0, 1] (at most one of a pair active), a weights channel per clip,
+    and three.js (morph influences before CPU skinning) at play's own vertices."""
+    from skinsynth.formats.meshseq import read_played_characters
+
+    stages = stage_files(**BAR_PUPPET, puppet=("--skinning", "linear", "--correctives", "1e-3"))
+    args = ["play", stages / "puppet.h5", "-c", stages / "bar.npz", "--instances", 2, "--spacing", 0]
+    summary = json.loads(assert_ok(cli(*args, "-o", tmp_path / "played.glb", "--json")).stdout)
+    assert_ok(cli(*args, "-o", tmp_path / "played.h5", "-q"))
+    report = validate(tmp_path / "played.glb")
+    assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
+    document, binary = _document(tmp_path / "played.glb")
+    mesh, components = document["meshes"][0], summary["morph_targets"]
+    count = 2 * components
+    assert 1 <= components <= 8 and summary["morph_target_error"] <= 1e-6
+    assert len(mesh["primitives"][0]["targets"]) == count and mesh["weights"] == [0.0] * count
+    assert mesh["extras"]["targetNames"] == [f"corrective_{i}{s}" for i in range(components) for s in "pn"]
+    targets = np.stack([_accessor(document, binary, t["POSITION"]) for t in mesh["primitives"][0]["targets"]])
+    blends = []
+    for animation in document["animations"]:
+        sampler, = [animation["samplers"][c["sampler"]] for c in animation["channels"]
+                    if c["target"] == {"node": 0, "path": "weights"}]  # the mesh node's
+        assert document["accessors"][sampler["output"]]["count"] == \
+            document["accessors"][sampler["input"]]["count"] * count  # glTF 2.0 §3.11
+        blends.append(_accessor(document, binary, sampler["output"]).reshape(-1, count))
+        assert blends[-1].min() >= 0.0 and blends[-1].max() <= 1.0  # Blender clamps to [0, 1]
+        assert np.all(np.minimum(blends[-1][:, 0::2], blends[-1][:, 1::2]) == 0.0)  # one of each pair
+    names, vertices, _, fps = read_played_characters(tmp_path / "played.h5")
+    frames = [0, vertices.shape[1] // 2, vertices.shape[1] - 1]
+    played, clips = three_positions(tmp_path / "played.glb", fps, frames, tmp_path)
+    assert clips == list(names) == ["character_000", "character_001"]
+    skin = skin_of(stages / "puppet.h5")
+    truth = in_gltf_axes(vertices[:, frames], skin.scene)
+    diagonal = np.linalg.norm(np.ptp(in_gltf_axes(skin.rest_vertices, skin.scene), axis=0))
+    assert np.abs(played - truth).max() <= 1e-5 * diagonal
+    moved = np.abs(np.einsum("fk,kc->fc", np.concatenate(blends), targets.reshape(count, -1))).max()
+    assert moved > 1e-3 * diagonal  # the correctives matter: without their targets three.js would be far off
+
+
+def test_a_played_puppet_to_gltf_must_skin_linearly_and_have_few_correctives(puppets, tmp_path):
+    """A dual-quaternion puppet, and correctives that need more than 8 morph targets (a noisy bar:
+    every training frame's residual its own shape), are one line each, naming what to use."""
+    from skinsynth.formats.meshseq import write_array_sequence
+    from skinsynth.pipeline.examples import bending_bar
+
     out = tmp_path / "out"
     out.mkdir()
-    assert_user_error(cli("play", puppets / "puppet.h5", "-c", puppets / "bar.npz", "-o", out / "p.glb"),
-                      "glTF skins linearly", "--skinning linear", folder=out)
-    assert_user_error(cli("play", puppets / "corrected.h5", "-c", puppets / "bar.npz", "-o", out / "p.glb",
-                          "--skinning", "linear"), "correctives", "--correctives off", folder=out)
+    assert_ok(cli("train-kcca", puppets / "controls.h5", "-o", tmp_path / "dual.h5", "--skinning", "dual-quaternion",
+                  "--correctives", "off", "-q"))
+    assert_user_error(cli("play", tmp_path / "dual.h5", "-c", puppets / "bar.npz", "-o", out / "p.glb"),
+                      "glTF skins linearly", "train-kcca --skinning linear", folder=out)
+    vertices, faces = bending_bar(frames=40, rings=10, segments=8, cycles=2)
+    noisy = vertices + 0.02 * np.random.default_rng(1).standard_normal(vertices.shape)
+    write_array_sequence(tmp_path / "noisy.npz", noisy, faces, 24.0)
+    assert_ok(cli("fit-skin", tmp_path / "noisy.npz", "-o", tmp_path / "skin.h5", "--bones", 4, "--iterations", 6,
+                  "-q"))
+    assert_ok(cli("select-controls", tmp_path / "skin.h5", "-o", tmp_path / "controls.h5", "--count", 4, "-q"))
+    assert_ok(cli("train-kcca", tmp_path / "controls.h5", "-o", tmp_path / "noisy.h5", "--skinning", "linear",
+                  "--correctives", "1e-3", "-q"))
+    assert_user_error(cli("play", tmp_path / "noisy.h5", "-c", tmp_path / "noisy.npz", "-o", out / "p.glb"),
+                      "corrective shapes need", "morph targets", "8 leave", "--correctives off", "-o X.usdc",
+                      folder=out)

@@ -207,5 +207,6 @@ def test_play_linear_skinning_is_what_usdskel_plays_and_the_reference_computes(c
     scale = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
     assert np.abs(baked - reference).max() < 1e-5 * scale
     assert np.abs(read_skel_points(tmp_path / "linear.usda") - reference).max() < 1e-5 * scale
-    dual = assert_ok(cli("play", puppet_path, "-c", chain / "capture.usda", "-o", tmp_path / "dq.usda"))
+    dual = assert_ok(cli("play", puppet_path, "-c", chain / "capture.usda", "-o", tmp_path / "dq.usda",
+                         "--skinning", "dual-quaternion"))
     assert "Blender" in dual.stderr and "--skinning linear" in dual.stderr

@@ -107,6 +107,7 @@ def test_horse_puppet_beats_its_baselines_and_plays_as_evaluated(shared_data):
         assert min(errors, key=errors.get) == "kcca", (spec, errors)
         assert errors["kcca"] <= 0.8 * errors["pca_blendshape"], (spec, errors)
     played = np.empty(seq.vertices.shape, dtype=np.float32)
-    run_puppet(DevicePuppet(puppet, "cpu"), *host_inputs(puppet, seq.vertices[:, controls]), out=played)
+    run_puppet(DevicePuppet(puppet, "cpu"), *host_inputs(puppet, seq.vertices[:, controls]), out=played,
+               skinning=puppet.skinning)
     reference = predict_vertices(puppet, seq.vertices[:, controls])
     assert np.abs(played - reference).max() < 1e-5 * bounding_box_diagonal(fit.rest_vertices)

@@ -5,7 +5,7 @@ import os
 import h5py
 import numpy as np
 import pytest
-from pxr import Gf, Usd, UsdGeom, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from skinsynth.formats.errors import FormatError
 from skinsynth.formats.meshseq import MeshSequence, natural_key, read_mesh_sequence
@@ -357,3 +357,126 @@ def test_fps_argument_must_be_positive(tmp_path):
 def test_paths_can_be_pathlike(tmp_path):
     folder = write_frames(tmp_path / "f")
     assert read_mesh_sequence(folder).source == os.fspath(folder)
+
+
+# ---------------------------------------------------------------- material UVs (issue 23)
+
+
+def test_obj_uvs_per_corner_across_a_seam_keep_the_vertices(tmp_path):
+    """A vertex with several UVs stays one vertex; its corners keep their own UVs, whatever the
+    order trimesh returns the faces in (materials) and however it splits a quad."""
+    rng = np.random.default_rng(3)
+    frames = rng.normal(size=(2, 6, 3))
+    uvs = {1: (0.0, 0.0), 2: (1.0, 0.0), 3: (1.0, 1.0), 4: (0.0, 1.0), 5: (0.5, 0.5), 6: (0.25, 0.75)}
+    for index, positions in enumerate(frames):
+        text = "".join(f"v {float(x)!r} {float(y)!r} {float(z)!r}\n" for x, y, z in positions)
+        text += "".join(f"vt {u} {v}\n" for u, v in uvs.values()) + "vn 0 0 1\n"
+        # vertex 3 (one-based) has UVs 3, 5 and 1: a seam; vertex 1 has 1 and 6
+        text += "usemtl a\nf 1/1/1 2/2/1 3/3/1 4/4/1\nusemtl b\nf 3/5/1 2/1/1 5/2/1\nf 5/3 6/4 3/1\nf 6/6 1/6 4/4\n"
+        (tmp_path / f"f{index}.obj").write_text(text)
+
+    sequence = read_mesh_sequence(str(tmp_path / "f*.obj"))
+
+    np.testing.assert_array_equal(sequence.vertices, frames)  # count and order kept
+    assert sequence.face_uvs.shape == (5, 3, 2) and sequence.face_uvs.dtype == np.float64
+    corners = {(1, 1), (2, 2), (3, 3), (4, 4), (3, 5), (2, 1), (5, 2), (5, 3), (6, 4), (3, 1), (6, 6), (1, 6)}
+    for face, face_uvs in zip(sequence.faces, sequence.face_uvs):
+        for vertex, uv in zip(face, face_uvs):
+            assert any(v == vertex + 1 and tuple(uv) == uvs[t] for v, t in corners), (face, face_uvs)
+    # each triangle keeps its polygon's UVs: the quad's two halves, the other three whole
+    expected = {(1, 2, 3): [1, 2, 3], (3, 4, 1): [3, 4, 1], (3, 2, 5): [5, 1, 2], (5, 6, 3): [3, 4, 1],
+                (6, 1, 4): [6, 6, 4]}
+    got = {}
+    for face, face_uvs in zip(sequence.faces + 1, sequence.face_uvs):
+        shift = int(np.argmin(face))  # compare triangles up to a rotation of their corners
+        key = tuple(np.roll(face, -shift))
+        got[key] = [next(t for t, uv in uvs.items() if uv == tuple(c)) for c in np.roll(face_uvs, -shift, axis=0)]
+    want = {}
+    for face, ts in expected.items():
+        shift = int(np.argmin(face))
+        want[tuple(np.roll(face, -shift))] = list(np.roll(ts, -shift))
+    assert got == want
+
+
+def test_obj_without_uvs_on_every_corner_has_none(tmp_path):
+    folder = write_frames(tmp_path / "plain")
+    assert read_mesh_sequence(str(folder)).face_uvs is None
+    partial = tmp_path / "partial"
+    partial.mkdir()
+    for index in range(2):
+        text = "".join(f"v {x} {y} {z}\n" for x, y, z in frame_positions(index))
+        (partial / f"f{index}.obj").write_text(text + "vt 0 0\nvt 1 0\nvt 1 1\nf 1/1 2/2 3/3\nf 2 5 3\n")
+    sequence = read_mesh_sequence(str(partial))
+    assert sequence.face_uvs is None and sequence.vertices.shape == (2, 5, 3)
+
+
+def test_obj_uv_index_beyond_the_list_is_one_error(tmp_path):
+    for index in range(2):
+        text = "".join(f"v {x} {y} {z}\n" for x, y, z in frame_positions(index))
+        (tmp_path / f"f{index}.obj").write_text(text + "vt 0 0\nvt 1 0\nf 1/1 2/2 3/7\n")
+    assert_format_error(tmp_path / "f*.obj", "f0.obj", "texture coordinate (vt) 7")
+
+
+def usd_with_st(path, interpolation, values, indices=None, static_first=False):
+    path = write_usd_sequence(path, static_first=static_first)
+    stage = Usd.Stage.Open(str(path))
+    primvar = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/world/body")).CreatePrimvar(
+        "st", Sdf.ValueTypeNames.TexCoord2fArray, interpolation)
+    primvar.Set(Vt.Vec2fArray.FromNumpy(np.asarray(values, dtype=np.float32)))
+    if indices is not None:
+        primvar.SetIndices(Vt.IntArray(list(indices)))
+    stage.GetRootLayer().Save()
+    del stage
+    return path
+
+
+#: faceVertexIndices of write_usd_sequence: the quad 0 1 2 3 then the triangle 1 4 2 (7 corners),
+#: fanned into (0, 1, 2), (0, 2, 3), (1, 4, 2): corners (0, 1, 2), (0, 2, 3), (4, 5, 6).
+USD_CORNERS = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6]])
+
+
+def test_usd_face_varying_indexed_st_per_corner(tmp_path):
+    values = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.25]])
+    indices = [0, 1, 2, 3, 4, 1, 2]  # vertex 1 has UV 1 in the quad, 4 in the triangle: a seam
+    sequence = read_mesh_sequence(str(usd_with_st(tmp_path / "fv.usda", UsdGeom.Tokens.faceVarying, values,
+                                                  indices, static_first=True)))
+    np.testing.assert_array_equal(sequence.face_uvs, values[np.array(indices)][USD_CORNERS])
+    assert sequence.vertices.shape == (3, 5, 3)
+    flat = values[np.array(indices)]  # the same, not indexed
+    unindexed = read_mesh_sequence(str(usd_with_st(tmp_path / "flat.usda", UsdGeom.Tokens.faceVarying, flat)))
+    np.testing.assert_array_equal(unindexed.face_uvs, sequence.face_uvs)
+
+
+@pytest.mark.parametrize("interpolation", ["vertex", "varying"])
+def test_usd_vertex_st_indexed_by_the_faces(tmp_path, interpolation):
+    values = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [2, 0.5]]) / 2
+    sequence = read_mesh_sequence(str(usd_with_st(tmp_path / "v.usda", getattr(UsdGeom.Tokens, interpolation),
+                                                  values)))
+    np.testing.assert_array_equal(sequence.face_uvs, values[sequence.faces])
+
+
+def test_usd_without_st_or_with_constant_st_has_none(tmp_path):
+    assert read_mesh_sequence(str(write_usd_sequence(tmp_path / "none.usda"))).face_uvs is None
+    path = usd_with_st(tmp_path / "c.usda", UsdGeom.Tokens.constant, [[0.5, 0.5]])
+    assert read_mesh_sequence(str(path)).face_uvs is None
+
+
+@pytest.mark.parametrize("interpolation, count, words", [
+    ("faceVarying", 6, "6 values for faceVarying interpolation, which needs 7"),
+    ("vertex", 4, "4 values for vertex interpolation, which needs 5"),
+])
+def test_usd_st_of_the_wrong_length_is_one_error(tmp_path, interpolation, count, words):
+    path = usd_with_st(tmp_path / "bad.usda", getattr(UsdGeom.Tokens, interpolation), np.zeros((count, 2)))
+    assert_format_error(path, "bad.usda", "primvars:st", words)
+
+
+def test_usd_st_with_nan_is_one_error(tmp_path):
+    values = np.zeros((5, 2))
+    values[2, 1] = np.nan
+    path = usd_with_st(tmp_path / "nan.usda", UsdGeom.Tokens.vertex, values)
+    assert_format_error(path, "nan.usda", "primvars:st", "NaN")
+
+
+def test_usd_st_index_out_of_range_is_one_error(tmp_path):
+    path = usd_with_st(tmp_path / "idx.usda", UsdGeom.Tokens.faceVarying, np.zeros((2, 2)), [0, 1, 0, 1, 5, 0, 1])
+    assert_format_error(path, "idx.usda", "primvars:st:indices holds 5, outside its 2 values")

@@ -222,7 +222,7 @@ def trained_puppet():
     data = synthetic_lbs(bones=5, frames=24, rings=16, segments=8)
     return data, train_puppet(data["vertices"], data["rest"], data["faces"], data["bone_indices"],
                               data["bone_weights"], data["rotations"], data["translations"], [3, 30, 60, 90, 110, 125],
-                              np.arange(24), global_motion="control-frame")
+                              np.arange(24), global_motion="control-frame", skinning="dual-quaternion")
 
 
 @pytest.mark.parametrize("solver", [True, False])
@@ -242,6 +242,129 @@ def test_run_puppet_matches_predict_vertices(trained_puppet, solver, device):
     assert relative_error(got, expected) < TOL
     reference = gpu.reference_run_puppet(puppet, x, placed, frames, translation_solver=solver)
     assert relative_error(reference, expected) < 1e-10
+
+
+def with_correctives(rng, puppet):
+    """The PuppetArrays ``puppet`` with random pose-space correctives (blend weights A ξ)."""
+    import dataclasses
+
+    n_p, verts = puppet.training_controls.shape[0], puppet.rest_vertices.shape[0]
+    return dataclasses.replace(puppet, corrective_weights=rng.normal(size=(n_p, n_p)) * 0.5,
+                               corrective_offsets=rng.normal(size=(n_p, verts, 3)) * 0.05)
+
+
+@pytest.mark.parametrize("solver", [True, False])
+@pytest.mark.parametrize("framed", [True, False])
+@pytest.mark.parametrize("corrected", [False, True])
+@pytest.mark.parametrize("threads", [1, 3])
+def test_run_puppet_linear_matches_reference(solver, framed, corrected, threads, device):
+    rng = np.random.default_rng(1 + solver + 2 * framed + 4 * corrected)
+    puppet = random_puppet(rng, "gaussian", influences=3)
+    if corrected:
+        puppet = with_correctives(rng, puppet)
+    samples = 70  # more than one fixed block of the CPU correctives over 3 threads
+    x, c = rng.normal(size=(samples, 12)) * 0.3, rng.normal(size=(samples, 4, 3))
+    frames = random_rigid_frames(rng, samples) if framed else None
+    expected = gpu.reference_run_puppet(puppet, x, c, frames, translation_solver=solver, skinning="linear")
+    got = gpu.run_puppet(puppet, x, c, frames, translation_solver=solver, device=device, threads=threads,
+                         skinning="linear")
+    assert relative_error(got, expected) < TOL
+    out = np.zeros((samples, 400, 3), dtype=np.float32)  # on the CPU skinned in place (correctives too)
+    assert gpu.run_puppet(puppet, x, c, frames, translation_solver=solver, device=device, threads=threads,
+                          out=out, skinning="linear") is out
+    assert relative_error(out.astype(np.float64), expected) < TOL
+    # the skinning matters: dual quaternions give other vertices
+    dq = gpu.reference_run_puppet(puppet, x, c, frames, translation_solver=solver)
+    assert relative_error(dq, expected) > 1e-3
+
+
+def test_run_puppet_linear_chunks_and_timings(monkeypatch, device):
+    rng = np.random.default_rng(11)
+    puppet = with_correctives(rng, random_puppet(rng, "polynomial", influences=4))
+    samples = 23
+    x, c, frames = rng.normal(size=(samples, 12)) * 0.3, rng.normal(size=(samples, 4, 3)), random_rigid_frames(rng, samples)
+    expected = gpu.reference_run_puppet(puppet, x, c, frames, skinning="linear")
+    monkeypatch.setattr(puppet_run, "_DEVICE_CHUNK", 2000)  # 5 samples per chunk over 400 vertices
+    timings = {}
+    got = gpu.run_puppet(gpu.DevicePuppet(puppet, device), x, c, frames, timings=timings, threads=2,
+                         skinning="linear")
+    assert relative_error(got, expected) < TOL
+    assert {"compose", "rigid", "skin"} <= set(timings)
+
+
+def test_run_puppet_rejects_an_unknown_skinning():
+    rng = np.random.default_rng(2)
+    puppet = random_puppet(rng, "linear", solver=False)
+    x = rng.normal(size=(3, 12))
+    for run in (gpu.run_puppet, gpu.reference_run_puppet):
+        with pytest.raises(ValueError, match="skinning must be one of"):
+            run(puppet, x, None, translation_solver=False, skinning="lbs")
+
+
+def random_pipeline_puppet(rng, global_motion, solver=True, corrected=False, skinning="linear"):
+    """A ``pipeline.puppet.Puppet`` around :func:`random_puppet`'s arrays (n_c = 4 controls)."""
+    from skinsynth.pipeline.puppet.correctives import Correctives
+    from skinsynth.pipeline.puppet.kcca import ControlKernel, KccaRegression
+    from skinsynth.pipeline.puppet.poisson import TranslationOperator
+    from skinsynth.pipeline.puppet.puppet import Puppet
+
+    arrays = random_puppet(rng, "gaussian", solver=solver)
+    if corrected:
+        arrays = with_correctives(rng, arrays)
+    bones, n_p, d = arrays.bones, *arrays.training_controls.shape
+    return Puppet(
+        rest_vertices=arrays.rest_vertices, bone_indices=arrays.bone_indices, bone_weights=arrays.bone_weights,
+        control_indices=np.arange(4), reference_controls=rng.normal(size=(4, 3)), global_motion=global_motion,
+        kernel=ControlKernel(kind="gaussian", mean=rng.normal(size=d), scale=4.0),
+        training_controls=arrays.training_controls,
+        regression=KccaRegression(predictor=arrays.predictor.reshape(bones, 8, n_p), bias=arrays.bias.reshape(bones, 8),
+                                  correlations=np.ones((bones, 1)), regularization=np.full(bones, 1e-2)),
+        translations=TranslationOperator(arrays.rotation_operator, arrays.control_operator,
+                                         arrays.prior_operator) if solver else None,
+        beta=1.0, train_frames=np.arange(n_p),
+        correctives=Correctives(arrays.corrective_weights, arrays.corrective_offsets, 1e-3) if corrected else None,
+        skinning=skinning)
+
+
+@pytest.mark.parametrize("global_motion", ["control-frame", "world"])
+@pytest.mark.parametrize("solver", [True, False])
+@pytest.mark.parametrize("corrected", [False, True])
+def test_linear_reference_run_matches_predict_vertices(global_motion, solver, corrected):
+    from skinsynth.pipeline.puppet.puppet import predict_vertices
+
+    rng = np.random.default_rng(3 + solver + 2 * corrected)
+    puppet = random_pipeline_puppet(rng, global_motion, solver, corrected)
+    controls = rng.normal(size=(12, 4, 3)) * 2.0
+    expected = predict_vertices(puppet, controls, translation_solver=solver, skinning="linear")
+    x, placed, frames = host_inputs(puppet, controls)
+    got = gpu.reference_run_puppet(puppet, x, placed, frames, translation_solver=solver, skinning="linear")
+    assert relative_error(got, expected) < 1e-12
+
+
+@pytest.mark.parametrize("solver", [True, False])
+def test_run_puppet_linear_matches_predict_vertices(trained_puppet, solver, device):
+    from skinsynth.pipeline.puppet.puppet import predict_vertices
+
+    data, puppet = trained_puppet
+    controls = data["vertices"][:, puppet.control_indices]
+    expected = predict_vertices(puppet, controls, translation_solver=solver, skinning="linear")
+    got = gpu.run_puppet(puppet, *host_inputs(puppet, controls), translation_solver=solver, device=device,
+                         skinning="linear")
+    assert relative_error(got, expected) < TOL
+
+
+@pytest.mark.parametrize("skinning", ["dual-quaternion", "linear"])
+def test_play_characters_plays_both_skinnings_on_the_device(skinning, device):
+    from skinsynth.pipeline.puppet.playback import play_characters
+    from skinsynth.pipeline.puppet.puppet import predict_vertices
+
+    rng = np.random.default_rng(5)
+    puppet = random_pipeline_puppet(rng, "control-frame", corrected=True, skinning=skinning)
+    controls = rng.normal(size=(20, 4, 3)) * 2.0
+    vertices, seconds = play_characters(puppet, controls, device, skinning, threads=2)
+    assert vertices.dtype == np.float32 and seconds > 0.0
+    expected = predict_vertices(puppet, controls, skinning=skinning)
+    assert relative_error(vertices.astype(np.float64), expected) < TOL
 
 
 def test_the_kernels_sit_below_the_pipeline():

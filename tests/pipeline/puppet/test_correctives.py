@@ -60,7 +60,7 @@ def bulging_tube(frames=40):
 def _train(data, train, correctives):
     return train_puppet(data["vertices"], data["rest"], data["faces"], data["bone_indices"], data["bone_weights"],
                         data["rotations"], data["translations"], CONTROLS, train, global_motion="world",
-                        correctives=correctives)
+                        correctives=correctives, skinning="dual-quaternion")  # as run_puppet and UsdSkel play it
 
 
 def _rms(puppet, data, frames):
@@ -155,9 +155,13 @@ def test_usdskel_plays_the_correctives_as_blend_shapes(tmp_path):
     rotations, translations, weights = world_bones(puppet, controls)
     path = str(tmp_path / "corrected.usda")
     centres = np.zeros((rotations.shape[1], 3))
+    from skinsynth.pipeline.morph_targets import unit_range_pairs
+
+    pairs = unit_range_pairs(puppet.correctives.offsets, np.stack([weights] * 2))
+    names = [f"shape_{j:03d}{s}" for j in range(len(pairs[0]) // 2) for s in "pn"]
     write_skel_characters(path, data["rest"], data["faces"], data["bone_indices"], data["bone_weights"],
                           np.stack([rotations] * 2), np.stack([translations, translations + 5.0]), centres, 24.0,
-                          skinning="dual-quaternion", blend_shapes=(puppet.correctives.offsets, np.stack([weights] * 2)))
+                          skinning="dual-quaternion", blend_shapes=(*pairs, names))
     expected = predict_vertices(puppet, controls)
     from pxr import Usd, UsdSkel
 
