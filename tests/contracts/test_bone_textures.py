@@ -3,7 +3,6 @@ translation -> linear blend skinning of the rest mesh's four influences), every 
 is the animation itself: within 1e-5 of the diagonal in float, 1e-3 in half."""
 
 import json
-import struct
 
 import h5py
 import numpy as np
@@ -15,6 +14,7 @@ from skinsynth.formats.skin_file import read_skin
 from skinsynth.gpu import lbs
 
 from cli_helpers import assert_ok, assert_user_error, cli
+from glb_reading import glb_primitive
 
 
 @pytest.fixture(scope="module")
@@ -25,28 +25,11 @@ def files(stage_files, tmp_path_factory):
     return root
 
 
-def glb_attributes(path):
-    """{attribute name: (V, n) float32} of the first primitive of a .glb."""
-    data = path.read_bytes()
-    length = struct.unpack_from("<I", data, 12)[0]
-    document = json.loads(data[20:20 + length])
-    binary = data[20 + length + 8:]
-    widths = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
-    out = {}
-    for name, index in document["meshes"][0]["primitives"][0]["attributes"].items():
-        accessor = document["accessors"][index]
-        view = document["bufferViews"][accessor["bufferView"]]
-        width = widths[accessor["type"]]
-        out[name] = np.frombuffer(binary, np.float32, accessor["count"] * width,
-                                  view["byteOffset"] + accessor.get("byteOffset", 0)).reshape(-1, width)
-    return out
-
-
 def shader_decode(folder, clip, frame):
     """What a vertex shader computes for ``frame`` of clip number ``clip`` (bones.json's layout)."""
     layout = json.loads((folder / "bones.json").read_text())
     image = read_bone_texture(folder / "bones.exr").astype(np.float64)
-    attributes = glb_attributes(folder / "rest.glb")
+    attributes = glb_primitive(folder / "rest.glb")[0]
     rest = attributes["POSITION"].astype(np.float64)
     bones = np.concatenate([attributes["TEXCOORD_1"], attributes["TEXCOORD_2"]], axis=1).astype(int)
     weights = np.concatenate([attributes["TEXCOORD_3"], attributes["TEXCOORD_4"]], axis=1).astype(np.float64)
@@ -163,7 +146,7 @@ def test_the_rest_mesh_carries_the_input_uvs_split_at_seams(tmp_path):
     assert_ok(cli("export", tmp_path / "skin.h5", "-o", f"{folder}/", "--as", "bones", "-q"))
     skin = read_skin(tmp_path / "skin.h5")
     vertex_map, split_faces, _ = split_uv_seams(skin.faces, skin.face_uvs, len(skin.rest_vertices))
-    attributes = glb_attributes(folder / "rest.glb")
+    attributes = glb_primitive(folder / "rest.glb")[0]
     assert len(attributes["POSITION"]) == len(vertex_map) > len(skin.rest_vertices)
     np.testing.assert_array_equal(attributes["POSITION"], skin.rest_vertices[vertex_map].astype(np.float32))
     flipped = np.stack([skin.face_uvs[..., 0], 1.0 - skin.face_uvs[..., 1]], axis=-1).astype(np.float32)
@@ -187,7 +170,7 @@ def test_the_rest_mesh_carries_the_input_uvs_split_at_seams(tmp_path):
 def test_without_uvs_the_rest_mesh_has_zero_texcoord_0(files, tmp_path):
     folder = tmp_path / "plain"
     assert_ok(cli("export", files / "b.h5", "--animation", 0, "-o", f"{folder}/", "--as", "bones", "-q"))
-    attributes = glb_attributes(folder / "rest.glb")
+    attributes = glb_primitive(folder / "rest.glb")[0]
     skin = read_skin(files / "b.h5", read_model(files / "b.h5", groups=("mesh", "examples", "skin")))
     assert len(attributes["POSITION"]) == len(skin.rest_vertices) and not attributes["TEXCOORD_0"].any()
     assert json.loads((folder / "bones.json").read_text())["rest_mesh"]["uv"] == "TEXCOORD_0 (zero: no material UVs)"

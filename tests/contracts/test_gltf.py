@@ -17,6 +17,7 @@ from skinsynth.formats.skin_file import read_skin
 from skinsynth.gpu import lbs
 
 from cli_helpers import assert_ok, assert_user_error, cli
+from glb_reading import glb_accessor, glb_document
 
 JS = os.path.join(os.path.dirname(__file__), "js")
 if shutil.which("node") is None or not os.path.isdir(os.path.join(JS, "node_modules", "three")):
@@ -102,20 +103,11 @@ def test_every_glb_is_valid_and_three_js_plays_it_as_skinsynth_skins_it(files, t
         assert np.abs(played[clip] - truth).max() <= tolerance * diagonal, (case, clip)
 
 
-def _document(path):
-    """(the JSON, the BIN chunk) of a .glb."""
-    import struct
-
-    data = path.read_bytes()
-    length = struct.unpack_from("<I", data, 12)[0]
-    return json.loads(data[20:20 + length]), data[20 + length + 8:]
-
-
 def test_with_root_motion_the_root_travels_on_the_ground_and_without_it_stays(files, tmp_path):
     for flag in ([], ["--root-motion"]):
         out = tmp_path / f"root{len(flag)}.glb"
         assert_ok(cli("export", files / "bones.h5", "--animation", 0, "-o", out, "-q", *flag))
-        document, binary = _document(out)
+        document, binary = glb_document(out)
         root = document["skins"][0]["skeleton"]
         assert document["nodes"][root]["name"] == "root" and len(document["scenes"][0]["nodes"]) == 2
         channels = [c for c in document["animations"][0]["channels"] if c["target"]["node"] == root]
@@ -134,7 +126,7 @@ def test_quantised_weights_sum_exactly_to_one_and_name_no_joint_at_zero(files, t
     for bits, dtype in ((8, np.uint8), (16, np.uint16)):
         out = tmp_path / f"q{bits}.glb"
         assert_ok(cli("export", files / "skin.h5", "-o", out, "--quantize", bits, "-q"))
-        document, binary = _document(out)
+        document, binary = glb_document(out)
         attributes = document["meshes"][0]["primitives"][0]["attributes"]
 
         def read(index, width, kind):
@@ -206,15 +198,6 @@ def puppets(stage_files, tmp_path_factory):
     return stages.copy_to(tmp_path_factory.mktemp("puppets"))
 
 
-def _accessor(document, binary, index):
-    """(count, width) float32 of a float accessor of a .glb (_document's parts)."""
-    accessor = document["accessors"][index]
-    view = document["bufferViews"][accessor["bufferView"]]
-    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[accessor["type"]]
-    return np.frombuffer(binary, np.float32, accessor["count"] * width,
-                         view["byteOffset"] + accessor.get("byteOffset", 0)).reshape(-1, width)
-
-
 def test_a_played_linear_puppet_as_gltf_is_what_play_computes(puppets, tmp_path):
     args = ["play", puppets / "puppet.h5", "-c", puppets / "bar.npz", "--instances", 2, "--spacing", 0,
             "--skinning", "linear", "-q"]
@@ -245,20 +228,20 @@ def test_a_played_puppets_correctives_are_morph_targets_three_js_plays_as_play_c
     assert_ok(cli(*args, "-o", tmp_path / "played.h5", "-q"))
     report = validate(tmp_path / "played.glb")
     assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
-    document, binary = _document(tmp_path / "played.glb")
+    document, binary = glb_document(tmp_path / "played.glb")
     mesh, components = document["meshes"][0], summary["morph_targets"]
     count = 2 * components
     assert 1 <= components <= 8 and summary["morph_target_error"] <= 1e-6
     assert len(mesh["primitives"][0]["targets"]) == count and mesh["weights"] == [0.0] * count
     assert mesh["extras"]["targetNames"] == [f"corrective_{i}{s}" for i in range(components) for s in "pn"]
-    targets = np.stack([_accessor(document, binary, t["POSITION"]) for t in mesh["primitives"][0]["targets"]])
+    targets = np.stack([glb_accessor(document, binary, t["POSITION"]) for t in mesh["primitives"][0]["targets"]])
     blends = []
     for animation in document["animations"]:
         sampler, = [animation["samplers"][c["sampler"]] for c in animation["channels"]
                     if c["target"] == {"node": 0, "path": "weights"}]  # the mesh node's
         assert document["accessors"][sampler["output"]]["count"] == \
             document["accessors"][sampler["input"]]["count"] * count  # glTF 2.0 §3.11
-        blends.append(_accessor(document, binary, sampler["output"]).reshape(-1, count))
+        blends.append(glb_accessor(document, binary, sampler["output"]).reshape(-1, count))
         assert blends[-1].min() >= 0.0 and blends[-1].max() <= 1.0  # Blender clamps to [0, 1]
         assert np.all(np.minimum(blends[-1][:, 0::2], blends[-1][:, 1::2]) == 0.0)  # one of each pair
     names, vertices, _, fps = read_played_characters(tmp_path / "played.h5")

@@ -3,8 +3,6 @@ convention (u, 1 − v), its vertices split at UV seams (each copy its original'
 and influences), the Khronos validator finds nothing, and three.js plays it to skinsynth's LBS at
 every vertex, the copies included. Inputs without UVs are test_gltf.py's."""
 
-import json
-import struct
 
 import numpy as np
 import pytest
@@ -15,6 +13,7 @@ from skinsynth.gpu import lbs
 from skinsynth.pipeline.uv_seams import split_uv_seams
 
 from cli_helpers import assert_ok, cli
+from glb_reading import glb_primitive
 from test_gltf import in_gltf_axes, three_positions, validate  # skips this module where node is missing
 from uv_meshes import uv_bar, write_obj_frames
 
@@ -30,26 +29,6 @@ def files(tmp_path_factory):
     return root
 
 
-def primitive(path):
-    """({attribute: (N, n) array}, indices (T, 3)) of the .glb's first primitive."""
-    data = path.read_bytes()
-    length = struct.unpack_from("<I", data, 12)[0]
-    document = json.loads(data[20:20 + length])
-    binary = data[20 + length + 8:]
-    kinds = {5126: np.float32, 5125: np.uint32, 5123: np.uint16, 5121: np.uint8}
-    widths = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
-
-    def read(index):
-        accessor = document["accessors"][index]
-        view = document["bufferViews"][accessor["bufferView"]]
-        width = widths[accessor["type"]]
-        return np.frombuffer(binary, kinds[accessor["componentType"]], accessor["count"] * width,
-                             view["byteOffset"] + accessor.get("byteOffset", 0)).reshape(-1, width)
-
-    first = document["meshes"][0]["primitives"][0]
-    return {name: read(index) for name, index in first["attributes"].items()}, read(first["indices"]).reshape(-1, 3)
-
-
 @pytest.mark.parametrize("source", ["skin.h5", "zup.h5"])
 def test_a_glb_with_uvs_is_valid_and_three_js_plays_every_split_vertex(files, tmp_path, source):
     out = tmp_path / "uv.glb"
@@ -61,7 +40,7 @@ def test_a_glb_with_uvs_is_valid_and_three_js_plays_every_split_vertex(files, tm
     vertex_map, _, _ = split_uv_seams(skin.faces, skin.face_uvs, len(skin.rest_vertices))
     count = len(skin.rest_vertices)
     assert len(vertex_map) > count  # the bar's seam and caps split vertices
-    attributes, indices = primitive(out)
+    attributes, indices = glb_primitive(out)
     assert len(attributes["POSITION"]) == len(vertex_map)
     np.testing.assert_array_equal(attributes["POSITION"],
                                   in_gltf_axes(skin.rest_vertices, skin.scene)[vertex_map].astype(np.float32))
@@ -85,7 +64,7 @@ def test_synthesize_gltf_carries_the_uvs_too(files, tmp_path):
     assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 20, "--seed", 2,
                   "--gltf", tmp_path / "run.glb", "-q"))
     skin = read_skin(files / "skin.h5")
-    attributes, indices = primitive(tmp_path / "run.glb")
+    attributes, indices = glb_primitive(tmp_path / "run.glb")
     flipped = np.stack([skin.face_uvs[..., 0], 1.0 - skin.face_uvs[..., 1]], axis=-1).astype(np.float32)
     np.testing.assert_array_equal(attributes["TEXCOORD_0"][indices], flipped)
     report = validate(tmp_path / "run.glb")
