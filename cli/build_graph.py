@@ -111,7 +111,7 @@ def _write_plots(plot_dir, skin, analysis, folders):
             t = component.transitions
             write_cost_matrix_plot(os.path.join(tmp, f"costs_component_{number:03d}.png"), t.D, t.pairs,
                                    t.threshold, f"component {number}: {len(component.bones)} bones, "
-                                   f"{len(t.pairs)} transitions (T_c = {t.threshold:.3g})")
+                                   f"{len(t.pairs)} transitions (T_c = {t.threshold:.3g})", start=t.start)
         positions = bone_layout(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
         write_bone_graph_plot(os.path.join(tmp, "bone_graph.png"), positions, analysis.weights,
                               analysis.kept_edges, [c.bones for c in analysis.components], analysis.cut_nodes,

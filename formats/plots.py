@@ -63,22 +63,32 @@ def _save(figure, path):
         figure.savefig(tmp, format="png")
 
 
-def write_cost_matrix_plot(path, costs, pairs, threshold, title):
+def write_cost_matrix_plot(path, costs, pairs, threshold, title, start=None):
     """The transition-cost matrix D (F, F) as an image, candidate transitions pairs (M, 2) marked.
 
     Colour is log10(D / threshold) so the threshold sits at 0 whatever the clip's scale; (i, j)
-    is row i (the frame left), column j (the frame entered)."""
+    is row i (the frame left), column j (the frame entered). ``start`` (F,): D(i, −1), the column
+    of the virtual frame −1 before the clip's start (a pair (i, −1): after i, continue at frame
+    0), drawn at j = −1 left of a white line; None draws D alone (pairs (i, −1) still marked)."""
     figure = _new_figure(path, (7.0, 6.0))
     axes = figure.add_subplot()
     tiny = max(float(threshold) * 1e-6, np.finfo(float).tiny)
+    costs = np.asarray(costs, dtype=np.float64)
+    frames = costs.shape[0]
+    first = 0
+    if start is not None:
+        costs, first = np.concatenate([np.asarray(start, dtype=np.float64).reshape(frames, 1), costs], axis=1), -1
     shown = np.log10(np.maximum(costs, tiny) / max(float(threshold), tiny))
-    image = axes.imshow(shown, cmap="viridis", origin="upper", interpolation="nearest", vmin=-3, vmax=3)
+    image = axes.imshow(shown, cmap="viridis", origin="upper", interpolation="nearest", vmin=-3, vmax=3,
+                        extent=(first - 0.5, frames - 0.5, frames - 0.5, -0.5))
     figure.colorbar(image, ax=axes, label="log10(D / threshold)")
+    if start is not None:
+        axes.axvline(-0.5, color="white", linewidth=0.8)
     if len(pairs):
         axes.scatter(pairs[:, 1], pairs[:, 0], s=18, facecolors="none", edgecolors="red", linewidths=1.2,
                      label=f"{len(pairs)} candidate transitions")
         axes.legend(loc="upper right", fontsize=8)
-    axes.set_xlabel("frame j (entered)")
+    axes.set_xlabel("frame j (entered)" if start is None else "frame j (entered; −1: before the start, continue at 0)")
     axes.set_ylabel("frame i (left)")
     axes.set_title(title)
     _save(figure, path)

@@ -148,7 +148,7 @@ GRAPH_COMPONENT = {
     "local_bones": Field("int", ("l",), low=0, high="B"),
     "reduced_coordinates": Field("float", ("F", "r")),
     "costs": Field("float", ("F", "F"), low=0.0),
-    "transitions": Field("int", ("M", 2), low=0, high="F"),
+    "transitions": Field("int", ("M", 2), high="F"),  # lower bounds: _check_transition_pairs
     "transition_costs": Field("float", ("M",)),
     "key_vertices": Field("int", ("n",), low=0, high="V"),
     "key_bones": Field("int", ("n", "k"), low=-1, high="B"),
@@ -177,6 +177,7 @@ def check_graph(path, model, dims):
     for name in sorted(k for k in graph if k.startswith("component_")):
         component, local = graph[name], dict(dims)
         check_group(path, f"graph/{name}", component, GRAPH_COMPONENT, local)
+        _check_transition_pairs(path, f"/graph/{name}/transitions", component["transitions"])
         reference = check_attribute(path, f"graph/{name}", component, "reference", "int", low=0, high=dims["B"] - 1,
                                     optional=False)
         check_attribute(path, f"graph/{name}", component, "ridge", "float", low=0.0)
@@ -185,6 +186,20 @@ def check_graph(path, model, dims):
                 np.sort(np.asarray(component["local_bones"])), np.setdiff1d(bones, [reference])):
             raise FormatError(path, f"/graph/{name}: bones, local_bones and @reference disagree (the local bones are "
                                     "the component's bones other than its reference)")
+
+
+def _check_transition_pairs(path, where, pairs):
+    """Transitions (i, j): i a frame (≥ 0), j a frame or −1, the virtual frame before the clip's
+    start ((i, −1): after i, continue at frame 0). Files written before the wrap have no −1."""
+    pairs = np.asarray(pairs)
+    if pairs.size == 0:
+        return
+    bad = (pairs[:, 0] < 0) | (pairs[:, 1] < -1)
+    if bad.any():
+        i, j = (int(x) for x in pairs[np.argmax(bad)])
+        raise FormatError(path, f"{where} holds the pair ({i}, {j}): a transition (i, j) leaves a frame i ≥ 0 and "
+                                "enters a frame j ≥ −1 (−1: the virtual frame before the clip's start, "
+                                "continue at frame 0)")
 
 
 CONTROLS = {  # basis_variance first: it binds Kb, the bound of candidate_basis

@@ -3,10 +3,13 @@
 Walk semantics (fixed by the team). An input clip has F frames. A candidate transition (i, j)
 (:func:`.transitions.candidate_transitions`) means: after playing frame i, frame j is identified
 with frame i and playback continues at j + 1. The frame graph therefore has the edges
-``i → i+1`` (playback, i < F−1) and ``i → j+1`` for each transition (i, j) with j + 1 < F. An
-output animation of M frames is ``source (M,)``: the input frame shown at each output frame,
-consecutive entries joined by an edge. Seams are the output indices k with
-``source[k] ≠ source[k−1] + 1``; the transition used there is ``(source[k−1], source[k] − 1)``.
+``i → i+1`` (playback, i < F−1) and ``i → j+1`` for each transition (i, j) with j + 1 < F. j
+may be −1, the virtual frame before the clip's start (:mod:`.transitions`, the wrap): (i, −1)
+continues at frame 0, the edge ``i → 0``, and it is the only way a walk reaches frame 0 other
+than by starting there (a clip of one cycle loops by (F−1, −1)). An output animation of M
+frames is ``source (M,)``: the input frame shown at each output frame, consecutive entries
+joined by an edge. Seams are the output indices k with ``source[k] ≠ source[k−1] + 1``; the
+transition used there is ``(source[k−1], source[k] − 1)`` (j = −1 where source[k] = 0).
 
 Contents:
 
@@ -86,8 +89,9 @@ class MotionGraph:
     """The frame graph of one clip (see the module docstring for the walk semantics).
 
     ``MotionGraph(frames, transitions, forbidden=None)``: frames F; transitions (T, 2) int pairs
-    (i, j) (candidate transitions); forbidden (F,) bool, frames never to be shown (removed with
-    their edges). Raises :class:`OptionError` when no arbitrarily long walk exists.
+    (i, j) (candidate transitions), i in 0..F−1 and j in −1..F−1 (−1: continue at frame 0);
+    forbidden (F,) bool, frames never to be shown (removed with their edges). Raises
+    :class:`OptionError` when no arbitrarily long walk exists.
 
     Attributes: ``frames`` F; ``transitions`` (T', 2) the distinct transitions whose played
     frames i, j + 1 are in range and not forbidden, sorted; ``forbidden`` (F,) bool;
@@ -103,8 +107,9 @@ class MotionGraph:
             raise OptionError(f"a motion graph needs at least one frame (got {frames})")
         pairs = np.asarray(transitions, dtype=np.int64).reshape(-1, 2) if np.size(transitions) else \
             np.zeros((0, 2), np.int64)
-        if pairs.size and (pairs.min() < 0 or pairs.max() >= frames):
-            raise OptionError(f"transitions must pair frames in 0..{frames - 1}")
+        if pairs.size and (pairs[:, 0].min() < 0 or pairs[:, 1].min() < -1 or pairs.max() >= frames):
+            raise OptionError(f"transitions (i, j) must pair a frame i in 0..{frames - 1} with j in −1..{frames - 1} "
+                              "(−1: continue at frame 0)")
         if forbidden is None:
             forbidden = np.zeros(frames, bool)
         forbidden = np.asarray(forbidden, dtype=bool)
@@ -236,7 +241,7 @@ class MotionGraph:
 
 def recurrent_frames(frames, transitions):
     """Frames (F,) bool in the largest strongly connected part of the frame graph (playback
-    i → i+1 and i → j+1 per transition (i, j), j + 1 < F): the frames a long walk can keep
+    i → i+1 and i → j+1 per transition (i, j), j + 1 < F, j = −1 included): the frames a long walk can keep
     coming back to (of equally large parts, the first scipy labels)."""
     from scipy.sparse.csgraph import connected_components
 
@@ -386,7 +391,8 @@ def diversity_filter(sources, min_difference, block_elements=1 << 24, kept_befor
 def seams(sources):
     """Seams of walks: for sources (M,) a tuple ``(indices (S,), pairs (S, 2))``, the output
     indices k with source[k] ≠ source[k−1] + 1 and the transitions (source[k−1], source[k] − 1)
-    used there; for sources (N, M) a list of such tuples, one per walk."""
+    used there (j = −1 for a seam onto frame 0: the wrap); for sources (N, M) a list of such
+    tuples, one per walk."""
     sources = np.asarray(sources, np.int64)
     if sources.ndim == 1:
         return seams(sources[None])[0]

@@ -83,7 +83,15 @@ on their 12 numbers, μ relative to the mean diagonal of G₀ᵀG₀); the paren
 cut node anyway. Single-component synthesis has no cut node and is unaffected.
 
 Input-clip ends: where i is the clip's last frame there is no d(i+1); i then goes on with its
-own last step (:func:`seam_guidance`).
+own last step (:func:`seam_guidance`). The wrap, a transition (i, −1) (:mod:`.transitions`:
+"after i, continue at frame 0"; here source[k] = 0), mirrors it at the other end: j = −1 is the
+virtual frame before the clip's start, frame 0 gone on backwards with its own first step, the
+same constant-velocity extrapolation the costs compare. Eq. 7 needs its reference pose,
+H(−1) = H(0) H(1)⁻¹ H(0) (so the segment's frame 0 follows the output's frame i with the
+input's own first step H(0)⁻¹ H(1)); the blend needs its series, U(−1) := U(0) U(1)ᵀ U(0) (a
+relative rotation, not a vector) and S(−1) := 2 S(0) − S(1). For motion at constant velocity
+through the wrap (frames F−2, F−1, 0, 1 one step apart) both guidance terms and the velocity
+jump vanish and the splice is the clip's periodic continuation exactly.
 
 Distinct windows (:func:`distinct_windows`): everything steps 3–4 compute for a window — the
 blend, D̃, the eq. 9 solve — depends on the window's source frames left … right alone (local
@@ -119,8 +127,9 @@ from .transitions import local_frame_positions
 def walk_sources(sources, frames):
     """Validate walks: ``sources`` (A, M) or (M,) ints in [0, frames) -> int64 (A, M).
 
-    Every seam must land on a frame ≥ 1 (a seam k plays source[k] = j + 1 after identifying j
-    with source[k−1], so j = source[k] − 1 must exist).
+    A seam k plays source[k] = j + 1 after identifying j with source[k−1]; a seam onto frame 0
+    is the wrap, j = −1, the virtual frame before the clip's start (module notes). Which seams a
+    walk may take is the motion graph's business (:mod:`.motion_graph`), not this check's.
     """
     sources = np.asarray(sources)
     if sources.ndim == 1:
@@ -132,11 +141,6 @@ def walk_sources(sources, frames):
     sources = sources.astype(np.int64)
     if sources.size and (sources.min() < 0 or sources.max() >= frames):
         raise ValueError(f"sources must lie in 0..{frames - 1}, got {sources.min()}..{sources.max()}")
-    seam = sources[:, 1:] != sources[:, :-1] + 1
-    if np.any(seam & (sources[:, 1:] == 0)):
-        a, k = np.argwhere(seam & (sources[:, 1:] == 0))[0]
-        raise ValueError(f"animation {a} jumps to input frame 0 at output frame {k + 1}: a transition (i, j) "
-                         "continues at j + 1 ≥ 1")
     return sources
 
 
@@ -206,7 +210,8 @@ def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, sp
     R_ref (F, 3, 3), t_ref (F, 3): the input reference bone; sources (A, M) validated walks.
     Returns (R̃ (A, M, 3, 3), t̃ (A, M, 3)) = G_k ∘ H(source[k]) ∘ Π(source[k]), G the
     accumulated offsets (identity before the first seam; at a seam k with i = source[k−1],
-    j = source[k] − 1, G ← G ∘ H(i) ∘ H(j)⁻¹).
+    j = source[k] − 1, G ← G ∘ H(i) ∘ H(j)⁻¹; j = −1, the wrap, uses H(−1) = H(0) H(1)⁻¹ H(0),
+    module notes).
 
     ``up=None`` is Zheng's eq. 7: H(f) = P(f), the input reference pose, and Π = identity, so each
     segment is moved by a full rigid transform; its height and tilt errors add up seam after seam
@@ -239,11 +244,15 @@ def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, sp
     if k.size:
         i = sources[animation, k - 1]
         j = sources[animation, k] - 1
+        # H(j) for j = −1 too: index j + 1 of the poses with the virtual frame −1 first.
+        before_R, before_t = _frame_before_start(H_R, H_t)
+        H_jR = np.concatenate([before_R[None], H_R])[j + 1]
+        H_jt = np.concatenate([before_t[None], H_t])[j + 1]
         # H(i) ∘ H(j)⁻¹ = (R_i R_jᵀ, t_i − R_i R_jᵀ t_j): Zheng eq. 7's fixed rigid transform.
-        rel = H_R[i] @ np.swapaxes(H_R[j], -1, -2)
+        rel = H_R[i] @ np.swapaxes(H_jR, -1, -2)
         rank = segment[animation, k] - 1
         rel_R[animation, rank] = rel
-        rel_t[animation, rank] = H_t[i] - np.einsum("sab,sb->sa", rel, H_t[j])
+        rel_t[animation, rank] = H_t[i] - np.einsum("sab,sb->sa", rel, H_jt)
     G_R = np.empty((count, segments + 1, 3, 3))
     G_t = np.empty((count, segments + 1, 3))
     G_R[:, 0], G_t[:, 0] = np.eye(3), 0.0
@@ -265,6 +274,16 @@ def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, sp
     return R_out @ P_R, np.einsum("amij,amj->ami", R_out, P_t) + t_out
 
 
+def _frame_before_start(R, t):
+    """The rigid pose of the virtual frame −1 of poses R (F, 3, 3), t (F, 3) (x ↦ R x + t):
+    P(0) P(1)⁻¹ P(0), frame 0 gone on backwards with its first step -> (R (3, 3), t (3,)); a
+    one-frame clip stands still (P(0))."""
+    if R.shape[0] < 2:
+        return R[0].copy(), t[0].copy()
+    back = R[0] @ R[1].T  # P(0) P(1)⁻¹ = (R0 R1ᵀ, t0 − R0 R1ᵀ t1)
+    return back @ R[0], back @ (t[0] - t[1]) + t[0]
+
+
 def gradient_series(strain):
     """The input's key-vertex gradients as the blend uses them: strain (F, n, 9) ->
     ``(U (F, n, 3, 3) rotations, S (F, n, 6) stretches)``, U = exp(Φ) whatever branch Φ is on."""
@@ -282,7 +301,9 @@ def seam_guidance(U, S, sources, windows, win):
     S(i+1) − S(j+1)], h_right = [log(U(j) U(i)ᵀ), S(j) − S(i)]; where i is the clip's last frame
     it goes on with its own last step: U(i+1) := U(i) U(i−1)ᵀ U(i), S(i+1) := 2 S(i) − S(i−1)
     (the old rule, "goes on as j does", put the whole velocity change at the seam: 1.8× the
-    input's acceleration on a synthetic chain, where this gives 0.9×)."""
+    input's acceleration on a synthetic chain, where this gives 0.9×). Where j = −1 (the wrap,
+    source[k] = 0) frame 0 likewise goes on backwards with its own first step: U(−1) :=
+    U(0) U(1)ᵀ U(0), S(−1) := 2 S(0) − S(1)."""
     a, k = windows.animation[win], windows.seam[win]
     frames = U.shape[0]
     i, j = sources[a, k - 1], sources[a, k] - 1
@@ -293,14 +314,20 @@ def seam_guidance(U, S, sources, windows, win):
         p = i[last] - 1
         U_next[last] = U[i[last]] @ np.swapaxes(U[p], -1, -2) @ U[i[last]]
         S_next[last] = 2.0 * S[i[last]] - S[p]
+    before = j < 0
+    U_j, S_j = U[np.maximum(j, 0)], S[np.maximum(j, 0)]  # fancy indexing: copies
+    if before.any():  # before the clip's start: frame 0 goes on backwards with its first step
+        second = min(1, frames - 1)
+        U_j[before] = U[0] @ np.swapaxes(U[second], -1, -2) @ U[0]
+        S_j[before] = 2.0 * S[0] - S[second]
 
     def difference(Up, Sp, Uq, Sq):  # p ⊖ q: the rotation taking q to p (spatial), and the linear difference
         return np.concatenate([rotation_log(Up @ np.swapaxes(Uq, -1, -2)), Sp - Sq], axis=-1)
 
     # δ from the two one-frame steps (small rotations), not from h: h's rotations are wrapped
     # into (−π, π] one by one, so their sum can be off by 2π where i and j are far apart.
-    velocity_jump = difference(U[j + 1], S[j + 1], U[j], S[j]) - difference(U_next, S_next, U[i], S[i])
-    return (difference(U_next, S_next, U[j + 1], S[j + 1]), difference(U[j], S[j], U[i], S[i]), velocity_jump)
+    velocity_jump = difference(U[j + 1], S[j + 1], U_j, S_j) - difference(U_next, S_next, U[i], S[i])
+    return (difference(U_next, S_next, U[j + 1], S[j + 1]), difference(U_j, S_j, U[i], S[i]), velocity_jump)
 
 
 def blend_series(U, S, sources, windows, select=None, spread_velocity=True):

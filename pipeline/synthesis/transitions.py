@@ -12,7 +12,8 @@ Steps, each a function here:
 3. :func:`reduced_coordinates`: per bone ``p = [t; Φ(R)]`` (eq. 3), stacked into A_r (6B' × F),
    truncated SVD (eq. 4), one reduced vector q_i per frame.
 4. :func:`reference_motion`: b_r's own frame-to-frame motion r_i in its local frame (eq. 6).
-5. :func:`transition_costs`: D(i, j) for all pairs of frames (eq. 5).
+5. :func:`transition_costs`: D(i, j) for all pairs of frames (eq. 5), and :func:`start_costs`:
+   D(i, −1), every frame against a virtual frame −1 before the clip's start (below).
 6. :func:`transition_threshold` and :func:`candidate_transitions`: T_c, and the pairs below it
    that are local minima of D.
 
@@ -22,8 +23,29 @@ Steps, each a function here:
   σ_k ≥ 0.005 σ_1 (an absolute cut would depend on the units of the translations).
 - α in eq. 5 is printed as max‖q‖²/max‖q‖² (= 1, a typo); the stated intent is to balance the
   terms, so α = max‖q_i‖² / max‖q̇_i‖² and β = max‖q_i‖² / max‖r_i‖².
-- q̇_0 and r_0 need frame −1: q̇_0 := q̇_1 and r_0 := r_1 (frame 0 is never a transition end
-  anyway; :func:`candidate_transitions` requires i, j ≥ 1).
+- q̇_0 and r_0 need frame −1: q̇_0 := q̇_1 and r_0 := r_1, i.e. the clip is taken to arrive at
+  frame 0 with its own first step (constant velocity).
+- The wrap: a transition (i, j) plays j + 1 after i, so with j ≥ 0 nothing could ever continue
+  at frame 0, and a clip whose last frame is followed (in the world) by its first, a clip of one
+  cycle, had no way back (the bending bar's default: 0 transitions, "no transition leads
+  back"). A *virtual frame −1* closes the gap: the clip continued backwards one step at its
+  first velocity, q₋₁ = 2q_0 − q_1, q̇₋₁ = q_1 − q_0 (= q̇_0, as above), r₋₁ = r_0 (= r_1: the
+  reference bone's pose P(−1) = P(0) P(1)⁻¹ P(0), which :mod:`.splicing` uses), π₋₁ = 2π_0 − π_1
+  (:func:`posture_costs`). It adds one column to D, D(i, −1) (:func:`start_costs`, the same α,
+  β, γ), and a transition (i, −1), "after i, continue at frame 0", is then a candidate under
+  exactly the rules of any other (T_c, a local minimum over its 3×3 neighbourhood in the padded
+  matrix [D(·, −1) | D], |i − j| ≥ min_gap, spacing, coverage): so a clip whose end runs into
+  its start gets its end→start loop, and any near-repeat across its ends too. The extrapolation
+  is exact for motion at constant velocity through frame 0 and second order otherwise (like the
+  finite differences of eq. 5). j = 0 stays out, as before: (i, 0) continues at frame 1, one
+  frame from (i, −1), and admitting it would change the transitions of every clip. It still
+  counts as a neighbour, and columns −1 and 0 share their velocity and r terms (q̇₋₁ = q̇_0,
+  r₋₁ = r_0), so the position term alone decides between them: where the clip's first frames
+  barely move but accelerate hard, the minimum can fall on j = 0 and no wrap is listed (the
+  horse gallop's first cycle cut alone: D(23, 0) = 0.70 T_c against D(23, −1) = 0.72 T_c).
+  Extrapolating, rather than comparing i + 1 with frame 0, keeps the meaning of a pair (i, j)
+  and needs nothing past the clip's end (the clip's last frame, the very frame that must go back,
+  has no i + 1). Only the column is virtual: frame −1 is never played, and no row −1 exists.
 - T_c defaults to 3 × the *median* of the steps D(i, i−1), not Zheng's 40 × their max (see
   :func:`transition_threshold`).
 - Which local minima become transitions (:func:`select_transitions`): one per neighbourhood of
@@ -190,6 +212,39 @@ def transition_costs(q, r, alpha=None, beta=None):
     return d, float(alpha), float(beta)
 
 
+def before_start(x):
+    """The virtual frame −1 of a state series x (F, n), F ≥ 2: the clip continued backwards one
+    step at its first velocity, 2 x_0 − x_1 (n,) (module notes: the wrap)."""
+    x = np.asarray(x, np.float64)
+    return 2.0 * x[0] - x[1]
+
+
+def start_costs(q, r, alpha, beta, posture=None, gamma=0.0):
+    """D(i, −1): every frame against the virtual frame −1 before the clip's start -> (F,).
+
+    The column eq. 5 would have for frame −1 (module notes: the wrap): ``‖q_i − q₋₁‖² +
+    α ‖q̇_i − q̇₋₁‖² + β ‖r_i − r₋₁‖²`` with q₋₁ = 2q_0 − q_1, q̇₋₁ = q̇_0 = q_1 − q_0 and
+    r₋₁ = r_0, plus ``γ ‖π_i − π₋₁‖²`` (π₋₁ = 2π_0 − π_1) with a posture (F, 4) and its weight γ
+    (:func:`posture_costs`). α, β, γ are D's own: the column is scaled like every other. Computed
+    from the differences themselves, so D(0, −1), a playback step at the first velocity, has
+    exactly no velocity or r term. Needs F ≥ 2."""
+    q = np.asarray(q, np.float64)
+    r = np.asarray(r, np.float64)
+    qdot = velocities(q)
+    costs = _squared_distances_to(q, before_start(q)) + alpha * _squared_distances_to(qdot, qdot[0]) \
+        + beta * _squared_distances_to(r, r[0])
+    if posture is not None and gamma:
+        costs = costs + gamma * _squared_distances_to(posture, before_start(posture))
+    return costs
+
+
+def padded_costs(D, start):
+    """The cost matrix with the virtual frame's column first: D (F, F), start (F,) D(i, −1) ->
+    (F, F + 1), column c holding j = c − 1 (the layout :func:`candidate_transitions` searches)."""
+    D = np.asarray(D, np.float64)
+    return np.concatenate([np.asarray(start, np.float64).reshape(D.shape[0], 1), D], axis=1)
+
+
 def transition_threshold(D, scale=3.0, reference="median-step"):
     """T_c = ``scale`` × (median or max) of the playback steps D(i, i−1), i = 1..F−1.
 
@@ -215,18 +270,20 @@ def transition_threshold(D, scale=3.0, reference="median-step"):
     return float(scale * base)
 
 
-def candidate_transitions(D, threshold, min_gap=2):
+def candidate_transitions(D, threshold, min_gap=2, start=None):
     """Candidate transitions: local minima of D below the threshold (Zheng §3.2).
 
-    D (F, F). Keeps pairs (i, j) with D(i, j) < ``threshold``, |i − j| ≥ ``min_gap`` (a jump of
-    one frame is just playback), i, j ≥ 1 (the velocity terms need a previous frame), that are
-    minima of D over their 3×3 neighbourhood (so one good transition is not listed ten times).
-    The neighbourhood test runs on the full D, diagonal included: pairs on the slope of the
-    trivial D(i, i) = 0 valley are never minima. Values within 1e-9 × max|D| of the
-    neighbourhood minimum count as minima, so a flat valley (an exact loop: D(i, i+P) = 0 for
-    every i) lists each of its pairs rather than whichever round-off happens to favour.
-    Both (i, j) and (j, i) may appear. Returns ``(pairs (M, 2) int, costs (M,))`` sorted by cost
-    (ties by i, then j).
+    D (F, F); start (F,): D(i, −1), the virtual frame's column (:func:`start_costs`), or None
+    (no pair (i, −1)). Keeps pairs (i, j) with D(i, j) < ``threshold``, |i − j| ≥ ``min_gap`` (a
+    jump of one frame is just playback), i ≥ 1 and j ≥ 1 or j = −1 (the velocity terms need a
+    previous frame; −1 is the virtual one), that are minima of D over their 3×3 neighbourhood
+    (so one good transition is not listed ten times). The neighbourhood test runs on the full
+    padded matrix [D(·, −1) | D] (:func:`padded_costs`), diagonal included: pairs on the slope of
+    the trivial D(i, i) = 0 valley are never minima; a pair (i, j ≥ 1) has the same neighbours as
+    without the column. Values within 1e-9 × max|D| (the real frames' D) of the neighbourhood
+    minimum count as minima, so a flat valley (an exact loop: D(i, i+P) = 0 for every i) lists
+    each of its pairs rather than whichever round-off happens to favour. Both (i, j) and (j, i)
+    may appear. Returns ``(pairs (M, 2) int, costs (M,))`` sorted by cost (ties by i, then j).
     """
     D = np.asarray(D, np.float64)
     frames = D.shape[0]
@@ -234,22 +291,27 @@ def candidate_transitions(D, threshold, min_gap=2):
         return np.zeros((0, 2), np.int64), np.zeros(0)
     finite = np.isfinite(D)
     tolerance = 1e-9 * (np.max(np.abs(D[finite])) if finite.any() else 0.0)
-    neighbourhood_min = minimum_filter(np.where(finite, D, np.inf), size=3, mode="constant", cval=np.inf)
-    i, j = np.indices(D.shape)
-    keep = ((D < threshold) & (np.abs(i - j) >= min_gap) & (i >= 1) & (j >= 1)
-            & (D <= neighbourhood_min + tolerance))
+    padded, shift = (D, 0) if start is None else (padded_costs(D, start), 1)
+    neighbourhood_min = minimum_filter(np.where(np.isfinite(padded), padded, np.inf), size=3, mode="constant",
+                                       cval=np.inf)
+    i, column = np.indices(padded.shape)
+    j = column - shift
+    keep = ((padded < threshold) & (np.abs(i - j) >= min_gap) & (i >= 1) & ((j >= 1) | (j == -1))
+            & (padded <= neighbourhood_min + tolerance))
     pairs = np.stack([i[keep], j[keep]], axis=1).astype(np.int64)
-    costs = D[keep]
+    costs = padded[keep]
     order = np.lexsort((pairs[:, 1], pairs[:, 0], costs))
     return pairs[order], costs[order]
 
 
-def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_scale=10.0):
+def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_scale=10.0, start=None):
     """Transitions of one clip: cheap, spread out, and enough to reach the whole clip.
 
-    D (F, F) costs; threshold T_c. Candidates are the local minima of D (3×3 neighbourhood, as
+    D (F, F) costs; threshold T_c; start (F,): D(i, −1) (:func:`start_costs`), or None for no
+    wrap. Candidates are the local minima of D (3×3 neighbourhood, as
     :func:`candidate_transitions`, with |i − j| ≥ ``min_gap``, i ≥ 1 and j + 1 < F so that the
-    transition has somewhere to continue). They are visited by increasing cost (ties by i,
+    transition has somewhere to continue; j = −1 continues at frame 0 and is judged like any
+    other, its j = −1 one frame before j = 0). They are visited by increasing cost (ties by i,
     then j); a candidate within ``spacing`` frames of an accepted one in both i and j is the
     same choice made a few frames earlier or later and is dropped (greedy non-maximum
     suppression: a seam needs segments of several frames on both sides anyway, and without it a
@@ -269,9 +331,9 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
 
     D = np.asarray(D, np.float64)
     frames = D.shape[0]
-    every, _ = candidate_transitions(D, np.inf, min_gap)
-    every = every[every[:, 1] + 1 < frames]
-    costs = D[every[:, 0], every[:, 1]]
+    every, costs = candidate_transitions(D, np.inf, min_gap, start)
+    inside = every[:, 1] + 1 < frames
+    every, costs = every[inside], costs[inside]
     spacing = max(0, int(spacing))
     kept = []
     for n, (i, j) in enumerate(every):
@@ -301,7 +363,9 @@ class Transitions:
     non-reference bones, in the order of A_r's rows (6 per bone); q (F, r) reduced coordinates;
     basis (6B', r); singular (r,) kept singular values; r (F, 6) reference motion (eq. 6);
     alpha, beta: eq. 5 weights; D (F, F) costs; threshold: T_c; pairs (M, 2) and costs (M,):
-    the candidate transitions, by increasing cost; plus the options used.
+    the candidate transitions, by increasing cost, j = −1 meaning "continue at frame 0"; plus
+    the options used; start (F,): D(i, −1), the virtual frame's column (:func:`start_costs`;
+    None when not computed, e.g. read back from a graph file, which stores the pairs' costs only).
     """
 
     reference: int
@@ -320,6 +384,7 @@ class Transitions:
     options: dict = field(default_factory=dict)
     admitted: int = 0
     share: float = 1.0
+    start: np.ndarray | None = None
 
     @property
     def steps(self):
@@ -373,17 +438,19 @@ def find_transitions(rotations, translations, bone_indices, bone_weights, bones_
     q, basis, singular = reduced_coordinates(r_local, t_local, svd_threshold)
     r = reference_motion(rotations, translations, reference)
     D, alpha, beta = transition_costs(q, r)
+    posture, gamma = None, 0.0
     if up is not None and posture_weight > 0.0:
         posture = reference_posture(rotations[:, reference], translations[:, reference], pivots[reference], up, scale)
-        D, _ = posture_costs(D, q, posture, posture_weight)
+        D, gamma = posture_costs(D, q, posture, posture_weight)
+    start = start_costs(q, r, alpha, beta, posture, gamma)  # the virtual frame −1's column (module notes)
     threshold = transition_threshold(D, threshold_scale, threshold_reference)
-    pairs, costs, admitted, share = select_transitions(D, threshold, min_gap, spacing, coverage)
+    pairs, costs, admitted, share = select_transitions(D, threshold, min_gap, spacing, coverage, start=start)
     options = dict(svd_threshold=svd_threshold, threshold_scale=threshold_scale,
                    threshold_reference=threshold_reference, min_gap=min_gap, spacing=spacing, coverage=coverage,
                    posture_weight=posture_weight if up is not None else 0.0)
     return Transitions(reference=reference, bones=subset.tolist(), local_bones=local_bones, q=q, basis=basis,
                        singular=singular, r=r, alpha=alpha, beta=beta, D=D, threshold=threshold, pairs=pairs,
-                       costs=costs, options=options, admitted=admitted, share=share)
+                       costs=costs, options=options, admitted=admitted, share=share, start=start)
 
 
 def _bone_ids(subset, bones):
@@ -391,6 +458,12 @@ def _bone_ids(subset, bones):
     if ids.size and (ids[0] < 0 or ids[-1] >= bones):
         raise OptionError(f"bone ids {ids.tolist()} are outside 0..{bones - 1}")
     return ids
+
+
+def _squared_distances_to(x, y):
+    """‖x_i − y‖² per row of x (F, n) -> (F,)."""
+    difference = np.asarray(x, np.float64) - np.asarray(y, np.float64)
+    return np.einsum("fn,fn->f", difference, difference)
 
 
 def _max_squared_norm(x):

@@ -70,6 +70,37 @@ def test_edges_follow_the_walk_semantics():
     assert not graph.has_edges(9, 10) and not graph.has_edges(5, 10)
 
 
+def test_the_wrap_is_the_edge_i_to_0():
+    # (19, −1): after 19, continue at frame 0, the loop of a one-cycle clip; nothing else returns.
+    graph = MotionGraph(20, [(19, -1)])
+    assert graph.usable.all() and graph.transitions.tolist() == [[19, -1]]
+    assert list(graph.successors(19)) == [0] and list(graph.successors(0)) == [1]
+    assert graph.has_edges([19, 19, 18, 5], [0, 1, 0, 6]).tolist() == [True, False, False, True]
+    with pytest.raises(OptionError, match="no transition leads back"):
+        MotionGraph(20, np.zeros((0, 2), int))
+    # A near-repeat across the ends: after 17, continue at 0; 18 and 19 become a dead-end tail.
+    tail = MotionGraph(20, [(17, -1), (12, 3)])
+    assert list(tail.successors(17)) == [0] and tail.dead_ends[18:].all() and tail.usable[:18].all()
+    assert tail.has_edges(17, 0) and tail.has_edges(17, 18) and not tail.has_edges(12, 0)
+    # Frame 0 forbidden: the wrap has nowhere to land and is dropped.
+    forbidden = np.zeros(20, bool)
+    forbidden[0] = True
+    assert MotionGraph(20, [(19, -1), (19, 5)], forbidden=forbidden).transitions.tolist() == [[19, 5]]
+    # Walks reach frame 0 only through the wrap, and play the clip in order around it.
+    sources = random_walks(graph, 50, 100, np.random.default_rng(0), min_segment=4)
+    assert_walks_on_graph(graph, sources, usable_only=True)
+    assert np.array_equal(sources, (sources[:, :1] + np.arange(100)) % 20)
+    for k, pairs in seams(sources):
+        assert pairs.tolist() == [[19, -1]] * len(k)
+    walks = constrained_walks(graph, 5, 60, [(0, 30), (19, 49)], np.random.default_rng(1), min_segment=4)
+    assert (walks[:, 30] == 0).all() and (walks[:, 49] == 19).all()
+    assert_walks_on_graph(graph, walks)
+    with pytest.raises(OptionError, match="j in −1"):
+        MotionGraph(20, [(19, -2)])
+    with pytest.raises(OptionError, match="i in 0"):
+        MotionGraph(20, [(-1, 5)])
+
+
 # ---------------------------------------------------------------------------- random walks
 
 
@@ -251,6 +282,7 @@ def test_seams_lists_transitions_used():
     assert pairs.tolist() == [[5, 9], [11, 1]]
     per_walk = seams(np.array([[0, 1, 2], [5, 2, 3]]))
     assert per_walk[0][0].size == 0 and per_walk[1][1].tolist() == [[5, 1]]
+    assert seams([8, 9, 0, 1])[1].tolist() == [[9, -1]]  # a seam onto frame 0: the wrap (9, −1)
 
 
 def test_random_walk_speed():

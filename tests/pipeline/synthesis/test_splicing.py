@@ -122,8 +122,10 @@ def test_seam_windows_are_clipped_at_neighbours_and_ends():
 
 
 def test_walk_validation():
-    with pytest.raises(ValueError, match="frame 0"):
-        walk_sources([[5, 6, 0, 1]], 10)
+    # A seam onto frame 0 is the wrap, the transition (6, −1): accepted.
+    assert walk_sources([[5, 6, 0, 1]], 10).tolist() == [[5, 6, 0, 1]]
+    with pytest.raises(ValueError, match="lie in"):
+        walk_sources([[5, 6, -1, 0]], 10)
     with pytest.raises(ValueError, match="lie in"):
         walk_sources([[5, 6, 7, 10]], 10)
     assert walk_sources([0, 1, 2, 7], 10).shape == (1, 4)
@@ -347,3 +349,135 @@ def test_each_distinct_window_is_solved_once_and_matches_a_per_window_solve(drif
     expected_t = np.einsum("lab,lkb->lka", R_ref[animation, frame], t_local) + t_ref[animation, frame][:, None]
     assert np.abs(F[animation[:, None], frame[:, None], at] - expected_F).max() < 1e-12
     assert np.abs(t[animation[:, None], frame[:, None], at] - expected_t).max() < 1e-12
+
+
+# ---------------------------------------------------------------------------- the wrap: seams (i, −1)
+
+
+def triangle(f, period):
+    """A triangle wave of the frame number (period ``period``, a multiple of 4): slope 1 on
+    −period/4 … period/4 around every multiple of the period, so at constant velocity there."""
+    quarter = period // 4
+    g = (np.asarray(f) + quarter) % period
+    return np.where(g <= 2 * quarter, g - quarter, 3 * quarter - g).astype(float)
+
+
+def wrap_clip(frames=32, bones=5, seed=3):
+    """A one-cycle LBS clip whose exact continuation is known: ``pose(f)`` for any frame f ≥ 0 of
+    the world the clip was cut from, the clip being frames 0 … F−1. The reference bone turns about
+    the up axis (y) and drifts on the ground by one constant screw step B per frame and bobs up
+    and down (P(f) = h(f) ŷ + B^f); every other bone, in the reference bone's frame, turns about
+    its own axis by an angle and moves its pivot (its rest centroid, about which splicing
+    blends) along a line; h, the angles and the pivots' offsets are triangle waves of period F:
+    at constant velocity across the wrap, where frame −1 extrapolated from frames 0 and 1 is
+    exact (and frame F from F−2 and F−1)."""
+    model = synthetic_lbs(bones=bones, frames=1, rings=24, segments=8, seed=seed)
+    idx, w, rest = model["bone_indices"], model["bone_weights"], model["rest"]
+    root = int(np.argmax(np.bincount(idx.ravel(), weights=w.ravel(), minlength=bones)))
+    pivots = bone_centroids(rest, idx, w, bones)
+    rng = np.random.default_rng(seed)
+    axes = rng.normal(size=(bones, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    spin, shift = rng.uniform(0.01, 0.03, bones), rng.normal(scale=0.02, size=(bones, 3))
+    base = rotation_exp(rng.uniform(-0.3, 0.3, size=(bones, 3)))
+    step_R, step_t = rotation_exp(np.array([0.0, 0.05, 0.0])), np.array([0.03, 0.0, 0.01])
+
+    def pose(f):
+        f = np.asarray(f)
+        tau = triangle(f, frames)[:, None]  # (n, 1)
+        R = rotation_exp(tau[..., None] * spin[None, :, None] * axes[None]) @ base  # (n, B, 3, 3) local
+        t = pivots + tau[..., None] * shift - np.einsum("nbij,bj->nbi", R, pivots)
+        R[:, root], t[:, root] = np.eye(3), 0.0
+        ref_R, ref_t = np.empty((f.size, 3, 3)), np.empty((f.size, 3))
+        for n, count in enumerate(f):  # B^count
+            ref_R[n], ref_t[n] = np.eye(3), 0.0
+            for _ in range(int(count)):
+                ref_R[n], ref_t[n] = step_R @ ref_R[n], step_R @ ref_t[n] + step_t
+        ref_t[:, 1] += 0.05 * tau[:, 0]  # the bob: a change of posture (height) the costs weigh
+        return ref_R[:, None] @ R, np.einsum("nij,nbj->nbi", ref_R, t) + ref_t[:, None]
+
+    R, t = pose(np.arange(frames))
+    clip = dict(rest=rest, faces=model["faces"], bone_indices=idx, bone_weights=w, rotations=R, translations=t,
+                pose=pose)
+    graph = build_graph(rest, model["faces"], idx, w, R, t, single_component=True)
+    clip["component"] = graph.components[0]
+    assert clip["component"].transitions.reference == root
+    return clip
+
+
+@pytest.mark.parametrize("up", [None, np.array([0.0, 1.0, 0.0])])
+def test_a_seam_onto_frame_0_continues_a_periodic_clip_exactly(up):
+    from skinsynth.pipeline.synthesis.splicing import splice_local
+
+    clip = wrap_clip()
+    frames = clip["rotations"].shape[0]
+    # The graph finds the loop itself: after the last frame, continue at frame 0.
+    assert [frames - 1, -1] in clip["component"].transitions.pairs.tolist()
+    # Walks round the clip: seams (F−1, −1) at every lap, windows of 8 frames on each side.
+    starts = np.array([5, 20, 31])
+    sources = (starts[:, None] + np.arange(80)) % frames
+    pivots = bone_centroids(clip["rest"], clip["bone_indices"], clip["bone_weights"], clip["rotations"].shape[1])
+    spliced = splice_local(clip["component"], clip["rotations"], clip["translations"], sources, window=8,
+                           pivots=pivots, up=up)
+    F, t = spliced.world()
+    bones = clip["component"].bones
+    for a, start in enumerate(starts):
+        R_true, t_true = clip["pose"](start + np.arange(80))  # the world the clip was cut from
+        assert np.abs(F[a] - R_true[:, bones]).max() < 1e-9
+        assert np.abs(t[a] - t_true[:, bones]).max() < 1e-9
+    # Not a trivial case: the seams were blended, and the reference bone moved on at each lap.
+    assert seam_windows(sources, 8).counts.sum() > 0
+    R0, t0 = clip["pose"](starts[:1] + frames)
+    assert np.abs(t0 - clip["translations"][starts[0]]).max() > 0.1
+
+
+def test_a_poor_wrap_is_blended_like_any_transition():
+    # A clip not at constant velocity at its wrap (the bend's acceleration is largest at frame 0):
+    # across the seam (F−1, −1) the mesh's acceleration stays within 1.5 × the clip's own largest.
+    vertices, faces = bending_bar(frames=40, rings=12, segments=8, cycles=1)
+    fit = fit_skin(vertices, 4, iterations=10)
+    graph = build_graph(fit.rest_vertices, faces, fit.bone_indices, fit.bone_weights, fit.rotations,
+                        fit.translations, single_component=True)
+    assert [39, -1] in graph.components[0].transitions.pairs.tolist()
+    clip = dict(rest=fit.rest_vertices, bone_indices=fit.bone_indices, bone_weights=fit.bone_weights)
+    sources = (np.arange(100) + 10) % 40  # seams at k = 30 and 70
+    F, t = splice(graph.components[0], fit.rotations, fit.translations, sources[None],
+                  pivots=bone_centroids(fit.rest_vertices, fit.bone_indices, fit.bone_weights, 4))
+    out = second_differences(skin(clip, F[0], t[0]))
+    base = second_differences(skin(clip, fit.rotations, fit.translations)).max()
+    assert out.max() < 1.5 * base
+    # Away from the windows each segment is the input, moved by one rigid transform (eq. 7).
+    away = ~free_frames(sources, 8)[0]
+    mesh, reference = skin(clip, F[0], t[0]), skin(clip, fit.rotations, fit.translations)[sources]
+    segment = np.searchsorted([30, 70], np.arange(100), side="right")
+    for s in range(3):
+        frames = np.flatnonzero((segment == s) & away)
+        rot, _, moved = rigid_fits(mesh[frames], reference[frames])
+        assert frames.size >= 20 and np.abs(moved - reference[frames]).max() < 1e-9
+        assert np.abs(rot - rot[0]).max() < 1e-9
+
+
+def test_seam_guidance_extrapolates_frame_minus_1_as_frame_0_going_backwards():
+    from skinsynth.pipeline.synthesis.splicing import seam_guidance
+    from skinsynth.pipeline.rotations import rotation_log
+
+    rng = np.random.default_rng(8)
+    frames = 20
+    U = rotation_exp(rng.normal(scale=0.8, size=(frames, 3, 3)))  # 3 items
+    S = rng.normal(size=(frames, 3, 6))
+    # Seams onto frame 0 from frame 10 (a near-repeat across the ends) and from the last frame.
+    sources = np.stack([walk((4, 11), (0, 9)), walk((12, 20), (0, 8))])
+    windows = seam_windows(sources, 3)
+    assert windows.seam.tolist() == [7, 8]
+    h_left, h_right, jump = seam_guidance(U, S, sources, windows, np.arange(2))
+    T = lambda x: np.swapaxes(x, -1, -2)  # noqa: E731
+    U_before, S_before = U[0] @ T(U[1]) @ U[0], 2 * S[0] - S[1]  # U(−1), S(−1)
+    U_after, S_after = U[19] @ T(U[18]) @ U[19], 2 * S[19] - S[18]  # U(F), for i = F − 1
+    for w, (i, U_next, S_next) in enumerate([(10, U[11], S[11]), (19, U_after, S_after)]):
+        assert np.allclose(h_right[w], np.concatenate([rotation_log(U_before @ T(U[i])),
+                                                       S_before - S[i]], axis=-1), atol=1e-12)
+        assert np.allclose(h_left[w], np.concatenate([rotation_log(U_next @ T(U[0])),
+                                                      S_next - S[0]], axis=-1), atol=1e-12)
+        step_right = np.concatenate([rotation_log(U[0] @ T(U_before)), S[0] - S_before], -1)
+        step_left = np.concatenate([rotation_log(U_next @ T(U[i])), S_next - S[i]], -1)
+        assert np.allclose(jump[w], step_right - step_left, atol=1e-12)

@@ -134,7 +134,10 @@ def test_exact_loop_played_twice_gives_matching_frame_transitions(model):
     # They are the cheapest candidates, and sorted first.
     assert {tuple(pair) for pair in tr.pairs[:len(expected)].tolist()} == expected
     assert np.all(np.diff(tr.costs) >= 0.0)
-    assert np.all(np.abs(tr.pairs[:, 0] - tr.pairs[:, 1]) >= 2) and np.all(tr.pairs >= 1)
+    assert np.all(np.abs(tr.pairs[:, 0] - tr.pairs[:, 1]) >= 2) and np.all(tr.pairs[:, 0] >= 1)
+    # j ≥ 1, or the virtual frame −1: the clip's last frame runs into its first, so the wrap
+    # (2P − 1, −1), "after the last frame continue at frame 0", is a candidate too.
+    assert np.all((tr.pairs[:, 1] >= 1) | (tr.pairs[:, 1] == -1)) and (frames - 1, -1) in found
 
 
 def test_fixed_rigid_motion_of_the_whole_clip_leaves_D_unchanged(model):
@@ -237,3 +240,94 @@ def test_bones_subset_restricts_reference_and_coordinates(model):
     assert single.q.shape == (48, 0) and single.D.max() > 0.0
     p = model["period"]
     assert single.D[5, 5 + p] < 1e-10
+
+
+# ---------------------------------------------------------------------------- the wrap: frame −1
+
+
+def test_start_costs_are_eq5_against_the_virtual_frame_before_the_start():
+    # Brute force: append frame −1 (the clip continued backwards at its first velocity) to every
+    # series and evaluate eq. 5 (and the posture term) between frame i and it, term by term.
+    from skinsynth.pipeline.synthesis.transitions import padded_costs, posture_costs, start_costs
+
+    rng = np.random.default_rng(11)
+    frames = 12
+    q, r, posture = rng.normal(size=(frames, 4)), rng.normal(size=(frames, 6)), rng.normal(size=(frames, 4))
+    r[0] = r[1]  # as reference_motion makes it: r_0 := r_1
+    D, alpha, beta = transition_costs(q, r)
+    D, gamma = posture_costs(D, q, posture, 0.7)
+    start = start_costs(q, r, alpha, beta, posture, gamma)
+    q_virtual = q[0] - (q[1] - q[0])
+    qdot = np.diff(q, axis=0, prepend=q[:1] * 0.0)
+    qdot[0] = qdot[1]
+    qdot_virtual = q[1] - q[0]  # q̇₋₁ = q̇_0 = q̇_1: constant velocity
+    r_virtual = r[1]  # r₋₁ = r_0 = r_1
+    posture_virtual = 2.0 * posture[0] - posture[1]
+    brute = np.array([np.sum((q[i] - q_virtual) ** 2) + alpha * np.sum((qdot[i] - qdot_virtual) ** 2)
+                      + beta * np.sum((r[i] - r_virtual) ** 2) + gamma * np.sum((posture[i] - posture_virtual) ** 2)
+                      for i in range(frames)])
+    assert np.allclose(start, brute, rtol=1e-12, atol=1e-12)
+    # D(0, −1) is a playback step at the first velocity: no velocity or r term.
+    step = np.sum((q[1] - q[0]) ** 2) + gamma * np.sum((posture[1] - posture[0]) ** 2)
+    assert start[0] == pytest.approx(step, rel=1e-12)
+    padded = padded_costs(D, start)
+    assert padded.shape == (frames, frames + 1)
+    assert np.array_equal(padded[:, 0], start) and np.array_equal(padded[:, 1:], D)
+
+
+def brute_candidates(D, start, threshold, min_gap):
+    """Local minima (3×3, ≤ with the 1e-9 × max|D| tolerance) of [D(·, −1) | D] below the threshold,
+    |i − j| ≥ min_gap, i ≥ 1, j ≥ 1 or j = −1: one cell at a time."""
+    frames = D.shape[0]
+    padded = np.concatenate([start[:, None], D], axis=1)
+    tolerance = 1e-9 * np.abs(D).max()
+    out = set()
+    for i in range(frames):
+        for c in range(frames + 1):
+            j = c - 1
+            if not (padded[i, c] < threshold and abs(i - j) >= min_gap and i >= 1 and (j >= 1 or j == -1)):
+                continue
+            near = padded[max(i - 1, 0):i + 2, max(c - 1, 0):c + 2]
+            if padded[i, c] <= near.min() + tolerance:
+                out.add((i, j))
+    return out
+
+
+def test_candidates_in_the_padded_matrix_match_brute_force():
+    rng = np.random.default_rng(3)
+    frames = 30
+    # A cost-like matrix with valleys, one of them on the virtual column (after 27, continue at 0).
+    d = bowls(frames, [(10, 20), (4, 25)])
+    start = np.minimum(np.abs(np.arange(frames) + 1.0), 10.0) + rng.uniform(0.0, 0.05, frames)
+    start -= 9.5 * np.exp(-((np.arange(frames) - 27.0) ** 2) / 8.0)
+    for threshold, min_gap in ((3.0, 2), (np.inf, 2), (3.0, 6), (0.1, 2)):
+        pairs, costs = candidate_transitions(d, threshold, min_gap, start=start)
+        assert set(map(tuple, pairs.tolist())) == brute_candidates(d, start, threshold, min_gap)
+        padded = np.concatenate([start[:, None], d], axis=1)
+        assert np.array_equal(costs, padded[pairs[:, 0], pairs[:, 1] + 1])
+        assert np.all(np.diff(costs) >= 0.0)
+    found = set(map(tuple, candidate_transitions(d, 3.0, 2, start=start)[0].tolist()))
+    assert (27, -1) in found
+    # The column never changes the pairs (i, j ≥ 1): without it, the same ones less the wrap.
+    plain = set(map(tuple, candidate_transitions(d, 3.0, 2)[0].tolist()))
+    assert plain == {p for p in found if p[1] != -1}
+
+
+def test_one_cycle_clip_gets_its_wrap_and_a_clip_played_twice_keeps_its_transitions(model):
+    p = model["period"]
+    args = (model["bone_indices"], model["bone_weights"])
+    # One cycle: frame P would be frame 0 again. Without the virtual frame nothing returns.
+    one = find_transitions(model["rotations"][:p], model["translations"][:p], *args)
+    assert one.start.shape == (p,)
+    assert (p - 1, -1) in set(map(tuple, one.pairs.tolist()))
+    assert one.share == 1.0
+    from skinsynth.pipeline.synthesis.transitions import select_transitions
+
+    # Without it no cheap transition returns; the coverage rule admits dearer ones, and not all frames.
+    pairs, costs, admitted, share = select_transitions(one.D, one.threshold, 2, 0, 0.95)
+    assert admitted == len(pairs) and np.all(costs >= one.threshold) and share < 1.0
+    assert one.admitted == 0 and one.costs[0] < one.threshold
+    # Two cycles: the wrap is added, every other pair is unchanged.
+    two = find_transitions(model["rotations"], model["translations"], *args)
+    kept = select_transitions(two.D, two.threshold, 2, 0, 0.95)[0]
+    assert {tuple(x) for x in two.pairs.tolist() if x[1] != -1} == set(map(tuple, kept.tolist()))
