@@ -210,12 +210,30 @@ def check_memory(needed, what, available=None):
 def check_disk(needed, folder, what):
     """Refuse, before any work, a request whose files (``needed`` bytes) exceed the free space in
     ``folder``: one line naming the sizes."""
+    check_space(what, [(None, needed, folder)])
+
+
+def check_space(what, needs):
+    """Refuse, before any work, a request whose outputs would not fit on their disks: ``needs``
+    [(label, bytes, folder)], the folders (or, where one does not exist yet, the nearest folder
+    above it that does) on one file system adding up against its free space. One line naming
+    the estimate, the folder and its free space (and each part, when several share it)."""
     import shutil
 
-    free = shutil.disk_usage(folder).free
-    if needed > free:
-        raise OptionError(f"{what} needs about {_size(needed)} of disk in {folder}, and {_size(free)} is free: "
-                          "ask for fewer")
+    disks = {}
+    for label, needed, folder in needs:
+        there = os.path.abspath(folder)
+        while not os.path.isdir(there) and os.path.dirname(there) != there:
+            there = os.path.dirname(there)
+        disks.setdefault(os.stat(there).st_dev, []).append((label, needed, folder, there))
+    for parts in disks.values():
+        needed, folder = sum(part[1] for part in parts), parts[0][2]
+        free = shutil.disk_usage(parts[0][3]).free
+        if needed > free:
+            detail = "" if len(parts) == 1 else \
+                " (" + ", ".join(f"{label} {_size(n)} in {where}" for label, n, where, _ in parts) + ")"
+            raise OptionError(f"not enough space: {what} needs about {_size(needed)} of disk in {folder}{detail}, and "
+                              f"{_size(free)} is free; nothing written: ask for fewer, or write elsewhere")
 
 
 def _size(count):

@@ -23,10 +23,12 @@ def inspect_file(path, as_json, quiet, digests):
       skinsynth inspect horse.skin.h5
       skinsynth inspect horse.skin.h5 --json | jq .rmse_over_diagonal
     """
+    from skinsynth.formats.hdf5_storage import BLOCK_BYTES
     from skinsynth.formats.inspection import describe_model
     from skinsynth.formats.model import content_digests, read_model
 
-    summary = describe_model(path, read_model(path))
+    # a dataset larger than a block is checked block by block: a file of any size in bounded memory
+    summary = describe_model(path, read_model(path, summarise_above=BLOCK_BYTES))
     if digests:
         summary["digests"] = content_digests(path)
     if quiet and not as_json:

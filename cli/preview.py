@@ -213,24 +213,24 @@ def _puppet_panels(path, error_scale):
 
 def _synthesis_panels(path, skin, animations):
     from skinsynth.formats.errors import require_finite
-    from skinsynth.formats.synthesis_file import open_motions, read_sources
+    from skinsynth.formats.synthesis_file import open_motions, read_sources, synthesis_count
     from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.view import Panel
 
-    sources = read_sources(path)  # (C, N, M)
-    count = sources.shape[1]
+    count = synthesis_count(path)
     for a in animations:
         if not 0 <= a < count:
             raise OptionError(f"--animation {a}: the file holds animations 0..{count - 1}")
+    chosen = read_sources(path, animations)  # (C, len(animations), M): the shown animations' only
     panels = []
     with open_motions(path) as (F, t):
-        for a in animations:
+        for n, a in enumerate(animations):
             rotations, translations = F[a], t[a]
             require_finite(path, f"/synthesis animation {a}'s bone motions", rotations)  # a damaged shard
             require_finite(path, f"/synthesis animation {a}'s bone motions", translations)
             vertices = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations, translations)
-            played = sources[:, a]  # (C, M)
+            played = chosen[:, n]  # (C, M)
             seams = np.zeros(played.shape[1], dtype=bool)
             seams[1:] = np.any(played[:, 1:] != played[:, :-1] + 1, axis=0)
             captions = [f"frame {m} · input {', '.join(str(int(s)) for s in played[:, m])}"

@@ -9,7 +9,7 @@ import numpy as np
 
 from .options import check_max_width, device_option, texture_options, up_axis_option
 from .outputs import check_texture_output, write_gltf, write_textures
-from .common import check_disk, check_memory, report, summary_options, Progress, check_output_path, FolderOutputs, command_line, tool_version, user_errors
+from .common import check_memory, check_space, report, summary_options, Progress, check_output_path, FolderOutputs, command_line, tool_version, user_errors
 
 
 def _target(text):
@@ -147,15 +147,16 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           up_axis=1 if up_axis == "Y" else 2)
         validate_request(request, skin.rotations.shape[0])
         # the bone motions (float32 3×3 + 3 per bone) and sources (int32 per component), in memory
-        # or, on a cluster, in the shards on disk: refused before any is allocated
+        # (on a cluster, in the shards on disk): refused before any is allocated; then the output
+        # file on its disk (a cluster run's, with its shards, once the reusable shards are known)
         motions = count * frames * (skin.rotations.shape[1] * 12 * 4 + len(graph_file.components) * 4)
         what = f"{count} animations × {frames} frames of {skin.rotations.shape[1]} bones"
-        if cluster:
-            check_disk(motions, os.path.dirname(os.path.abspath(output)), what)
-        else:
+        if not cluster:
             check_memory(motions, what)
         if exr_dir:  # the texture's size, before any work
             check_texture_output(exr_dir, "folder", skin.rest_vertices.shape[0], frames, max_width)
+        if not cluster:
+            _check_space(path, output, request, graph_file.components, skin, what)
         if obstacles or ground_plane:
             avoid_obstacles(request, skin, [read_obstacle(o) for o in obstacles], ground_plane)
         components = synthesis_components(skin, graph_file.components, single_component,
@@ -169,6 +170,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(),
                                    seed)
         shards = run_shards(output, record, frames, skin.rotations.shape[1], BATCH_REVISION) if cluster else None
+        if cluster:
+            _check_space(path, output, request, components, skin, what, shards)
 
         started = time.perf_counter()
         result, remote, on_cluster = _make(components, skin, request, jobs, joined if cluster else None, shards,
@@ -204,6 +207,25 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     if len(written) > 1:
         lines.append(f"also wrote: {', '.join(written[1:]) if len(written) < 6 else written[1] + ' …'}")
     report(summary, lines, as_json, quiet)
+
+
+def _check_space(path, output, request, components, skin, what, shards=None):
+    """Refuse, before any work, an output larger than the free space of its folder, and on a
+    cluster (``shards``: :func:`~skinsynth.formats.synthesis_shards.run_shards`'s) the shards
+    still to write (those an earlier run finished are reused) against their folder's: the
+    estimates the writers check at the end (``planned_bytes``), made from the request's shapes."""
+    from skinsynth.formats.synthesis_file import planned_bytes
+    from skinsynth.pipeline.synthesis import BATCH
+
+    batches = None
+    if shards is not None:  # the first round's batches, as synthesize makes them
+        sizes = [(b, min(BATCH, request.count - b * BATCH)) for b in range(-(-request.count // BATCH))]
+        batches = [(b, n, (b, n) in shards["stored"]) for b, n in sizes]
+    file_bytes, shard_bytes = planned_bytes(path, request, components, skin.rotations.shape[1], skin.fps, batches)
+    needs = [("the output", file_bytes, os.path.dirname(os.path.abspath(output)))]
+    if shards is not None:
+        needs.append(("its shards", shard_bytes, shards["folder"]))
+    check_space(what, needs)
 
 
 def _make(components, skin, request, jobs, joined, shards, quiet):

@@ -14,8 +14,13 @@ import os
 import re
 
 import h5py
+import numpy as np
 
-from .errors import declared_size_problem
+from .errors import FormatError, declared_size_problem
+
+#: Bytes a reader that streams a dataset holds of it at once (:func:`read_blocks`): datasets
+#: larger than this are never read whole by ``inspect`` (checks and digests).
+BLOCK_BYTES = 64 << 20
 
 
 class DeclaredTooLarge(ValueError):
@@ -89,3 +94,88 @@ def _covers(shape, mapping):
         needed = tuple(end + 1 for end in space.get_select_bounds()[1])
         return all(have >= need for have, need in zip(shape, needed))
     return math.prod(shape) >= mapping.vspace.get_select_npoints()
+
+
+def block_selections(shape, itemsize, block_bytes=BLOCK_BYTES):
+    """Selections (tuples of indices and one slice) that cover an array of ``shape`` in C order,
+    each a run of consecutive elements of the flattened array of at most ``block_bytes`` (one
+    element at least): rows of the first axis while a row fits, else rows of a later axis
+    (sources (C, N, M) of 10⁶ animations have rows of gigabytes). Their values laid end to end
+    are the array's bytes in C order, however ``block_bytes`` cuts them."""
+    if not shape or 0 in shape:
+        return
+    axis = next((k for k in range(len(shape)) if itemsize * math.prod(shape[k + 1:]) <= block_bytes), len(shape) - 1)
+    step = max(1, block_bytes // (itemsize * math.prod(shape[axis + 1:])))
+    for index in np.ndindex(*shape[:axis]):
+        for start in range(0, shape[axis], step):
+            yield index + (slice(start, min(start + step, shape[axis])),)
+
+
+def read_blocks(dataset, block_bytes=BLOCK_BYTES):
+    """``dataset``'s values block by block (:func:`block_selections`), each a C-contiguous array
+    of the dataset's dtype; numeric blocks are read into one reused buffer (a block is valid until
+    the next is read: the caller reduces it, hashes it or copies it)."""
+    tail = None
+    buffer = None
+    for selection in block_selections(dataset.shape, dataset.dtype.itemsize, block_bytes):
+        if dataset.dtype.kind not in "biuf":  # strings, compounds: as h5py reads them
+            yield np.ascontiguousarray(dataset[selection])
+            continue
+        axis = len(selection) - 1
+        if buffer is None:
+            tail = dataset.shape[axis + 1:]
+            step = selection[-1].stop - selection[-1].start
+            buffer = np.empty((step,) + tail, dtype=dataset.dtype)
+        rows = selection[-1].stop - selection[-1].start
+        dataset.read_direct(buffer, source_sel=selection, dest_sel=np.s_[:rows])
+        yield buffer[:rows]
+
+
+class DatasetSummary:
+    """A numeric dataset read block by block instead of whole (``read_model(..., summarise_above=)``):
+    its ``dtype`` and ``shape`` and, over every value, :meth:`min`, :meth:`max` and
+    :meth:`all_finite`, what the checks of :mod:`.validation` ask of an array, so a file of any
+    size is checked in the memory of one block. ``np.asarray(summary)`` reads the whole dataset
+    (for a check that needs its values)."""
+
+    def __init__(self, dataset, block_bytes=BLOCK_BYTES):
+        self.dtype, self.shape = dataset.dtype, tuple(dataset.shape)
+        self.filename, self.name = dataset.file.filename, dataset.name
+        lows, highs = [], []
+        for block in read_blocks(dataset, block_bytes):
+            lows.append(block.min())  # NaN when any value is (as numpy's min of the whole), -inf when any is
+            highs.append(block.max())
+        self._low = np.array(lows, dtype=self.dtype).min() if lows else None
+        self._high = np.array(highs, dtype=self.dtype).max() if highs else None
+
+    @property
+    def ndim(self):
+        return len(self.shape)
+
+    @property
+    def size(self):
+        return math.prod(self.shape)
+
+    def __len__(self):
+        return self.shape[0]
+
+    def min(self):
+        return self._low
+
+    def max(self):
+        return self._high
+
+    def all_finite(self):
+        """Whether every value is finite (as ``np.isfinite(array).all()``): NaN makes the
+        smallest and the largest NaN, an infinity one of them infinite."""
+        if self.dtype.kind != "f" or self._low is None:
+            return True
+        return bool(np.isfinite(self._low) and np.isfinite(self._high))
+
+    def __array__(self, dtype=None, copy=None):
+        try:
+            with h5py.File(self.filename, "r") as f:
+                values = f[self.name][()]
+        except (OSError, KeyError) as exc:
+            raise FormatError(self.filename, f"damaged model file ({exc})") from None
+        return values if dtype is None else values.astype(dtype, copy=False)

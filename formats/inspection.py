@@ -47,7 +47,7 @@ def describe_model(path, model):
         skin = require(model, path, "skin", ("rotations", "bone_indices", "bone_weights"))
         out["bones"] = int(skin["rotations"].shape[1])
         out["max_influences"] = int(skin["bone_indices"].shape[1])
-        weights = skin["bone_weights"]
+        weights = np.asarray(skin["bone_weights"])  # values of a large one read again (a DatasetSummary)
         out["mean_influences"] = float(np.mean(np.sum(weights > 0.0, axis=1)))
         for key in ("rmse", "rmse_over_diagonal", "iterations", "converged", "bones_without_weight"):
             if f"@{key}" in skin:
@@ -55,7 +55,7 @@ def describe_model(path, model):
                 out[key] = bool(value) if key == "converged" else (int(value) if key in ("iterations", "bones_without_weight") else float(value))
     if "controls" in model:
         controls = model["controls"]
-        out["control_vertex_indices"] = [int(v) for v in controls.get("vertex_indices", [])]
+        out["control_vertex_indices"] = [int(v) for v in np.asarray(controls.get("vertex_indices", []))]
         out["control_reasons"] = [r.decode() if isinstance(r, bytes) else str(r) for r in controls.get("reasons", [])]
     if "kcca" in model and "training" in model:
         kcca, training = model["kcca"], model["training"]
@@ -63,7 +63,7 @@ def describe_model(path, model):
         out["kernel_scale"] = float(kcca.get("@scale", 0.0))
         out["kernel_width_reason"] = str(kcca.get("@width_reason", ""))
         out["bases"] = int(kcca.get("@bases", 0))
-        out["regularization_per_bone"] = [float(k) for k in kcca.get("regularization", [])]
+        out["regularization_per_bone"] = [float(k) for k in np.asarray(kcca.get("regularization", []))]
         out["global_motion"] = str(training.get("@global_motion", ""))
         out["global_motion_reason"] = str(training.get("@global_motion_reason", ""))
         out["train_frames"] = int(len(training.get("train_frames", [])))
@@ -78,7 +78,7 @@ def describe_model(path, model):
         graph = model["graph"]
         out["components"] = int(graph.get("@components", 0))
         out["transitions"] = int(graph.get("@transitions", 0))
-        out["cut_nodes"] = [int(b) for b in graph.get("cut_nodes", [])]
+        out["cut_nodes"] = [int(b) for b in np.asarray(graph.get("cut_nodes", []))]
         names = [k for k in sorted(graph) if k.startswith("component_") and "transitions" in graph[k]]
         out["transitions_per_component"] = [int(len(graph[k]["transitions"])) for k in names]
         if all("@recurrent_share" in graph[k] for k in names):

@@ -22,7 +22,7 @@ import numpy as np
 
 from .atomic import atomic_output
 from .errors import FormatError, require_finite
-from .hdf5_storage import DeclaredTooLarge, check_stored, held_bytes
+from .hdf5_storage import BLOCK_BYTES, DatasetSummary, DeclaredTooLarge, check_stored, held_bytes, read_blocks
 from .synthesis_shards import reading_output
 
 FORMAT_NAME = "skinsynth"
@@ -109,9 +109,11 @@ def _require_finite_groups(path, groups, prefix=""):
         require_finite(path, label, array)
 
 
-def _estimated_bytes(groups):
+def estimated_bytes(groups):
     """An upper bound of a file's size: its arrays uncompressed, forwarded groups as stored,
-    plus 1 MiB of HDF5 structure."""
+    plus 1 MiB of HDF5 structure. (What :func:`write_model` checks the free space against; a
+    caller may estimate before any work from arrays sized but never allocated, e.g.
+    ``np.broadcast_to``, as ``synthesize`` does.)"""
     total = 1 << 20
     for value in groups.values():
         if isinstance(value, CopyFrom):
@@ -119,7 +121,7 @@ def _estimated_bytes(groups):
         elif isinstance(value, VirtualRows):
             total += 64 * len(value.runs)
         elif isinstance(value, dict):
-            total += _estimated_bytes(value) - (1 << 20)
+            total += estimated_bytes(value) - (1 << 20)
         else:
             total += getattr(value.array if isinstance(value, Uncompressed) else np.asarray(value), "nbytes", 0)
     return total
@@ -135,7 +137,7 @@ def write_model(path, stage, groups, provenance, tool_version):
     if stage not in STAGES:
         raise ValueError(f"unknown stage {stage!r}")
     _require_finite_groups(path, groups)
-    with atomic_output(path, expected_bytes=_estimated_bytes(groups)) as tmp:
+    with atomic_output(path, expected_bytes=estimated_bytes(groups)) as tmp:
         with h5py.File(tmp, "w", track_order=True) as f:
             f.attrs["format"] = FORMAT_NAME
             f.attrs["format_version"] = FORMAT_VERSION
@@ -157,16 +159,20 @@ def write_model(path, stage, groups, provenance, tool_version):
                 _write_group(f.create_group(name, track_order=True), contents)
 
 
-def _read_group(group):
+def _read_group(group, summarise_above=None):
     out = {f"@{k}": (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
     for name, item in group.items():
         if isinstance(item, h5py.Dataset):
             # Sizes are checked against what the file holds before anything is allocated: a
             # small file must not make a reader ask for gigabytes (unwritten chunks read as fill).
             check_stored(item, item.name)
-            out[name] = item[()]
+            if summarise_above is not None and item.ndim and item.dtype.kind in "biuf" \
+                    and item.size * item.dtype.itemsize > summarise_above:
+                out[name] = DatasetSummary(item, summarise_above)  # read a block at a time, not whole
+            else:
+                out[name] = item[()]
         elif isinstance(item, h5py.Group):
-            out[name] = _read_group(item)
+            out[name] = _read_group(item, summarise_above)
     return out
 
 
@@ -195,12 +201,17 @@ def read_header(path):
     return stage, version
 
 
-def read_model(path, stages=None, groups=None):
+def read_model(path, stages=None, groups=None, summarise_above=None):
     """Read a whole model file into nested dicts.
 
     stages: the stages the caller accepts (None = any); groups: the groups to read (None = all:
     a caller that needs only the skin need not load a synthesis's motions). Returns {"stage",
     "format_version", "provenance": [records], group name: {dataset: array, "@attr": value}}.
+    summarise_above: bytes; a numeric dataset larger than this is read that many bytes at a time,
+    in the same order and with the same errors, and stands as a
+    :class:`~skinsynth.formats.hdf5_storage.DatasetSummary` (shape, dtype, smallest and largest
+    value: what the checks need) instead of an array: ``inspect`` checks a file of any size in
+    bounded memory (a 10⁶-animation synthesis holds 661 GB of motions).
     """
     stage, version = read_header(path)
     if stages is not None and stage not in stages:
@@ -218,7 +229,7 @@ def read_model(path, stages=None, groups=None):
                 model["provenance"].append(record)
             for name, item in f.items():
                 if name != "provenance" and isinstance(item, h5py.Group) and (groups is None or name in groups):
-                    model[name] = _read_group(item)
+                    model[name] = _read_group(item, summarise_above)
     except DeclaredTooLarge as exc:
         raise FormatError(path, f"damaged model file: {exc}") from None
     except (OSError, KeyError, ValueError) as exc:
@@ -234,7 +245,7 @@ def require(model, path, group, names):
     return model[group]
 
 
-def content_digests(path, block_bytes=64 << 20):
+def content_digests(path, block_bytes=BLOCK_BYTES):
     """{name: sha256 hex} of every dataset (its dtype, shape and values) and attribute of a model
     file, the provenance's aside (it holds dates and command lines). Two files with equal digests
     hold the same data bit for bit however it is stored: compressed, contiguous, or virtual over
@@ -253,9 +264,8 @@ def content_digests(path, block_bytes=64 << 20):
             held_bytes(item)  # a virtual dataset's missing source would read as fill values
             digest = hashlib.sha256(f"{item.dtype.str} {item.shape}".encode())
             if item.shape and item.dtype.kind != "O":
-                step = max(1, block_bytes // max(1, item.dtype.itemsize * int(np.prod(item.shape[1:]))))
-                for start in range(0, item.shape[0], step):
-                    digest.update(np.ascontiguousarray(item[start:start + step]).tobytes())
+                for block in read_blocks(item, block_bytes):  # the values' bytes in C order, whatever the blocks
+                    digest.update(block)
             else:
                 value = item[()]
                 digest.update(repr(value.tolist() if hasattr(value, "tolist") else value).encode())

@@ -21,14 +21,15 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` (the weights skin the new 
 
 import contextlib
 import json
+import types
 
 import h5py
 import numpy as np
 
 from .hdf5_storage import DeclaredTooLarge, held_bytes
-from .model import CopyFrom, Uncompressed, VirtualRows
+from .model import CopyFrom, Uncompressed, VirtualRows, estimated_bytes
 from .errors import FormatError
-from .synthesis_shards import MOTIONS, reading_output
+from .synthesis_shards import MOTIONS, reading_output, shard_bytes
 
 
 def _motion(rows, name, shards):
@@ -47,7 +48,7 @@ def synthesis_groups(source, result, components, request, fps, shards=None):
     synthesis = {
         MOTIONS[0]: _motion(result.F, MOTIONS[0], shards),
         MOTIONS[1]: _motion(result.t, MOTIONS[1], shards),
-        "sources": result.sources.astype(np.int32),
+        "sources": np.asarray(result.sources, dtype=np.int32),
         "seams": np.asarray(result.seams_used, dtype=np.int64),
         "@count": int(result.F.shape[0]), "@frames": int(result.F.shape[1]), "@seed": int(request.seed),
         "@distinct": int(result.distinct), "@transitions_used": int(np.sum(result.seams_used)),
@@ -67,6 +68,47 @@ def synthesis_groups(source, result, components, request, fps, shards=None):
     return groups
 
 
+class _PlannedRows:
+    """The rows a cluster run's workers will store, one piece per batch ``batches`` [(batch id,
+    count)]: what the output's virtual datasets will map (``runs``, as ``StoredRows`` gives)."""
+
+    def __init__(self, batches, tail):
+        self.batches, self.shape = list(batches), (sum(n for _, n in batches),) + tuple(tail)
+
+    def runs(self):
+        starts = np.cumsum([0] + [n for _, n in self.batches])
+        return [(f"batch_{b:06d}.h5", n, 0, int(at), n) for (b, n), at in zip(self.batches, starts)]
+
+
+def planned_bytes(source, request, components, bones, fps, batches=None):
+    """(bytes of the output file, bytes of the shards still to write) of a synthesis of
+    ``request`` (count, frames) over ``components`` (each with ``bones``) of a ``bones``-bone skin,
+    before any of it is made. The output's is :func:`~.model.estimated_bytes` of
+    :func:`synthesis_groups` itself, for a stand-in result whose arrays are sized but never
+    allocated (broadcast views): the estimate ``write_model`` checks at the end, so a request
+    that passes here is not refused there. ``batches`` [(batch id, count, reused)], for a cluster
+    run: the batches whose rows the output maps (virtual rows); each one not ``reused`` (a shard an
+    earlier run finished) is a shard still to write, of :func:`~.synthesis_shards.shard_bytes`."""
+    count, frames, parts = request.count, request.frames, len(components)
+
+    def sized(shape, dtype):
+        return np.broadcast_to(np.zeros((), dtype), shape)
+
+    if batches is None:
+        F, t = sized((count, frames, bones, 3, 3), np.float32), sized((count, frames, bones, 3), np.float32)
+    else:  # the output maps every batch's rows, reused or not
+        layout = [(b, n) for b, n, _ in batches]
+        F, t = _PlannedRows(layout, (frames, bones, 3, 3)), _PlannedRows(layout, (frames, bones, 3))
+    result = types.SimpleNamespace(
+        F=F, t=t, sources=sized((parts, count, frames), np.int32), seams_used=sized((count,), np.int64),
+        distinct=count, rejected=dict.fromkeys(("collisions", "too_similar", "merges"), 0),
+        statistics={key: np.zeros(parts) for key in ("coverage", "mean_segment_frames", "shortest_segment")})
+    output = estimated_bytes(synthesis_groups(source, result, components, request, fps,
+                                              shards=None if batches is None else "shards"))
+    shards = sum(shard_bytes(n, frames, bones, parts) for _, n, reused in (batches or ()) if not reused)
+    return output, shards
+
+
 
 @contextlib.contextmanager
 def open_motions(path):
@@ -84,7 +126,19 @@ def open_motions(path):
         yield motions
 
 
-def read_sources(path):
-    """sources (C, N, M) int64 of a synthesis file: the input frame each component plays."""
+def read_sources(path, animations=None):
+    """sources (C, N, M) int64 of a synthesis file: the input frame each component plays; with
+    ``animations`` (indices below N) only theirs, (C, len(animations), M), read one animation at
+    a time (the sources of 10⁶ animations of 600 frames are 2.4 GB per component)."""
     with h5py.File(path, "r") as f:
-        return np.asarray(f["synthesis"]["sources"][()], dtype=np.int64)
+        sources = f["synthesis"]["sources"]
+        if animations is None:
+            return np.asarray(sources[()], dtype=np.int64)
+        return np.stack([np.asarray(sources[:, a], dtype=np.int64) for a in animations], axis=1)
+
+
+def synthesis_count(path):
+    """The number of animations a synthesis file holds (its sources' second axis), read from the
+    dataset's shape alone."""
+    with h5py.File(path, "r") as f:
+        return int(f["synthesis"]["sources"].shape[1])

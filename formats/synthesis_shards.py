@@ -67,6 +67,14 @@ def _key(record, batch, count):
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+def shard_bytes(count, frames, bones, components):
+    """An upper bound of one shard's size: ``count`` animations of ``frames`` frames, their bone
+    motions (float32 3×3 + 3 per bone) and walks (sources and choice, int64 per component), plus
+    1 MiB of HDF5 structure. What the worker checks the free space against, and ``synthesize``
+    sums over the batches before any work."""
+    return 4 * 12 * count * frames * bones + 8 * components * count * (frames + 1) + (1 << 20)
+
+
 def write_synthesis_shard(folder, record, batch, count, outcome):
     """Write one batch (``outcome`` = [F, t, sources, choice, rejected] from
     ``pipeline.synthesis.make_batch``) to its shard in ``folder``; returns the file's name."""
@@ -74,7 +82,8 @@ def write_synthesis_shard(folder, record, batch, count, outcome):
     name = f"batch_{int(batch):06d}_{key[:16]}.h5"
     F, t, sources, choice, rejected = outcome
     path = os.path.join(folder, name)
-    with atomic_output(path, expected_bytes=F.nbytes + t.nbytes + (1 << 20)) as tmp:
+    frames, bones = np.shape(t)[1:3]
+    with atomic_output(path, expected_bytes=shard_bytes(len(t), frames, bones, np.shape(sources)[0])) as tmp:
         with h5py.File(tmp, "w", track_order=True) as f:
             f.attrs.update(format=SHARD_FORMAT, shard_version=SHARD_VERSION, batch=int(batch), count=int(count),
                            key=key, provenance=json.dumps(dict(record, batch=int(batch), count=int(count)),

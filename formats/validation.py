@@ -38,14 +38,17 @@ def _size(bound, dims):
 
 def check_group(path, group, data, fields, dims):
     """Check ``data`` (a dict of arrays, as read) against ``fields`` {name: Field}; ``dims`` (a
-    dict, updated) binds the shape symbols. Raises FormatError naming ``path`` and the dataset."""
+    dict, updated) binds the shape symbols. Raises FormatError naming ``path`` and the dataset.
+    A value may also be a dataset read block by block (it has ``all_finite``:
+    :class:`~skinsynth.formats.hdf5_storage.DatasetSummary`): the same checks, verdicts and
+    messages, from its shape, dtype, smallest and largest value."""
     for name, field in fields.items():
         where = f"/{group}/{name}"
         if name not in data:
             if field.optional:
                 continue
             raise FormatError(path, f"{where} is missing: the file is incomplete")
-        value = np.asarray(data[name])
+        value = data[name] if hasattr(data[name], "all_finite") else np.asarray(data[name])
         if value.dtype.kind not in _KINDS[field.kind] and not (field.kind == "bool" and value.dtype.kind in "iu"):
             raise FormatError(path, f"{where} must hold {field.kind} values, not {value.dtype}")
         if value.ndim != len(field.shape):
@@ -61,7 +64,7 @@ def check_group(path, group, data, fields, dims):
                                         f"{want} = {_size(want, dims)} on axis {axis} (from the file's other datasets)")
         if value.size == 0:
             continue
-        if field.kind == "float" and field.finite and not np.isfinite(value).all():
+        if field.kind == "float" and field.finite and not _all_finite(value):
             raise FormatError(path, f"{where} holds NaN or inf values")
         if field.low is not None and value.min() < _size(field.low, dims):
             raise FormatError(path, f"{where} holds {value.min()}, below its lowest allowed value "
@@ -72,6 +75,10 @@ def check_group(path, group, data, fields, dims):
                 raise FormatError(path, f"{where} holds {value.max()}, outside the {_MEANING[field.high]} "
                                         f"({high}: 0..{high - 1})")
             raise FormatError(path, f"{where} holds {value.max()}, not below {field.high} = {high}")
+
+
+def _all_finite(value):
+    return value.all_finite() if hasattr(value, "all_finite") else bool(np.isfinite(value).all())
 
 
 def check_attribute(path, group, data, name, kind, low=None, high=None, choices=None, optional=True):

@@ -212,6 +212,35 @@ def test_a_bad_cluster_address_is_one_line_and_leaves_nothing(graph, tmp_path, a
                       address, needle, folder=tmp_path)
 
 
+def test_shards_larger_than_the_free_disk_are_refused_before_any_batch_and_reused_ones_count_for_nothing(
+        graph, reference, scheduler, tmp_path, monkeypatch):
+    """Issue 25: the shards and the output, estimated from the request's shapes, against the shard
+    folder's free space (one disk here: they add up), before any batch runs; on a rerun the shards
+    an earlier run finished need no space."""
+    import shutil
+
+    from skinsynth.formats.synthesis_shards import shard_bytes
+
+    out = tmp_path / "many.h5"
+    usage = shutil.disk_usage
+    with h5py.File(graph) as f:
+        components = int(f["graph"].attrs["components"])
+    one_shard = shard_bytes(250, FRAMES, 4, components)
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(path)._replace(free=2 * one_shard))
+    line = assert_user_error(cli("synthesize", graph, "-o", out, "-n", COUNT, "-m", FRAMES, "--seed", 4, "--cluster",
+                                 scheduler.scheduler_address), "not enough space", f"of disk in {tmp_path} ",
+                             f"its shards {(2 * one_shard + shard_bytes(100, FRAMES, 4, components)) / 2 ** 20:.1f} MiB "
+                             f"in {out}.shards", f"{2 * one_shard / 2 ** 20:.1f} MiB is free", folder=tmp_path)
+    assert "the output" in line
+    monkeypatch.setattr(shutil, "disk_usage", usage)
+    run_cluster(graph, out, scheduler.scheduler_address)
+    os.remove(out)
+    os.remove(shards_of(out)[0])  # an interruption: one batch of 250 left to make
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(path)._replace(free=2 * one_shard))
+    summary = run_cluster(graph, out, scheduler.scheduler_address)
+    assert summary["cluster"]["reused_batches"] == 2 and contents(out) == contents(reference)
+
+
 def test_content_digests_see_values_not_storage(tmp_path):
     from skinsynth.formats.model import Uncompressed, write_model
 

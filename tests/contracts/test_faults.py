@@ -123,6 +123,55 @@ def test_a_full_disk_is_one_line_and_leaves_nothing(chain, full_disk, tmp_path):
         assert_folder_holds(full_disk)  # no output, no temporary
 
 
+def _free_space(monkeypatch, free):
+    """Every disk seems to have ``free`` bytes free (shutil.disk_usage, in-process)."""
+    import shutil
+
+    usage = shutil.disk_usage
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(path)._replace(free=free))
+
+
+def _no_synthesis(monkeypatch):
+    """synthesize's animations are never made (the refusal must come first)."""
+    def made(*args, **kwargs):
+        raise AssertionError("the animations were made before the refusal")
+
+    import skinsynth.pipeline.synthesis.synthesis as synthesis
+
+    monkeypatch.setattr(synthesis, "synthesize", made)
+    monkeypatch.setattr("skinsynth.pipeline.synthesis.synthesize", made, raising=False)
+
+
+def test_an_output_larger_than_the_free_disk_is_refused_before_any_work(chain, tmp_path, monkeypatch):
+    """Issue 25: ``synthesize -n 1000 -m 600`` to a 64 MB disk computed for 11 s, then said "not
+    enough space". The estimate the write checks, made from the request's shapes, is checked
+    against the output folder's free space at once: one line naming both and the folder."""
+    out = tmp_path / "out"
+    out.mkdir()
+    _free_space(monkeypatch, 64 << 20)
+    _no_synthesis(monkeypatch)
+    line = assert_user_error(cli("synthesize", chain / "graph.h5", "-o", out / "b.h5", "-n", 1000, "-m", 600),
+                             "not enough space", "1000 animations × 600 frames", f"of disk in {out},",
+                             "64.0 MiB is free", folder=out)
+    needed = float(line.split("needs about ")[1].split(" MiB")[0])
+    bones = 6
+    assert needed > 1000 * 600 * bones * 48 / 2 ** 20  # the motions alone, float32
+
+
+def test_the_estimate_before_the_work_is_the_one_the_write_checks(chain, tmp_path, monkeypatch):
+    """So a request that passes the check up front is not refused after the work."""
+    import skinsynth.formats.model as model
+    import skinsynth.formats.synthesis_file as synthesis_file
+
+    planned, checked = [], []
+    plan, estimate = synthesis_file.planned_bytes, model.estimated_bytes
+    monkeypatch.setattr(synthesis_file, "planned_bytes", lambda *a, **k: planned.append(plan(*a, **k)) or planned[-1])
+    monkeypatch.setattr(model, "estimated_bytes", lambda groups: checked.append(estimate(groups)) or checked[-1])
+    assert_ok(cli("synthesize", chain / "graph.h5", "-o", tmp_path / "b.h5", "-n", 300, "-m", 50, "-q"))
+    assert planned == [(checked[-1], 0)]  # the write's own call, around those of its nested groups
+    assert checked[-1] > os.path.getsize(tmp_path / "b.h5")
+
+
 # -- folder outputs never cost the user a file (issue 27) ------------------------------------------
 
 #: Every command with a folder output: (its arguments with {dir} for the folder and {out} for its
@@ -572,6 +621,21 @@ def test_the_memory_and_disk_checks_compare_the_estimate_with_what_there_is(tmp_
         check_disk(2 ** 60, str(tmp_path), "a request")
     with pytest.raises(OptionError, match=r"needs about 5\.0 MiB of memory, and 1\.0 MiB is available"):
         check_memory(5 * 2 ** 20, "a request", available=2 ** 20)  # not "0.0 GiB"
+
+
+def test_outputs_on_one_disk_add_up_and_the_line_names_each(tmp_path, monkeypatch):
+    from skinsynth.cli.common import check_space
+    from skinsynth.pipeline.errors import OptionError
+
+    _free_space(monkeypatch, 5 << 20)
+    later = tmp_path / "out.h5.shards"  # not there yet: the disk of the folder above it
+    check_space("a request", [("the output", 2 << 20, tmp_path), ("its shards", 3 << 20, later)])  # fits exactly
+    with pytest.raises(OptionError) as refused:
+        check_space("a request", [("the output", 2 << 20, tmp_path), ("its shards", 4 << 20, later)])
+    assert str(refused.value) == (f"not enough space: a request needs about 6.0 MiB of disk in {tmp_path} (the output "
+                                  f"2.0 MiB in {tmp_path}, its shards 4.0 MiB in {later}), and 5.0 MiB is free; "
+                                  "nothing written: ask for fewer, or write elsewhere")
+    assert not later.exists()
 
 
 def test_a_preview_larger_than_memory_and_endless_transform_steps_are_refused(chain, tmp_path):

@@ -225,3 +225,28 @@ def test_writer_rejects_non_usd_extension(tmp_path):
     with pytest.raises(FormatError, match="must end in .usd"):
         write_points_cache(tmp_path / "x.abc", np.zeros((2, 3, 3)), [[0, 1, 2]], 24)
     assert os.listdir(tmp_path) == []
+
+
+def test_a_crowd_saved_as_it_is_written_holds_what_a_crowd_saved_once_holds(tmp_path, monkeypatch):
+    """Issue 25: a binary crowd's layer is saved (and lets go of its samples) every
+    SAVE_EVERY_BYTES, so a crowd of any size is written in bounded memory; what the file holds is
+    the same as a crowd saved once."""
+    import skinsynth.formats.usd as usd
+    from skinsynth.formats.usd import animated_mesh_paths, read_points_cache, write_points_characters
+
+    rng = np.random.default_rng(3)
+    crowd = rng.normal(size=(5, 7, 20, 3))
+    faces = np.array([[0, 1, 2], [2, 3, 4]])
+    write_points_characters(tmp_path / "once.usdc", crowd, faces, 24.0)
+    saves = []
+    save = usd.Sdf.Layer.Save
+    monkeypatch.setattr(usd, "SAVE_EVERY_BYTES", 7 * (20 * 12 + 48) * 2)  # every second character
+    monkeypatch.setattr(usd.Sdf.Layer, "Save", lambda layer, *a: saves.append(1) or save(layer, *a))
+    write_points_characters(tmp_path / "saved.usdc", crowd, faces, 24.0)
+    assert len(saves) == 3  # after characters 2 and 4, and at the end
+    for name in ("once.usdc", "saved.usdc"):
+        paths = animated_mesh_paths(tmp_path / name)
+        assert len(paths) == 5
+        for c, prim in enumerate(paths):
+            vertices, read_faces, fps = read_points_cache(tmp_path / name, prim)
+            assert np.array_equal(vertices, crowd[c].astype(np.float32)) and fps == 24.0
