@@ -81,14 +81,14 @@ def measure_caches(graph, work, counts, frames):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", default=None)
-    parser.add_argument("--counts", default="1000,10000", help="Animation counts, comma-separated.")
+    parser.add_argument("--counts", default="1000,10000", help="Animation counts, comma-separated ('' for none).")
     parser.add_argument("--cache-counts", default="8,32",
                         help="Animation counts for synthesize's own caches, comma-separated ('' for none).")
     parser.add_argument("--frames", type=int, default=600)
     parser.add_argument("--repeats", type=int, default=1, help="Runs of each downstream command (median time).")
     parser.add_argument("--keep", default=None, metavar="LABEL", help="Keep each command's stdout, named LABEL.")
     args = parser.parse_args()
-    counts = sorted(int(c) for c in args.counts.split(","))
+    counts = sorted(int(c) for c in args.counts.split(",") if c)
     work = args.work or tempfile.mkdtemp(prefix="skinsynth-downstream-")
     os.makedirs(work, exist_ok=True)
     graph = graph_of(work)

@@ -15,16 +15,26 @@ runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``,
 - components, transitions per component, mean segment length (output frames between seams of
   one component), coverage (the smallest share, over components, of input frames that the
   1,000 walks play; goal ≥ 0.9);
-- ground drift: ``synthesize -n 3 -m 3000``; the lowest vertex of every frame against the input's
-  range of lowest vertices, the excess as a share of the character's height (goal ≤ 0.05), and
+- ground drift and contact: ``synthesize -n 3 -m 3000``; the lowest vertex of every frame against
+  the input's range of lowest vertices, how far it goes below the input's lowest and above the
+  input's highest lowest point, each as a share of the character's height (goal ≤ 0.01 each:
+  ``lowest_below_input``, ``lowest_above_input``; ``ground_drift_over_height`` is the larger),
   the tilt of the whole mesh (the rotation of a best rigid fit to the rest pose: the angle
-  between its image of the up axis and the up axis) against the input's largest tilt, in degrees.
+  between its image of the up axis and the up axis) against the input's largest tilt, in
+  degrees, and foot sliding: the horizontal speed (units per frame) of the vertices in contact
+  (each frame's vertices within 0.5 % of the height of its lowest point), median and 95th
+  percentile, for the output and for the input clip.
+
+Besides the captures, ``walker`` (``skinsynth example walker``: an articulated figure whose legs
+are components of their own) is measured too. ``--synthesize-args`` adds options to every
+``synthesize`` (e.g. ``--no-contact`` for a before/after table).
 
 Built-in procedural stand-ins run only when ../shared/data is absent.
 
 The command run is $SKINSYNTH when set (e.g. another checkout's, for a before/after table).
 
     python benchmarks/synthesize.py [--only NAME] [--mode multi_component] [--count 1000] [--frames 600]
+                                    [--synthesize-args "--no-contact"]
 """
 
 import argparse
@@ -73,6 +83,7 @@ def read_skin(path):
 
 def measure(name, spec, single, work, args):
     from skinsynth.pipeline.synthesis import walk_statistics
+    from skinsynth.pipeline.synthesis.contact import contact_speeds, foot_sliding, ground_excess, lowest_heights
 
     mode = "single_component" if single else "multi_component"
     skin_path = os.path.join(work, f"{name}.skin.h5")
@@ -85,8 +96,9 @@ def measure(name, spec, single, work, args):
         transitions = [int(f[f"graph/{k}/transitions"].shape[0]) for k in names]
     line = {"dataset": name, "mode": mode, "components": len(names), "transitions": transitions}
     out = os.path.join(work, f"{name}.{mode}.bones.h5")
+    extra = args.synthesize_args.split()
     seconds, peak, worker, _ = run(["synthesize", graph_path, "-o", out, "-n", str(args.count), "-m",
-                                    str(args.frames), "--seed", "0", "-q"], work)
+                                    str(args.frames), "--seed", "0", "-q", *extra], work)
     line.update(seconds=round(seconds, 2), peak_rss_mib=round(peak), peak_rss_second_process_mib=round(worker))
     skin = read_skin(skin_path)
     examples = skin["examples"]
@@ -109,20 +121,25 @@ def measure(name, spec, single, work, args):
 
     long_out = os.path.join(work, f"{name}.{mode}.long.h5")
     run(["synthesize", graph_path, "-o", long_out, "-n", str(args.long_count), "-m", str(args.long_frames),
-         "--seed", "0", "-q"], work)
+         "--seed", "0", "-q", *extra], work)
     low_in = examples[..., UP].min(axis=1)
     height = float(np.ptp(skin["rest"][:, UP]))
     subset = np.linspace(0, skin["rest"].shape[0] - 1, min(2000, skin["rest"].shape[0])).astype(int)
     tilt_in = rigid_tilt(skin["rest"][subset], examples[:, subset])
-    excess, tilt_excess = 0.0, 0.0
+    below, above, tilt_excess, speeds = 0.0, 0.0, 0.0, []
     with h5py.File(long_out, "r") as f:
         for a in range(f["synthesis/sources"].shape[1]):
             v = bake(skin, f["synthesis/bone_matrices"][a], f["synthesis/bone_translations"][a])
-            low = v[..., UP].min(axis=1)
-            excess = max(excess, float(np.max(np.maximum(low_in.min() - low, low - low_in.max()))))
+            b, u = ground_excess(lowest_heights(v, UP), low_in, height)
+            below, above = max(below, b), max(above, u)
             tilt_excess = max(tilt_excess, float(rigid_tilt(skin["rest"][subset], v[:, subset]).max() - tilt_in.max()))
+            speeds.append(contact_speeds(v, UP, height=height))
     os.remove(long_out)
-    line["ground_drift_over_height"] = round(max(excess, 0.0) / height, 4)
+    line["lowest_below_input"], line["lowest_above_input"] = round(below, 4), round(above, 4)
+    line["ground_drift_over_height"] = round(max(below, above), 4)
+    line["sliding_median_p95"] = [round(x, 5) for x in foot_sliding(np.concatenate(speeds))]
+    line["input_sliding_median_p95"] = [round(x, 5) for x in foot_sliding(contact_speeds(examples, UP,
+                                                                                            height=height))]
     line["tilt_beyond_input_deg"] = round(max(tilt_excess, 0.0), 2)
     line["long_animations"] = f"{args.long_count} x {args.long_frames}"
     return line
@@ -138,11 +155,15 @@ def main():
     parser.add_argument("--long-count", type=int, default=3)
     parser.add_argument("--long-frames", type=int, default=3000)
     parser.add_argument("--work", default=None, help="folder kept between runs (skin fits are reused)")
+    parser.add_argument("--synthesize-args", default="", help="more options for every synthesize")
     args = parser.parse_args()
     work = args.work or tempfile.mkdtemp(prefix="skinsynth_bench_")
     os.makedirs(work, exist_ok=True)
     work = str(pathlib.Path(work).resolve())
-    for name, spec in captures(work):
+    walker = os.path.join(work, "walker.npz")
+    if not os.path.exists(walker) and (not args.only or args.only == "walker"):
+        run(["example", "walker", "-o", walker, "-q"], work)
+    for name, spec in list(captures(work)) + [("walker", walker)]:
         if args.only and args.only != name:
             continue
         for single in (False, True):

@@ -4,16 +4,22 @@ import click
 
 from .common import check_memory, report, summary_options, check_output_path, fail, user_errors
 
-EXAMPLES = ("bending-bar",)
+EXAMPLES = ("bending-bar", "walker")
+
+#: Each example's defaults for the options that default per example.
+DEFAULTS = {"bending-bar": {"frames": 60, "rings": 40, "segments": 16, "cycles": 1},
+            "walker": {"frames": 48, "rings": 24, "segments": 10, "cycles": 2}}
 
 
 @click.command("example")
 @click.argument("name", type=click.Choice(EXAMPLES))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Sequence file to write (.npz).")
-@click.option("--frames", default=60, show_default=True, type=int, help="Number of frames.")
-@click.option("--rings", default=40, show_default=True, type=int, help="Vertex rings along the bar.")
-@click.option("--segments", default=16, show_default=True, type=int, help="Vertices around each ring.")
-@click.option("--cycles", default=1, show_default=True, type=int, help="Bend-and-twist cycles over the frames.")
+@click.option("--frames", type=int, show_default="bending-bar 60, walker 48", help="Number of frames.")
+@click.option("--rings", type=int, show_default="bending-bar 40, walker 24",
+              help="Vertex rings along the bar (walker: along each leg; its other tubes as many per unit length).")
+@click.option("--segments", type=int, show_default="bending-bar 16, walker 10", help="Vertices around each ring.")
+@click.option("--cycles", type=int, show_default="bending-bar 1, walker 2",
+              help="Bend-and-twist cycles (walker: gait cycles) over the frames.")
 @click.option("--fps", default=24.0, show_default=True, type=click.FloatRange(min=0.0, min_open=True, max=1e6), help="Frame rate stored with the sequence.")
 @summary_options
 @user_errors
@@ -23,19 +29,42 @@ def example(name, output, frames, rings, segments, cycles, fps, quiet, as_json):
     bending-bar: a capped cylinder that bends into an arc and twists over one cycle, the kind of
     example of Feng et al. 2008 Table 1; its deformation is smooth but not itself skinned.
 
+    walker: an articulated figure (1.75 units tall, Y up, nine tubes in one mesh: chest, pelvis,
+    head, legs, feet, arms) walking in place: the legs swing in antiphase, the stance foot stays
+    on the ground (y = 0) while the other swings above it, the pelvis bobs, the arms swing
+    opposite to the legs. Ten skinned parts with soft knees; the limbs hang from the torso by weak
+    ties, so build-graph gives each leg a bone component of its own (fit it with 10 bones, one
+    per part, or 12 for some slack). --rings counts the rings along a leg (the other tubes get as
+    many per unit length). The default is two gait cycles in 48 frames (1 s a cycle at 24 fps),
+    1,248 vertices; a whole number of cycles loops.
+
     \b
     Example:
       skinsynth example bending-bar -o bar.npz --frames 120
       skinsynth fit-skin bar.npz -o bar.skin.h5 --bones 8
+      skinsynth example walker -o walker.npz
+      skinsynth fit-skin walker.npz -o walker.skin.h5 --bones 12
     """
     from skinsynth.formats.meshseq import write_array_sequence
-    from skinsynth.pipeline.examples import bending_bar
+    from skinsynth.pipeline.examples import bending_bar, walker
 
+    defaults = DEFAULTS[name]
+    frames = defaults["frames"] if frames is None else frames
+    rings = defaults["rings"] if rings is None else rings
+    segments = defaults["segments"] if segments is None else segments
+    cycles = defaults["cycles"] if cycles is None else cycles
     check_output_path(output, (".npz",))
     if frames < 2 or rings < 2 or segments < 3 or cycles < 1 or not fps > 0:
         fail("--frames and --rings must be at least 2, --segments at least 3, --cycles at least 1, --fps positive")
-    check_memory(frames * (rings * segments + 2) * 3 * 8 * 3, f"{frames} frames of {rings} × {segments} vertices")
-    vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
+    if name == "walker":
+        # Nine tubes: the legs have ``rings`` rings each, the other seven together about 3.1 × as
+        # many (at least 4 each), two cap centres each; per-part temporaries come on top.
+        vertex_count = (6 * rings + 32) * segments + 18
+        check_memory(frames * vertex_count * 3 * 8 * 4, f"{frames} frames of up to {vertex_count} vertices")
+        vertices, faces = walker(frames=frames, cycles=cycles, rings=rings, segments=segments)
+    else:
+        check_memory(frames * (rings * segments + 2) * 3 * 8 * 3, f"{frames} frames of {rings} × {segments} vertices")
+        vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
     write_array_sequence(output, vertices, faces, fps)
     report({"output": output, "name": name, "frames": frames, "vertices": int(vertices.shape[1]), "fps": fps},
            [f"wrote {output}: {name}, {frames} frames, {vertices.shape[1]} vertices"], as_json, quiet)

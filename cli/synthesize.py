@@ -56,6 +56,11 @@ def _target(text):
 @click.option("--spread-velocity/--no-spread-velocity", default=True, show_default=True,
               help="Spread each transition's velocity jump evenly over its blend window (off: Zheng's plain "
                    "guidance, the input's own accelerations).")
+@click.option("--contact/--no-contact", default=True, show_default=True,
+              help="Keep the input's support: where a frame's lowest point would leave the input's own range of "
+                   "lowest points (components whose walks combine leg poses the clip never has: floating, or a "
+                   "foot through the floor), move the whole character vertically back into it, smoothly over a "
+                   "few frames; nothing moves where it stays in range.")
 @click.option("--usd", "usd_dir", type=click.Path(file_okay=False), default=None, help="Also write one USD point cache per animation here.")
 @click.option("--crowd", type=click.Path(dir_okay=False), default=None, help="Also write one USD stage with every animation on a grid.")
 @click.option("--gltf", type=click.Path(dir_okay=False), default=None, metavar="FILE.glb",
@@ -85,7 +90,8 @@ def _target(text):
 @summary_options
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
-               min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, usd_dir, crowd, gltf, root_motion, exr_dir, half,
+               min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, contact,
+               usd_dir, crowd, gltf, root_motion, exr_dir, half,
                max_width, up_axis, plot_dir, plot_count, device, jobs, cluster, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
@@ -144,7 +150,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         request = Request(count=count, frames=frames, seed=seed, targets=list(targets), start=start_frame,
                           end=end_frame, min_difference=min_difference, window=window, spread_velocity=spread_velocity,
                           cut_damping=cut_damping, min_segment=min_segment, blend=blend, alignment=alignment,
-                          up_axis=1 if up_axis == "Y" else 2)
+                          up_axis=1 if up_axis == "Y" else 2, contact=contact)
         validate_request(request, skin.rotations.shape[0])
         # the bone motions (float32 3×3 + 3 per bone) and sources (int32 per component), in memory
         # (on a cluster, in the shards on disk): refused before any is allocated; then the output
@@ -166,7 +172,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,
                           min_difference=min_difference, single_component=single_component, window=window,
                           spread_velocity=spread_velocity, cut_damping=cut_damping, min_segment=min_segment,
-                          blend=blend, alignment=alignment, up_axis=up_axis)
+                          blend=blend, alignment=alignment, up_axis=up_axis, contact=contact)
         record = provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(),
                                    seed)
         shards = run_shards(output, record, frames, skin.rotations.shape[1], BATCH_REVISION) if cluster else None

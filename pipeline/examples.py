@@ -5,6 +5,10 @@
   LBS model, so a fit has real work to do.
 - :func:`synthetic_lbs`: an exact LBS animation with known rigid bones and sparse weights, the
   closed-form truth a skinning fit must recover.
+- :func:`walker`: an articulated figure (nine tubes in one mesh, ten skinned parts) walking in
+  place: vertices (F, V, 3), faces (T, 3), Y up, the stance foot on y = 0. Its limbs hang from
+  the torso by weak skin ties, so a fit's bone graph gives each leg a component of its own: the
+  case where components' independent walks combine leg poses that never occur together.
 """
 
 import numpy as np
@@ -131,4 +135,158 @@ def articulated_tube(frames=160, rings=120, segments=12, joints=4, length=8.0, r
     offset = rest.copy()
     offset[:, 0] = 0.0
     vertices = centre_line[:, ring_of] + np.einsum("fvab,vb->fva", frame[:, ring_of], offset)
+    return vertices, faces
+
+
+def _smoothstep(x):
+    """0 below 0, 1 above 1, 3x² − 2x³ between: a C¹ ramp."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _tube(start, direction, length, radius, rings, segments):
+    """A closed tube (:func:`cylinder_mesh`) from ``start`` along the unit ``direction``:
+    (vertices (V, 3), faces (T, 3), s (V,) the distance along the axis from ``start``)."""
+    local, faces = cylinder_mesh(rings, segments, length, radius)
+    d = np.asarray(direction, dtype=np.float64)
+    side = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = side - (side @ d) * d
+    e1 /= np.linalg.norm(e1)
+    frame = np.stack([d, e1, np.cross(d, e1)], axis=1)  # a proper rotation: the faces keep facing out
+    return local @ frame.T + np.asarray(start, dtype=np.float64), faces, local[:, 0]
+
+
+def _rotation(axis, angle):
+    """Rotations (F, 3, 3) about the coordinate axis ``axis`` (0, 1, 2: x, y, z) by ``angle`` (F,) radians."""
+    angle = np.asarray(angle, dtype=np.float64)
+    vector = np.zeros(angle.shape + (3,))
+    vector[..., axis] = angle
+    return rotation_exp(vector)
+
+
+#: The walker's rigid parts (its true bones), parents first, in the order of its skinning weights.
+WALKER_PARTS = ("pelvis", "chest", "thigh_l", "shin_l", "foot_l", "thigh_r", "shin_r", "foot_r", "arm_l", "arm_r")
+
+
+def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, stance=0.6, arm_swing=0.4,
+           blend=0.05, coupling=0.1, start=0.0):
+    """An articulated figure walking in place (as on a treadmill): ``cycles`` gait cycles over ``frames``.
+
+    Returns (vertices (F, V, 3) float64, faces (T, 3) int64): metres, Y up, facing +z, about 1.75
+    tall, its lowest point on y = 0 in every frame. Nine closed tubes in one mesh (multi-shell,
+    in this order): chest, pelvis, head, then per side (left, +x, first) a leg from hip to ankle,
+    a foot and an arm; ``segments`` vertices around each tube, ``rings`` rings along a leg and as
+    many per metre along the others (at least 4). The defaults give 1,248 vertices. Ten rigid
+    parts (:data:`WALKER_PARTS`) drive them by linear blend skinning. Inside a leg the thigh's and
+    the shin's weights cross over smoothly at the knee (a C¹ ramp ``blend`` metres either side),
+    as a real skin does. Where a tube hangs from a part of another (the pelvis tube from the
+    chest, a leg from the pelvis, a foot from its shin, an arm from the chest) its last ``blend``
+    metres also follow that part, with weight ``coupling`` at the end fading to 0: a weak tie, so that
+    the bone graph of a skinning fit (Zheng eq. 11, weak edges pruned) keeps the limbs apart and
+    ``build-graph`` gives each leg a component of its own. The head is rigid with the chest.
+
+    The gait, per leg, the right half a cycle after the left; phase 0 (``start``, in cycles, is
+    frame 0's) is the left heel strike. In stance (the first ``stance`` of the cycle) the hip
+    extends from ``+stride`` to ``−stride`` radians, the foot level on the ground sliding back,
+    the knee giving a little after heel strike; in swing the hip flexes back, the knee bends up to
+    ``knee`` radians at mid-swing, the thigh swings a little out and the toes drop at push-off.
+    The pelvis turns, sways over the stance foot and drops on the swing side; the chest turns and
+    leans against it; the arms swing ``arm_swing`` radians opposite to the legs. Then the whole
+    figure is raised so that its lowest point lies on y = 0 in every frame: the stance foot stays
+    on the ground while the other swings above it (up to about 0.23 at the defaults), and the
+    pelvis bobs (about 0.05), lowest at double support (both feet down, legs spread) and highest
+    at mid-stance (stance leg upright). Frame ``frames / cycles`` repeats frame 0, so a whole
+    number of cycles loops; the default two cycles in 48 frames (1 s a cycle at 24 fps) also
+    repeat inside the clip, which gives every bone component exact transitions. At ``start`` 0
+    frame 0 has both knees straight, so a fit whose rest pose is frame 0 sees no bent skin blend
+    and finds the parts with little stray weight: measured, ``fit-skin --bones 12`` (10 parts and
+    some slack) then ``build-graph`` split each leg off for every fit seed 0–9 at the default and
+    at a coarse resolution; ``--bones 10`` for 17 of those 20.
+    """
+    hip_y, knee_y, ankle_y, waist_y, shoulder_y, hand_y = 0.92, 0.5, 0.08, 1.12, 1.45, 0.87
+    hip_x, shoulder_x = 0.1, 0.21
+    joint = {"pelvis": (None, (0.0, hip_y, 0.0)), "chest": ("pelvis", (0.0, waist_y, 0.0))}
+    for side, x in (("l", 1.0), ("r", -1.0)):
+        joint.update({f"thigh_{side}": ("pelvis", (x * hip_x, hip_y, 0.0)),
+                      f"shin_{side}": (f"thigh_{side}", (x * hip_x, knee_y, 0.0)),
+                      f"foot_{side}": (f"shin_{side}", (x * hip_x, ankle_y, 0.0)),
+                      f"arm_{side}": ("chest", (x * shoulder_x, shoulder_y, 0.0))})
+
+    # The rest pose (legs straight, arms down): tubes and their weights (V, parts).
+    per_metre = rings / (hip_y - ankle_y)
+    down, ahead = (0.0, -1.0, 0.0), (0.0, 0.0, 1.0)
+    tubes = []  # (vertices, faces, weights)
+
+    def tube(origin, direction, length, radius, *ramps, rings_along=None):
+        """ramps: (part, weight (V,) as a function of the distance s along the axis or None); the
+        first part takes what the others leave."""
+        count = rings_along or max(4, int(round(per_metre * length)))
+        vertices, faces, s = _tube(origin, direction, length, radius, count, segments)
+        weights = np.zeros((vertices.shape[0], len(WALKER_PARTS)))
+        for part, ramp in ramps[1:]:
+            weights[:, WALKER_PARTS.index(part)] += ramp(s)
+        weights[:, WALKER_PARTS.index(ramps[0][0])] += 1.0 - weights.sum(axis=1)
+        tubes.append((vertices, faces, weights))
+
+    def joint_ramp(at):  # 0 → 1 across a joint at distance ``at`` along a tube
+        return lambda s: _smoothstep((s - at + blend) / (2.0 * blend))
+
+    def tie(s):  # the end of a tube hanging from another part
+        return coupling * (1.0 - _smoothstep(s / blend))
+
+    # The torso: a chest tube over the top of a slightly narrower pelvis tube that hangs from it.
+    tube((0.0, 1.5, 0.0), down, 1.5 - (waist_y - 0.02), 0.15, ("chest", None))
+    tube((0.0, waist_y + 0.02, 0.0), down, waist_y + 0.02 - 0.82, 0.14, ("pelvis", None), ("chest", tie))
+    tube((0.0, 1.76, 0.0), down, 0.24, 0.09, ("chest", None))
+    for side, x in (("l", 1.0), ("r", -1.0)):
+        tube((x * hip_x, hip_y, 0.0), down, hip_y - ankle_y, 0.065, (f"thigh_{side}", None),
+             (f"shin_{side}", joint_ramp(hip_y - knee_y)), ("pelvis", tie), rings_along=rings)
+        tube((x * hip_x, 0.045, -0.06), ahead, 0.26, 0.045, (f"foot_{side}", None), (f"shin_{side}", tie))
+        tube((x * shoulder_x, shoulder_y, 0.0), down, shoulder_y - hand_y, 0.045, (f"arm_{side}", None),
+             ("chest", tie))
+    rest = np.concatenate([v for v, _, _ in tubes])
+    weights = np.concatenate([w for _, _, w in tubes])
+    offsets = np.cumsum([0] + [v.shape[0] for v, _, _ in tubes])
+    faces = np.concatenate([f + o for (_, f, _), o in zip(tubes, offsets)]).astype(np.int64)
+
+    # The gait: each part's rotation relative to its parent, per frame (F, 3, 3).
+    time = start + cycles * np.arange(frames) / frames  # in cycles
+    phi = 2.0 * np.pi * time
+    turn = np.cos(phi)  # +1 with the left leg forward
+    over = np.sin(phi - np.pi * (stance - 0.5))  # +1 over the left foot (mid left stance), −1 over the right
+    local = {"pelvis": _rotation(1, -0.15 * turn) @ _rotation(2, 0.05 * over),  # drops on the swing side
+             "chest": _rotation(2, -0.14 * over) @ _rotation(1, 0.27 * turn)}  # turns and leans against it
+    world = {}  # parts turned in the world rather than against their parent: thighs and feet
+    for side, sign, shift in (("l", 1.0, 0.0), ("r", -1.0, 0.5)):
+        cycle = np.mod(time + shift, 1.0)
+        in_stance = cycle < stance
+        u = np.clip(cycle / stance, 0.0, 1.0)  # stance progress
+        v = np.clip((cycle - stance) / (1.0 - stance), 0.0, 1.0)  # swing progress
+        forward = np.cos(np.pi * np.where(in_stance, u, 1.0 + v))  # +1 at heel strike, −1 at toe-off
+        lift = np.where(in_stance, 0.0, np.sin(np.pi * v) ** 2)  # 0 in stance, 1 at mid-swing
+        loading = np.where(in_stance, np.sin(np.pi * np.minimum(u / 0.7, 1.0)) ** 2, 0.0)  # after heel strike
+        push = np.where(in_stance, 0.0, np.maximum(0.0, np.sin(2.0 * np.pi * v)) ** 2)  # early swing
+        # The thigh swings in its own plane (not turned with the pelvis), a little out in swing.
+        world[f"thigh_{side}"] = _rotation(2, sign * 0.1 * lift) @ _rotation(0, -stride * forward)
+        local[f"shin_{side}"] = _rotation(0, 0.12 * loading + knee * lift)
+        world[f"foot_{side}"] = _rotation(0, 0.5 * push)  # level, the toes down at push-off
+        # The arm hangs a little out from the body and swings back as this side's leg goes forward.
+        local[f"arm_{side}"] = _rotation(2, sign * 0.1) @ _rotation(0, arm_swing * forward)
+    # Forward kinematics: world rotations R and joint positions p; the pelvis at its rest height,
+    # swaying 3 cm over the stance foot.
+    rot, pos = {}, {}
+    for part in WALKER_PARTS:
+        parent, at = joint[part]
+        if parent is None:
+            rot[part] = local[part]
+            pos[part] = np.stack([0.03 * over, np.full(frames, at[1]), np.zeros(frames)], axis=-1)
+            continue
+        rot[part] = world[part] if part in world else rot[parent] @ local[part]
+        pos[part] = pos[parent] + np.einsum("fab,b->fa", rot[parent], np.subtract(at, joint[parent][1]))
+    vertices = np.zeros((frames, rest.shape[0], 3))
+    for k, part in enumerate(WALKER_PARTS):  # linear blend skinning: Σ_k w_vk (R_k (v − j_k) + p_k)
+        used = weights[:, k] > 0.0
+        moved = np.einsum("fab,vb->fva", rot[part], rest[used] - joint[part][1]) + pos[part][:, None]
+        vertices[:, used] += weights[used, k][None, :, None] * moved
+    vertices[..., 1] -= vertices[..., 1].min(axis=1, keepdims=True)  # the lowest point on the ground
     return vertices, faces

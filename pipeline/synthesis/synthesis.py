@@ -20,6 +20,7 @@ import numpy as np
 
 from .assembly import assemble, cut_bones, merge_order
 from .collisions import build_obstacles, colliding, vertex_subset
+from .contact import keep_contact, support
 from .deformation_gradients import gradient_operator
 from ..errors import OptionError
 from ..execution import concatenate_rows, run_batches
@@ -33,7 +34,8 @@ MAX_ROUNDS = 20
 #: The revision of :func:`make_batch`'s output for given inputs: raised whenever a change of code
 #: changes it, so a cluster run never reuses a shard older code made (the shard key holds it).
 #: 2: replacement rounds ask for twice as many animations each round (:func:`_replacements`).
-BATCH_REVISION = 2
+#: 3: the merged rig keeps the input's support (``Request.contact``, :mod:`.contact`).
+BATCH_REVISION = 3
 
 
 def component_from_file(data, rest):
@@ -125,6 +127,7 @@ class Request:
     blend: str = "bones"
     alignment: str = "ground"
     up_axis: int = 1
+    contact: bool = True
 
 
 @dataclass
@@ -194,7 +197,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
     up = None if request.alignment == "full" else np.eye(3)[request.up_axis]
     kept_F, kept_t, kept_src, kept_choice = [], [], [], []
     rejected = {"collisions": 0, "too_similar": 0, "merges": 0}
-    need, rounds = count, 0
+    need, rounds, held = count, 0, None
     while need > 0:
         rounds += 1
         if rounds > MAX_ROUNDS:
@@ -215,6 +218,10 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             rejected["merges"] += failed
             # Output a uses walk choice[a, c] of component c: keep the walks actually used.
             sources = np.stack([sources[k, choice[:, k]] for k in range(len(components))])
+        if request.contact:  # the merged bones are final: keep the input's support (:mod:`.contact`)
+            if held is None:
+                held = support(rest, bone_indices, bone_weights, rotations, translations, request.up_axis)
+            keep_contact(F, t, held)
         ok = np.ones(tries, dtype=bool)
         if request.obstacles:
             from skinsynth.gpu import lbs_reference

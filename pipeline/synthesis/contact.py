@@ -1,0 +1,203 @@
+"""Contact with the ground across components: keep the merged rig's support (issue #25, part 2).
+
+The problem. Multi-component synthesis (:mod:`.assembly`) walks each bone component on its own
+motion graph and merges them through their cut nodes. When the legs are components of their
+own, the merge combines leg poses that never occur together: both legs mid-swing (both feet in
+the air, the body floating), or both planted while the pelvis is at its lowest (a foot pushed
+through the floor). Measured on a held-out dancer cut into 4 components: the lowest vertex went
+6–7 % of the body's height below the input's lowest point and 4–6 % above the highest lowest
+point the input ever has. Ground alignment (:mod:`.splicing`, ``up``) keeps each component's
+reference bone on the ground; it cannot see the combination.
+
+The method: a vertical root correction, after the merge. Per output frame the lowest height
+ℓ(m) along the up axis of a fixed set of support vertices (:func:`support`) is compared with the
+input's own range of lowest heights [lo, hi] (min and max over the input frames of their lowest
+height, widened by ``slack``); the whole character (every bone's translation) is moved by a
+vertical δ(m) that is zero wherever ℓ lies in the band and, where it leaves it, the smallest
+smooth shift that brings it back (:func:`contact_offsets`: the violation dilated over ``radius``
+frames, then smoothed with a raised-cosine kernel whose support fits inside the dilation, so the
+band holds exactly at every violating frame; where that lift carries a neighbour out of the band
+on the other side, a further round corrects it (at most ``rounds``, so δ is zero farther than
+rounds × 2·radius frames from any violation), and a last clip makes it exact where an upward and
+a downward need meet). Why this and not a merge that chooses among each component's candidate
+segments those that keep support: the candidates are whole walks (hundreds to thousands of
+frames), so a combination that keeps support at every frame of a 3,000-frame animation rarely
+exists among the few a merge tries, while a vertical shift always exists (the band is never
+empty), costs one small matrix product per batch, leaves the walks, seams and the eq. 12–14
+merge untouched, and moves no vertex sideways (no foot sliding added). It is the same kind of
+fix as the ground alignment (the root placed, the posture kept). Where nothing leaves the band
+δ is exactly zero and the bones are not touched, so outputs that never leave the band stay
+byte-identical.
+
+Heights are exact LBS of the support vertices (:func:`height_operator`): the height of vertex v
+is linear in the up row of each bone's (F_b, t_b), so the heights of all frames are one matrix
+product P (frames, 4B) · Q (4B, S) — no skinning of the whole mesh.
+
+Support vertices: those that come within ``band`` of the input frame's lowest point in some
+input frame (the feet, hooves, whatever carries the body), plus an evenly spaced subset of all
+vertices (so a part that never touches the ground in the input but would in a new combination
+is not missed by more than the subset's spacing). The input's own lowest vertex of every frame
+is in the set, so an output frame that plays an input pose unchanged has exactly that frame's
+lowest height.
+
+Measuring (shared by the benchmark and the tests): :func:`lowest_heights`, :func:`ground_excess`
+(how far the lowest point leaves the input's range, over the height) and :func:`foot_sliding`
+(the horizontal speed of the vertices in contact: per frame those within ``band`` of its lowest
+height, their speed to the next frame with the up component removed).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Frames over which a correction is dilated and then smoothed (each side).
+RADIUS = 8
+#: Band of support vertices (share of the height above an input frame's lowest point).
+SUPPORT_BAND = 0.01
+#: Allowed excursion beyond the input's range before anything is corrected (share of the height):
+#: the 0.1 % dips a splice makes are left alone (outputs stay byte-identical), far inside 1 %.
+SLACK = 0.002
+#: Evenly spaced vertices added to the support set.
+SPREAD = 512
+
+
+@dataclass
+class Support:
+    """vertices (S,) ids; operator (4B, S) (:func:`height_operator`); lo, hi: the allowed band of
+    lowest heights (the input's range widened by the slack); height: the rest pose's extent along
+    up; up_axis."""
+
+    vertices: np.ndarray
+    operator: np.ndarray
+    lo: float
+    hi: float
+    height: float
+    up_axis: int
+
+
+def dense_weights(bone_indices, bone_weights, bones):
+    """Sparse skin weights (V, K) -> dense (V, B)."""
+    idx = np.asarray(bone_indices, dtype=np.int64)
+    w = np.asarray(bone_weights, dtype=np.float64)
+    dense = np.zeros((idx.shape[0], bones))
+    np.add.at(dense, (np.repeat(np.arange(idx.shape[0]), idx.shape[1]), idx.ravel()), w.ravel())
+    return dense
+
+
+def height_operator(rest, weights):
+    """Q (4B, V): the height of vertex v is Σ_b w_vb (F_b[up]·x_v + t_b[up]) = P · Q[:, v], with
+    P = :func:`bone_rows` (the up rows of every bone). rest (V, 3), weights (V, B) dense."""
+    homogeneous = np.concatenate([np.asarray(rest, dtype=np.float64), np.ones((rest.shape[0], 1))], axis=1)
+    return (weights[:, :, None] * homogeneous[:, None, :]).reshape(rest.shape[0], -1).T.copy()
+
+
+def bone_rows(F, t, up_axis):
+    """(..., B, 3, 3), (..., B, 3) -> (..., 4B) float64: each bone's up row of F, then of t."""
+    rows = np.concatenate([F[..., up_axis, :], t[..., up_axis, None]], axis=-1).astype(np.float64)
+    return rows.reshape(rows.shape[:-2] + (-1,))
+
+
+def support(rest, bone_indices, bone_weights, rotations, translations, up_axis=1, band=SUPPORT_BAND, slack=SLACK,
+            spread=SPREAD):
+    """The :class:`Support` of an input clip (its LBS fit: rest (V, 3), weights (V, K), rotations
+    (F, B, 3, 3), translations (F, B, 3)): support vertices, their height operator and the band."""
+    rest = np.asarray(rest, dtype=np.float64)
+    dense = dense_weights(bone_indices, bone_weights, rotations.shape[1])
+    rows = bone_rows(rotations, translations, up_axis)  # (F, 4B)
+    heights = rows @ height_operator(rest, dense)  # (F, V)
+    lowest = heights.min(axis=1)
+    height = float(np.ptp(rest[:, up_axis])) or 1.0
+    near = np.flatnonzero((heights <= lowest[:, None] + band * height).any(axis=0))
+    even = np.linspace(0, rest.shape[0] - 1, min(spread, rest.shape[0])).astype(np.int64)
+    vertices = np.union1d(near, even)
+    return Support(vertices=vertices, operator=height_operator(rest[vertices], dense[vertices]),
+                   lo=float(lowest.min()) - slack * height, hi=float(lowest.max()) + slack * height,
+                   height=height, up_axis=int(up_axis))
+
+
+def support_lowest(F, t, found, block_bytes=1 << 26):
+    """Lowest height of the support vertices per frame: F (A, M, B, 3, 3), t (A, M, B, 3) -> (A, M)
+    float64 (blocks of animations, one matrix product each)."""
+    A, M = F.shape[:2]
+    out = np.empty((A, M))
+    step = max(1, block_bytes // max(1, 8 * M * found.operator.shape[1]))
+    for a in range(0, A, step):
+        out[a:a + step] = (bone_rows(F[a:a + step], t[a:a + step], found.up_axis) @ found.operator).min(axis=-1)
+    return out
+
+
+def _raise(need, radius):
+    """Smooth s ≥ need (A, M) ≥ 0, zero farther than 2·radius from any need: dilated over
+    ±radius, then averaged with a raised-cosine kernel of the same support."""
+    from scipy.ndimage import convolve1d, maximum_filter1d
+
+    if radius == 0:
+        return need
+    kernel = 1.0 - np.cos(2.0 * np.pi * (np.arange(2 * radius + 1) + 1.0) / (2 * radius + 2))
+    kernel /= kernel.sum()
+    return convolve1d(maximum_filter1d(need, 2 * radius + 1, axis=1, mode="nearest"), kernel, axis=1, mode="nearest")
+
+
+def contact_offsets(lowest, lo, hi, radius=RADIUS, rounds=3):
+    """δ (A, M): the vertical shift that puts lowest (A, M) + δ inside [lo, hi] at every frame,
+    zero wherever lowest already lies there and farther than ``rounds`` × 2·radius frames from
+    where it does not; smooth where the band leaves room (module notes). All animations at once."""
+    lowest = np.asarray(lowest, dtype=np.float64)
+    delta = np.zeros_like(lowest)
+    for _ in range(rounds):
+        now = lowest + delta
+        up, down = np.maximum(lo - now, 0.0), np.maximum(now - hi, 0.0)
+        if not (up.any() or down.any()):
+            return delta
+        delta = delta + _raise(up, radius) - _raise(down, radius)
+    return np.clip(delta, lo - lowest, hi - lowest)
+
+
+def keep_contact(F, t, found, radius=RADIUS):
+    """Move each frame of F (A, M, B, 3, 3), t (A, M, B, 3) vertically so that its support keeps
+    the input's range (:func:`contact_offsets`); t is changed in place, and only at the frames
+    whose shift is not zero. Returns δ (A, M)."""
+    delta = contact_offsets(support_lowest(F, t, found), found.lo, found.hi, radius)
+    rows, frames = np.nonzero(delta)
+    if rows.size:
+        t[rows, frames, :, found.up_axis] += delta[rows, frames, None].astype(t.dtype)
+    return delta
+
+
+# --- measuring ---------------------------------------------------------------------------------
+
+
+def lowest_heights(vertices, up_axis=1):
+    """vertices (..., M, V, 3) -> (..., M): the lowest height per frame."""
+    return np.asarray(vertices)[..., up_axis].min(axis=-1)
+
+
+def ground_excess(lowest, lowest_input, height):
+    """(below, above): how far lowest (any shape) goes below min(lowest_input) and above
+    max(lowest_input), each ≥ 0, as shares of ``height``."""
+    lowest, lowest_input = np.asarray(lowest), np.asarray(lowest_input)
+    below = max(0.0, float(lowest_input.min() - lowest.min())) / height
+    above = max(0.0, float(lowest.max() - lowest_input.max())) / height
+    return below, above
+
+
+def contact_speeds(vertices, up_axis=1, band=0.005, height=None):
+    """Horizontal speeds (per frame) of the vertices in contact: at each frame m < M−1 of vertices
+    (M, V, 3), those within ``band`` × height of the frame's lowest height, their displacement
+    to frame m+1 with the up component removed. Returns a flat array."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    if height is None:
+        height = float(np.ptp(vertices[0, :, up_axis]))
+    h = vertices[:-1, :, up_axis]
+    contact = h <= h.min(axis=1, keepdims=True) + band * height
+    step = vertices[1:] - vertices[:-1]
+    step[..., up_axis] = 0.0
+    return np.linalg.norm(step, axis=-1)[contact]
+
+
+def foot_sliding(speeds):
+    """(median, 95th percentile) of contact speeds (:func:`contact_speeds`)."""
+    speeds = np.asarray(speeds)
+    if speeds.size == 0:
+        return 0.0, 0.0
+    return float(np.median(speeds)), float(np.percentile(speeds, 95))

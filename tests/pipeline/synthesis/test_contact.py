@@ -1,0 +1,112 @@
+"""The merged rig keeps the input's support (issue 25, part 2): pipeline.synthesis.contact against
+brute force (LBS of every vertex) and its properties (the band holds at every frame, nothing moves
+where nothing leaves it, the shift is vertical and smooth)."""
+
+import numpy as np
+import pytest
+
+from skinsynth.gpu import lbs_reference
+from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.synthesis.contact import (contact_offsets, contact_speeds, dense_weights, foot_sliding,
+                                                  ground_excess, height_operator, keep_contact, lowest_heights,
+                                                  support, support_lowest)
+
+from rigs import random_skin
+
+
+def _animation(rng, frames, bones, scale=0.3):
+    return rotation_exp(rng.normal(scale=scale, size=(frames, bones, 3))), rng.normal(size=(frames, bones, 3))
+
+
+def _smooth_animation(rng, frames, bones):
+    """A cycle: each bone turning and moving sinusoidally (frames, bones, 3, 3), (frames, bones, 3)."""
+    phase = 2 * np.pi * np.arange(frames)[:, None, None] / frames
+    axes, offsets, sway = rng.normal(scale=0.3, size=(bones, 3)), rng.normal(size=(bones, 3)), rng.normal(size=(bones, 3))
+    return rotation_exp(axes * np.sin(phase)), offsets + 0.2 * sway * np.cos(phase)
+
+
+@pytest.mark.parametrize("up_axis", [1, 2])
+def test_heights_by_the_operator_are_the_lbs_heights(up_axis):
+    rng = np.random.default_rng(0)
+    rest, idx, w = random_skin(rng, 60, 5, 3)  # padding slots: index −1, weight 0
+    F, t = _animation(rng, 7, 5)
+    heights = np.concatenate([F[..., up_axis, :], t[..., up_axis, None]], -1).reshape(7, -1) \
+        @ height_operator(rest, dense_weights(idx, w, 5))
+    assert np.allclose(heights, lbs_reference(rest, idx, w, F, t)[..., up_axis], atol=1e-12)
+
+
+def test_the_band_is_the_inputs_range_of_lowest_points_and_its_lowest_vertices_are_supports():
+    rng = np.random.default_rng(1)
+    rest, idx, w = random_skin(rng, 300, 6, 3)
+    F, t = _animation(rng, 9, 6)
+    found = support(rest, idx, w, F, t, up_axis=1, slack=0.0, spread=10)
+    lowest = lbs_reference(rest, idx, w, F, t)[..., 1].min(axis=1)
+    assert found.lo == pytest.approx(lowest.min()) and found.hi == pytest.approx(lowest.max())
+    # every input frame's lowest vertex is a support: the input itself is measured exactly
+    assert np.allclose(support_lowest(F[None], t[None], found)[0], lowest, atol=1e-12)
+    assert len(found.vertices) < rest.shape[0]
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_offsets_put_every_frame_in_the_band_and_are_zero_far_from_where_it_leaves(seed):
+    rng = np.random.default_rng(seed)
+    lowest = np.cumsum(rng.normal(scale=0.05, size=(4, 400)), axis=1)  # wanders out and back
+    lo, hi, radius = -0.3, 0.2, 6
+    delta = contact_offsets(lowest, lo, hi, radius=radius)
+    corrected = lowest + delta
+    assert np.all(corrected >= lo - 1e-12) and np.all(corrected <= hi + 1e-12)
+    outside = (lowest < lo) | (lowest > hi)
+    assert outside.any()
+    reach = 3 * 2 * radius  # 3 rounds, each spreading 2·radius frames further
+    near = np.zeros_like(outside)
+    for shift in range(-reach, reach + 1):
+        near[:, max(0, shift):400 + min(0, shift)] |= outside[:, max(0, -shift):400 - max(0, shift)]
+    assert np.all(delta[~near] == 0.0) and (~near).any()
+
+
+def test_a_dip_through_the_floor_is_lifted_smoothly_where_the_band_leaves_room():
+    frames = np.arange(200)
+    lowest = (-0.5 * np.exp(-((frames - 100) / 6.0) ** 2))[None]  # a foot pushed 0.4 through the floor
+    delta = contact_offsets(lowest, -0.1, 0.6, radius=8)[0]
+    corrected = lowest[0] + delta
+    assert corrected.min() == pytest.approx(-0.1) and np.all(delta >= 0.0)  # lifted just enough, never pushed down
+    # spread over the window: smoother than the dip itself
+    assert np.max(np.abs(np.diff(delta, 2))) < 0.5 * np.max(np.abs(np.diff(lowest[0], 2)))
+    violating = np.flatnonzero(lowest[0] < -0.1)
+    moved = np.flatnonzero(delta)
+    assert moved[0] >= violating[0] - 16 and moved[-1] <= violating[-1] + 16
+
+
+def test_keep_contact_moves_only_the_up_translation_and_only_where_needed():
+    rng = np.random.default_rng(2)
+    rest, idx, w = random_skin(rng, 200, 4, 2)
+    F, t = _smooth_animation(rng, 120, 4)
+    found = support(rest, idx, w, F, t, up_axis=1)
+    # the input itself stays in its band: nothing changes, bit for bit
+    F1, t1 = F[None].astype(np.float32), t[None].astype(np.float32)
+    kept = t1.copy()
+    assert not keep_contact(F1, t1, found).any() and np.array_equal(t1, kept)
+    # the whole character sunk by a quarter of its height over frames 60..69: raised back
+    sunk = t1.copy()
+    sunk[0, 60:70, :, 1] -= 0.25 * found.height
+    before = sunk.copy()
+    delta = keep_contact(F1, sunk, found)
+    assert np.array_equal(sunk[..., [0, 2]], before[..., [0, 2]])  # no sideways motion
+    lowest = lbs_reference(rest, idx, w, F1[0].astype(np.float64), sunk[0].astype(np.float64))[..., 1].min(axis=1)
+    assert lowest.min() >= found.lo - 1e-5 * found.height
+    assert delta[0, 60:70].min() > 0.0
+    reach = 3 * 2 * 8  # each of the 3 rounds spreads a correction 2·radius frames further (the module notes)
+    assert np.all(delta[0, :60 - reach] == 0.0) and np.all(delta[0, 70 + reach:] == 0.0)
+
+
+def test_measures_of_ground_and_sliding_on_closed_forms():
+    rng = np.random.default_rng(3)
+    body = rng.normal(size=(50, 3))
+    speed = np.array([0.02, 0.0, 0.01])
+    walking = body[None] + np.arange(20)[:, None, None] * speed  # rigid, constant velocity, on the ground
+    assert np.allclose(lowest_heights(walking), body[:, 1].min())
+    speeds = contact_speeds(walking, up_axis=1)
+    assert speeds.size >= 19 and np.allclose(speeds, np.hypot(0.02, 0.01))
+    assert foot_sliding(contact_speeds(np.repeat(body[None], 5, axis=0))) == (0.0, 0.0)
+    below, above = ground_excess(np.array([-0.2, 0.5]), np.array([0.0, 0.4]), height=2.0)
+    assert (below, above) == pytest.approx((0.1, 0.05))
