@@ -114,7 +114,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.synthesis import (BATCH_REVISION, GraphOptions, Request, avoid_obstacles, default_min_segment,
-                                              synthesis_components, validate_request)
+                                              keep_input_support, synthesis_components, validate_request)
 
     if cluster is not None and not cluster.strip():
         raise OptionError("--cluster needs an address: tcp://HOST:PORT of a running scheduler, or local:N")
@@ -152,6 +152,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           cut_damping=cut_damping, min_segment=min_segment, blend=blend, alignment=alignment,
                           up_axis=1 if up_axis == "Y" else 2, contact=contact)
         validate_request(request, skin.rotations.shape[0])
+        if contact:
+            keep_input_support(request, skin)
         # the bone motions (float32 3×3 + 3 per bone) and sources (int32 per component), in memory
         # (on a cluster, in the shards on disk): refused before any is allocated; then the output
         # file on its disk (a cluster run's, with its shards, once the reusable shards are known)

@@ -20,7 +20,7 @@ import numpy as np
 
 from .assembly import assemble, cut_bones, merge_order
 from .collisions import build_obstacles, colliding, vertex_subset
-from .contact import keep_contact, support
+from .contact import keep_contact, lowest_range, support
 from .deformation_gradients import gradient_operator
 from ..errors import OptionError
 from ..execution import concatenate_rows, run_batches
@@ -91,6 +91,12 @@ def avoid_obstacles(request, skin, meshes, ground_plane=False):
     request.forbidden = colliding(request.obstacles, skin.examples[:, subset])
 
 
+def keep_input_support(request, skin):
+    """Set ``request.ground``: the (lowest, highest) lowest point along ``request.up_axis`` of the
+    input frames (examples (F, V, 3) of ``skin``), the range the merged rig keeps (:mod:`.contact`)."""
+    request.ground = lowest_range(skin.examples, request.up_axis)
+
+
 @dataclass
 class Request:
     """What to make: count animations of ``frames`` frames; targets [(input frame, output time)],
@@ -108,7 +114,10 @@ class Request:
     with the defaults otherwise): window 1 → 1.38 / 1.33, 2 → 0.92–1.11 / 1.27–1.35,
     3 → 0.91–1.00 / 1.27–1.28, 4 → 1.07 / 1.34, 8 → 1.29 / 1.34. Without the spread, window 4
     gave 1.18 and window 8 1.75 single-component; without the cut-node damping, multi-component
-    gave 1.61–1.81 at window 2 and 2.7–4.6 at windows 4–8. Default 3."""
+    gave 1.61–1.81 at window 2 and 2.7–4.6 at windows 4–8. Default 3.
+
+    contact: keep the merged rig's lowest point within ``ground`` (:mod:`.contact`), the input
+    frames' own range of lowest points (:func:`keep_input_support`; None: the fit's playback of them)."""
 
     count: int
     frames: int
@@ -128,6 +137,7 @@ class Request:
     alignment: str = "ground"
     up_axis: int = 1
     contact: bool = True
+    ground: tuple | None = None
 
 
 @dataclass
@@ -220,7 +230,8 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             sources = np.stack([sources[k, choice[:, k]] for k in range(len(components))])
         if request.contact:  # the merged bones are final: keep the input's support (:mod:`.contact`)
             if held is None:
-                held = support(rest, bone_indices, bone_weights, rotations, translations, request.up_axis)
+                held = support(rest, bone_indices, bone_weights, rotations, translations, request.up_axis,
+                               ground=request.ground)
             keep_contact(F, t, held)
         ok = np.ones(tries, dtype=bool)
         if request.obstacles:

@@ -8,7 +8,7 @@ import pytest
 from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.rotations import rotation_exp
 from skinsynth.pipeline.synthesis.contact import (contact_offsets, contact_speeds, dense_weights, foot_sliding,
-                                                  ground_excess, height_operator, keep_contact, lowest_heights,
+                                                  ground_excess, height_operator, keep_contact, lowest_heights, lowest_range,
                                                   support, support_lowest)
 
 from rigs import random_skin
@@ -33,6 +33,17 @@ def test_heights_by_the_operator_are_the_lbs_heights(up_axis):
     heights = np.concatenate([F[..., up_axis, :], t[..., up_axis, None]], -1).reshape(7, -1) \
         @ height_operator(rest, dense_weights(idx, w, 5))
     assert np.allclose(heights, lbs_reference(rest, idx, w, F, t)[..., up_axis], atol=1e-12)
+
+
+def test_the_band_given_is_the_input_frames_own_range_widened_by_the_slack():
+    rng = np.random.default_rng(4)
+    rest, idx, w = random_skin(rng, 100, 4, 2)
+    F, t = _animation(rng, 6, 4)
+    frames = lbs_reference(rest, idx, w, F, t) + rng.normal(scale=0.01, size=(6, 100, 3))  # the input: fit + error
+    low, high = lowest_range(frames, 1)
+    assert (low, high) == (frames[..., 1].min(), frames[..., 1].min(axis=1).max())
+    found = support(rest, idx, w, F, t, up_axis=1, slack=0.01, ground=(low, high))
+    assert found.lo == pytest.approx(low - 0.01 * found.height) and found.hi == pytest.approx(high + 0.01 * found.height)
 
 
 def test_the_band_is_the_inputs_range_of_lowest_points_and_its_lowest_vertices_are_supports():
