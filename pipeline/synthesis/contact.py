@@ -44,9 +44,11 @@ product P (frames, 4B) · Q (4B, S) — no skinning of the whole mesh.
 
 Support vertices: those that come within ``band`` of the input frame's lowest point in some
 input frame (the feet, hooves, whatever carries the body; at most ``most`` of them, evenly
-spaced among them by index, neighbours on a sole having nearly one height), plus an evenly
-spaced subset of all vertices (so a part that never touches the ground in the input but would
-in a new combination is not missed by more than the subset's spacing). The input's own lowest
+spaced among them by index, neighbours on a sole having nearly one height), and, with
+``spread``, an evenly spaced subset of all vertices (so that a part that never touches the
+ground in the input, but would in a new combination, is not missed by more than the subset's
+spacing; off by default: each such vertex brings its bones into the product, and on the shared
+captures and the walker the feet alone held every measured frame within 1 %). The input's own lowest
 vertex of every frame is always in the set, so an output frame that plays an input pose
 unchanged has exactly that frame's lowest height. The set's size is the correction's cost (one
 product of a batch's 150,000 frames by it): about 330 on the samba and the elephant, where all
