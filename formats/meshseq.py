@@ -191,6 +191,8 @@ def _read_frame(path):
         # maintain_order stops trimesh from splitting vertices at UV/normal seams, which would
         # renumber them; materials are irrelevant and would only split the mesh further.
         options.update(maintain_order=True, skip_materials=True)
+    if ext in (".obj", ".off") and _looks_binary(path):
+        raise FormatError(path, f"cannot read as {ext[1:].upper()}: not a text file in a known encoding")
     try:
         with warnings.catch_warnings():
             # trimesh warns while guessing UVs of unreferenced vertices; UVs are not read here.
@@ -209,6 +211,20 @@ def _read_frame(path):
         raise FormatError(path, "the mesh has no faces")
     require_coordinates(path, np.asarray(vertices)[None], "vertex")
     return vertices, faces
+
+
+def _looks_binary(path, sample=1 << 16):
+    """Whether a text format's file is binary data: over 1 % of its first ``sample`` bytes are
+    control characters no text has (NUL and the like; tabs and line ends aside). trimesh decodes
+    bytes that are not UTF-8 with whichever encoding detector is installed, so without this check
+    the same garbage file was "not text" on one machine and an empty mesh on another."""
+    try:
+        with open(path, "rb") as handle:
+            head = np.frombuffer(handle.read(sample), dtype=np.uint8)
+    except OSError:
+        return False  # trimesh says what is wrong
+    control = (head < 32) & ~np.isin(head, (9, 10, 12, 13))
+    return head.size > 0 and control.mean() > 0.01
 
 
 def fan_corners(counts):
