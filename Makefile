@@ -4,11 +4,24 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 DEMO   := build/demo
 
-.PHONY: setup demo test test-fast bench blender clean
+.PHONY: setup browser demo test test-fast bench blender clean
 
 JS     := tests/contracts/js
 
-setup: $(VENV)/.installed $(JS)/node_modules/.installed
+setup: $(VENV)/.installed $(JS)/node_modules/.installed browser
+
+# The headless browser the tests of `skinsynth view` drive (Debian's chromium, through Playwright;
+# Playwright's own browser download is never used): installed when missing and apt-get can run (as
+# root, as CI does); otherwise setup goes on and those tests skip, naming `apt-get install chromium`.
+browser:
+	@if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+		echo "installing chromium (apt-get) for the browser tests of skinsynth view"; \
+		(apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \
+		|| echo "warning: apt-get install chromium failed: the browser tests of skinsynth view will skip"; \
+	else \
+		echo "note: no chromium (as root: apt-get install chromium): the browser tests of skinsynth view will skip"; \
+	fi
 
 # The JavaScript clients the tests check glTF outputs with (Khronos glTF-Validator, three.js).
 $(JS)/node_modules/.installed: $(JS)/package.json

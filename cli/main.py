@@ -22,6 +22,7 @@ from .build_graph import build_graph
 from .play import play
 from .preview import preview
 from .synthesize import synthesize
+from .view import view
 
 
 @contextlib.contextmanager
@@ -124,3 +125,4 @@ main.add_command(play)
 main.add_command(build_graph)
 main.add_command(synthesize)
 main.add_command(preview)
+main.add_command(view)

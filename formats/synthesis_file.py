@@ -142,3 +142,14 @@ def synthesis_count(path):
     dataset's shape alone."""
     with h5py.File(path, "r") as f:
         return int(f["synthesis"]["sources"].shape[1])
+
+
+def component_bones(path):
+    """The bone ids (B_c,) int64 of each of a synthesis file's components, in order
+    (``/synthesis/component_NNN/bones``)."""
+    with h5py.File(path, "r") as f:
+        group = f["synthesis"]
+        names = sorted(k for k in group if k.startswith("component_"))
+        if not names:
+            raise FormatError(path, "/synthesis has no components: the file is incomplete")
+        return [np.asarray(group[name]["bones"][()], dtype=np.int64) for name in names]

@@ -5,6 +5,8 @@
 - ``.npy``: an array (F, n_c, 3).
 - anything ``read_mesh_sequence`` reads (folder, glob, USD, .npz/.h5): the control vertices'
   positions are taken from it, as Feng et al. do with their test sequences.
+
+:func:`write_control_trajectories` writes the first two (``skinsynth view``'s recorded sessions).
 """
 
 import os
@@ -84,3 +86,29 @@ def read_control_trajectories(spec, count, control_indices, vertex_count):
         raise FormatError(spec, f"{sequence.vertices.shape[1]} vertices per frame, but the puppet's mesh has "
                                 f"{vertex_count}: control vertices can only be taken from the same mesh")
     return _check(spec, sequence.vertices[:, control_indices], count)
+
+
+def write_control_trajectories(path, controls):
+    """Write controls (F, n_c, 3) as a trajectory file :func:`read_control_trajectories` reads
+    back exactly: CSV ``frame,point,x,y,z`` (17 significant digits) or ``.npy``, by the
+    extension; atomically (a failed write leaves nothing). Raises ValueError for another
+    extension or a folder that does not exist."""
+    from .atomic import atomic_output
+
+    lower = str(path).lower()
+    if not lower.endswith((".csv", ".npy")):
+        raise ValueError(f"{path}: a control trajectory is written as .csv or .npy")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise ValueError(f"{path}: the folder {folder} does not exist")
+    controls = np.asarray(controls, dtype=np.float64)
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as handle:
+            if lower.endswith(".npy"):
+                np.save(handle, controls)
+            else:
+                frames, points = controls.shape[:2]
+                rows = np.column_stack([np.repeat(np.arange(frames), points), np.tile(np.arange(points), frames),
+                                        controls.reshape(-1, 3)])
+                handle.write(b"frame,point,x,y,z\n")
+                np.savetxt(handle, rows, fmt=["%d", "%d", "%.17g", "%.17g", "%.17g"], delimiter=",")

@@ -1,12 +1,18 @@
 """Looking at animations without a DCC: a headless z-buffered rasteriser with a framing camera and
-a ground plane (:mod:`.rasteriser`), and previews laid out as panels with captions (:mod:`.preview`).
+a ground plane (:mod:`.rasteriser`), previews laid out as panels with captions (:mod:`.preview`),
+and what ``skinsynth view`` shows, as pure functions on arrays (:mod:`.scenes`).
 
-Public: render, frame_bounds, ground_layer, Panel, Preview, error_colors.
+Public: render, frame_bounds, ground_layer, Panel, Preview, error_colors, split_by_key, error_levels,
+level_colors, vertex_errors, vertex_components, face_components, component_colors, seam_frames,
+extrapolation, extrapolation_scale, extrapolation_color, resample_session, side_by_side.
 """
 
 from .._lazy import lazy_exports
 
 _EXPORTS = {"render": "rasteriser", "frame_bounds": "rasteriser", "ground_layer": "rasteriser", "Panel": "preview",
-            "Preview": "preview", "error_colors": "preview"}
+            "Preview": "preview", "error_colors": "preview", **{name: "scenes" for name in (
+                "split_by_key", "error_levels", "level_colors", "vertex_errors", "vertex_components",
+                "face_components", "component_colors", "seam_frames", "extrapolation", "extrapolation_scale",
+                "extrapolation_color", "resample_session", "side_by_side")}}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -53,3 +53,17 @@ def test_bad_inputs(tmp_path):
     write_array_sequence(tmp_path / "other.npz", np.zeros((3, 7, 3)), np.array([[0, 1, 2]]), 24.0)
     with pytest.raises(FormatError, match="7 vertices per frame"):
         read_control_trajectories(str(tmp_path / "other.npz"), 2, CONTROLS, 5)
+
+
+@pytest.mark.parametrize("name", ["session.csv", "session.npy"])
+def test_a_written_trajectory_reads_back_exactly(tmp_path, name):
+    from skinsynth.formats.trajectories import read_control_trajectories, write_control_trajectories
+
+    controls = np.random.default_rng(5).normal(size=(7, 3, 3)) * 1e3
+    write_control_trajectories(tmp_path / name, controls)
+    assert np.array_equal(read_control_trajectories(tmp_path / name, 3, [0, 1, 2], 10), controls)
+    with pytest.raises(ValueError):
+        write_control_trajectories(tmp_path / "session.txt", controls)
+    with pytest.raises(ValueError):
+        write_control_trajectories(tmp_path / "missing" / name, controls)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]

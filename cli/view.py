@@ -1,0 +1,223 @@
+"""``skinsynth view``: a local web page for any file skinsynth reads or writes (served by
+``cli/web_view.py``): a puppet to pose by hand and record, a skin fit against its examples, a
+synthesis's animations, any sequence."""
+
+import os
+
+import click
+import numpy as np
+
+from .common import report, summary_options, user_errors
+from .options import device_option
+
+#: Hosts only this machine can reach; any other makes the command warn.
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+@click.command("view")
+@click.argument("path", type=click.Path())
+@click.option("--port", default=8080, show_default=True, type=click.IntRange(0, 65535),
+              help="Port to serve the page on (0: any free one).")
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Address to listen on; 0.0.0.0 lets anyone on the network open the page (a warning says so).")
+@click.option("--no-open", is_flag=True, help="Do not open the page in a browser.")
+@click.option("--animation", default=0, show_default=True, type=int, help="Synthesis file: the animation shown first.")
+@click.option("--error-scale", default=0.01, show_default=True, type=float,
+              help="Skin file: the error shown full red, as a fraction of the rest pose's bounding-box diagonal.")
+@click.option("--extrapolation-scale", default=None, type=float,
+              help="Puppet: the extrapolation indicator turns amber at this distance from the nearest training "
+                   "example and red at twice it (RMS over the controls, the rest box's largest side = 1, as "
+                   "evaluate measures).  [default: the largest gap between a training example and its nearest "
+                   "neighbour]")
+@click.option("--record", "record_path", default=None, type=click.Path(dir_okay=False),
+              help="Puppet: where the record button saves a drag session (.csv or .npy, a control trajectory "
+                   "play reads; the page can change it).  [default: PUPPET_NAME.session.csv here]")
+@device_option("Puppet: where the run-time path runs (auto, cpu, cuda or cuda:N), as play.")
+@summary_options
+@user_errors
+def view(path, port, host, no_open, animation, error_scale, extrapolation_scale, record_path, device, as_json, quiet):
+    """Look at PATH in a web browser: a page served on this machine until Ctrl-C.
+
+    PATH: a puppet (train-kcca: drag its control points; every move is play's own prediction;
+    an extrapolation indicator; reset to a training frame; record a session as a trajectory
+    play reads), a skin file (its examples beside fit-skin's reconstruction, the error as
+    colour), a synthesis file (any of its animations, components coloured, seams marked), or a
+    sequence (a folder or glob of OBJ/PLY/OFF frames, .npz, .h5, USD, play's .h5). The page's
+    client is served by the command itself: it works offline.
+
+    \b
+    Examples:
+      skinsynth view horse.puppet.h5
+      skinsynth view horse.skin.h5 --port 8081
+      skinsynth view herd.h5 --animation 12 --no-open --json
+    """
+    from skinsynth.pipeline.errors import OptionError
+
+    from .web_view import serve
+
+    if not error_scale > 0:
+        raise OptionError(f"--error-scale must be positive (got {error_scale})")
+    if extrapolation_scale is not None and not extrapolation_scale > 0:
+        raise OptionError(f"--extrapolation-scale must be positive (got {extrapolation_scale})")
+    kind, scene, details, motions = _read(path, animation, error_scale, extrapolation_scale, record_path, device)
+    if host not in LOOPBACK:
+        click.echo(f"warning: --host {host}: anyone who can reach this machine on the network can open the page"
+                   + (" (and save sessions here)" if kind == "puppet" else ""), err=True)
+
+    def listening(url, bound):
+        summary = {"url": url, "host": host, "port": bound, "kind": kind, "path": str(path), **details}
+        report(summary, [f"viewing {path} ({kind}) at {url}; Ctrl-C stops"], as_json, quiet)
+
+    try:
+        serve(scene, host, port, f"skinsynth view {os.path.basename(str(path).rstrip('/'))}", listening,
+              open_browser=not no_open)
+    finally:
+        if motions is not None:
+            motions.close()
+
+
+def _read(path, animation, error_scale, extrapolation_scale, record_path, device):
+    """(kind, the page's view record, summary details, an open synthesis file or None)."""
+    from skinsynth.formats.errors import FormatError
+    from skinsynth.formats.model import read_header
+
+    if str(path).lower().endswith((".h5", ".hdf5")) and os.path.isfile(path):
+        try:
+            stage, _ = read_header(path)
+        except FormatError:
+            stage = None  # not a skinsynth model file: a sequence or play's characters
+        if stage == "puppet":
+            return ("puppet", *_puppet(path, extrapolation_scale, record_path, device), None)
+        if stage == "synthesis":
+            return ("synthesis", *_synthesis(path, animation))
+        if stage in ("skin", "controls", "graph"):  # each carries the skin it was made from
+            return ("skin", *_skin(path, error_scale), None)
+        if stage is not None:
+            raise FormatError(path, f"a '{stage}' file holds no animation view can show")
+    return ("sequence", *_sequence(path), None)
+
+
+def _puppet(path, extrapolation_scale, record_path, device):
+    from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.gpu import DevicePuppet, resolve_device, run_puppet
+    from skinsynth.pipeline.geometry import largest_side
+    from skinsynth.pipeline.puppet import host_inputs, puppet_from_record
+    from skinsynth.pipeline.view import extrapolation_scale as default_scale
+
+    from .web_view import PuppetView
+
+    record, _, skin = read_puppet(path)
+    puppet = puppet_from_record(record)
+    device = resolve_device(device)
+    device_puppet = DevicePuppet(puppet, device)  # uploaded once, warm for every move
+    solver = puppet.translations is not None  # as play: the solver whenever the puppet has one
+    count = puppet.rest_vertices.shape[0]
+
+    def predict(controls):
+        """World controls (n_c, 3) -> vertices (V, 3) float32: play_characters' path, one frame."""
+        out = np.empty((1, count, 3), dtype=np.float32)
+        run_puppet(device_puppet, *host_inputs(puppet, np.asarray(controls)[None]), translation_solver=solver,
+                   out=out, threads=1, skinning=puppet.skinning)
+        return out[0]
+
+    predict(skin.examples[puppet.train_frames[0], puppet.control_indices])  # compile or load the kernels now
+    training = skin.examples[puppet.train_frames][:, puppet.control_indices]  # (n_p, n_c, 3) world
+    in_place = host_inputs(puppet, training)[1]
+    unit = largest_side(skin.rest_vertices)
+    scale = extrapolation_scale or default_scale(in_place, unit)
+    stem = os.path.basename(str(path))
+    stem = stem[:-len(".puppet.h5")] if stem.endswith(".puppet.h5") else os.path.splitext(stem)[0]
+    scene = PuppetView(faces=skin.faces, predict=predict, place=lambda c: host_inputs(puppet, np.asarray(c)[None])[1][0],
+                       controls=training[0], training_frames=np.asarray(puppet.train_frames), training_controls=training,
+                       training_in_place=in_place, unit=unit, scale=scale, fps=skin.fps, up_axis=skin.scene.up_axis,
+                       record_path=record_path or f"{stem}.session.csv", save=_save_trajectory, size=unit)
+    return scene, {"controls": int(len(puppet.control_indices)), "device": device, "skinning": puppet.skinning,
+                   "extrapolation_scale": scale, "record": scene.record_path}
+
+
+def _save_trajectory(path, trajectory):
+    """A recorded session (F, n_c, 3) as a control-trajectory file ``play`` reads."""
+    from skinsynth.formats.trajectories import write_control_trajectories
+    from skinsynth.pipeline.errors import OptionError
+
+    try:
+        write_control_trajectories(path, trajectory)
+    except ValueError as error:
+        raise OptionError(str(error)) from None
+
+
+def _skin(path, error_scale):
+    from skinsynth.formats.model import read_model
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.gpu import lbs_reference
+    from skinsynth.pipeline.geometry import bounding_box_diagonal
+
+    from .web_view import SkinView
+
+    skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
+
+    def fit(frame):
+        return lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights,
+                             skin.rotations[frame:frame + 1], skin.translations[frame:frame + 1])[0]
+
+    scale = error_scale * bounding_box_diagonal(skin.rest_vertices)
+    return (SkinView(faces=skin.faces, examples=skin.examples, fit=fit, error_scale=scale, error_fraction=error_scale,
+                     fps=skin.fps, up_axis=skin.scene.up_axis),
+            {"frames": int(skin.examples.shape[0]), "error_scale": error_scale})
+
+
+def _synthesis(path, animation):
+    """The synthesis view, reading one animation at a time from the file, held open while served."""
+    import contextlib
+
+    from skinsynth.formats.errors import FormatError, require_finite
+    from skinsynth.formats.model import read_model
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.formats.synthesis_file import component_bones, open_motions, read_sources, synthesis_count
+    from skinsynth.gpu import lbs_reference
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.view import vertex_components
+
+    from .web_view import SynthesisView
+
+    skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
+    count = synthesis_count(path)
+    if count == 0:
+        raise FormatError(path, "the synthesis holds no animation")
+    if not 0 <= animation < count:
+        raise OptionError(f"--animation {animation}: the file holds animations 0..{count - 1}")
+    stack = contextlib.ExitStack()
+    F, t = stack.enter_context(open_motions(path))
+    try:
+        components = component_bones(path)
+        owner = vertex_components(skin.bone_indices, skin.bone_weights, components)
+    except BaseException:
+        stack.close()
+        raise
+
+    def load(a):
+        rotations, translations = F[a], t[a]
+        require_finite(path, f"/synthesis animation {a}'s bone motions", rotations)
+        require_finite(path, f"/synthesis animation {a}'s bone motions", translations)
+        sources = read_sources(path, [a])[:, 0]  # (C, M)
+
+        def frame(m):
+            return lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations[m:m + 1],
+                                 translations[m:m + 1])[0]
+        return frame, sources
+
+    scene = SynthesisView(faces=skin.faces, rest=skin.rest_vertices, count=count, frames=int(F.shape[1]), load=load,
+                          vertex_components=owner, components=len(components), animation=animation,
+                          fps=skin.fps, up_axis=skin.scene.up_axis)
+    return scene, {"animations": count, "frames": int(F.shape[1]), "components": len(components)}, stack
+
+
+def _sequence(path):
+    """Any sequence preview reads (frame files, .npz/.h5, USD, play's .h5): the panels it shows."""
+    from .preview import _panels
+    from .web_view import SequenceView
+
+    panels, fps, up = _panels(path, [], False, False, 0.01)
+    parts = [(panel.title, panel.vertices, panel.faces) for panel in panels]
+    return SequenceView(parts=parts, fps=fps, up_axis=up), {"frames": int(min(len(v) for _, v, _ in parts)),
+                                                             "meshes": len(parts)}

@@ -1,0 +1,158 @@
+"""What ``skinsynth view`` shows, as pure functions on arrays (no server, no files).
+
+A web viewer's mesh has one colour, so a mesh coloured per vertex (an error map, components) is
+drawn as one part per colour: :func:`split_by_key` cuts the faces (T, 3) into parts, each with
+its own vertex ids and local faces. The rest is what the colours mean:
+
+- skin fit: each face's error level, the mean of its corners' errors quantised into ``steps``
+  shades from grey (exact) to red (``scale`` or more), the colours of ``preview --compare``;
+- synthesis: each vertex's bone component (the component holding most of its weight), each
+  face's (most of its corners'), a colour per component, and the frames where a component's
+  source jumps (a seam);
+- puppet: how far the controls lie from the nearest training example (the extrapolation
+  indicator), in ``evaluate``'s unit (the largest side of the rest bounding box), and a colour
+  for it; a drag session resampled at the file's frame rate (the recorded trajectory).
+"""
+
+import numpy as np
+
+from .preview import ERROR_HIGH, ERROR_LOW  # grey where exact, red at the scale
+
+#: Component colours (a qualitative palette, repeated past eight components), RGB 0–255.
+PALETTE = np.array([[76, 114, 176], [221, 132, 82], [85, 168, 104], [196, 78, 82], [129, 114, 179],
+                    [147, 120, 96], [218, 139, 195], [140, 140, 140]], dtype=np.uint8)
+#: A component at a seam frame: drawn in this colour (preview marks seams red too).
+SEAM_COLOR = np.array([230, 30, 30], dtype=np.uint8)
+#: Extrapolation indicator: green inside the training examples, amber at the scale, red at twice it.
+INSIDE, EDGE, OUTSIDE = (np.array(c, dtype=float) for c in ([40, 170, 80], [240, 170, 30], [220, 40, 40]))
+
+
+def split_by_key(faces, keys):
+    """One part per distinct key of faces (T, 3) with keys (T,) ints: [(key, vertex_ids (n,),
+    local_faces (t, 3))], keys ascending, vertex_ids ascending, local_faces indexing vertex_ids
+    (``vertex_ids[local_faces]`` are the part's faces in the whole mesh's ids, in their order)."""
+    faces, keys = np.asarray(faces), np.asarray(keys)
+    parts = []
+    for key in np.unique(keys):
+        chosen = faces[keys == key]
+        ids, local = np.unique(chosen, return_inverse=True)
+        parts.append((int(key), ids, local.reshape(chosen.shape).astype(np.uint32)))
+    return parts
+
+
+def error_levels(errors, faces, scale, steps):
+    """Each face's error level (T,) in 0..steps−1: the mean of its corners' errors (V,) over
+    ``scale``, 0 exact, steps−1 at ``scale`` or more (rounded to the nearest shade)."""
+    if steps < 2:
+        raise ValueError(f"steps must be at least 2 (got {steps})")
+    amount = np.clip(np.asarray(errors)[np.asarray(faces)].mean(axis=1) / scale, 0.0, 1.0)
+    return np.rint(amount * (steps - 1)).astype(np.int64)
+
+
+def level_colors(steps):
+    """The colours (steps, 3) uint8 of the error levels, grey to red as ``preview --compare``."""
+    amount = np.linspace(0.0, 1.0, steps)[:, None]
+    return np.rint(((1.0 - amount) * ERROR_LOW + amount * ERROR_HIGH) * 255).astype(np.uint8)
+
+
+def vertex_errors(fitted, truth):
+    """Each vertex's distance (V,) between fitted (V, 3) and truth (V, 3)."""
+    return np.linalg.norm(np.asarray(fitted, dtype=float) - np.asarray(truth, dtype=float), axis=-1)
+
+
+def vertex_components(bone_indices, bone_weights, components):
+    """The component (V,) of each vertex: the one whose bones carry most of its weight (ties: the
+    lower number). bone_indices, bone_weights (V, K); components: a list of bone-id arrays."""
+    bone_indices, bone_weights = np.asarray(bone_indices), np.asarray(bone_weights, dtype=float)
+    bones = max(int(bone_indices.max()) + 1, max(int(np.max(c)) + 1 for c in components))
+    owner = np.full(bones, -1)
+    for number, component in enumerate(components):
+        owner[np.asarray(component)] = number
+    if (owner[np.unique(bone_indices[bone_weights > 0])] < 0).any():
+        raise ValueError("a bone with weight belongs to no component")
+    totals = np.zeros((len(bone_indices), len(components)))
+    rows = np.repeat(np.arange(len(bone_indices)), bone_indices.shape[1])
+    np.add.at(totals, (rows, owner[bone_indices].ravel()), np.where(bone_weights > 0, bone_weights, 0.0).ravel())
+    return np.argmax(totals, axis=1)
+
+
+def face_components(faces, components_of_vertices):
+    """Each face's component (T,): the one most of its three corners belong to (all different:
+    the lowest)."""
+    corners = np.asarray(components_of_vertices)[np.asarray(faces)]  # (T, 3)
+    a, b, c = corners.T
+    return np.where((a == b) | (a == c), a, np.where(b == c, b, corners.min(axis=1)))
+
+
+def component_colors(count):
+    """A colour (count, 3) uint8 per component."""
+    return PALETTE[np.arange(count) % len(PALETTE)]
+
+
+def seam_frames(sources):
+    """sources (C, M): the input frame each component plays at each output frame -> (C, M) bool,
+    True where a component's source is not the frame after its previous one (a transition)."""
+    sources = np.asarray(sources)
+    seams = np.zeros(sources.shape, dtype=bool)
+    seams[:, 1:] = sources[:, 1:] != sources[:, :-1] + 1
+    return seams
+
+
+def extrapolation(controls, training, unit):
+    """(distance, nearest) of controls (n_c, 3) from training (n_p, n_c, 3), both in place: the
+    RMS distance over the control points to the nearest training example, divided by ``unit``
+    (``evaluate``'s: the largest side of the rest bounding box), and that example's row."""
+    gaps = np.sqrt(np.mean(np.sum((np.asarray(training) - np.asarray(controls)[None]) ** 2, axis=2), axis=1))
+    nearest = int(np.argmin(gaps))
+    return float(gaps[nearest] / unit), nearest
+
+
+def extrapolation_scale(training, unit, same=1e-6):
+    """The default colour scale of the indicator: the largest distance from a training example
+    (n_p, n_c, 3) to its nearest other pose, in the unit of :func:`extrapolation`. Controls that
+    close to an example are no farther from it than the examples are from each other: inside what
+    was trained (the choice of threshold; ``view --extrapolation-scale`` overrides it). Examples
+    closer than ``same`` (in that unit) are one pose (a periodic capture repeats its poses); with
+    a single pose there is no neighbour: 0.05, 5 % of the largest side."""
+    training = np.asarray(training, dtype=float)
+    flat = training.reshape(len(training), -1)
+    gaps = np.sqrt(np.sum((flat[:, None, :] - flat[None, :, :]) ** 2, axis=2) / training.shape[1]) / unit
+    gaps[gaps <= same] = np.inf  # itself, and repeats of its pose
+    nearest = gaps.min(axis=1)
+    nearest = nearest[np.isfinite(nearest)]
+    return float(nearest.max()) if len(nearest) else 0.05
+
+
+def extrapolation_color(distance, scale):
+    """The indicator's colour (3,) uint8: green at 0, amber at ``scale``, red at twice it or more,
+    linear in between."""
+    amount = float(np.clip(distance / scale if scale > 0 else np.inf, 0.0, 2.0))
+    low, high = (INSIDE, EDGE) if amount <= 1.0 else (EDGE, OUTSIDE)
+    mix = amount if amount <= 1.0 else amount - 1.0
+    return np.rint(low + mix * (high - low)).astype(np.uint8)
+
+
+def resample_session(times, controls, fps, end=None):
+    """A drag session as a trajectory at ``fps``: moves at times (n,) seconds (ascending, the
+    first the start of the recording) with controls (n, n_c, 3) -> (F, n_c, 3), frame k holding
+    the controls of the last move at or before times[0] + k / fps, frames up to ``end`` (default:
+    the last move's time). The page showed each move's mesh until the next move, so frame k plays
+    what the page showed at that time."""
+    times, controls = np.asarray(times, dtype=float), np.asarray(controls, dtype=float)
+    if len(times) == 0:
+        raise ValueError("a session needs at least one state")
+    end = times[-1] if end is None else max(float(end), times[-1])
+    # a frame's time within a microsecond of a move's counts as after it (rounding in k / fps)
+    count = int(np.floor((end - times[0]) * fps + 1e-6)) + 1
+    at = times[0] + np.arange(count) / fps
+    index = np.searchsorted(times, at + 1e-6, side="right") - 1
+    return controls[np.clip(index, 0, len(times) - 1)]
+
+
+def side_by_side(rest_vertices, gap=0.2):
+    """The offset (3,) that places a second copy of a mesh (rest_vertices (V, 3)) beside the
+    first: along X (horizontal whether Y or Z is up), the rest pose's width plus ``gap`` of it."""
+    rest = np.asarray(rest_vertices, dtype=float)
+    offset = np.zeros(3)
+    offset[0] = (1.0 + gap) * float(np.ptp(rest[:, 0])) or 1.0
+    return offset
