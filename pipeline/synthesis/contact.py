@@ -32,8 +32,8 @@ byte-identical.
 What it costs. Where the band is narrow and the feet fast, holding it forces the shift to
 follow the lowest foot frame by frame. The walker example (legs as components of their own; its
 input keeps the lowest point at exactly 0, and at 24 fps a swinging foot moves about 5 cm a
-frame) had its largest vertex acceleration go from 1.18× to 1.73× the input's (50 animations ×
-600 frames; median 1.06× → 1.17×): the merge had combined leg poses whose lowest point jumps by
+frame) had its largest vertex acceleration go from 1.21× to 1.78× the input's (50 animations ×
+600 frames, benchmarks/synthesize.py; single-component 1.11× either way): the merge had combined leg poses whose lowest point jumps by
 up to 7 cm between frames, and a 1 % band is 1.7 cm. On the shared captures, where the merged
 lowest point seldom leaves the band, it changes nothing measurable (benchmarks/synthesize.py).
 ``synthesize --no-contact`` keeps the merge as it is.
