@@ -525,7 +525,8 @@ def test_a_sequence_plays(files, browser, name, tmp_path):
         with h5py.File(path) as f:
             sequences = list(f["vertices"][()])
     else:
-        sequences = [np.load(path)["vertices"]]
+        with np.load(path) as archive:
+            sequences = [archive["vertices"]]
     with serving(path) as (summary, _):
         assert summary["kind"] == "sequence" and summary["meshes"] == len(sequences)
         page = Page(browser, summary["url"])
@@ -558,8 +559,8 @@ def test_a_sequence_plays(files, browser, name, tmp_path):
 def test_bad_input_is_one_line(files, tmp_path):
     (tmp_path / "notes.txt").write_text("not a mesh")
     assert_user_error(cli("view", tmp_path / "notes.txt", "--no-open"), "notes.txt", "unknown extension")
-    one = np.load(files / "bar.npz")
-    np.savez(tmp_path / "still.npz", vertices=one["vertices"][:1], faces=one["faces"])
+    with np.load(files / "bar.npz") as one:
+        np.savez(tmp_path / "still.npz", vertices=one["vertices"][:1], faces=one["faces"])
     assert_user_error(cli("view", tmp_path / "still.npz", "--no-open"), "still.npz", "an animation needs")
     assert_user_error(cli("view", files / "controls.h5", "--no-open", "--error-scale", "0"), "--error-scale")
     assert_user_error(cli("view", files / "bones.h5", "--no-open", "--animation", "7"), "--animation 7")
