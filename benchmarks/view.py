@@ -47,27 +47,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 LAUNCH_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 #: Runs before the page's scripts: every Web Worker starts by wrapping WebSocket, keeping its sockets.
-WORKER_SOCKETS = r"""
-(() => {
-  const NativeWorker = window.Worker;
-  const prelude = `(() => { const N = self.WebSocket; self.__sockets = [];
-    const W = function (...a) {
-      const s = new N(...a); self.__sockets.push(s);
-      // first in line (the client's own handler hands the buffer over to the page, emptying it)
-      s.addEventListener("message", (e) => { if (self.__onFrame) self.__onFrame(
-        e.data.byteLength !== undefined ? e.data.byteLength : e.data.size); });
-      return s; };
-    W.prototype = N.prototype; Object.assign(W, {CONNECTING: 0, OPEN: 1, CLOSING: 2, CLOSED: 3});
-    self.WebSocket = W; })();\n`;
-  window.Worker = function (url, options) {
-    const module = options && options.type === "module";
-    const body = prelude + (module ? `import ${JSON.stringify(String(url))};`
-                                   : `importScripts(${JSON.stringify(String(url))});`);
-    return new NativeWorker(URL.createObjectURL(new Blob([body], {type: "text/javascript"})), options);
-  };
-  window.Worker.prototype = NativeWorker.prototype;
-})();
-"""
+WORKER_SOCKETS = (ROOT / "tests" / "contracts" / "js" / "worker_sockets.js").read_text()
 
 #: In the page's worker: send moves (the template's position floats overwritten) and time the meshes.
 MOVES = r"""

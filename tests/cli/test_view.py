@@ -13,6 +13,7 @@ gizmo is exercised too (its position is read back from the message the page sent
 
 import json
 import os
+import pathlib
 import queue
 import shutil
 import signal
@@ -38,22 +39,7 @@ WAIT = 60.0  # seconds any one thing on the page may take before the test fails
 START = 300.0  # seconds the command may take to listen (a puppet's warp kernels compile on a cold cache)
 
 #: Runs before the page's scripts: every Web Worker starts by wrapping WebSocket, keeping its sockets.
-WORKER_SOCKETS = r"""
-(() => {
-  const NativeWorker = window.Worker;
-  const prelude = `(() => { const N = self.WebSocket; self.__sockets = [];
-    const W = function (...a) { const s = new N(...a); self.__sockets.push(s); return s; };
-    W.prototype = N.prototype; Object.assign(W, {CONNECTING: 0, OPEN: 1, CLOSING: 2, CLOSED: 3});
-    self.WebSocket = W; })();\n`;
-  window.Worker = function (url, options) {
-    const module = options && options.type === "module";
-    const body = prelude + (module ? `import ${JSON.stringify(String(url))};`
-                                   : `importScripts(${JSON.stringify(String(url))});`);
-    return new NativeWorker(URL.createObjectURL(new Blob([body], {type: "text/javascript"})), options);
-  };
-  window.Worker.prototype = NativeWorker.prototype;
-})();
-"""
+WORKER_SOCKETS = (pathlib.Path(__file__).resolve().parents[1] / "contracts" / "js" / "worker_sockets.js").read_text()
 
 
 def _browser_problem():
