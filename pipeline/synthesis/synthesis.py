@@ -92,9 +92,11 @@ def avoid_obstacles(request, skin, meshes, ground_plane=False):
 
 
 def keep_input_support(request, skin):
-    """Set ``request.ground``: the (lowest, highest) lowest point along ``request.up_axis`` of the
-    input frames (examples (F, V, 3) of ``skin``), the range the merged rig keeps (:mod:`.contact`)."""
-    request.ground = lowest_range(skin.examples, request.up_axis)
+    """Set ``request.support``, what the merged rig keeps (:mod:`.contact`): the support vertices
+    of ``skin``'s fit and, as the range of lowest points, the input frames' own (examples
+    (F, V, 3)) along ``request.up_axis``. Made once here, not again in every batch."""
+    request.support = support(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
+                              skin.translations, request.up_axis, ground=lowest_range(skin.examples, request.up_axis))
 
 
 @dataclass
@@ -116,8 +118,9 @@ class Request:
     gave 1.18 and window 8 1.75 single-component; without the cut-node damping, multi-component
     gave 1.61–1.81 at window 2 and 2.7–4.6 at windows 4–8. Default 3.
 
-    contact: keep the merged rig's lowest point within ``ground`` (:mod:`.contact`), the input
-    frames' own range of lowest points (:func:`keep_input_support`; None: the fit's playback of them)."""
+    contact: keep the merged rig's lowest point within the input's range (:mod:`.contact`);
+    ``support`` (a :class:`.contact.Support`, from :func:`keep_input_support`: the input frames'
+    own range of lowest points), or None: made in each batch from the fit's playback of them."""
 
     count: int
     frames: int
@@ -137,7 +140,7 @@ class Request:
     alignment: str = "ground"
     up_axis: int = 1
     contact: bool = True
-    ground: tuple | None = None
+    support: object = None
 
 
 @dataclass
@@ -207,7 +210,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
     up = None if request.alignment == "full" else np.eye(3)[request.up_axis]
     kept_F, kept_t, kept_src, kept_choice = [], [], [], []
     rejected = {"collisions": 0, "too_similar": 0, "merges": 0}
-    need, rounds, held = count, 0, None
+    need, rounds, held = count, 0, request.support
     while need > 0:
         rounds += 1
         if rounds > MAX_ROUNDS:
@@ -230,8 +233,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             sources = np.stack([sources[k, choice[:, k]] for k in range(len(components))])
         if request.contact:  # the merged bones are final: keep the input's support (:mod:`.contact`)
             if held is None:
-                held = support(rest, bone_indices, bone_weights, rotations, translations, request.up_axis,
-                               ground=request.ground)
+                held = support(rest, bone_indices, bone_weights, rotations, translations, request.up_axis)
             keep_contact(F, t, held)
         ok = np.ones(tries, dtype=bool)
         if request.obstacles:
