@@ -207,12 +207,6 @@ def check_memory(needed, what, available=None):
                           "ask for fewer")
 
 
-def check_disk(needed, folder, what):
-    """Refuse, before any work, a request whose files (``needed`` bytes) exceed the free space in
-    ``folder``: one line naming the sizes."""
-    check_space(what, [(None, needed, folder)])
-
-
 def check_space(what, needs):
     """Refuse, before any work, a request whose outputs would not fit on their disks: ``needs``
     [(label, bytes, folder)], the folders (or, where one does not exist yet, the nearest folder

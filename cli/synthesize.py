@@ -223,12 +223,11 @@ def _check_space(path, output, request, components, skin, what, shards=None):
     still to write (those an earlier run finished are reused) against their folder's: the
     estimates the writers check at the end (``planned_bytes``), made from the request's shapes."""
     from skinsynth.formats.synthesis_file import planned_bytes
-    from skinsynth.pipeline.synthesis import BATCH
+    from skinsynth.pipeline.synthesis import batch_sizes
 
     batches = None
     if shards is not None:  # the first round's batches, as synthesize makes them
-        sizes = [(b, min(BATCH, request.count - b * BATCH)) for b in range(-(-request.count // BATCH))]
-        batches = [(b, n, (b, n) in shards["stored"]) for b, n in sizes]
+        batches = [(b, n, (b, n) in shards["stored"]) for b, n in batch_sizes(request.count)]
     file_bytes, shard_bytes = planned_bytes(path, request, components, skin.rotations.shape[1], skin.fps, batches)
     needs = [("the output", file_bytes, os.path.dirname(os.path.abspath(output)))]
     if shards is not None:

@@ -7,7 +7,7 @@ with Poisson blending (:mod:`.splicing`, eq. 7–10), the multi-component merge
 (:mod:`.collisions`, §3.4).
 
 Public: build_graph, GraphOptions, validate_graph_options, bone_layout, default_min_segment, walk_statistics,
-synthesize, BATCH, BATCH_REVISION, Request, validate_request, component_from_file, synthesis_components, avoid_obstacles,
+synthesize, batch_sizes, BATCH_REVISION, Request, validate_request, component_from_file, synthesis_components, avoid_obstacles,
 keep_input_support, SkinnedAnimations, build_obstacles, colliding,
 vertex_subset.
 """
@@ -16,7 +16,7 @@ from .._lazy import lazy_exports
 
 _EXPORTS = {"build_graph": "graph", "GraphOptions": "graph_options", "validate_graph_options": "graph", "bone_layout": "graph",
             "default_min_segment": "motion_graph", "walk_statistics": "motion_graph", "synthesize": "synthesis",
-            "BATCH": "synthesis", "BATCH_REVISION": "synthesis", "Request": "synthesis", "validate_request": "synthesis", "component_from_file": "synthesis",
+            "batch_sizes": "synthesis", "BATCH_REVISION": "synthesis", "Request": "synthesis", "validate_request": "synthesis", "component_from_file": "synthesis",
             "synthesis_components": "synthesis", "avoid_obstacles": "synthesis", "keep_input_support": "synthesis",
             "SkinnedAnimations": "skinned", "build_obstacles": "collisions", "colliding": "collisions", "vertex_subset": "collisions"}
 __all__ = sorted(_EXPORTS)

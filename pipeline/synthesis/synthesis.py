@@ -91,6 +91,12 @@ def avoid_obstacles(request, skin, meshes, ground_plane=False):
     request.forbidden = colliding(request.obstacles, skin.examples[:, subset])
 
 
+def batch_sizes(count, first=0):
+    """[(batch id, animations)] of ``count`` animations in batches of :data:`BATCH`, ids from
+    ``first``: how :func:`synthesize` splits each round's work."""
+    return [(first + b, min(BATCH, count - b * BATCH)) for b in range(-(-count // BATCH))]
+
+
 def keep_input_support(request, skin):
     """Set ``request.support``, what the merged rig keeps (:mod:`.contact`): the support vertices
     of ``skin``'s fit and, as the range of lowest points, the input frames' own (examples
@@ -356,7 +362,7 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     results, next_batch, need = [], 0, request.count
     for round_ in range(MAX_ROUNDS):
         ask = need if round_ == 0 else _replacements(need, round_, request.count)
-        batches = [(next_batch + b, min(BATCH, ask - b * BATCH)) for b in range(-(-ask // BATCH))]
+        batches = batch_sizes(ask, next_batch)
         next_batch += len(batches)
         done = request.count - need
         results.append(_run_batches(args, batches, jobs,

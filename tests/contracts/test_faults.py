@@ -611,14 +611,14 @@ def test_a_request_larger_than_memory_is_refused_before_allocating(chain, tmp_pa
 
 
 def test_the_memory_and_disk_checks_compare_the_estimate_with_what_there_is(tmp_path):
-    from skinsynth.cli.common import check_disk, check_memory
+    from skinsynth.cli.common import check_memory, check_space
     from skinsynth.pipeline.errors import OptionError
 
     check_memory(2 ** 30, "a request", available=2 ** 31)  # fits: nothing said
     with pytest.raises(OptionError, match=r"a request needs about 2\.0 GiB of memory, and 1\.0 GiB is available"):
         check_memory(2 ** 31, "a request", available=2 ** 30)
     with pytest.raises(OptionError, match="GiB of disk in"):
-        check_disk(2 ** 60, str(tmp_path), "a request")
+        check_space("a request", [(None, 2 ** 60, str(tmp_path))])
     with pytest.raises(OptionError, match=r"needs about 5\.0 MiB of memory, and 1\.0 MiB is available"):
         check_memory(5 * 2 ** 20, "a request", available=2 ** 20)  # not "0.0 GiB"
 
