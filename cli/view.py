@@ -99,9 +99,9 @@ def _read(path, animation, error_scale, extrapolation_scale, record_path, device
 
 def _puppet(path, extrapolation_scale, record_path, device):
     from skinsynth.formats.puppet_file import read_puppet
-    from skinsynth.gpu import DevicePuppet, resolve_device, run_puppet
+    from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.geometry import largest_side
-    from skinsynth.pipeline.puppet import host_inputs, puppet_from_record
+    from skinsynth.pipeline.puppet import DevicePlayer, host_inputs, puppet_from_record
     from skinsynth.pipeline.view import extrapolation_scale as default_scale
 
     from .web_view import PuppetView
@@ -109,16 +109,12 @@ def _puppet(path, extrapolation_scale, record_path, device):
     record, _, skin = read_puppet(path)
     puppet = puppet_from_record(record)
     device = resolve_device(device)
-    device_puppet = DevicePuppet(puppet, device)  # uploaded once, warm for every move
-    solver = puppet.translations is not None  # as play: the solver whenever the puppet has one
-    count = puppet.rest_vertices.shape[0]
+    # uploaded once, warm for every move; as play: the solver whenever the puppet has one
+    player = DevicePlayer(puppet, device, translation_solver=puppet.translations is not None)
 
     def predict(controls):
-        """World controls (n_c, 3) -> vertices (V, 3) float32: play_characters' path, one frame."""
-        out = np.empty((1, count, 3), dtype=np.float32)
-        run_puppet(device_puppet, *host_inputs(puppet, np.asarray(controls)[None]), translation_solver=solver,
-                   out=out, threads=1, skinning=puppet.skinning)
-        return out[0]
+        """World controls (n_c, 3) -> vertices (V, 3) float32: play's path, one frame."""
+        return player.play(np.asarray(controls)[None])[0]
 
     predict(skin.examples[puppet.train_frames[0], puppet.control_indices])  # compile or load the kernels now
     training = skin.examples[puppet.train_frames][:, puppet.control_indices]  # (n_p, n_c, 3) world

@@ -7,7 +7,7 @@ held-out evaluation (:mod:`.baselines`, :mod:`.evaluation`), and many characters
 
 Public: select_controls, train_puppet, predict_vertices, parse_frame_spec, Puppet, puppet_from_record, KccaRegression,
 ControlKernel, KERNELS, TranslationOperator, Correctives, evaluate_puppet, evaluate_extrapolation,
-extrapolation_split, instance_trajectories, host_inputs, world_bones, play_characters.
+extrapolation_split, instance_trajectories, host_inputs, world_bones, play_characters, DevicePlayer.
 """
 
 from .._lazy import lazy_exports
@@ -16,7 +16,7 @@ _EXPORTS = {"select_controls": "controls", "train_puppet": "puppet", "predict_ve
             "parse_frame_spec": "puppet", "Puppet": "puppet", "puppet_from_record": "puppet", "KccaRegression": "kcca", "ControlKernel": "kcca",
             "KERNELS": "kcca", "TranslationOperator": "poisson", "Correctives": "correctives",
             "evaluate_puppet": "evaluation", "evaluate_extrapolation": "evaluation",
-            "extrapolation_split": "evaluation", "instance_trajectories": "playback", "host_inputs": "playback", "play_characters": "playback",
+            "extrapolation_split": "evaluation", "instance_trajectories": "playback", "host_inputs": "playback", "play_characters": "playback", "DevicePlayer": "playback",
             "world_bones": "playback"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -67,23 +67,36 @@ def host_inputs(puppet, controls):
     return standardised, placed, frames
 
 
+class DevicePlayer:
+    """A puppet uploaded once to ``device`` and played on demand through its whole run-time path
+    in warp kernels (Feng §6, ``gpu.run_puppet``): what ``play`` writes and what ``skinsynth view``
+    shows at every move. ``skinning``: "dual-quaternion", "linear", or None for the puppet's own
+    (``Puppet.skinning``)."""
+
+    def __init__(self, puppet, device, skinning=None, translation_solver=True):
+        from skinsynth.gpu import DevicePuppet
+
+        self.puppet, self.skinning, self.translation_solver = puppet, skinning or puppet.skinning, translation_solver
+        self.device_puppet = DevicePuppet(puppet, device)
+
+    def play(self, controls, threads=1):
+        """Vertices (N, V, 3) float32 of world controls (N, n_c, 3), on ``threads`` CPU threads."""
+        from skinsynth.gpu import run_puppet
+
+        vertices = np.empty((len(controls), self.puppet.rest_vertices.shape[0], 3), dtype=np.float32)
+        run_puppet(self.device_puppet, *host_inputs(self.puppet, controls), translation_solver=self.translation_solver,
+                   out=vertices, threads=threads, skinning=self.skinning)
+        return vertices
+
+
 def play_characters(puppet, controls, device, skinning=None, translation_solver=True, threads=0):
     """Every vertex of every frame of controls (C·F, n_c, 3) played through the puppet on
     ``device``: (vertices (C·F, V, 3) float32, seconds of compute). Both skinnings run the whole
-    run-time path in warp kernels (Feng §6, ``gpu.run_puppet(skinning=…)``, ``threads`` CPU
-    threads, 0: all cores). The kernels are compiled (or loaded) on a one-frame warm-up first,
-    outside the time. ``skinning``: "dual-quaternion", "linear", or None for the puppet's own
-    (``Puppet.skinning``). Rig outputs take the world bones from :func:`world_bones`."""
-    from skinsynth.gpu import DevicePuppet, run_puppet
-
-    skinning = skinning or puppet.skinning
-    device_puppet = DevicePuppet(puppet, device)
-    threads = threads or os.cpu_count() or 1
-    run_puppet(device_puppet, *host_inputs(puppet, controls[:1]), translation_solver=translation_solver,
-               skinning=skinning)  # warm-up, untimed
+    run-time path in warp kernels (:class:`DevicePlayer`, ``threads`` CPU threads, 0: all cores).
+    The kernels are compiled (or loaded) on a one-frame warm-up first, outside the time. Rig
+    outputs take the world bones from :func:`world_bones`."""
+    player = DevicePlayer(puppet, device, skinning, translation_solver)
+    player.play(controls[:1])  # warm-up, untimed
     started = time.perf_counter()
-    x, placed, world = host_inputs(puppet, controls)
-    vertices = np.empty((len(controls), puppet.rest_vertices.shape[0], 3), dtype=np.float32)
-    run_puppet(device_puppet, x, placed, world, translation_solver=translation_solver, out=vertices,
-               threads=threads, skinning=skinning)
+    vertices = player.play(controls, threads or os.cpu_count() or 1)
     return vertices, time.perf_counter() - started
