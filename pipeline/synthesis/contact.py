@@ -51,8 +51,8 @@ spacing; off by default: each such vertex brings its bones into the product, and
 captures and the walker the feet alone held every measured frame within 1 %). The input's own lowest
 vertex of every frame is always in the set, so an output frame that plays an input pose
 unchanged has exactly that frame's lowest height. The set's size is the correction's cost (one
-product of a batch's 150,000 frames by it): about 330 on the samba and the elephant, where all
-the near-ground ones were 250 and 2,200 and cost the elephant 1.7 s of a 4 s run.
+product of a batch's 150,000 frames by it): about 270 on the elephant, where all the
+near-ground ones within 1 % of the height were 2,200 and cost it 1.7 s of a 4 s run.
 
 Measuring (shared by the benchmark and the tests): :func:`lowest_heights`, :func:`ground_excess`
 (how far the lowest point leaves the input's range, over the height) and :func:`foot_sliding`
