@@ -4,6 +4,7 @@ import time
 from dataclasses import replace
 
 import click
+import numpy as np
 
 from .common import Progress, check_memory, check_output_path, command_line, report, summary_options, tool_version, user_errors
 from .options import device_option, up_axis_option
@@ -13,21 +14,29 @@ MAX_TRANSFORM_STEPS = 100
 
 
 @click.command("fit-skin")
-@click.argument("input_spec", metavar="INPUT")
+@click.argument("input_specs", metavar="INPUT...", nargs=-1, required=True)
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Skin model file to write (.h5).")
-@click.option("--bones", "-b", required=True, type=int, help="Number of rigid bones; exactly this many are delivered.")
+@click.option("--bones", "-b", type=int, default=None,
+              help="Number of rigid bones; exactly this many are delivered. Required unless --rig gives them.")
+@click.option("--rig", type=click.Path(dir_okay=False), default=None,
+              help="A skin file whose rig (rest pose, bones, weights) to keep: only the bone transforms of the "
+                   "INPUT clips are solved (Dem Bones' 'solve bones for given weights'), so the new takes drive "
+                   "the same skeleton. The clips must be the rig's mesh.")
 @click.option("--max-influences", default=4, show_default=True, type=int, help="Most bones per vertex (K).")
 @click.option("--iterations", default=100, show_default=True, type=int, help="Most alternations of bone and weight updates.")
-@click.option("--tolerance", default=0.02, show_default=True, type=float,
+@click.option("--tolerance", default=None, type=float,
               help="Stop once the last --patience iterations together improved the RMSE by less than this "
-                   "(relative): more iterations stop paying. The summary says which rule stopped the fit.")
+                   "(relative): more iterations stop paying. The summary says which rule stopped the fit. "
+                   "Default 0.02 (0.001 with --rig, whose iterations cost milliseconds).")
 @click.option("--patience", default=5, show_default=True, type=click.IntRange(min=1),
               help="Iterations over which --tolerance is measured.")
-@click.option("--rest-frame", default=0, show_default=True, type=int, help="Frame used as the rest pose.")
+@click.option("--rest-frame", default="0", show_default=True,
+              help="Frame used as the rest pose: a number over all clips in order, or CLIP:FRAME.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0), help="Seed of the clustering initialisation.")
-@click.option("--transform-steps", default=0, show_default=True, type=int,
+@click.option("--transform-steps", default=None, type=int,
               help="Joint Levenberg-Marquardt steps on all bones of a frame per iteration (0: per-bone updates only; "
-                   "a step costs about four iterations and gains less than they do on the real captures).")
+                   "a step costs about four iterations and gains less than they do on the real captures). "
+                   "Default 0, and 1 with --rig (the weights are fixed there, and coupled bones move together).")
 @device_option(default="cpu",
               help="Where the weight solve and the bone sweep run: cpu (compiled, every core), cuda or cuda:N (warp "
                    "kernels on that GPU; the same fit to rounding), or auto (a GPU when there is one).")
@@ -41,54 +50,70 @@ MAX_TRANSFORM_STEPS = 100
               help="Time code of the input's first frame. Default: a USD input's first sample, else 0.")
 @summary_options
 @user_errors
-def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, patience, device, rest_frame, seed,
+def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolerance, patience, device, rest_frame, seed,
              transform_steps, prim, fps, meters_per_unit, up_axis, start_frame, quiet, as_json):
-    """Fit a linear-blend-skinning model with rigid bones to a mesh sequence.
+    """Fit a linear-blend-skinning model with rigid bones to one or more clips of a mesh.
 
-    INPUT is a folder or glob of OBJ/PLY/OFF frames (natural frame order), a USD file with a
-    time-sampled mesh, or an .npz/.h5 file with vertices (F, V, 3) and faces (T, 3).
-    Weights are non-negative, sum to one and have at most --max-influences non-zeros per
-    vertex (Le & Deng 2012, as used by Zheng et al. 2013 §3.1).
+    Each INPUT is a clip: a folder or glob of OBJ/PLY/OFF frames (natural frame order), a USD
+    file with a time-sampled mesh, or an .npz/.h5 file with vertices (F, V, 3) and faces (T, 3).
+    Several clips of one mesh get one rig: one rest pose, one set of weights, bone transforms
+    for every frame of every clip, fitted together. NAME=INPUT names a clip; by default it is
+    the file's name less the prefix all share (horse_gallop.npz horse_collapse.npz: gallop,
+    collapse). Weights are non-negative, sum to one and have at most --max-influences
+    non-zeros per vertex (Le & Deng 2012, as used by Zheng et al. 2013 §3.1).
 
     \b
-    Example:
+    Examples:
       skinsynth fit-skin 'horse/horse-gallop-*.obj' -o horse.skin.h5 --bones 22
+      skinsynth fit-skin horse_gallop.npz horse_collapse.npz -o horse.skin.h5 --bones 22
+      skinsynth fit-skin horse_poses.npz --rig horse.skin.h5 -o poses.skin.h5
     """
-    from skinsynth.formats.meshseq import read_mesh_sequence
-    from skinsynth.formats.model import write_model
-    from skinsynth.formats.provenance import provenance_record
-    from skinsynth.formats.skin_file import skin_groups
+    from skinsynth.formats.clip_inputs import read_clips
+    from skinsynth.pipeline.clips import Clips
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.geometry import bounding_box_diagonal
-    from skinsynth.pipeline.skin import finish_fit, fit_memory_bytes, fit_skin as fit, validate_fit_options
+    from skinsynth.pipeline.skin import fit_memory_bytes, validate_fit_options
 
-    check_output_path(output, (".h5", ".hdf5"), inputs=[input_spec])
+    check_output_path(output, (".h5", ".hdf5"), inputs=list(input_specs) + ([rig] if rig else []))
     if fps is not None and not 0 < fps < float("inf"):
         raise OptionError(f"--fps must be positive and finite (got {fps})")
-    if tolerance < 0 or transform_steps < 0:
+    if (tolerance is not None and tolerance < 0) or (transform_steps is not None and transform_steps < 0):
         raise OptionError("--tolerance and --transform-steps must not be negative")
-    if transform_steps > MAX_TRANSFORM_STEPS:  # each is a joint solve of every bone of every frame
+    if transform_steps is not None and transform_steps > MAX_TRANSFORM_STEPS:  # a joint solve of every bone of every frame
         raise OptionError(f"--transform-steps {transform_steps}: at most {MAX_TRANSFORM_STEPS} per iteration (each "
                           "is a joint solve of every bone of every frame; 0 or 1 is the useful range)")
+    if rig is None and bones is None:
+        raise OptionError("--bones is required (or --rig, a skin file whose bones and weights to keep)")
+    if tolerance is None:
+        tolerance = 0.001 if rig else 0.02
+    if transform_steps is None:
+        transform_steps = 1 if rig else 0
     if device != "cpu":  # "cpu" runs numba's loops and never imports warp (about 1 s)
         from skinsynth.gpu import resolve_device
 
         device = resolve_device(device)
     warp_device = None if device == "cpu" else device
-    sequence = read_mesh_sequence(input_spec, prim=prim, fps=fps)
+    sequence = read_clips(input_specs, prim=prim, fps=fps)
     try:
         sequence = replace(sequence, scene=sequence.scene.overridden(meters_per_unit, up_axis, start_frame))
     except ValueError as error:
         raise OptionError(str(error)) from None
+    clips = Clips(sequence.clip_names, sequence.clip_frames)
     frames, count = sequence.vertices.shape[:2]
-    validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
-    check_memory(fit_memory_bytes(frames, count, bones, transform_steps),
-                 f"fit-skin --bones {bones} on {count} vertices × {frames} frames"
-                 + (f" with --transform-steps {transform_steps}" if transform_steps else ""))
-    rest_frame = rest_frame % frames
-    diagonal = bounding_box_diagonal(sequence.vertices[rest_frame])
+    rig_model = _read_rig(rig, sequence, bones) if rig else None
+    if rig_model is not None:
+        bones = rig_model.bones
+        rest_frame = 0  # the rest pose is the rig's, not one of these frames (docs/format.md: /mesh)
+    else:
+        rest_frame = clips.frame(rest_frame, "--rest-frame")
+        validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
+        check_memory(fit_memory_bytes(frames, count, bones, transform_steps),
+                     f"fit-skin --bones {bones} on {count} vertices × {frames} frames"
+                     + (f" with --transform-steps {transform_steps}" if transform_steps else ""))
+    rest_vertices = rig_model.rest_vertices if rig_model is not None else sequence.vertices[rest_frame]
+    diagonal = bounding_box_diagonal(rest_vertices)
     if not diagonal > 0.0:
-        raise OptionError(f"{input_spec}: the rest frame has no extent (all vertices coincide)")
+        raise OptionError(f"{input_specs[0]}: the rest frame has no extent (all vertices coincide)")
 
     started = time.perf_counter()
     history = []  # (seconds, RMSE over the diagonal) after each iteration
@@ -97,30 +122,71 @@ def fit_skin(input_spec, output, bones, max_influences, iterations, tolerance, p
         history.append((round(time.perf_counter() - started, 3), rmse / diagonal))
         bar.update(1, f"RMSE/diag {rmse / diagonal:.2e}")
 
-    with Progress(iterations, f"fit-skin {bones} bones", quiet) as bar:
-        result = fit(sequence.vertices, bones, max_influences=max_influences, iterations=iterations,
-                     rest_frame=rest_frame, seed=seed, tolerance=tolerance, patience=patience, joint_steps=transform_steps,
-                     device=warp_device,
-                     progress=progress)
+    with Progress(iterations, f"fit-skin {bones} bones" + (" on the rig" if rig else ""), quiet) as bar:
+        result = _fit(sequence.vertices, rig_model, bones, max_influences, iterations, rest_frame, seed, tolerance,
+                      patience, transform_steps, warp_device, progress)
     seconds = time.perf_counter() - started
 
+    from skinsynth.formats.model import write_model
+    from skinsynth.formats.provenance import provenance_record
+    from skinsynth.formats.skin_file import skin_groups
+    from skinsynth.pipeline.skin import finish_fit
+
     frame_rmse, dq, rest_frames = finish_fit(result, sequence.vertices)
+    if rig_model is not None:
+        rest_frames = rig_model.bone_rest_frames  # the same skeleton, exactly
     scene = sequence.scene
-    parameters = dict(bones=bones, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
+    parameters = dict(bones=bones, rig=rig, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
                       patience=patience, device=device,
                       rest_frame=rest_frame, seed=seed, transform_steps=transform_steps, prim=prim, fps=sequence.fps,
                       meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame)
-    record = provenance_record("skin", command_line(), parameters, [input_spec], tool_version(), seed)
+    record = provenance_record("skin", command_line(), parameters, list(input_specs) + ([rig] if rig else []),
+                               tool_version(), seed)
     write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal),
                 [record], tool_version())
-    summary, lines = _summary(output, sequence, bones, result, diagonal, seconds, device, history)
+    summary, lines = _summary(output, sequence, bones, result, diagonal, seconds, device, history, clips, frame_rmse)
     report(summary, lines, as_json, quiet)
     if result.bones_without_weight:
         click.echo(f"warning: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
                    "has fewer independently moving parts than --bones", err=True)
 
 
-def _summary(output, sequence, bones, result, diagonal, seconds, device, history):
+def _fit(vertices, rig, bones, max_influences, iterations, rest_frame, seed, tolerance, patience, transform_steps,
+         device, progress):
+    """A full fit, or with ``rig`` (a SkinModel) only the bone transforms on its rig."""
+    from skinsynth.pipeline.skin import fit_bones_to_rig, fit_skin
+
+    if rig is not None:
+        return fit_bones_to_rig(vertices, rig.rest_vertices, rig.bone_indices, rig.bone_weights, rig.bones,
+                                iterations=iterations, tolerance=tolerance, patience=patience,
+                                joint_steps=transform_steps, progress=progress, device=device)
+    return fit_skin(vertices, bones, max_influences=max_influences, iterations=iterations, rest_frame=rest_frame,
+                    seed=seed, tolerance=tolerance, patience=patience, joint_steps=transform_steps, device=device,
+                    progress=progress)
+
+
+def _read_rig(path, sequence, bones):
+    """The rig of ``--rig`` (a SkinModel), refused unless it is the clips' mesh and has ``bones``."""
+    from skinsynth.formats.errors import FormatError
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.errors import OptionError
+
+    rig = read_skin(path)
+    count = sequence.vertices.shape[1]
+    if len(rig.rest_vertices) != count:
+        raise FormatError(path, f"rig has {len(rig.rest_vertices)} vertices where {sequence.source} has {count}: "
+                                "--rig needs the clips' own mesh")
+    if rig.faces.shape != sequence.faces.shape or not np.array_equal(rig.faces, sequence.faces):
+        differ = 0 if rig.faces.shape != sequence.faces.shape else int(np.flatnonzero(
+            np.any(rig.faces != sequence.faces, axis=1))[0])
+        raise FormatError(path, f"rig's faces differ from {sequence.source}'s (first at face {differ}): --rig "
+                                "needs the clips' own mesh, vertices in the same order")
+    if bones is not None and bones != rig.bones:
+        raise OptionError(f"--bones {bones} differs from the rig's {rig.bones} bones (leave --bones out with --rig)")
+    return rig
+
+
+def _summary(output, sequence, bones, result, diagonal, seconds, device, history, clips, frame_rmse):
     """The command's summary (--json) and its text lines."""
     frames, count = sequence.vertices.shape[:2]
     scene = sequence.scene
@@ -131,10 +197,16 @@ def _summary(output, sequence, bones, result, diagonal, seconds, device, history
                "device": device,
                "bones_without_weight": int(result.bones_without_weight), "meters_per_unit": scene.meters_per_unit,
                "up_axis": scene.up_axis, "start_frame": scene.start_frame, "prim_path": scene.prim_path,
-               "history": [[t, float(f"{e:.6g}")] for t, e in history]}
+               "history": [[t, float(f"{e:.6g}")] for t, e in history],
+               "clips": [{"name": name, "frames": int(n), "rmse": float(np.sqrt(np.mean(frame_rmse[a:b] ** 2))),
+                          "rmse_over_diagonal": float(np.sqrt(np.mean(frame_rmse[a:b] ** 2)) / diagonal)}
+                         for name, n, a, b in zip(clips.names, clips.frames, clips.starts[:-1], clips.starts[1:])]}
     lines = [f"wrote {output}: {bones} bones, {count} vertices, {frames} frames; "
              f"RMSE {result.rmse:.4g} = {result.rmse / diagonal:.2e} of the bounding-box diagonal "
              f"({result.iterations} iterations, {state}, {seconds:.1f} s)",
              f"scene: {scene.describe(frames)} at {sequence.fps:g} fps (stated again by every USD written "
              "from it; --meters-per-unit, --up-axis, --start-frame override)"]
+    if len(clips) > 1:
+        lines.append("clips: " + ", ".join(f"{c['name']} ({c['frames']} frames, RMSE/diag {c['rmse_over_diagonal']:.2e})"
+                                           for c in summary["clips"]))
     return summary, lines

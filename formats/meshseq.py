@@ -30,7 +30,9 @@ class MeshSequence:
     """vertices (F, V, 3) float64, faces (T, 3) int64 triangles, fps, the input as given, its
     scene (units, up axis, first frame, prim path; USD states them, other inputs default), and
     face_uvs (T, 3, 2) float64, the material UVs of each face corner (OBJ ``vt``, USD
-    ``primvars:st``; v up, as both store them), or None when the input has none."""
+    ``primvars:st``; v up, as both store them), or None when the input has none. Clips read
+    together (:func:`~.clip_inputs.read_clips`) set ``clip_names`` (C,) and ``clip_frames`` (C,),
+    summing to F; None means one clip."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -38,6 +40,8 @@ class MeshSequence:
     source: str
     scene: Scene = field(default_factory=Scene)
     face_uvs: np.ndarray | None = None
+    clip_names: tuple | None = None
+    clip_frames: tuple | None = None
 
 
 def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = None) -> MeshSequence:

@@ -4,8 +4,11 @@ Groups (all arrays float64 unless noted; conventions in docs/format.md):
 
 - ``/mesh``: ``rest_vertices (V, 3)``, ``faces (T, 3)`` int64; ``@rest_frame``; and only when the
   input had material UVs, ``face_uvs (T, 3, 2)`` (each face corner's (u, v), v up).
-- ``/examples``: ``vertices (F, V, 3)``; ``@fps``, ``@source``, and the input's scene
-  (:mod:`.scene`): ``@meters_per_unit``, ``@up_axis``, ``@start_frame``, ``@prim_path``.
+- ``/examples``: ``vertices (F, V, 3)``; ``clip_frames (C,)`` int64, the frames of each clip
+  (summing to F; the clips are the frames in order); ``@clip_names`` (C,) str; ``@fps``,
+  ``@source``, and the input's scene (:mod:`.scene`): ``@meters_per_unit``, ``@up_axis``,
+  ``@start_frame``, ``@prim_path``. A file from before clips were stored is one clip, named after
+  its source (:func:`stored_clips`).
 - ``/skin``: ``bone_indices (V, K)`` int32, ``bone_weights (V, K)`` (≥ 0, rows sum to 1, sorted
   decreasing, unused slots 0), ``rotations (F, B, 3, 3)``, ``translations (F, B, 3)``,
   ``dual_quaternions (F, B, 8)`` (real then dual part, each (w, x, y, z), hemisphere-consistent
@@ -47,6 +50,8 @@ class SkinModel:
     provenance: list
     scene: Scene = field(default_factory=Scene)
     face_uvs: np.ndarray | None = None
+    clip_names: tuple = ("clip",)
+    clip_frames: tuple = ()
 
     @property
     def bones(self):
@@ -60,8 +65,8 @@ def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, f
         mesh["face_uvs"] = np.asarray(sequence.face_uvs, dtype=np.float64)
     return {
         "mesh": {**mesh, "@rest_frame": int(rest_frame)},
-        "examples": {"vertices": sequence.vertices, "@fps": float(sequence.fps), "@source": sequence.source,
-                     **sequence.scene.attributes()},
+        "examples": {"vertices": sequence.vertices, **clip_groups(sequence),
+                     "@fps": float(sequence.fps), "@source": sequence.source, **sequence.scene.attributes()},
         "skin": {
             "bone_indices": fit.bone_indices.astype(np.int32),
             "bone_weights": fit.bone_weights,
@@ -84,6 +89,29 @@ def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, f
     }
 
 
+def clip_groups(sequence):
+    """The clip table of ``/examples`` for a MeshSequence (one clip, named after its source,
+    when it names none)."""
+    names = sequence.clip_names or (clip_name_of(sequence.source),)
+    frames = sequence.clip_frames or (len(sequence.vertices),)
+    return {"clip_frames": np.asarray(frames, dtype=np.int64), "@clip_names": [str(n) for n in names]}
+
+
+def clip_name_of(source):
+    """The name of a one-clip file's clip: its source's name (:func:`.clip_inputs.default_name`)."""
+    from .clip_inputs import default_name
+
+    return default_name(source.split(" ")[0]) if source else "clip"
+
+
+def stored_clips(examples, frames):
+    """(names (C,), frames (C,)) of a read ``/examples`` group holding ``frames`` frames."""
+    if "clip_frames" not in examples:
+        return (clip_name_of(str(examples.get("@source", ""))),), (int(frames),)
+    names = examples.get("@clip_names", ())
+    return tuple(str(n) for n in np.atleast_1d(names)), tuple(int(f) for f in np.atleast_1d(examples["clip_frames"]))
+
+
 _SKIN_DATASETS = ("bone_indices", "bone_weights", "rotations", "translations", "dual_quaternions",
                   "bone_rest_frames")
 
@@ -97,6 +125,7 @@ def read_skin(path, model=None):
     examples = require(model, path, "examples", ("vertices",))
     skin = require(model, path, "skin", _SKIN_DATASETS)
     check_skin(path, model)  # kinds, shapes, finite values, index ranges, unit weights
+    names, frames = stored_clips(examples, len(examples["vertices"]))
     return SkinModel(
         rest_vertices=mesh["rest_vertices"], faces=mesh["faces"], rest_frame=int(mesh.get("@rest_frame", 0)),
         examples=examples["vertices"], fps=float(examples.get("@fps", 24.0)), source=str(examples.get("@source", "")),
@@ -104,4 +133,4 @@ def read_skin(path, model=None):
         translations=skin["translations"], dual_quaternions=skin["dual_quaternions"],
         bone_rest_frames=skin["bone_rest_frames"], rmse=float(skin.get("@rmse", np.nan)),
         rmse_over_diagonal=float(skin.get("@rmse_over_diagonal", np.nan)), provenance=model["provenance"],
-        scene=Scene.from_attributes(examples), face_uvs=mesh.get("face_uvs"))
+        scene=Scene.from_attributes(examples), face_uvs=mesh.get("face_uvs"), clip_names=names, clip_frames=frames)

@@ -8,6 +8,7 @@ that bind to the first size seen, so ``/mesh/rest_vertices (V, 3)`` and ``/skin/
 below the bone count).
 """
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,7 +111,9 @@ def _shape_text(shape):
 
 MESH = {"rest_vertices": Field("float", ("V", 3)), "faces": Field("int", ("T", 3), low=0, high="V"),
         "face_uvs": Field("float", ("T", 3, 2), optional=True)}
-EXAMPLES = {"vertices": Field("float", ("F", "V", 3))}
+EXAMPLES = {"vertices": Field("float", ("F", "V", 3)),
+            "clip_frames": Field("int", ("C",), low=1, optional=True)}
+CLIP_NAME = re.compile(r"^[A-Za-z0-9_.\-]+$")
 SKIN = {
     "bone_indices": Field("int", ("V", "K"), low=0, high="B"),
     "bone_weights": Field("float", ("V", "K"), low=0.0),
@@ -144,7 +147,23 @@ def check_skin(path, model):
     if prim_path is not None and not (isinstance(prim_path, str) and prim_path.startswith("/") and len(prim_path) > 1):
         raise FormatError(path, f"/examples/@prim_path is {prim_path!r}, not an absolute USD prim path")
     check_attribute(path, "mesh", model["mesh"], "rest_frame", "int", low=0, high=dims["F"] - 1)
+    check_clips(path, model["examples"], dims["F"])
     return dims
+
+
+def check_clips(path, examples, frames):
+    """/examples/clip_frames sums to the frames, and @clip_names gives each clip a distinct name."""
+    if "clip_frames" not in examples:
+        return
+    counts = np.atleast_1d(examples["clip_frames"])
+    if int(counts.sum()) != frames:
+        raise FormatError(path, f"/examples/clip_frames sums to {int(counts.sum())}, not the {frames} frames")
+    names = examples.get("@clip_names")
+    names = [] if names is None else [n.decode() if isinstance(n, bytes) else n for n in np.atleast_1d(names)]
+    if len(names) != len(counts) or len(set(names)) != len(names) \
+            or not all(isinstance(n, str) and CLIP_NAME.match(n) for n in names):
+        raise FormatError(path, f"/examples/@clip_names must name each of the {len(counts)} clips once, in "
+                                f"letters, digits, '_', '.' or '-' (got {names!r})")
 
 
 GRAPH = {"weights": Field("float", ("B", "B")), "kept_edges": Field("int", ("E", 2), low=0, high="B"),

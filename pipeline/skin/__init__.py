@@ -4,12 +4,12 @@
 weights (:mod:`.skin_weights`, :mod:`.vertex_weights`, :mod:`.simplex_qp`), alternated to
 convergence (:mod:`.skin_fit`).
 
-Public: fit_skin, finish_fit, validate_fit_options, fit_memory_bytes, bone_rest_frames, SkinFit.
+Public: fit_skin, fit_bones_to_rig (a new take on a given rig), finish_fit, validate_fit_options, fit_memory_bytes, bone_rest_frames, SkinFit.
 """
 
 from .._lazy import lazy_exports
 
-_EXPORTS = {"fit_skin": "skin_fit", "finish_fit": "skin_fit", "validate_fit_options": "skin_fit",
+_EXPORTS = {"fit_skin": "skin_fit", "fit_bones_to_rig": "skin_fit", "finish_fit": "skin_fit", "validate_fit_options": "skin_fit",
             "fit_memory_bytes": "skin_fit", "bone_rest_frames": "skin_fit",
             "SkinFit": "skin_fit"}
 __all__ = sorted(_EXPORTS)

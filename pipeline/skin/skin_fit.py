@@ -211,3 +211,70 @@ def bone_rest_frames(rest_vertices, bone_indices, bone_weights, bones):
     frames = np.tile(np.eye(4), (bones, 1, 1))
     frames[:, :3, 3] = centre
     return frames
+
+
+@threadpool_limits.wrap(limits=1, user_api="blas")
+def fit_bones_to_rig(vertices, rest, bone_indices, bone_weights, bones, iterations=100, tolerance=0.001, patience=3,
+                     joint_steps=1, progress=None, device=None):
+    """Bone transforms of new frames on a given rig: Dem Bones' "solve bones for given weights".
+
+    vertices (F, V, 3) the new frames; rest (V, 3), bone_indices (V, K), bone_weights (V, K) and
+    its B ``bones``: the rig, kept exactly (the new take drives the same skeleton). Minimises Zheng eq. 1's error
+    over rotations (F, B, 3, 3) and translations (F, B, 3) alone: a start from each bone's
+    Procrustes fit of the vertices it dominates (a bone that dominates none starts at the
+    identity), then per-bone weighted Procrustes sweeps (:mod:`.transform_sweep`, each an exact
+    block update, so the error never rises) with ``joint_steps`` joint Gauss-Newton steps of every
+    bone of a frame per iteration (:func:`.bone_transforms.refine_bone_transforms`, up to
+    :data:`JOINT_MAX_BONES` bones: with the weights fixed, coupled bones move together there,
+    where the sweep moves them one at a time). Stops once the last ``patience`` iterations
+    together improved the RMSE by less than ``tolerance`` (relative; stricter than
+    :func:`fit_skin`'s, since an iteration here costs a few milliseconds), else after
+    ``iterations``. The error is computed from the sums alone (:func:`.bone_transforms.frame_energies`).
+    Returns a :class:`SkinFit` with the rig's rest pose and weights.
+    """
+    from .bone_transforms import frame_energies
+
+    vertices = np.asarray(vertices, dtype=np.float64)
+    frames, count = vertices.shape[:2]
+    bone_indices = np.asarray(bone_indices, dtype=np.int32)
+    bone_weights = np.asarray(bone_weights, dtype=np.float64)
+    if iterations < 1:
+        raise OptionError(f"--iterations must be at least 1 (got {iterations})")
+    data = Trajectories(vertices, np.asarray(rest, dtype=np.float64))
+    p, q = sparse_weighted_sums(bone_indices, bone_weights, data, bones)
+    dominant = bone_indices[np.arange(count), np.argmax(bone_weights, axis=1)]
+    transforms = fit_cluster_transforms(dominant, bones, data)
+    alone = np.bincount(dominant, minlength=bones) == 0
+    transforms[:, alone] = np.eye(3, 4)
+    if device is None:
+        sweep = sweep_bone_transforms
+    else:
+        from skinsynth.gpu import sweep_bone_transforms_warp
+
+        def sweep(transforms, p, q):
+            return sweep_bone_transforms_warp(transforms, p, q, device)
+
+    squared = float(data.squared_norm.sum())
+    history, converged = [], False
+    stopped = f"iteration limit ({iterations}; --iterations)"
+    for iteration in range(1, iterations + 1):
+        transforms = sweep(transforms, p, q)
+        if joint_steps and bones <= JOINT_MAX_BONES:
+            transforms = refine_bone_transforms(transforms, p, q, steps=joint_steps)
+        energy = squared + float(frame_energies(transforms, p, q).sum())
+        rmse = float(np.sqrt(max(energy, 0.0) / (frames * count)))
+        history.append(rmse)
+        if progress is not None:
+            progress(iteration, rmse)
+        if iteration > patience and history[-1 - patience] - rmse <= tolerance * history[-1 - patience]:
+            gain = (history[-1 - patience] - rmse) / history[-1 - patience] if history[-1 - patience] else 0.0
+            stopped = (f"converged: the last {patience} iterations improved the RMSE by {gain:.2%} "
+                       f"(≤ {tolerance:.2%}; --tolerance)")
+            converged = True
+            break
+    return SkinFit(
+        rest_vertices=np.asarray(rest, dtype=np.float64).copy(), bone_indices=bone_indices,
+        bone_weights=bone_weights, rotations=transforms[..., :3], translations=transforms[..., 3], rmse=history[-1],
+        error_history=history, iterations=len(history), converged=converged, stopped=stopped, labels=dominant,
+        bones_without_weight=int((np.bincount(bone_indices.ravel(), weights=bone_weights.ravel(),
+                                              minlength=bones) <= 0.0).sum()))
