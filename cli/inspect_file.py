@@ -16,7 +16,11 @@ from .common import user_errors
                    "digests hold the same data bit for bit, however stored (e.g. --jobs against --cluster).")
 @user_errors
 def inspect_file(path, as_json, quiet, digests):
-    """Summarise a skinsynth model file: stage, version, counts, fit errors, provenance.
+    """Summarise a skinsynth model file: stage, version, counts, clips, fit errors, provenance.
+
+    The clips are the takes the examples hold, in order (fit-skin CLIP...): each one's name, frame
+    count and first and last frame in the file's one frame numbering (a file from before clips
+    were stored is one clip, named after its source).
 
     \b
     Examples:
@@ -44,6 +48,10 @@ def inspect_file(path, as_json, quiet, digests):
             for record in value:
                 click.echo(f"provenance: {record['stage']} by skinsynth {record['tool_version']} on {record['date']}"
                            f" (seed {record['seed']}): {record['command']}")
+        elif key == "clips":  # one line each: name, frames, global first–last
+            click.echo(f"clips: {len(value)}")
+            for clip in value:
+                click.echo(f"  {clip['name']}: {clip['frames']} frames ({clip['first']}–{clip['last']})")
         elif isinstance(value, float):
             click.echo(f"{key}: {value:.6g}")
         else:

@@ -6,6 +6,7 @@ import numpy as np
 
 from .model import require
 from .scene import Scene
+from .skin_file import stored_clips
 from .validation import check_controls, check_graph, check_puppet, check_skin, check_synthesis
 
 
@@ -26,6 +27,16 @@ def validate_model(path, model):
         check_synthesis(path, model, dims)
 
 
+def clip_table(examples, frames):
+    """The clips of a read ``/examples`` group of ``frames`` frames, in order: [{name, frames,
+    first, last}] (first and last: global frame numbers); a file without a clip table is one clip
+    (:func:`.skin_file.stored_clips`)."""
+    names, counts = stored_clips(examples, frames)
+    ends = np.cumsum(counts)
+    return [{"name": name, "frames": int(count), "first": int(end - count), "last": int(end - 1)}
+            for name, count, end in zip(names, counts, ends)]
+
+
 def describe_model(path, model):
     """What ``inspect`` reports of a model file (``model``: :func:`.model.read_model`'s dict),
     after the checks every reader makes (:func:`validate_model`): {name: plain value}."""
@@ -40,6 +51,7 @@ def describe_model(path, model):
         out["frames"] = int(examples["vertices"].shape[0])
         out["fps"] = float(examples.get("@fps", 0.0))
         out["source"] = str(examples.get("@source", ""))
+        out["clips"] = clip_table(examples, out["frames"])
         scene = Scene.from_attributes(examples)
         out.update(meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame,
                    prim_path=scene.prim_path)
