@@ -3,6 +3,7 @@
 import contextlib
 
 import click
+import numpy as np
 
 from .options import check_max_width, device_option, texture_options, up_axis_option
 from .common import FolderOutputs, report, summary_options, user_errors
@@ -30,6 +31,11 @@ def _selection(text):
 @click.option("--animation", "selections", multiple=True, type=_selection, metavar="N|A:B",
               help="Synthesis file: which animations; play .h5: which characters (repeatable; A:B is A to B−1). "
                    "A USD file or an .exr holds one, a .glb or a folder any number.  [default: all]")
+@click.option("--clip", default=None, metavar="NAME",
+              help="Skin file with several clips (fit-skin CLIP...): export only this clip's frames, its first at "
+                   "the scene's start frame.  [default: every frame; a .glb holds one animation per clip, named "
+                   "after it, and a USD stage one timeline whose layer metadata (customLayerData "
+                   "\"skinsynth:clips\": names, startTimeCodes, endTimeCodes) says where each clip begins and ends]")
 @click.option("--root-motion", is_flag=True,
               help=".glb and UsdSkel: the root joint carries the character's ground motion (its turn about the up "
                    "axis and its ground-plane travel, as synthesize's ground alignment defines it) and the bones move "
@@ -49,12 +55,13 @@ def _selection(text):
                 "as fit-skin recorded it]")
 @summary_options
 @user_errors
-def export(path, output, selections, kind, root_motion, quantize, device, half, max_width, up_axis, quiet, as_json):
+def export(path, output, selections, clip, kind, root_motion, quantize, device, half, max_width, up_axis, quiet,
+           as_json):
     """Export any animation a file holds.
 
     \b
     - a skin file (and controls, puppet and graph files, which carry it): the LBS reconstruction
-      of the example frames;
+      of the example frames, every clip's (--clip: one clip's);
     - a synthesis file: its animations (--animation), read one at a time, so a cluster run of
       any size exports in bounded memory;
     - play's .h5: its characters (--animation), as point caches or textures.
@@ -68,13 +75,12 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
     \b
     Examples:
       skinsynth export skin.h5 -o skin.usdc
+      skinsynth export horse.h5 --clip collapse -o collapse.usdc
       skinsynth export skin.h5 -o skin.usda --as points
       skinsynth export skin.h5 -o skin_vat.exr --half
       skinsynth export bones.h5 --animation 7 -o walk_7.usdc
       skinsynth export bones.h5 --animation 0:16 -o crowd_vat/
     """
-    import numpy as np
-
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
 
@@ -86,7 +92,7 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
         raise OptionError(f"--quantize is for .glb outputs (got {output})")
     check_max_width(max_width)
     device = resolve_device(device)
-    with _animations(path, device) as source:
+    with _animations(path, device, clip) as source:
         chosen = _chosen(source, selections)
         kind = kind or ("skel" if source.has_skeleton else "points")
         _check_request(path, output, output_kind, kind, source, chosen, root_motion)
@@ -100,7 +106,7 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
                                                                             for a in chosen), half, max_width,
                                                       folders.guard(output), label=source.path) // len(chosen)
         elif output_kind == "gltf":
-            write_gltf(output, source.skin, ((source.names[a], *source.motions(a)) for a in chosen),
+            write_gltf(output, source.skin, (part for a in chosen for part in source.parts(a)),
                        up_axis or source.scene.up_axis, None if quantize is None else int(quantize), root_motion,
                        label=source.path)
         elif to_exr:
@@ -121,20 +127,25 @@ def export(path, output, selections, kind, root_motion, quantize, device, half, 
                                      skin.rest_vertices, skin.bone_indices, skin.bone_weights, up)
             write_skel_cache(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, rotations,
                              translations, skin.bone_rest_frames[:, :3, 3], skin.fps, up_axis=up_axis,
-                             scene=skin.scene, root_motion=root)
+                             scene=skin.scene, root_motion=root, clips=source.clips)
         else:
             from skinsynth.formats.usd import write_points_cache
 
             write_points_cache(output, source.vertices(chosen[0]), source.faces, source.fps, up_axis=up_axis,
-                               scene=source.scene)
+                               scene=source.scene, clips=source.clips)
     what = "bone-animation texture" if kind == "bones" else "vertex-animation texture" if to_exr else \
         "glTF" if output_kind == "gltf" else ("UsdSkel" if kind == "skel" else "point cache")
     joints = int(source.skin.rotations.shape[1]) + 1 if what in ("UsdSkel", "glTF") else None  # bones and the root
     summary = {"output": output, "frames": int(source.frames), "vertices": int(source.rest_vertices.shape[0]),
                "kind": what, "joints": joints, "animations": [int(a) for a in chosen],
-               "names": [source.names[a] for a in chosen]}
+               "names": [part[0] for a in chosen for part in source.parts(a)] if output_kind == "gltf"
+               else [source.names[a] for a in chosen]}
+    if source.clips is not None:
+        summary["clips"] = list(source.clips[0])
     detail = "" if to_exr else f" ({what}, {joints} joints)" if joints else " (point cache)"
     chosen_text = "" if source.count == 1 else f" of {len(chosen)} {source.what}(s) ({_ranges(chosen)})"
+    if source.clips is not None and (clip is not None or len(source.clips[0]) > 1):
+        chosen_text = f" of clip{'s' if len(source.clips[0]) > 1 else ''} {', '.join(source.clips[0])}"
     lines = [f"wrote {output}: {source.frames} frames{chosen_text}, {source.rest_vertices.shape[0]} vertices" + detail]
     if kind == "bones":
         texel = 2 if half else 4
@@ -189,6 +200,14 @@ def _chosen(source, selections):
     return chosen
 
 
+def _no_clips(path, clip, what):
+    """Refuse --clip for a file without a skin's example clips (``what`` says what it is)."""
+    from skinsynth.pipeline.errors import OptionError
+
+    if clip is not None:
+        raise OptionError(f"--clip {clip}: chooses one clip of a skin file's examples, and {path} is {what}")
+
+
 def _ranges(indices):
     """[0, 1, 2, 7] -> "0–2, 7"."""
     parts, start = [], None
@@ -204,13 +223,25 @@ def _ranges(indices):
 class _Source:
     """What a file holds to export: ``count`` animations of ``frames`` frames named ``names``,
     ``vertices(a)`` (frames, V, 3) of one, and where there is a skeleton (``skin``)
-    ``motions(a)``: its bone rotations (frames, B, 3, 3) and translations (frames, B, 3)."""
+    ``motions(a)``: its bone rotations (frames, B, 3, 3) and translations (frames, B, 3).
+    ``clips``: a skin's example frames, (names (C,), frame counts (C,)) of the clips they hold
+    end to end, or None (a synthesis, a played file)."""
 
     def __init__(self, path, what, names, frames, rest_vertices, faces, fps, scene, vertices, motions=None,
-                 skin=None):
+                 skin=None, clips=None):
         self.path, self.what, self.names, self.frames = path, what, names, frames
         self.rest_vertices, self.faces, self.fps, self.scene = rest_vertices, faces, fps, scene
-        self.vertices, self.motions, self.skin = vertices, motions, skin
+        self.vertices, self.motions, self.skin, self.clips = vertices, motions, skin, clips
+
+    def parts(self, a):
+        """(name, rotations, translations) of each glTF animation animation ``a`` becomes: one per
+        clip, named after it, when it holds several; else the one named ``names[a]``."""
+        rotations, translations = self.motions(a)
+        if self.clips is None or len(self.clips[0]) < 2:
+            return [(self.names[a], rotations, translations)]
+        ends = np.cumsum(self.clips[1])
+        return [(name, rotations[end - count:end], translations[end - count:end])
+                for name, count, end in zip(*self.clips, ends)]
 
     @property
     def count(self):
@@ -222,11 +253,10 @@ class _Source:
 
 
 @contextlib.contextmanager
-def _animations(path, device):
+def _animations(path, device, clip=None):
     """The :class:`_Source` of any file that holds animation (a synthesis's motions stay in the
-    file, read one animation at a time)."""
-    import numpy as np
-
+    file, read one animation at a time); ``clip`` names the one clip of a skin's examples to
+    take (OptionError for an unknown one, or a file that is no skin's)."""
     from skinsynth.formats.errors import FormatError
     from skinsynth.formats.model import read_header, read_model
     from skinsynth.formats.skin_file import read_skin
@@ -250,16 +280,27 @@ def _animations(path, device):
                                     f"'vertices' and 'faces'): {error.problem}") from None
         from skinsynth.formats.scene import Scene
 
+        _no_clips(path, clip, "a played file, whose characters --animation chooses")
         yield _Source(path, "character", list(names), vertices.shape[1], vertices[0, 0], faces, fps, Scene(),
                       vertices=lambda a: vertices[a])
         return
     skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
     if stage != "synthesis":
-        yield _Source(path, "animation", ["animation"], skin.rotations.shape[0], skin.rest_vertices, skin.faces,
-                      skin.fps, skin.scene, skin=skin, motions=lambda a: (skin.rotations, skin.translations),
-                      vertices=lambda a: lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
-                                             skin.translations, device=device))
+        from skinsynth.pipeline.clips import Clips
+
+        clips = Clips(skin.clip_names, skin.clip_frames)
+        rotations, translations, name = skin.rotations, skin.translations, "animation"
+        if clip is not None:  # its frames alone, renumbered from the scene's start frame
+            frames = clips.select([clip], "--clip")
+            rotations, translations, name = rotations[frames], translations[frames], clip
+            clips = clips.subset([clip])
+        yield _Source(path, "animation", [name], rotations.shape[0], skin.rest_vertices, skin.faces,
+                      skin.fps, skin.scene, skin=skin, motions=lambda a: (rotations, translations),
+                      vertices=lambda a: lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations,
+                                             translations, device=device),
+                      clips=(clips.names, clips.frames))
         return
+    _no_clips(path, clip, "a synthesis file, whose animations --animation chooses")
     from skinsynth.formats.synthesis_file import open_motions
     from skinsynth.pipeline.synthesis import SkinnedAnimations
 

@@ -27,24 +27,27 @@ SAVE_EVERY_BYTES = 256 << 20
 # ---------------------------------------------------------------- writing
 
 
-def write_points_cache(path, vertices, faces, fps, prim_name=None, up_axis=None, scene=None) -> None:
+def write_points_cache(path, vertices, faces, fps, prim_name=None, up_axis=None, scene=None, clips=None) -> None:
     """Write vertices (F, V, 3) and faces (T, 3) as a Mesh with points at time codes start..start+F-1.
 
     ``scene`` (:class:`~skinsynth.formats.scene.Scene`, default: 1 m per unit, Y up, from 0, at
     ``/mesh``) gives the stage's metersPerUnit, upAxis and first time code and the mesh's path
     (parents become Xforms); ``prim_name`` (``/<prim_name>``) and ``up_axis`` override it. The
-    encoding (.usda text, .usdc/.usd binary) follows the extension. Raises ValueError for
-    malformed arrays; nothing is left on disk when writing fails.
+    encoding (.usda text, .usdc/.usd binary) follows the extension. ``clips``: (names (C,), frame
+    counts (C,)) of the takes the frames hold end to end; with two or more, the stage's layer
+    metadata says where each one begins and ends (:data:`CLIPS_KEY`); None (or one clip) writes
+    none. Raises ValueError for malformed arrays; nothing is left on disk when writing fails.
     """
     scene = _scene(scene, up_axis, prim_name)
     vertices = _float_array("vertices", vertices, (None, None, 3), path)
-    write_points_characters(path, vertices[None], faces, fps, names=[scene.prim_name], group=None, scene=scene)
+    write_points_characters(path, vertices[None], faces, fps, names=[scene.prim_name], group=None, scene=scene,
+                            clips=clips)
 
 
 def write_points_characters(path, vertices, faces, fps, names=None, up_axis=None, group="characters",
-                            scene=None) -> None:
+                            scene=None, clips=None) -> None:
     """Several baked characters as Meshes ``/<group>/<name>`` (group None: the one mesh at the
-    scene's prim path). ``scene`` and ``up_axis`` as :func:`write_points_cache`.
+    scene's prim path). ``scene``, ``up_axis`` and ``clips`` as :func:`write_points_cache`.
 
     vertices: an array (C, F, V, 3), or any sequence whose item c is character c's (F, V, 3) —
     e.g. a lazy one that skins each character only when it is written, so a crowd never has to
@@ -64,7 +67,7 @@ def write_points_characters(path, vertices, faces, fps, names=None, up_axis=None
     # float32 points and a float extent per frame and character (usda text takes several times that)
     expected = characters * frames * (count * 12 + 48) * (6 if str(path).lower().endswith(".usda") else 1)
     with atomic_output(path, expected_bytes=expected + (1 << 20)) as tmp:
-        stage = _new_stage(tmp, fps, frames, scene)
+        stage = _new_stage(tmp, fps, frames, scene, clips)
         parent = _group_parent(stage, group)
         unsaved, binary = 0, not str(path).lower().endswith(".usda")
         for c, name in enumerate(names):
@@ -96,7 +99,7 @@ def write_points_characters(path, vertices, faces, fps, names=None, up_axis=None
 
 def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
                      bind_centers, fps, prim_name=None, up_axis=None, skinning="linear", scene=None,
-                     root_motion=None) -> None:
+                     root_motion=None, clips=None) -> None:
     """Write a rigid-bone animation as UsdSkel so that UsdSkel's skinning reproduces skinsynth's.
 
     rest_vertices (V, 3); faces (T, 3); bone_indices (V, K) int and bone_weights (V, K)
@@ -114,13 +117,14 @@ def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rot
     joint = bind * A(t) = [R^T 0; c R^T + t 1]: the joint turns by R and sits at R c + t.
 
     ``root_motion``: (rotations (F, 3, 3), translations (F, 3)), the root joint's world transform
-    per frame (the bones' are divided by it); None keeps the root at the origin.
+    per frame (the bones' are divided by it); None keeps the root at the origin. ``clips`` as
+    :func:`write_points_cache`: one timeline, the takes' boundaries in the layer's metadata.
     """
     scene = _scene(scene, up_axis, prim_name)
     rotations = _float_array("rotations", rotations, (None, None, 3, 3))
     write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations[None],
                           np.asarray(translations)[None], bind_centers, fps, names=[scene.prim_name],
-                          skinning=skinning, group=None, scene=scene,
+                          skinning=skinning, group=None, scene=scene, clips=clips,
                           root_motion=None if root_motion is None else tuple(np.asarray(a)[None] for a in root_motion))
 
 
@@ -131,13 +135,14 @@ ROOT_JOINT = "root"
 
 def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
                           bind_centers, fps, names=None, up_axis=None, skinning="linear", group="characters",
-                          blend_shapes=None, scene=None, root_motion=None) -> None:
+                          blend_shapes=None, scene=None, root_motion=None, clips=None) -> None:
     """Several characters sharing one rig, each with its own bone animation, as UsdSkel.
 
     rotations (C, F, B, 3, 3), translations (C, F, B, 3); the rest as :func:`write_skel_cache`.
     Each character is a SkelRoot ``/<group>/<name>`` holding its ``Mesh`` (group None: one
     character laid out as :func:`write_skel_cache`; names default to character_000...). World
-    placement is part of the bone transforms. ``scene`` and ``up_axis`` as :func:`write_points_cache`.
+    placement is part of the bone transforms. ``scene``, ``up_axis`` and ``clips`` as
+    :func:`write_points_cache`.
     blend_shapes: optional (offsets (S, V, 3), weights (C, F, S), names (S,)): rest-pose offsets
     that UsdSkel adds, weighted per frame, before skinning (a puppet's pose-space correctives, as
     ± pairs with weights in [0, 1], ``pipeline.morph_targets.unit_range_pairs``: Blender's shape
@@ -178,7 +183,7 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
     indices = indices + 1  # joint 0 is the root, which carries no vertex
 
     with atomic_output(path) as tmp:
-        stage = _new_stage(tmp, fps, frames, scene)
+        stage = _new_stage(tmp, fps, frames, scene, clips)
         parent = _group_parent(stage, group)
         for c, name in enumerate(names):
             root_path, mesh_path = _skel_paths(parent, name, scene if group is None else None)
@@ -315,8 +320,42 @@ def _set_default_prim(stage, path):
     stage.SetDefaultPrim(stage.GetPrimAtPath(Sdf.Path(path).GetPrefixes()[0]))
 
 
-def _new_stage(tmp, fps, frames, scene):
+#: The layer metadata (customLayerData) that holds the clips of a stage whose frames are several
+#: takes end to end: {names: string[], startTimeCodes: double[], endTimeCodes: double[]}, one
+#: entry per clip in timeline order (each clip's first and last time code, inclusive).
+CLIPS_KEY = "skinsynth:clips"
+
+
+def clip_time_codes(clips, frames, start):
+    """{names, startTimeCodes, endTimeCodes} of ``clips`` (names (C,), frame counts (C,)) over
+    ``frames`` frames from time code ``start``; ValueError when the counts do not sum to them."""
+    names, counts = (list(part) for part in clips)
+    counts = np.asarray(counts, dtype=np.int64)
+    if len(names) != len(counts) or counts.size == 0 or np.any(counts < 1) or int(counts.sum()) != frames:
+        raise ValueError(f"clips {names} of {counts.tolist()} frames do not divide the {frames} frames")
+    ends = np.cumsum(counts)
+    return {"names": [str(n) for n in names], "startTimeCodes": (start + ends - counts).astype(float).tolist(),
+            "endTimeCodes": (start + ends - 1).astype(float).tolist()}
+
+
+def read_clips(path):
+    """The clips a stage's metadata names (:data:`CLIPS_KEY`): [(name, first, last time code)],
+    or [] for a stage without them."""
+    stage = _open(path)  # held: the layer lives as long as its stage
+    entry = stage.GetRootLayer().customLayerData.get(CLIPS_KEY)
+    if not entry:
+        return []
+    return [(str(n), float(a), float(b)) for n, a, b in zip(entry["names"], entry["startTimeCodes"],
+                                                             entry["endTimeCodes"])]
+
+
+def _new_stage(tmp, fps, frames, scene, clips=None):
+    table = None if clips is None or len(clips[0]) < 2 else clip_time_codes(clips, frames, scene.start_frame)
     stage = Usd.Stage.CreateNew(tmp)
+    if table is not None:  # only then: a one-clip stage is written byte for byte as before clips
+        stage.GetRootLayer().customLayerData = {CLIPS_KEY: {
+            "names": Vt.StringArray(table["names"]), "startTimeCodes": Vt.DoubleArray(table["startTimeCodes"]),
+            "endTimeCodes": Vt.DoubleArray(table["endTimeCodes"])}}
     stage.SetTimeCodesPerSecond(fps)
     stage.SetFramesPerSecond(fps)
     stage.SetStartTimeCode(scene.start_frame)
