@@ -2,15 +2,16 @@
 a ground plane (:mod:`.rasteriser`), previews laid out as panels with captions (:mod:`.preview`),
 and what ``skinsynth view`` shows, as pure functions on arrays (:mod:`.scenes`).
 
-Public: render, frame_bounds, ground_layer, Panel, Preview, error_colors, split_by_key, error_levels,
-level_colors, vertex_errors, vertex_components, face_components, component_colors, seam_frames,
-extrapolation, extrapolation_scale, extrapolation_color, resample_session, side_by_side.
+Public: render, frame_bounds, ground_layer, Panel, Preview, error_colors, frame_captions, walk_captions,
+split_by_key, error_levels, level_colors, vertex_errors, vertex_components, face_components, component_colors,
+seam_frames, extrapolation, extrapolation_scale, extrapolation_color, resample_session, side_by_side.
 """
 
 from .._lazy import lazy_exports
 
 _EXPORTS = {"render": "rasteriser", "frame_bounds": "rasteriser", "ground_layer": "rasteriser", "Panel": "preview",
-            "Preview": "preview", "error_colors": "preview", **{name: "scenes" for name in (
+            "Preview": "preview", "error_colors": "preview", "frame_captions": "preview",
+            "walk_captions": "preview", **{name: "scenes" for name in (
                 "split_by_key", "error_levels", "level_colors", "vertex_errors", "vertex_components",
                 "face_components", "component_colors", "seam_frames", "extrapolation", "extrapolation_scale",
                 "extrapolation_color", "resample_session", "side_by_side")}}

@@ -3,7 +3,9 @@ captions in a corner, rendered frame by frame (:mod:`.render`).
 
 A panel is one animated mesh: ``vertices (M, V, 3)``, ``faces (T, 3)``, a title, optional
 per-vertex colours ``(M, V, 3)`` (an error map), and a caption per frame (the source frame;
-for a synthesis, the input frame each component plays, with the seams marked).
+for a synthesis, the input frame each component plays, with the seams marked). A source frame
+is named ``clip:frame`` (``collapse:12``) when the input holds several clips
+(:meth:`~skinsynth.pipeline.clips.Clips.label`), else by its number.
 """
 
 from dataclasses import dataclass, field
@@ -24,6 +26,24 @@ class Panel:
     colors: np.ndarray | None = None
     captions: list = field(default_factory=list)
     marked: np.ndarray | None = None  # (M,) bool: frames whose caption is marked (a seam)
+
+
+def frame_captions(clips, frames, prefix="frame"):
+    """A caption per global frame of ``frames`` (M,) of an input of ``clips``: "frame 7", or
+    "frame gallop:7" when it holds several clips."""
+    return [f"{prefix} {clips.label(f)}" for f in np.asarray(frames).tolist()]
+
+
+def walk_captions(clips, sources):
+    """(captions [M], seams (M,) bool) of a synthesized animation whose C components play the
+    input frames ``sources (C, M)`` of ``clips``: each frame names the input frame of every
+    component; a seam is a frame where any component's source does not play on from the one
+    before, a jump into another clip's first frame included (:meth:`Clips.seams`)."""
+    sources = np.asarray(sources, dtype=np.int64)
+    seams = np.any(clips.seams(sources), axis=0)
+    captions = [f"frame {m} · input {', '.join(clips.label(s) for s in sources[:, m].tolist())}"
+                + (" · seam" if seams[m] else "") for m in range(sources.shape[1])]
+    return captions, seams
 
 
 def error_colors(predicted, truth, scale):
