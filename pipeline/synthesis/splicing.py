@@ -93,6 +93,18 @@ relative rotation, not a vector) and S(−1) := 2 S(0) − S(1). For motion at c
 through the wrap (frames F−2, F−1, 0, 1 one step apart) both guidance terms and the velocity
 jump vanish and the splice is the clip's periodic continuation exactly.
 
+Several clips (``clips``, a :class:`~skinsynth.pipeline.clips.Clips`; None is one clip of all
+the frames, the code path and the numbers above): the frames are the clips one after another,
+and every rule above holds per clip (:mod:`skinsynth.pipeline.clips` states the conventions).
+A seam is where the source does not play on (:meth:`Clips.seams`), so playing one clip's last
+frame and then the next clip's first (consecutive numbers) is a seam, blended, not playback. Its
+transition is j = :meth:`Clips.transition_j` of the frame played, source[k]: source[k] − 1, or,
+where source[k] begins clip c, the virtual frame j = −(c + 1) before it, clip c's first frame
+gone on backwards with its own first step (the pose H(j) and the series U(j), S(j) as for
+j = −1 above, from that clip's first two frames). "The frame after i" never reads across a clip's
+end: where i is the last frame of its clip it goes on with its own last step. Formulas below
+that write j + 1 mean the frame played, source[k] (the two differ only for j < 0).
+
 Distinct windows (:func:`distinct_windows`): everything steps 3–4 compute for a window — the
 blend, D̃, the eq. 9 solve — depends on the window's source frames left … right alone (local
 positions are in the reference bone's frame; the rigid offset G of eq. 7 only enters at step 5).
@@ -144,11 +156,32 @@ def walk_sources(sources, frames):
     return sources
 
 
-def walk_seams(sources):
-    """Seams of walks (A, M): ``(animation (S,), k (S,))``, sorted by animation then k."""
+def walk_seams(sources, clips=None):
+    """Seams of walks (A, M): ``(animation (S,), k (S,))``, sorted by animation then k; with
+    ``clips`` also where a walk plays on into the next clip (:meth:`Clips.seams`)."""
     sources = np.asarray(sources)
-    animation, k = np.nonzero(sources[:, 1:] != sources[:, :-1] + 1)
+    if clips is None:
+        animation, k = np.nonzero(sources[:, 1:] != sources[:, :-1] + 1)
+    else:
+        animation, k = np.nonzero(~clips.continues(sources))
     return animation.astype(np.int64), (k + 1).astype(np.int64)
+
+
+def seam_transitions(sources, animation, k, clips=None):
+    """The transition (i, j) taken at seams ``(animation (S,), k (S,))`` of walks (A, M), and the
+    frame played there: ``(i (S,), j (S,), target (S,))``, i = source[k−1], target = source[k],
+    j = target − 1, or with ``clips`` :meth:`Clips.transition_j` (the virtual frame −(c + 1)
+    where the target begins clip c)."""
+    i, target = sources[animation, k - 1], sources[animation, k]
+    j = target - 1 if clips is None else clips.transition_j(target)
+    return i, j, target
+
+
+def walk_clips(clips, frames):
+    """``clips`` checked against ``frames`` input frames: None (one clip) stays None."""
+    if clips is not None and clips.total != frames:
+        raise ValueError(f"the clips hold {clips.total} frames, the input {frames}")
+    return clips
 
 
 @dataclass
@@ -179,14 +212,15 @@ class SeamWindows:
         return (self.animation[owner], frame, owner, offset == 0, offset == self.counts[owner] - 1)
 
 
-def seam_windows(sources, window=8):
-    """Windows around every seam of walks (A, M), clipped as in the module notes -> SeamWindows."""
+def seam_windows(sources, window=8, clips=None):
+    """Windows around every seam of walks (A, M), clipped as in the module notes -> SeamWindows;
+    ``clips``: the seams are :meth:`Clips.seams` (None: one clip)."""
     sources = np.asarray(sources)
     if int(window) != window or window < 0:
         raise ValueError(f"window must be a non-negative integer, got {window}")
     window = int(window)
     frames = sources.shape[1]
-    animation, k = walk_seams(sources)
+    animation, k = walk_seams(sources, clips)
     count = k.size
     first = np.ones(count, bool)
     first[1:] = animation[1:] != animation[:-1]
@@ -204,14 +238,15 @@ def seam_windows(sources, window=8):
     return SeamWindows(animation=animation, seam=k, left=left.astype(np.int64), right=right.astype(np.int64))
 
 
-def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, spread_velocity=True):
+def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, spread_velocity=True, clips=None):
     """Output reference-bone poses along walks: Zheng eq. 7, or its ground-plane form.
 
     R_ref (F, 3, 3), t_ref (F, 3): the input reference bone; sources (A, M) validated walks.
     Returns (R̃ (A, M, 3, 3), t̃ (A, M, 3)) = G_k ∘ H(source[k]) ∘ Π(source[k]), G the
     accumulated offsets (identity before the first seam; at a seam k with i = source[k−1],
     j = source[k] − 1, G ← G ∘ H(i) ∘ H(j)⁻¹; j = −1, the wrap, uses H(−1) = H(0) H(1)⁻¹ H(0),
-    module notes).
+    module notes). ``clips``: several clips (module notes): j = −(c + 1) where source[k] begins
+    clip c, H(j) = H(s) H(s+1)⁻¹ H(s) of its first frame s.
 
     ``up=None`` is Zheng's eq. 7: H(f) = P(f), the input reference pose, and Π = identity, so each
     segment is moved by a full rigid transform; its height and tilt errors add up seam after seam
@@ -232,7 +267,7 @@ def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, sp
     else:
         pivot = np.zeros(3) if pivot is None else np.asarray(pivot, dtype=np.float64)
         H_R, H_t, posture_R, posture_t = heading_and_posture(R_ref, t_ref, pivot, up)
-    animation, k = walk_seams(sources)
+    animation, k = walk_seams(sources, clips)
     # G is constant between seams: compose it once per seam (a loop over the seam rank, batched
     # over animations), then look it up per frame by segment number.
     is_seam = np.zeros((count, frames), dtype=bool)
@@ -242,12 +277,11 @@ def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, sp
     rel_R = np.broadcast_to(np.eye(3), (count, segments, 3, 3)).copy()
     rel_t = np.zeros((count, segments, 3))
     if k.size:
-        i = sources[animation, k - 1]
-        j = sources[animation, k] - 1
-        # H(j) for j = −1 too: index j + 1 of the poses with the virtual frame −1 first.
-        before_R, before_t = _frame_before_start(H_R, H_t)
-        H_jR = np.concatenate([before_R[None], H_R])[j + 1]
-        H_jt = np.concatenate([before_t[None], H_t])[j + 1]
+        i, j, _ = seam_transitions(sources, animation, k, clips)
+        # H(j) for j < 0 too: index j + C of the poses with the virtual frames −C … −1 first.
+        before_R, before_t = _frames_before_starts(H_R, H_t, clips)
+        H_jR = np.concatenate([before_R[::-1], H_R])[j + before_R.shape[0]]
+        H_jt = np.concatenate([before_t[::-1], H_t])[j + before_t.shape[0]]
         # H(i) ∘ H(j)⁻¹ = (R_i R_jᵀ, t_i − R_i R_jᵀ t_j): Zheng eq. 7's fixed rigid transform.
         rel = H_R[i] @ np.swapaxes(H_jR, -1, -2)
         rank = segment[animation, k] - 1
@@ -266,10 +300,10 @@ def reference_alignment(R_ref, t_ref, sources, up=None, pivot=None, window=0, sp
         return R_out, t_out
     # The posture Π: the source's, blended across each seam's window.
     P_R, P_t = posture_R[sources], posture_t[sources]
-    windows = seam_windows(sources, window)
+    windows = seam_windows(sources, window, clips)
     if windows.counts.sum():
         a, m, rotation, translation = blend_rigid(posture_R[:, None], posture_t[:, None], pivot[None], sources,
-                                                  windows, spread_velocity=spread_velocity)
+                                                  windows, spread_velocity=spread_velocity, clips=clips)
         P_R[a, m], P_t[a, m] = rotation[:, 0], translation[:, 0]
     return R_out @ P_R, np.einsum("amij,amj->ami", R_out, P_t) + t_out
 
@@ -284,6 +318,17 @@ def _frame_before_start(R, t):
     return back @ R[0], back @ (t[0] - t[1]) + t[0]
 
 
+def _frames_before_starts(R, t, clips=None):
+    """The virtual frame before each clip's start (:func:`_frame_before_start` of the clip's own
+    poses; j = −(c + 1) is row c) -> (R (C, 3, 3), t (C, 3)); ``clips`` None: one clip."""
+    if clips is None:
+        before_R, before_t = _frame_before_start(R, t)
+        return before_R[None], before_t[None]
+    starts = clips.starts
+    pairs = [_frame_before_start(R[a:b], t[a:b]) for a, b in zip(starts[:-1], starts[1:])]  # a loop over clips
+    return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
+
+
 def gradient_series(strain):
     """The input's key-vertex gradients as the blend uses them: strain (F, n, 9) ->
     ``(U (F, n, 3, 3) rotations, S (F, n, 6) stretches)``, U = exp(Φ) whatever branch Φ is on."""
@@ -291,7 +336,7 @@ def gradient_series(strain):
     return rotation_exp(strain[..., :3]), strain[..., 3:].copy()
 
 
-def seam_guidance(U, S, sources, windows, win):
+def seam_guidance(U, S, sources, windows, win, clips=None):
     """The two non-zero guidance terms of each window's correction (module notes, step 3):
     ``(h_left (W, n, 3+k), h_right (W, n, 3+k))`` at output frames k−1 and k of windows ``win``
     and the seam's velocity jump δ (W, n, 3+k) = v_R − v_L, v the one-frame steps ``j → j+1``
@@ -303,42 +348,49 @@ def seam_guidance(U, S, sources, windows, win):
     (the old rule, "goes on as j does", put the whole velocity change at the seam: 1.8× the
     input's acceleration on a synthetic chain, where this gives 0.9×). Where j = −1 (the wrap,
     source[k] = 0) frame 0 likewise goes on backwards with its own first step: U(−1) :=
-    U(0) U(1)ᵀ U(0), S(−1) := 2 S(0) − S(1)."""
+    U(0) U(1)ᵀ U(0), S(−1) := 2 S(0) − S(1). With ``clips`` (module notes) each clip is such a
+    clip: i's last frame is the last of its clip, and j = −(c + 1), where source[k] begins clip
+    c, is that clip's first frame gone on backwards; j + 1 above is then source[k]."""
     a, k = windows.animation[win], windows.seam[win]
     frames = U.shape[0]
-    i, j = sources[a, k - 1], sources[a, k] - 1
-    last = i + 1 >= frames
+    i, j, target = seam_transitions(sources, a, k, clips)
+    last = i + 1 >= frames if clips is None else clips.last_frames()[i]
+    starts = np.array([0, frames], np.int64) if clips is None else clips.starts
     i1 = np.minimum(i + 1, frames - 1)
     U_next, S_next = U[i1].copy(), S[i1].copy()
     if last.any():  # past the clip's end: i goes on with its own last step (constant velocity)
-        p = i[last] - 1
+        clip_start = starts[np.searchsorted(starts, i[last], side="right") - 1]  # a one-frame clip stands still
+        p = np.maximum(i[last] - 1, clip_start)
         U_next[last] = U[i[last]] @ np.swapaxes(U[p], -1, -2) @ U[i[last]]
         S_next[last] = 2.0 * S[i[last]] - S[p]
     before = j < 0
     U_j, S_j = U[np.maximum(j, 0)], S[np.maximum(j, 0)]  # fancy indexing: copies
-    if before.any():  # before the clip's start: frame 0 goes on backwards with its first step
-        second = min(1, frames - 1)
-        U_j[before] = U[0] @ np.swapaxes(U[second], -1, -2) @ U[0]
-        S_j[before] = 2.0 * S[0] - S[second]
+    for clip in range(starts.size - 1):  # before clip c's start: its first frame goes on backwards
+        here = before & (j == -(clip + 1))
+        if here.any():
+            start = int(starts[clip])
+            second = min(start + 1, int(starts[clip + 1]) - 1)
+            U_j[here] = U[start] @ np.swapaxes(U[second], -1, -2) @ U[start]
+            S_j[here] = 2.0 * S[start] - S[second]
 
     def difference(Up, Sp, Uq, Sq):  # p ⊖ q: the rotation taking q to p (spatial), and the linear difference
         return np.concatenate([rotation_log(Up @ np.swapaxes(Uq, -1, -2)), Sp - Sq], axis=-1)
 
     # δ from the two one-frame steps (small rotations), not from h: h's rotations are wrapped
     # into (−π, π] one by one, so their sum can be off by 2π where i and j are far apart.
-    velocity_jump = difference(U[j + 1], S[j + 1], U_j, S_j) - difference(U_next, S_next, U[i], S[i])
-    return (difference(U_next, S_next, U[j + 1], S[j + 1]), difference(U_j, S_j, U[i], S[i]), velocity_jump)
+    velocity_jump = difference(U[target], S[target], U_j, S_j) - difference(U_next, S_next, U[i], S[i])
+    return (difference(U_next, S_next, U[target], S[target]), difference(U_j, S_j, U[i], S[i]), velocity_jump)
 
 
-def blend_series(U, S, sources, windows, select=None, spread_velocity=True):
+def blend_series(U, S, sources, windows, select=None, spread_velocity=True, clips=None):
     """Poisson-blended rotations and linear coordinates at the free frames of windows (step 3).
 
     U (F, n, 3, 3) rotations, S (F, n, k) linear coordinates of n items per input frame (bones'
     local rotations and translations, or key vertices' :func:`gradient_series`); sources (A, M);
     windows a :class:`SeamWindows`; ``select`` the windows to solve (default all);
-    ``spread_velocity``: the seam's velocity jump spread evenly over the window (module notes).
-    Returns ``(animation (L,), frame (L,), rotations (L, n, 3, 3), linear (L, n, k))`` in
-    :meth:`SeamWindows.frames` order: exp(e_rot) U(source) and S(source) + e_lin, e the
+    ``spread_velocity``: the seam's velocity jump spread evenly over the window (module notes);
+    ``clips``: several clips (module notes; None: one). Returns ``(animation (L,), frame (L,),
+    rotations (L, n, 3, 3), linear (L, n, k))`` in :meth:`SeamWindows.frames` order: exp(e_rot) U(source) and S(source) + e_lin, e the
     correction of step 3. One banded Cholesky solve (``solveh_banded``) of the stacked
     block-tridiagonal system −Δe = −h with all n·(3+k) coordinates as right-hand sides."""
     animation, frame, owner, first, last = windows.frames(select)
@@ -349,7 +401,7 @@ def blend_series(U, S, sources, windows, select=None, spread_velocity=True):
         return animation, frame, U[src], S[src]
     win = owner[first]  # the windows, in order, each once
     at = np.searchsorted(win, owner)  # window rank of every free frame
-    h_left, h_right, jump = seam_guidance(U, S, sources, windows, win)
+    h_left, h_right, jump = seam_guidance(U, S, sources, windows, win, clips)
     rhs = np.zeros((size, n, width))
     if spread_velocity:  # δ as an even extra acceleration
         span = (windows.right[win] - windows.left[win] + 1).astype(float)
@@ -370,14 +422,14 @@ def blend_series(U, S, sources, windows, select=None, spread_velocity=True):
     return animation, frame, rotation_exp(e[..., :3]) @ U[src], S[src] + e[..., 3:]
 
 
-def blend_rigid(R, t, pivots, sources, windows, select=None, spread_velocity=True):
+def blend_rigid(R, t, pivots, sources, windows, select=None, spread_velocity=True, clips=None):
     """:func:`blend_series` of rigid transforms x ↦ R x + t about their ``pivots``: the rotation
     and the position each takes its pivot to are blended, so a transform that turns a lot while
     its pivot barely moves stays put there (blending R and t apart turns about the origin and
     swings what lies far from it). R (F, n, 3, 3), t (F, n, 3), pivots (n, 3). Returns
     ``(animation (L,), frame (L,), R̃ (L, n, 3, 3), t̃ (L, n, 3))``."""
     animation, frame, rotation, position = blend_series(R, np.einsum("fbij,bj->fbi", R, pivots) + t, sources,
-                                                        windows, select, spread_velocity)
+                                                        windows, select, spread_velocity, clips)
     return animation, frame, rotation, position - np.einsum("lbij,bj->lbi", rotation, pivots)
 
 
@@ -423,20 +475,20 @@ class SplicedWalks:
 
 def splice(component, rotations, translations, sources, window=8, dtype=np.float64, anchored=True,
            block_frames=8192, animation_block=16, spread_velocity=True, damped_bones=(), damping=0.0, blend="bones",
-           pivots=None):
+           pivots=None, clips=None):
     """World bone positions of A walks of one bone component (Zheng §3.3; module notes):
     :func:`splice_local` then eq. 10. Returns ``(F_world (A, M, b, 3, 3), t_world (A, M, b, 3))``
     in the order of ``component.bones``; the reference bone's F is a rotation, the others'
     general affine matrices inside windows and the source's rotations elsewhere."""
     spliced = splice_local(component, rotations, translations, sources, window=window, dtype=dtype,
                            anchored=anchored, block_frames=block_frames, spread_velocity=spread_velocity,
-                           damped_bones=damped_bones, damping=damping, blend=blend, pivots=pivots)
+                           damped_bones=damped_bones, damping=damping, blend=blend, pivots=pivots, clips=clips)
     return spliced.world(animation_block=animation_block)
 
 
 def splice_local(component, rotations, translations, sources, window=8, dtype=np.float64, anchored=True,
                  block_frames=8192, reference_motion=True, spread_velocity=True, damped_bones=(), damping=0.0,
-                 blend="bones", pivots=None, up=None):
+                 blend="bones", pivots=None, up=None, clips=None):
     """Splice A walks of one bone component (Zheng §3.3; module notes) -> :class:`SplicedWalks`.
 
     component: a :class:`.graph.ComponentAnalysis` (bones, transitions.reference,
@@ -454,7 +506,9 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
     bone's frame: bones stay rigid) or "key-vertices" (Zheng eq. 8–9, affine bones); pivots
     (B, 3): each bone's rest point its blend turns about (default the origin; the synthesizer
     passes the bones' rest centroids); up: None for Zheng's eq. 7, or the up axis (3,) for its
-    ground-plane form (:func:`reference_alignment`).
+    ground-plane form (:func:`reference_alignment`); clips: a :class:`~skinsynth.pipeline.clips.Clips`
+    of the F input frames when they are several clips (seams, transitions and the frames before
+    and after each clip per clip: module notes), None for one clip.
     """
     bones = np.asarray(component.bones, dtype=np.int64)
     reference = int(component.transitions.reference)
@@ -474,14 +528,16 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
     if not np.array_equal(np.asarray(operator.bone_ids), local_bones):
         raise ValueError("the operator's bones differ from the component's local bones")
     sources = walk_sources(sources, frames)
-    windows = seam_windows(sources, window)
+    clips = walk_clips(clips, frames)
+    windows = seam_windows(sources, window, clips)
     b = bones.size
 
     R_ref = t_ref = None
     if reference_motion:
         pivot = None if pivots is None else np.asarray(pivots, dtype=np.float64)[reference]
         R_ref, t_ref = reference_alignment(rotations[:, reference], translations[:, reference], sources, up=up,
-                                           pivot=pivot, window=window, spread_velocity=spread_velocity)  # eq. 7
+                                           pivot=pivot, window=window, spread_velocity=spread_velocity,
+                                           clips=clips)  # eq. 7
     F_in, t_in, ids = local_frame_positions(rotations, translations, reference, bones)  # eq. 2, (F, b−1, …)
     if not np.array_equal(np.asarray(ids), local_bones):
         raise ValueError("the component's local bones are not its bones without the reference")
@@ -501,7 +557,7 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
     signatures, unique, inverse = distinct_windows(sources, windows)
     pivots = np.zeros((rotations.shape[1], 3)) if pivots is None else np.asarray(pivots, dtype=np.float64)
     F_win, t_win = _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, block_frames,
-                                spread_velocity, damped_bones, damping, blend, pivots[local_bones])
+                                spread_velocity, damped_bones, damping, blend, pivots[local_bones], clips)
     start = np.cumsum(unique.counts) - unique.counts  # first row of each distinct window in F_win
     used = np.flatnonzero(windows.counts > 0)
     animation, frame, owner, _, _ = windows.frames(used)
@@ -542,10 +598,11 @@ def distinct_windows(sources, windows):
 
 
 def _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, block_frames, spread_velocity,
-                 damped_bones, damping, blend="bones", pivots=None):
+                 damped_bones, damping, blend="bones", pivots=None, clips=None):
     """Steps 3–4 for the distinct windows: local positions of the local bones at their free frames,
     ``(F_local (L, b−1, 3, 3), t_local (L, b−1, 3))`` in :meth:`SeamWindows.frames` order.
-    pivots (b−1, 3): the rest points the bones blend about (``blend="bones"``)."""
+    pivots (b−1, 3): the rest points the bones blend about (``blend="bones"``); clips: the input's
+    (the windows' source frames are global frames; None: one clip)."""
     if blend != "bones":
         U, S = gradient_series(strain)
         D_in = rotation_times_strain(U, S)  # (F, n, 3, 3): the input gradients
@@ -556,9 +613,11 @@ def _blend_local(operator, strain, F_in, t_in, signatures, unique, anchored, blo
     at = 0
     for select in _window_blocks(unique.counts, max(1, int(block_frames))):
         if blend == "bones":
-            _, frame, F_block, t_block = blend_rigid(F_in, t_in, pivots, signatures, unique, select, spread_velocity)
+            _, frame, F_block, t_block = blend_rigid(F_in, t_in, pivots, signatures, unique, select, spread_velocity,
+                                                     clips)
         else:
-            animation, frame, rotation, linear = blend_series(U, S, signatures, unique, select, spread_velocity)
+            animation, frame, rotation, linear = blend_series(U, S, signatures, unique, select, spread_velocity,
+                                                              clips)
             D_tilde = rotation_times_strain(rotation, linear)
             src = signatures[animation, frame]
             if anchored:
