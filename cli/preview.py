@@ -40,6 +40,10 @@ def _frame_range(text):
               help="Video (.mp4, H.264), animated .gif, or a .png contact sheet of evenly spaced frames.")
 @click.option("--animation", "animations", multiple=True, type=int,
               help="Synthesis file: the animation to show (repeatable: several in a grid).  [default: 0]")
+@click.option("--clip", default=None, metavar="NAME",
+              help="A file with a skin's examples (skin, controls, puppet, graph) that holds several clips: show this "
+                   "clip only (--frames then counts its own frames).  [default: every frame; each is named "
+                   "CLIP:FRAME, e.g. collapse:12, when the file holds several clips]")
 @click.option("--examples", is_flag=True, help="Skin file: show the input frames instead of the fitted reconstruction.")
 @click.option("--compare", is_flag=True,
               help="Skin file: the input and the reconstruction side by side, the reconstruction coloured by each "
@@ -59,19 +63,22 @@ def _frame_range(text):
               help=".png: frames on the contact sheet (4 per row).")
 @summary_options
 @user_errors
-def preview(path, output, animations, examples, compare, error_scale, size, fps, frame_range, camera, flat, up_axis,
-            sheet_frames, as_json, quiet):
+def preview(path, output, animations, clip, examples, compare, error_scale, size, fps, frame_range, camera, flat,
+            up_axis, sheet_frames, as_json, quiet):
     """Render the animation a file holds, headless (no display, no OpenGL).
 
     PATH: an input sequence (a folder or glob of OBJ/PLY/OFF frames, .npz, .h5, USD); a skin file
     (its reconstruction; --examples the input; --compare both, the error as colour); a puppet
     (its held-out frames: prediction next to truth, the error as colour); a play output (.h5,
-    USD; every character in a grid); a synthesis file (--animation N, seams marked in red).
-    Each frame names its source frame in the corner.
+    USD; every character in a grid); a synthesis file (--animation N, seams marked in red: where
+    a component's input frame does not play on from the one before, a jump into another clip
+    included). Each frame names its source frame in the corner (CLIP:FRAME when the file holds
+    several clips).
 
     \b
     Examples:
       skinsynth preview horse.skin.h5 -o horse_fit.mp4 --compare
+      skinsynth preview horse.skin.h5 -o collapse.mp4 --clip collapse
       skinsynth preview herd.h5 -o herd.gif --animation 0 --animation 1 --animation 2 --animation 3
       skinsynth preview puppet.h5 -o puppet.png --camera front
     """
@@ -86,7 +93,7 @@ def preview(path, output, animations, examples, compare, error_scale, size, fps,
                           "players show")
     if not error_scale > 0:
         raise OptionError(f"--error-scale must be positive (got {error_scale})")
-    panels, file_fps, file_up = _panels(path, list(animations), examples, compare, error_scale)
+    panels, file_fps, file_up = _panels(path, list(animations), clip, examples, compare, error_scale)
     up = "XYZ".index(up_axis or file_up)
     count = min(p.vertices.shape[0] for p in panels)
     frames = np.arange(count)[slice(*frame_range)] if frame_range else np.arange(count)
@@ -118,8 +125,9 @@ def preview(path, output, animations, examples, compare, error_scale, size, fps,
                      f"{summary['frames_per_second']} frames/s"], as_json, quiet)
 
 
-def _panels(path, animations, examples, compare, error_scale):
-    """(panels, fps, up axis "Y"/"Z") for whatever animation ``path`` holds."""
+def _panels(path, animations, clip, examples, compare, error_scale):
+    """(panels, fps, up axis "Y"/"Z") for whatever animation ``path`` holds (``clip``: one clip
+    of a skin's examples, or None for every frame)."""
     from skinsynth.formats.errors import FormatError
     from skinsynth.formats.meshseq import read_mesh_sequence, read_played_characters
     from skinsynth.formats.model import read_header
@@ -135,11 +143,13 @@ def _panels(path, animations, examples, compare, error_scale):
         except FormatError:
             stage = None  # not a skinsynth model file: a sequence or played characters
         if stage is not None:
-            return _model_panels(path, stage, animations, examples, compare, error_scale)
+            return _model_panels(path, stage, animations, clip, examples, compare, error_scale)
+        _no_clips(path, clip)
         names, vertices, faces, fps = read_played_characters(path)
         return [Panel(v, faces, name if len(names) > 1 else "") for name, v in zip(names, vertices)], fps, "Y"
     if animations:
         raise OptionError("--animation applies to synthesis files")
+    _no_clips(path, clip)
     if lower.endswith((".usd", ".usda", ".usdc")) and os.path.isfile(path):
         from skinsynth.formats.usd import animated_mesh_paths, read_skel_animation
 
@@ -157,19 +167,36 @@ def _panels(path, animations, examples, compare, error_scale):
     return [Panel(sequence.vertices, sequence.faces, "")], sequence.fps, sequence.scene.up_axis
 
 
-def _model_panels(path, stage, animations, examples, compare, error_scale):
+def _no_clips(path, clip, what="holds no skin's examples"):
+    """Refuse --clip for a file that has no clips to choose from."""
+    from skinsynth.pipeline.errors import OptionError
+
+    if clip is not None:
+        raise OptionError(f"--clip {clip}: chooses a clip of a skin's examples (skin, controls, puppet, graph "
+                          f"files), and {path} {what}")
+
+
+def _clips_of(skin):
+    from skinsynth.pipeline.clips import Clips
+
+    return Clips(skin.clip_names, skin.clip_frames)
+
+
+def _model_panels(path, stage, animations, clip, examples, compare, error_scale):
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.view import Panel, error_colors
+    from skinsynth.pipeline.view import Panel, error_colors, frame_captions
     from skinsynth.pipeline.geometry import bounding_box_diagonal
 
     if animations and stage != "synthesis":
         raise OptionError("--animation applies to synthesis files")
     if (examples or compare) and stage not in ("skin", "controls", "graph"):
         raise OptionError("--examples and --compare apply to skin files")
+    if stage == "synthesis":
+        _no_clips(path, clip, "is a synthesis file, whose animations --animation chooses")
     if stage == "puppet":
-        return _puppet_panels(path, error_scale)
+        return _puppet_panels(path, clip, error_scale)
     from skinsynth.formats.model import read_model
 
     # only the skin: a synthesis's motions are read one animation at a time below
@@ -177,23 +204,28 @@ def _model_panels(path, stage, animations, examples, compare, error_scale):
     up = skin.scene.up_axis
     if stage == "synthesis":
         return _synthesis_panels(path, skin, animations or [0]), skin.fps, up
-    captions = [f"frame {f}" for f in range(skin.examples.shape[0])]
+    clips = _clips_of(skin)
+    frames = clips.select(None if clip is None else [clip], "--clip")  # (M,) global frame ids
+    captions = frame_captions(clips, frames)
+    shown = skin.examples[frames] if clip is not None else skin.examples
     if examples:
-        return [Panel(skin.examples, skin.faces, "input", captions=captions)], skin.fps, up
-    fitted = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations, skin.translations)
+        return [Panel(shown, skin.faces, "input", captions=captions)], skin.fps, up
+    rotations, translations = (skin.rotations, skin.translations) if clip is None else \
+        (skin.rotations[frames], skin.translations[frames])
+    fitted = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations, translations)
     if not compare:
         return [Panel(fitted, skin.faces, "fit-skin reconstruction", captions=captions)], skin.fps, up
     scale = error_scale * bounding_box_diagonal(skin.rest_vertices)
-    return [Panel(skin.examples, skin.faces, "input", captions=captions),
+    return [Panel(shown, skin.faces, "input", captions=captions),
             Panel(fitted, skin.faces, f"reconstruction (red: error >= {error_scale:g} of the diagonal)",
-                  colors=error_colors(fitted, skin.examples, scale), captions=captions)], skin.fps, up
+                  colors=error_colors(fitted, shown, scale), captions=captions)], skin.fps, up
 
 
-def _puppet_panels(path, error_scale):
+def _puppet_panels(path, clip, error_scale):
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.pipeline.puppet import puppet_from_record
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.view import Panel, error_colors
+    from skinsynth.pipeline.view import Panel, error_colors, frame_captions
     from skinsynth.pipeline.puppet import predict_vertices
     from skinsynth.pipeline.geometry import bounding_box_diagonal
 
@@ -202,10 +234,16 @@ def _puppet_panels(path, error_scale):
     puppet = puppet_from_record(record)
     if len(test_frames) == 0:
         raise OptionError(f"{path}: the puppet has no held-out frames to show (train with --train-frames)")
+    clips = _clips_of(skin)
+    if clip is not None:
+        chosen = clips.index(clip, "--clip")
+        test_frames = np.asarray(test_frames)[clips.clip_of(test_frames) == chosen]
+        if len(test_frames) == 0:
+            raise OptionError(f"--clip {clip}: none of the puppet's held-out frames is in clip {clip!r}")
     truth = skin.examples[test_frames]
     predicted = predict_vertices(puppet, truth[:, puppet.control_indices])
     scale = error_scale * bounding_box_diagonal(skin.rest_vertices)
-    captions = [f"held-out frame {int(f)}" for f in test_frames]
+    captions = frame_captions(clips, test_frames, "held-out frame")
     return [Panel(truth, skin.faces, "truth", captions=captions),
             Panel(predicted, skin.faces, f"puppet (red: error >= {error_scale:g} of the diagonal)",
                   colors=error_colors(predicted, truth, scale), captions=captions)], skin.fps, skin.scene.up_axis
@@ -216,8 +254,9 @@ def _synthesis_panels(path, skin, animations):
     from skinsynth.formats.synthesis_file import open_motions, read_sources, synthesis_count
     from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.view import Panel
+    from skinsynth.pipeline.view import Panel, walk_captions
 
+    clips = _clips_of(skin)
     count = synthesis_count(path)
     for a in animations:
         if not 0 <= a < count:
@@ -230,10 +269,6 @@ def _synthesis_panels(path, skin, animations):
             require_finite(path, f"/synthesis animation {a}'s bone motions", rotations)  # a damaged shard
             require_finite(path, f"/synthesis animation {a}'s bone motions", translations)
             vertices = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations, translations)
-            played = chosen[:, n]  # (C, M)
-            seams = np.zeros(played.shape[1], dtype=bool)
-            seams[1:] = np.any(played[:, 1:] != played[:, :-1] + 1, axis=0)
-            captions = [f"frame {m} · input {', '.join(str(int(s)) for s in played[:, m])}"
-                        + (" · seam" if seams[m] else "") for m in range(played.shape[1])]
+            captions, seams = walk_captions(clips, chosen[:, n])  # chosen[:, n]: (C, M)
             panels.append(Panel(vertices, skin.faces, f"animation {a}", captions=captions, marked=seams))
     return panels
