@@ -1,4 +1,5 @@
-"""``skinsynth build-graph``: transitions, bone graph and splicing operators from one clip."""
+"""``skinsynth build-graph``: transitions, bone graph and splicing operators from one clip, or from
+several clips of one character (transitions within and between them)."""
 
 import os
 import time
@@ -56,15 +57,22 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     (Appendix A), rotation–strain deformation-gradient series (eq. 8) and the factorised
     operator of eq. 9 that splicing needs.
 
+    A skin fitted to several clips (fit-skin A.npz B.npz) keeps them apart: playback never runs
+    from one clip's last frame into the next clip's first, and transitions are found within each
+    clip and between clips by the same rule (a gallop that falls into the collapse). The summary
+    counts them per direction (gallop→collapse, collapse→gallop) and per component.
+
     \b
     Examples:
       skinsynth build-graph horse.skin.h5 -o horse.graph.h5 --plot horse_plots
       skinsynth build-graph dancer.skin.h5 -o dancer.graph.h5 --single-component --threshold-scale 4
+      skinsynth build-graph horse_clips.skin.h5 -o horse_clips.graph.h5   # gallop + collapse
     """
     from skinsynth.formats.graph_file import graph_groups
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.clips import Clips
     from skinsynth.pipeline.synthesis import build_graph as analyse, validate_graph_options
     from skinsynth.pipeline.synthesis import default_min_segment
 
@@ -78,12 +86,13 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     up_axis = up_axis or skin.scene.up_axis
     validate_graph_options(skin.rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap,
                            min_segment, coverage, posture_weight)
+    clips = Clips(skin.clip_names, skin.clip_frames)
     started = time.perf_counter()
     analysis = analyse(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
                        skin.translations, threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                        edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
                        min_gap=min_gap, min_segment=min_segment, coverage=coverage, up_axis="XYZ".index(up_axis),
-                       posture_weight=posture_weight)
+                       posture_weight=posture_weight, clips=clips)
     seconds = time.perf_counter() - started
     parameters = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                       edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
@@ -92,16 +101,18 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     record = provenance_record("graph", command_line(), parameters, [path], tool_version())
     write_model(output, "graph", graph_groups(model, analysis), model["provenance"] + [record], tool_version())
     if plot_dir is not None:
-        _write_plots(plot_dir, skin, analysis, folders)
-    summary, lines = _summary(output, analysis, min_segment, up_axis, seconds)
+        _write_plots(plot_dir, skin, analysis, folders, clips)
+    summary, lines = _summary(output, analysis, min_segment, up_axis, seconds, clips)
     report(summary, lines, as_json, quiet)
     if analysis.transition_count == 0:
         click.echo("warning: no candidate transitions: the clip has no repeated states at this threshold; "
                    "try a larger --threshold-scale", err=True)
 
 
-def _write_plots(plot_dir, skin, analysis, folders):
-    """The folder of PNGs: each component's transition-cost matrix and the bone graph."""
+def _write_plots(plot_dir, skin, analysis, folders, clips):
+    """The folder of PNGs: each component's transition-cost matrix and the bone graph. With
+    several clips a transition into clip c's start (j = −(c+1)) is marked at the column of the
+    frame before that start, c's virtual frame; the virtual column drawn is clip 0's."""
     from skinsynth.formats.output_folder import atomic_folder
     from skinsynth.formats.plots import write_bone_graph_plot, write_cost_matrix_plot
     from skinsynth.pipeline.synthesis import bone_layout
@@ -109,7 +120,9 @@ def _write_plots(plot_dir, skin, analysis, folders):
     with atomic_folder(plot_dir, **folders.guard(plot_dir)) as tmp:
         for number, component in enumerate(analysis.components):
             t = component.transitions
-            write_cost_matrix_plot(os.path.join(tmp, f"costs_component_{number:03d}.png"), t.D, t.pairs,
+            shown = t.pairs.copy()
+            shown[:, 1] = clips.targets(shown[:, 1]) - 1  # one clip: unchanged (j = −1 stays −1)
+            write_cost_matrix_plot(os.path.join(tmp, f"costs_component_{number:03d}.png"), t.D, shown,
                                    t.threshold, f"component {number}: {len(component.bones)} bones, "
                                    f"{len(t.pairs)} transitions (T_c = {t.threshold:.3g})", start=t.start)
         positions = bone_layout(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
@@ -119,21 +132,38 @@ def _write_plots(plot_dir, skin, analysis, folders):
                               f"{len(analysis.cut_nodes)} cut node(s)")
 
 
-def _summary(output, analysis, min_segment, up_axis, seconds):
-    """The command's summary (--json) and its text lines."""
+def _summary(output, analysis, min_segment, up_axis, seconds, clips):
+    """The command's summary (--json) and its text lines. ``transitions_between`` ({"a->b": count},
+    a component's, and over all components at the top) counts transitions by the clip they leave
+    and the clip they enter; the text names them only when there are several clips."""
     lines = [f"wrote {output}: {len(analysis.components)} component(s), cut nodes {analysis.cut_nodes}, "
              f"{analysis.transition_count} transitions, segments ≥ {min_segment} frames; {seconds:.1f} s"]
     components = []
+    between = analysis.transitions_between()
     for number, component in enumerate(analysis.components):
         t = component.transitions
         extra = f", {t.admitted} above T_c for coverage" if t.admitted else ""
         lines.append(f"  component {number}: bones {component.bones} (reference {t.reference}), "
                      f"{len(t.pairs)} transitions{extra}, {t.share:.0%} of the frames on one strongly connected "
                      f"part, {len(component.key)} key vertices, {t.q.shape[1]} reduced coordinates")
+        if len(clips) > 1:
+            lines.append("    " + _by_direction(between[number], clips))
         components.append({"bones": list(component.bones), "reference": int(t.reference),
                            "transitions": len(t.pairs), "admitted": int(t.admitted), "share": float(t.share),
-                           "key_vertices": len(component.key), "reduced_coordinates": int(t.q.shape[1])})
+                           "key_vertices": len(component.key), "reduced_coordinates": int(t.q.shape[1]),
+                           "transitions_between": between[number]})
+    total = {key: sum(counts[key] for counts in between) for key in between[0]} if between else {}
+    if len(clips) > 1:
+        every = f"; all components: {_by_direction(total, clips)}" if len(between) > 1 else ""
+        lines.insert(1, f"  clips {', '.join(f'{n} ({f} frames)' for n, f in zip(clips.names, clips.frames))}{every}")
     summary = {"output": output, "components": components, "cut_nodes": list(analysis.cut_nodes),
                "transitions": int(analysis.transition_count), "min_segment": int(min_segment), "up_axis": up_axis,
-               "seconds": round(seconds, 3)}
+               "seconds": round(seconds, 3), "clips": list(clips.names), "transitions_between": total}
     return summary, lines
+
+
+def _by_direction(counts, clips):
+    """'within gallop 15, collapse 0; between gallop→collapse 3, collapse→gallop 1' from {"a->b": n}."""
+    within = ", ".join(f"{a} {counts[f'{a}->{a}']}" for a in clips.names)
+    across = ", ".join(f"{a}→{b} {counts[f'{a}->{b}']}" for a in clips.names for b in clips.names if a != b)
+    return f"transitions within {within}; between {across}"

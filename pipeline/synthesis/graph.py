@@ -1,11 +1,14 @@
-"""build-graph: everything synthesis needs from one clip (Zheng §3.2, §3.3, §4.1).
+"""build-graph: everything synthesis needs from one clip, or from several clips of one character
+(Zheng §3.2, §3.3, §4.1).
 
 Per bone component (the whole mesh, or the weakly coupled parts separated by cut nodes of the
 bone graph): its reference bone and candidate transitions (:mod:`.transitions`), its key
 vertices with weight gradients (:mod:`.key_vertices`), the rotation–strain series of the
 deformation gradients at those vertices over the clip, and the factorised operator of eq. 9
 that turns blended gradients back into local-frame bone positions
-(:mod:`.deformation_gradients`).
+(:mod:`.deformation_gradients`). With several clips (:class:`.clips.Clips`) the frames are the
+clips in order: transitions are found within and between them (:mod:`.transitions`, module
+notes); everything else is per frame or per vertex and needs no clip.
 """
 
 from dataclasses import dataclass, field
@@ -16,6 +19,7 @@ from .deformation_gradients import deformation_gradients, gradient_operator, rot
 from ..errors import OptionError
 from .key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
 from .graph_options import GraphOptions
+from .motion_graph import transitions_between
 from .transitions import bone_centroids, find_transitions, local_frame_positions
 
 
@@ -44,7 +48,8 @@ class ComponentAnalysis:
 class GraphAnalysis:
     """d (B, B) bone-graph weights (eq. 11); kept_edges (E, 2); cut_nodes: the bones shared by two
     or more components; articulation_points: every cut node of the pruned graph (some end up
-    inside a merged component); components; options."""
+    inside a merged component); components; options; clips: the :class:`.clips.Clips` of the
+    frames (None: one clip)."""
 
     weights: np.ndarray
     kept_edges: np.ndarray
@@ -52,10 +57,22 @@ class GraphAnalysis:
     articulation_points: list
     components: list
     options: dict = field(default_factory=dict)
+    clips: object = None
 
     @property
     def transition_count(self):
         return int(sum(len(c.transitions.pairs) for c in self.components))
+
+    def transitions_between(self):
+        """Per component, its transitions by clip left and clip entered: {"a->b": count}
+        (:func:`.motion_graph.transitions_between`; one clip: {"clip->clip": all of them})."""
+        from ..clips import Clips
+
+        clips = self.clips
+        if clips is None:
+            frames = self.components[0].transitions.D.shape[0] if self.components else 1
+            clips = Clips.single(frames)
+        return [transitions_between(c.transitions.pairs, clips) for c in self.components]
 
 
 def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment=2,
@@ -76,15 +93,17 @@ def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshol
         raise OptionError(f"--posture-weight must be finite and at least 0 (got {posture_weight})")
 
 
-def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotations, translations, options):
-    """ComponentAnalysis of one bone component (sorted bone ids)."""
+def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotations, translations, options,
+                      clips=None):
+    """ComponentAnalysis of one bone component (sorted bone ids); clips: the frames' clips (None: one)."""
     total = rotations.shape[1]
     transitions = find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=bones,
                                    svd_threshold=options["svd_threshold"], threshold_scale=options["threshold_scale"],
                                    threshold_reference=options["threshold_reference"], min_gap=options["min_gap"],
                                    spacing=max(1, options["min_segment"] // 2), coverage=options["coverage"],
                                    up=np.eye(3)[options["up_axis"]], pivots=bone_centroids(rest, bone_indices, bone_weights, total),
-                                   scale=float(np.ptp(rest, axis=0).max()), posture_weight=options["posture_weight"])
+                                   scale=float(np.ptp(rest, axis=0).max()), posture_weight=options["posture_weight"],
+                                   clips=clips)
     # The component is synthesised as if it were the whole mesh: its key vertices see only its
     # own bones, weights renormalised over them, so eq. 8 needs no bone from another component
     # and the unit-sum and eq. 15 properties still hold.
@@ -108,13 +127,15 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
                 edge_threshold=_DEFAULT.edge_threshold, single_component=_DEFAULT.single_component,
                 svd_threshold=_DEFAULT.svd_threshold, min_gap=_DEFAULT.min_gap, min_bones=_DEFAULT.min_bones,
                 min_segment=_DEFAULT.min_segment, coverage=_DEFAULT.coverage, up_axis=_DEFAULT.up_axis,
-                posture_weight=_DEFAULT.posture_weight):
+                posture_weight=_DEFAULT.posture_weight, clips=None):
     """Analyse a skin fit for synthesis. rest (V, 3); faces (T, 3); bone_indices/bone_weights
     (V, K); rotations (F, B, 3, 3); translations (F, B, 3). min_segment: the shortest stretch
     walks play between seams (frames); transitions closer than half of it to a cheaper one are
     dropped (:func:`.transitions.select_transitions`, with ``coverage``); up_axis (0, 1, 2) and
     posture_weight: the costs also weigh the reference bone's tilt and height about that axis
-    (:func:`.transitions.posture_costs`; 0: Zheng's eq. 5 alone). Returns GraphAnalysis."""
+    (:func:`.transitions.posture_costs`; 0: Zheng's eq. 5 alone); clips: the
+    :class:`.clips.Clips` of the F frames (None: one clip; several: transitions within and between
+    them). Returns GraphAnalysis."""
     from .bone_graph import bone_components  # networkx: imported when a graph is built, not by synthesize
 
     validate_graph_options(rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment,
@@ -128,14 +149,14 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
                    min_gap=min_gap, min_bones=min_bones, min_segment=int(min_segment), coverage=float(coverage),
                    up_axis=int(up_axis), posture_weight=float(posture_weight))
     components = [analyse_component([int(b) for b in members], rest, neighbours, bone_indices, bone_weights, rotations,
-                                    translations, options) for members in decomposition.components]
+                                    translations, options, clips) for members in decomposition.components]
     edges = np.array(sorted(graph.edges()), dtype=np.int64).reshape(-1, 2)
     # Only articulation points that still join components matter to synthesis (Alg. 1);
     # others ended up inside a merged block.
     joining = sorted(int(b) for b in decomposition.component_of_cut)
     return GraphAnalysis(weights=weights, kept_edges=edges, cut_nodes=joining,
                          articulation_points=[int(b) for b in decomposition.cut_nodes], components=components,
-                         options=options)
+                         options=options, clips=clips)
 
 
 def bone_layout(rest, bone_indices, bone_weights, bones):

@@ -1,4 +1,5 @@
-"""Motion graph over the frames of one clip, random and constrained walks (Zheng §3.4).
+"""Motion graph over the frames of one clip (or several clips of one character), random and
+constrained walks (Zheng §3.4).
 
 Walk semantics (fixed by the team). An input clip has F frames. A candidate transition (i, j)
 (:func:`.transitions.candidate_transitions`) means: after playing frame i, frame j is identified
@@ -10,6 +11,15 @@ than by starting there (a clip of one cycle loops by (F−1, −1)). An output a
 frames is ``source (M,)``: the input frame shown at each output frame, consecutive entries
 joined by an edge. Seams are the output indices k with ``source[k] ≠ source[k−1] + 1``; the
 transition used there is ``(source[k−1], source[k] − 1)`` (j = −1 where source[k] = 0).
+
+Several clips (:class:`.clips.Clips`, ``clips=`` everywhere here; None is one clip, the graph
+above unchanged): the F frames are the clips in order, in one numbering. Playback ``i → i+1``
+exists only inside a clip (a clip's last frame plays on nowhere: walks leave it by a transition
+or end there); a transition (i, j) enters ``Clips.targets(j)``: j + 1 for j ≥ 0 (j never a
+clip's last frame, :meth:`.clips.Clips.valid_j`), the first frame of clip c for j = −(c+1); a
+seam is :meth:`.clips.Clips.seams` (also a step from one clip's last frame onto the next clip's
+first, which is never playback), its transition ``(source[k−1], Clips.transition_j(source[k]))``.
+Edges are sorted by (i, frame entered), which for one clip is (i, j): the same walks per seed.
 
 Contents:
 
@@ -61,6 +71,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..clips import Clips
 from ..errors import OptionError
 
 NO_CYCLE_MESSAGE = ("the clip has no repeated states at this threshold: no transition leads back; "
@@ -69,9 +80,10 @@ NO_CYCLE_MESSAGE = ("the clip has no repeated states at this threshold: no trans
 
 @dataclass
 class _Moves:
-    """Frame-level moves of the non-forbidden graph: playback ``play_ok (F,)`` (i+1 < F, both
-    allowed) and transitions in CSR form ``t_indptr (F+1,)``, ``t_target (E,)`` = j + 1,
-    ``t_pairs (E, 2)`` = (i, j), sorted by (i, j)."""
+    """Frame-level moves of the non-forbidden graph: playback ``play_ok (F,)`` (i + 1 in i's
+    clip, both allowed) and transitions in CSR form ``t_indptr (F+1,)``, ``t_target (E,)`` the
+    frame entered (j + 1, or the first frame of clip −j − 1 for j < 0), ``t_pairs (E, 2)`` = (i, j),
+    sorted by (i, frame entered) (for one clip, by (i, j))."""
 
     play_ok: np.ndarray
     t_indptr: np.ndarray
@@ -88,47 +100,61 @@ def default_min_segment(fps):
 class MotionGraph:
     """The frame graph of one clip (see the module docstring for the walk semantics).
 
-    ``MotionGraph(frames, transitions, forbidden=None)``: frames F; transitions (T, 2) int pairs
-    (i, j) (candidate transitions), i in 0..F−1 and j in −1..F−1 (−1: continue at frame 0);
-    forbidden (F,) bool, frames never to be shown (removed with their edges). Raises
-    :class:`OptionError` when no arbitrarily long walk exists.
+    ``MotionGraph(frames, transitions, forbidden=None, clips=None)``: frames F; transitions
+    (T, 2) int pairs (i, j) (candidate transitions), i in 0..F−1 and j in −C..F−1 (−(c+1):
+    continue at the first frame of clip c; with one clip, −1: continue at frame 0); forbidden
+    (F,) bool, frames never to be shown (removed with their edges); clips: the
+    :class:`.clips.Clips` of the F frames (None: one clip), playback f → f + 1 only inside a clip
+    and a pair whose j does not play on in its clip (:meth:`.clips.Clips.valid_j`, e.g. a clip's
+    last frame) dropped. Raises :class:`OptionError` when no arbitrarily long walk exists.
 
     Attributes: ``frames`` F; ``transitions`` (T', 2) the distinct transitions whose played
     frames i, j + 1 are in range and not forbidden, sorted; ``forbidden`` (F,) bool;
     ``usable`` (F,) bool, the frames from which an arbitrarily long walk exists (they can reach
     a cycle); ``dead_ends`` (F,) bool, non-forbidden frames that are not usable;
     ``indptr (F+1,)``, ``indices`` the successors of each frame in the usable subgraph (CSR,
-    empty rows for unusable frames; each usable frame has at least one successor).
+    empty rows for unusable frames; each usable frame has at least one successor); ``clips``
+    (as given, None for one clip).
     """
 
-    def __init__(self, frames, transitions, forbidden=None):
+    def __init__(self, frames, transitions, forbidden=None, clips=None):
         frames = int(frames)
         if frames < 1:
             raise OptionError(f"a motion graph needs at least one frame (got {frames})")
+        if clips is not None and clips.total != frames:
+            raise ValueError(f"the clips hold {clips.total} frames, the graph {frames}")
+        layout = Clips.single(frames) if clips is None else clips
         pairs = np.asarray(transitions, dtype=np.int64).reshape(-1, 2) if np.size(transitions) else \
             np.zeros((0, 2), np.int64)
-        if pairs.size and (pairs[:, 0].min() < 0 or pairs[:, 1].min() < -1 or pairs.max() >= frames):
-            raise OptionError(f"transitions (i, j) must pair a frame i in 0..{frames - 1} with j in −1..{frames - 1} "
-                              "(−1: continue at frame 0)")
+        if pairs.size and (pairs[:, 0].min() < 0 or pairs[:, 1].min() < -len(layout) or pairs.max() >= frames):
+            virtual = "(−1: continue at frame 0)" if len(layout) == 1 else \
+                "(−(c+1): continue at the first frame of clip c)"
+            raise OptionError(f"transitions (i, j) must pair a frame i in 0..{frames - 1} with j in "
+                              f"−{len(layout)}..{frames - 1} {virtual}")
         if forbidden is None:
             forbidden = np.zeros(frames, bool)
         forbidden = np.asarray(forbidden, dtype=bool)
         if forbidden.shape != (frames,):
             raise ValueError(f"forbidden must have shape ({frames},), got {forbidden.shape}")
         self.frames = frames
+        self.clips = clips
         self.forbidden = forbidden.copy()
         allowed = ~forbidden
 
-        # transitions i → j+1 between shown frames; drop (i, i) (= playback) and j = F−1
+        # transitions i → (frame entered) between shown frames; drop (i, i) (= playback) and any
+        # j that does not play on in its clip (one clip: j = F−1)
         pairs = np.unique(pairs, axis=0)
-        keep = (pairs[:, 1] + 1 < frames) & (pairs[:, 0] != pairs[:, 1])
+        keep = layout.valid_j(pairs[:, 1]) & (pairs[:, 0] != pairs[:, 1])
         pairs = pairs[keep]
-        pairs = pairs[allowed[pairs[:, 0]] & allowed[pairs[:, 1] + 1]]
-        self.transitions = pairs  # np.unique sorted them by (i, j)
+        pairs = pairs[allowed[pairs[:, 0]] & allowed[layout.targets(pairs[:, 1])]]
+        entered = layout.targets(pairs[:, 1])
+        order = np.lexsort((entered, pairs[:, 0]))  # by (i, frame entered): np.unique's (i, j) for one clip
+        pairs, entered = pairs[order], entered[order]
+        self.transitions = pairs
         self._moves = _Moves(
-            play_ok=np.concatenate([allowed[:-1] & allowed[1:], [False]]),
+            play_ok=np.concatenate([allowed[:-1] & allowed[1:] & layout.plays_on()[:-1], [False]]),
             t_indptr=np.searchsorted(pairs[:, 0], np.arange(frames + 1)).astype(np.int64),
-            t_target=pairs[:, 1] + 1,
+            t_target=entered,
             t_pairs=pairs)
 
         src, dst = self._edges(allowed)
@@ -148,9 +174,11 @@ class MotionGraph:
         self._backward_cache = {}
 
     @classmethod
-    def from_transitions(cls, result, forbidden=None):
-        """From a :class:`.transitions.Transitions` result (F from its D, its candidate pairs)."""
-        return cls(result.D.shape[0], result.pairs, forbidden)
+    def from_transitions(cls, result, forbidden=None, clips=None):
+        """From a :class:`.transitions.Transitions` result (F from its D, its candidate pairs;
+        clips: given, else the result's own, if it has any)."""
+        clips = getattr(result, "clips", None) if clips is None else clips
+        return cls(result.D.shape[0], result.pairs, forbidden, clips)
 
     @property
     def usable_count(self):
@@ -239,21 +267,27 @@ class MotionGraph:
         return self._backward_cache[key]
 
 
-def recurrent_frames(frames, transitions):
+def recurrent_frames(frames, transitions, clips=None):
     """Frames (F,) bool in the largest strongly connected part of the frame graph (playback
     i → i+1 and i → j+1 per transition (i, j), j + 1 < F, j = −1 included): the frames a long walk can keep
-    coming back to (of equally large parts, the first scipy labels)."""
+    coming back to (of equally large parts, the first scipy labels). ``clips`` (None: one clip):
+    playback only inside a clip, (i, −(c+1)) enters clip c's first frame, pairs whose j does not
+    play on in its clip are left out (:meth:`.clips.Clips.valid_j`)."""
     from scipy.sparse.csgraph import connected_components
 
     frames = int(frames)
+    if frames == 0:
+        return np.zeros(0, bool)
+    layout = Clips.single(frames) if clips is None else clips
     pairs = np.asarray(transitions, dtype=np.int64).reshape(-1, 2)
-    pairs = pairs[pairs[:, 1] + 1 < frames]
-    src = np.concatenate([np.arange(frames - 1), pairs[:, 0]])
-    dst = np.concatenate([np.arange(1, frames), pairs[:, 1] + 1])
+    pairs = pairs[layout.valid_j(pairs[:, 1])]
+    play = np.flatnonzero(layout.plays_on()[:-1])
+    src = np.concatenate([play, pairs[:, 0]])
+    dst = np.concatenate([play + 1, layout.targets(pairs[:, 1])])
     matrix = sp.csr_matrix((np.ones(src.size, np.int8), (src, dst)), shape=(frames, frames))
     _, labels = connected_components(matrix, directed=True, connection="strong")
     sizes = np.bincount(labels)
-    return labels == np.flatnonzero(sizes == sizes.max())[0] if frames else np.zeros(0, bool)
+    return labels == np.flatnonzero(sizes == sizes.max())[0]
 
 
 def random_walks(graph, count, frames, rng, start=None, transition_probability=0.5, min_segment=4):
@@ -388,39 +422,73 @@ def diversity_filter(sources, min_difference, block_elements=1 << 24, kept_befor
     return keep
 
 
-def seams(sources):
+def seams(sources, clips=None):
     """Seams of walks: for sources (M,) a tuple ``(indices (S,), pairs (S, 2))``, the output
     indices k with source[k] ≠ source[k−1] + 1 and the transitions (source[k−1], source[k] − 1)
     used there (j = −1 for a seam onto frame 0: the wrap); for sources (N, M) a list of such
-    tuples, one per walk."""
+    tuples, one per walk. ``clips`` (None: one clip): the seams :meth:`.clips.Clips.seams`
+    finds (also a step from a clip's last frame onto the next clip's first), the transition
+    ``(source[k−1], Clips.transition_j(source[k]))`` (j = −(c+1) onto clip c's first frame)."""
     sources = np.asarray(sources, np.int64)
     if sources.ndim == 1:
-        return seams(sources[None])[0]
+        return seams(sources[None], clips)[0]
     out = []
+    if clips is not None:
+        seam = clips.seams(sources)
+        for row, mask in zip(sources, seam):
+            k = np.flatnonzero(mask)
+            out.append((k, np.stack([row[k - 1], clips.transition_j(row[k])], axis=1).reshape(-1, 2)))
+        return out
     for row in sources:
         k = np.flatnonzero(row[1:] != row[:-1] + 1) + 1
         out.append((k, np.stack([row[k - 1], row[k] - 1], axis=1)))
     return out
 
 
-def walk_statistics(sources, frames):
+def transitions_between(pairs, clips):
+    """How many transitions (i, j) (pairs (T, 2)) leave each clip for each clip -> {"a->b": count}
+    over every ordered pair of clip names (within a clip: "a->a"), in clip order; the clip
+    entered is j's own clip (for j ≥ 0), or clip c for j = −(c+1)."""
+    pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+    count = len(clips)
+    j = pairs[:, 1]
+    entered = np.where(j >= 0, clips.clip_of(np.maximum(j, 0)), np.clip(-j - 1, 0, count - 1))
+    tally = np.bincount(clips.clip_of(pairs[:, 0]) * count + entered, minlength=count * count)
+    return {f"{a}->{b}": int(tally[x * count + y]) for x, a in enumerate(clips.names)
+            for y, b in enumerate(clips.names)}
+
+
+def walk_statistics(sources, frames, clips=None):
     """What walks of C components make of the clip: sources (C, N, M) -> dict of (C,) lists:
     ``transitions`` (seams in all N walks), ``mean_segment_frames`` (output frames per segment,
     the partial first and last segments included), ``shortest_segment`` (frames of the shortest
     segment between two seams; M where no walk has two seams), ``coverage`` (the share of the
-    clip's ``frames`` input frames that some walk plays)."""
+    clip's ``frames`` input frames that some walk plays). With ``clips`` (:class:`.clips.Clips`
+    of the ``frames`` frames) seams are :meth:`.clips.Clips.seams`, and two more lists:
+    ``coverage_per_clip`` ({clip name: the share of its frames some walk plays}) and
+    ``transitions_between`` ({"a->b": seams from a frame of clip a onto a frame of clip b},
+    every ordered pair, within a clip "a->a"; they sum to ``transitions``)."""
     sources = np.asarray(sources)
     count, length = sources.shape[1:]
     out = {"transitions": [], "mean_segment_frames": [], "shortest_segment": [], "coverage": []}
+    if clips is not None:
+        out.update(coverage_per_clip=[], transitions_between=[])
     for walks in sources:
-        seam = walks[:, 1:] != walks[:, :-1] + 1
+        seam = walks[:, 1:] != walks[:, :-1] + 1 if clips is None else ~clips.continues(walks)
         total = int(seam.sum())
         animation, k = np.nonzero(seam)
         gaps = np.diff(k)[animation[1:] == animation[:-1]]  # between consecutive seams of one walk
         out["transitions"].append(total)
         out["mean_segment_frames"].append(float(walks.size / (total + count)) if count else 0.0)
         out["shortest_segment"].append(int(gaps.min()) if gaps.size else int(length))
-        out["coverage"].append(float(np.unique(walks).size / frames))
+        played = np.unique(walks)
+        out["coverage"].append(float(played.size / frames))
+        if clips is not None:
+            shown = np.bincount(clips.clip_of(played), minlength=len(clips))
+            out["coverage_per_clip"].append({name: float(shown[c] / clips.frames[c])
+                                             for c, name in enumerate(clips.names)})
+            used = np.stack([walks[animation, k], clips.transition_j(walks[animation, k + 1])], axis=1)
+            out["transitions_between"].append(transitions_between(used, clips))
     return out
 
 

@@ -1,4 +1,5 @@
-"""Transition candidates of one clip from its fitted LBS model (Zheng §3.2).
+"""Transition candidates of one clip, or of several clips of one character, from its fitted LBS
+model (Zheng §3.2).
 
 Inputs are a fitted LBS model: ``bone_indices (V, K)`` int, ``bone_weights (V, K)`` (≥ 0, rows sum
 to 1, zero padding), ``rotations (F, B, 3, 3)`` and ``translations (F, B, 3)`` acting on column
@@ -56,6 +57,32 @@ Steps, each a function here:
   walks seaming every ~6 frames) where Zheng's Table 1 has tens, and none at all on a Vellum
   cloth (its cheapest local minimum costs 5.5 median steps), while walks on the samba played
   only 57 % of the frames of a component.
+
+Several clips (issue 26; ``clips``: a :class:`.clips.Clips` of the F frames, whose conventions
+bind here: playback f → f + 1 only inside a clip, a transition (i, j) plays j + 1 after i, j =
+−(c+1) continues at the first frame of clip c). ``clips=None`` is one clip and runs the steps
+above with the same numbers, bit for bit (``Clips.single(F)`` gives them too). With several:
+
+- Eq. 2–4 are per frame: q is computed over all clips' frames at once (one basis, so D compares
+  frames of different clips in one space). The differences are taken within each clip: q̇_i =
+  q_i − q_{i−1} and r_i (eq. 6) only where i − 1 plays on to i; each clip's first frame takes
+  its own first step (q̇_s := q̇_{s+1}, r_s := r_{s+1}), as frame 0 does; a clip of one frame gets
+  q̇ = r = 0 there. α and β (eq. 5) balance these clip-wise differences.
+- D (F, F) compares every pair of frames, of one clip or of two; a transition between clips is
+  found by exactly the rule of one within a clip (the point: a gallop that falls into the
+  collapse). The virtual column becomes one per clip: D(i, −(c+1)), frame i against clip c's
+  virtual frame before its start s_c, continued back at its first velocity as for clip 0
+  (:func:`virtual_costs`; a clip of one frame has none: +inf).
+- Local minima are searched per (clip of i, clip entered) block, each clip's virtual column
+  placed before its first column, blocks apart by +inf (:func:`clip_blocks`): a neighbourhood
+  never spans a clip boundary, where D's rows and columns are no longer neighbours in time.
+- A candidate leaves a frame i that is not its clip's first (its velocity needs a previous
+  frame, as i ≥ 1) and enters by j = −(c+1) or a j ≥ 0 neither first nor last of its clip
+  (j ≥ 1 and j + 1 < F, clip by clip). ``min_gap`` applies within a clip only, j measured as
+  the frame before the one entered (j, or s_c − 1); between clips no pair is a playback step.
+- T_c uses the playback steps D(i, i−1) within clips only (:func:`transition_threshold`); the
+  spacing rule compares only candidates whose i share a clip and whose entered frames share a
+  clip; coverage counts the clip-aware motion graph (:func:`.motion_graph.recurrent_frames`).
 """
 
 from dataclasses import dataclass, field
@@ -63,6 +90,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import minimum_filter
 
+from ..clips import Clips
 from ..errors import OptionError
 from ..influence import bone_centroids, weight_sums  # noqa: F401 (bone_centroids: part of this module's API)
 from ..rotations import heading_and_posture, rotation_log
@@ -142,12 +170,14 @@ def reduced_coordinates(R_local, t_local, svd_threshold=0.005):
     return a.T @ basis, basis, s[:rank]
 
 
-def reference_motion(rotations, translations, reference):
+def reference_motion(rotations, translations, reference, clips=None):
     """Frame-to-frame motion of the reference bone in its own frame (Zheng eq. 6) -> r (F, 6).
 
     ``r_i = [R_r(i)ᵀ (t_r(i−1) − t_r(i)); Φ(R_r(i)ᵀ R_r(i−1))]`` for i ≥ 1, and r_0 := r_1 (there
     is no frame −1). A single frame gives r = 0. r is unchanged by one rigid transform applied
-    to the whole clip, but not by a rigid transform that varies per frame.
+    to the whole clip, but not by a rigid transform that varies per frame. ``clips``
+    (:class:`.clips.Clips`, None: one clip): differences within each clip only; each clip's
+    first frame takes its own first step, as frame 0 does (module notes: several clips).
     """
     r_ref = np.asarray(rotations, np.float64)[:, reference]
     t_ref = np.asarray(translations, np.float64)[:, reference]
@@ -159,18 +189,34 @@ def reference_motion(rotations, translations, reference):
     # Zheng eq. 6
     out[1:, :3] = np.einsum("fab,fb->fa", r_t, t_ref[:-1] - t_ref[1:])
     out[1:, 3:] = rotation_log(r_t @ r_ref[:-1])
-    out[0] = out[1]
-    return out
+    return _first_takes_next(out, clips)
 
 
-def velocities(q):
-    """Finite-difference velocities q̇_i = q_i − q_{i−1} (Zheng §3.2), q̇_0 := q̇_1: (F, r) -> (F, r)."""
+def velocities(q, clips=None):
+    """Finite-difference velocities q̇_i = q_i − q_{i−1} (Zheng §3.2), q̇_0 := q̇_1: (F, r) -> (F, r).
+    ``clips`` (None: one clip): within each clip, its first frame taking its own first step."""
     q = np.asarray(q, np.float64)
     qdot = np.zeros_like(q)
     if q.shape[0] >= 2:
         qdot[1:] = q[1:] - q[:-1]
-        qdot[0] = qdot[1]
+        _first_takes_next(qdot, clips)
     return qdot
+
+
+def _first_takes_next(x, clips):
+    """x (F, n), rows i ≥ 1 holding the step from frame i − 1: each clip's first row (which would
+    hold the step from the previous clip's last frame) := the clip's own first step, row s + 1,
+    or 0 for a clip of one frame. In place; returns x."""
+    frames = x.shape[0]
+    if frames < 2:
+        return x
+    if clips is None:
+        x[0] = x[1]
+        return x
+    first, counts = clips.starts[:-1], np.asarray(clips.frames)
+    x[first[counts >= 2]] = x[first[counts >= 2] + 1]
+    x[first[counts < 2]] = 0.0
+    return x
 
 
 def pairwise_squared_distances(x):
@@ -186,7 +232,7 @@ def pairwise_squared_distances(x):
     return np.maximum(d, 0.0)
 
 
-def transition_costs(q, r, alpha=None, beta=None):
+def transition_costs(q, r, alpha=None, beta=None, clips=None):
     """Transition cost between every pair of frames (Zheng eq. 5).
 
     q (F, r) reduced coordinates, r (F, 6) reference motion. Returns ``(D (F, F), alpha, beta)``
@@ -195,11 +241,12 @@ def transition_costs(q, r, alpha=None, beta=None):
     (the paper's α formula has a typo; both weights balance a term against ‖q‖²). Guards: a
     zero denominator gives weight 1 (its term is identically 0 then); a zero numerator (no
     non-reference motion, e.g. a one-bone component) is replaced by 1, so the other terms are
-    normalised to a unit maximum instead of vanishing.
+    normalised to a unit maximum instead of vanishing. ``clips`` (None: one clip): q̇ within each
+    clip (:func:`velocities`); r must be made with the same clips (:func:`reference_motion`).
     """
     q = np.asarray(q, np.float64)
     r = np.asarray(r, np.float64)
-    qdot = velocities(q)
+    qdot = velocities(q, clips)
     scale = _max_squared_norm(q)
     scale = scale if scale > 0.0 else 1.0
     if alpha is None:
@@ -229,12 +276,34 @@ def start_costs(q, r, alpha, beta, posture=None, gamma=0.0):
     from the differences themselves, so D(0, −1), a playback step at the first velocity, has
     exactly no velocity or r term. Needs F ≥ 2."""
     q = np.asarray(q, np.float64)
+    return _virtual_column(q, velocities(q), np.asarray(r, np.float64), alpha, beta, posture, gamma, 0)
+
+
+def virtual_costs(q, r, alpha, beta, posture=None, gamma=0.0, clips=None):
+    """D(i, −(c+1)) for every clip c: each frame against the virtual frame before clip c's start
+    -> (F, C) (module notes: several clips). Column c is :func:`start_costs` with clip c's first
+    frames s_c, s_c + 1 in place of 0, 1 (q̇ and r within clips: q, r as :func:`transition_costs`
+    takes them); a clip of one frame has no first velocity to continue back at, so its column is
+    +inf (nothing enters it by a transition). ``clips`` None: one clip, the column (F, 1) of
+    :func:`start_costs`, bit for bit."""
+    q = np.asarray(q, np.float64)
     r = np.asarray(r, np.float64)
-    qdot = velocities(q)
-    costs = _squared_distances_to(q, before_start(q)) + alpha * _squared_distances_to(qdot, qdot[0]) \
-        + beta * _squared_distances_to(r, r[0])
+    qdot = velocities(q, clips)
+    if clips is None:
+        return _virtual_column(q, qdot, r, alpha, beta, posture, gamma, 0)[:, None]
+    columns = [_virtual_column(q, qdot, r, alpha, beta, posture, gamma, int(first)) if count >= 2
+               else np.full(q.shape[0], np.inf) for first, count in zip(clips.starts[:-1], clips.frames)]
+    return np.stack(columns, axis=1)
+
+
+def _virtual_column(q, qdot, r, alpha, beta, posture, gamma, first):
+    """Eq. 5 (and γ's posture term) of every frame against the virtual frame before ``first``:
+    q₋ = 2 q_s − q_{s+1}, q̇₋ = q̇_s, r₋ = r_s, π₋ = 2 π_s − π_{s+1} (s = first) -> (F,)."""
+    s = first
+    costs = _squared_distances_to(q, before_start(q[s:s + 2])) + alpha * _squared_distances_to(qdot, qdot[s]) \
+        + beta * _squared_distances_to(r, r[s])
     if posture is not None and gamma:
-        costs = costs + gamma * _squared_distances_to(posture, before_start(posture))
+        costs = costs + gamma * _squared_distances_to(posture, before_start(np.asarray(posture)[s:s + 2]))
     return costs
 
 
@@ -245,8 +314,9 @@ def padded_costs(D, start):
     return np.concatenate([np.asarray(start, np.float64).reshape(D.shape[0], 1), D], axis=1)
 
 
-def transition_threshold(D, scale=3.0, reference="median-step"):
-    """T_c = ``scale`` × (median or max) of the playback steps D(i, i−1), i = 1..F−1.
+def transition_threshold(D, scale=3.0, reference="median-step", clips=None):
+    """T_c = ``scale`` × (median or max) of the playback steps D(i, i−1), i = 1..F−1 (with
+    ``clips``: only the steps within a clip, i not the first frame of its clip).
 
     ``reference="max-step"`` with ``scale=40`` is Zheng's literal rule (§3.2, "T_c = 40 max
     D(i, i−1)"). It does not transfer: on a 201-frame, 27-bone dancer fit (shared/NOTES.md) the
@@ -255,12 +325,17 @@ def transition_threshold(D, scale=3.0, reference="median-step"):
     the off-diagonal D has its 1st percentile at 9.4. The max of the steps is one outlier's
     value; the median is robust, and 2–4 × the median step gave 12–24 local-minimum transitions
     there (Zheng report 58 for that dancer). Hence the default: 3 × the median step. Requires at
-    least 2 frames.
+    least 2 frames (in one clip).
     """
     D = np.asarray(D, np.float64)
     if D.shape[0] < 2:
         raise OptionError(f"a transition threshold needs at least 2 frames (got {D.shape[0]})")
     steps = np.diagonal(D, offset=-1)  # D(i, i−1)
+    if clips is not None:
+        steps = steps[clips.plays_on()[:-1]]  # i − 1 plays on to i: both in one clip
+        if steps.size == 0:
+            raise OptionError("a transition threshold needs a clip of at least 2 frames "
+                              f"(the clips have {', '.join(str(f) for f in clips.frames)})")
     if reference == "median-step":
         base = np.median(steps)
     elif reference == "max-step":
@@ -270,7 +345,7 @@ def transition_threshold(D, scale=3.0, reference="median-step"):
     return float(scale * base)
 
 
-def candidate_transitions(D, threshold, min_gap=2, start=None):
+def candidate_transitions(D, threshold, min_gap=2, start=None, clips=None):
     """Candidate transitions: local minima of D below the threshold (Zheng §3.2).
 
     D (F, F); start (F,): D(i, −1), the virtual frame's column (:func:`start_costs`), or None
@@ -284,27 +359,85 @@ def candidate_transitions(D, threshold, min_gap=2, start=None):
     minimum count as minima, so a flat valley (an exact loop: D(i, i+P) = 0 for every i) lists
     each of its pairs rather than whichever round-off happens to favour. Both (i, j) and (j, i)
     may appear. Returns ``(pairs (M, 2) int, costs (M,))`` sorted by cost (ties by i, then j).
+
+    ``clips`` (:class:`.clips.Clips`; None: one clip) with start (F, C): D(i, −(c+1))
+    (:func:`virtual_costs`). The search runs per block (clip of i, clip of j + 1), each column
+    block led by its clip's virtual column (:func:`clip_blocks`), so no neighbourhood spans a
+    clip boundary; "i ≥ 1" and "j ≥ 1" read "not the first frame of its clip", and the gap
+    applies only within a clip, measured to the frame before the one entered (j, or s_c − 1 for
+    the virtual frame of clip c starting at s_c; −1 for clip 0, as above). A transition from
+    one clip into another is no playback step, so it needs no gap.
     """
     D = np.asarray(D, np.float64)
     frames = D.shape[0]
     if frames == 0:
         return np.zeros((0, 2), np.int64), np.zeros(0)
+    clips = Clips.single(frames) if clips is None else clips
     finite = np.isfinite(D)
     tolerance = 1e-9 * (np.max(np.abs(D[finite])) if finite.any() else 0.0)
-    padded, shift = (D, 0) if start is None else (padded_costs(D, start), 1)
+    padded, row_i, column_j = clip_blocks(D, start, clips)
     neighbourhood_min = minimum_filter(np.where(np.isfinite(padded), padded, np.inf), size=3, mode="constant",
                                        cval=np.inf)
-    i, column = np.indices(padded.shape)
-    j = column - shift
-    keep = ((padded < threshold) & (np.abs(i - j) >= min_gap) & (i >= 1) & ((j >= 1) | (j == -1))
+    first = clips.first_frames()
+    real_row, real_column = row_i >= 0, column_j > _SEPARATOR
+    i = np.where(real_row, row_i, 0)[:, None]  # (R, 1): separators read as frame 0, then dropped
+    j = np.where(real_column, column_j, 0)[None, :]  # (1, K)
+    clip_entered, before = _entered(clips, j)
+    gap_ok = (clips.clip_of(i) != clip_entered) | (np.abs(i - before) >= min_gap)
+    j_ok = (j < 0) | ~first[np.maximum(j, 0)]
+    keep = (real_row[:, None] & real_column[None, :] & (padded < threshold) & gap_ok & ~first[i] & j_ok
             & (padded <= neighbourhood_min + tolerance))
-    pairs = np.stack([i[keep], j[keep]], axis=1).astype(np.int64)
-    costs = padded[keep]
+    rows, columns = np.nonzero(keep)
+    pairs = np.stack([row_i[rows], column_j[columns]], axis=1).astype(np.int64)
+    costs = padded[rows, columns]
     order = np.lexsort((pairs[:, 1], pairs[:, 0], costs))
     return pairs[order], costs[order]
 
 
-def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_scale=10.0, start=None):
+def _entered(clips, j):
+    """For j (any int shape): the clip a transition (·, j) enters and the position of j in the
+    global numbering: j itself, or s_c − 1 for the virtual frame of clip c (starting at s_c; −1
+    for clip 0). A j ≥ 0 belongs to its own clip even when it is the clip's last frame."""
+    j = np.asarray(j, np.int64)
+    virtual_clip = np.clip(-j - 1, 0, len(clips) - 1)
+    clip = np.where(j >= 0, clips.clip_of(np.maximum(j, 0)), virtual_clip)
+    return clip, np.where(j >= 0, j, clips.starts[virtual_clip] - 1)
+
+
+_SEPARATOR = np.iinfo(np.int64).min  # a column of +inf between two clips' blocks (clip_blocks)
+
+
+def clip_blocks(D, start=None, clips=None):
+    """The layout :func:`candidate_transitions` searches: D (F, F) in blocks (clip of i, clip of
+    j), each clip's columns led by its virtual frame's column, blocks apart by a row or column of
+    +inf (so a 3×3 neighbourhood never spans two clips: at a block's edge it sees what it sees at
+    the matrix's edge). start: None (no virtual columns), (F,) D(i, −1) of one clip, or (F, C)
+    D(i, −(c+1)). Returns ``(padded (R, K), row_i (R,), column_j (K,))``: the frame i of each row
+    (−1: a separator) and the j of each column (−(c+1): clip c's virtual frame; ``_SEPARATOR``:
+    a separator). One clip: ``[D(·, −1) | D]`` (:func:`padded_costs`) or D, with no separator."""
+    D = np.asarray(D, np.float64)
+    frames = D.shape[0]
+    clips = Clips.single(frames) if clips is None else clips
+    count = len(clips)
+    virtual = None if start is None else np.asarray(start, np.float64).reshape(frames, count)
+    starts = clips.starts
+    rows, columns = [], []
+    for c in range(count):
+        own = np.arange(starts[c], starts[c + 1])
+        rows.append(own if c == 0 else np.concatenate([[-1], own]))
+        lead = ([] if c == 0 else [_SEPARATOR]) + ([] if virtual is None else [-(c + 1)])
+        columns.append(np.concatenate([np.asarray(lead, np.int64), own]))
+    row_i, column_j = np.concatenate(rows).astype(np.int64), np.concatenate(columns).astype(np.int64)
+    # Gather from [D | virtual columns | +inf]: column F + c is clip c's virtual frame, the last +inf.
+    extended = np.concatenate([D, np.zeros((frames, 0)) if virtual is None else virtual, np.full((frames, 1), np.inf)],
+                              axis=1)
+    source = np.where(column_j >= 0, column_j, np.where(column_j == _SEPARATOR, extended.shape[1] - 1, frames - column_j - 1))
+    padded = extended[np.maximum(row_i, 0)][:, source]
+    padded[row_i < 0] = np.inf
+    return padded, row_i, column_j
+
+
+def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_scale=10.0, start=None, clips=None):
     """Transitions of one clip: cheap, spread out, and enough to reach the whole clip.
 
     D (F, F) costs; threshold T_c; start (F,): D(i, −1) (:func:`start_costs`), or None for no
@@ -324,6 +457,11 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
     shows: on the Dem Bones example, whose median step is tiny beside its fast flexes, admitting
     up to 160 T_c for coverage made 3.7× the input's acceleration).
 
+    ``clips`` (None: one clip), start (F, C) D(i, −(c+1)): j must name a frame that plays on in
+    its clip (:meth:`.clips.Clips.valid_j`), and spacing compares only candidates whose i lie in
+    one clip and whose entered frames j + 1 lie in one clip (j measured as the frame before the
+    one entered, as :func:`candidate_transitions`' gap); coverage counts the clip-aware graph.
+
     Returns ``(pairs (M, 2) int64, costs (M,), admitted (int): how many of them lie above T_c,
     share (float): the frames on the largest strongly connected part)``, sorted by cost.
     """
@@ -331,23 +469,31 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
 
     D = np.asarray(D, np.float64)
     frames = D.shape[0]
-    every, costs = candidate_transitions(D, np.inf, min_gap, start)
-    inside = every[:, 1] + 1 < frames
-    every, costs = every[inside], costs[inside]
+    layout = Clips.single(frames) if clips is None and frames else clips
+    every, costs = candidate_transitions(D, np.inf, min_gap, start, clips)
+    if frames:
+        inside = layout.valid_j(every[:, 1])
+        every, costs = every[inside], costs[inside]
     spacing = max(0, int(spacing))
-    kept = []
-    for n, (i, j) in enumerate(every):
-        if all(abs(i - a) > spacing or abs(j - b) > spacing for a, b in (every[k] for k in kept)):
-            kept.append(n)
-    kept = np.asarray(kept, dtype=np.int64)
+    if frames and len(every):
+        clip_entered, before = _entered(layout, every[:, 1])
+        i = every[:, 0]
+        key = layout.clip_of(i) * len(layout) + clip_entered  # (clip of i, clip entered)
+    kept = np.zeros(len(every), np.int64)  # the accepted candidates, kept[:count]
+    count = 0
+    for n in range(len(every)):
+        k = kept[:count]
+        if not ((key[k] == key[n]) & (np.abs(i[k] - i[n]) <= spacing) & (np.abs(before[k] - before[n]) <= spacing)).any():
+            kept[count], count = n, count + 1
+    kept = kept[:count]
     below = kept[costs[kept] < threshold]
     chosen = list(below)
-    share = float(recurrent_frames(frames, every[chosen]).mean()) if frames else 0.0
+    share = float(recurrent_frames(frames, every[chosen], clips).mean()) if frames else 0.0
     admitted = 0
     for n in kept[(costs[kept] >= threshold) & (costs[kept] < admit_scale * threshold)]:
         if share >= coverage:
             break
-        trial = float(recurrent_frames(frames, every[chosen + [n]]).mean())
+        trial = float(recurrent_frames(frames, every[chosen + [n]], clips).mean())
         if trial > share:
             chosen.append(n)
             share, admitted = trial, admitted + 1
@@ -366,6 +512,9 @@ class Transitions:
     the candidate transitions, by increasing cost, j = −1 meaning "continue at frame 0"; plus
     the options used; start (F,): D(i, −1), the virtual frame's column (:func:`start_costs`;
     None when not computed, e.g. read back from a graph file, which stores the pairs' costs only).
+    clips: the :class:`.clips.Clips` the frames were read as (None: one clip); virtual (F, C):
+    D(i, −(c+1)) for every clip (:func:`virtual_costs`; column 0 is ``start``), None when not
+    computed. With clips, j = −(c+1) continues at the first frame of clip c.
     """
 
     reference: int
@@ -385,11 +534,14 @@ class Transitions:
     admitted: int = 0
     share: float = 1.0
     start: np.ndarray | None = None
+    clips: Clips | None = None
+    virtual: np.ndarray | None = None
 
     @property
     def steps(self):
-        """The playback steps D(i, i−1), i = 1..F−1."""
-        return np.diagonal(self.D, offset=-1).copy()
+        """The playback steps D(i, i−1), i = 1..F−1 (i − 1 and i in one clip)."""
+        steps = np.diagonal(self.D, offset=-1).copy()
+        return steps if self.clips is None else steps[self.clips.plays_on()[:-1]]
 
 
 def reference_posture(rotations, translations, pivot, up, scale):
@@ -414,15 +566,17 @@ def posture_costs(D, q, posture, weight=1.0):
 
 def find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=None, svd_threshold=0.005,
                      threshold_scale=3.0, threshold_reference="median-step", min_gap=2, spacing=0, coverage=0.95,
-                     up=None, pivots=None, scale=1.0, posture_weight=1.0):
+                     up=None, pivots=None, scale=1.0, posture_weight=1.0, clips=None):
     """Zheng §3.2 end to end: reference bone, eq. 2–6, threshold, candidate transitions.
 
     rotations (F, B, 3, 3), translations (F, B, 3), bone_indices (V, K), bone_weights (V, K);
     ``bones_subset``: restrict everything (reference choice included) to these bones, e.g. a
     component of the bone graph; spacing, coverage: :func:`select_transitions`; up (3,), pivots
     (B, 3), scale: with ``up`` given, D also weighs the reference bone's posture
-    (:func:`posture_costs`, ``posture_weight``; 0 leaves Zheng's eq. 5). Returns a
-    :class:`Transitions`.
+    (:func:`posture_costs`, ``posture_weight``; 0 leaves Zheng's eq. 5). ``clips``
+    (:class:`.clips.Clips` of the F frames; None: one clip, the same numbers as
+    ``Clips.single(F)``): several clips of one character, transitions within and between them
+    (module notes: several clips). Returns a :class:`Transitions`.
     """
     rotations = np.asarray(rotations, np.float64)
     translations = np.asarray(translations, np.float64)
@@ -432,25 +586,29 @@ def find_transitions(rotations, translations, bone_indices, bone_weights, bones_
                          "(F, B, 3, 3) and (F, B, 3)")
     if frames < 2:
         raise OptionError(f"finding transitions needs at least 2 frames (got {frames})")
+    if clips is not None and clips.total != frames:
+        raise ValueError(f"the clips hold {clips.total} frames, the bone transforms {frames}")
     subset = np.arange(bones) if bones_subset is None else _bone_ids(bones_subset, bones)
     reference = reference_bone(bone_indices, bone_weights, bones, subset)
     r_local, t_local, local_bones = local_frame_positions(rotations, translations, reference, subset)
     q, basis, singular = reduced_coordinates(r_local, t_local, svd_threshold)
-    r = reference_motion(rotations, translations, reference)
-    D, alpha, beta = transition_costs(q, r)
+    r = reference_motion(rotations, translations, reference, clips)
+    D, alpha, beta = transition_costs(q, r, clips=clips)
     posture, gamma = None, 0.0
     if up is not None and posture_weight > 0.0:
         posture = reference_posture(rotations[:, reference], translations[:, reference], pivots[reference], up, scale)
         D, gamma = posture_costs(D, q, posture, posture_weight)
-    start = start_costs(q, r, alpha, beta, posture, gamma)  # the virtual frame −1's column (module notes)
-    threshold = transition_threshold(D, threshold_scale, threshold_reference)
-    pairs, costs, admitted, share = select_transitions(D, threshold, min_gap, spacing, coverage, start=start)
+    virtual = virtual_costs(q, r, alpha, beta, posture, gamma, clips)  # a virtual frame per clip (module notes)
+    threshold = transition_threshold(D, threshold_scale, threshold_reference, clips)
+    pairs, costs, admitted, share = select_transitions(D, threshold, min_gap, spacing, coverage, start=virtual,
+                                                       clips=clips)
     options = dict(svd_threshold=svd_threshold, threshold_scale=threshold_scale,
                    threshold_reference=threshold_reference, min_gap=min_gap, spacing=spacing, coverage=coverage,
                    posture_weight=posture_weight if up is not None else 0.0)
     return Transitions(reference=reference, bones=subset.tolist(), local_bones=local_bones, q=q, basis=basis,
                        singular=singular, r=r, alpha=alpha, beta=beta, D=D, threshold=threshold, pairs=pairs,
-                       costs=costs, options=options, admitted=admitted, share=share, start=start)
+                       costs=costs, options=options, admitted=admitted, share=share, start=virtual[:, 0].copy(),
+                       clips=clips, virtual=virtual)
 
 
 def _bone_ids(subset, bones):
