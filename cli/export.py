@@ -138,7 +138,7 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
     joints = int(source.skin.rotations.shape[1]) + 1 if what in ("UsdSkel", "glTF") else None  # bones and the root
     summary = {"output": output, "frames": int(source.frames), "vertices": int(source.rest_vertices.shape[0]),
                "kind": what, "joints": joints, "animations": [int(a) for a in chosen],
-               "names": [part[0] for a in chosen for part in source.parts(a)] if output_kind == "gltf"
+               "names": [name for a in chosen for name in source.part_names(a)] if output_kind == "gltf"
                else [source.names[a] for a in chosen]}
     if source.clips is not None:
         summary["clips"] = list(source.clips[0])
@@ -232,6 +232,10 @@ class _Source:
         self.path, self.what, self.names, self.frames = path, what, names, frames
         self.rest_vertices, self.faces, self.fps, self.scene = rest_vertices, faces, fps, scene
         self.vertices, self.motions, self.skin, self.clips = vertices, motions, skin, clips
+
+    def part_names(self, a):
+        """The names of the glTF animations animation ``a`` becomes (:meth:`parts`)."""
+        return [self.names[a]] if self.clips is None or len(self.clips[0]) < 2 else list(self.clips[0])
 
     def parts(self, a):
         """(name, rotations, translations) of each glTF animation animation ``a`` becomes: one per
