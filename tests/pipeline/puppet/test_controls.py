@@ -355,6 +355,8 @@ def _short_skin(skin, path, frames):
     for name in ("rotations", "translations", "dual_quaternions", "frame_rmse"):
         model["skin"][name] = model["skin"][name][:frames]
     model["examples"]["vertices"] = model["examples"]["vertices"][:frames]
+    if "clip_frames" in model["examples"]:  # the clip table (issue 26) sums to the frames kept
+        model["examples"]["clip_frames"] = np.array([frames], dtype=np.int64)
     write_model(path, "skin", {g: model[g] for g in ("mesh", "examples", "skin")}, model["provenance"], "test")
 
 
