@@ -11,7 +11,9 @@ It copies ``/mesh``, ``/examples`` and ``/skin`` forward unchanged from the skin
   loading 3-vector in its basis), ``basis_variance (K,)`` float64 (share of the in-place
   variance of each rotated basis, decreasing); attributes ``@components`` (K), ``@count`` (N),
   ``@method`` ("auto" or "user"), ``@explained`` (sum of ``basis_variance``), ``@min_spacing``
-  (absolute spacing the automatic rule used).
+  (absolute spacing the automatic rule used), ``@clips`` (the names of the clips of
+  ``/examples`` whose frames the selection used, in file order; ``select-controls --clips``;
+  absent in files written before it, which used every frame).
 """
 
 from dataclasses import dataclass
@@ -45,13 +47,15 @@ class ControlsData:
     method: str
     explained: float
     min_spacing: float
+    clips: tuple = ()
 
 
-def controls_groups(selection, model=None):
+def controls_groups(selection, model=None, clips=None):
     """The HDF5 groups of a controls file from a pipeline ControlSelection.
 
     model: the skin file as :func:`~skinsynth.formats.model.read_model` returned it; its
-    ``/mesh``, ``/examples`` and ``/skin`` are carried forward unchanged.
+    ``/mesh``, ``/examples`` and ``/skin`` are carried forward unchanged. clips: the names of the
+    clips the selection used (``@clips``; None writes no attribute).
     """
     groups = {} if model is None else {name: model[name] for name in CARRIED_GROUPS}
     groups["controls"] = {
@@ -68,6 +72,8 @@ def controls_groups(selection, model=None):
         "@explained": float(selection.explained),
         "@min_spacing": float(selection.min_spacing),
     }
+    if clips is not None:
+        groups["controls"]["@clips"] = [str(name) for name in clips]
     return groups
 
 
@@ -109,4 +115,5 @@ def read_controls(path, model=None):
         basis_variance=variance, components=int(group.get("@components", variance.size)),
         count=int(group.get("@count", indices.size)), method=_text(group.get("@method", "")),
         explained=float(group.get("@explained", variance.sum())),
-        min_spacing=float(group.get("@min_spacing", np.nan)))
+        min_spacing=float(group.get("@min_spacing", np.nan)),
+        clips=tuple(_text(name) for name in np.atleast_1d(group.get("@clips", []))))

@@ -6,7 +6,10 @@ Copies forward ``/mesh``, ``/examples``, ``/skin`` and ``/controls`` and adds:
   ``reference_controls (n_c, 3)`` (rest-frame control positions defining "in place");
   ``@global_motion`` ("control-frame" | "world"), ``@global_motion_reason`` (why, for auto),
   ``@skinning`` ("dual-quaternion" | "linear": the skinning the puppet was trained for and plays
-  with; absent in files written before it existed, which are dual-quaternion).
+  with; absent in files written before it existed, which are dual-quaternion), ``@clips`` (the
+  names of the clips of ``/examples`` trained on, in file order: ``train-kcca --clips``; both
+  frame lists hold global frame ids within them, and the other clips' frames are in neither;
+  absent in files written before it, which used every clip).
 - ``/kcca``: ``predictor (8B, n_p)`` the concatenated M of Feng §6.1 (rows bone-major: bone b
   owns rows 8b..8b+7, its dual quaternion (w, x, y, z, w_e, x_e, y_e, z_e)), ``bias (8B,)``,
   ``training_controls (n_p, 3 n_c)`` standardised, ``control_mean (3 n_c,)``,
@@ -36,8 +39,9 @@ from .skin_file import read_skin
 from .validation import check_controls, check_puppet
 
 
-def puppet_groups(model, puppet, test_frames, regularization_mode):
-    """All groups of a puppet file: the controls file's groups forwarded, plus the puppet's."""
+def puppet_groups(model, puppet, test_frames, regularization_mode, clips=None):
+    """All groups of a puppet file: the controls file's groups forwarded, plus the puppet's.
+    clips: the names of the clips trained on (``/training/@clips``; None writes no attribute)."""
     bones = puppet.regression.predictor.shape[0]
     groups = {name: model[name] for name in ("mesh", "examples", "skin", "controls")}
     groups["training"] = {"train_frames": puppet.train_frames.astype(np.int64),
@@ -47,6 +51,8 @@ def puppet_groups(model, puppet, test_frames, regularization_mode):
                           "@global_motion_reason": puppet.global_motion_reason,
                           "@correctives_reason": puppet.correctives_reason,
                           "@skinning": puppet.skinning}
+    if clips is not None:
+        groups["training"]["@clips"] = [str(name) for name in clips]
     k = puppet.kernel
     groups["kcca"] = {"predictor": puppet.regression.predictor.reshape(bones * 8, -1),
                       "bias": puppet.regression.bias.reshape(-1),
@@ -91,7 +97,9 @@ class PuppetRecord:
     ``puppet_from_record`` builds the Puppet): the Puppet's fields, with ``kernel`` {kind, mean,
     scale, offset, degree}, ``regression`` {predictor (B, 8, n_p), bias (B, 8), correlations,
     regularization}, ``translations`` {rotation_operator, control_operator, prior_operator} or
-    None, and ``correctives`` {weights, offsets, ridge, power, tail, axes, reason} or None."""
+    None, and ``correctives`` {weights, offsets, ridge, power, tail, axes, reason} or None;
+    ``training_clips``: the clip names trained on (``/training/@clips``; empty in older files:
+    every clip)."""
 
     rest_vertices: np.ndarray
     bone_indices: np.ndarray
@@ -112,6 +120,7 @@ class PuppetRecord:
     correctives: dict | None
     correctives_reason: str
     skinning: str = "dual-quaternion"
+    training_clips: tuple = ()
 
 
 def read_puppet(path, with_options=False):
@@ -158,7 +167,8 @@ def read_puppet(path, with_options=False):
                           translation_prior=prior, translation_prior_reason=prior_reason,
                           kernel_width_reason=str(kcca.get("@width_reason", "")), correctives=correctives,
                           correctives_reason=str(training.get("@correctives_reason", "")),
-                          skinning=_skinning(path, training))
+                          skinning=_skinning(path, training),
+                          training_clips=tuple(str(name) for name in np.atleast_1d(training.get("@clips", []))))
     if with_options:
         return puppet, training["test_frames"], skin, training_options(model)
     return puppet, training["test_frames"], skin

@@ -5,18 +5,19 @@ prediction (:mod:`.puppet`, §6), control frames (:mod:`.alignment`), Feng's bas
 held-out evaluation (:mod:`.baselines`, :mod:`.evaluation`), and many characters at once
 (:mod:`.playback`).
 
-Public: select_controls, train_puppet, predict_vertices, parse_frame_spec, Puppet, puppet_from_record, KccaRegression,
+Public: select_controls, train_puppet, predict_vertices, parse_frame_spec, clip_training_frames, Puppet, puppet_from_record, KccaRegression,
 ControlKernel, KERNELS, TranslationOperator, Correctives, evaluate_puppet, evaluate_extrapolation,
-extrapolation_split, instance_trajectories, host_inputs, world_bones, play_characters, DevicePlayer.
+extrapolation_split, clip_hold_out_split, evaluate_clip_hold_out, instance_trajectories, host_inputs, world_bones, play_characters, DevicePlayer.
 """
 
 from .._lazy import lazy_exports
 
 _EXPORTS = {"select_controls": "controls", "train_puppet": "puppet", "predict_vertices": "puppet",
-            "parse_frame_spec": "puppet", "Puppet": "puppet", "puppet_from_record": "puppet", "KccaRegression": "kcca", "ControlKernel": "kcca",
+            "parse_frame_spec": "puppet", "clip_training_frames": "puppet", "Puppet": "puppet", "puppet_from_record": "puppet", "KccaRegression": "kcca", "ControlKernel": "kcca",
             "KERNELS": "kcca", "TranslationOperator": "poisson", "Correctives": "correctives",
             "evaluate_puppet": "evaluation", "evaluate_extrapolation": "evaluation",
-            "extrapolation_split": "evaluation", "instance_trajectories": "playback", "host_inputs": "playback", "play_characters": "playback", "DevicePlayer": "playback",
+            "extrapolation_split": "evaluation", "clip_hold_out_split": "evaluation",
+            "evaluate_clip_hold_out": "evaluation", "instance_trajectories": "playback", "host_inputs": "playback", "play_characters": "playback", "DevicePlayer": "playback",
             "world_bones": "playback"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -4,6 +4,11 @@ Errors are RMS vertex distances on the held-out example frames, with the rest po
 that its largest bounding-box side is 1 (Feng §7 reports 0.0108 vs 0.0143 this way). Every
 method sees the same control trajectories (the control vertices' positions in the held-out
 frames) and handles global motion the same way as the puppet.
+
+Three hold-outs: the frames the puppet did not train on (:func:`evaluate_puppet`: between its
+examples), the last frames (:func:`extrapolation_split`, retrained on the first), and whole clips
+of a several-clip file (:func:`evaluate_clip_hold_out`, issue 26: retrained on the other clips,
+tested on poses of a take no method saw, e.g. trained on a gallop, tested on a collapse).
 """
 
 from dataclasses import dataclass, field
@@ -93,4 +98,44 @@ def evaluate_extrapolation(skin, control_indices, options, train, test, skinning
                           skin.rotations, skin.translations, control_indices, train, **options)
     result = evaluate_puppet(puppet, skin.examples, test, skinning, pca_components)
     result.notes["train_frames"] = int(len(train))
+    return result
+
+
+def clip_hold_out_split(clips, held_out, training_clips=None, option="--hold-out-clip"):
+    """A whole-clip hold-out (issue 26): (train (n,) int64, test (T,) int64, train clip names,
+    held-out clip names). Test: every frame of the clips ``held_out`` (names, or comma-separated
+    strings); train: every frame of the other clips among ``training_clips`` (the puppet's own
+    clips, None for every clip), so no test frame is trained on. Unknown names or no clip left
+    to train on: OptionError naming ``option``."""
+    if isinstance(held_out, str):
+        held_out = (held_out,)
+    held = [name.strip() for text in held_out for name in str(text).split(",") if name.strip()]
+    if not held:
+        raise OptionError(f"{option} needs a clip name; the clips are {', '.join(clips.names)}")
+    held_ids = sorted({clips.index(name, option) for name in held})
+    trained = clips.names if training_clips is None or len(training_clips) == 0 else tuple(training_clips)
+    trained_ids = {clips.index(name, "the puppet's training clips") for name in trained}
+    train_ids = sorted(trained_ids - set(held_ids))
+    test_names = tuple(clips.names[c] for c in held_ids)
+    if not train_ids:
+        raise OptionError(f"{option} {','.join(test_names)} leaves no clip to train on (the puppet trained on "
+                          f"{', '.join(trained)}; the file's clips are {', '.join(clips.names)})")
+    train_names = tuple(clips.names[c] for c in train_ids)
+    return clips.select(train_names, option), clips.select(test_names, option), train_names, test_names
+
+
+def evaluate_clip_hold_out(skin, control_indices, options, clips, held_out, training_clips=None, skinning=None,
+                           pca_components=None):
+    """Extrapolation to a clip never seen (:func:`clip_hold_out_split`): a puppet trained with
+    ``options`` (train_puppet's keywords) on every frame of the other clips, and every method (its
+    PCA and RBF baselines fitted to the same frames) tested on the held-out clips' frames. skin:
+    the puppet's SkinModel; clips: its :class:`~skinsynth.pipeline.clips.Clips`. Returns
+    :class:`Evaluation`; its notes add ``train_clips``, ``test_clips`` (names) and
+    ``train_frames`` (n,) the frame ids the retrained puppet holds."""
+    train, test, train_names, test_names = clip_hold_out_split(clips, held_out, training_clips)
+    puppet = train_puppet(skin.examples, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
+                          skin.rotations, skin.translations, control_indices, train, **options)
+    result = evaluate_puppet(puppet, skin.examples, test, skinning, pca_components)
+    result.notes.update(train_clips=list(train_names), test_clips=list(test_names),
+                        train_frames=np.asarray(puppet.train_frames, dtype=np.int64))
     return result

@@ -163,6 +163,36 @@ def parse_frame_spec(spec, frames):
     return chosen
 
 
+def clip_training_frames(spec, clips, names=None, option="--clips"):
+    """Training and held-out frames of the clips ``names`` (train-kcca's ``--train-frames`` and
+    ``--clips``; issue 26): (train (n_p,) int64, held_out (n_t,) int64, the clip names used).
+
+    clips: a :class:`~skinsynth.pipeline.clips.Clips`; names: None (every clip), an iterable of
+    names or one comma-separated string (an unknown name is an OptionError naming ``option`` and
+    the clips). A sampling spec (``every:N``, ``first:N``, ``all``) runs within each chosen clip,
+    from that clip's first frame; a list (``0,4,10-20``) names global frames, each of which must
+    lie in a chosen clip. The held-out frames are the chosen clips' other frames: the unchosen
+    clips are neither. Every id is global. One clip chosen whole: exactly
+    ``parse_frame_spec(spec, F)``. Nothing here (nor in training: its folds interleave frames,
+    :func:`.kcca.cv_folds`) looks at a frame's neighbours, so nothing crosses a clip boundary."""
+    selected = clips.select(names, option)
+    chosen = np.unique(clips.clip_of(selected))
+    starts = clips.starts
+    text = spec.strip()
+    if text == "all" or text.startswith(("every:", "first:")):
+        train = np.concatenate([parse_frame_spec(text, clips.frames[c]) + starts[c] for c in chosen])
+    else:
+        train = parse_frame_spec(text, clips.total)
+        outside = train[~np.isin(train, selected)]
+        if outside.size:
+            frame = int(outside[0])
+            raise OptionError(f"--train-frames {spec!r}: frame {frame} ({clips.label(frame)}) is in clip "
+                              f"{clips.names[int(clips.clip_of(frame))]!r}, not one of {option} "
+                              f"{','.join(clips.names[c] for c in chosen)}")
+    train = train.astype(np.int64)
+    return train, np.setdiff1d(selected, train).astype(np.int64), tuple(clips.names[c] for c in chosen)
+
+
 def in_place(controls, reference, global_motion):
     """Rigid frames (R (F,3,3), t (F,3)) bringing controls (F, n_c, 3) in place."""
     if global_motion == "world":
