@@ -1,6 +1,7 @@
 """``skinsynth select-controls``: choose the control points of a puppet (Feng et al. 2008 §3)."""
 
 import click
+import numpy as np
 
 from .common import report, summary_options, check_output_path, command_line, tool_version, user_errors
 
@@ -21,9 +22,13 @@ from .common import report, summary_options, check_output_path, command_line, to
 @click.option("--rigid-tolerance", default=0.1, show_default=True, type=float,
               help="Two near points whose distance changes less than this (relative) in every example "
                    "move as one piece: the second is skipped. Near points that move apart (lips) are both kept.")
+@click.option("--clips", "clip_list", default=None, metavar="A,B,...",
+              help="Select from these clips' frames only (names as fit-skin stored them; inspect lists them)  "
+                   "[default: every clip].")
 @summary_options
 @user_errors
-def select_controls(input_path, output, count, vertex_list, components, min_spacing, rigid_tolerance, quiet, as_json):
+def select_controls(input_path, output, count, vertex_list, components, min_spacing, rigid_tolerance, clip_list, quiet,
+                    as_json):
     """Choose control points from a skin file's examples (Feng et al. 2008 §3).
 
     PCA of the example vertex positions (each frame first brought in place by a rigid fit onto
@@ -34,6 +39,8 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
     basis, then the second ones; a candidate within --min-spacing of a chosen control that
     moves with it (their distance stays within --rigid-tolerance) is skipped; any shortfall is filled farthest-point first. The rule uses no randomness, so the
     same input always gives the same controls. --vertices takes your own choice instead.
+    A skin file of several clips (fit-skin CLIP...) is analysed over every clip's frames, or over
+    those of --clips; the clips used are recorded (/controls/@clips).
 
     Prints one line per control: vertex id, basis, its variance share, and why it was chosen.
 
@@ -42,11 +49,13 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
       skinsynth select-controls face.skin.h5 -o face.controls.h5
       skinsynth select-controls face.skin.h5 -o face.controls.h5 --count 12 --components 10
       skinsynth select-controls face.skin.h5 -o face.controls.h5 --vertices 120,455,873,1021
+      skinsynth select-controls horse.skin.h5 -o horse.controls.h5 --clips gallop
     """
     from skinsynth.formats.controls_file import controls_groups
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.clips import Clips
     from skinsynth.pipeline.puppet import select_controls as select
     from skinsynth.pipeline.errors import OptionError
 
@@ -61,16 +70,20 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
             raise OptionError("--vertices needs at least one vertex id")
     model = read_model(input_path, stages=("skin",))
     skin = read_skin(input_path, model)
+    clips = Clips(skin.clip_names, skin.clip_frames)
+    frames = clips.select(clip_list, "--clips")
+    used = tuple(clips.names[c] for c in np.unique(clips.clip_of(frames)))
+    examples = skin.examples if len(frames) == clips.total else skin.examples[frames]
 
     # No progress bar: one SVD of F x 3V and a K x K varimax take seconds even on large meshes.
-    selection = select(skin.examples, skin.rest_vertices, count=count, components=components,
+    selection = select(examples, skin.rest_vertices, count=count, components=components,
                        user_vertices=user, min_spacing_fraction=min_spacing, rigid_tolerance=rigid_tolerance)
 
     parameters = dict(count=len(selection.indices), vertices=user, components=selection.components,
                       components_option=components, min_spacing=min_spacing, rigid_tolerance=rigid_tolerance,
-                      method=selection.method)
+                      method=selection.method, clips=list(used))
     record = provenance_record("controls", command_line(), parameters, [input_path], tool_version(), None)
-    write_model(output, "controls", controls_groups(selection, model), model["provenance"] + [record],
+    write_model(output, "controls", controls_groups(selection, model, clips=used), model["provenance"] + [record],
                 tool_version())
     for warning in selection.warnings:
         click.echo(f"warning: {warning}", err=True)
@@ -80,8 +93,10 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
                                                                   selection.reasons))]
     lines.append(f"wrote {output}: {len(selection.indices)} control points ({selection.method}) from "
                  f"{len(set(selection.candidates.tolist()))} candidates of {selection.components} rotated PCA "
-                 f"bases explaining {100.0 * selection.explained:.1f}% of the in-place variance")
+                 f"bases explaining {100.0 * selection.explained:.1f}% of the in-place variance"
+                 + (f", from {len(frames)} frames of clips {', '.join(used)}" if len(clips) > 1 else ""))
     summary = {"output": output, "vertex_indices": selection.indices, "reasons": list(selection.reasons),
                "bases": selection.control_basis, "method": selection.method, "components": int(selection.components),
-               "explained": float(selection.explained), "warnings": list(selection.warnings)}
+               "explained": float(selection.explained), "warnings": list(selection.warnings),
+               "clips": list(used), "frames": int(len(frames))}
     report(summary, lines, as_json, quiet)

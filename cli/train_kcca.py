@@ -27,7 +27,11 @@ from .common import report, summary_options, check_output_path, command_line, to
                    "diagonal: 1e-6 is Feng's plain solve, 100 about the regression's translations; 'auto' "
                    "picks from 1e-6…100 by cross-validation on the training frames (printed).")
 @click.option("--train-frames", default="every:4", show_default=True,
-              help="Example frames to train on: every:N, first:N, all, or a list like 0,4,10-20; the rest are held out.")
+              help="Example frames to train on: every:N, first:N, all (each within every clip, from its first "
+                   "frame), or a list of global frames like 0,4,10-20; the clips' other frames are held out.")
+@click.option("--clips", "clip_list", default=None, metavar="A,B,...",
+              help="Train on these clips only (names as fit-skin stored them; inspect lists them); the other "
+                   "clips' frames are neither trained on nor held out  [default: every clip].")
 @click.option("--global-motion", type=click.Choice(["auto", "control-frame", "world"]), default="auto", show_default=True,
               help="control-frame: train and run in a rigid frame fitted to the control points (for travelling "
                    "or turning examples); world: use positions as they are; auto: control-frame when the "
@@ -43,7 +47,7 @@ from .common import report, summary_options, check_output_path, command_line, to
 @summary_options
 @user_errors
 def train_kcca(path, output, kernel, kernel_width, bases, regularization, translation_solver, beta, translation_prior, train_frames,
-               global_motion, correctives, skinning, quiet, as_json):
+               global_motion, correctives, skinning, clip_list, quiet, as_json):
     """Train the puppet: per-bone kernel CCA from control points to bone dual quaternions.
 
     PATH is a controls file from select-controls. The examples are brought in place by a rigid
@@ -53,19 +57,24 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     What the skinned prediction still misses at the examples is learnt as pose-space correctives
     (--correctives; Park and Hodgins 2006, cited by Feng §2).
 
+    A file of several clips (fit-skin CLIP...) trains on every clip, or on --clips; --train-frames
+    samples within each clip, and the clips trained on are recorded (/training/@clips).
+
     \b
     Examples:
       skinsynth train-kcca horse.controls.h5 -o horse.puppet.h5
       skinsynth train-kcca face.controls.h5 -o face.puppet.h5 --kernel polynomial --train-frames every:10
+      skinsynth train-kcca horse.controls.h5 -o horse.puppet.h5 --clips gallop
     """
     from skinsynth.formats.controls_file import read_controls
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.puppet_file import puppet_groups
     from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.clips import Clips
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.puppet import KERNELS
-    from skinsynth.pipeline.puppet import parse_frame_spec, train_puppet
+    from skinsynth.pipeline.puppet import clip_training_frames, train_puppet
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
     if kernel not in KERNELS:
@@ -79,9 +88,8 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     model = read_model(path, stages=("controls",))
     skin = read_skin(path, model)
     controls = read_controls(path, model)
-    frames = skin.examples.shape[0]
-    train = parse_frame_spec(train_frames, frames)
-    test = np.setdiff1d(np.arange(frames), train)
+    clips = Clips(skin.clip_names, skin.clip_frames)
+    train, test, used = clip_training_frames(train_frames, clips, clip_list, "--clips")
 
     started = time.perf_counter()
     puppet = train_puppet(skin.examples, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
@@ -94,11 +102,16 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     parameters = dict(kernel=kernel, bases=bases, regularization=regularization, translation_solver=translation_solver,
                       beta=beta, translation_prior=translation_prior, train_frames=train_frames,
                       global_motion=global_motion, kernel_width=kernel_width, correctives=correctives,
-                      skinning=skinning)
+                      skinning=skinning, clips=list(used))
     record = provenance_record("puppet", command_line(), parameters, [path], tool_version())
-    write_model(output, "puppet", puppet_groups(model, puppet, test, "auto" if regularization == "auto" else "fixed"),
+    write_model(output, "puppet", puppet_groups(model, puppet, test, "auto" if regularization == "auto" else "fixed",
+                                               clips=used),
                 model["provenance"] + [record], tool_version())
     summary, lines = _summary(output, skin, controls, train, test, kernel, translation_solver, puppet, seconds)
+    summary["clips"] = list(used)
+    if len(clips) > 1:
+        lines.insert(1, f"clips: {', '.join(used)} ({len(train)} training / {len(test)} held-out frames of "
+                        f"{clips.total} in {len(clips)} clips)")
     report(summary, lines, as_json, quiet)
 
 
