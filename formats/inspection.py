@@ -16,9 +16,7 @@ def validate_model(path, model):
         return
     require(model, path, "mesh", ("rest_vertices", "faces"))
     require(model, path, "examples", ("vertices",))
-    # C in /examples counts its clips; the later stages' C is their own (control candidates,
-    # synthesis components): only the sizes they share with the skin carry on to their checks
-    dims = {name: size for name, size in check_skin(path, model).items() if name != "C"}
+    dims = check_skin(path, model)
     if "controls" in model:
         check_controls(path, model, dims)
     if "kcca" in model and "training" in model:

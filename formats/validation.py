@@ -112,7 +112,7 @@ def _shape_text(shape):
 MESH = {"rest_vertices": Field("float", ("V", 3)), "faces": Field("int", ("T", 3), low=0, high="V"),
         "face_uvs": Field("float", ("T", 3, 2), optional=True)}
 EXAMPLES = {"vertices": Field("float", ("F", "V", 3)),
-            "clip_frames": Field("int", ("C",), low=1, optional=True)}
+            "clip_frames": Field("int", ("clips",), low=1, optional=True)}
 CLIP_NAME = re.compile(r"^[A-Za-z0-9_.\-]+$")
 SKIN = {
     "bone_indices": Field("int", ("V", "K"), low=0, high="B"),

@@ -56,7 +56,8 @@ def h5_datasets(path):
     datasets, attributes = {}, {}
 
     def visit(name, item):
-        attributes[name] = {k: np.asarray(v).tobytes() if not isinstance(v, (str, bytes)) else v
+        attributes[name] = {k: v if isinstance(v, (str, bytes)) else np.asarray(v).tolist()
+                            if np.asarray(v).dtype.kind == "O" else np.asarray(v).tobytes()  # strings: values, not pointers
                             for k, v in item.attrs.items()}
         if isinstance(item, h5py.Dataset):
             datasets[name] = (item.dtype.str, item.shape, item[()].tobytes(),
