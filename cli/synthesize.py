@@ -1,4 +1,10 @@
-"""``skinsynth synthesize``: one clip in, many different animations out (Zheng 2013)."""
+"""``skinsynth synthesize``: one clip in, many different animations out (Zheng 2013).
+
+The graph's input may be several clips of one mesh (issue 26): input frames are named
+``CLIP:FRAME`` (``gallop:0``; a negative FRAME counts from the clip's end) or by their global
+number (``--start``, ``--end``, ``--target``; :meth:`~skinsynth.pipeline.clips.Clips.frame`),
+walks cross between clips by the graph's transitions, and the summary counts coverage per clip
+and the transitions taken from each clip to each. One clip runs exactly as before."""
 
 import contextlib
 import os
@@ -13,13 +19,34 @@ from .common import check_memory, check_space, report, summary_options, Progress
 
 
 def _target(text):
-    frame, sep, when = text.partition("@")
+    """``[CLIP:]FRAME@TIME`` -> (the frame's text, read once the clips are known; TIME)."""
+    frame, sep, when = text.rpartition("@")
     try:
-        if not sep:
+        if not sep or not frame.strip():
             raise ValueError
-        return int(frame), int(when)
+        return frame.strip(), int(when)
     except ValueError:
-        raise click.BadParameter(f"{text!r}: expected FRAME@TIME, e.g. 12@100") from None
+        raise click.BadParameter(f"{text!r}: expected [CLIP:]FRAME@TIME, e.g. 12@100 or gallop:12@100") from None
+
+
+def _clips(skin):
+    """The input's :class:`~skinsynth.pipeline.clips.Clips` (its clip table; one clip of every
+    frame where it has none)."""
+    from skinsynth.pipeline.clips import Clips
+
+    frames = int(skin.rotations.shape[0])
+    if not skin.clip_frames:
+        return Clips.single(frames, skin.clip_names[0] if skin.clip_names else "clip")
+    return Clips(skin.clip_names, skin.clip_frames)
+
+
+def _frames(clips, start, end, targets):
+    """--start, --end and --target read against the clips: (start, end, [(frame, time)]), global
+    frame numbers (None where not given); an unknown clip or a frame outside its clip is an
+    OptionError naming the option."""
+    start = None if start is None else clips.frame(start, "--start")
+    end = None if end is None else clips.frame(end, "--end")
+    return start, end, [(clips.frame(frame, "--target"), time) for frame, time in targets]
 
 
 @click.command("synthesize")
@@ -28,10 +55,13 @@ def _target(text):
 @click.option("--count", "-n", required=True, type=int, help="Number of animations.")
 @click.option("--frames", "-m", required=True, type=int, help="Frames per animation.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0), help="Seed of every random choice.")
-@click.option("--start-frame", type=int, default=None, help="Input frame every animation starts with.")
-@click.option("--end-frame", type=int, default=None, help="Input frame every animation ends with.")
-@click.option("--target", "targets", multiple=True, type=_target, metavar="FRAME@TIME",
-              help="Input FRAME must appear at output TIME (repeatable).")
+@click.option("--start", "--start-frame", "start_frame", default=None, metavar="CLIP:FRAME",
+              help="Input frame every animation starts with: CLIP:FRAME (gallop:0; a negative FRAME counts from "
+                   "the clip's end) or a global frame number.")
+@click.option("--end", "--end-frame", "end_frame", default=None, metavar="CLIP:FRAME",
+              help="Input frame every animation ends with (as --start).")
+@click.option("--target", "targets", multiple=True, type=_target, metavar="[CLIP:]FRAME@TIME",
+              help="Input frame (as --start) must appear at output TIME (repeatable).")
 @click.option("--obstacle", "obstacles", multiple=True, type=click.Path(dir_okay=False),
               help="A mesh (OBJ/PLY/OFF/STL…) no frame may penetrate (repeatable).")
 @click.option("--ground-plane", is_flag=True, help="No vertex may go below the input clip's lowest point.")
@@ -104,6 +134,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     Examples:
       skinsynth synthesize horse.graph.h5 -o herd.h5 --count 1000 --frames 600 --seed 7
       skinsynth synthesize dancer.graph.h5 -o d.h5 -n 20 -m 300 --start-frame 0 --end-frame 0 --crowd dancers.usdc
+      skinsynth synthesize horse.graph.h5 -o h.h5 -n 50 -m 240 --start gallop:0 --end collapse:-1
       skinsynth synthesize cloth.graph.h5 -o c.h5 -n 60 -m 480 --obstacle sphere.obj --usd cloths/
     """
     from skinsynth.formats.graph_file import read_graph
@@ -147,10 +178,14 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
             up_axis = str(graph_file.options.get("up_axis", "Y"))
         if min_segment is None:
             min_segment = int(graph_file.options.get("min_segment", default_min_segment(skin.fps)))
+        clips = _clips(skin)
+        start_frame, end_frame, targets = _frames(clips, start_frame, end_frame, targets)
+        # one clip: today's path exactly (no clip table handed down)
         request = Request(count=count, frames=frames, seed=seed, targets=list(targets), start=start_frame,
                           end=end_frame, min_difference=min_difference, window=window, spread_velocity=spread_velocity,
                           cut_damping=cut_damping, min_segment=min_segment, blend=blend, alignment=alignment,
-                          up_axis=1 if up_axis == "Y" else 2, contact=contact)
+                          up_axis=1 if up_axis == "Y" else 2, contact=contact,
+                          clips=clips if len(clips) > 1 else None)
         validate_request(request, skin.rotations.shape[0])
         if contact:
             keep_input_support(request, skin)
@@ -200,7 +235,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                        up_axis, root_motion=root_motion, label=path)
             written.append(gltf)
         if plot_dir is not None:
-            written += _write_plots(plot_dir, skin, motions, min(plot_count, count), device, folders)
+            written += _write_plots(plot_dir, skin, motions, min(plot_count, count), device, folders,
+                                    request.clips)
     summary, lines = _summary(output, result, components, frames, min_segment, jobs, seconds, written)
     if remote is not None:
         from skinsynth.formats.synthesis_shards import remove_unused_shards
@@ -281,6 +317,15 @@ def _summary(output, result, components, frames, min_segment, jobs, seconds, wri
              f"segments: mean {', '.join(f'{m:.1f}' for m in stats['mean_segment_frames'])} frames, shortest "
              f"{', '.join(map(str, stats['shortest_segment']))} (≥ {min_segment} asked); input frames played: "
              f"{', '.join(f'{c:.0%}' for c in stats['coverage'])} (per component)"]
+    if "coverage_per_clip" in stats:  # several clips: what each clip gave, and the way between them
+        summary["coverage_per_clip"] = [{name: round(share, 4) for name, share in shares.items()}
+                                        for shares in stats["coverage_per_clip"]]
+        summary["transitions_between"] = [{pair: int(n) for pair, n in used.items()}
+                                          for used in stats["transitions_between"]]
+        for c, (shares, used) in enumerate(zip(stats["coverage_per_clip"], stats["transitions_between"])):
+            played = ", ".join(f"{name} {share:.0%}" for name, share in shares.items())
+            taken = ", ".join(f"{pair.replace('->', '→')} {n}" for pair, n in used.items() if n) or "none"
+            lines.append(f"component {c}: frames played per clip {played}; transitions {taken}")
     return summary, lines
 
 
@@ -305,15 +350,22 @@ def _motions(output, result, remote):
         yield dataclasses.replace(result, F=F, t=t)
 
 
-def _write_plots(folder, skin, result, count, device, folders):
+def _write_plots(folder, skin, result, count, device, folders, clips=None):
     """One PNG per animation: sources per component and seams, max vertex acceleration / the
-    input's (vertices baked with the skin's own weights)."""
+    input's (vertices baked with the skin's own weights). ``clips``: the input's several clips
+    (None: one): seams by the clip-aware rule, and the input's largest acceleration measured
+    inside each clip (never across the step from one clip's last frame to the next one's first)."""
     from skinsynth.formats.output_folder import atomic_folder
     from skinsynth.formats.plots import write_synthesis_plot
     from skinsynth.gpu import lbs
     from skinsynth.pipeline.geometry import frame_accelerations
 
-    largest = np.nanmax(frame_accelerations(skin.examples))
+    if clips is None:
+        largest = np.nanmax(frame_accelerations(skin.examples))
+    else:
+        starts = clips.starts
+        largest = max((np.nanmax(frame_accelerations(skin.examples[a:b])) for a, b in zip(starts[:-1], starts[1:])
+                       if b - a >= 3), default=np.nan)
     written = []
     with atomic_folder(folder, **folders.guard(folder)) as tmp:
         for a in range(count):
@@ -321,11 +373,14 @@ def _write_plots(folder, skin, result, count, device, folders):
                            device=device)
             ratio = frame_accelerations(vertices) / largest
             name = f"animation_{a:04d}.png"
-            seams = int(np.sum(result.sources[:, a, 1:] != result.sources[:, a, :-1] + 1))
+            mask = None if clips is None else clips.seams(result.sources[:, a])  # (C, M)
+            seams = int(np.sum(result.sources[:, a, 1:] != result.sources[:, a, :-1] + 1)) if mask is None \
+                else int(mask.sum())
             # no acceleration in an animation under 3 frames
             peak = f"{np.max(ratio[1:-1]):.2f}× the input's" if len(ratio) > 2 else "none (under 3 frames)"
             write_synthesis_plot(os.path.join(tmp, name), result.sources[:, a], ratio,
-                                 f"animation {a}: {seams} seams, largest acceleration {peak}")
+                                 f"animation {a}: {seams} seams, largest acceleration {peak}", seams=mask,
+                                 clip_starts=None if clips is None else clips.starts)
             written.append(os.path.join(folder, name))
     return written
 

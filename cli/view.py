@@ -171,6 +171,7 @@ def _synthesis(path, animation):
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.formats.synthesis_file import component_bones, open_motions, read_sources, synthesis_count
     from skinsynth.gpu import lbs_reference
+    from skinsynth.pipeline.clips import Clips
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.view import vertex_components
 
@@ -191,6 +192,8 @@ def _synthesis(path, animation):
         stack.close()
         raise
 
+    clips = Clips(skin.clip_names, skin.clip_frames) if len(skin.clip_frames) > 1 else None
+
     def load(a):
         rotations, translations = F[a], t[a]
         require_finite(path, f"/synthesis animation {a}'s bone motions", rotations)
@@ -204,7 +207,7 @@ def _synthesis(path, animation):
 
     scene = SynthesisView(faces=skin.faces, rest=skin.rest_vertices, count=count, frames=int(F.shape[1]), load=load,
                           vertex_components=owner, components=len(components), animation=animation,
-                          fps=skin.fps, up_axis=skin.scene.up_axis)
+                          fps=skin.fps, up_axis=skin.scene.up_axis, clips=clips)
     return scene, {"animations": count, "frames": int(F.shape[1]), "components": len(components)}, stack
 
 

@@ -85,7 +85,9 @@ class SkinView:
 class SynthesisView:
     """A synthesis: faces (T, 3), rest (V, 3), count animations of frames frames each,
     load(a) -> (frame(m) -> vertices (V, 3), sources (C, M)) reading animation a alone,
-    vertex_components (V,), components C, the first animation, fps, up axis."""
+    vertex_components (V,), components C, the first animation, fps, up axis; clips: the input's
+    :class:`~skinsynth.pipeline.clips.Clips` when it holds several (seams by the clip-aware rule,
+    input frames named CLIP:FRAME), None for one."""
 
     faces: np.ndarray
     rest: np.ndarray
@@ -97,6 +99,7 @@ class SynthesisView:
     animation: int
     fps: float
     up_axis: str
+    clips: object = None
 
 
 @dataclass
@@ -459,7 +462,7 @@ class SynthesisPage:
 
     def _load(self, animation):
         frame_of, sources = self.view.load(animation)
-        seams = scenes.seam_frames(sources)  # (C, M)
+        seams = scenes.seam_frames(sources, self.view.clips)  # (C, M)
         held = np.zeros_like(seams)
         for lag in range(self.hold):
             held[:, lag:] |= seams[:, :seams.shape[1] - lag]
@@ -467,7 +470,7 @@ class SynthesisPage:
         return frame_of, held, sources
 
     def _marks(self):
-        frames = np.flatnonzero(scenes.seam_frames(self.sources).any(axis=0))
+        frames = np.flatnonzero(scenes.seam_frames(self.sources, self.view.clips).any(axis=0))
         return [int(f) for f in frames[:MAX_MARKS]] or None
 
     def pick(self):
@@ -486,8 +489,9 @@ class SynthesisPage:
             for node, (key, ids, _) in zip(self.nodes, self.parts):
                 node.vertices = vertices[ids]
                 node.color = tuple(int(c) for c in (scenes.SEAM_COLOR if self.seams[key, frame] else self.palette[key]))
-            played = ", ".join(str(int(s)) for s in self.sources[:, frame])
-            at_seam = [str(c) for c in np.flatnonzero(scenes.seam_frames(self.sources)[:, frame])]
+            clips = self.view.clips
+            played = ", ".join(str(int(s)) if clips is None else clips.label(s) for s in self.sources[:, frame])
+            at_seam = [str(c) for c in np.flatnonzero(scenes.seam_frames(self.sources, clips)[:, frame])]
             self.info.content = (f"animation {self.animation}, frame {frame}: input frame(s) {played}"
                                  + (f"; seam in component {', '.join(at_seam)}" if at_seam else ""))
 

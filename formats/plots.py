@@ -124,17 +124,21 @@ def write_bone_graph_plot(path, positions, weights, edges, components, cut_nodes
     _save(figure, path)
 
 
-def write_synthesis_plot(path, sources, accel_ratio, title, limit=1.5):
+def write_synthesis_plot(path, sources, accel_ratio, title, limit=1.5, seams=None, clip_starts=None):
     """One synthesized animation: where each component's frames come from, and how hard it moves.
 
     sources (C, M) int: the input-clip frame each of C bone components plays at each of M output
-    frames; a seam of component c is an output frame k >= 1 with sources[c, k] != sources[c, k-1] + 1.
+    frames; a seam of component c is an output frame k >= 1 with sources[c, k] != sources[c, k-1] + 1,
+    or, given, where ``seams`` (C, M) bool says (the caller's rule: with several input clips a step
+    from one clip's last frame onto the next one's first is a seam too; this module applies no
+    rule of its own beyond the one-clip default). ``clip_starts`` (C + 1,) global first frames of
+    the input's clips and its frame count, when it holds several: drawn as faint horizontal lines.
     accel_ratio (M,): per output frame the largest vertex acceleration over the input clip's largest,
     NaN where undefined (the first and last frame). Top panel: the source frame per output frame, one
     step line per component, seams as dots. Bottom panel: accel_ratio against 1 (the input's largest)
     and ``limit`` (frames above it in red), every seam of any component as a faint vertical line.
     Raises ValueError for a path not ending in ``.png``, sources not a non-empty 2-D array, or
-    accel_ratio not of shape (M,).
+    accel_ratio not of shape (M,), or seams not of the shape of sources.
     """
     sources = np.asarray(sources)
     if sources.ndim != 2 or sources.size == 0:
@@ -148,14 +152,22 @@ def write_synthesis_plot(path, sources, accel_ratio, title, limit=1.5):
     limit = float(limit)
 
     frames = np.arange(length)
-    seams = np.zeros(sources.shape, dtype=bool)
-    seams[:, 1:] = sources[:, 1:] != sources[:, :-1] + 1
+    if seams is None:
+        seams = np.zeros(sources.shape, dtype=bool)
+        seams[:, 1:] = sources[:, 1:] != sources[:, :-1] + 1
+    else:
+        seams = np.asarray(seams, dtype=bool)
+        if seams.shape != sources.shape:
+            raise ValueError(f"seams has shape {seams.shape}, sources {sources.shape}")
 
     figure = _new_figure(path, (10.0, 6.0))
     top, bottom = figure.subplots(2, 1, sharex=True)
     for c in range(count):
         (line,) = top.step(frames, sources[c], where="post", linewidth=1.4, label=f"component {c}")
         top.scatter(frames[seams[c]], sources[c, seams[c]], s=18, color=line.get_color(), zorder=3)
+    if clip_starts is not None and len(clip_starts) > 2:  # where each input clip begins
+        top.hlines(np.asarray(clip_starts[1:-1]) - 0.5, 0, max(length - 1, 1), colors="0.8", linewidths=0.8,
+                   linestyles="dotted", zorder=0)
     top.set_title(title)
     top.set_ylabel("input frame")
     top.yaxis.set_major_locator(MaxNLocator(integer=True))

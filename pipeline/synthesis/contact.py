@@ -117,7 +117,9 @@ def bone_rows(F, t, up_axis):
 
 def lowest_range(vertices, up_axis=1):
     """(lowest, highest) of the per-frame lowest point along ``up_axis`` of vertices (F, V, 3):
-    the input's own range of lowest points, the band :func:`support` keeps."""
+    the input's own range of lowest points, the band :func:`support` keeps. With several clips
+    (issue 26) F is every clip's frames: the band spans them all (the order of frames does not
+    matter here)."""
     lowest = lowest_heights(vertices, up_axis)
     return float(lowest.min()), float(lowest.max())
 
@@ -125,7 +127,8 @@ def lowest_range(vertices, up_axis=1):
 def support(rest, bone_indices, bone_weights, rotations, translations, up_axis=1, band=SUPPORT_BAND, slack=SLACK,
             spread=SPREAD, ground=None, most=MOST_NEAR):
     """The :class:`Support` of an input clip (its LBS fit: rest (V, 3), weights (V, K), rotations
-    (F, B, 3, 3), translations (F, B, 3)): support vertices, their height operator and the band.
+    (F, B, 3, 3), translations (F, B, 3); several clips: all their frames, in any order): support
+    vertices, their height operator and the band.
 
     ``ground``: the input frames' own (lowest, highest) lowest point (:func:`lowest_range`), the
     range to keep; None: the fit's playback of them. They differ by the fit's error at the lowest
@@ -218,15 +221,19 @@ def ground_excess(lowest, lowest_input, height):
     return below, above
 
 
-def contact_speeds(vertices, up_axis=1, band=0.005, height=None):
+def contact_speeds(vertices, up_axis=1, band=0.005, height=None, plays_on=None):
     """Horizontal speeds (per frame) of the vertices in contact: at each frame m < M−1 of vertices
     (M, V, 3), those within ``band`` × height of the frame's lowest height, their displacement
-    to frame m+1 with the up component removed. Returns a flat array."""
+    to frame m+1 with the up component removed. ``plays_on`` (M,) bool: frame m is followed by
+    m+1 (an input of several clips: :meth:`.clips.Clips.plays_on`, so no step is measured from
+    one clip's last frame to the next one's first); None: every frame. Returns a flat array."""
     vertices = np.asarray(vertices, dtype=np.float64)
     if height is None:
         height = float(np.ptp(vertices[0, :, up_axis]))
     h = vertices[:-1, :, up_axis]
     contact = h <= h.min(axis=1, keepdims=True) + band * height
+    if plays_on is not None:
+        contact &= np.asarray(plays_on, dtype=bool)[:-1, None]
     step = vertices[1:] - vertices[:-1]
     step[..., up_axis] = 0.0
     return np.linalg.norm(step, axis=-1)[contact]

@@ -1,5 +1,12 @@
 """One clip in, many animations out (Zheng §3.3, §3.4, §4.2): walks, splicing, assembly, checks.
 
+The input may be several clips of one mesh (``Request.clips``, a :class:`~skinsynth.pipeline.clips.Clips`;
+None: one clip): frames, walks and targets use the global frame numbers, the motion graphs play
+on only inside a clip and cross between clips by their transitions (j = −(c + 1) continues at
+clip c's first frame), splicing blends every seam by the clip-aware rule (:mod:`.splicing`), and
+the statistics count coverage per clip and transitions per pair of clips
+(:func:`.motion_graph.walk_statistics`). One clip takes exactly today's path (``clips`` None).
+
 Per bone component: a motion graph over the input frames (:mod:`.motion_graph`) with frames that
 collide with the obstacles removed; walks (random, or through targeted frames); splicing
 (:mod:`.splicing`). Several components are merged through their cut nodes (:mod:`.assembly`).
@@ -100,7 +107,9 @@ def batch_sizes(count, first=0):
 def keep_input_support(request, skin):
     """Set ``request.support``, what the merged rig keeps (:mod:`.contact`): the support vertices
     of ``skin``'s fit and, as the range of lowest points, the input frames' own (examples
-    (F, V, 3)) along ``request.up_axis``. Made once here, not again in every batch."""
+    (F, V, 3)) along ``request.up_axis``. Made once here, not again in every batch. With several
+    clips F is all of them, so the band spans every clip's frames (a collapse's lying pose
+    included: a walk may play it)."""
     request.support = support(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
                               skin.translations, request.up_axis, ground=lowest_range(skin.examples, request.up_axis))
 
@@ -126,7 +135,10 @@ class Request:
 
     contact: keep the merged rig's lowest point within the input's range (:mod:`.contact`);
     ``support`` (a :class:`.contact.Support`, from :func:`keep_input_support`: the input frames'
-    own range of lowest points), or None: made in each batch from the fit's playback of them."""
+    own range of lowest points), or None: made in each batch from the fit's playback of them.
+
+    clips: the :class:`~skinsynth.pipeline.clips.Clips` of the input frames when they are several
+    clips (frames, targets, start and end are global frame numbers), None for one clip."""
 
     count: int
     frames: int
@@ -147,16 +159,19 @@ class Request:
     up_axis: int = 1
     contact: bool = True
     support: object = None
+    clips: object = None
 
 
 @dataclass
 class Synthesis:
     """F (N, M, B, 3, 3), t (N, M, B, 3) world bone positions (float32); sources (C, N, M) the
     input frame played per component (the walks each animation was assembled from); choice (N, C)
-    bookkeeping of the assembly; seams_used (N,) transitions per animation;
+    bookkeeping of the assembly; seams_used (N,) transitions per animation (seams of all
+    components, by the clip-aware rule: :meth:`.clips.Clips.seams`);
     distinct: animations whose walks differ from every other; rejected: counts of animations
     replaced (collisions, too similar, failed merges); statistics: per component transitions,
-    mean and shortest segment, coverage (:func:`.motion_graph.walk_statistics`)."""
+    mean and shortest segment, coverage (and with several clips coverage per clip and
+    transitions per pair of clips: :func:`.motion_graph.walk_statistics`)."""
 
     F: np.ndarray
     t: np.ndarray
@@ -185,6 +200,8 @@ def validate_request(request, input_frames):
         raise OptionError(f"--frames must be at least 1 (got {request.frames})")
     if not 0.0 <= request.min_difference <= 1.0:
         raise OptionError(f"--min-difference must lie in [0, 1] (got {request.min_difference})")
+    if request.clips is not None and request.clips.total != input_frames:
+        raise ValueError(f"the clips hold {request.clips.total} frames, the input {input_frames}")
     for frame, time in request.targets:
         if not 0 <= frame < input_frames:
             raise OptionError(f"--target {frame}@{time}: the clip has frames 0..{input_frames - 1}")
@@ -227,7 +244,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
         parts = [splice_local(c, rotations, translations, sources[k], window=request.window, dtype=np.float32,
                               reference_motion=k not in carried, spread_velocity=request.spread_velocity,
                               damped_bones=cut_nodes, damping=request.cut_damping,
-                              blend=request.blend, pivots=pivots, up=up)
+                              blend=request.blend, pivots=pivots, up=up, clips=request.clips)
                  for k, c in enumerate(components)]
         if len(components) == 1:
             F, t = parts[0].world()
@@ -271,10 +288,12 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             np.concatenate(kept_choice), rejected]
 
 
-def motion_graphs(components, forbidden=None):
+def motion_graphs(components, forbidden=None, clips=None):
     """One MotionGraph per component from its candidate transitions (OptionError if a component
-    has no infinite walk)."""
-    return [MotionGraph.from_transitions(c.transitions, forbidden=forbidden) for c in components]
+    has no infinite walk); ``clips``: the input's several clips (None: one clip)."""
+    if clips is None:
+        return [MotionGraph.from_transitions(c.transitions, forbidden=forbidden) for c in components]
+    return [MotionGraph.from_transitions(c.transitions, forbidden=forbidden, clips=clips) for c in components]
 
 
 def _run_batches(args, batches, jobs, progress, done_before, remote):
@@ -356,7 +375,7 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     batch ids, so the outcome still depends on the seed alone. ``progress(done)`` is called with
     the number of animations finished after each batch."""
     validate_request(request, rotations.shape[0])
-    graphs = motion_graphs(components, request.forbidden)
+    graphs = motion_graphs(components, request.forbidden, request.clips)
     check_diversity_reachable(graphs, request)
     args = (components, graphs, rotations, translations, rest, bone_indices, bone_weights, request)
     results, next_batch, need = [], 0, request.count
@@ -399,8 +418,14 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     sources = np.concatenate([r[2] for r in results], axis=1)
     choice = np.concatenate([r[3] for r in results])
     rejected = {key: sum(r[4][key] for r in results) for key in results[0][4]}
-    seams_used = np.sum(sources[..., 1:] != sources[..., :-1] + 1, axis=(0, 2))
+    clips = request.clips
+    if clips is None:
+        seams_used = np.sum(sources[..., 1:] != sources[..., :-1] + 1, axis=(0, 2))
+        statistics = walk_statistics(sources, rotations.shape[0])
+    else:
+        seams_used = np.sum(clips.seams(sources), axis=(0, 2))
+        statistics = walk_statistics(sources, rotations.shape[0], clips=clips)
     joint = sources.transpose(1, 0, 2).reshape(sources.shape[1], -1)
     distinct = int(np.unique(joint, axis=0).shape[0])
     return Synthesis(F=F, t=t, sources=sources, choice=choice, seams_used=seams_used, distinct=distinct,
-                     rejected=rejected, statistics=walk_statistics(sources, rotations.shape[0]))
+                     rejected=rejected, statistics=statistics)

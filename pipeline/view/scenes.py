@@ -89,10 +89,15 @@ def component_colors(count):
     return PALETTE[np.arange(count) % len(PALETTE)]
 
 
-def seam_frames(sources):
+def seam_frames(sources, clips=None):
     """sources (C, M): the input frame each component plays at each output frame -> (C, M) bool,
-    True where a component's source is not the frame after its previous one (a transition)."""
+    True where a component's source does not play on from its previous one (a transition): not
+    the frame after it, or, with ``clips`` (the input's :class:`~skinsynth.pipeline.clips.Clips`),
+    the first frame of a clip (:meth:`Clips.seams`: one clip's last frame then the next one's
+    first is a seam too). None: one clip."""
     sources = np.asarray(sources)
+    if clips is not None:
+        return clips.seams(sources)
     seams = np.zeros(sources.shape, dtype=bool)
     seams[:, 1:] = sources[:, 1:] != sources[:, :-1] + 1
     return seams

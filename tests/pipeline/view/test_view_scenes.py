@@ -81,6 +81,20 @@ def test_seam_frames_mark_every_jump():
     assert seams.tolist() == [[False, False, False, True, False, True], [False] * 6]
 
 
+def test_seam_frames_of_several_clips_mark_playing_into_the_next_clips_first_frame():
+    from skinsynth.pipeline.clips import Clips
+
+    clips = Clips(("a", "b"), (6, 30))  # b begins at frame 6
+    sources = np.array([[4, 5, 6, 7, 21, 22], [0, 1, 2, 3, 4, 5], [29, 30, 6, 7, 8, 0]])
+    # brute force: a seam where the source is not the previous one's next frame of the same clip
+    clip = lambda f: 0 if f < 6 else 1  # noqa: E731
+    expected = [[k > 0 and not (row[k] == row[k - 1] + 1 and clip(row[k]) == clip(row[k - 1])) for k in range(6)]
+                for row in sources]
+    assert scenes.seam_frames(sources, clips).tolist() == expected
+    assert expected[0] == [False, False, True, False, True, False]  # a's last (5) then b's first (6): a seam
+    assert scenes.seam_frames(sources, Clips.single(36)).tolist() == scenes.seam_frames(sources).tolist()
+
+
 def test_extrapolation_is_the_rms_distance_to_the_nearest_example_brute_force():
     rng = np.random.default_rng(3)
     training = rng.normal(size=(9, 4, 3))
