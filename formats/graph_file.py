@@ -13,7 +13,9 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` and adds ``/graph``:
   non-reference bones, in the order of the reduced-coordinate basis and of eq. 9's unknowns);
   ``reduced_coordinates (F, r)``, ``basis (6(b−1), r)``, ``singular (r,)`` (eq. 3–4);
   ``reference_motion (F, 6)`` (eq. 6); ``costs (F, F)`` D(i, j) (eq. 5); ``transitions (M, 2)``
-  candidate (i, j) pairs by increasing cost and ``transition_costs (M,)``; ``key_vertices (n,)``,
+  candidate (i, j) pairs by increasing cost and ``transition_costs (M,)``: (i, j) plays j + 1
+  after i, j = −(c+1) continues at the first frame of clip c (one clip: j = −1, frame 0);
+  ``key_vertices (n,)``,
   ``key_bones (n, K')`` (−1 padding), ``key_weights (n, K')``, ``weight_gradients (n, K', 3)``
   (Appendix A); ``rotation_strain (F, n, 9)`` (axis-angle of U then S's upper triangle s00 s01
   s02 s11 s12 s22 of the local-frame deformation gradient D = U S, eq. 8); ``operator (3n, 4(b−1))``
@@ -23,6 +25,12 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` and adds ``/graph``:
   ``@admitted`` (transitions above the threshold admitted for coverage), ``@recurrent_share``
   (frames on the motion graph's largest strongly connected part). Key-vertex data use the component's own weights, renormalised over
   its bones (the component is synthesised as if it were the whole mesh).
+
+Several clips (issue 26) need nothing new here: the clip table lives in ``/examples``
+(``clip_frames``, ``@clip_names``), copied forward, and every frame-indexed dataset above uses
+the global frame numbers of the clips in order. ``reference_motion`` holds eq. 6 within each
+clip (a clip's first frame takes its own first step); ``costs`` compares frames of any two
+clips; ``@threshold`` is T_c over the steps within clips.
 """
 
 from dataclasses import dataclass

@@ -79,3 +79,37 @@ def test_bad_inputs(files, tmp_path):
     (tmp_path / "not.h5").write_bytes(b"nothing")
     assert_user_error(cli("build-graph", tmp_path / "not.h5", "-o", tmp_path / "g.h5"), "not.h5")
     assert_folder_holds(tmp_path, ["not.h5"])
+
+
+def test_two_clips_get_transitions_between_them_counted_per_direction(files, tmp_path):
+    # The bar bends in one cycle of 20 frames; clip "bend" plays it twice, clip "part" holds its
+    # frames 5..14 again: part's frame m is bend's 5 + m (and 25 + m), so walks can cross both ways.
+    cycle, faces = bending_bar(frames=20, rings=10, segments=8)
+    write_array_sequence(tmp_path / "bend.npz", np.concatenate([cycle, cycle]), faces, 24.0)
+    write_array_sequence(tmp_path / "part.npz", cycle[5:15], faces, 24.0)
+    assert_ok(cli("fit-skin", tmp_path / "bend.npz", tmp_path / "part.npz", "-o", tmp_path / "skin.h5", "--bones", 5,
+                  "--iterations", 8, "-q"))
+    result = assert_ok(cli("build-graph", tmp_path / "skin.h5", "-o", tmp_path / "g.h5", "--plot", tmp_path / "plots"))
+    assert "clips bend (40 frames), part (10 frames)" in result.stdout and "bend→part" in result.stdout
+    summary = json.loads(assert_ok(cli("build-graph", tmp_path / "skin.h5", "-o", tmp_path / "g.h5", "--json")).stdout)
+    assert summary["clips"] == ["bend", "part"]
+    with h5py.File(tmp_path / "g.h5") as f:
+        found = [(f["graph"][k]["transitions"][()], f["graph"][k]["transition_costs"][()], f["graph"][k].attrs["threshold"])
+                 for k in sorted(f["graph"]) if k.startswith("component_")]
+
+    def phase(frame):  # the frame's place in the bar's cycle
+        return np.where(frame < 40, frame % 20, (frame - 40 + 5) % 20)
+
+    names = ("bend", "part")
+    for component, (pairs, costs, threshold) in zip(summary["components"], found):
+        assert np.all((pairs[:, 1] >= -2) & (pairs[:, 1] != 39) & (pairs[:, 1] != 49))  # j never a clip's last frame
+        entered_frame = np.where(pairs[:, 1] >= 0, pairs[:, 1] + 1, np.where(pairs[:, 1] == -1, 0, 40))
+        left, entered = (pairs[:, 0] >= 40).astype(int), (entered_frame >= 40).astype(int)
+        expected = {f"{names[a]}->{names[b]}": int(((left == a) & (entered == b)).sum()) for a in (0, 1) for b in (0, 1)}
+        assert component["transitions_between"] == expected
+        crossing = (left != entered) & (costs < threshold)
+        assert ((left == 0) & crossing).any() and ((left == 1) & crossing).any()
+        # each cheap crossing plays next the frame of the cycle that follows the one it leaves
+        assert np.all((phase(pairs[crossing, 0]) + 1) % 20 == phase(entered_frame[crossing]))
+    assert summary["transitions_between"] == {key: sum(c["transitions_between"][key] for c in summary["components"])
+                                              for key in summary["components"][0]["transitions_between"]}
