@@ -8,8 +8,11 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` (the weights skin the new 
   written uncompressed (they are most of the file and gzip would dominate the write time); after
   ``synthesize --cluster`` they are HDF5 virtual datasets over the run's shards
   (:mod:`.synthesis_shards`), read as any dataset while the shard folder stays beside the file;
-- ``sources (C, N, M)`` int32: the input frame each component plays at each output frame;
-  ``seams (N,)`` int64 the transitions each animation took (all components);
+- ``sources (C, N, M)`` int32: the input frame each component plays at each output frame, a
+  global frame number when the input holds several clips (the clip table in the copied
+  ``/examples``, ``clip_frames`` and ``@clip_names``, maps it back to ``clip:frame``);
+  ``seams (N,)`` int64 the transitions each animation took (all components; with several clips
+  a step from one clip's last frame onto the next one's first counts too);
 - ``component_NNN/bones`` the bone ids of each component;
 - attributes ``@count``, ``@frames``, ``@seed``, ``@distinct``, ``@transitions_used``,
   ``@rejected_collisions``, ``@rejected_too_similar``, ``@rejected_merges``, ``@fps``,
