@@ -203,7 +203,8 @@ def check_graph(path, model, dims):
     for name in sorted(k for k in graph if k.startswith("component_")):
         component, local = graph[name], dict(dims)
         check_group(path, f"graph/{name}", component, GRAPH_COMPONENT, local)
-        _check_transition_pairs(path, f"/graph/{name}/transitions", component["transitions"])
+        _check_transition_pairs(path, f"/graph/{name}/transitions", component["transitions"],
+                                len(np.atleast_1d(model["examples"].get("clip_frames", [0]))))
         reference = check_attribute(path, f"graph/{name}", component, "reference", "int", low=0, high=dims["B"] - 1,
                                     optional=False)
         check_attribute(path, f"graph/{name}", component, "ridge", "float", low=0.0)
@@ -214,18 +215,20 @@ def check_graph(path, model, dims):
                                     "the component's bones other than its reference)")
 
 
-def _check_transition_pairs(path, where, pairs):
-    """Transitions (i, j): i a frame (≥ 0), j a frame or −1, the virtual frame before the clip's
-    start ((i, −1): after i, continue at frame 0). Files written before the wrap have no −1."""
+def _check_transition_pairs(path, where, pairs, clips=1):
+    """Transitions (i, j): i a frame (≥ 0), j a frame or −(c+1) for one of the ``clips`` clips,
+    the virtual frame before clip c's start ((i, −1): after i, continue at frame 0). Files written
+    before the wrap have no −1."""
     pairs = np.asarray(pairs)
     if pairs.size == 0:
         return
-    bad = (pairs[:, 0] < 0) | (pairs[:, 1] < -1)
+    bad = (pairs[:, 0] < 0) | (pairs[:, 1] < -clips)
     if bad.any():
         i, j = (int(x) for x in pairs[np.argmax(bad)])
+        lowest = "−1: the virtual frame before the clip's start, continue at frame 0" if clips == 1 else \
+            f"−(c+1) for clip c of {clips}: continue at that clip's first frame"
         raise FormatError(path, f"{where} holds the pair ({i}, {j}): a transition (i, j) leaves a frame i ≥ 0 and "
-                                "enters a frame j ≥ −1 (−1: the virtual frame before the clip's start, "
-                                "continue at frame 0)")
+                                f"enters a frame j ≥ {-clips} ({lowest})")
 
 
 CONTROLS = {  # basis_variance first: it binds Kb, the bound of candidate_basis
