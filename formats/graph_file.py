@@ -30,7 +30,9 @@ Several clips (issue 26) need nothing new here: the clip table lives in ``/examp
 (``clip_frames``, ``@clip_names``), copied forward, and every frame-indexed dataset above uses
 the global frame numbers of the clips in order. ``reference_motion`` holds eq. 6 within each
 clip (a clip's first frame takes its own first step); ``costs`` compares frames of any two
-clips; ``@threshold`` is T_c over the steps within clips.
+clips; ``@threshold`` is T_c over the steps within clips, pooled; with several clips
+``clip_thresholds (C, C)`` holds the T_c each transition was judged by, per (clip left, clip
+entered) (:func:`~skinsynth.pipeline.synthesis.transitions.clip_thresholds`).
 """
 
 from dataclasses import dataclass
@@ -74,6 +76,8 @@ def graph_groups(model, analysis):
             "@reference": int(t.reference), "@threshold": float(t.threshold), "@alpha": float(t.alpha),
             "@beta": float(t.beta), "@lambda": float(op.lam), "@ridge": float(op.ridge),
             "@admitted": int(t.admitted), "@recurrent_share": float(t.share)}
+        if getattr(t, "thresholds", None) is not None:  # several clips: T_c per (clip left, clip entered)
+            graph[f"component_{number:03d}"]["clip_thresholds"] = np.asarray(t.thresholds, dtype=np.float64)
     groups["graph"] = graph
     return groups
 

@@ -176,6 +176,7 @@ GRAPH_COMPONENT = {
     "costs": Field("float", ("F", "F"), low=0.0),
     "transitions": Field("int", ("M", 2), high="F"),  # lower bounds: _check_transition_pairs
     "transition_costs": Field("float", ("M",)),
+    "clip_thresholds": Field("float", ("clips", "clips"), low=0.0, optional=True),
     "key_vertices": Field("int", ("n",), low=0, high="V"),
     "key_bones": Field("int", ("n", "k"), low=-1, high="B"),
     "key_weights": Field("float", ("n", "k"), low=0.0),

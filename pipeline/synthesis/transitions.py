@@ -345,6 +345,35 @@ def transition_threshold(D, scale=3.0, reference="median-step", clips=None):
     return float(scale * base)
 
 
+def clip_thresholds(D, scale=3.0, reference="median-step", clips=None):
+    """T_c per (clip left, clip entered) -> (C, C): ``scale`` × the larger of the two clips' step
+    references (the median or max of each clip's own playback steps D(i, i−1)); the diagonal is
+    each clip's own T_c. One clip: [[:func:`transition_threshold`]].
+
+    Why per clip: clips of one character can move at very different speeds, and the playback step
+    measures what a frame-to-frame change looks like in each. On the horse the gallop's median
+    step is 31.7 and the collapse's (which stands nearly still before it falls) 0.32: one T_c
+    over both (3 × 5.45, their pooled median) held the gallop to a sixth of its own steps and
+    admitted no transition into or out of the collapse. A transition between two clips may cost
+    what a step of the faster of them does (the larger reference), a transition within a clip
+    what its own steps do. A clip with no step of its own (one frame) takes the other clip's; two
+    such, the pooled reference."""
+    if clips is None or len(clips) == 1:
+        return np.array([[transition_threshold(D, scale, reference, clips)]])
+    D = np.asarray(D, np.float64)
+    steps = np.diagonal(D, offset=-1)
+    owner = clips.clip_of(np.arange(1, clips.total))[clips.plays_on()[:-1]]
+    steps = steps[clips.plays_on()[:-1]]
+    pooled = transition_threshold(D, scale, reference, clips) / scale
+    base = np.full(len(clips), np.nan)
+    for c in range(len(clips)):  # a loop over clips
+        own = steps[owner == c]
+        if own.size:
+            base[c] = np.median(own) if reference == "median-step" else np.max(own)
+    pair = np.fmax(base[:, None], base[None, :])
+    return scale * np.where(np.isnan(pair), pooled, pair)
+
+
 def candidate_transitions(D, threshold, min_gap=2, start=None, clips=None):
     """Candidate transitions: local minima of D below the threshold (Zheng §3.2).
 
@@ -461,6 +490,11 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
     its clip (:meth:`.clips.Clips.valid_j`), and spacing compares only candidates whose i lie in
     one clip and whose entered frames j + 1 lie in one clip (j measured as the frame before the
     one entered, as :func:`candidate_transitions`' gap); coverage counts the clip-aware graph.
+    ``threshold`` may then be (C, C), T_c per (clip left, clip entered) (:func:`clip_thresholds`):
+    each candidate is judged against its own, past-T_c admissions go by cost in units of it, and
+    last every clip gets a way in from another clip and a way out to another, the cheapest below
+    ``admit_scale`` × its T_c where it has none yet (:func:`_clip_links`), so that walks can pass
+    between the clips.
 
     Returns ``(pairs (M, 2) int64, costs (M,), admitted (int): how many of them lie above T_c,
     share (float): the frames on the largest strongly connected part)``, sorted by cost.
@@ -478,7 +512,8 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
     if frames and len(every):
         clip_entered, before = _entered(layout, every[:, 1])
         i = every[:, 0]
-        key = layout.clip_of(i) * len(layout) + clip_entered  # (clip of i, clip entered)
+        clip_left = layout.clip_of(i)
+        key = clip_left * len(layout) + clip_entered  # (clip of i, clip entered)
     kept = np.zeros(len(every), np.int64)  # the accepted candidates, kept[:count]
     count = 0
     for n in range(len(every)):
@@ -486,19 +521,53 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
         if not ((key[k] == key[n]) & (np.abs(i[k] - i[n]) <= spacing) & (np.abs(before[k] - before[n]) <= spacing)).any():
             kept[count], count = n, count + 1
     kept = kept[:count]
-    below = kept[costs[kept] < threshold]
+    limit = np.asarray(threshold, np.float64)
+    if limit.ndim and len(every):  # (C, C): each candidate's own T_c (:func:`clip_thresholds`)
+        limit = limit[clip_left, clip_entered]
+    else:
+        limit = np.full(len(every), float(np.max(limit)) if limit.size else 0.0)
+    below = kept[costs[kept] < limit[kept]]
     chosen = list(below)
     share = float(recurrent_frames(frames, every[chosen], clips).mean()) if frames else 0.0
     admitted = 0
-    for n in kept[(costs[kept] >= threshold) & (costs[kept] < admit_scale * threshold)]:
+    over = kept[(costs[kept] >= limit[kept]) & (costs[kept] < admit_scale * limit[kept])]
+    if clips is not None and len(clips) > 1:
+        over = over[np.argsort(costs[over] / limit[over], kind="stable")]  # by cost in units of their T_c
+    for n in over:
         if share >= coverage:
             break
         trial = float(recurrent_frames(frames, every[chosen + [n]], clips).mean())
         if trial > share:
             chosen.append(n)
             share, admitted = trial, admitted + 1
+    if clips is not None and len(clips) > 1 and len(every):
+        for n in _clip_links(chosen, over, clip_left, clip_entered, len(clips)):
+            chosen.append(n)
+            admitted += 1
+        share = float(recurrent_frames(frames, every[chosen], clips).mean())
     chosen = np.asarray(sorted(chosen), dtype=np.int64)  # every[] is sorted by cost already
     return every[chosen].reshape(-1, 2), costs[chosen], admitted, share
+
+
+def _clip_links(chosen, over, clip_left, clip_entered, count):
+    """Candidates to add so that every clip has a way in from another clip and a way out to
+    another (when one exists below ``admit_scale`` × its T_c): for each clip lacking one, the
+    cheapest in units of its T_c (``over`` is in that order). The coverage rule alone admits one
+    transition only if it enlarges the strongly connected part by itself, so a clip that needs a
+    way in and a way out together (the horse's collapse) was never joined."""
+    links = []
+    taken = list(chosen)
+    for c in range(count):  # a loop over clips
+        for leaving in (False, True):
+            between = clip_left[taken] != clip_entered[taken] if taken else np.zeros(0, bool)
+            side = clip_left if leaving else clip_entered
+            if taken and (between & (side[taken] == c)).any():
+                continue
+            pick = [n for n in over if clip_left[n] != clip_entered[n] and side[n] == c and n not in taken]
+            if pick:
+                links.append(pick[0])
+                taken.append(pick[0])
+    return links
 
 
 @dataclass
@@ -512,7 +581,8 @@ class Transitions:
     the candidate transitions, by increasing cost, j = −1 meaning "continue at frame 0"; plus
     the options used; start (F,): D(i, −1), the virtual frame's column (:func:`start_costs`;
     None when not computed, e.g. read back from a graph file, which stores the pairs' costs only).
-    clips: the :class:`.clips.Clips` the frames were read as (None: one clip); virtual (F, C):
+    thresholds (C, C): T_c per (clip left, clip entered) with several clips (:func:`clip_thresholds`;
+    None with one); clips: the :class:`.clips.Clips` the frames were read as (None: one clip); virtual (F, C):
     D(i, −(c+1)) for every clip (:func:`virtual_costs`; column 0 is ``start``), None when not
     computed. With clips, j = −(c+1) continues at the first frame of clip c.
     """
@@ -536,6 +606,7 @@ class Transitions:
     start: np.ndarray | None = None
     clips: Clips | None = None
     virtual: np.ndarray | None = None
+    thresholds: np.ndarray | None = None
 
     @property
     def steps(self):
@@ -600,15 +671,17 @@ def find_transitions(rotations, translations, bone_indices, bone_weights, bones_
         D, gamma = posture_costs(D, q, posture, posture_weight)
     virtual = virtual_costs(q, r, alpha, beta, posture, gamma, clips)  # a virtual frame per clip (module notes)
     threshold = transition_threshold(D, threshold_scale, threshold_reference, clips)
-    pairs, costs, admitted, share = select_transitions(D, threshold, min_gap, spacing, coverage, start=virtual,
-                                                       clips=clips)
+    thresholds = None if clips is None or len(clips) == 1 else \
+        clip_thresholds(D, threshold_scale, threshold_reference, clips)
+    pairs, costs, admitted, share = select_transitions(D, threshold if thresholds is None else thresholds, min_gap,
+                                                       spacing, coverage, start=virtual, clips=clips)
     options = dict(svd_threshold=svd_threshold, threshold_scale=threshold_scale,
                    threshold_reference=threshold_reference, min_gap=min_gap, spacing=spacing, coverage=coverage,
                    posture_weight=posture_weight if up is not None else 0.0)
     return Transitions(reference=reference, bones=subset.tolist(), local_bones=local_bones, q=q, basis=basis,
                        singular=singular, r=r, alpha=alpha, beta=beta, D=D, threshold=threshold, pairs=pairs,
                        costs=costs, options=options, admitted=admitted, share=share, start=virtual[:, 0].copy(),
-                       clips=clips, virtual=virtual)
+                       clips=clips, virtual=virtual, thresholds=thresholds)
 
 
 def _bone_ids(subset, bones):

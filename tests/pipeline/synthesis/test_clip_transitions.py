@@ -317,13 +317,54 @@ def test_real_gallop_and_collapse(shared_data, tmp_path):
                 assert component["transitions_between"][f"{name_a}->{name_b}"] == int(((left == a) & (entered == b)).sum())
         assert component["transitions_between"]["gallop->gallop"] > 0  # the gallop is one cycle twice
         assert clips.valid_j(pairs[:, 1]).all()
-    # Measured at the defaults (fit with seed 0): no transition between the clips; the cheapest
-    # candidate between them costs about 17.7 T_c, most of it the posture term (the gallop's
-    # reference bone is never as low and level as the standing horse the collapse begins with).
-    # With Zheng's eq. 5 alone and a threshold five times the default, both directions appear.
-    summary, clips, found = build("eq5.h5", "--posture-weight", 0, "--threshold-scale", 15)
+    # Each clip has its own T_c (the gallop's steps are ~100x the collapse's), and every clip gets
+    # a way in and a way out (the cheapest crossing below 10 of its T_c): both directions appear,
+    # each judged by the threshold of its pair of clips.
     between = summary["transitions_between"]
     assert between["gallop->collapse"] > 0 and between["collapse->gallop"] > 0
-    for pairs, costs, threshold in found:
-        crossing = clips.clip_of(pairs[:, 0]) != clips.clip_of(clips.targets(pairs[:, 1]))
-        assert np.all(costs[crossing] < threshold)
+    with h5py.File(tmp_path / "default.h5") as f:
+        thresholds = [f["graph"][k]["clip_thresholds"][()] for k in sorted(f["graph"]) if k.startswith("component_")]
+    for (pairs, costs, pooled), limit in zip(found, thresholds):
+        left, entered = clips.clip_of(pairs[:, 0]), clips.clip_of(clips.targets(pairs[:, 1]))
+        assert limit[0, 1] == limit[1, 0] == limit.max()  # a crossing may cost a step of the faster clip
+        assert np.all(costs < 10 * limit[left, entered])
+
+
+def test_clip_thresholds_take_each_clips_own_steps_and_the_larger_for_a_crossing():
+    from skinsynth.pipeline.synthesis.transitions import clip_thresholds, transition_threshold
+
+    clips = Clips(("fast", "slow", "still"), (5, 4, 1))
+    rng = np.random.default_rng(0)
+    D = rng.random((10, 10)) * 100
+    steps = {"fast": [D[i, i - 1] for i in range(1, 5)], "slow": [D[i, i - 1] for i in range(6, 9)]}
+    fast, slow = 3 * np.median(steps["fast"]), 3 * np.median(steps["slow"])
+    pooled = 3 * np.median(steps["fast"] + steps["slow"])  # a one-frame clip has no step: the pooled one
+    expected = np.array([[fast, max(fast, slow), fast], [max(fast, slow), slow, slow], [fast, slow, pooled]])
+    assert np.allclose(clip_thresholds(D, 3.0, "median-step", clips), expected)
+    assert np.isclose(pooled, transition_threshold(D, 3.0, "median-step", clips))
+    one = Clips.single(10)
+    assert clip_thresholds(D, 3.0, "max-step", one)[0, 0] == transition_threshold(D, 3.0, "max-step", one)
+
+
+def test_every_clip_gets_a_way_in_and_out_when_only_the_pair_would_help():
+    """Two clips whose crossings cost more than T_c: the coverage rule, which admits one
+    transition at a time only if it enlarges the strongly connected part, cannot join them (a way
+    in alone or a way out alone enlarges nothing); the clip links do, the cheapest each way."""
+    from skinsynth.pipeline.synthesis.transitions import select_transitions
+
+    clips = Clips(("a", "b"), (8, 8))
+    D = np.full((16, 16), 50.0)
+    idx = np.arange(1, 16)
+    D[idx, idx - 1] = 1.0  # playback steps: T_c = 3
+    D[7, 8 + 2] = 9.0   # a:7 enters b after b:2 (plays b:3), 3 T_c
+    D[8 + 6, 3] = 12.0  # b:6 enters a after a:3 (plays a:4), 4 T_c
+    D[8 + 5, 2] = 40.0  # a dearer way back
+    np.fill_diagonal(D, 0.0)
+    D = np.minimum(D, D.T)
+    start = np.full((16, 2), 50.0)
+    start[7, 0] = 2.0  # a:7 loops to a's start: a is a cycle of its own
+    pairs, costs, admitted, share = select_transitions(D, np.full((2, 2), 3.0), min_gap=2, start=start,
+                                                      clips=clips, coverage=0.95)
+    crossing = clips.clip_of(pairs[:, 0]) != clips.clip_of(clips.targets(pairs[:, 1]))
+    assert sorted(map(tuple, pairs[crossing].tolist())) == [(7, 10), (14, 3)]
+    assert admitted == 2
