@@ -216,7 +216,7 @@ def _sequence(path):
     from .preview import _panels
     from .web_view import SequenceView
 
-    panels, fps, up = _panels(path, [], False, False, 0.01)
+    panels, fps, up = _panels(path, [], None, False, False, 0.01)
     parts = [(panel.title, panel.vertices, panel.faces) for panel in panels]
     return SequenceView(parts=parts, fps=fps, up_axis=up), {"frames": int(min(len(v) for _, v, _ in parts)),
                                                              "meshes": len(parts)}
