@@ -137,6 +137,24 @@ def stage_files(tmp_path_factory):
         "\n".join(problems)
 
 
+@pytest.fixture(scope="session")
+def horse_clips(shared_data, tmp_path_factory):
+    """The shared horse's gallop and collapse fitted together (22 bones, defaults), once per
+    session: (the clip folder, the skin file, fit-skin's --json summary). A copy may be changed;
+    the file itself must not be. Skips when the clips are absent."""
+    import json
+
+    from cli_helpers import assert_ok, cli
+
+    folder = shared_data / "horse_clips"
+    if not (folder / "horse_gallop.npz").is_file() or not (folder / "horse_collapse.npz").is_file():
+        pytest.skip(f"the shared horse clips (gallop, collapse) are not in {folder}")
+    skin = tmp_path_factory.mktemp("horse_clips") / "skin.h5"
+    summary = json.loads(assert_ok(cli("fit-skin", folder / "horse_gallop.npz", folder / "horse_collapse.npz", "-o",
+                                       skin, "--bones", 22, "--json")).stdout)
+    return folder, skin, summary
+
+
 # The warp devices of the kernel tests: a test taking ``device`` runs once per device here.
 import functools  # noqa: E402 (this block stands alone)
 

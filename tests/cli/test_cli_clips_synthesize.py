@@ -91,13 +91,9 @@ def test_an_unknown_clip_or_frame_is_one_line_naming_the_option(files, tmp_path,
 
 
 @pytest.mark.slow
-def test_the_horse_gallops_then_collapses(shared_data, tmp_path):
-    folder = shared_data / "horse_clips"
-    if not (folder / "horse_gallop.npz").exists() or not (folder / "horse_collapse.npz").exists():
-        pytest.skip(f"the shared horse clips are absent ({folder})")
-    assert_ok(cli("fit-skin", folder / "horse_gallop.npz", folder / "horse_collapse.npz", "-o", tmp_path / "skin.h5",
-                  "--bones", 22, "-q"))
-    assert_ok(cli("build-graph", tmp_path / "skin.h5", "-o", tmp_path / "graph.h5", "-q"))
+def test_the_horse_gallops_then_collapses(horse_clips, tmp_path):
+    _, skin, _ = horse_clips
+    assert_ok(cli("build-graph", skin, "-o", tmp_path / "graph.h5", "-q"))
     report = json.loads(assert_ok(cli("synthesize", tmp_path / "graph.h5", "-o", tmp_path / "s.h5", "-n", 4,
                                       "-m", 240, "--start", "gallop:0", "--end", "collapse:52", "--json")).stdout)
     sources, _ = sources_of(tmp_path / "s.h5")

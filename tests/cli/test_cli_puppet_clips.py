@@ -127,16 +127,12 @@ def test_a_one_clip_file_trains_as_before(stage_files):
 
 
 @pytest.mark.slow
-def test_horse_trained_on_the_gallop_tested_on_the_collapse(shared_data, tmp_path):
+def test_horse_trained_on_the_gallop_tested_on_the_collapse(horse_clips, tmp_path):
     """The real two-clip horse (22 bones, defaults): evaluate --hold-out-clip collapse trains on the
     gallop's 48 frames and reports KCCA and the baselines on the collapse's 53 (measured: KCCA
     0.184, PCA blendshapes 0.301, RBF 3.47 of the largest side)."""
-    folder = shared_data / "horse_clips"
-    if not (folder / "horse_gallop.npz").exists() or not (folder / "horse_collapse.npz").exists():
-        pytest.skip(f"the horse's gallop and collapse clips are not in {folder}")
-    assert_ok(cli("fit-skin", folder / "horse_gallop.npz", folder / "horse_collapse.npz", "-o", tmp_path / "skin.h5",
-                  "--bones", 22, "-q"))
-    assert_ok(cli("select-controls", tmp_path / "skin.h5", "-o", tmp_path / "controls.h5", "-q"))
+    _, skin, _ = horse_clips
+    assert_ok(cli("select-controls", skin, "-o", tmp_path / "controls.h5", "-q"))
     assert_ok(cli("train-kcca", tmp_path / "controls.h5", "-o", tmp_path / "puppet.h5", "-q"))
     out = json.loads(assert_ok(cli("evaluate", tmp_path / "puppet.h5", "--hold-out-clip", "collapse",
                                    "--json")).stdout)

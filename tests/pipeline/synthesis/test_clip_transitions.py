@@ -289,17 +289,13 @@ def test_recurrent_frames_follow_the_clip_aware_edges():
 
 
 @pytest.mark.slow
-def test_real_gallop_and_collapse(shared_data, tmp_path):
+def test_real_gallop_and_collapse(horse_clips, tmp_path):
     from cli_helpers import assert_ok, cli
 
-    folder = shared_data / "horse_clips"
-    if not (folder / "horse_gallop.npz").is_file() or not (folder / "horse_collapse.npz").is_file():
-        pytest.skip(f"the horse clips (gallop, collapse) are not in {folder}")
-    assert_ok(cli("fit-skin", folder / "horse_gallop.npz", folder / "horse_collapse.npz", "-o", tmp_path / "skin.h5",
-                  "--bones", 22, "-q"))
+    _, skin, _ = horse_clips
 
     def build(name, *options):
-        summary = json.loads(assert_ok(cli("build-graph", tmp_path / "skin.h5", "-o", tmp_path / name, "--json",
+        summary = json.loads(assert_ok(cli("build-graph", skin, "-o", tmp_path / name, "--json",
                                            *options)).stdout)
         with h5py.File(tmp_path / name) as f:
             clips = Clips(tuple(f["examples"].attrs["clip_names"]), tuple(f["examples/clip_frames"][()]))
