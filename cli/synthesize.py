@@ -29,17 +29,6 @@ def _target(text):
         raise click.BadParameter(f"{text!r}: expected [CLIP:]FRAME@TIME, e.g. 12@100 or gallop:12@100") from None
 
 
-def _clips(skin):
-    """The input's :class:`~skinsynth.pipeline.clips.Clips` (its clip table; one clip of every
-    frame where it has none)."""
-    from skinsynth.pipeline.clips import Clips
-
-    frames = int(skin.rotations.shape[0])
-    if not skin.clip_frames:
-        return Clips.single(frames, skin.clip_names[0] if skin.clip_names else "clip")
-    return Clips(skin.clip_names, skin.clip_frames)
-
-
 def _frames(clips, start, end, targets):
     """--start, --end and --target read against the clips: (start, end, [(frame, time)]), global
     frame numbers (None where not given); an unknown clip or a frame outside its clip is an
@@ -143,6 +132,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.synthesis_file import synthesis_groups
     from skinsynth.gpu import resolve_device
+    from skinsynth.pipeline.clips import Clips
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.synthesis import (BATCH_REVISION, GraphOptions, Request, avoid_obstacles, default_min_segment,
                                               keep_input_support, synthesis_components, validate_request)
@@ -178,7 +168,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
             up_axis = str(graph_file.options.get("up_axis", "Y"))
         if min_segment is None:
             min_segment = int(graph_file.options.get("min_segment", default_min_segment(skin.fps)))
-        clips = _clips(skin)
+        clips = Clips(skin.clip_names, skin.clip_frames)
         start_frame, end_frame, targets = _frames(clips, start_frame, end_frame, targets)
         # one clip: today's path exactly (no clip table handed down)
         request = Request(count=count, frames=frames, seed=seed, targets=list(targets), start=start_frame,
