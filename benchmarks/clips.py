@@ -19,6 +19,9 @@ whole command and the peak resident memory of its largest process).
   animations begin on gallop:0, end on collapse:52, and the clips each one visits in order.
 - ``elephant`` (gallop + poses, 42,321 vertices; the largest mesh in ../shared/data): the joint
   fit, build-graph and ``synthesize -n 1000 -m 600``, seconds and peak memory of each.
+- ``elephant_stages``: select-controls, train-kcca, evaluate, play (16 characters driven by the
+  gallop's own control vertices), export (.usdc, .glb), preview and inspect on the elephant: seconds
+  and peak memory of each.
 - ``hold_out``: ``select-controls``, ``train-kcca`` on the gallop, ``evaluate --hold-out-clip
   collapse``: KCCA's error against the baselines' on a clip it never saw.
 
@@ -38,7 +41,7 @@ HORSE = SHARED_DATA / "horse_clips"
 ELEPHANT = SHARED_DATA / "elephant_clips"
 BONES = 22
 MORE_BONES = (33, 44)
-PARTS = ("joint_fit", "rig", "synthesis", "start_end", "elephant", "hold_out")
+PARTS = ("joint_fit", "rig", "synthesis", "start_end", "elephant", "elephant_stages", "hold_out")
 
 
 def fit(work, out, *inputs, extra=()):
@@ -181,6 +184,30 @@ def elephant(work):
     line = synthesis(work, "elephant_joint.h5", "elephant", smooth=10, animated=[0])
     line.update(figure="elephant", fit_seconds=round(s_fit, 2), fit_peak_rss_mib=round(p_fit),
                 clips={c["name"]: round(c["rmse_over_diagonal"], 6) for c in joint["clips"]})
+    return line
+
+
+def elephant_stages(work):
+    """Every other stage on the elephant (42,321 vertices, the largest mesh here): seconds and
+    peak MiB of each command, from the joint fit of :func:`elephant`."""
+    if not os.path.exists(os.path.join(work, "elephant_joint.h5")):
+        elephant(work)
+    gallop = str(ELEPHANT / "elephant_gallop.npz")
+    commands = {
+        "select-controls": ["select-controls", "elephant_joint.h5", "-o", "elephant.controls.h5"],
+        "train-kcca": ["train-kcca", "elephant.controls.h5", "-o", "elephant.puppet.h5"],
+        "evaluate": ["evaluate", "elephant.puppet.h5", "--json"],
+        "play 16 x 48 (.usdc crowd)": ["play", "elephant.puppet.h5", "--controls", gallop, "--instances", "16", "-o",
+                                       "elephant_crowd.usdc"],
+        "export .usdc (skel)": ["export", "elephant_joint.h5", "-o", "elephant.usdc"],
+        "export .glb (2 clips)": ["export", "elephant_joint.h5", "-o", "elephant.glb"],
+        "preview .png": ["preview", "elephant_joint.h5", "-o", "elephant.png"],
+        "inspect --digests": ["inspect", "elephant_joint.h5", "--digests", "-q"],
+    }
+    line = {"figure": "elephant_stages"}
+    for name, args in commands.items():
+        seconds, peak, _, _ = run(args + (["-q"] if "--json" not in args and "-q" not in args else []), work)
+        line[name] = {"seconds": round(seconds, 2), "peak_rss_mib": round(peak)}
     return line
 
 
