@@ -43,12 +43,16 @@ DEFAULTS = GraphOptions()
 @click.option("--posture-weight", default=DEFAULTS.posture_weight, show_default=True, type=float,
               help="Weight of the reference bone's tilt and height in the transition cost (balanced like "
                    "Zheng's α, β; 0: his eq. 5 alone, for synthesize --alignment full).")
+@click.option("--clips", "walk_clips", default=None, metavar="A,B",
+              help="With several clips: the clips walks may play (default every clip). The others get no "
+                   "transition in or out, so synthesize never plays them: e.g. a library of unrelated key poses "
+                   "that shares the rig (and trains the puppet) but is no motion to walk through.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,
               help="Write PNGs here: the cost matrix of each component with its transitions, and the bone graph.")
 @summary_options
 @user_errors
 def build_graph(path, output, threshold_scale, threshold_reference, edge_threshold, single_component, svd_threshold,
-                min_gap, min_segment, coverage, up_axis, posture_weight, plot_dir, quiet, as_json):
+                min_gap, min_segment, coverage, up_axis, posture_weight, walk_clips, plot_dir, quiet, as_json):
     """Analyse a skin fit for synthesis (Zheng 2013 §3.2, §3.3, §4.1).
 
     Finds, per weakly coupled bone component, its reference bone, reduced coordinates and the
@@ -67,6 +71,7 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
       skinsynth build-graph horse.skin.h5 -o horse.graph.h5 --plot horse_plots
       skinsynth build-graph dancer.skin.h5 -o dancer.graph.h5 --single-component --threshold-scale 4
       skinsynth build-graph horse_clips.skin.h5 -o horse_clips.graph.h5   # gallop + collapse
+      skinsynth build-graph elephant.skin.h5 -o elephant.graph.h5 --clips gallop   # poses left out
     """
     from skinsynth.formats.graph_file import graph_groups
     from skinsynth.formats.model import read_model, write_model
@@ -87,17 +92,19 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     validate_graph_options(skin.rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap,
                            min_segment, coverage, posture_weight)
     clips = Clips(skin.clip_names, skin.clip_frames)
+    if walk_clips is not None:
+        walk_clips = clips.subset([n.strip() for n in walk_clips.split(",") if n.strip()] or [""]).names
     started = time.perf_counter()
     analysis = analyse(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
                        skin.translations, threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                        edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
                        min_gap=min_gap, min_segment=min_segment, coverage=coverage, up_axis="XYZ".index(up_axis),
-                       posture_weight=posture_weight, clips=clips)
+                       posture_weight=posture_weight, clips=clips, walk_clips=walk_clips)
     seconds = time.perf_counter() - started
     parameters = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                       edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
                       min_gap=min_gap, min_segment=min_segment, coverage=coverage, up_axis=up_axis,
-                      posture_weight=posture_weight)
+                      posture_weight=posture_weight, clips=list(walk_clips or clips.names))
     record = provenance_record("graph", command_line(), parameters, [path], tool_version())
     write_model(output, "graph", graph_groups(model, analysis), model["provenance"] + [record], tool_version())
     if plot_dir is not None:
@@ -158,7 +165,11 @@ def _summary(output, analysis, min_segment, up_axis, seconds, clips):
         lines.insert(1, f"  clips {', '.join(f'{n} ({f} frames)' for n, f in zip(clips.names, clips.frames))}{every}")
     summary = {"output": output, "components": components, "cut_nodes": list(analysis.cut_nodes),
                "transitions": int(analysis.transition_count), "min_segment": int(min_segment), "up_axis": up_axis,
-               "seconds": round(seconds, 3), "clips": list(clips.names), "transitions_between": total}
+               "seconds": round(seconds, 3), "clips": list(clips.names), "transitions_between": total,
+               "walk_clips": list(analysis.options.get("walk_clips") or clips.names)}
+    left_out = [n for n in clips.names if n not in summary["walk_clips"]]
+    if left_out:
+        lines.insert(2, f"  walks play {', '.join(summary['walk_clips'])}; left out (--clips): {', '.join(left_out)}")
     return summary, lines
 
 

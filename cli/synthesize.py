@@ -192,8 +192,10 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
             _check_space(path, output, request, graph_file.components, skin, what)
         if obstacles or ground_plane:
             avoid_obstacles(request, skin, [read_obstacle(o) for o in obstacles], ground_plane)
+        walk_clips = graph_file.graph.get("@clips")
         components = synthesis_components(skin, graph_file.components, single_component,
-                                          GraphOptions.recorded(graph_file.options))
+                                          GraphOptions.recorded(graph_file.options), request.clips,
+                                          None if walk_clips is None else [str(n) for n in walk_clips])
 
         parameters = dict(count=count, frames=frames, seed=seed, start_frame=start_frame, end_frame=end_frame,
                           targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,

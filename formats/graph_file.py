@@ -63,6 +63,8 @@ def graph_groups(model, analysis):
              "@single_component": bool(options["single_component"]),
              "@min_segment": int(options["min_segment"]), "@coverage": float(options["coverage"]),
              "@up_axis": "XYZ"[int(options["up_axis"])], "@posture_weight": float(options["posture_weight"])}
+    if options.get("walk_clips") is not None:  # the clips walks may play (build-graph --clips; default every clip)
+        graph["@clips"] = [str(name) for name in options["walk_clips"]]
     for number, c in enumerate(analysis.components):
         t, op = c.transitions, c.operator
         graph[f"component_{number:03d}"] = {

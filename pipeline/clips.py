@@ -137,9 +137,10 @@ class Clips:
         starts = self.starts
         return np.concatenate([np.arange(starts[c], starts[c + 1]) for c in chosen]).astype(np.int64)
 
-    def subset(self, names):
-        """The :class:`Clips` of the named clips, in file order (their frames renumbered from 0)."""
-        chosen = sorted({self.index(n) for n in names})
+    def subset(self, names, option="--clips"):
+        """The :class:`Clips` of the named clips, in file order (their frames renumbered from 0);
+        an unknown name is an OptionError naming ``option`` and the clips."""
+        chosen = sorted({self.index(n, option) for n in names})
         return Clips(tuple(self.names[c] for c in chosen), tuple(self.frames[c] for c in chosen))
 
     # --- transitions and walks ---------------------------------------------------------------

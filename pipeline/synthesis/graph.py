@@ -94,8 +94,9 @@ def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshol
 
 
 def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotations, translations, options,
-                      clips=None):
-    """ComponentAnalysis of one bone component (sorted bone ids); clips: the frames' clips (None: one)."""
+                      clips=None, walkable=None):
+    """ComponentAnalysis of one bone component (sorted bone ids); clips: the frames' clips (None:
+    one); walkable (F,) bool: the frames transitions may leave and enter (None: all)."""
     total = rotations.shape[1]
     transitions = find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=bones,
                                    svd_threshold=options["svd_threshold"], threshold_scale=options["threshold_scale"],
@@ -103,7 +104,7 @@ def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotat
                                    spacing=max(1, options["min_segment"] // 2), coverage=options["coverage"],
                                    up=np.eye(3)[options["up_axis"]], pivots=bone_centroids(rest, bone_indices, bone_weights, total),
                                    scale=float(np.ptp(rest, axis=0).max()), posture_weight=options["posture_weight"],
-                                   clips=clips)
+                                   clips=clips, walkable=walkable)
     # The component is synthesised as if it were the whole mesh: its key vertices see only its
     # own bones, weights renormalised over them, so eq. 8 needs no bone from another component
     # and the unit-sum and eq. 15 properties still hold.
@@ -127,7 +128,7 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
                 edge_threshold=_DEFAULT.edge_threshold, single_component=_DEFAULT.single_component,
                 svd_threshold=_DEFAULT.svd_threshold, min_gap=_DEFAULT.min_gap, min_bones=_DEFAULT.min_bones,
                 min_segment=_DEFAULT.min_segment, coverage=_DEFAULT.coverage, up_axis=_DEFAULT.up_axis,
-                posture_weight=_DEFAULT.posture_weight, clips=None):
+                posture_weight=_DEFAULT.posture_weight, clips=None, walk_clips=None):
     """Analyse a skin fit for synthesis. rest (V, 3); faces (T, 3); bone_indices/bone_weights
     (V, K); rotations (F, B, 3, 3); translations (F, B, 3). min_segment: the shortest stretch
     walks play between seams (frames); transitions closer than half of it to a cheaper one are
@@ -135,7 +136,9 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
     posture_weight: the costs also weigh the reference bone's tilt and height about that axis
     (:func:`.transitions.posture_costs`; 0: Zheng's eq. 5 alone); clips: the
     :class:`.clips.Clips` of the F frames (None: one clip; several: transitions within and between
-    them). Returns GraphAnalysis."""
+    them); walk_clips: the names of the clips walks may play (None: every clip; the others, e.g. a
+    library of unrelated key poses, get no transition in or out, so no walk reaches them).
+    Returns GraphAnalysis."""
     from .bone_graph import bone_components  # networkx: imported when a graph is built, not by synthesize
 
     validate_graph_options(rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment,
@@ -144,12 +147,18 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
     weights, graph, decomposition = bone_components(bone_indices, bone_weights, bones, edge_threshold=edge_threshold,
                                                     single_component=single_component, min_bones=min_bones)
     neighbours = vertex_neighbours(faces, rest.shape[0])
+    walkable = None
+    if walk_clips is not None:
+        walkable = np.zeros(rotations.shape[0], bool)
+        walkable[clips.select(walk_clips)] = True
     options = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                    edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
                    min_gap=min_gap, min_bones=min_bones, min_segment=int(min_segment), coverage=float(coverage),
-                   up_axis=int(up_axis), posture_weight=float(posture_weight))
+                   up_axis=int(up_axis), posture_weight=float(posture_weight),
+                   walk_clips=list(clips.names if walk_clips is None or clips is None else
+                                   clips.subset(walk_clips).names) if clips is not None else None)
     components = [analyse_component([int(b) for b in members], rest, neighbours, bone_indices, bone_weights, rotations,
-                                    translations, options, clips) for members in decomposition.components]
+                                    translations, options, clips, walkable) for members in decomposition.components]
     edges = np.array(sorted(graph.edges()), dtype=np.int64).reshape(-1, 2)
     # Only articulation points that still join components matter to synthesis (Alg. 1);
     # others ended up inside a merged block.

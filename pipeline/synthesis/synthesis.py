@@ -67,12 +67,14 @@ def component_from_file(data, rest):
                              strain=np.asarray(data.rotation_strain), operator=operator)
 
 
-def synthesis_components(skin, records, single_component=False, graph_options=None):
+def synthesis_components(skin, records, single_component=False, graph_options=None, clips=None, walk_clips=None):
     """The components synthesize walks: each of a graph file's component records
     (:func:`component_from_file`), or with ``single_component`` (and more than one in the file)
     the whole rig analysed again as one (:func:`.graph.build_graph` with the file's
     ``graph_options``, a :class:`.graph_options.GraphOptions`). ``skin``: rest_vertices (V, 3),
-    faces, bone_indices and bone_weights (V, K), rotations (F, B, 3, 3), translations (F, B, 3)."""
+    faces, bone_indices and bone_weights (V, K), rotations (F, B, 3, 3), translations (F, B, 3);
+    clips, walk_clips: the input's clips and those the graph let walks play, for an analysis made
+    again (:func:`.graph.build_graph`)."""
     if single_component and len(records) > 1:
         import dataclasses
 
@@ -82,7 +84,7 @@ def synthesis_components(skin, records, single_component=False, graph_options=No
         options = dataclasses.asdict(graph_options or GraphOptions())
         options["single_component"] = True
         return build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
-                           skin.translations, **options).components
+                           skin.translations, **options, clips=clips, walk_clips=walk_clips).components
     return [component_from_file(record, skin.rest_vertices) for record in records]
 
 

@@ -466,7 +466,8 @@ def clip_blocks(D, start=None, clips=None):
     return padded, row_i, column_j
 
 
-def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_scale=10.0, start=None, clips=None):
+def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_scale=10.0, start=None, clips=None,
+                       walkable=None):
     """Transitions of one clip: cheap, spread out, and enough to reach the whole clip.
 
     D (F, F) costs; threshold T_c; start (F,): D(i, −1) (:func:`start_costs`), or None for no
@@ -490,7 +491,9 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
     its clip (:meth:`.clips.Clips.valid_j`), and spacing compares only candidates whose i lie in
     one clip and whose entered frames j + 1 lie in one clip (j measured as the frame before the
     one entered, as :func:`candidate_transitions`' gap); coverage counts the clip-aware graph.
-    ``threshold`` may then be (C, C), T_c per (clip left, clip entered) (:func:`clip_thresholds`):
+    ``walkable`` (F,) bool (None: every frame): only transitions that leave and enter such frames
+    (``build-graph --clips``: a pose library kept out of the walks). ``threshold`` may then be
+    (C, C), T_c per (clip left, clip entered) (:func:`clip_thresholds`):
     each candidate is judged against its own, past-T_c admissions go by cost in units of it, and
     last every clip gets a way in from another clip and a way out to another, the cheapest below
     ``admit_scale`` × its T_c where it has none yet (:func:`_clip_links`), so that walks can pass
@@ -507,6 +510,8 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
     every, costs = candidate_transitions(D, np.inf, min_gap, start, clips)
     if frames:
         inside = layout.valid_j(every[:, 1])
+        if walkable is not None:
+            inside &= walkable[every[:, 0]] & walkable[layout.targets(np.where(inside, every[:, 1], 0))]
         every, costs = every[inside], costs[inside]
     spacing = max(0, int(spacing))
     if frames and len(every):
@@ -637,7 +642,7 @@ def posture_costs(D, q, posture, weight=1.0):
 
 def find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=None, svd_threshold=0.005,
                      threshold_scale=3.0, threshold_reference="median-step", min_gap=2, spacing=0, coverage=0.95,
-                     up=None, pivots=None, scale=1.0, posture_weight=1.0, clips=None):
+                     up=None, pivots=None, scale=1.0, posture_weight=1.0, clips=None, walkable=None):
     """Zheng §3.2 end to end: reference bone, eq. 2–6, threshold, candidate transitions.
 
     rotations (F, B, 3, 3), translations (F, B, 3), bone_indices (V, K), bone_weights (V, K);
@@ -647,7 +652,8 @@ def find_transitions(rotations, translations, bone_indices, bone_weights, bones_
     (:func:`posture_costs`, ``posture_weight``; 0 leaves Zheng's eq. 5). ``clips``
     (:class:`.clips.Clips` of the F frames; None: one clip, the same numbers as
     ``Clips.single(F)``): several clips of one character, transitions within and between them
-    (module notes: several clips). Returns a :class:`Transitions`.
+    (module notes: several clips); ``walkable`` (F,) bool: transitions only between such frames
+    (:func:`select_transitions`). Returns a :class:`Transitions`.
     """
     rotations = np.asarray(rotations, np.float64)
     translations = np.asarray(translations, np.float64)
@@ -674,7 +680,8 @@ def find_transitions(rotations, translations, bone_indices, bone_weights, bones_
     thresholds = None if clips is None or len(clips) == 1 else \
         clip_thresholds(D, threshold_scale, threshold_reference, clips)
     pairs, costs, admitted, share = select_transitions(D, threshold if thresholds is None else thresholds, min_gap,
-                                                       spacing, coverage, start=virtual, clips=clips)
+                                                       spacing, coverage, start=virtual, clips=clips,
+                                                       walkable=walkable)
     options = dict(svd_threshold=svd_threshold, threshold_scale=threshold_scale,
                    threshold_reference=threshold_reference, min_gap=min_gap, spacing=spacing, coverage=coverage,
                    posture_weight=posture_weight if up is not None else 0.0)

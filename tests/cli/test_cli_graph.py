@@ -81,17 +81,24 @@ def test_bad_inputs(files, tmp_path):
     assert_folder_holds(tmp_path, ["not.h5"])
 
 
-def test_two_clips_get_transitions_between_them_counted_per_direction(files, tmp_path):
-    # The bar bends in one cycle of 20 frames; clip "bend" plays it twice, clip "part" holds its
-    # frames 5..14 again: part's frame m is bend's 5 + m (and 25 + m), so walks can cross both ways.
+@pytest.fixture(scope="module")
+def bar_clips(tmp_path_factory):
+    """A skin of two clips: the bar bends in one cycle of 20 frames; clip "bend" plays it twice,
+    clip "part" holds its frames 5..14 again: part's frame m is bend's 5 + m (and 25 + m), so
+    walks can cross both ways."""
+    folder = tmp_path_factory.mktemp("bar_clips")
     cycle, faces = bending_bar(frames=20, rings=10, segments=8)
-    write_array_sequence(tmp_path / "bend.npz", np.concatenate([cycle, cycle]), faces, 24.0)
-    write_array_sequence(tmp_path / "part.npz", cycle[5:15], faces, 24.0)
-    assert_ok(cli("fit-skin", tmp_path / "bend.npz", tmp_path / "part.npz", "-o", tmp_path / "skin.h5", "--bones", 5,
+    write_array_sequence(folder / "bend.npz", np.concatenate([cycle, cycle]), faces, 24.0)
+    write_array_sequence(folder / "part.npz", cycle[5:15], faces, 24.0)
+    assert_ok(cli("fit-skin", folder / "bend.npz", folder / "part.npz", "-o", folder / "skin.h5", "--bones", 5,
                   "--iterations", 8, "-q"))
-    result = assert_ok(cli("build-graph", tmp_path / "skin.h5", "-o", tmp_path / "g.h5", "--plot", tmp_path / "plots"))
+    return folder / "skin.h5"
+
+
+def test_two_clips_get_transitions_between_them_counted_per_direction(bar_clips, tmp_path):
+    result = assert_ok(cli("build-graph", bar_clips, "-o", tmp_path / "g.h5", "--plot", tmp_path / "plots"))
     assert "clips bend (40 frames), part (10 frames)" in result.stdout and "bend→part" in result.stdout
-    summary = json.loads(assert_ok(cli("build-graph", tmp_path / "skin.h5", "-o", tmp_path / "g.h5", "--json")).stdout)
+    summary = json.loads(assert_ok(cli("build-graph", bar_clips, "-o", tmp_path / "g.h5", "--json")).stdout)
     assert summary["clips"] == ["bend", "part"]
     with h5py.File(tmp_path / "g.h5") as f:
         found = [(f["graph"][k]["transitions"][()], f["graph"][k]["transition_costs"][()], f["graph"][k].attrs["threshold"])
@@ -113,3 +120,19 @@ def test_two_clips_get_transitions_between_them_counted_per_direction(files, tmp
         assert np.all((phase(pairs[crossing, 0]) + 1) % 20 == phase(entered_frame[crossing]))
     assert summary["transitions_between"] == {key: sum(c["transitions_between"][key] for c in summary["components"])
                                               for key in summary["components"][0]["transitions_between"]}
+
+
+def test_clips_left_out_of_the_walks_get_no_transition_and_are_never_played(bar_clips, tmp_path):
+    summary = json.loads(assert_ok(cli("build-graph", bar_clips, "-o", tmp_path / "g.h5", "--clips", "bend",
+                                       "--json")).stdout)
+    assert summary["walk_clips"] == ["bend"]
+    with h5py.File(tmp_path / "g.h5") as f:
+        assert list(f["graph"].attrs["clips"]) == ["bend"]
+        pairs = np.concatenate([f["graph"][k]["transitions"][()] for k in f["graph"] if k.startswith("component_")])
+    entered = np.where(pairs[:, 1] >= 0, pairs[:, 1] + 1, np.where(pairs[:, 1] == -1, 0, 40))
+    assert len(pairs) and np.all((pairs[:, 0] < 40) & (entered < 40))  # bend's frames only
+    assert_ok(cli("synthesize", tmp_path / "g.h5", "-o", tmp_path / "s.h5", "-n", 8, "-m", 120, "-q"))
+    with h5py.File(tmp_path / "s.h5") as f:
+        assert f["synthesis/sources"][()].max() < 40
+    assert_user_error(cli("build-graph", bar_clips, "-o", tmp_path / "x.h5", "--clips", "bend,trot"),
+                      "--clips", "no clip named 'trot'", "bend, part")
