@@ -364,3 +364,22 @@ def test_every_clip_gets_a_way_in_and_out_when_only_the_pair_would_help():
     crossing = clips.clip_of(pairs[:, 0]) != clips.clip_of(clips.targets(pairs[:, 1]))
     assert sorted(map(tuple, pairs[crossing].tolist())) == [(7, 10), (14, 3)]
     assert admitted == 2
+
+
+def test_an_analysis_made_again_as_one_component_keeps_the_clips_and_the_walk_clips():
+    """synthesize --single-component on a graph of several components analyses the rig again: it
+    must read the frames as the same clips, with the same clips left out of the walks."""
+    from types import SimpleNamespace
+
+    from skinsynth.pipeline.examples import synthetic_lbs
+    from skinsynth.pipeline.synthesis.synthesis import synthesis_components
+
+    truth = synthetic_lbs(bones=4, frames=30, seed=2, rings=16, segments=6)
+    skin = SimpleNamespace(rest_vertices=truth["rest"], faces=truth["faces"], bone_indices=truth["bone_indices"],
+                           bone_weights=truth["bone_weights"], rotations=truth["rotations"],
+                           translations=truth["translations"])
+    clips = Clips(("a", "b"), (18, 12))
+    components = synthesis_components(skin, [None, None], single_component=True, clips=clips, walk_clips=["a"])
+    assert len(components) == 1 and components[0].transitions.clips == clips
+    pairs = components[0].transitions.pairs
+    assert np.all((pairs[:, 0] < 18) & (clips.targets(pairs[:, 1]) < 18))  # b is left out of the walks
