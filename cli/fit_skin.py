@@ -82,6 +82,13 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     if transform_steps is not None and transform_steps > MAX_TRANSFORM_STEPS:  # a joint solve of every bone of every frame
         raise OptionError(f"--transform-steps {transform_steps}: at most {MAX_TRANSFORM_STEPS} per iteration (each "
                           "is a joint solve of every bone of every frame; 0 or 1 is the useful range)")
+    if rig is not None:
+        source = click.get_current_context().get_parameter_source
+        given = [f"--{name.replace('_', '-')}" for name in ("rest_frame", "seed", "max_influences")
+                 if source(name) == click.core.ParameterSource.COMMANDLINE]
+        if given:
+            raise OptionError(f"{', '.join(given)} do(es) not apply with --rig: the rig's rest pose and weights are "
+                              "kept, only the bone transforms are solved")
     if rig is None and bones is None:
         raise OptionError("--bones is required (or --rig, a skin file whose bones and weights to keep)")
     if tolerance is None:

@@ -104,6 +104,8 @@ def test_bad_rig_and_names_are_refused_in_one_line(clips, tmp_path):
                       "--bones 4", folder=tmp_path, keep=keep)
     assert_user_error(cli("fit-skin", folder / "take.npz", "-o", tmp_path / "x.h5"), "--bones", folder=tmp_path,
                       keep=keep)
+    assert_user_error(cli("fit-skin", folder / "take.npz", "--rig", rig, "--seed", 3, "-o", tmp_path / "x.h5"),
+                      "--seed", "--rig", folder=tmp_path, keep=keep)
     assert_user_error(cli("fit-skin", f"a={folder / 'clip_walk.npz'}", f"a={folder / 'clip_turn.npz'}", "-o",
                           tmp_path / "x.h5", "--bones", 3), "named 'a'", folder=tmp_path, keep=keep)
     assert_user_error(cli("fit-skin", folder / "clip_walk.npz", folder / "clip_turn.npz", "-o", tmp_path / "x.h5",
