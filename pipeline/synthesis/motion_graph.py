@@ -180,6 +180,10 @@ class MotionGraph:
         clips = getattr(result, "clips", None) if clips is None else clips
         return cls(result.D.shape[0], result.pairs, forbidden, clips)
 
+    def frame_name(self, frame):
+        """How messages name an input frame: ``CLIP:FRAME`` with several clips, else its number."""
+        return str(int(frame)) if self.clips is None else self.clips.label(frame)
+
     @property
     def usable_count(self):
         """How many frames are usable."""
@@ -508,9 +512,9 @@ def _check_frame(graph, frame, what, usable_only, where=""):
     if not 0 <= frame < graph.frames:
         raise OptionError(f"{what} {frame}{where} is outside the clip's frames 0..{graph.frames - 1}")
     if graph.forbidden[frame]:
-        raise OptionError(f"{what} {frame}{where} is a forbidden frame")
+        raise OptionError(f"{what} {graph.frame_name(frame)}{where} is a forbidden frame")
     if usable_only and not graph.usable[frame]:
-        raise OptionError(f"{what} {frame}{where} is a dead end: no arbitrarily long walk leaves it "
+        raise OptionError(f"{what} {graph.frame_name(frame)}{where} is a dead end: no arbitrarily long walk leaves it "
                           f"({graph.describe()})" + ("; constrained walks accept it with usable_only=False"
                                                      if what.startswith("target") else ""))
     return frame
@@ -567,14 +571,16 @@ def _unreachable_message(graph, usable_only, begin, finish, length):
         else ""
     if finish is None:
         fa, ta = begin
-        return (f"no walk of {length} more output frames continues from input frame {fa} at output time {ta}"
+        return (f"no walk of {length} more output frames continues from input frame {graph.frame_name(fa)} at "
+                f"output time {ta}"
                 f"{' ' + where if where else ''}: every path runs into a dead end ({graph.describe()})")
     fb, tb = finish
     if begin is None:
         origin, start_states, t_origin = "any start frame at output time 0", allowed.copy(), 0
     else:
         fa, ta = begin
-        origin, start_states, t_origin = f"input frame {fa} at output time {ta}", np.zeros(graph.frames, bool), ta
+        origin, start_states, t_origin = (f"input frame {graph.frame_name(fa)} at output time {ta}",
+                                          np.zeros(graph.frames, bool), ta)
         start_states[fa] = True
     target = np.zeros(graph.frames, bool)
     target[fb] = True
@@ -585,7 +591,7 @@ def _unreachable_message(graph, usable_only, begin, finish, length):
         hint = f"from there it can be shown at output times {shown}"
     else:
         hint = f"it is never reachable from there (within {horizon} frames)"
-    return (f"input frame {fb} cannot be reached at output time {tb} from {origin}"
+    return (f"input frame {graph.frame_name(fb)} cannot be reached at output time {tb} from {origin}"
             f"{' ' + where if where else ''} ({length} frames later); {hint}")
 
 

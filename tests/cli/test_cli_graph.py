@@ -134,5 +134,8 @@ def test_clips_left_out_of_the_walks_get_no_transition_and_are_never_played(bar_
     assert_ok(cli("synthesize", tmp_path / "g.h5", "-o", tmp_path / "s.h5", "-n", 8, "-m", 120, "-q"))
     with h5py.File(tmp_path / "s.h5") as f:
         assert f["synthesis/sources"][()].max() < 40
+    # a walk cannot start in a clip left out; the message names the frame as CLIP:FRAME
+    assert_user_error(cli("synthesize", tmp_path / "g.h5", "-o", tmp_path / "t.h5", "-n", 2, "-m", 60, "--start",
+                          "part:2"), "input frame part:2", "dead end")
     assert_user_error(cli("build-graph", bar_clips, "-o", tmp_path / "x.h5", "--clips", "bend,trot"),
                       "--clips", "no clip named 'trot'", "bend, part")
