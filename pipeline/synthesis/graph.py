@@ -148,7 +148,7 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
                                                     single_component=single_component, min_bones=min_bones)
     neighbours = vertex_neighbours(faces, rest.shape[0])
     walkable = None
-    if walk_clips is not None:
+    if walk_clips is not None and clips is not None:  # one clip (None): every frame is walked
         walkable = np.zeros(rotations.shape[0], bool)
         walkable[clips.select(walk_clips)] = True
     options = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
