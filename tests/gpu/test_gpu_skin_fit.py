@@ -49,6 +49,19 @@ def test_a_fit_on_a_warp_device_is_the_cpu_fit(device):
     assert abs(warp_fit.rmse - numba_fit.rmse) <= 1e-8 * numba_fit.rmse
 
 
+def test_bones_on_a_rig_on_a_warp_device_are_the_cpu_solve(device):
+    from skinsynth.pipeline.examples import synthetic_lbs
+    from skinsynth.pipeline.skin.skin_fit import fit_bones_to_rig
+
+    truth = synthetic_lbs(bones=5, frames=10, seed=4, rings=16, segments=6)
+    rig = (truth["vertices"], truth["rest"], truth["bone_indices"], truth["bone_weights"], 5)
+    numba_fit = fit_bones_to_rig(*rig, iterations=6, tolerance=0.0)
+    warp_fit = fit_bones_to_rig(*rig, iterations=6, tolerance=0.0, device=device)
+    np.testing.assert_allclose(warp_fit.rotations, numba_fit.rotations, atol=1e-8)
+    np.testing.assert_allclose(warp_fit.translations, numba_fit.translations, atol=1e-8)
+    assert abs(warp_fit.rmse - numba_fit.rmse) <= 1e-8 * numba_fit.rmse
+
+
 def test_an_absent_gpu_is_one_line(tmp_path):
     from skinsynth.gpu import available_devices
     from skinsynth.pipeline.examples import bending_bar
