@@ -33,8 +33,8 @@ def _selection(text):
                    "A USD file or an .exr holds one, a .glb or a folder any number.  [default: all]")
 @click.option("--clip", default=None, metavar="NAME",
               help="Skin file with several clips (fit-skin CLIP...): export only this clip's frames, its first at "
-                   "the scene's start frame.  [default: every frame; a .glb holds one animation per clip, named "
-                   "after it, and a USD stage one timeline whose layer metadata (customLayerData "
+                   "the scene's start frame.  [default: every frame; a .glb or a texture folder holds one animation "
+                   "per clip, named after it, and a USD stage one timeline whose layer metadata (customLayerData "
                    "\"skinsynth:clips\": names, startTimeCodes, endTimeCodes) says where each clip begins and ends]")
 @click.option("--root-motion", is_flag=True,
               help=".glb and UsdSkel: the root joint carries the character's ground motion (its turn about the up "
@@ -102,15 +102,17 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
         else:  # a folder holds one texture per animation
             check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames, max_width)
         if kind == "bones":
-            bytes_per_animation = write_bone_textures(output, source.skin, ((source.names[a], *source.motions(a))
-                                                                            for a in chosen), half, max_width,
-                                                      folders.guard(output), label=source.path) // len(chosen)
+            bytes_per_animation = write_bone_textures(output, source.skin, (part for a in chosen
+                                                                            for part in source.parts(a)), half,
+                                                      max_width, folders.guard(output),
+                                                      label=source.path) // len(chosen)
         elif output_kind == "gltf":
             write_gltf(output, source.skin, (part for a in chosen for part in source.parts(a)),
                        up_axis or source.scene.up_axis, None if quantize is None else int(quantize), root_motion,
                        label=source.path)
         elif to_exr:
-            frames = ((source.names[a], source.vertices(a)) for a in chosen)
+            frames = (part for a in chosen for part in source.vertex_parts(a)) if output_kind == "folder" else \
+                ((source.names[a], source.vertices(a)) for a in chosen)  # a folder: a texture per clip
             write_textures(output, output_kind, source.rest_vertices, source.faces, frames, source.fps,
                            source.scene, half, max_width, folders.guard(output))
         elif kind == "skel":
@@ -138,8 +140,8 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
     joints = int(source.skin.rotations.shape[1]) + 1 if what in ("UsdSkel", "glTF") else None  # bones and the root
     summary = {"output": output, "frames": int(source.frames), "vertices": int(source.rest_vertices.shape[0]),
                "kind": what, "joints": joints, "animations": [int(a) for a in chosen],
-               "names": [name for a in chosen for name in source.part_names(a)] if output_kind == "gltf"
-               else [source.names[a] for a in chosen]}
+               "names": [name for a in chosen for name in source.part_names(a)]
+               if output_kind in ("gltf", "folder") else [source.names[a] for a in chosen]}
     if source.clips is not None:
         summary["clips"] = list(source.clips[0])
     detail = "" if to_exr else f" ({what}, {joints} joints)" if joints else " (point cache)"
@@ -238,14 +240,21 @@ class _Source:
         return [self.names[a]] if self.clips is None or len(self.clips[0]) < 2 else list(self.clips[0])
 
     def parts(self, a):
-        """(name, rotations, translations) of each glTF animation animation ``a`` becomes: one per
-        clip, named after it, when it holds several; else the one named ``names[a]``."""
-        rotations, translations = self.motions(a)
+        """(name, rotations, translations) of each glTF animation (or bone-texture clip) animation
+        ``a`` becomes: one per clip, named after it, when it holds several; else the one named
+        ``names[a]``."""
+        return self._split(a, *self.motions(a))
+
+    def vertex_parts(self, a):
+        """(name, vertices) of each texture of a folder animation ``a`` becomes, split as :meth:`parts`."""
+        return self._split(a, self.vertices(a))
+
+    def _split(self, a, *arrays):
+        """[(name, *arrays' frames)] per clip of animation ``a`` (one entry when it holds one clip)."""
         if self.clips is None or len(self.clips[0]) < 2:
-            return [(self.names[a], rotations, translations)]
+            return [(self.names[a], *arrays)]
         ends = np.cumsum(self.clips[1])
-        return [(name, rotations[end - count:end], translations[end - count:end])
-                for name, count, end in zip(*self.clips, ends)]
+        return [(name, *(x[end - count:end] for x in arrays)) for name, count, end in zip(*self.clips, ends)]
 
     @property
     def count(self):

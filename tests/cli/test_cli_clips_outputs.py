@@ -164,6 +164,22 @@ def test_a_glb_of_several_clips_has_one_animation_per_clip(files, tmp_path):
         assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
 
 
+def test_texture_folders_of_several_clips_hold_one_animation_per_clip(files, tmp_path):
+    from skinsynth.formats.exr import read_vat
+
+    skin = skin_of(files / "two.h5")
+    assert_ok(cli("export", files / "two.h5", "-o", f"{tmp_path / 'vat'}/", "-q"))
+    for name, frames in (("walk", np.arange(14)), ("turn", np.arange(14, 24))):
+        offsets, _ = read_vat(tmp_path / "vat" / f"{name}.exr")  # float32 offsets from the rest pose
+        expected = reconstruction(skin, frames) - skin.rest_vertices
+        assert offsets.shape == expected.shape
+        np.testing.assert_allclose(offsets, expected, atol=1e-5 * np.ptp(skin.rest_vertices))
+    assert_ok(cli("export", files / "two.h5", "-o", f"{tmp_path / 'bones'}/", "--as", "bones", "-q"))
+    with open(tmp_path / "bones" / "bones.json") as handle:
+        table = json.load(handle)["clips"]
+    assert [(c["name"], c["first"], c["last"]) for c in table] == [("walk", 0, 13), ("turn", 14, 23)]
+
+
 def _export(path, out, *options):
     assert_ok(cli("export", path, "-o", out, "-q", *options))
     return out
