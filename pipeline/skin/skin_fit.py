@@ -105,6 +105,16 @@ def _reseed_unused_bones(transforms, weights_total, vertex_error, rest, data):
     return transforms
 
 
+def _bone_sweep(device):
+    """The per-bone Procrustes sweep ``sweep(transforms, p, q)``: compiled on the CPU (device None)
+    or the warp kernel on ``device``."""
+    if device is None:
+        return sweep_bone_transforms
+    from skinsynth.gpu import sweep_bone_transforms_warp
+
+    return lambda transforms, p, q: sweep_bone_transforms_warp(transforms, p, q, device)
+
+
 # One BLAS thread: a threaded product sums in an order that depends on the thread count, and the
 # same input must give the same file (issue 11). On two cores threads gained 4 % (horse, 22 bones).
 @threadpool_limits.wrap(limits=1, user_api="blas")
@@ -138,13 +148,7 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
     bone_indices = labels[:, None].astype(np.int32)
     bone_weights = np.ones((count, 1))
 
-    if device is None:
-        sweep = sweep_bone_transforms
-    else:
-        from skinsynth.gpu import sweep_bone_transforms_warp
-
-        def sweep(transforms, p, q):
-            return sweep_bone_transforms_warp(transforms, p, q, device)
+    sweep = _bone_sweep(device)
 
     history, quiet, converged = [], 0, False
     stopped = f"iteration limit ({iterations}; --iterations)"
@@ -246,13 +250,7 @@ def fit_bones_to_rig(vertices, rest, bone_indices, bone_weights, bones, iteratio
     transforms = fit_cluster_transforms(dominant, bones, data)
     alone = np.bincount(dominant, minlength=bones) == 0
     transforms[:, alone] = np.eye(3, 4)
-    if device is None:
-        sweep = sweep_bone_transforms
-    else:
-        from skinsynth.gpu import sweep_bone_transforms_warp
-
-        def sweep(transforms, p, q):
-            return sweep_bone_transforms_warp(transforms, p, q, device)
+    sweep = _bone_sweep(device)
 
     squared = float(data.squared_norm.sum())
     history, converged = [], False
