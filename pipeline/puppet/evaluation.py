@@ -133,9 +133,7 @@ def evaluate_clip_hold_out(skin, control_indices, options, clips, held_out, trai
     :class:`Evaluation`; its notes add ``train_clips``, ``test_clips`` (names) and
     ``train_frames`` (n,) the frame ids the retrained puppet holds."""
     train, test, train_names, test_names = clip_hold_out_split(clips, held_out, training_clips)
-    puppet = train_puppet(skin.examples, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
-                          skin.rotations, skin.translations, control_indices, train, **options)
-    result = evaluate_puppet(puppet, skin.examples, test, skinning, pca_components)
+    result = evaluate_extrapolation(skin, control_indices, options, train, test, skinning, pca_components)
     result.notes.update(train_clips=list(train_names), test_clips=list(test_names),
-                        train_frames=np.asarray(puppet.train_frames, dtype=np.int64))
+                        train_frames=np.asarray(train, dtype=np.int64))
     return result
