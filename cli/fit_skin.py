@@ -174,20 +174,17 @@ def _fit(vertices, rig, bones, max_influences, iterations, rest_frame, seed, tol
 
 def _read_rig(path, sequence, bones):
     """The rig of ``--rig`` (a SkinModel), refused unless it is the clips' mesh and has ``bones``."""
+    from skinsynth.formats.clip_inputs import mesh_difference
     from skinsynth.formats.errors import FormatError
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.errors import OptionError
 
     rig = read_skin(path)
-    count = sequence.vertices.shape[1]
-    if len(rig.rest_vertices) != count:
-        raise FormatError(path, f"rig has {len(rig.rest_vertices)} vertices where {sequence.source} has {count}: "
-                                "--rig needs the clips' own mesh")
-    if rig.faces.shape != sequence.faces.shape or not np.array_equal(rig.faces, sequence.faces):
-        differ = 0 if rig.faces.shape != sequence.faces.shape else int(np.flatnonzero(
-            np.any(rig.faces != sequence.faces, axis=1))[0])
-        raise FormatError(path, f"rig's faces differ from {sequence.source}'s (first at face {differ}): --rig "
-                                "needs the clips' own mesh, vertices in the same order")
+    difference = mesh_difference(len(rig.rest_vertices), rig.faces, sequence.vertices.shape[1], sequence.faces,
+                                 sequence.source)
+    if difference:
+        raise FormatError(path, f"the rig {difference}: --rig needs the clips' own mesh, its vertices in the same "
+                                "order")
     if bones is not None and bones != rig.bones:
         raise OptionError(f"--bones {bones} differs from the rig's {rig.bones} bones (leave --bones out with --rig)")
     return rig
@@ -204,10 +201,10 @@ def _summary(output, sequence, bones, result, diagonal, seconds, device, history
                "device": device,
                "bones_without_weight": int(result.bones_without_weight), "meters_per_unit": scene.meters_per_unit,
                "up_axis": scene.up_axis, "start_frame": scene.start_frame, "prim_path": scene.prim_path,
-               "history": [[t, float(f"{e:.6g}")] for t, e in history],
-               "clips": [{"name": name, "frames": int(n), "rmse": float(np.sqrt(np.mean(frame_rmse[a:b] ** 2))),
-                          "rmse_over_diagonal": float(np.sqrt(np.mean(frame_rmse[a:b] ** 2)) / diagonal)}
-                         for name, n, a, b in zip(clips.names, clips.frames, clips.starts[:-1], clips.starts[1:])]}
+               "history": [[t, float(f"{e:.6g}")] for t, e in history]}
+    clip_rmse = [float(np.sqrt(np.mean(frame_rmse[a:b] ** 2))) for a, b in zip(clips.starts[:-1], clips.starts[1:])]
+    summary["clips"] = [{"name": name, "frames": int(n), "rmse": rmse, "rmse_over_diagonal": rmse / diagonal}
+                        for name, n, rmse in zip(clips.names, clips.frames, clip_rmse)]
     lines = [f"wrote {output}: {bones} bones, {count} vertices, {frames} frames; "
              f"RMSE {result.rmse:.4g} = {result.rmse / diagonal:.2e} of the bounding-box diagonal "
              f"({result.iterations} iterations, {state}, {seconds:.1f} s)",

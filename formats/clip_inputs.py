@@ -84,21 +84,29 @@ def read_clips(specs, prim=None, fps=None):
                    clip_names=tuple(names), clip_frames=tuple(len(s.vertices) for s in sequences))
 
 
+def mesh_difference(count, faces, reference_count, reference_faces, reference):
+    """The first way a mesh of ``count`` vertices and ``faces (T, 3)`` differs from the one named
+    ``reference`` (its vertex count, then its triangle count, then the first face that differs),
+    as a phrase ("has 8430 vertices where clip a.npz has 8431"), or None for the same mesh."""
+    if count != reference_count:
+        return f"has {count} vertices where {reference} has {reference_count}"
+    if faces.shape != reference_faces.shape:
+        return f"has {len(faces)} triangles where {reference} has {len(reference_faces)}"
+    differ = np.flatnonzero(np.any(faces != reference_faces, axis=1))
+    if differ.size:
+        k = int(differ[0])
+        return (f"has face {k} = {tuple(int(v) for v in faces[k])} where {reference} has "
+                f"{tuple(int(v) for v in reference_faces[k])}")
+    return None
+
+
 def _require_same_mesh(first, other):
     """FormatError naming ``other``'s first difference from ``first``: vertices, faces, fps, scene."""
     where = f"(clip {first.source} has"
-    count, other_count = first.vertices.shape[1], other.vertices.shape[1]
-    if count != other_count:
-        raise FormatError(other.source, f"has {other_count} vertices {where} {count}): the clips must be one mesh")
-    if first.faces.shape != other.faces.shape:
-        raise FormatError(other.source, f"has {len(other.faces)} triangles {where} {len(first.faces)}): "
-                                        "the clips must be one mesh")
-    differ = np.flatnonzero(np.any(first.faces != other.faces, axis=1))
-    if differ.size:
-        k = int(differ[0])
-        raise FormatError(other.source, f"face {k} is {tuple(int(v) for v in other.faces[k])} {where} "
-                                        f"{tuple(int(v) for v in first.faces[k])}): the clips must be one mesh "
-                                        "with its vertices in the same order")
+    difference = mesh_difference(other.vertices.shape[1], other.faces, first.vertices.shape[1], first.faces,
+                                 f"clip {first.source}")
+    if difference:
+        raise FormatError(other.source, f"{difference}: the clips must be one mesh, its vertices in the same order")
     if other.fps != first.fps:
         raise FormatError(other.source, f"plays at {other.fps:g} fps {where} {first.fps:g}); give --fps to "
                                         "read every clip at one rate")
