@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 DEMO   := build/demo
 
-.PHONY: setup browser demo test test-fast bench blender clean
+.PHONY: setup browser demo docs test test-fast bench blender clean
 
 JS     := tests/contracts/js
 
@@ -69,7 +69,13 @@ demo: setup
 	@echo "  synthesized.mp4  two of them rendered headless, seams marked red (skinsynth preview)"
 	@echo "  puppet_vs_truth.mp4  the puppet's held-out frames next to the truth, its error in red"
 
-test: setup
+# The manual (docs/, mkdocs.yml) built into build/site with --strict: a link to a missing page or
+# anchor, or a page left out of the nav, fails it (never -q: mkdocs then drops the warnings that
+# strict mode counts). Each command's --help on its page is checked by tests/contracts/test_docs.py.
+docs: setup
+	$(BIN)/mkdocs build --strict --site-dir build/site
+
+test: setup docs
 	$(BIN)/python -m pytest -q
 
 test-fast: setup
