@@ -1,20 +1,21 @@
 """skinsynth.gpu: warp kernels with numpy references, and the device choice.
 
 Public API (resolved lazily, so importing this package neither imports nor initialises warp):
-lbs, dq_skin (skinning), lbs_reference, dqs_reference, vertex_dual_quaternions
+lbs, dq_skin, linear_skin (skinning), lbs_reference, dqs_reference, vertex_dual_quaternions
 (references.skinning), resolve_device, available_devices, DeviceError (runtime); the puppet's
 run-time path: kernel_vectors, predict_dual_quaternions, normalise_dual_quaternions,
-solve_translations, corrective_offsets (puppet_stages, one launch each), run_puppet (puppet_run),
-DevicePuppet (device_puppet), PuppetArrays (puppet_arrays), and their numpy references
-(references.puppet): the stage references *_reference and reference_run_puppet; fit-skin's two
-warp solves (skin_fit): solve_vertex_weights_warp, sweep_bone_transforms_warp. The quaternion and
-dual-quaternion arithmetic is pipeline.rotations' (the floor of the algorithms); the references
-here write the few closed forms they need themselves, as independent oracles.
+solve_translations, rigid_transforms, corrective_offsets (puppet_stages, one launch each),
+run_puppet (puppet_run), DevicePuppet (device_puppet), PuppetArrays (puppet_arrays), and their
+numpy references (references.puppet): the stage references *_reference and reference_run_puppet;
+fit-skin's two warp solves (skin_fit): solve_vertex_weights_warp, sweep_bone_transforms_warp. The
+quaternion and dual-quaternion arithmetic is pipeline.rotations' (the floor of the algorithms); the
+references here write the few closed forms they need themselves, as independent oracles.
 
 Three kinds of module: references/ (numpy only), kernels/ (the warp kernels at module level;
 each imports and initialises warp, through runtime, when imported), and the launchers here
 (host code: validation, uploads, chunks, BLAS threads, launches), which import kernels/ only
 inside their functions. runtime.py is the one place that imports and initialises warp.
+compile_cpu_kernels (precompile) builds every module the CPU path loads ahead of use.
 """
 
 import importlib
@@ -29,6 +30,9 @@ _EXPORTS = {
     "normalise_dual_quaternions": "puppet_stages",
     "solve_translations": "puppet_stages",
     "dq_skin": "skinning",
+    "linear_skin": "skinning",
+    "rigid_transforms": "puppet_stages",
+    "rigid_transforms_reference": "references.puppet",
     "corrective_offsets": "puppet_stages",
     "corrective_offsets_reference": "references.puppet",
     "corrective_weights_reference": "references.puppet",
@@ -42,6 +46,7 @@ _EXPORTS = {
     "solve_translations_reference": "references.puppet",
     "solve_vertex_weights_warp": "skin_fit",
     "sweep_bone_transforms_warp": "skin_fit",
+    "compile_cpu_kernels": "precompile",
     "resolve_device": "runtime",
     "available_devices": "runtime",
     "DeviceError": "runtime",

@@ -75,7 +75,8 @@ class DevicePuppet:
 class Workspace:
     """Per-chunk device buffers of ``run_puppet`` (one per thread), for up to ``samples`` samples:
     xi (n, n_p), raw (n, B) vec8d, unit, final (n, B) vec8, rot (n, B) mat33, trans, solved (n, B)
-    vec3, frames (n,) vec8, offsets (n, V) vec3 (with device correctives), out (n, V) vec3."""
+    vec3, frames (n,) vec8, offsets (n, V) vec3 (with device correctives), out (n, V) vec3 and, for
+    linear skinning, matrices (n, B) vec12 (each bone's [R | t])."""
 
     def __init__(self, samples, puppet, device):
         wp = runtime.warp()
@@ -96,6 +97,7 @@ class Workspace:
         if puppet.corrective_offsets is not None:
             self.offsets = wp.empty((samples, puppet.verts), dtype=wp.vec3, device=device)
         self._out_shape, self._device, self._out = (samples, puppet.verts), device, None
+        self._matrices = None
 
     @property
     def out(self):
@@ -104,3 +106,13 @@ class Workspace:
             wp = runtime.warp()
             self._out = wp.empty(self._out_shape, dtype=wp.vec3, device=self._device)
         return self._out
+
+    @property
+    def matrices(self):
+        """Each bone's [R | t] (n, B) vec12, for linear skinning (allocated on first use)."""
+        if self._matrices is None:
+            wp = runtime.warp()
+            from .kernels.skinning import vec12
+
+            self._matrices = wp.empty(self.final.shape, dtype=vec12, device=self._device)
+        return self._matrices

@@ -4,8 +4,8 @@ launches, in chunks of samples, over Python threads on the CPU.
 
 A per-sample rigid world transform is folded into every bone's dual quaternion before skinning
 (so the skinning writes world positions directly); the skinning is dual-quaternion (Feng §6.3) or
-linear-blend (each composed dual quaternion turned into its rotation and translation by one more
-kernel, then the LBS kernel); ``reference_run_puppet`` is the same in numpy
+linear-blend (the composing kernel writes each bone's 3×4 matrix [R | t] instead of its dual
+quaternion, and the LBS kernel blends those per vertex); ``reference_run_puppet`` is the same in numpy
 (it applies the world transforms to the skinned vertices instead). The host side of the run time
 stays in numpy: aligning the controls (``pipeline.puppet.in_place``) and standardising them;
 ``pipeline.playback.host_inputs`` does both for a ``Puppet`` and world controls.
@@ -35,8 +35,8 @@ def _run_chunk(puppet, space, x, c, f, out, device, timings=None, offsets_host=N
     offsets_host: on the CPU, the chunk's corrective offsets (n, V, 3) float32, already computed
     (``cpu_corrective_offsets``; may be ``out`` itself: each vertex is read, then written)."""
     wp = runtime.warp()
-    from .kernels.puppet import (compose_kernel, corrective_offsets_kernel, frames_kernel, kernel_vector_kernel,
-                                 normalise_kernel, predict_kernel, rigid_kernel, solve_kernel)
+    from .kernels.puppet import (compose_kernel, compose_rigid_kernel, corrective_offsets_kernel, frames_kernel,
+                                 kernel_vector_kernel, normalise_kernel, predict_kernel, solve_kernel)
 
     host = puppet.host
     n = x.shape[0]
@@ -75,13 +75,13 @@ def _run_chunk(puppet, space, x, c, f, out, device, timings=None, offsets_host=N
                           puppet.prior],
                   outputs=[space.solved[:n]], device=device)
         mark("solve_translations")
-    wp.launch(compose_kernel, dim=(n, bones),
+    linear = skinning == "linear"
+    # linear: each bone's [R | t] straight from its composed dual quaternion, in the same launch
+    composed = space.matrices[:n] if linear else space.final[:n]
+    wp.launch(compose_rigid_kernel if linear else compose_kernel, dim=(n, bones),
               inputs=[unit, space.solved[:n], space.frames[:n], int(solve), int(f is not None)],
-              outputs=[space.final[:n]], device=device)
+              outputs=[composed], device=device)
     mark("compose")
-    if skinning == "linear":  # rot and trans are free once composed: each bone's rigid transform goes there
-        wp.launch(rigid_kernel, dim=(n, bones), inputs=[space.final[:n]], outputs=[rot, trans], device=device)
-        mark("rigid")
     offsets = None
     if offsets_host is not None:
         offsets = wp.array(offsets_host, dtype=wp.vec3, device="cpu", copy=False)
@@ -97,10 +97,10 @@ def _run_chunk(puppet, space, x, c, f, out, device, timings=None, offsets_host=N
         target = wp.array(out.reshape(n, -1, 3), dtype=wp.vec3, device="cpu", copy=False)
     else:
         target = space.out[:n]
-    if skinning == "linear":
-        puppet.skin.launch_linear(rot, trans, target, device, offsets)
+    if linear:
+        puppet.skin.launch_linear(composed, target, device, offsets)
     else:
-        puppet.skin.launch(space.final[:n], target, device, offsets)
+        puppet.skin.launch(composed, target, device, offsets)
     mark("skin")
     if not direct:
         out[...] = target.numpy()
@@ -122,9 +122,9 @@ def run_puppet(puppet, standardised_controls, controls_in_place=None, world_fram
     Stages (all on the device, arrays stay there between launches): ξ, d = M ξ + m,
     normalise, [t = Γ·R + Q·c + Π·t̂], rebuild each bone's dual quaternion with t and compose
     it with the sample's world frame, then skinning: ``skinning`` "dual-quaternion" (Feng §6.3) or
-    "linear" (each bone's rotation and translation from its composed unit dual quaternion, then
-    linear-blend skinning; the correctives' rest offsets are added to the rest pose first either
-    way). Samples go in chunks of at most 2**24 skinned vertices.
+    "linear" (each bone's rotation and translation from its composed unit dual quaternion, in the
+    composing launch, then linear-blend skinning; the correctives' rest offsets are added to the
+    rest pose first either way). Samples go in chunks of at most 2**24 skinned vertices.
 
     out: optional (N, V, 3) array to fill (float32 avoids the float64 conversion; on the CPU a
     C-contiguous float32 ``out`` is written in place by the kernel); returned. Default: a new

@@ -8,7 +8,10 @@ The stages, each with its numpy reference in ``gpu.references.puppet``:
 2. :func:`predict_dual_quaternions` — d = M ξ + m for all bones at once (Feng §6.1), (N, B, 8);
 3. :func:`normalise_dual_quaternions` — unit d, its rotations (N, B, 3, 3) and translations;
 4. :func:`solve_translations` — the Poisson translations t = Γ·R + Q·c + Π·t̂ (Feng §6.2);
-5. :func:`corrective_offsets` — the pose-space correctives' rest offsets Σ_j w_j O_j
+5. :func:`rigid_transforms` — for linear skinning, each bone's final 3×4 matrix [R | t] (N, B, 3, 4):
+   the solver's translation and the world frame composed into its dual quaternion, then turned
+   into a matrix, in one launch; ``gpu.skinning.linear_skin`` skins by them;
+6. :func:`corrective_offsets` — the pose-space correctives' rest offsets Σ_j w_j O_j
    (``pipeline.correctives``; the blend weights w = A ξ^p + B [1, x Pᵀ] in float64 on the host,
    ``corrective_weights_reference``, the blend in float32), (N, V, 3); then ``gpu.skinning.dq_skin``
    (Kavan et al. 2007; Feng §6.3) skins the rest pose plus those offsets.
@@ -116,6 +119,41 @@ def solve_translations(rotations, controls, predicted_translations, rotation_ope
                           float32_array(q, wp.float32, device), float32_array(prior, wp.float32, device)],
                   outputs=[out], device=device)
     return out.numpy().astype(np.float64)
+
+
+def rigid_transforms(dual_quaternions, translations=None, world_frames=None, device="cpu") -> np.ndarray:
+    """Each bone's final [R | t] (N, B, 3, 4) float64 (``rigid_transforms_reference``): unit dual
+    quaternions (N, B, 8), their translations replaced by ``translations`` (N, B, 3) if given, then
+    composed with the rigid world frames (N, 4, 4) if given; the launch ``run_puppet`` makes for a
+    linear skinning (``compose_rigid_kernel``)."""
+    d = np.asarray(dual_quaternions)
+    if d.ndim != 3 or d.shape[2] != 8:
+        raise ValueError(f"dual quaternions must be (N, B, 8), got {d.shape}")
+    shape = d.shape[:2]
+    if translations is not None and np.shape(translations) != shape + (3,):
+        raise ValueError(f"translations must be {shape + (3,)}, got {np.shape(translations)}")
+    if world_frames is not None and np.shape(world_frames) != (shape[0], 4, 4):
+        raise ValueError(f"world frames must be ({shape[0]}, 4, 4), got {np.shape(world_frames)}")
+    device = runtime.resolve_device(device)
+    wp = runtime.warp()
+    from .kernels.dual_quaternion import vec8
+    from .kernels.puppet import compose_rigid_kernel, frames_kernel
+    from .kernels.skinning import vec12
+
+    out = wp.empty(shape, dtype=vec12, device=device)
+    if out.size == 0:
+        return np.empty(shape + (3, 4))
+    trans = wp.empty((1, 1), dtype=wp.vec3, device=device) if translations is None \
+        else float32_array(translations, wp.vec3, device)
+    frames = wp.empty(shape[0], dtype=vec8, device=device)
+    if world_frames is not None:
+        wp.launch(frames_kernel, dim=shape[0], inputs=[float32_array(world_frames, wp.mat44, device)],
+                  outputs=[frames], device=device)
+    wp.launch(compose_rigid_kernel, dim=shape,
+              inputs=[float32_array(d, vec8, device), trans, frames, int(translations is not None),
+                      int(world_frames is not None)],
+              outputs=[out], device=device)
+    return out.numpy().reshape(shape + (3, 4)).astype(np.float64)
 
 
 def corrective_offsets(blend_weights, offsets, device="cpu") -> np.ndarray:

@@ -2,7 +2,8 @@
 validation, uploads, chunks, launches of ``gpu.kernels.skinning``).
 
 Shapes as the references' (``gpu.references.skinning``): rest (V, 3); bone indices and weights
-(V, K), a zero weight a padding slot; rotations (F, B, 3, 3) and translations (F, B, 3), or dual
+(V, K), a zero weight a padding slot; rotations (F, B, 3, 3) and translations (F, B, 3), bone
+matrices [R | t] (F, B, 3, 4) (``linear_skin``, the puppet's linear skinning), or dual
 quaternions (F, B, 8); result (F, V, 3) float64, computed in float32.
 """
 
@@ -70,8 +71,8 @@ def skin_arrays(rest_vertices, bone_indices, bone_weights, bones):
 
 class SkinBuffers:
     """Rest (V,) vec3, bone indices and weights (V, K), slots sorted by :func:`skin_arrays`, on the
-    device, for dual-quaternion skinning (:meth:`launch`) or linear-blend skinning
-    (:meth:`launch_linear`)."""
+    device, for dual-quaternion skinning (:meth:`launch`) or linear-blend skinning by bone
+    matrices (:meth:`launch_linear`)."""
 
     def __init__(self, rest, idx, w, device):
         wp = runtime.warp()
@@ -92,18 +93,48 @@ class SkinBuffers:
         wp.launch(dq_skin_kernel(self.influences, corrected), dim=out.shape,
                   inputs=[self.rest, self.idx, self.w, dual_quaternions, offsets], outputs=[out], device=device)
 
-    def launch_linear(self, rotations, translations, out, device, offsets=None):
-        """Linear-blend skin into out (n, V) vec3 by rotations (n, B) mat33 and translations (n, B)
-        vec3; offsets (n, V) vec3 added to the rest pose first, or None."""
+    def launch_linear(self, matrices, out, device, offsets=None):
+        """Linear-blend skin into out (n, V) vec3 by bone matrices (n, B) vec12 (each bone's
+        [R | t], ``kernels.skinning.vec12``); offsets (n, V) vec3 added to the rest pose first, or None."""
         wp = runtime.warp()
-        from .kernels.skinning import lbs_kernel
+        from .kernels.skinning import blended_lbs_kernel
 
         corrected = offsets is not None
         if not corrected:
             offsets = wp.empty((1, 1), dtype=wp.vec3, device=device)
-        wp.launch(lbs_kernel(self.influences, corrected), dim=out.shape,
-                  inputs=[self.rest, self.idx, self.w, rotations, translations, offsets], outputs=[out],
-                  device=device)
+        wp.launch(blended_lbs_kernel(self.influences, corrected), dim=out.shape,
+                  inputs=[self.rest, self.idx, self.w, matrices, offsets], outputs=[out], device=device)
+
+
+def linear_skin(rest_vertices, bone_indices, bone_weights, matrices, device="cpu", rest_offsets=None) -> np.ndarray:
+    """Linear-blend skinning by bone matrices, vertices (N, V, 3) float64: ``lbs_reference`` with
+    rotations matrices[..., :3] and translations matrices[..., 3], by the puppet's linear kernel
+    (``blended_lbs_kernel``: each vertex's matrices blended, then applied) in one launch over
+    (samples, vertices) per chunk of at most 2**24 vertex-samples. matrices (N, B, 3, 4) [R | t];
+    rest_offsets (N, V, 3), optional: added to the rest pose of each sample first."""
+    m = np.asarray(matrices)
+    if m.ndim != 4 or m.shape[2:] != (3, 4):
+        raise ValueError(f"bone matrices must be (N, B, 3, 4), got {m.shape}")
+    rest, idx, w = skin_arrays(rest_vertices, bone_indices, bone_weights, m.shape[1])
+    samples, verts = m.shape[0], rest.shape[0]
+    offsets = checked_offsets(rest_offsets, samples, verts)
+    out = np.empty((samples, verts, 3))
+    if out.size == 0:
+        return out
+    device = runtime.resolve_device(device)
+    wp = runtime.warp()
+    from .kernels.skinning import vec12
+
+    skin = SkinBuffers(rest, idx, w, device)
+    m_d = float32_array(m.reshape(samples, -1, 12), vec12, device)
+    step = max(1, _DEVICE_CHUNK // verts)
+    buf = wp.empty((min(step, samples), verts), dtype=wp.vec3, device=device)
+    offsets = None if offsets is None else float32_array(offsets, wp.vec3, device)
+    for n0 in range(0, samples, step):
+        n = min(step, samples - n0)
+        skin.launch_linear(m_d[n0 : n0 + n], buf[:n], device, None if offsets is None else offsets[n0 : n0 + n])
+        out[n0 : n0 + n] = buf[:n].numpy()
+    return out
 
 
 def dq_skin(rest_vertices, bone_indices, bone_weights, dual_quaternions, device="cpu", rest_offsets=None) -> np.ndarray:

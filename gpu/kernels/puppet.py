@@ -11,6 +11,7 @@ import functools
 
 from .. import runtime
 from .dual_quaternion import dq_dual, dq_pack, dq_real, vec8, vec8d
+from .skinning import vec12
 
 wp = runtime.warp()
 
@@ -117,17 +118,18 @@ def frames_kernel(frames: wp.array(dtype=wp.mat44), out: wp.array(dtype=vec8)):
     out[n] = dq_pack(q0, 0.5 * (t * q0))
 
 
-@wp.kernel
-def compose_kernel(
-    unit: wp.array2d(dtype=vec8),  # (N, B)
-    translations: wp.array2d(dtype=wp.vec3),  # (N, B), read when use_translations
-    frames: wp.array(dtype=vec8),  # (N,), read when use_frames
+@wp.func
+def composed(
+    unit: wp.array2d(dtype=vec8),
+    translations: wp.array2d(dtype=wp.vec3),
+    frames: wp.array(dtype=vec8),
     use_translations: int,
     use_frames: int,
-    out: wp.array2d(dtype=vec8),
+    n: int,
+    b: int,
 ):
-    """Final per-bone dual quaternion: the solver's translation (if any), then the world frame (if any)."""
-    n, b = wp.tid()
+    """Sample n's final dual quaternion of bone b: the solver's translation (if any), then the
+    world frame (if any)."""
     v = unit[n, b]
     q0 = dq_real(v)
     qe = dq_dual(v)
@@ -140,23 +142,43 @@ def compose_kernel(
         # (f0 + ε fe)(q0 + ε qe) = f0 q0 + ε (f0 qe + fe q0)
         qe = f0 * qe + dq_dual(f) * q0
         q0 = f0 * q0
-    out[n, b] = dq_pack(q0, qe)
+    return dq_pack(q0, qe)
 
 
 @wp.kernel
-def rigid_kernel(
-    dual_quaternions: wp.array2d(dtype=vec8),  # (N, B) unit: compose_kernel's output
-    rotations: wp.array2d(dtype=wp.mat33),
-    translations: wp.array2d(dtype=wp.vec3),
+def compose_kernel(
+    unit: wp.array2d(dtype=vec8),  # (N, B)
+    translations: wp.array2d(dtype=wp.vec3),  # (N, B), read when use_translations
+    frames: wp.array(dtype=vec8),  # (N,), read when use_frames
+    use_translations: int,
+    use_frames: int,
+    out: wp.array2d(dtype=vec8),
 ):
-    """Each bone's rigid transform for linear-blend skinning: the rotation of the unit real part
-    q0 and t = 2 (qe q0*).xyz (the composed dual quaternions are unit up to float32 rounding)."""
+    """Final per-bone dual quaternion (:func:`composed`), for dual-quaternion skinning."""
     n, b = wp.tid()
-    v = dual_quaternions[n, b]
+    out[n, b] = composed(unit, translations, frames, use_translations, use_frames, n, b)
+
+
+@wp.kernel
+def compose_rigid_kernel(
+    unit: wp.array2d(dtype=vec8),  # (N, B)
+    translations: wp.array2d(dtype=wp.vec3),  # (N, B), read when use_translations
+    frames: wp.array(dtype=vec8),  # (N,), read when use_frames
+    use_translations: int,
+    use_frames: int,
+    out: wp.array2d(dtype=vec12),
+):
+    """Final per-bone rigid transform, for linear-blend skinning (``blended_lbs_kernel``): the
+    composed dual quaternion (:func:`composed`, unit up to float32 rounding) as the 3×4 matrix
+    [R | t], R the rotation of its real part q0 and t = 2 (qe q0*).xyz, in the same launch."""
+    n, b = wp.tid()
+    v = composed(unit, translations, frames, use_translations, use_frames, n, b)
     q0 = dq_real(v)
     p = dq_dual(v) * wp.quat(-q0[0], -q0[1], -q0[2], q0[3])  # qe q0*
-    rotations[n, b] = wp.quat_to_matrix(q0)
-    translations[n, b] = 2.0 * wp.vec3(p[0], p[1], p[2])
+    r = wp.quat_to_matrix(q0)
+    out[n, b] = vec12(r[0, 0], r[0, 1], r[0, 2], 2.0 * p[0],
+                      r[1, 0], r[1, 1], r[1, 2], 2.0 * p[1],
+                      r[2, 0], r[2, 1], r[2, 2], 2.0 * p[2])
 
 
 @wp.kernel

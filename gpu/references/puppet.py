@@ -68,6 +68,22 @@ def normalise_dual_quaternions_reference(d):
     return unit, rotations, 2.0 * _hamilton(unit[..., 4:], conjugate)[..., 1:]
 
 
+def rigid_transforms_reference(dual_quaternions, translations=None, world_frames=None):
+    """Each bone's final 3×4 matrix [R | t] (N, B, 3, 4) for linear skinning: the rotation and
+    translation of unit dual quaternions (N, B, 8), the translation replaced by ``translations``
+    (N, B, 3) if given (the solver's), then composed with the sample's rigid world frame (N, 4, 4)
+    if given: [F_R R | F_R t + F_t]. Composed as matrices, an oracle for the device's composition
+    of dual quaternions."""
+    _, rot, trans = normalise_dual_quaternions_reference(dual_quaternions)
+    if translations is not None:
+        trans = np.asarray(translations, dtype=np.float64)
+    if world_frames is not None:
+        f = np.asarray(world_frames, dtype=np.float64)
+        rot = np.einsum("nac,nbcd->nbad", f[:, :3, :3], rot)
+        trans = np.einsum("nac,nbc->nba", f[:, :3, :3], trans) + f[:, None, :3, 3]
+    return np.concatenate([rot, trans[..., None]], axis=-1)
+
+
 def solve_translations_reference(rotations, controls, predicted_translations, rotation_operator,
                                  control_operator, prior_operator):
     """Feng §6.2's translations t = Γ·R + Q·c + Π·t̂ (N, B, 3): rotations (N, B, 3, 3), controls

@@ -140,6 +140,64 @@ def test_dq_skin_chunks(monkeypatch, device):
     assert relative_error(gpu.dq_skin(rest, idx, w, dq, device=device), gpu.dqs_reference(rest, idx, w, dq)) < TOL
 
 
+@pytest.mark.parametrize("influences", [1, 2, 3, 4])
+@pytest.mark.parametrize("corrected", [False, True])
+def test_linear_skin(influences, corrected, device):
+    # the puppet's linear kernel (bone matrices blended per vertex, then applied) against
+    # lbs_reference, by rigid and by affine bone matrices, with and without rest offsets
+    rng = np.random.default_rng(10 * influences + corrected)
+    samples, bones = 6, 13
+    rest, idx, w = random_skin(rng, 500, bones, influences)
+    rigid = np.concatenate([random_rotations(rng, (samples, bones)), rng.normal(size=(samples, bones, 3, 1)) * 2],
+                           axis=-1)
+    offsets = rng.normal(size=(samples, 500, 3)) * 0.1 if corrected else None
+    for matrices in (rigid, rng.normal(size=(samples, bones, 3, 4))):
+        expected = gpu.lbs_reference(rest, idx, w, matrices[..., :3], matrices[..., 3], offsets)
+        got = gpu.linear_skin(rest, idx, w, matrices, device=device, rest_offsets=offsets)
+        assert relative_error(got, expected) < TOL
+
+
+def test_linear_skin_chunks_and_bad_input(monkeypatch, device):
+    monkeypatch.setattr(skinning, "_DEVICE_CHUNK", 1000)  # 3 samples per launch over 300 vertices
+    rng = np.random.default_rng(6)
+    rest, idx, w = random_skin(rng, 300, 7, 3)
+    matrices = rng.normal(size=(10, 7, 3, 4))
+    expected = gpu.lbs_reference(rest, idx, w, matrices[..., :3], matrices[..., 3])
+    assert relative_error(gpu.linear_skin(rest, idx, w, matrices, device=device), expected) < TOL
+    assert gpu.linear_skin(rest, idx, w, matrices[:0], device=device).shape == (0, 300, 3)
+    with pytest.raises(ValueError, match="bone matrices must be"):
+        gpu.linear_skin(rest, idx, w, matrices[..., :3], device=device)
+
+
+@pytest.mark.parametrize("solver", [True, False])
+@pytest.mark.parametrize("framed", [True, False])
+def test_rigid_transforms(solver, framed, device):
+    # the composing launch of a linear run: dual quaternions (signs flipped at random), the
+    # solver's translations, the world frames, composed on the device as dual quaternions and
+    # against the reference's composition of matrices
+    rng = np.random.default_rng(1 + solver + 2 * framed)
+    samples, bones = 11, 9
+    dq = random_dual_quaternions(rng, samples, bones)
+    trans = rng.normal(size=(samples, bones, 3)) if solver else None
+    frames = random_rigid_frames(rng, samples) if framed else None
+    got = gpu.rigid_transforms(dq, trans, frames, device=device)
+    expected = gpu.rigid_transforms_reference(dq, trans, frames)
+    assert got.shape == (samples, bones, 3, 4)
+    assert relative_error(got, expected) < TOL
+    # the convention spelled out for one bone: [R | t] moves p to R p + t
+    _, rot, t = gpu.normalise_dual_quaternions_reference(dq)
+    if solver:
+        t = trans
+    p, n, b = rng.normal(size=3), samples - 1, 4
+    moved = rot[n, b] @ p + t[n, b]
+    if framed:
+        moved = frames[n, :3, :3] @ moved + frames[n, :3, 3]
+    assert np.allclose(got[n, b, :, :3] @ p + got[n, b, :, 3], moved, atol=1e-5 * np.abs(moved).max())
+    assert gpu.rigid_transforms(dq[:0], device=device).shape == (0, bones, 3, 4)
+    with pytest.raises(ValueError, match="world frames must be"):
+        gpu.rigid_transforms(dq, None, frames[:, :3] if framed else np.zeros((2, 4, 4)), device=device)
+
+
 def random_rigid_frames(rng, samples):
     frames = np.zeros((samples, 4, 4))
     frames[:, :3, :3] = random_rotations(rng, (samples,))
@@ -289,7 +347,8 @@ def test_run_puppet_linear_chunks_and_timings(monkeypatch, device):
     got = gpu.run_puppet(gpu.DevicePuppet(puppet, device), x, c, frames, timings=timings, threads=2,
                          skinning="linear")
     assert relative_error(got, expected) < TOL
-    assert {"compose", "rigid", "skin"} <= set(timings)
+    assert {"compose", "skin"} <= set(timings)
+    assert "rigid" not in timings  # each bone's [R | t] is made in the composing launch
 
 
 def test_run_puppet_rejects_an_unknown_skinning():
