@@ -26,15 +26,16 @@ from .outputs import (TEXTURES, check_animation_output, check_bone_texture_outpu
 @click.option("--instances", default=1, show_default=True, type=int,
               help="Characters from one --controls file, each starting a fraction of the clip later.")
 @click.option("--as", "kind", type=click.Choice(["skel", "points", "bones"]), default="skel", show_default=True,
-              help="USD: UsdSkel with dual-quaternion skinning (editable bones; a puppet's correctives as "
-                   "blend shapes), or baked time-sampled meshes. A folder: bones writes bone-animation textures "
+              help="USD: UsdSkel skinned as played (skinningMethod classicLinear or dualQuaternion, by "
+                   "--skinning; editable bones; a puppet's correctives as blend shapes), or baked time-sampled "
+                   "meshes. A folder: bones writes bone-animation textures "
                    "(each character a clip of one bones.exr, in place; --skinning linear, no correctives; "
                    "docs/bone_textures.md) instead of vertex-animation textures.")
-@click.option("--skinning", type=click.Choice(["dual-quaternion", "linear"]), default=None,
-              help="Dual quaternions (Feng §6.3) or linear blend skinning, for every output. UsdSkel's "
+@click.option("--skinning", type=click.Choice(["linear", "dual-quaternion"]), default=None,
+              help="Linear blend skinning or dual quaternions (Feng §6.3), for every output. UsdSkel's "
                    "dualQuaternion is ignored by Blender's importer (it skins linearly: 1.7e-2 of the diagonal "
                    "away on the horse); linear gives a rig every DCC and engine plays as computed.  [default: the "
-                   "one the puppet was trained for (train-kcca --skinning)]")
+                   "one the puppet was trained for (train-kcca --skinning, linear unless asked otherwise)]")
 @texture_options("Textures (-o DIR/ or .exr): 16-bit half floats instead of 32-bit.",
                  "Textures: width limit; vertices wrap to more rows.")
 @click.option("--spacing", default=None, type=float,
@@ -51,8 +52,9 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     """Play a puppet: control-point trajectories in, whole-surface animation out (Feng §6).
 
     Per frame and character: kernel vector, d = M ξ for all bones, dual-quaternion
-    normalisation, Poisson translations, dual-quaternion skinning — all frames and characters
-    in one batch of warp kernels (CUDA when present, else the CPU).
+    normalisation, Poisson translations, then skinning by the puppet's skinning (linear blend
+    unless it was trained with train-kcca --skinning dual-quaternion; --skinning chooses) — all
+    frames and characters in one batch of warp kernels (CUDA when present, else the CPU).
 
     \b
     Examples:

@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -117,3 +118,12 @@ def test_device_cuda_without_gpu_is_one_line(files, tmp_path):
     assert run.returncode == 2
     assert run.stderr.strip().count("\n") == 0 and "no CUDA device" in run.stderr
     assert not os.listdir(tmp_path)
+
+
+def test_help_names_both_skinnings_and_linear_by_default():
+    # play once called every puppet dual-quaternion; linear is train-kcca's default, --skinning chooses
+    text = re.sub(r"-\s+", "-", " ".join(assert_ok(cli("play", "--help")).stdout.split()))  # unwrapped
+    assert "dual-quaternion skinning —" not in text and "UsdSkel with dual-quaternion skinning" not in text
+    assert "linear blend unless it was trained with train-kcca --skinning dual-quaternion" in text
+    assert "--skinning chooses" in text
+    assert "linear unless asked otherwise" in text
