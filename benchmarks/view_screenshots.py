@@ -112,20 +112,20 @@ def main():
     parser.add_argument("--out", default=str(ROOT / "docs"))
     parser.add_argument("--work", default=str(ROOT / "build" / "view-screenshots"))
     opts = parser.parse_args()
-    work = os.path.abspath(opts.work)
+    work, out = os.path.abspath(opts.work), os.path.abspath(opts.out)
     build(work)
+    # Served from the work folder by relative names, as a user would: the page shows the record
+    # button's default file (puppet.session.csv), not a path of this machine.
+    os.chdir(work)
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as playwright:
         browser = playwright.chromium.launch(executable_path=CHROMIUM, args=LAUNCH_ARGS)
         try:
-            puppet = os.path.join(work, "puppet.h5")
-            capture(browser, puppet, os.path.join(opts.out, "view_puppet.png"), move_a_control(puppet),
-                    "--device", "cpu", "--record", os.path.join(work, "session.csv"))
-            capture(browser, os.path.join(work, "skin.h5"), os.path.join(opts.out, "view_skin.png"), play_a_second,
-                    "--error-scale", "0.00005")
-            bones = os.path.join(work, "bones.h5")
-            capture(browser, bones, os.path.join(opts.out, "view_synthesis.png"), calm_frame(bones, 1),
+            capture(browser, "puppet.h5", os.path.join(out, "view_puppet.png"), move_a_control("puppet.h5"),
+                    "--device", "cpu")
+            capture(browser, "skin.h5", os.path.join(out, "view_skin.png"), play_a_second, "--error-scale", "0.00005")
+            capture(browser, "bones.h5", os.path.join(out, "view_synthesis.png"), calm_frame("bones.h5", 1),
                     "--animation", "1")
         finally:
             browser.close()
