@@ -20,6 +20,7 @@ from .train_kcca import train_kcca
 from .evaluate import evaluate
 from .build_graph import build_graph
 from .play import play
+from .precompile import precompile
 from .preview import preview
 from .synthesize import synthesize
 from .view import view
@@ -126,3 +127,4 @@ main.add_command(build_graph)
 main.add_command(synthesize)
 main.add_command(preview)
 main.add_command(view)
+main.add_command(precompile)

@@ -4,13 +4,14 @@
 weights (:mod:`.skin_weights`, :mod:`.vertex_weights`, :mod:`.simplex_qp`), alternated to
 convergence (:mod:`.skin_fit`).
 
-Public: fit_skin, fit_bones_to_rig (a new take on a given rig), finish_fit, validate_fit_options, fit_memory_bytes, bone_rest_frames, SkinFit.
+Public: fit_skin, fit_bones_to_rig (a new take on a given rig), finish_fit, validate_fit_options, fit_memory_bytes, bone_rest_frames, SkinFit;
+compile_loops (the compiled loops built ahead of use: ``skinsynth precompile``).
 """
 
 from .._lazy import lazy_exports
 
 _EXPORTS = {"fit_skin": "skin_fit", "fit_bones_to_rig": "skin_fit", "finish_fit": "skin_fit", "validate_fit_options": "skin_fit",
             "fit_memory_bytes": "skin_fit", "bone_rest_frames": "skin_fit",
-            "SkinFit": "skin_fit"}
+            "SkinFit": "skin_fit", "compile_loops": "precompile"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -3,6 +3,7 @@ a ground plane (:mod:`.rasteriser`), previews laid out as panels with captions (
 and what ``skinsynth view`` shows, as pure functions on arrays (:mod:`.scenes`).
 
 Public: render, frame_bounds, ground_layer, Panel, Preview, error_colors, frame_captions, walk_captions,
+compile_loops (the rasteriser built ahead of use: ``skinsynth precompile``),
 split_by_key, error_levels, level_colors, vertex_errors, vertex_components, face_components, component_colors,
 seam_frames, extrapolation, extrapolation_scale, extrapolation_color, resample_session, side_by_side.
 """
@@ -11,7 +12,7 @@ from .._lazy import lazy_exports
 
 _EXPORTS = {"render": "rasteriser", "frame_bounds": "rasteriser", "ground_layer": "rasteriser", "Panel": "preview",
             "Preview": "preview", "error_colors": "preview", "frame_captions": "preview",
-            "walk_captions": "preview", **{name: "scenes" for name in (
+            "walk_captions": "preview", "compile_loops": "precompile", **{name: "scenes" for name in (
                 "split_by_key", "error_levels", "level_colors", "vertex_errors", "vertex_components",
                 "face_components", "component_colors", "seam_frames", "extrapolation", "extrapolation_scale",
                 "extrapolation_color", "resample_session", "side_by_side")}}

@@ -1,0 +1,80 @@
+"""``skinsynth precompile``: build every compiled loop and CPU kernel ahead of use (one install step)."""
+
+import time
+
+import click
+
+from .common import report, summary_options, user_errors
+
+
+@click.command("precompile")
+@click.option("--influences", "-k", "influences", multiple=True, type=int, default=(4,), show_default=True,
+              help="Build the skinning kernels for skins of this many influences per vertex (fit-skin's "
+                   "--max-influences; repeat for several). Other values compile on first use.")
+@summary_options
+@user_errors
+def precompile(influences, quiet, as_json):
+    """Compile every numba loop and every warp CPU kernel the commands use, into the caches they load.
+
+    A command's first run otherwise compiles them itself (fit-skin: about 25 s, play and export:
+    a few seconds each); run this once after installing (make setup does), e.g. as a Dockerfile
+    RUN step, so that every later command starts warm. Running it again only loads what is
+    already built (a second or two), so it also checks the caches.
+
+    Where the results go (the caches the commands then read):
+
+    \b
+      numba loops  $NUMBA_CACHE_DIR when set; else __pycache__ beside skinsynth's sources; if that
+                   folder is not writable (a read-only install), numba's user-wide cache folder
+                   (~/.cache/numba)
+      warp kernels $SKINSYNTH_CACHE_DIR when set; else ~/.cache/skinsynth/warp
+
+    Set these to a writable folder, the same when precompiling and when running (in a Dockerfile:
+    ENV, before the RUN step; Dask workers and farm nodes: the same environment). numba only loads
+    from a folder it can write to, so precompile as the user who runs the commands, or point
+    NUMBA_CACHE_DIR at a folder that user can write. Entries are keyed by the CPU (numba: its
+    name and features; warp: LLVM version and target): a different CPU compiles its own, never
+    loading a wrong binary. --device cuda kernels are built on first use.
+
+    \b
+    Examples:
+      skinsynth precompile
+      NUMBA_CACHE_DIR=/opt/skinsynth/cache SKINSYNTH_CACHE_DIR=/opt/skinsynth/cache skinsynth precompile --json
+    """
+    from skinsynth.gpu import compile_cpu_kernels
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.skin import compile_loops as skin_loops
+    from skinsynth.pipeline.view import compile_loops as view_loops
+
+    if any(k < 1 for k in influences):
+        raise OptionError(f"--influences must be at least 1 (got {min(influences)})")
+    talk = not (quiet or as_json)
+    start = time.perf_counter()
+    items = []
+
+    def done(item):
+        items.append(item)
+        if talk:
+            click.echo(_line(item))
+
+    done(skin_loops())
+    done(view_loops())
+    compile_cpu_kernels(tuple(dict.fromkeys(influences)), done=done)
+    seconds = time.perf_counter() - start
+    compiled, loaded = sum(i["compiled"] for i in items), sum(i["loaded"] for i in items)
+    caches = {kind: sorted({path for i in items if i["kind"] == kind for path in i["cache"]}) for kind in ("numba", "warp")}
+    summary = {"items": items, "compiled": compiled, "loaded": loaded, "seconds": seconds,
+               "numba_cache": caches["numba"], "warp_cache": caches["warp"]}
+    report(summary, [f"precompiled in {seconds:.1f} s: {compiled} compiled, {loaded} loaded from the caches",
+                     f"numba cache: {', '.join(caches['numba']) or '(none)'}",
+                     f"warp cache: {', '.join(caches['warp'])}"], as_json=as_json, quiet=quiet)
+
+
+def _line(item):
+    what = f"{item['kind']} {item['name']}"
+    if item["kind"] == "numba":
+        what += f" ({', '.join(item['functions'])})"
+    done = f"compiled {item['compiled']}" if item["compiled"] else "loaded from the cache"
+    if item["compiled"] and item["loaded"]:
+        done += f", loaded {item['loaded']}"
+    return f"{what}: {done} in {item['seconds']:.1f} s"
