@@ -13,16 +13,19 @@ import numpy as np
 
 @numba.njit(cache=True, nogil=True)
 def _polar_rotation(cross, out):
-    """out (3, 3) ← the nearest proper rotation to ``cross`` (as :func:`.rotations.polar_rotation`)."""
+    """out (3, 3) ← the nearest proper rotation to ``cross`` (as :func:`.rotations.polar_rotation`).
+
+    The products go through ``np.dot(a, b, out)`` (the same BLAS call as ``@``): numba's ``@``
+    compiles shape checks whose error messages add 5 s to the first compile."""
     u, _, vt = np.linalg.svd(cross)
-    r = u @ vt
-    det = (r[0, 0] * (r[1, 1] * r[2, 2] - r[1, 2] * r[2, 1]) - r[0, 1] * (r[1, 0] * r[2, 2] - r[1, 2] * r[2, 0])
-           + r[0, 2] * (r[1, 0] * r[2, 1] - r[1, 1] * r[2, 0]))
+    np.dot(u, vt, out)
+    det = (out[0, 0] * (out[1, 1] * out[2, 2] - out[1, 2] * out[2, 1])
+           - out[0, 1] * (out[1, 0] * out[2, 2] - out[1, 2] * out[2, 0])
+           + out[0, 2] * (out[1, 0] * out[2, 1] - out[1, 1] * out[2, 0]))
     if det < 0.0:
         for a in range(3):
             u[a, 2] = -u[a, 2]
-        r = u @ vt
-    out[:, :] = r
+        np.dot(u, vt, out)
 
 
 @numba.njit(cache=True, parallel=True, nogil=True)
