@@ -8,7 +8,7 @@ DEMO   := build/demo
 
 JS     := tests/contracts/js
 
-setup: $(VENV)/.installed $(JS)/node_modules/.installed browser
+setup: $(VENV)/.installed $(VENV)/.precompiled $(JS)/node_modules/.installed browser
 
 # The headless browser the tests of `skinsynth view` drive (Debian's chromium, through Playwright;
 # Playwright's own browser download is never used): installed when missing and apt-get can run (as
@@ -32,6 +32,12 @@ $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $@
+
+# Compile the numba loops and warp CPU kernels once, into the caches every later command loads
+# (skinsynth precompile --help: where they are); again when their sources change.
+$(VENV)/.precompiled: $(VENV)/.installed $(wildcard pipeline/skin/*.py pipeline/view/*.py gpu/kernels/*.py gpu/precompile.py)
+	$(BIN)/skinsynth precompile
 	touch $@
 
 demo: setup
