@@ -10,11 +10,14 @@ quaternions around which M ξ + m varies, weights summing to 1, Gaussian kernel)
 frames × 1 character and 100 frames × 100 characters (N = samples = frames × characters).
 
 Timings are seconds for all N samples, median of --repeats runs after one warm-up (kernel
-compile / cache load excluded). `frames_per_s` is samples per second end to end: standardised
+compile / cache load excluded); the skinnings' runs are interleaved (one of each in turn, so a
+machine whose load changes weighs on both alike), and with both skinnings the linear record's
+`linear_over_dq` is its frames per second over the dual-quaternion one's, per device.
+`frames_per_s` is samples per second end to end: standardised
 controls, in-place controls and world frames in (numpy), skinned world vertices out (numpy,
 float32 `out` buffer, written in place on the CPU; `f64_frames_per_s`: with the default float64
 result, first layout only). `stages` synchronises after each stage (so sums slightly exceed the
-end-to-end time). The numpy reference runs on at most --numpy-samples samples and is scaled.
+end-to-end time; median of --repeats runs per stage). The numpy reference runs on at most --numpy-samples samples and is scaled.
 
 Then, with --real DIR (the puppet benchmark's work folder, or an empty one), one line per real
 capture: its puppet (``train-kcca --train-frames every:4``, built with the CLI when DIR lacks
@@ -33,10 +36,11 @@ import time
 
 import numpy as np
 
+import statistics
+
 import skinsynth.gpu as gpu
 from skinsynth.gpu import available_devices
 from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
-from timing import median_seconds
 
 MODELS = {
     "face": dict(verts=23728, bones=260, controls=8, examples=38, influences=4),
@@ -197,49 +201,81 @@ def main():
             if opts.layout is not None and layout_index != opts.layout:
                 continue
             out = np.empty((samples, size["verts"], 3), dtype=np.float32)
+            skinnings = [s for s in SKINNINGS if opts.skinning in (None, s)]
             for solver in (True, False):
                 if opts.solver is not None and solver != (opts.solver == "on"):
                     continue
-                for skinning in SKINNINGS:
-                    if opts.skinning is not None and skinning != opts.skinning:
-                        continue
-                    print(json.dumps(_record(opts, name, size, puppet, on_device, layout_index, x, c, frames, out,
-                                             solver, skinning)), flush=True)
+                for record in _records(opts, name, size, puppet, on_device, layout_index, x, c, frames, out, solver,
+                                       skinnings):
+                    print(json.dumps(record), flush=True)
 
 
-def _record(opts, name, size, puppet, on_device, layout_index, x, c, frames, out, solver, skinning):
-    """One JSON record: the numpy reference and warp on each device, for one solver and skinning."""
+def interleaved_medians(runs, repeats):
+    """{key: median seconds} of ``repeats`` calls of each of runs {key: fn}, after one warm-up call
+    each, the calls interleaved (one of each in turn)."""
+    for fn in runs.values():
+        fn()
+    times = {key: [] for key in runs}
+    for _ in range(repeats):
+        for key, fn in runs.items():
+            t0 = time.perf_counter()
+            fn()
+            times[key].append(time.perf_counter() - t0)
+    return {key: statistics.median(t) for key, t in times.items()}
+
+
+def _records(opts, name, size, puppet, on_device, layout_index, x, c, frames, out, solver, skinnings):
+    """One JSON record per skinning: the numpy reference and warp on each device, for one solver,
+    the skinnings' warp runs interleaved."""
     frames_per_character, characters = LAYOUTS[layout_index]
     samples = frames_per_character * characters
-    record = {"model": name, **size, "frames": frames_per_character, "characters": characters,
-              "samples": samples, "translation_solver": solver, "skinning": skinning}
-    m = min(samples, opts.numpy_samples)
-    t0 = time.perf_counter()
-    stages = numpy_reference(puppet, x[:m], c[:m], frames[:m], solver, skinning)
-    seconds = (time.perf_counter() - t0) * samples / m
-    record["numpy"] = {"measured_samples": m, "seconds": seconds, "frames_per_s": samples / seconds,
-                       "stages": {k: v * samples / m for k, v in stages.items()}}
-    check = gpu.reference_run_puppet(puppet, x[:8], c[:8], frames[:8], translation_solver=solver, skinning=skinning)
-    scale = np.abs(check).max()
+    records, checks = {}, {}
+    for skinning in skinnings:
+        record = {"model": name, **size, "frames": frames_per_character, "characters": characters,
+                  "samples": samples, "translation_solver": solver, "skinning": skinning}
+        m = min(samples, opts.numpy_samples)
+        t0 = time.perf_counter()
+        stages = numpy_reference(puppet, x[:m], c[:m], frames[:m], solver, skinning)
+        seconds = (time.perf_counter() - t0) * samples / m
+        record["numpy"] = {"measured_samples": m, "seconds": seconds, "frames_per_s": samples / seconds,
+                           "stages": {k: v * samples / m for k, v in stages.items()}}
+        records[skinning] = record
+        checks[skinning] = gpu.reference_run_puppet(puppet, x[:8], c[:8], frames[:8], translation_solver=solver,
+                                                    skinning=skinning)
+
+    def run(dev_puppet, skinning, threads=1, timings=None, into=out):
+        return lambda: gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=into, threads=threads,
+                                      timings=timings, skinning=skinning)
+
     for device, dev_puppet in on_device.items():
+        label = "warp-cpu" if device == "cpu" else "warp-cuda"
         for threads in (opts.threads if device == "cpu" else [1]):
-            run = lambda: gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out,
-                                         threads=threads, skinning=skinning)
-            seconds = median_seconds(run, opts.repeats)
-            err = float(np.abs(out[:8] - check).max() / scale)
-            entry = {"seconds": seconds, "frames_per_s": samples / seconds, "max_rel_error": err}
-            if threads == 1:
-                timings = {}
-                gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver, out=out, timings=timings,
-                               skinning=skinning)
-                entry["stages"] = timings
-                if layout_index == 0:
-                    s64 = median_seconds(lambda: gpu.run_puppet(dev_puppet, x, c, frames, translation_solver=solver,
-                                                                skinning=skinning), 1)
-                    entry["f64_frames_per_s"] = samples / s64
-            label = "warp-cpu" if device == "cpu" else "warp-cuda"
-            record[label if threads == 1 else f"{label}-{threads}threads"] = entry
-    return record
+            key = label if threads == 1 else f"{label}-{threads}threads"
+            seconds = interleaved_medians({s: run(dev_puppet, s, threads) for s in skinnings}, opts.repeats)
+            for skinning in skinnings:
+                run(dev_puppet, skinning, threads)()
+                check = checks[skinning]
+                err = float(np.abs(out[:8] - check).max() / np.abs(check).max())
+                records[skinning][key] = {"seconds": seconds[skinning], "frames_per_s": samples / seconds[skinning],
+                                          "max_rel_error": err}
+            if len(skinnings) == 2:
+                records["linear"][key]["linear_over_dq"] = seconds["dual-quaternion"] / seconds["linear"]
+            if threads != 1:
+                continue
+            stages = {s: [] for s in skinnings}
+            for _ in range(opts.repeats):
+                for skinning in skinnings:
+                    timings = {}
+                    run(dev_puppet, skinning, timings=timings)()
+                    stages[skinning].append(timings)
+            for skinning in skinnings:
+                records[skinning][key]["stages"] = {k: statistics.median(t[k] for t in stages[skinning])
+                                                    for k in stages[skinning][0]}
+            if layout_index == 0:
+                s64 = interleaved_medians({s: run(dev_puppet, s, into=None) for s in skinnings}, 1)
+                for skinning in skinnings:
+                    records[skinning][key]["f64_frames_per_s"] = samples / s64[skinning]
+    return list(records.values())
 
 
 if __name__ == "__main__":
