@@ -38,11 +38,19 @@ from .transitions import Transitions, bone_centroids
 
 BATCH = 250
 MAX_ROUNDS = 20
+#: Rounds a ``--min-difference`` request may take before it is refused (issue 34: near the clip's
+#: variety the old rounds drew 2·10⁵ candidates over 90 s before finishing). Each replacement round
+#: is sized by the last round's yield (:func:`_replacements`), so a request the clip can meet is
+#: met in two or three; :func:`check_diversity_reachable` plays one round fewer on walks alone.
+DIVERSITY_ROUNDS = 4
+#: The most animations one replacement round draws, as a multiple of the count asked.
+REPLACEMENT_CAP = 8
 #: The revision of :func:`make_batch`'s output for given inputs: raised whenever a change of code
 #: changes it, so a cluster run never reuses a shard older code made (the shard key holds it).
 #: 2: replacement rounds ask for twice as many animations each round (:func:`_replacements`).
 #: 3: the merged rig keeps the input's support (``Request.contact``, :mod:`.contact`).
-BATCH_REVISION = 3
+#: 4: replacement rounds are sized by the last round's yield and bounded (:data:`DIVERSITY_ROUNDS`).
+BATCH_REVISION = 4
 
 
 def component_from_file(data, rest):
@@ -235,13 +243,15 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
     up = None if request.alignment == "full" else np.eye(3)[request.up_axis]
     kept_F, kept_t, kept_src, kept_choice = [], [], [], []
     rejected = {"collisions": 0, "too_similar": 0, "merges": 0}
-    need, rounds, held = count, 0, request.support
+    need, rounds, held, tries, found = count, 0, request.support, 0, 0
+    # Obstacles may reject most walks of a round whatever the variety: they keep the long bound.
+    limit = DIVERSITY_ROUNDS if request.min_difference > 0.0 and not request.obstacles else MAX_ROUNDS
     while need > 0:
-        rounds += 1
-        if rounds > MAX_ROUNDS:
-            raise OptionError(f"could not make {count} acceptable animations in {MAX_ROUNDS} rounds "
+        if rounds and _out_of_reach(found, tries, need, limit - rounds, REPLACEMENT_CAP * count):
+            raise OptionError(f"could not make {count} acceptable animations in {rounds} rounds "
                               f"({rejected}); relax --min-difference or the obstacles")
-        tries = need if rounds == 1 else _replacements(need, rounds - 1, count)
+        rounds += 1
+        tries = need if rounds == 1 else _replacements(need, tries, found, REPLACEMENT_CAP * count)
         sources = np.stack([_walks(g, request, tries, rng) for g in graphs])  # (C, tries, M)
         parts = [splice_local(c, rotations, translations, sources[k], window=request.window, dtype=np.float32,
                               reference_motion=k not in carried, spread_velocity=request.spread_velocity,
@@ -278,7 +288,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             rejected["too_similar"] += int((~keep).sum())
             if not keep.all():
                 F, t, choice, sources = F[keep], t[keep], choice[keep], sources[:, keep]
-        take = min(need, F.shape[0])
+        take = found = min(need, F.shape[0])
         kept_F.append(F[:take])
         kept_t.append(t[:take])
         kept_src.append(sources[:, :take])
@@ -315,31 +325,38 @@ def _run_batches(args, batches, jobs, progress, done_before, remote):
     return [F, t, sources, choice, rejected]
 
 
-def _replacements(need, round_, count):
-    """Animations a replacement round makes for ``need`` dropped ones: twice as many each round
-    (``need`` · 2^round, at most 4 × ``count``), the first kept ones taken. Near the clip's
-    variety most fresh walks repeat a kept one, so asking for ``need`` alone found the last few in
-    no reasonable number of rounds (the test bar, 100 frames at 0.03: 500 asked failed after 20
-    rounds although 1,975 such animations exist)."""
-    return max(need, min(need << round_, 4 * count))
+def _replacements(need, asked, found, cap):
+    """Animations a replacement round draws for ``need`` dropped ones, from the last round's yield
+    (``found`` kept of ``asked`` drawn): ``3 · need · asked / found`` (the yield only falls as
+    kept animations accumulate: fresh walks repeat them ever more often; 3 is the margin for
+    that fall, so a request the clip can meet ends in two or three rounds; 1.5 was too little:
+    on the test bar at 0.1 each round found about half what it needed), at least ``need``, at
+    most ``cap`` (:data:`REPLACEMENT_CAP` × the count asked; ``cap`` after a round that found nothing). Sizing each
+    round by the previous one's yield replaced doubling (issue 34): near the clip's variety
+    doubling reached its cap late and then drew 10⁵ candidates over 20 rounds."""
+    if found <= 0:
+        return cap
+    return int(min(cap, max(need, -(-3 * need * asked // found))))
 
 
-def _out_of_reach(found, need, round_, capped):
-    """Whether the rounds left cannot make up ``need``: once a round draws its most (``capped``),
-    each later round draws as many and finds no more than this one's ``found`` (fresh walks
-    repeat kept ones ever more often), so fewer than ``need`` over the rounds left is final."""
-    return capped and found * (MAX_ROUNDS - 1 - round_) < need
+def _out_of_reach(found, asked, need, rounds_left, cap):
+    """Whether ``rounds_left`` more rounds cannot make up ``need``: none are left, or the last
+    round drew its most (``asked`` reached ``cap``) and found ``found``, and each later round
+    draws as many and finds no more (fresh walks repeat kept ones ever more often)."""
+    return rounds_left <= 0 or (asked >= cap and found * rounds_left < need)
 
 
 def check_diversity_reachable(graphs, request):
     """OptionError, before any animation is made, when ``request.min_difference`` cannot be met:
     the clip's own variety bounds how many walks differ that much from one another.
 
-    The check plays the request's rounds on walks alone (no splicing, so it costs a small part
-    of the run): ``count`` walks per component (paired by index into animations), filtered as
-    :func:`synthesize` filters, then twice what a replacement round of the run draws
-    (:func:`_replacements`), up to :data:`MAX_ROUNDS` rounds. Its walks come from their own random stream, so it is an estimate of what the run
-    meets: the run's own rounds stay the judge (and still fail, late, in the rare case the
+    The check plays the run's rounds on walks alone (no splicing, so it costs a small part of
+    the run): ``count`` walks per component (paired by index into animations), filtered as
+    :func:`synthesize` filters, then replacement rounds sized as the run sizes them
+    (:func:`_replacements`), one round fewer than the run may take (:data:`DIVERSITY_ROUNDS`):
+    a request the check only just meets keeps a round in hand. Its walks come from their own
+    random stream, so it is an estimate of what the run meets: the run's own rounds stay the
+    judge (and refuse, after at most :data:`DIVERSITY_ROUNDS` rounds, in the rare case the
     estimate passed and they do not). It stops early once the rounds left cannot make up the
     shortfall (:func:`_out_of_reach`)."""
     if request.min_difference <= 0.0:
@@ -347,21 +364,22 @@ def check_diversity_reachable(graphs, request):
     rng = np.random.default_rng([request.seed, 0x6469766572])  # "diver": apart from every batch's stream
     small = max(g.frames for g in graphs) < np.iinfo(np.int16).max  # int16: a quarter of the comparisons' bytes
     kept = np.zeros((0, len(graphs) * request.frames), dtype=np.int16 if small else np.int64)
-    need = request.count
-    for round_ in range(MAX_ROUNDS):
-        tries = need if round_ == 0 else 2 * _replacements(need, round_, request.count)  # as generous as the run
+    need, tries, found, cap = request.count, 0, 0, REPLACEMENT_CAP * request.count
+    for round_ in range(DIVERSITY_ROUNDS - 1):
+        tries = need if round_ == 0 else _replacements(need, tries, found, cap)  # the run's rule
         walks = np.stack([_walks(g, request, tries, rng) for g in graphs])  # (C, tries, M)
         joint = np.concatenate([kept, walks.transpose(1, 0, 2).reshape(tries, -1).astype(kept.dtype)])
         before = kept.shape[0]
         kept = joint[diversity_filter(joint, request.min_difference, kept_before=before)]
-        need = request.count - kept.shape[0]
+        need, found = request.count - kept.shape[0], kept.shape[0] - before
         if need <= 0:
             return
-        if _out_of_reach(kept.shape[0] - before, need, round_, tries >= 8 * request.count):
+        if _out_of_reach(found, tries, need, DIVERSITY_ROUNDS - 2 - round_, cap):
             break
-    raise OptionError(f"--min-difference {request.min_difference:g}: the clip's walks give about {kept.shape[0]} "
-                      f"animations of {request.frames} frames that differ this much, not the {request.count} asked "
-                      f"(found in {round_ + 1} rounds of walks, before making any); lower it or ask for fewer")
+    raise OptionError(f"--min-difference {request.min_difference:g}: {round_ + 1} rounds of walks gave "
+                      f"{kept.shape[0]} animations of {request.frames} frames that differ this much, not the "
+                      f"{request.count} asked (checked before making any: a synthesis takes at most "
+                      f"{DIVERSITY_ROUNDS} rounds); lower it or ask for fewer")
 
 
 def synthesize(components, rotations, translations, rest, bone_indices, bone_weights, request, jobs=1, progress=None,
@@ -380,9 +398,9 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     graphs = motion_graphs(components, request.forbidden, request.clips)
     check_diversity_reachable(graphs, request)
     args = (components, graphs, rotations, translations, rest, bone_indices, bone_weights, request)
-    results, next_batch, need = [], 0, request.count
-    for round_ in range(MAX_ROUNDS):
-        ask = need if round_ == 0 else _replacements(need, round_, request.count)
+    results, next_batch, need, ask, found, cap = [], 0, request.count, 0, 0, REPLACEMENT_CAP * request.count
+    for round_ in range(DIVERSITY_ROUNDS):
+        ask = need if round_ == 0 else _replacements(need, ask, found, cap)
         batches = batch_sizes(ask, next_batch)
         next_batch += len(batches)
         done = request.count - need
@@ -408,13 +426,10 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
                 r[0:4] = [r[0][mine], r[1][mine], r[2][:, mine], r[3][mine]]
         if need == 0:
             break
-        if _out_of_reach(found, need, round_, ask >= 4 * request.count):
+        if _out_of_reach(found, ask, need, DIVERSITY_ROUNDS - 1 - round_, cap):
             raise OptionError(f"could not make {request.count} animations that differ by --min-difference "
                               f"{request.min_difference}: {round_ + 1} rounds made {request.count - need}, and the "
-                              f"last found only {found} new ones; lower it")
-    else:
-        raise OptionError(f"could not make {request.count} animations that differ by --min-difference "
-                          f"{request.min_difference} in {MAX_ROUNDS} rounds; lower it")
+                              f"last found only {found} new ones of {ask}; lower it or ask for fewer")
     F = results[0][0] if len(results) == 1 else concatenate_rows([r[0] for r in results])
     t = results[0][1] if len(results) == 1 else concatenate_rows([r[1] for r in results])
     sources = np.concatenate([r[2] for r in results], axis=1)

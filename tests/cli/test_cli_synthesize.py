@@ -209,10 +209,34 @@ def test_a_diversity_request_near_the_clips_variety_is_met(files, tmp_path):
 
 def test_a_diversity_request_beyond_the_clips_variety_is_refused_before_any_work(files, tmp_path):
     """Issue 27: such a request failed after all its work ("could not make 250 acceptable
-    animations in 20 rounds … too_similar 4793"); it is now refused from the walks alone."""
+    animations in 20 rounds … too_similar 4793"); it is now refused from the walks alone.
+    Issue 34: the case sits far from the estimate's edge (at 0.1 on another CPU it was met after
+    86.8 s): at 0.5 the walks give fewer than 100 such animations of the 2000 asked."""
     assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2000, "-m", 40,
-                          "--min-difference", 0.1), "--min-difference 0.1", "not the 2000 asked",
+                          "--min-difference", 0.5), "--min-difference 0.5", "not the 2000 asked",
                       "before making any", folder=tmp_path)
+
+
+def test_a_diversity_request_the_estimate_let_through_is_refused_within_a_few_rounds(files, tmp_path, monkeypatch):
+    """Issue 34: the run's own rounds are bounded. With the estimate out of the way, a request 5×
+    beyond the clip's variety is refused in one line after at most DIVERSITY_ROUNDS rounds, each
+    drawing at most REPLACEMENT_CAP × the count: before, one batch alone spliced 20 rounds of
+    1,000 candidates (2·10⁴, twice the bound below) before giving up."""
+    from skinsynth.pipeline.synthesis import synthesis
+
+    spliced = []
+    splice = synthesis.splice_local
+
+    def counting(component, rotations, translations, sources, **options):
+        spliced.append(sources.shape[0])
+        return splice(component, rotations, translations, sources, **options)
+
+    monkeypatch.setattr(synthesis, "check_diversity_reachable", lambda graphs, request: None)
+    monkeypatch.setattr(synthesis, "splice_local", counting)
+    count = 400
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", count, "-m", 40,
+                          "--min-difference", 0.5, "-j", 1), "--min-difference", folder=tmp_path)
+    assert 0 < sum(spliced) <= count * (1 + (synthesis.DIVERSITY_ROUNDS - 1) * synthesis.REPLACEMENT_CAP)
 
 
 def test_result_does_not_depend_on_jobs(files, tmp_path, monkeypatch):
