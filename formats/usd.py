@@ -13,11 +13,20 @@ import sys
 import tempfile
 
 import numpy as np
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
-from skinsynth.formats.atomic import atomic_output
+from skinsynth.formats.atomic import Interrupted, atomic_output, held_signals
 from skinsynth.formats.errors import FormatError, declared_size_problem, require_finite
 from skinsynth.formats.meshseq import USD_EXTENSIONS, fan_corners
+
+# pxr loads the Python modules of the C++ libraries it uses as it is imported, through Tf's C++
+# module loader, which catches what they raise, prints it and goes on: a signal's exception raised
+# there left pxr half-loaded (its warnings, then "TypeError: No to_python (by-value) converter found
+# for C++ type: ArResolverContext" and a traceback). So pxr is imported with SIGINT, SIGTERM and
+# SIGHUP held back, and one that arrived meanwhile stops the command once pxr is whole.
+with held_signals() as _arrived:
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+if _arrived:
+    raise Interrupted(_arrived[0])
 
 #: Unsaved time samples (bytes) after which a binary crowd's layer is saved and let go of them
 #: (:func:`write_points_characters`).
