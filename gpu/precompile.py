@@ -60,7 +60,8 @@ def compile_cpu_kernels(influences=DEFAULT_INFLUENCES, done=None):
     """Compile (or load from warp's kernel cache) every module of :func:`cpu_modules` on the CPU,
     one after another; returns one dict per module: ``kind`` "warp", ``name``, ``compiled`` (1 when
     an object was built now, else 0), ``loaded`` (1 when it came from the cache), ``seconds``,
-    ``cache`` (the folder). ``done(report)`` is called as each module is ready."""
+    ``cache`` (the folder); the first module's seconds include importing and initialising warp.
+    ``done(report)`` is called as each module is ready."""
     start = time.perf_counter()
     wp = runtime.warp()
     modules = cpu_modules(influences)
