@@ -16,10 +16,10 @@ from .common import report, summary_options, user_errors
 def precompile(influences, quiet, as_json):
     """Compile every numba loop and every warp CPU kernel the commands use, into the caches they load.
 
-    A command's first run otherwise compiles them itself (fit-skin: about 25 s, play and export:
+    A command's first run otherwise compiles them itself (fit-skin: about 15 s, play and export:
     a few seconds each); run this once after installing (make setup does), e.g. as a Dockerfile
     RUN step, so that every later command starts warm. Running it again only loads what is
-    already built (a second or two), so it also checks the caches.
+    already built (a few seconds), so it also checks the caches.
 
     Where the results go (the caches the commands then read):
 
@@ -29,10 +29,10 @@ def precompile(influences, quiet, as_json):
                    (~/.cache/numba)
       warp kernels $SKINSYNTH_CACHE_DIR when set; else ~/.cache/skinsynth/warp
 
-    Set these to a writable folder, the same when precompiling and when running (in a Dockerfile:
-    ENV, before the RUN step; Dask workers and farm nodes: the same environment). numba only loads
-    from a folder it can write to, so precompile as the user who runs the commands, or point
-    NUMBA_CACHE_DIR at a folder that user can write. Entries are keyed by the CPU (numba: its
+    Precompile and run with the same environment (in a Dockerfile: ENV before the RUN step; farm
+    nodes and Dask workers: the same variables, or a shared image). numba only loads from a folder
+    it can write to, so precompile as the user who runs the commands, or point NUMBA_CACHE_DIR at
+    a folder that user can write. Entries are keyed by the CPU (numba: its
     name and features; warp: LLVM version and target): a different CPU compiles its own, never
     loading a wrong binary. --device cuda kernels are built on first use.
 
