@@ -7,6 +7,7 @@ Skinning convention of skinsynth (column vectors): for vertex i with influences 
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import re
 import sys
@@ -24,13 +25,23 @@ from skinsynth.formats.meshseq import USD_EXTENSIONS, fan_corners
 # for C++ type: ArResolverContext" and a traceback). So pxr is imported with SIGINT, SIGTERM and
 # SIGHUP held back, and one that arrived meanwhile stops the command once pxr is whole.
 with held_signals() as _arrived:
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+    from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdSkel, Vt
 if _arrived:
     raise Interrupted(_arrived[0])
 
 #: Unsaved time samples (bytes) after which a binary crowd's layer is saved and let go of them
 #: (:func:`write_points_characters`).
 SAVE_EVERY_BYTES = 256 << 20
+
+
+def _reader(read):
+    """A reader of a USD file (its first argument): whatever pxr raises or prints while the file
+    is read becomes one FormatError line (:func:`_reading`)."""
+    @functools.wraps(read)
+    def reader(path, *args, **kwargs):
+        with _reading(path):
+            return read(path, *args, **kwargs)
+    return reader
 
 
 # ---------------------------------------------------------------- writing
@@ -347,6 +358,7 @@ def clip_time_codes(clips, frames, start):
             "endTimeCodes": (start + ends - 1).astype(float).tolist()}
 
 
+@_reader
 def read_clips(path):
     """The clips a stage's metadata names (:data:`CLIPS_KEY`): [(name, first, last time code)],
     or [] for a stage without them."""
@@ -454,6 +466,7 @@ def _check_common(path, fps, prim_name, up_axis, frames):
 # ---------------------------------------------------------------- reading
 
 
+@_reader
 def read_points_cache(path, prim=None) -> tuple[np.ndarray, np.ndarray, float]:
     """Read a time-sampled mesh: (vertices (F, V, 3) float64 world space, faces (T, 3) int64, fps).
 
@@ -488,6 +501,8 @@ def read_points_cache(path, prim=None) -> tuple[np.ndarray, np.ndarray, float]:
         if points is None:  # a value block
             raise FormatError(path, f"{where}: no points at time code {time:g}")
         points = np.asarray(points, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != 3:  # a value of another type (a damaged file)
+            raise FormatError(path, f"{where}: points at time code {time:g} are not 3-vectors")
         if vertices is None:
             # A crate file stores a repeated value once, so a few kilobytes can hold a million
             # samples of the same points: bound the whole array by the bytes of every layer.
@@ -505,6 +520,7 @@ def read_points_cache(path, prim=None) -> tuple[np.ndarray, np.ndarray, float]:
     return sequence_from_arrays(path, vertices, faces, fps).vertices, faces, float(fps)
 
 
+@_reader
 def read_scene(path, prim=None):
     """The :class:`~skinsynth.formats.scene.Scene` of the mesh ``read_points_cache`` reads:
     the stage's metersPerUnit and upAxis (an X-up stage counts as Y up: skinsynth's ground plane
@@ -523,6 +539,7 @@ def read_scene(path, prim=None):
                  start_frame=float(times[0]) if times else 0.0, prim_path=str(mesh.GetPath()))
 
 
+@_reader
 def read_skel_points(path) -> np.ndarray:
     """Vertices (F, V, 3) as UsdSkel itself skins the first skinned mesh, at time codes start..end.
 
@@ -531,6 +548,7 @@ def read_skel_points(path) -> np.ndarray:
     return read_skel_characters(path)[0][1]
 
 
+@_reader
 def read_skel_characters(path) -> list:
     """[(mesh prim path, vertices (F, V, 3))] for every skinned mesh, as UsdSkel itself skins them."""
     stage = _open(path)
@@ -595,10 +613,34 @@ _NATIVE_NOISE = re.compile(rb"^failed call to posix_madvise\(.*$\n?", flags=re.M
 
 
 @contextlib.contextmanager
+def _reading(path):
+    """Read ``path`` in the body, pxr's complaints kept off the user's stderr. A damaged crate
+    file fails anywhere, not only in its opening: its values are read on demand (a Tf error, a
+    value pxr has no Python type for, a token that is not UTF-8), and pxr prints its warnings (an
+    invalid prim name for each property of a damaged path table) and Python's conversion errors
+    straight to file descriptor 2 before it raises. The reason becomes one FormatError naming the
+    file, and what pxr printed is dropped (on success it is passed on, but for
+    :data:`_NATIVE_NOISE`)."""
+    try:
+        with _native_stderr_filtered():
+            yield
+    except Tf.ErrorException as error:
+        raise FormatError(path, f"cannot read as USD: {_usd_reason(error)}") from None
+    except UnicodeDecodeError:
+        raise FormatError(path, "cannot read as USD: a name or string in it is not UTF-8 (a damaged file?)") from None
+    except TypeError as error:  # boost.python: a value of a C++ type it cannot hand to Python
+        if "converter found for C++ type" not in str(error):
+            raise
+        raise FormatError(path, "cannot read as USD: it holds a value of a type USD cannot read back "
+                                "(a damaged file?)") from None
+
+
+@contextlib.contextmanager
 def _native_stderr_filtered():
     """Run the body with file descriptor 2 sent to a temporary file, then pass on what it wrote
     except :data:`_NATIVE_NOISE`: USD's C++ writes there directly, past Python's sys.stderr, and a
-    user error must stay one line."""
+    user error must stay one line. When the body raises, nothing it wrote is passed on: the
+    exception says what went wrong (one line, for the errors a file causes)."""
     try:
         sys.stderr.flush()
         saved = os.dup(2)
@@ -607,13 +649,19 @@ def _native_stderr_filtered():
         return
     with tempfile.TemporaryFile() as captured:
         os.dup2(captured.fileno(), 2)
+        succeeded = False
         try:
             yield
+            succeeded = True
         finally:
+            try:
+                sys.stderr.flush()  # Python's own writes to fd 2 in the body belong to it too
+            except (OSError, ValueError):
+                pass
             os.dup2(saved, 2)
             os.close(saved)
             captured.seek(0)
-            rest = _NATIVE_NOISE.sub(b"", captured.read())
+            rest = _NATIVE_NOISE.sub(b"", captured.read()) if succeeded else b""
             if rest:
                 try:
                     os.write(2, rest)
@@ -669,6 +717,9 @@ def _triangle_corners(path, mesh, time):
     polygon order, each triangle corner as its position in faceVertexIndices."""
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(time) or [], dtype=np.int64)
     indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(time) or [], dtype=np.int64)
+    for name, values in (("faceVertexCounts", counts), ("faceVertexIndices", indices)):
+        if values.ndim != 1:  # a value of another type (a damaged file)
+            raise FormatError(path, f"{mesh.GetPath()}: {name} is not an array of integers")
     if counts.sum() != len(indices):
         raise FormatError(path, f"{mesh.GetPath()}: faceVertexCounts sum to {counts.sum()} "
                                 f"but there are {len(indices)} faceVertexIndices")
@@ -684,6 +735,7 @@ def _triangle_corners(path, mesh, time):
 _UV_INTERPOLATIONS = (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying, UsdGeom.Tokens.faceVarying)
 
 
+@_reader
 def read_face_uvs(path, prim=None):
     """The material UVs of the mesh :func:`read_points_cache` reads, per corner of its triangles:
     face_uvs (T, 3, 2) float64 from ``primvars:st`` (indexed or not, at the first points sample),
@@ -722,6 +774,7 @@ def read_face_uvs(path, prim=None):
     return face_uvs
 
 
+@_reader
 def read_skel_animation(path):
     """([(mesh prim path, vertices (F, V, 3), faces (T, 3))], fps, up axis "Y"/"Z"): every
     skinned mesh of a UsdSkel file as UsdSkel itself skins it, with its triangles."""
@@ -734,6 +787,7 @@ def read_skel_animation(path):
     return out, float(stage.GetTimeCodesPerSecond() or 24.0), up
 
 
+@_reader
 def animated_mesh_paths(path):
     """Paths of every Mesh with time-sampled points (a crowd's characters), in traversal order."""
     stage = _open(path)

@@ -78,3 +78,121 @@ def test_a_signal_while_play_writes_a_usd_stage_is_one_line_every_time(puppet, t
             continue
         _one_line(process.returncode, stderr, 128 + number, f"interrupted ({signal.Signals(number).name})")
         assert not out.exists() and not _temporary(tmp_path), (moment, delay, os.listdir(tmp_path))
+
+
+# -- a .usdc damaged in its table of contents and the sections it points at -------------------------
+
+def _sections(data):
+    """{name: (start, size)} of a crate file's table of contents (its offset is in the header)."""
+    import struct
+
+    toc = struct.unpack_from("<Q", data, 16)[0]
+    count = struct.unpack_from("<Q", data, toc)[0]
+    return {bytes(data[toc + 8 + 32 * k:toc + 24 + 32 * k]).rstrip(b"\0").decode():
+            struct.unpack_from("<qq", data, toc + 24 + 32 * k) for k in range(count)}
+
+
+@pytest.fixture(scope="module")
+def crate(tmp_path_factory):
+    """A .usdc the project's writer makes: the bending bar as a point cache at /mesh."""
+    from skinsynth.formats.usd import write_points_cache
+    from skinsynth.pipeline.examples import bending_bar
+
+    path = tmp_path_factory.mktemp("crate") / "bar.usdc"
+    vertices, faces = bending_bar(frames=24)
+    write_points_cache(path, vertices, faces, 24.0)
+    return path
+
+
+def test_a_usdc_whose_path_table_names_an_invalid_prim_is_one_line_from_every_usd_reader(crate, puppet, tmp_path):
+    """Issue 34: noise in the token table a crate's table of contents points at (the prim's name
+    "mesh" made "m\\xffsh") printed a pxr warning for each of the mesh's properties ("Warning: in
+    ~_DeferredDiagnostics ... Invalid prim name") before the one line. Now the one line only, from
+    each command that reads USD (fit-skin, play --controls, preview: one reader, formats/usd.py)."""
+    data = bytearray(crate.read_bytes())
+    start, size = _sections(data)["TOKENS"]
+    at = data.find(b"mesh\0", start, start + size)
+    assert at > 0, "the token table holds the prim's name as it is"
+    data[at + 1] = 0xFF
+    damaged = tmp_path / "damaged.usdc"
+    damaged.write_bytes(data)
+    for command in (["fit-skin", damaged, "-o", tmp_path / "x.h5", "--bones", 3],
+                    ["play", puppet / "puppet.h5", "-c", damaged, "-o", tmp_path / "x.h5"],
+                    ["preview", damaged, "-o", tmp_path / "x.png"]):
+        done = subprocess.run(SKINSYNTH + [str(a) for a in command], capture_output=True, text=True, errors="replace",
+                              timeout=300)
+        _one_line(done.returncode, done.stderr, 2, "damaged.usdc", "USD")
+    assert sorted(os.listdir(tmp_path)) == ["damaged.usdc"]
+
+
+#: Reads every one-byte damage of a crate's structural sections (argv: the file, the first and last
+#: byte), each in a child process with its memory bounded (a damaged count asks for terabytes) and
+#: its file descriptor 2 captured; prints one line per damage whose read ended otherwise than read
+#: or FormatError with nothing on stderr (or out of memory), and "done N" at the end.
+_SWEEP = r"""
+import os, resource, sys
+from skinsynth.formats.errors import FormatError
+from skinsynth.formats.meshseq import read_mesh_sequence
+import skinsynth.formats.usd  # loaded once, before the children
+path, first, last = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+data = open(path, "rb").read()
+folder = os.path.dirname(path)
+count = 0
+for at in range(first, last):
+    for value in (0x00, 0xFF):
+        if data[at] == value:
+            continue
+        count += 1
+        damaged = os.path.join(folder, f"d{at}_{value}.usdc")
+        with open(damaged, "wb") as out:
+            out.write(data[:at] + bytes([value]) + data[at + 1:])
+        reading, writing = os.pipe()
+        pid = os.fork()
+        if pid == 0:
+            os.close(reading)
+            os.dup2(writing, 2)
+            resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
+            try:
+                read_mesh_sequence(damaged)
+                ended = "read"
+            except FormatError:
+                ended = "FormatError"
+            except MemoryError:
+                ended = "MemoryError"
+            except BaseException as error:
+                ended = type(error).__name__
+            os.write(writing, ("\nENDED " + ended).encode())
+            os._exit(0)
+        os.close(writing)
+        said = b""
+        while chunk := os.read(reading, 1 << 16):
+            said += chunk
+        os.close(reading)
+        status = os.waitpid(pid, 0)[1]
+        os.remove(damaged)
+        said, _, ended = said.decode(errors="replace").rpartition("\nENDED ")
+        if status or ended not in ("read", "FormatError", "MemoryError") or (ended != "read" and said.strip()):
+            print(f"byte {at} = {value}: status {status}, {ended or 'nothing'}; stderr {said.strip()[:300]!r}")
+print("done", count)
+"""
+
+
+def test_every_one_byte_damage_of_a_usdc_s_sections_is_read_or_one_error(crate, tmp_path):
+    """Issue 34: a crate read fails not only in its opening. Damage in the sections its table of
+    contents points at (tokens, fields) failed later, as its values were read: pxr's Tf errors,
+    "TypeError: No to_python (by-value) converter found for C++ type: VtBackgroundType" and a
+    UnicodeDecodeError escaped as tracebacks, and pxr's warnings reached stderr before the one line.
+    Every one-byte damage (0x00 or 0xFF) of the TOKENS and FIELDS sections now reads, or fails with
+    one FormatError and nothing else on stderr."""
+    import shutil
+
+    copy = tmp_path / "bar.usdc"
+    shutil.copyfile(crate, copy)
+    sections = _sections(crate.read_bytes())
+    first = sections["TOKENS"][0]
+    last = sections["FIELDS"][0] + sections["FIELDS"][1]
+    done = subprocess.run([sys.executable, "-c", _SWEEP, str(copy), str(first), str(last)], capture_output=True,
+                          text=True, timeout=600)
+    lines = done.stdout.strip().splitlines()
+    assert done.returncode == 0 and lines and lines[-1].startswith("done "), (done.returncode, done.stderr[-3000:])
+    assert lines[:-1] == [], "\n".join(lines[:30])
