@@ -52,8 +52,9 @@ def lbs_kernel(influences: int, corrected: bool = False):
 @functools.cache
 def blended_lbs_kernel(influences: int, corrected: bool = False):
     """Linear-blend skinning over (samples n, vertices V) by bone matrices (n, B) vec12:
-    v = (Σ_k w_k A_{b_k}) [p; 1], which equals Σ_k w_k (R_{b_k} p + t_{b_k}) up to rounding. Measured
-    on the CPU (horse, 8,431 vertices, K = 4): 1.2× the two-gather ``lbs_kernel``, 1.6× ``dq_skin_kernel``."""
+    v = (Σ_k w_k A_{b_k}) [p; 1], which equals Σ_k w_k (R_{b_k} p + t_{b_k}) up to rounding. On the
+    CPU (horse-sized: 8,431 vertices, 150 bones, K = 4) about 1.2× as fast as the two-gather
+    ``lbs_kernel`` and 1.5× ``dq_skin_kernel`` (benchmarks/play.py, stage "skin")."""
 
     @wp.kernel(module="unique")
     def blended_lbs_kernel(
