@@ -280,7 +280,8 @@ def _make(components, skin, request, jobs, joined, shards, quiet):
 
         remote = on_cluster = None
         if joined:
-            on_cluster = joined()
+            # a scheduler slow to answer is announced (pipeline/execution.py: Cluster.starting)
+            on_cluster = joined(waiting=None if quiet else lambda text: click.echo(f"skinsynth: {text}", err=True))
             from skinsynth.pipeline.execution import Remote
 
             remote = Remote(on_cluster, shards["store"], shards["stored"])

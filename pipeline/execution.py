@@ -252,8 +252,12 @@ class Cluster:
     within ``worker_timeout`` seconds. Unreachable or empty: OptionError (one line)."""
 
     CONNECT_TIMEOUT, WORKER_TIMEOUT = 20.0, 60.0
+    #: How long a scheduler (tcp://) may take to answer at all, and after how long the caller is
+    #: told that the command is waiting for it (:meth:`starting`).
+    ANSWER_TIMEOUT, WAITING_NOTICE = 25.0, 3.0
 
-    def __init__(self, address, preload=(), connect_timeout=CONNECT_TIMEOUT, worker_timeout=WORKER_TIMEOUT):
+    def __init__(self, address, preload=(), connect_timeout=CONNECT_TIMEOUT, worker_timeout=WORKER_TIMEOUT,
+                 answered=None):
         import logging
 
         import dask
@@ -286,6 +290,8 @@ class Cluster:
             self.client = Client(address, timeout=connect_timeout)
         except (OSError, TimeoutError, ValueError) as error:
             raise OptionError(f"--cluster {address}: cannot reach a Dask scheduler there ({error})") from None
+        if answered is not None:
+            answered()
         try:
             self.client.wait_for_workers(1, timeout=worker_timeout)
         except TimeoutError:
@@ -304,24 +310,34 @@ class Cluster:
 
     @classmethod
     @contextlib.contextmanager
-    def starting(cls, address, preload=(), timeout=None):
+    def starting(cls, address, preload=(), timeout=None, answer_timeout=None):
         """Start (or reach) the cluster in a thread while the caller goes on; yields a callable
-        that waits for it and returns it (raising what starting raised). Closed on leaving.
+        ``joined(waiting=None)`` that waits for it and returns it (raising what starting raised).
+        Closed on leaving.
 
         The wait is bounded (``timeout``: by default the connection's and the first worker's
         together, and 10 s more) and a signal ends it: the thread is a daemon, so a scheduler
         that accepts a connection and never answers can neither hang the command nor keep it
-        from exiting (an executor's thread would be joined at exit)."""
+        from exiting (an executor's thread would be joined at exit). A scheduler (tcp://) must
+        answer within ``answer_timeout`` (:attr:`ANSWER_TIMEOUT`) of the start; then its first
+        worker may take the rest. ``waiting(text)``, when given, is called once, with a line
+        saying what the command waits for, when a scheduler has not answered
+        :attr:`WAITING_NOTICE` seconds after the start (a local cluster starts silently)."""
         import threading
+        import time
 
         from .errors import OptionError
 
         timeout = timeout if timeout is not None else cls.CONNECT_TIMEOUT + cls.WORKER_TIMEOUT + 10.0
-        started, done = {}, threading.Event()
+        remote = not address.startswith("local:")
+        answer_timeout = min(timeout, cls.ANSWER_TIMEOUT if answer_timeout is None else answer_timeout) \
+            if remote else timeout
+        started, done, answered = {}, threading.Event(), threading.Event()
+        began = time.monotonic()
 
         def start():
             try:
-                started["cluster"] = cls(address, preload)
+                started["cluster"] = cls(address, preload, answered=answered.set)
             except BaseException as error:  # handed to the caller's thread
                 started["error"] = error
             finally:
@@ -329,8 +345,19 @@ class Cluster:
 
         threading.Thread(target=start, name="skinsynth-cluster", daemon=True).start()
 
-        def joined():
-            if not done.wait(timeout):
+        def joined(waiting=None):
+            def left(seconds):
+                return max(0.0, began + seconds - time.monotonic())
+
+            if remote and waiting is not None and not done.wait(left(cls.WAITING_NOTICE)):
+                waiting(f"waiting for the Dask scheduler at {address} (giving up after {answer_timeout:.0f} s "
+                        "without an answer)")
+            while not (answered.is_set() or done.is_set()):  # the scheduler's answer
+                if not left(answer_timeout):
+                    raise OptionError(f"--cluster {address}: no answer within {answer_timeout:.0f} s (is a Dask "
+                                      "scheduler listening there?)")
+                done.wait(min(left(answer_timeout), 0.1))
+            if not done.wait(left(timeout)):  # then its first worker
                 raise OptionError(f"--cluster {address}: no answer within {timeout:.0f} s (is a Dask scheduler "
                                   "listening there?)")
             if "error" in started:

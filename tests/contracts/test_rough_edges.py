@@ -196,3 +196,62 @@ def test_every_one_byte_damage_of_a_usdc_s_sections_is_read_or_one_error(crate, 
     lines = done.stdout.strip().splitlines()
     assert done.returncode == 0 and lines and lines[-1].startswith("done "), (done.returncode, done.stderr[-3000:])
     assert lines[:-1] == [], "\n".join(lines[:30])
+
+
+# -- a scheduler that accepts and never answers ------------------------------------------------------
+
+def test_a_scheduler_that_never_answers_is_announced_and_given_up_within_30_s(stage_files, tmp_path):
+    """Issue 34: --cluster tcp:// to a listener that accepts and never answers waited 90 s in
+    silence. Now a line on stderr within 5 s says the command is waiting, and it gives up within
+    30 s with the one error line, exit 2, nothing written. The listener is on the loopback only,
+    and closes itself after 120 s whatever happens."""
+    import selectors
+    import socket
+    import threading
+
+    graph = stage_files(frames=40, bones=4, iterations=10, cycles=2, graph=("--min-segment", 4)) / "graph.h5"
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(8)
+    accepted, stop = [], threading.Event()
+
+    def accept_and_say_nothing():  # bounded: ends when told, or after 120 s
+        with selectors.DefaultSelector() as selector:
+            selector.register(listener, selectors.EVENT_READ)
+            deadline = time.monotonic() + 120
+            while not stop.is_set() and time.monotonic() < deadline:
+                if selector.select(timeout=0.1):
+                    accepted.append(listener.accept()[0])
+
+    server = threading.Thread(target=accept_and_say_nothing, daemon=True)
+    server.start()
+    address = f"tcp://127.0.0.1:{listener.getsockname()[1]}"
+    process = subprocess.Popen(SKINSYNTH + ["synthesize", str(graph), "-o", str(tmp_path / "o.h5"), "-n", "3", "-m",
+                                            "20", "--cluster", address],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        started = time.monotonic()
+        first = process.stderr.readline()  # the waiting line
+        said = time.monotonic() - started
+        rest = process.stderr.read()
+        process.wait(timeout=60)
+        ended = time.monotonic() - started
+        out = process.stdout.read()
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        process.stdout.close()
+        process.stderr.close()
+        stop.set()
+        server.join(5)
+        for connection in accepted:
+            connection.close()
+        listener.close()
+    assert accepted, "the command never connected"
+    assert first.startswith("skinsynth: ") and "waiting" in first and address in first, first
+    assert said < 5 + 3, f"the waiting line came after {said:.1f} s"  # 3 s: the interpreter's own start, loaded
+    assert ended < 35, f"gave up after {ended:.1f} s"
+    _one_line(process.returncode, rest, 2, address, "no answer")
+    assert out == ""
+    assert os.listdir(tmp_path) == []
