@@ -184,7 +184,15 @@ class FolderOutputs:
 
 
 def available_memory():
-    """Bytes of memory a new allocation can have (MemAvailable), or None where unknown."""
+    """Bytes of memory a new allocation can have, or None where unknown: the least of what the
+    system has available (MemAvailable), what the process's address-space limit leaves
+    (RLIMIT_AS, ``ulimit -v``: beyond it an allocation fails) and what its cgroup's memory limit
+    leaves (a container's or a batch job's: beyond it the process is killed)."""
+    known = [left for left in (_system_available(), _address_space_left(), _cgroup_left()) if left is not None]
+    return max(0, min(known)) if known else None
+
+
+def _system_available():
     try:
         with open("/proc/meminfo") as meminfo:
             for row in meminfo:
@@ -196,6 +204,59 @@ def available_memory():
         return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (ValueError, OSError, AttributeError):
         return None
+
+
+def _address_space_left():
+    """RLIMIT_AS less the address space the process maps now, or None without a limit."""
+    try:
+        import resource
+
+        limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if limit == resource.RLIM_INFINITY:
+            return None
+        with open("/proc/self/statm") as statm:
+            mapped = int(statm.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+        return limit - mapped
+    except (ImportError, OSError, ValueError, IndexError):
+        return None
+
+
+def _cgroup_left():
+    """The memory limit of this process's cgroup (v2 memory.max, v1 memory.limit_in_bytes) less
+    what the group uses but could not give back (its inactive file cache counts as free), or None
+    without a limit."""
+    try:
+        with open("/proc/self/cgroup") as groups:
+            rows = [row.strip().split(":", 2) for row in groups if row.count(":") >= 2]
+    except OSError:
+        return None
+    for _, controllers, path in rows:
+        if controllers == "":  # v2
+            root, files = "/sys/fs/cgroup", ("memory.max", "memory.current", "inactive_file")
+        elif "memory" in controllers.split(","):  # v1
+            root, files = "/sys/fs/cgroup/memory", ("memory.limit_in_bytes", "memory.usage_in_bytes",
+                                                    "total_inactive_file")
+        else:
+            continue
+        # the group's folder, or the mount's root where the namespace shows the group as its root
+        for folder in (root + path.rstrip("/"), root):
+            try:
+                with open(os.path.join(folder, files[0])) as limit_file:
+                    limit = limit_file.read().strip()
+                if limit == "max" or int(limit) >= 2 ** 60:
+                    break  # no limit at this group
+                with open(os.path.join(folder, files[1])) as usage_file:
+                    used = int(usage_file.read())
+                inactive = 0
+                with open(os.path.join(folder, "memory.stat")) as stat:
+                    for row in stat:
+                        name, _, value = row.partition(" ")
+                        if name == files[2]:
+                            inactive = int(value)
+                return int(limit) - (used - inactive)
+            except (OSError, ValueError):
+                continue
+    return None
 
 
 def check_memory(needed, what, available=None):

@@ -104,10 +104,14 @@ def preview(path, output, animations, clip, examples, compare, error_scale, size
     elif fps is None and not low <= file_fps <= high:
         raise OptionError(f"{path}: its frame rate {file_fps:g} lies outside [{low:g}, {high:g}]: give --fps")
     # an RGB image per frame of the panel grid, all held for a .gif or a contact sheet (twice:
-    # quantised, or the sheet), and the rasteriser's float buffers per pixel: before any is made
+    # quantised, or the sheet, which PIL copies again at 4 bytes a pixel to save it), and the
+    # rasteriser's float buffers per pixel: before any is made, against the memory the process
+    # may have (its ulimit and cgroup included)
     pixels = len(panels) * size[0] * size[1]
-    held = 2 * len(frames) if output.lower().endswith((".png", ".gif")) else 1
-    check_memory(pixels * (3 * held + 48), f"{len(frames)} frame(s) of {len(panels)} panel(s) at {size[0]}×{size[1]}")
+    lower = output.lower()
+    per_frame = 3 + 3 + 4 if lower.endswith(".png") else 3 + 3 if lower.endswith(".gif") else 0
+    check_memory(pixels * (per_frame * len(frames) + 3 + 48),
+                 f"{len(frames)} frame(s) of {len(panels)} panel(s) at {size[0]}×{size[1]}")
     movie = Preview(panels, size=size, frames=frames, preset=camera, smooth=not flat, up_axis=up)
     started = time.perf_counter()
     with Progress(len(movie), "preview", quiet or as_json) as bar:

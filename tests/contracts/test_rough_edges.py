@@ -255,3 +255,30 @@ def test_a_scheduler_that_never_answers_is_announced_and_given_up_within_30_s(st
     _one_line(process.returncode, rest, 2, address, "no answer")
     assert out == ""
     assert os.listdir(tmp_path) == []
+
+
+# -- a preview larger than the memory the process may have ------------------------------------------
+
+def _four_gib_address_space():
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
+
+
+@pytest.mark.parametrize("sheet", [[], ["--sheet-frames", "48"]])
+def test_a_contact_sheet_larger_than_the_process_may_have_is_refused_naming_its_size(tmp_path, sheet):
+    """Issue 34: preview of the 48-frame walker as a contact sheet at --size 8192x8192 allocated
+    past 4 GB with no estimate: the refusal compared its estimate with the machine's free memory
+    only, so in a process limited to less (ulimit -v here; a container's cgroup alike) it rendered
+    until an allocation failed ("out of memory", no size). Now it is refused before any work, in
+    one line naming the size asked for and the memory there is."""
+    from cli_helpers import assert_ok, cli
+
+    assert_ok(cli("example", "walker", "-o", tmp_path / "walker.npz", "-q"))
+    started = time.monotonic()
+    done = subprocess.run(SKINSYNTH + ["preview", str(tmp_path / "walker.npz"), "-o", str(tmp_path / "sheet.png"),
+                                       "--size", "8192x8192", *sheet], capture_output=True, text=True, timeout=600,
+                          preexec_fn=_four_gib_address_space)
+    _one_line(done.returncode, done.stderr, 2, "8192×8192", "GiB of memory", "is available")
+    assert time.monotonic() - started < 60  # refused up front, not after rendering
+    assert sorted(os.listdir(tmp_path)) == ["walker.npz"]
