@@ -12,20 +12,35 @@ from .references.puppet import blend_weights, kernel_vectors_reference
 #: depending on where it sits in a product, so the blocks are fixed (rows kR…kR+R−1 of the
 #: whole run, one BLAS thread) whatever the chunks and threads: byte-identical output.
 _CORRECTIVE_ROWS = 64
+#: Samples per block of the CPU translation solve's products, for the same reason: the run's
+#: chunks and threads start on multiples of it (``run_puppet``), so each block holds the same
+#: samples at the same rows whatever they are. (OpenBLAS's SkylakeX kernels happened to round a
+#: row alike anywhere; its generic ones, as another CPU runs them, did not: play --threads 1 and
+#: 2 differed in the last bits.)
+SOLVE_ROWS = 64
 
 
 def solve_with_blas(operators, rotations, controls, predicted, out):
     """t = Γ·R + Q·c + Π·t̂ as float32 matrix products into ``out`` (n, B, 3) (CPU views of the
     device arrays, so nothing is copied back): rotations (n, B, 3, 3), controls (n, n_c, 3),
     predicted t̂ (n, B, 3); operators the transposed Γ (3B, B), Q (n_c, B), Π (B, B) of
-    ``DevicePuppet.host_operators``. Rows of each product are (sample, axis a)."""
+    ``DevicePuppet.host_operators``. Rows of each product are (sample, axis a). The products go
+    in blocks of :data:`SOLVE_ROWS` samples from the first, with one BLAS thread, so a sample's
+    rounding depends only on its place in its block (byte-identical whatever the caller's chunks,
+    when they start on multiples of it)."""
+    from threadpoolctl import threadpool_limits
+
     gamma_t, control_t, prior_t = operators
     n, bones = rotations.shape[:2]
-    r = rotations.transpose(0, 2, 1, 3).reshape(n * 3, bones * 3)  # row (n, a), column (k, c)
-    t = r @ gamma_t
-    t += np.asarray(controls, dtype=np.float32).transpose(0, 2, 1).reshape(n * 3, -1) @ control_t
-    t += predicted.transpose(0, 2, 1).reshape(n * 3, bones) @ prior_t
-    out[...] = t.reshape(n, 3, bones).transpose(0, 2, 1)
+    controls = np.asarray(controls, dtype=np.float32)
+    with threadpool_limits(limits=1, user_api="blas"):
+        for lo in range(0, n, SOLVE_ROWS):
+            hi = min(lo + SOLVE_ROWS, n)
+            r = rotations[lo:hi].transpose(0, 2, 1, 3).reshape((hi - lo) * 3, bones * 3)  # row (n, a), column (k, c)
+            t = r @ gamma_t
+            t += controls[lo:hi].transpose(0, 2, 1).reshape((hi - lo) * 3, -1) @ control_t
+            t += predicted[lo:hi].transpose(0, 2, 1).reshape((hi - lo) * 3, bones) @ prior_t
+            out[lo:hi] = t.reshape(hi - lo, 3, bones).transpose(0, 2, 1)
 
 
 def cpu_corrective_offsets(puppet, x, out, threads):
