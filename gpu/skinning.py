@@ -118,21 +118,29 @@ def linear_skin(rest_vertices, bone_indices, bone_weights, matrices, device="cpu
     rest, idx, w = skin_arrays(rest_vertices, bone_indices, bone_weights, m.shape[1])
     samples, verts = m.shape[0], rest.shape[0]
     offsets = checked_offsets(rest_offsets, samples, verts)
-    out = np.empty((samples, verts, 3))
-    if out.size == 0:
-        return out
+    if samples * verts == 0:
+        return np.empty((samples, verts, 3))
     device = runtime.resolve_device(device)
-    wp = runtime.warp()
+    runtime.warp()
     from .kernels.skinning import vec12
 
     skin = SkinBuffers(rest, idx, w, device)
-    m_d = float32_array(m.reshape(samples, -1, 12), vec12, device)
+    return _skin_in_chunks(skin.launch_linear, float32_array(m.reshape(samples, -1, 12), vec12, device), offsets,
+                           samples, verts, device)
+
+
+def _skin_in_chunks(launch, transforms, rest_offsets, samples, verts, device):
+    """(N, V, 3) float64 vertices from ``launch(transforms[chunk], out, device, offsets[chunk])``
+    (a :class:`SkinBuffers` launcher; transforms on the device, rest_offsets (N, V, 3) or None
+    on the host), in chunks of at most 2**24 vertex-samples through one device buffer."""
+    wp = runtime.warp()
+    out = np.empty((samples, verts, 3))
     step = max(1, _DEVICE_CHUNK // verts)
     buf = wp.empty((min(step, samples), verts), dtype=wp.vec3, device=device)
-    offsets = None if offsets is None else float32_array(offsets, wp.vec3, device)
+    offsets = None if rest_offsets is None else float32_array(rest_offsets, wp.vec3, device)
     for n0 in range(0, samples, step):
         n = min(step, samples - n0)
-        skin.launch_linear(m_d[n0 : n0 + n], buf[:n], device, None if offsets is None else offsets[n0 : n0 + n])
+        launch(transforms[n0 : n0 + n], buf[:n], device, None if offsets is None else offsets[n0 : n0 + n])
         out[n0 : n0 + n] = buf[:n].numpy()
     return out
 
@@ -146,22 +154,12 @@ def dq_skin(rest_vertices, bone_indices, bone_weights, dual_quaternions, device=
         raise ValueError(f"dual quaternions must be (N, B, 8), got {dq.shape}")
     rest, idx, w = skin_arrays(rest_vertices, bone_indices, bone_weights, dq.shape[1])
     samples, verts = dq.shape[0], rest.shape[0]
-    out = np.empty((samples, verts, 3))
-    if rest_offsets is not None and np.shape(rest_offsets) != (samples, verts, 3):
-        raise ValueError(f"rest_offsets must be ({samples}, {verts}, 3), got {np.shape(rest_offsets)}")
-    if out.size == 0:
-        return out
+    rest_offsets = checked_offsets(rest_offsets, samples, verts)
+    if samples * verts == 0:
+        return np.empty((samples, verts, 3))
     device = runtime.resolve_device(device)
-    wp = runtime.warp()
+    runtime.warp()
     from .kernels.dual_quaternion import vec8
 
     skin = SkinBuffers(rest, idx, w, device)
-    dq_d = float32_array(dq, vec8, device)
-    step = max(1, _DEVICE_CHUNK // verts)
-    buf = wp.empty((min(step, samples), verts), dtype=wp.vec3, device=device)
-    offsets = None if rest_offsets is None else float32_array(rest_offsets, wp.vec3, device)
-    for n0 in range(0, samples, step):
-        n = min(step, samples - n0)
-        skin.launch(dq_d[n0 : n0 + n], buf[:n], device, None if offsets is None else offsets[n0 : n0 + n])
-        out[n0 : n0 + n] = buf[:n].numpy()
-    return out
+    return _skin_in_chunks(skin.launch, float32_array(dq, vec8, device), rest_offsets, samples, verts, device)
