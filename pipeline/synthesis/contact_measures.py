@@ -1,0 +1,156 @@
+"""How well feet stay planted: the measures of issue 35 part 4, for an input and for an output.
+
+Every figure is a share of the character's **height** H (the rest pose's extent along the up
+axis), so captures of any scale compare; docs/contact.md states the same definitions for users.
+
+- **Ground** (:func:`clip_ground`): per input clip, the 5th percentile of its per-frame lowest
+  heights along the up axis. Not the lowest of them: one frame whose hoof dips through the floor
+  (a capture's or a fit's error) would lower it; not the median: a gallop or a jump has many
+  frames with every foot in the air. Anything that walks, dances or lies on a floor has its
+  lowest point on that floor in most frames, so a low percentile finds it and ignores the rare
+  dip. An output frame is measured against the ground of the input clip its first component's
+  source frame comes from (one clip: one ground).
+- **Contact vertices** of the step m → m+1: the vertices within ``band`` (1 %) of H above the
+  ground (or anywhere below it) at both frames m and m+1, where frame m plays on to m+1 (in an
+  input of several clips, no step joins one clip's last frame to the next one's first:
+  :meth:`~skinsynth.pipeline.clips.Clips.plays_on`). A step with none is not a contact step.
+- **Slide** of a contact step: the median, over its contact vertices, of their horizontal
+  displacement (the up component removed) from m to m+1, over H (the median: one vertex of a
+  heel that lifts does not make a planted foot slide). Reported: its median and 95th percentile
+  over the contact steps, and the share of contact steps whose slide exceeds ``limit`` (0.5 %).
+- **Float** and **penetration** of a contact step: the height of the lowest contact vertex at
+  frame m minus the ground, over H: float is its positive part (the patch hovers), penetration
+  its negative part (the patch is under the floor). Reported: median, 95th percentile, largest.
+- **Worst acceleration**: the largest ‖x(m+1) − 2 x(m) + x(m−1)‖ over every vertex and frame of
+  the output, over the input's largest (the input's measured inside each clip).
+
+Pure numpy, vectorised over frames and vertices; a long animation is measured in blocks of
+frames (:func:`measure_frames`), so its vertices never need to be in memory at once.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Contact band: share of the height above the ground.
+BAND = 0.01
+#: A contact step slides when its slide exceeds this share of the height.
+LIMIT = 0.005
+#: Percentile of the per-frame lowest heights that is a clip's ground.
+GROUND_PERCENTILE = 5.0
+
+
+def character_height(rest, up_axis=1):
+    """H: the rest pose's extent along ``up_axis`` (1.0 for a flat rest pose)."""
+    return float(np.ptp(np.asarray(rest)[:, up_axis])) or 1.0
+
+
+def clip_ground(vertices, up_axis=1):
+    """The ground of one clip, vertices (M, V, 3): the 5th percentile of its per-frame lowest
+    heights (module notes)."""
+    return float(np.percentile(np.asarray(vertices)[..., up_axis].min(axis=-1), GROUND_PERCENTILE))
+
+
+@dataclass
+class Steps:
+    """Raw per-step figures of one or more animations, to be joined and summarised
+    (:func:`summary`): ``slide``, ``offset`` (lowest contact vertex minus ground) over the height,
+    one per contact step; ``steps`` all steps measured; ``accel`` the largest acceleration seen
+    (NaN: none, under 3 frames)."""
+
+    slide: np.ndarray
+    offset: np.ndarray
+    steps: int
+    accel: float
+
+    @staticmethod
+    def join(parts):
+        parts = list(parts)
+        accel = [p.accel for p in parts if np.isfinite(p.accel)]
+        return Steps(np.concatenate([p.slide for p in parts] + [np.zeros(0)]),
+                     np.concatenate([p.offset for p in parts] + [np.zeros(0)]),
+                     int(sum(p.steps for p in parts)), max(accel) if accel else float("nan"))
+
+
+def contact_steps(vertices, ground, height, up_axis=1, band=BAND, plays_on=None, steps=None):
+    """The :class:`Steps` of vertices (M, V, 3): ``ground`` a float or (M,) per frame;
+    ``plays_on`` (M,) bool (frame m is followed by m+1; None: every frame but the last).
+    ``steps``: count only the steps m → m+1 and the second differences centred on m+1 for
+    m < steps (None: all; :func:`measure_frames`' blocks)."""
+    x = np.asarray(vertices, dtype=np.float64)
+    M = x.shape[0]
+    plays = np.ones(M, bool) if plays_on is None else np.asarray(plays_on, dtype=bool).copy()
+    plays[-1:] = False
+    counted = plays.copy()
+    if steps is not None:
+        counted[steps:] = False
+    ground = np.broadcast_to(np.asarray(ground, dtype=np.float64), (M,))
+    above = x[..., up_axis] - ground[:, None]  # (M, V)
+    near = above <= band * height
+    contact = near[:-1] & near[1:] & counted[:-1, None]  # (M−1, V)
+    rows = np.flatnonzero(contact.any(axis=1))
+    step = x[rows + 1] - x[rows]
+    step[..., up_axis] = 0.0
+    moved = np.where(contact[rows], np.linalg.norm(step, axis=-1), np.nan)
+    slide = np.nanmedian(moved, axis=1) / height if rows.size else np.zeros(0)
+    offset = np.where(contact[rows], above[rows], np.inf).min(axis=1) / height
+    # second differences whose three frames play on one into the next
+    accel = float("nan")
+    if M >= 3:
+        both = plays[:-2] & plays[1:-1] & counted[:-2]
+        if both.any():
+            second = x[2:][both] - 2.0 * x[1:-1][both] + x[:-2][both]
+            accel = float(np.linalg.norm(second, axis=-1).max())
+    return Steps(slide, offset, int(counted[:-1].sum()), accel)
+
+
+def measure_frames(frames, count, ground, height, up_axis=1, band=BAND, plays_on=None, block=64):
+    """:func:`contact_steps` of a long animation given as ``frames(start, stop)`` -> vertices
+    (stop − start, V, 3) of ``count`` frames, in blocks of ``block`` frames (two frames of
+    overlap, so every step and every second difference is counted once). ``ground``: a float or
+    (count,); ``plays_on`` (count,) or None."""
+    ground = np.broadcast_to(np.asarray(ground, dtype=np.float64), (count,))
+    plays = np.ones(count, bool) if plays_on is None else np.asarray(plays_on, dtype=bool)
+    parts = []
+    for start in range(0, max(count - 1, 1), block):
+        stop = min(start + block + 2, count)
+        # steps start .. start+block−1, second differences centred on start+1 .. start+block
+        parts.append(contact_steps(frames(start, stop), ground[start:stop], height, up_axis, band,
+                                   plays[start:stop], steps=block))
+    return Steps.join(parts)
+
+
+def summary(measured, limit=LIMIT):
+    """The reported figures (module notes) of :class:`Steps`: a dict of plain floats."""
+    slide, offset = measured.slide, measured.offset
+    out = {"steps": int(measured.steps), "contact_steps": int(slide.size)}
+    if slide.size:
+        float_, sink = np.maximum(offset, 0.0), np.maximum(-offset, 0.0)
+        out.update(slide_median=float(np.median(slide)), slide_p95=float(np.percentile(slide, 95)),
+                   sliding_share=float(np.mean(slide > limit)),
+                   float_median=float(np.median(float_)), float_p95=float(np.percentile(float_, 95)),
+                   float_max=float(float_.max()), penetration_median=float(np.median(sink)),
+                   penetration_p95=float(np.percentile(sink, 95)), penetration_max=float(sink.max()))
+    out["largest_accel"] = measured.accel
+    return out
+
+
+def ratios(output, input_):
+    """Output over input of the slide figures and the largest acceleration (None where the
+    input's is 0 or missing)."""
+    out = {}
+    for key in ("slide_median", "slide_p95", "sliding_share", "largest_accel"):
+        a, b = output.get(key), input_.get(key)
+        out[key] = float(a / b) if a is not None and b and np.isfinite(a) and np.isfinite(b) else None
+    return out
+
+
+def measure_input(vertices, starts, height, up_axis=1, block=64):
+    """An input of one or more clips, vertices (F, V, 3), clip c being frames starts[c] …
+    starts[c+1] − 1 (:attr:`~skinsynth.pipeline.clips.Clips.starts`): (its :class:`Steps`, each
+    clip's ground (C,)). No step or second difference crosses from one clip into the next."""
+    starts = np.asarray(starts, dtype=np.int64)
+    grounds = np.array([clip_ground(vertices[a:b], up_axis) for a, b in zip(starts[:-1], starts[1:])])
+    parts = [measure_frames(lambda s, e, a=a: vertices[a + s:a + e], b - a, g, height, up_axis, block=block)
+             for a, b, g in zip(starts[:-1], starts[1:], grounds)]
+    return Steps.join(parts), grounds

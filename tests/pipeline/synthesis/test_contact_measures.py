@@ -1,0 +1,100 @@
+"""The feet measures (issue 35 part 4) on closed forms: pipeline/synthesis/contact_measures.py."""
+
+import numpy as np
+import pytest
+
+from skinsynth.pipeline.clips import Clips
+from skinsynth.pipeline.synthesis.contact_measures import (BAND, Steps, character_height, clip_ground, contact_steps,
+                                                           measure_frames, measure_input, ratios, summary)
+
+
+def block(frames=30, velocity=(0.0, 0.0, 0.0), lift=0.0):
+    """A 1 × 2 × 1 box of vertices (H = 2) whose sole lies at height ``lift``, moving rigidly by
+    ``velocity`` per frame: (frames, V, 3)."""
+    grid = np.stack(np.meshgrid(np.linspace(0, 1, 5), np.linspace(0, 2, 9), np.linspace(0, 1, 5),
+                                indexing="ij"), axis=-1).reshape(-1, 3)
+    return grid[None] + np.arange(frames)[:, None, None] * np.asarray(velocity) + np.array([0.0, lift, 0.0])
+
+
+def test_a_block_sliding_on_the_ground_slides_at_its_speed_over_the_height():
+    x = block(velocity=(0.03, 0.0, 0.04))  # 0.05 a frame; H = 2
+    H = character_height(x[0])
+    assert H == 2.0 and clip_ground(x) == 0.0
+    got = summary(contact_steps(x, 0.0, H))
+    assert got["steps"] == got["contact_steps"] == 29
+    assert got["slide_median"] == pytest.approx(0.025) and got["slide_p95"] == pytest.approx(0.025)
+    assert got["sliding_share"] == 1.0
+    assert got["float_max"] == 0.0 and got["penetration_max"] == 0.0
+    assert got["largest_accel"] == pytest.approx(0.0, abs=1e-12)  # constant velocity
+
+
+def test_a_block_resting_still_does_not_slide():
+    got = summary(contact_steps(block(), 0.0, 2.0))
+    assert got["contact_steps"] == 29
+    assert (got["slide_median"], got["slide_p95"], got["sliding_share"]) == (0.0, 0.0, 0.0)
+
+
+def test_a_lifted_block_floats_by_its_lift_and_a_sunk_one_penetrates():
+    lifted = summary(contact_steps(block(lift=0.01), 0.0, 2.0))  # 0.5 % of the height, inside the 1 % band
+    assert lifted["float_median"] == pytest.approx(0.005) and lifted["float_max"] == pytest.approx(0.005)
+    assert lifted["penetration_max"] == 0.0
+    sunk = summary(contact_steps(block(lift=-0.03), 0.0, 2.0))
+    assert sunk["penetration_median"] == pytest.approx(0.015) and sunk["float_max"] == 0.0
+    # above the band: no contact at all
+    assert summary(contact_steps(block(lift=2.5 * BAND * 2.0), 0.0, 2.0))["contact_steps"] == 0
+
+
+def test_contact_needs_two_consecutive_frames_near_the_ground():
+    x = block(frames=6)
+    x[[1, 3, 4], :, 1] += 1.0  # frames 0, 2 and 5 rest, each alone: no step rests at both ends
+    got = contact_steps(x, 0.0, 2.0)
+    assert got.slide.size == 0
+    x[4, :, 1] -= 1.0  # now frames 4 and 5 both rest: the one step 4 → 5
+    assert contact_steps(x, 0.0, 2.0).slide.size == 1
+
+
+def test_ground_is_a_low_percentile_not_one_dip():
+    x = block(frames=100, lift=0.0)
+    x[:, :, 1] += np.linspace(0, 0.5, 100)[:, None] ** 2  # rises slowly away from the floor
+    x[7, :, 1] -= 0.4  # one frame through the floor
+    ground = clip_ground(x)
+    assert -0.01 < ground < 0.01
+
+
+def test_blocks_count_every_step_once():
+    rng = np.random.default_rng(4)
+    x = block(frames=50, velocity=(0.01, 0.0, 0.0)) + rng.normal(scale=0.002, size=(50, 225, 3))
+    whole = contact_steps(x, 0.0, 2.0)
+    blocks = measure_frames(lambda s, e: x[s:e], 50, 0.0, 2.0, block=7)
+    assert blocks.steps == whole.steps == 49
+    assert np.allclose(blocks.slide, whole.slide) and np.allclose(blocks.offset, whole.offset)
+    assert blocks.accel == pytest.approx(whole.accel)
+
+
+def test_the_step_from_one_clip_to_the_next_is_not_motion():
+    walk = block(frames=12, velocity=(0.02, 0.0, 0.0))
+    elsewhere = block(frames=8, velocity=(0.02, 0.0, 0.0)) + np.array([5.0, 0.0, -3.0])  # another take, 6 units away
+    clips = Clips(("walk", "elsewhere"), (12, 8))
+    both = np.concatenate([walk, elsewhere])
+    assert contact_steps(both, 0.0, 2.0).slide.max() > 1.0  # read as one clip, the cut is a huge slide
+    measured, grounds = measure_input(both, clips.starts, 2.0, block=5)
+    assert measured.steps == 18 and np.allclose(grounds, 0.0)
+    assert np.allclose(measured.slide, 0.01) and measured.accel == pytest.approx(0.0, abs=1e-12)
+    same = contact_steps(both, 0.0, 2.0, plays_on=clips.plays_on())
+    assert np.allclose(same.slide, 0.01)
+
+
+def test_each_clip_has_its_own_ground():
+    low, high = block(frames=10), block(frames=10, lift=0.7)
+    measured, grounds = measure_input(np.concatenate([low, high]), Clips(("a", "b"), (10, 10)).starts, 2.0)
+    assert grounds == pytest.approx([0.0, 0.7]) and measured.slide.size == 18
+
+
+def test_summary_and_ratios():
+    out = summary(Steps(np.array([0.0, 0.01]), np.array([0.0, -0.002]), 4, 3.0))
+    base = summary(Steps(np.array([0.0, 0.006]), np.array([0.001, 0.0]), 4, 2.0))
+    r = ratios(out, base)
+    assert r["largest_accel"] == 1.5 and r["sliding_share"] == 1.0
+    assert r["slide_median"] == pytest.approx(5.0 / 3.0)
+    assert summary(Steps(np.zeros(0), np.zeros(0), 3, float("nan")))["contact_steps"] == 0
+    assert ratios({"slide_median": 1.0}, {"slide_median": 0.0})["slide_median"] is None
