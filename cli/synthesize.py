@@ -80,6 +80,11 @@ def _frames(clips, start, end, targets):
                    "lowest points (components whose walks combine leg poses the clip never has: floating, or a "
                    "foot through the floor), move the whole character vertically back into it, smoothly over a "
                    "few frames; nothing moves where it stays in range.")
+@click.option("--measure-feet", "measure_feet", default=16, show_default=True, type=click.IntRange(min=0),
+              metavar="N",
+              help="Measure how well the feet stay planted (slide, float and penetration of the contact vertices, "
+                   "worst acceleration; docs/contact.md) on the first N animations, skinned, and on the input; "
+                   "reported in the summary and --json's \"contact\". 0: skip (it costs skinning N animations).")
 @click.option("--usd", "usd_dir", type=click.Path(file_okay=False), default=None, help="Also write one USD point cache per animation here.")
 @click.option("--crowd", type=click.Path(dir_okay=False), default=None, help="Also write one USD stage with every animation on a grid.")
 @click.option("--gltf", type=click.Path(dir_okay=False), default=None, metavar="FILE.glb",
@@ -110,7 +115,7 @@ def _frames(clips, start, end, targets):
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
                min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, contact,
-               usd_dir, crowd, gltf, root_motion, exr_dir, half,
+               measure_feet, usd_dir, crowd, gltf, root_motion, exr_dir, half,
                max_width, up_axis, plot_dir, plot_count, device, jobs, cluster, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
@@ -159,6 +164,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     if plot_count < 1:
         raise OptionError(f"--plot-count must be at least 1 (got {plot_count})")
     check_max_width(max_width)
+    asked_device = device  # the feet are measured on it too (resolved then)
     device = resolve_device(device) if (usd_dir or crowd or exr_dir or plot_dir) else None
     # a cluster starts (local:N) or is reached in the background while the graph is read
     with (_cluster_starting(cluster) if cluster else contextlib.nullcontext()) as joined:
@@ -229,7 +235,13 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         if plot_dir is not None:
             written += _write_plots(plot_dir, skin, motions, min(plot_count, count), device, folders,
                                     request.clips)
+        feet = None
+        if measure_feet and count:
+            feet = _measure_feet(skin, motions, clips, min(measure_feet, count), request.up_axis, device or asked_device)
     summary, lines = _summary(output, result, components, frames, min_segment, jobs, seconds, written)
+    if feet is not None:
+        summary["contact"], line = feet
+        lines.append(line)
     if remote is not None:
         from skinsynth.formats.synthesis_shards import remove_unused_shards
 
@@ -320,6 +332,41 @@ def _summary(output, result, components, frames, min_segment, jobs, seconds, wri
             taken = ", ".join(f"{pair.replace('->', '→')} {n}" for pair, n in used.items() if n) or "none"
             lines.append(f"component {c}: frames played per clip {played}; transitions {taken}")
     return summary, lines
+
+
+def _measure_feet(skin, motions, clips, count, up_axis, device):
+    """The feet figures (docs/contact.md) of the input and the first ``count`` animations:
+    (the --json "contact" object, one text line)."""
+    from skinsynth.gpu import resolve_device
+    from skinsynth.pipeline.synthesis import measure_feet
+
+    figures = measure_feet(skin, motions.F, motions.t, motions.sources, clips.starts, count, up_axis,
+                           resolve_device(device))
+
+    def plain(value):
+        if isinstance(value, dict):
+            return {k: plain(v) for k, v in value.items()}
+        if isinstance(value, list):
+            return [plain(v) for v in value]
+        if isinstance(value, float):
+            return float(f"{value:.6g}") if np.isfinite(value) else None
+        return value
+
+    figures = plain(figures)
+    contact = {"animations": count, "definitions": "docs/contact.md", **figures}
+    i, o, r = figures["input"], figures["output"], figures["ratios"]
+
+    def share(side, key):
+        return f"{side[key]:.2%}" if side.get(key) is not None else "n/a"
+
+    accel = f"{r['largest_accel']:.2f}×" if r.get("largest_accel") is not None else "n/a"
+    line = (f"feet (first {count} animations against the input, shares of the height; docs/contact.md): slide "
+            f"median {share(o, 'slide_median')} (input {share(i, 'slide_median')}), 95th percentile "
+            f"{share(o, 'slide_p95')} ({share(i, 'slide_p95')}), steps sliding over 0.5 % {share(o, 'sliding_share')} "
+            f"({share(i, 'sliding_share')}); float p95 {share(o, 'float_p95')} ({share(i, 'float_p95')}), "
+            f"penetration p95 {share(o, 'penetration_p95')} ({share(i, 'penetration_p95')}); "
+            f"worst acceleration {accel} the input's")
+    return contact, line
 
 
 def _cluster_starting(address):

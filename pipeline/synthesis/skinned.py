@@ -46,3 +46,31 @@ class SkinnedAnimations:
                 future.cancel()
             self._pool.shutdown()
             self._pool, self._pending = None, {}
+
+
+def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", block=64):
+    """The feet figures (:mod:`.contact_measures`, docs/contact.md) of the input and of the first
+    ``count`` synthesized animations, their vertices skinned in blocks of ``block`` frames:
+    ``skin`` has examples (Fi, V, 3), rest_vertices, bone_indices, bone_weights; F (A, M, B, 3, 3),
+    t (A, M, B, 3), sources (C, A, M); ``starts`` the input's clip starts (C + 1,). An output frame
+    is measured against the ground of the clip its first component plays. Returns a dict: height,
+    ground (per clip), input, output (:func:`~.contact_measures.summary`), ratios."""
+    import numpy as np
+
+    from .contact_measures import Steps, character_height, measure_frames, measure_input, ratios, summary
+
+    height = character_height(skin.rest_vertices, up_axis)
+    measured_in, grounds = measure_input(skin.examples, starts, height, up_axis, block=block)
+    clip_of = np.clip(np.searchsorted(np.asarray(starts), np.asarray(sources[0, :count]), side="right") - 1,
+                      0, len(grounds) - 1)
+    parts = []
+    for a in range(count):
+        Fa, ta = np.asarray(F[a]), np.asarray(t[a])  # one animation's bones (a cluster's: read from its shard)
+
+        def frames(s, e, Fa=Fa, ta=ta):
+            return lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, Fa[s:e], ta[s:e], device=device)
+
+        parts.append(measure_frames(frames, Fa.shape[0], grounds[clip_of[a]], height, up_axis, block=block))
+    figures_in, figures_out = summary(measured_in), summary(Steps.join(parts))
+    return {"height": height, "ground": [float(g) for g in grounds], "input": figures_in, "output": figures_out,
+            "ratios": ratios(figures_out, figures_in)}

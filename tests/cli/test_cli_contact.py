@@ -84,3 +84,31 @@ def test_a_walker_whose_legs_are_components_keeps_its_feet_on_the_ground_over_3_
     if graph == "graph.h5":
         assert_ok(cli(*common, "-o", tmp_path / "free.h5", "--no-contact"))
         assert max(ground_excess(read_synthesis(tmp_path / "free.h5"), against="examples")) > 0.03
+
+
+def test_json_reports_the_feet_of_the_input_and_of_the_first_animations_and_writes_the_same(bar, tmp_path):
+    """Issue 35 part 4: --json's "contact" (docs/contact.md) for the input and the first N
+    animations; --measure-feet changes nothing written, and 0 measures nothing."""
+    import json
+
+    from skinsynth.pipeline.synthesis.contact_measures import character_height, measure_input, summary
+
+    common = ("synthesize", bar / "graph.h5", "-n", 5, "-m", 60, "--seed", 1, "--device", "cpu")
+    report = json.loads(assert_ok(cli(*common, "-o", tmp_path / "a.h5", "--json", "--measure-feet", 3)).stdout)
+    contact = report["contact"]
+    assert contact["animations"] == 3 and contact["definitions"] == "docs/contact.md"
+    assert contact["output"]["steps"] == 3 * 59
+    data = read_synthesis(tmp_path / "a.h5")
+    height = character_height(data["rest"])
+    expected = summary(measure_input(data["examples"], [0, data["examples"].shape[0]], height)[0])
+    assert contact["height"] == pytest.approx(height, rel=1e-5)
+    for key, value in expected.items():
+        assert contact["input"][key] == pytest.approx(value, rel=1e-4, abs=1e-9), key
+    assert set(contact["ratios"]) == {"slide_median", "slide_p95", "sliding_share", "largest_accel"}
+    assert contact["ratios"]["largest_accel"] > 0.0
+    quiet = json.loads(assert_ok(cli(*common, "-o", tmp_path / "b.h5", "--json", "--measure-feet", 0)).stdout)
+    assert "contact" not in quiet
+    again = read_synthesis(tmp_path / "b.h5")
+    assert np.array_equal(again["F"], data["F"]) and np.array_equal(again["t"], data["t"])
+    text = assert_ok(cli(*common, "-o", tmp_path / "c.h5")).stdout
+    assert "feet (first 5 animations" in text
