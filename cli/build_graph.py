@@ -5,6 +5,7 @@ import os
 import time
 
 import click
+import numpy as np
 
 from skinsynth.pipeline.synthesis.graph_options import GraphOptions
 
@@ -47,12 +48,25 @@ DEFAULTS = GraphOptions()
               help="With several clips: the clips walks may play (default every clip). The others get no "
                    "transition in or out, so synthesize never plays them: e.g. a library of unrelated key poses "
                    "that shares the rig (and trains the puppet) but is no motion to walk through.")
+@click.option("--no-contacts", "no_contacts", is_flag=True,
+              help="Do not look for the input's ground contacts (the graph file then holds none).")
+@click.option("--contact-height", default=DEFAULTS.contact_height, show_default=True, type=float,
+              help="A vertex enters contact within this share of the character's height above its clip's ground "
+                   "(a low percentile of the clip's lowest points).")
+@click.option("--contact-speed", default=DEFAULTS.contact_speed, show_default=True, type=float,
+              help="... and slower than this share of the height per second, sideways, relative to the ground "
+                   "(a treadmill's belt is the ground's own travel).")
+@click.option("--contact-release", default=DEFAULTS.contact_release, show_default=True, type=float,
+              help="A vertex leaves contact beyond this multiple (≥ 1) of both thresholds (hysteresis).")
+@click.option("--contact-min-duration", default=DEFAULTS.contact_min_duration, show_default=True, type=float,
+              help="Shortest plant kept, in seconds (shorter ones are dropped).")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,
               help="Write PNGs here: the cost matrix of each component with its transitions, and the bone graph.")
 @summary_options
 @user_errors
 def build_graph(path, output, threshold_scale, threshold_reference, edge_threshold, single_component, svd_threshold,
-                min_gap, min_segment, coverage, up_axis, posture_weight, walk_clips, plot_dir, quiet, as_json):
+                min_gap, min_segment, coverage, up_axis, posture_weight, walk_clips, no_contacts, contact_height,
+                contact_speed, contact_release, contact_min_duration, plot_dir, quiet, as_json):
     """Analyse a skin fit for synthesis (Zheng 2013 §3.2, §3.3, §4.1).
 
     Finds, per weakly coupled bone component, its reference bone, reduced coordinates and the
@@ -60,6 +74,11 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     graph (eq. 11), its cut nodes and components; and the key vertices, weight gradients
     (Appendix A), rotation–strain deformation-gradient series (eq. 8) and the factorised
     operator of eq. 9 that splicing needs.
+
+    It also finds the input's ground contacts: per input frame, the patches of the mesh that
+    rest on the ground (near the clip's ground, slow, facing it; with hysteresis and a shortest
+    plant), stored in the graph file and drawn by --plot on a timeline. A capture that never
+    rests on a ground has none, and its graph file is the same as with --no-contacts.
 
     A skin fitted to several clips (fit-skin A.npz B.npz) keeps them apart: playback never runs
     from one clip's last frame into the next clip's first, and transitions are found within each
@@ -79,7 +98,7 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.clips import Clips
     from skinsynth.pipeline.synthesis import build_graph as analyse, validate_graph_options
-    from skinsynth.pipeline.synthesis import default_min_segment
+    from skinsynth.pipeline.synthesis import default_min_segment, find_contacts, validate_contact_options
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
     folders = FolderOutputs([path], [output, plot_dir])
@@ -91,6 +110,7 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     up_axis = up_axis or skin.scene.up_axis
     validate_graph_options(skin.rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap,
                            min_segment, coverage, posture_weight)
+    validate_contact_options(contact_height, contact_speed, contact_release, contact_min_duration)
     clips = Clips(skin.clip_names, skin.clip_frames)
     if walk_clips is not None:
         walk_clips = clips.subset([n.strip() for n in walk_clips.split(",") if n.strip()] or [""]).names
@@ -100,11 +120,17 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
                        edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
                        min_gap=min_gap, min_segment=min_segment, coverage=coverage, up_axis="XYZ".index(up_axis),
                        posture_weight=posture_weight, clips=clips, walk_clips=walk_clips)
+    if not no_contacts:
+        analysis.contacts = find_contacts(skin.examples, skin.faces, skin.fps, "XYZ".index(up_axis), clips,
+                                          height=contact_height, speed=contact_speed, release=contact_release,
+                                          min_duration=contact_min_duration)
     seconds = time.perf_counter() - started
     parameters = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                       edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
                       min_gap=min_gap, min_segment=min_segment, coverage=coverage, up_axis=up_axis,
-                      posture_weight=posture_weight, clips=list(walk_clips or clips.names))
+                      posture_weight=posture_weight, clips=list(walk_clips or clips.names), contacts=not no_contacts,
+                      contact_height=contact_height, contact_speed=contact_speed, contact_release=contact_release,
+                      contact_min_duration=contact_min_duration)
     record = provenance_record("graph", command_line(), parameters, [path], tool_version())
     write_model(output, "graph", graph_groups(model, analysis), model["provenance"] + [record], tool_version())
     if plot_dir is not None:
@@ -117,11 +143,12 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
 
 
 def _write_plots(plot_dir, skin, analysis, folders, clips):
-    """The folder of PNGs: each component's transition-cost matrix and the bone graph. With
+    """The folder of PNGs: each component's transition-cost matrix, the bone graph and, when
+    the input has ground contacts, their timeline (contacts.png: patches × frames). With
     several clips a transition into clip c's start (j = −(c+1)) is marked at the column of the
     frame before that start, c's virtual frame; the virtual column drawn is clip 0's."""
     from skinsynth.formats.output_folder import atomic_folder
-    from skinsynth.formats.plots import write_bone_graph_plot, write_cost_matrix_plot
+    from skinsynth.formats.plots import write_bone_graph_plot, write_contact_timeline_plot, write_cost_matrix_plot
     from skinsynth.pipeline.synthesis import bone_layout
 
     with atomic_folder(plot_dir, **folders.guard(plot_dir)) as tmp:
@@ -137,6 +164,12 @@ def _write_plots(plot_dir, skin, analysis, folders, clips):
                               analysis.kept_edges, [c.bones for c in analysis.components], analysis.cut_nodes,
                               f"bone graph: {len(analysis.components)} component(s), "
                               f"{len(analysis.cut_nodes)} cut node(s)")
+        contacts = analysis.contacts
+        if contacts is not None and contacts.count:
+            write_contact_timeline_plot(os.path.join(tmp, "contacts.png"), contacts.planted, np.diff(contacts.offsets),
+                                        f"ground contacts: {contacts.count} patch(es), "
+                                        f"{contacts.planted.any(axis=1).mean():.0%} of the frames in contact",
+                                        clip_starts=clips.starts, clip_names=clips.names)
 
 
 def _summary(output, analysis, min_segment, up_axis, seconds, clips):
@@ -167,6 +200,13 @@ def _summary(output, analysis, min_segment, up_axis, seconds, clips):
                "transitions": int(analysis.transition_count), "min_segment": int(min_segment), "up_axis": up_axis,
                "seconds": round(seconds, 3), "clips": list(clips.names), "transitions_between": total,
                "walk_clips": list(analysis.options.get("walk_clips") or clips.names)}
+    contacts = analysis.contacts
+    if contacts is not None:
+        share = float(contacts.planted.any(axis=1).mean()) if contacts.count else 0.0
+        summary["contacts"] = {"patches": contacts.count, "plants": len(contacts.plants(clips)),
+                               "share_of_frames": round(share, 4)}
+        lines.append(f"  ground contacts: {contacts.count} patch(es), {summary['contacts']['plants']} plant(s), "
+                     f"{share:.0%} of the frames" if contacts.count else "  ground contacts: none (no ground found)")
     left_out = [n for n in clips.names if n not in summary["walk_clips"]]
     if left_out:
         lines.insert(2, f"  walks play {', '.join(summary['walk_clips'])}; left out (--clips): {', '.join(left_out)}")

@@ -80,8 +80,61 @@ def graph_groups(model, analysis):
             "@admitted": int(t.admitted), "@recurrent_share": float(t.share)}
         if getattr(t, "thresholds", None) is not None:  # several clips: T_c per (clip left, clip entered)
             graph[f"component_{number:03d}"]["clip_thresholds"] = np.asarray(t.thresholds, dtype=np.float64)
+    contacts = getattr(analysis, "contacts", None)
+    if contacts is not None and contacts.count:  # only then: a capture without contacts keeps every dataset
+        graph["contacts"] = {
+            "vertices": np.asarray(contacts.vertices, dtype=np.int64),
+            "offsets": np.asarray(contacts.offsets, dtype=np.int64),
+            "planted": np.asarray(contacts.planted, dtype=np.uint8),
+            "ground": np.asarray(contacts.ground, dtype=np.float64),
+            "@height": float(contacts.height), "@patches": int(contacts.count),
+            **{f"@{name}": float(value) for name, value in contacts.options.items()}}
     groups["graph"] = graph
     return groups
+
+
+@dataclass
+class ContactsRecord:
+    """/graph/contacts as read: vertices (N,) patch by patch, offsets (P + 1,) (patch p is
+    vertices[offsets[p]:offsets[p + 1]]), planted (F, P) bool, ground (C,) per clip, height (the
+    thresholds' unit) and the options found with ({name: value})."""
+
+    vertices: np.ndarray
+    offsets: np.ndarray
+    planted: np.ndarray
+    ground: np.ndarray
+    height: float
+    options: dict
+
+    @property
+    def count(self):
+        return int(self.offsets.size - 1)
+
+
+#: The thresholds /graph/contacts records (attribute names without "@").
+CONTACT_OPTIONS = ("height", "speed", "release", "min_duration")
+
+
+def read_contacts(path, graph, frames, vertex_count):
+    """The :class:`ContactsRecord` of a read /graph, or None when it has none (no contact found,
+    or a file from before); FormatError when it is inconsistent."""
+    data = graph.get("contacts")
+    if data is None:
+        return None
+    missing = [name for name in ("vertices", "offsets", "planted", "ground") if name not in data]
+    if missing:
+        raise FormatError(path, f"/graph/contacts lacks {', '.join(missing)}: the file is incomplete")
+    vertices, offsets = np.asarray(data["vertices"]), np.asarray(data["offsets"])
+    planted = np.asarray(data["planted"]).astype(bool)
+    patches = offsets.size - 1
+    if (offsets.ndim != 1 or patches < 1 or offsets[0] != 0 or offsets[-1] != vertices.size
+            or np.any(np.diff(offsets) < 1) or planted.shape != (frames, patches)
+            or vertices.size and (vertices.min() < 0 or vertices.max() >= vertex_count)):
+        raise FormatError(path, f"/graph/contacts is inconsistent: offsets (P + 1,) must rise from 0 to the "
+                                f"{vertices.size} vertices (each < {vertex_count}) and planted be ({frames}, P)")
+    return ContactsRecord(vertices=vertices, offsets=offsets, planted=planted, ground=np.asarray(data["ground"]),
+                          height=float(data.get("@height", 1.0)),
+                          options={name: float(data[f"@{name}"]) for name in CONTACT_OPTIONS if f"@{name}" in data})
 
 
 #: build-graph's options as /graph records them (attribute names without "@").
@@ -159,4 +212,6 @@ def read_graph(path):
             raise FormatError(path, f"/graph/{name} lacks {', '.join(missing)}: the file is incomplete")
         components.append(_component_record(graph[name]))
     options = {name: graph[f"@{name}"] for name in GRAPH_OPTIONS if f"@{name}" in graph}
-    return GraphFile(skin=skin, graph=graph, options=options, components=components, provenance=model["provenance"])
+    contacts = read_contacts(path, graph, skin.rotations.shape[0], skin.rest_vertices.shape[0])
+    return GraphFile(skin=skin, graph=graph, options=options, components=components, provenance=model["provenance"],
+                     contacts=contacts)

@@ -1,4 +1,5 @@
-"""Figures for people, as PNGs: per-frame error curves, transition-cost matrices, bone graphs.
+"""Figures for people, as PNGs: per-frame error curves, transition-cost matrices, bone graphs,
+contact timelines.
 
 Drawn with matplotlib's object API on an Agg canvas (no pyplot, no global backend switch, safe
 in worker processes without a display) and written atomically.
@@ -121,6 +122,31 @@ def write_bone_graph_plot(path, positions, weights, edges, components, cut_nodes
     axes.set_aspect("equal", adjustable="datalim")
     axes.set_title(title)
     axes.legend(loc="best", fontsize=8)
+    _save(figure, path)
+
+
+def write_contact_timeline_plot(path, planted, sizes, title, clip_starts=None, clip_names=None):
+    """The input's ground contacts on a timeline: one row per patch (its vertex count in the
+    label), a dark cell at each frame where it is planted. planted (F, P) bool; sizes (P,);
+    ``clip_starts`` (C + 1,) global first frames of the clips and the frame count, drawn as
+    vertical lines with ``clip_names`` when there are several."""
+    planted = np.asarray(planted, dtype=bool)
+    frames, patches = planted.shape
+    figure = _new_figure(path, (9.0, 1.6 + 0.28 * max(patches, 1)))
+    axes = figure.add_subplot()
+    axes.imshow(planted.T.astype(np.float64), cmap="Greys", vmin=0.0, vmax=1.0, aspect="auto",
+                interpolation="nearest", extent=(-0.5, frames - 0.5, patches - 0.5, -0.5))
+    axes.set_yticks(np.arange(patches))
+    axes.set_yticklabels([f"patch {p} ({int(n)} v)" for p, n in enumerate(sizes)], fontsize=7)
+    if clip_starts is not None and len(clip_starts) > 2:
+        for c, start in enumerate(clip_starts[:-1]):
+            if c:
+                axes.axvline(start - 0.5, color="red", linewidth=1.0)
+            if clip_names is not None:
+                axes.annotate(str(clip_names[c]), (start, -0.5), textcoords="offset points", xytext=(2, 4),
+                              fontsize=7, color="red", annotation_clip=False)
+    axes.set_xlabel("input frame")
+    axes.set_title(title)
     _save(figure, path)
 
 

@@ -49,7 +49,8 @@ class GraphAnalysis:
     """d (B, B) bone-graph weights (eq. 11); kept_edges (E, 2); cut_nodes: the bones shared by two
     or more components; articulation_points: every cut node of the pruned graph (some end up
     inside a merged component); components; options; clips: the :class:`.clips.Clips` of the
-    frames (None: one clip)."""
+    frames (None: one clip); contacts: the input's :class:`.contact_patches.ContactPatches`
+    (None: not looked for)."""
 
     weights: np.ndarray
     kept_edges: np.ndarray
@@ -58,6 +59,7 @@ class GraphAnalysis:
     components: list
     options: dict = field(default_factory=dict)
     clips: object = None
+    contacts: object = None
 
     @property
     def transition_count(self):

@@ -12,7 +12,10 @@ class GraphOptions:
     threshold_reference (T_c, :func:`.transitions.find_transitions`), edge_threshold, min_bones and
     single_component (:mod:`.bone_graph`), svd_threshold (eq. 3–4), min_gap, min_segment (frames;
     the CLI's default is half a second, :func:`.motion_graph.default_min_segment`), coverage,
-    up_axis (0, 1, 2) and posture_weight (:func:`.transitions.posture_costs`)."""
+    up_axis (0, 1, 2) and posture_weight (:func:`.transitions.posture_costs`); contacts (look for the
+    input's ground contacts) and their thresholds contact_height (share of the height above the
+    ground), contact_speed (share of the height per second), contact_release (the factor beyond
+    which a contact is left) and contact_min_duration (seconds) (:func:`.contact_patches.find_contacts`)."""
 
     threshold_scale: float = 3.0
     threshold_reference: str = "median-step"
@@ -25,6 +28,11 @@ class GraphOptions:
     coverage: float = 0.95
     up_axis: int = 1
     posture_weight: float = 1.0
+    contacts: bool = True
+    contact_height: float = 0.02
+    contact_speed: float = 1.0
+    contact_release: float = 1.5
+    contact_min_duration: float = 0.1
 
     @classmethod
     def recorded(cls, values):
