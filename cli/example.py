@@ -21,9 +21,11 @@ DEFAULTS = {"bending-bar": {"frames": 60, "rings": 40, "segments": 16, "cycles":
 @click.option("--cycles", type=int, show_default="bending-bar 1, walker 2",
               help="Bend-and-twist cycles (walker: gait cycles) over the frames.")
 @click.option("--fps", default=24.0, show_default=True, type=click.FloatRange(min=0.0, min_open=True, max=1e6), help="Frame rate stored with the sequence.")
+@click.option("--planted", is_flag=True,
+              help="walker: walk forward with truly planted feet (legs by inverse kinematics) instead of in place.")
 @summary_options
 @user_errors
-def example(name, output, frames, rings, segments, cycles, fps, quiet, as_json):
+def example(name, output, frames, rings, segments, cycles, fps, planted, quiet, as_json):
     """Write a built-in example mesh sequence (no download needed).
 
     bending-bar: a capped cylinder that bends into an arc and twists over one cycle, the kind of
@@ -36,13 +38,17 @@ def example(name, output, frames, rings, segments, cycles, fps, quiet, as_json):
     ties, so build-graph gives each leg a bone component of its own (fit it with 10 bones, one
     per part, or 12 for some slack). --rings counts the rings along a leg (the other tubes get as
     many per unit length). The default is two gait cycles in 48 frames (1 s a cycle at 24 fps),
-    1,248 vertices; a whole number of cycles loops.
+    1,248 vertices; a whole number of cycles loops. On the spot each stance foot slides back (as
+    on a treadmill); --planted walks forward instead, each stance foot exactly still on the ground
+    while the body travels (1.06 units a cycle), so a whole number of cycles loops but for that
+    travel.
 
     \b
     Example:
       skinsynth example bending-bar -o bar.npz --frames 120
       skinsynth fit-skin bar.npz -o bar.skin.h5 --bones 8
       skinsynth example walker -o walker.npz
+      skinsynth example walker -o walking.npz --planted
       skinsynth fit-skin walker.npz -o walker.skin.h5 --bones 12
     """
     from skinsynth.formats.meshseq import write_array_sequence
@@ -56,15 +62,20 @@ def example(name, output, frames, rings, segments, cycles, fps, quiet, as_json):
     check_output_path(output, (".npz",))
     if frames < 2 or rings < 2 or segments < 3 or cycles < 1 or not fps > 0:
         fail("--frames and --rings must be at least 2, --segments at least 3, --cycles at least 1, --fps positive")
+    if planted and name != "walker":
+        fail("--planted is the walker's: the bending bar has no feet")
     if name == "walker":
         # Nine tubes: the legs have ``rings`` rings each, the other seven together about 3.1 × as
         # many (at least 4 each), two cap centres each; per-part temporaries come on top.
         vertex_count = (6 * rings + 32) * segments + 18
         check_memory(frames * vertex_count * 3 * 8 * 4, f"{frames} frames of up to {vertex_count} vertices")
-        vertices, faces = walker(frames=frames, cycles=cycles, rings=rings, segments=segments)
+        vertices, faces = walker(frames=frames, cycles=cycles, rings=rings, segments=segments, planted=planted)
     else:
         check_memory(frames * (rings * segments + 2) * 3 * 8 * 3, f"{frames} frames of {rings} × {segments} vertices")
         vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
     write_array_sequence(output, vertices, faces, fps)
-    report({"output": output, "name": name, "frames": frames, "vertices": int(vertices.shape[1]), "fps": fps},
-           [f"wrote {output}: {name}, {frames} frames, {vertices.shape[1]} vertices"], as_json, quiet)
+    summary = {"output": output, "name": name, "frames": frames, "vertices": int(vertices.shape[1]), "fps": fps}
+    if name == "walker":
+        summary["planted"] = planted
+    report(summary, [f"wrote {output}: {name}{', planted' if planted else ''}, {frames} frames, "
+                     f"{vertices.shape[1]} vertices"], as_json, quiet)

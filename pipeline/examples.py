@@ -8,8 +8,12 @@
 - :func:`walker`: an articulated figure (nine tubes in one mesh, ten skinned parts) walking in
   place: vertices (F, V, 3), faces (T, 3), Y up, the stance foot on y = 0. Its limbs hang from
   the torso by weak skin ties, so a fit's bone graph gives each leg a component of its own: the
-  case where components' independent walks combine leg poses that never occur together.
+  case where components' independent walks combine leg poses that never occur together. With
+  ``planted=True`` it walks forward instead, its feet truly planted (two-link legs by analytic
+  inverse kinematics); :func:`walker_contacts` gives that gait's contact truth in closed form.
 """
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -164,12 +168,115 @@ def _rotation(axis, angle):
     return rotation_exp(vector)
 
 
+#: The walker's leg in its rest pose: hip, knee and ankle joint heights, the hips' offset from the
+#: middle (left +x), and the swing foot's highest lift of its ankle (planted gait).
+WALKER_HIP_Y, WALKER_KNEE_Y, WALKER_ANKLE_Y, WALKER_HIP_X = 0.92, 0.5, 0.08, 0.1
+WALKER_CLEARANCE = 0.12
+_SWING_HOLD = 0.12  # the share of a swing at each end where the foot only rises or sets down
+
+
+class WalkerContacts(NamedTuple):
+    """The planted walker's ground contacts in closed form (:func:`walker_contacts`); feet in the
+    order (left, right).
+
+    - ``planted`` (F, 2) bool: the foot is in stance (level, still, its sole on y = 0).
+    - ``ankles`` (F, 2, 3): each ankle joint's world position, in stance and swing.
+    - ``anchors`` (F, 2, 3): where a planted foot stands, the ground point (x, 0, z) under its
+      ankle; NaN while the foot swings.
+    - ``stances``: one ``(foot, first, last, anchor (3,))`` per stance, frames ``first`` to
+      ``last`` inclusive, in order of ``first`` then foot (a stance cut by the clip's end is cut
+      here too).
+    - ``travel``: how far the body moves along +z per gait cycle (the stride, two steps), so that
+      frame ``f + frames / cycles`` is frame ``f`` moved by ``travel`` along z.
+    - ``reach``: the largest distance from a planted ankle to the hip along z.
+    """
+    planted: np.ndarray
+    ankles: np.ndarray
+    anchors: np.ndarray
+    stances: list
+    travel: float
+    reach: float
+
+
+def _cycle_time(frames, cycles, start):
+    """Each frame's time in gait cycles (frame 0 at ``start``)."""
+    return start + cycles * np.arange(frames) / frames
+
+
+def walker_contacts(frames=48, cycles=2, stride=0.4, stance=0.6, start=0.0):
+    """The contact truth of ``walker(planted=True)`` with the same arguments: which foot is planted
+    in each frame and where (:class:`WalkerContacts`).
+
+    Each leg's cycle (the right half a cycle after the left, phase 0 the left heel strike) is a
+    stance, the first ``stance`` of it, then a swing. In stance the ankle stays on its anchor while
+    the hip, carried by the body at a constant ``travel`` per cycle along +z, passes over it from
+    ``reach`` behind to ``reach`` ahead, ``reach = 0.97 · leg · sin(stride)``; so ``travel = 2 reach
+    / stance`` and nothing slides. In swing the ankle rises (``WALKER_CLEARANCE`` at mid-swing,
+    ``(1 − cos 2πv) / 2``), moves to the next anchor ``travel`` ahead on a cycloid (its speed 0 at
+    both ends; still for the first and last ``_SWING_HOLD`` of the swing, where it only rises or sets
+    down) and lands: position, velocity and height are continuous.
+    """
+    if not 0.0 < stance < 1.0:
+        raise ValueError(f"stance {stance} must lie strictly between 0 and 1")
+    time = _cycle_time(frames, cycles, start)
+    leg = WALKER_HIP_Y - WALKER_ANKLE_Y
+    reach = 0.97 * leg * np.sin(stride)
+    travel = 2.0 * reach / stance
+    planted = np.zeros((frames, 2), dtype=bool)
+    ankles = np.zeros((frames, 2, 3))
+    anchors = np.full((frames, 2, 3), np.nan)
+    for foot, (sign, shift) in enumerate(((1.0, 0.0), (-1.0, 0.5))):
+        cycle = time + shift
+        k = np.floor(cycle)
+        phase = cycle - k
+        down = phase <= stance
+        anchor = travel * (k - shift) + 0.5 * travel * stance  # z of this cycle's stance
+        v = np.clip((phase - stance) / (1.0 - stance), 0.0, 1.0)  # swing progress
+        w = np.clip((v - _SWING_HOLD) / (1.0 - 2.0 * _SWING_HOLD), 0.0, 1.0)
+        ahead = np.where(down, 0.0, w - np.sin(2.0 * np.pi * w) / (2.0 * np.pi))
+        lift = np.where(down, 0.0, 0.5 * WALKER_CLEARANCE * (1.0 - np.cos(2.0 * np.pi * v)))
+        planted[:, foot] = down
+        ankles[:, foot] = np.stack([np.full(frames, sign * WALKER_HIP_X), WALKER_ANKLE_Y + lift,
+                                    anchor + travel * ahead], axis=-1)
+        anchors[down, foot] = np.stack([np.full(frames, sign * WALKER_HIP_X), np.zeros(frames), anchor],
+                                       axis=-1)[down]
+    stances = []
+    for foot in range(2):
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], planted[:, foot].astype(np.int8), [0]])))
+        stances += [(foot, int(a), int(b) - 1, anchors[a, foot].copy()) for a, b in zip(edges[::2], edges[1::2])]
+    stances.sort(key=lambda item: (item[1], item[0]))
+    return WalkerContacts(planted, ankles, anchors, stances, float(travel), float(reach))
+
+
+def _two_link(hip, ankle, upper, lower):
+    """Analytic inverse kinematics of a two-link leg, the knee bending forward (+z): world rotations
+    (F, 3, 3) of the upper and the lower link, each taking its rest direction (straight down) to
+    the link, with no twist about it beyond what keeps +z forward."""
+    reach = ankle - hip
+    distance = np.linalg.norm(reach, axis=-1)
+    if np.any(distance >= upper + lower) or np.any(distance <= abs(upper - lower)):
+        raise ValueError("the ankle is out of the leg's reach")
+    e = reach / distance[:, None]
+    forward = np.array([0.0, 0.0, 1.0]) - e[:, 2:3] * e
+    forward /= np.linalg.norm(forward, axis=-1, keepdims=True)
+    cos_hip = (upper ** 2 + distance ** 2 - lower ** 2) / (2.0 * upper * distance)
+    knee = hip + upper * (cos_hip[:, None] * e + np.sqrt(1.0 - cos_hip ** 2)[:, None] * forward)
+
+    def along(direction):  # columns: x' = y' × z', y' = −direction, z' = +z made orthogonal
+        down = direction / np.linalg.norm(direction, axis=-1, keepdims=True)
+        ahead = np.array([0.0, 0.0, 1.0]) - down[:, 2:3] * down
+        ahead /= np.linalg.norm(ahead, axis=-1, keepdims=True)
+        return np.stack([np.cross(-down, ahead), -down, ahead], axis=-1)
+
+    return along(knee - hip), along(ankle - knee)
+
+
 #: The walker's rigid parts (its true bones), parents first, in the order of its skinning weights.
 WALKER_PARTS = ("pelvis", "chest", "thigh_l", "shin_l", "foot_l", "thigh_r", "shin_r", "foot_r", "arm_l", "arm_r")
 
 
 def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, stance=0.6, arm_swing=0.4,
-           blend=0.05, coupling=0.1, start=0.0):
+           blend=0.05, coupling=0.1, start=0.0, planted=False):
     """An articulated figure walking in place (as on a treadmill): ``cycles`` gait cycles over ``frames``.
 
     Returns (vertices (F, V, 3) float64, faces (T, 3) int64): metres, Y up, facing +z, about 1.75
@@ -202,9 +309,22 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     and finds the parts with little stray weight: measured, ``fit-skin --bones 12`` (10 parts and
     some slack) then ``build-graph`` split each leg off for every fit seed 0–9 at the default and
     at a coarse resolution; ``--bones 10`` for 17 of those 20.
+
+    On a treadmill the stance foot slides back (3.5 % of the height a frame at the defaults).
+    ``planted=True`` walks forward instead, with truly planted feet: the body travels along +z at
+    the speed the stride sets, each leg is two links posed by analytic inverse kinematics (the
+    knee bending forward) from the hip, carried by the body, to the ankle, which
+    :func:`walker_contacts` gives in closed form: still on its anchor through each stance, the
+    foot level, then swinging on a smooth arc to the next anchor. The stance foot's sole lies on
+    y = 0 (its lowest ring exactly there: nothing is moved per frame) and its contact vertices
+    never move in stance (the foot's weak tie to its shin holds only the foot's upper half). The
+    pelvis bobs over the straighter stance leg as before, sways and turns; ``stride`` is then the
+    angle of the leg at heel strike and ``knee`` is unused (the knees bend as the legs need).
+    Frame ``f + frames / cycles`` is frame ``f`` moved ``walker_contacts(...).travel`` along z.
     """
-    hip_y, knee_y, ankle_y, waist_y, shoulder_y, hand_y = 0.92, 0.5, 0.08, 1.12, 1.45, 0.87
-    hip_x, shoulder_x = 0.1, 0.21
+    hip_y, knee_y, ankle_y, hip_x = WALKER_HIP_Y, WALKER_KNEE_Y, WALKER_ANKLE_Y, WALKER_HIP_X
+    waist_y, shoulder_y, hand_y = 1.12, 1.45, 0.87
+    shoulder_x = 0.21
     joint = {"pelvis": (None, (0.0, hip_y, 0.0)), "chest": ("pelvis", (0.0, waist_y, 0.0))}
     for side, x in (("l", 1.0), ("r", -1.0)):
         joint.update({f"thigh_{side}": ("pelvis", (x * hip_x, hip_y, 0.0)),
@@ -217,14 +337,16 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     down, ahead = (0.0, -1.0, 0.0), (0.0, 0.0, 1.0)
     tubes = []  # (vertices, faces, weights)
 
-    def tube(origin, direction, length, radius, *ramps, rings_along=None):
+    def tube(origin, direction, length, radius, *ramps, rings_along=None, upper_half=False):
         """ramps: (part, weight (V,) as a function of the distance s along the axis or None); the
-        first part takes what the others leave."""
+        first part takes what the others leave. ``upper_half``: the others' weights fade to 0
+        from the top of the tube to its axis (nothing below the axis)."""
         count = rings_along or max(4, int(round(per_metre * length)))
         vertices, faces, s = _tube(origin, direction, length, radius, count, segments)
         weights = np.zeros((vertices.shape[0], len(WALKER_PARTS)))
+        above = _smoothstep((vertices[:, 1] - origin[1]) / radius) if upper_half else 1.0
         for part, ramp in ramps[1:]:
-            weights[:, WALKER_PARTS.index(part)] += ramp(s)
+            weights[:, WALKER_PARTS.index(part)] += above * ramp(s)
         weights[:, WALKER_PARTS.index(ramps[0][0])] += 1.0 - weights.sum(axis=1)
         tubes.append((vertices, faces, weights))
 
@@ -241,7 +363,12 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     for side, x in (("l", 1.0), ("r", -1.0)):
         tube((x * hip_x, hip_y, 0.0), down, hip_y - ankle_y, 0.065, (f"thigh_{side}", None),
              (f"shin_{side}", joint_ramp(hip_y - knee_y)), ("pelvis", tie), rings_along=rings)
-        tube((x * hip_x, 0.045, -0.06), ahead, 0.26, 0.045, (f"foot_{side}", None), (f"shin_{side}", tie))
+        if planted:  # the sole's lowest ring exactly on y = 0, held by the foot alone
+            sole = 0.045 * np.max(-np.sin(np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)))
+            tube((x * hip_x, sole, -0.06), ahead, 0.26, 0.045, (f"foot_{side}", None), (f"shin_{side}", tie),
+                 upper_half=True)
+        else:
+            tube((x * hip_x, 0.045, -0.06), ahead, 0.26, 0.045, (f"foot_{side}", None), (f"shin_{side}", tie))
         tube((x * shoulder_x, shoulder_y, 0.0), down, shoulder_y - hand_y, 0.045, (f"arm_{side}", None),
              ("chest", tie))
     rest = np.concatenate([v for v, _, _ in tubes])
@@ -250,7 +377,7 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     faces = np.concatenate([f + o for (_, f, _), o in zip(tubes, offsets)]).astype(np.int64)
 
     # The gait: each part's rotation relative to its parent, per frame (F, 3, 3).
-    time = start + cycles * np.arange(frames) / frames  # in cycles
+    time = _cycle_time(frames, cycles, start)  # in cycles
     phi = 2.0 * np.pi * time
     turn = np.cos(phi)  # +1 with the left leg forward
     over = np.sin(phi - np.pi * (stance - 0.5))  # +1 over the left foot (mid left stance), −1 over the right
@@ -274,13 +401,29 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
         local[f"arm_{side}"] = _rotation(2, sign * 0.1) @ _rotation(0, arm_swing * forward)
     # Forward kinematics: world rotations R and joint positions p; the pelvis at its rest height,
     # swaying 3 cm over the stance foot.
+    # Planted: the pelvis travels along +z and bobs, lowest in double support (the middle of it)
+    # and highest at mid-stance, below the legs' reach; each leg is posed by inverse kinematics.
     rot, pos = {}, {}
+    if planted:
+        contacts = walker_contacts(frames, cycles, stride, stance, start)
+        leg = hip_y - ankle_y
+        high = 0.97 * leg
+        low = np.sqrt(high ** 2 - contacts.reach ** 2) - 0.01
+        bob = 0.5 * (1.0 - np.cos(4.0 * np.pi * (time - 0.5 * (stance - 0.5))))
+        body = np.stack([0.03 * over, ankle_y + low + (high - low) * bob, contacts.travel * time], axis=-1)
     for part in WALKER_PARTS:
         parent, at = joint[part]
         if parent is None:
             rot[part] = local[part]
-            pos[part] = np.stack([0.03 * over, np.full(frames, at[1]), np.zeros(frames)], axis=-1)
+            pos[part] = body if planted else np.stack([0.03 * over, np.full(frames, at[1]), np.zeros(frames)],
+                                                      axis=-1)
             continue
+        if planted and part.startswith("thigh"):
+            hip = pos[parent] + np.einsum("fab,b->fa", rot[parent], np.subtract(at, joint[parent][1]))
+            foot = contacts.ankles[:, 0 if part.endswith("_l") else 1]
+            world[part], shin = _two_link(hip, foot, hip_y - knee_y, knee_y - ankle_y)
+            local["shin" + part[5:]] = np.swapaxes(world[part], 1, 2) @ shin
+            world["foot" + part[5:]] = np.broadcast_to(np.eye(3), (frames, 3, 3))  # level
         rot[part] = world[part] if part in world else rot[parent] @ local[part]
         pos[part] = pos[parent] + np.einsum("fab,b->fa", rot[parent], np.subtract(at, joint[parent][1]))
     vertices = np.zeros((frames, rest.shape[0], 3))
@@ -288,5 +431,6 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
         used = weights[:, k] > 0.0
         moved = np.einsum("fab,vb->fva", rot[part], rest[used] - joint[part][1]) + pos[part][:, None]
         vertices[:, used] += weights[used, k][None, :, None] * moved
-    vertices[..., 1] -= vertices[..., 1].min(axis=1, keepdims=True)  # the lowest point on the ground
+    if not planted:
+        vertices[..., 1] -= vertices[..., 1].min(axis=1, keepdims=True)  # the lowest point on the ground
     return vertices, faces
