@@ -15,15 +15,26 @@ runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``,
 - components, transitions per component, mean segment length (output frames between seams of
   one component), coverage (the smallest share, over components, of input frames that the
   1,000 walks play; goal ≥ 0.9);
-- ground drift and contact: ``synthesize -n 3 -m 3000``; the lowest vertex of every frame against
+- feet (issue 35 part 4; every definition in docs/contact.md and
+  ``pipeline/synthesis/contact_measures.py``): on the captures with a ground (``GROUNDED``) and the
+  walker, the first ``--feet`` (16) of the 1,000 animations skinned and measured against the input
+  by ``measure_feet``, the function behind ``synthesize --json``'s ``"contact"``: for the input and
+  the output the slide of the contact vertices (median and 95th percentile per frame, over the
+  height), the share of contact steps sliding over 0.5 % of the height, float and penetration
+  during contact, the largest acceleration, and the output/input ratios (``contact``);
+- ground drift: ``synthesize -n 3 -m 3000``; the lowest vertex of every frame against
   the input's range of lowest vertices, how far it goes below the input's lowest and above the
   input's highest lowest point, each as a share of the character's height (goal ≤ 0.01 each:
   ``lowest_below_input``, ``lowest_above_input``; ``ground_drift_over_height`` is the larger),
   the tilt of the whole mesh (the rotation of a best rigid fit to the rest pose: the angle
   between its image of the up axis and the up axis) against the input's largest tilt, in
-  degrees, and foot sliding: the horizontal speed (units per frame) of the vertices in contact
-  (each frame's vertices within 0.5 % of the height of its lowest point), median and 95th
-  percentile, for the output and for the input clip.
+  degrees.
+
+Which shared captures have a ground (``GROUNDED``): vlasic_samba (a dancer on a floor),
+horse_gallop, elephant_clips (its first file, the elephant's gallop) and horse_clips (its first
+file, the horse's collapse onto the floor): each rests on a floor in most frames. Not
+dembones_bone (a bending limb whose lowest point wanders over 128 % of its height) nor
+vellum_sheet (a falling cloth). ``--feet-only`` skips the smoothness bake and the long runs.
 
 Besides the captures, ``walker`` (``skinsynth example walker``: an articulated figure whose legs
 are components of their own) is measured too. ``--synthesize-args`` adds options to every
@@ -34,7 +45,7 @@ Built-in procedural stand-ins run only when ../shared/data is absent.
 The command run is $SKINSYNTH when set (e.g. another checkout's, for a before/after table).
 
     python benchmarks/synthesize.py [--only NAME] [--mode multi_component] [--count 1000] [--frames 600]
-                                    [--synthesize-args "--no-contact"]
+                                    [--synthesize-args "--no-contact"] [--feet 16] [--feet-only]
 """
 
 import argparse
@@ -48,6 +59,8 @@ import numpy as np
 from datasets import BONES, captures, run
 
 UP = 1  # every capture in shared/data is Y up
+#: Captures that rest on a ground (module notes): their feet are measured.
+GROUNDED = {"vlasic_samba", "horse_gallop", "elephant_clips", "horse_clips", "walker"}
 
 
 def bake(skin, F, t):
@@ -77,13 +90,39 @@ def rigid_tilt(rest, frames, up=UP):
 
 def read_skin(path):
     with h5py.File(path, "r") as f:
+        examples = f["examples/vertices"][()]
+        frames = f["examples/clip_frames"][()] if "clip_frames" in f["examples"] else [examples.shape[0]]
         return {"rest": f["mesh/rest_vertices"][()], "indices": f["skin/bone_indices"][()],
-                "weights": f["skin/bone_weights"][()], "examples": f["examples/vertices"][()]}
+                "weights": f["skin/bone_weights"][()], "examples": examples,
+                "starts": np.concatenate([[0], np.cumsum(frames)]).astype(np.int64)}
+
+
+def feet(skin, path, count):
+    """``synthesize --json``'s "contact" figures (docs/contact.md) of the first ``count``
+    animations of the synthesis at ``path``, rounded."""
+    from types import SimpleNamespace
+
+    from skinsynth.pipeline.synthesis import measure_feet
+
+    arrays = SimpleNamespace(examples=skin["examples"], rest_vertices=skin["rest"], bone_indices=skin["indices"],
+                             bone_weights=skin["weights"])
+    with h5py.File(path, "r") as f:
+        sources = f["synthesis/sources"][()]
+        count = min(count, sources.shape[1])
+        figures = measure_feet(arrays, f["synthesis/bone_matrices"], f["synthesis/bone_translations"], sources,
+                               skin["starts"], count, UP, "cpu")
+
+    def rounded(value):
+        if isinstance(value, dict):
+            return {k: rounded(v) for k, v in value.items()}
+        return float(f"{value:.4g}") if isinstance(value, float) and np.isfinite(value) else value
+
+    return {"animations": count, **{k: rounded(figures[k]) for k in ("input", "output", "ratios")}}
 
 
 def measure(name, spec, single, work, args):
     from skinsynth.pipeline.synthesis import walk_statistics
-    from skinsynth.pipeline.synthesis.contact import contact_speeds, foot_sliding, ground_excess, lowest_heights
+    from skinsynth.pipeline.synthesis.contact import ground_excess, lowest_heights
 
     mode = "single_component" if single else "multi_component"
     skin_path = os.path.join(work, f"{name}.skin.h5")
@@ -110,9 +149,15 @@ def measure(name, spec, single, work, args):
         line["mean_segment_frames"] = [round(m, 1) for m in stats["mean_segment_frames"]]
         line["shortest_segment"] = stats["shortest_segment"]
         line["coverage"] = round(min(stats["coverage"]), 3)
+    if name in GROUNDED and args.feet:
+        line["contact"] = feet(skin, out, args.feet)
+    with h5py.File(out, "r") as f:
         worst = []
-        for a in range(min(args.smooth, sources.shape[1])):
+        for a in range(0 if args.feet_only else min(args.smooth, sources.shape[1])):
             worst.append(frame_accel(bake(skin, f["synthesis/bone_matrices"][a], f["synthesis/bone_translations"][a])))
+    if args.feet_only:
+        os.remove(out)
+        return line
     worst = np.concatenate(worst)
     line["worst_accel_ratio"] = round(float(worst.max() / accel_in.max()), 3)
     line["median_accel_ratio"] = round(float(np.median(worst) / np.median(accel_in)), 3)
@@ -126,20 +171,16 @@ def measure(name, spec, single, work, args):
     height = float(np.ptp(skin["rest"][:, UP]))
     subset = np.linspace(0, skin["rest"].shape[0] - 1, min(2000, skin["rest"].shape[0])).astype(int)
     tilt_in = rigid_tilt(skin["rest"][subset], examples[:, subset])
-    below, above, tilt_excess, speeds = 0.0, 0.0, 0.0, []
+    below, above, tilt_excess = 0.0, 0.0, 0.0
     with h5py.File(long_out, "r") as f:
         for a in range(f["synthesis/sources"].shape[1]):
             v = bake(skin, f["synthesis/bone_matrices"][a], f["synthesis/bone_translations"][a])
             b, u = ground_excess(lowest_heights(v, UP), low_in, height)
             below, above = max(below, b), max(above, u)
             tilt_excess = max(tilt_excess, float(rigid_tilt(skin["rest"][subset], v[:, subset]).max() - tilt_in.max()))
-            speeds.append(contact_speeds(v, UP, height=height))
     os.remove(long_out)
     line["lowest_below_input"], line["lowest_above_input"] = round(below, 4), round(above, 4)
     line["ground_drift_over_height"] = round(max(below, above), 4)
-    line["sliding_median_p95"] = [round(x, 5) for x in foot_sliding(np.concatenate(speeds))]
-    line["input_sliding_median_p95"] = [round(x, 5) for x in foot_sliding(contact_speeds(examples, UP,
-                                                                                            height=height))]
     line["tilt_beyond_input_deg"] = round(max(tilt_excess, 0.0), 2)
     line["long_animations"] = f"{args.long_count} x {args.long_frames}"
     return line
@@ -155,6 +196,8 @@ def main():
     parser.add_argument("--long-count", type=int, default=3)
     parser.add_argument("--long-frames", type=int, default=3000)
     parser.add_argument("--work", default=None, help="folder kept between runs (skin fits are reused)")
+    parser.add_argument("--feet", type=int, default=16, help="animations whose feet are measured (0: none)")
+    parser.add_argument("--feet-only", action="store_true", help="skip the smoothness bake and the long runs")
     parser.add_argument("--synthesize-args", default="", help="more options for every synthesize")
     args = parser.parse_args()
     work = args.work or tempfile.mkdtemp(prefix="skinsynth_bench_")

@@ -54,10 +54,9 @@ unchanged has exactly that frame's lowest height. The set's size is the correcti
 product of a batch's 150,000 frames by it): about 270 on the elephant, where all the
 near-ground ones within 1 % of the height were 2,200 and cost it 1.7 s of a 4 s run.
 
-Measuring (shared by the benchmark and the tests): :func:`lowest_heights`, :func:`ground_excess`
-(how far the lowest point leaves the input's range, over the height) and :func:`foot_sliding`
-(the horizontal speed of the vertices in contact: per frame those within ``band`` of its lowest
-height, their speed to the next frame with the up component removed).
+Measuring (shared by the benchmark and the tests): :func:`lowest_heights` and :func:`ground_excess`
+(how far the lowest point leaves the input's range, over the height). How well the feet stay
+planted (slide, float, penetration of the contact vertices) is :mod:`.contact_measures`.
 """
 
 from dataclasses import dataclass
@@ -219,29 +218,3 @@ def ground_excess(lowest, lowest_input, height):
     below = max(0.0, float(lowest_input.min() - lowest.min())) / height
     above = max(0.0, float(lowest.max() - lowest_input.max())) / height
     return below, above
-
-
-def contact_speeds(vertices, up_axis=1, band=0.005, height=None, plays_on=None):
-    """Horizontal speeds (per frame) of the vertices in contact: at each frame m < M−1 of vertices
-    (M, V, 3), those within ``band`` × height of the frame's lowest height, their displacement
-    to frame m+1 with the up component removed. ``plays_on`` (M,) bool: frame m is followed by
-    m+1 (an input of several clips: :meth:`.clips.Clips.plays_on`, so no step is measured from
-    one clip's last frame to the next one's first); None: every frame. Returns a flat array."""
-    vertices = np.asarray(vertices, dtype=np.float64)
-    if height is None:
-        height = float(np.ptp(vertices[0, :, up_axis]))
-    h = vertices[:-1, :, up_axis]
-    contact = h <= h.min(axis=1, keepdims=True) + band * height
-    if plays_on is not None:
-        contact &= np.asarray(plays_on, dtype=bool)[:-1, None]
-    step = vertices[1:] - vertices[:-1]
-    step[..., up_axis] = 0.0
-    return np.linalg.norm(step, axis=-1)[contact]
-
-
-def foot_sliding(speeds):
-    """(median, 95th percentile) of contact speeds (:func:`contact_speeds`)."""
-    speeds = np.asarray(speeds)
-    if speeds.size == 0:
-        return 0.0, 0.0
-    return float(np.median(speeds)), float(np.percentile(speeds, 95))
