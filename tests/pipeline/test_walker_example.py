@@ -121,24 +121,29 @@ def test_whole_cycles_loop():
     assert steps.min() > 0.0
 
 
-@pytest.fixture(scope="module")
-def chain(tmp_path_factory):
-    """``skinsynth example walker`` (coarse: 24 frames of two cycles, rings 12, segments 6), then
-    ``fit-skin --bones 12 --seed 0`` and ``build-graph`` with their defaults."""
+@pytest.fixture(scope="module", params=[False, True], ids=["on-the-spot", "planted"])
+def chain(tmp_path_factory, request):
+    """``skinsynth example walker`` (coarse: 24 frames of two cycles, rings 12, segments 6; on the
+    spot, and ``--planted``), then ``fit-skin --bones 12 --seed 0`` and ``build-graph`` with their
+    defaults. Returns (folder, planted)."""
     root = tmp_path_factory.mktemp("walker")
-    assert_ok(cli("example", "walker", "-o", root / "w.npz", "--frames", 24, "--rings", 12, "--segments", 6, "-q"))
+    planted = ("--planted",) if request.param else ()
+    assert_ok(cli("example", "walker", "-o", root / "w.npz", "--frames", 24, "--rings", 12, "--segments", 6, *planted,
+                  "-q"))
     assert_ok(cli("fit-skin", root / "w.npz", "-o", root / "skin.h5", "--bones", 12, "--seed", 0, "-q"))
     assert_ok(cli("build-graph", root / "skin.h5", "-o", root / "graph.h5", "-q"))
-    return root
+    return root, request.param
 
 
 def test_the_cli_writes_the_walker(chain):
+    chain, planted = chain
     sequence = read_mesh_sequence(str(chain / "w.npz"))
-    vertices, faces = walker(frames=24, cycles=2, rings=12, segments=6)
+    vertices, faces = walker(frames=24, cycles=2, rings=12, segments=6, planted=planted)
     assert np.array_equal(sequence.vertices, vertices) and np.array_equal(sequence.faces, faces)
 
 
 def test_each_leg_is_a_bone_component_of_its_own(chain):
+    chain, _ = chain
     sequence = read_mesh_sequence(str(chain / "w.npz"))
     labels = tube_labels(sequence.faces, sequence.vertices.shape[1])
     with h5py.File(chain / "graph.h5") as f:
