@@ -176,13 +176,15 @@ class ComponentRecord:
 class GraphFile:
     """A graph file as read: skin (SkinModel), graph (the /graph dict), options (build-graph's
     options the file records, {name: value}, ``up_axis`` as "Y" or "Z"), components
-    (list of :class:`ComponentRecord`), provenance (the file's records)."""
+    (list of :class:`ComponentRecord`), provenance (the file's records), contacts (the input's
+    ground contacts, :class:`ContactsRecord`, or None: none found, or a file from before)."""
 
     skin: object
     graph: dict
     options: dict
     components: list
     provenance: list
+    contacts: object = None
 
 
 def _component_record(data):
