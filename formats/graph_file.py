@@ -87,7 +87,7 @@ def graph_groups(model, analysis):
             "offsets": np.asarray(contacts.offsets, dtype=np.int64),
             "planted": np.asarray(contacts.planted, dtype=np.uint8),
             "ground": np.asarray(contacts.ground, dtype=np.float64),
-            "@height": float(contacts.height), "@patches": int(contacts.count),
+            "@character_height": float(contacts.height), "@patches": int(contacts.count),
             **{f"@{name}": float(value) for name, value in contacts.options.items()}}
     groups["graph"] = graph
     return groups
@@ -133,7 +133,7 @@ def read_contacts(path, graph, frames, vertex_count):
         raise FormatError(path, f"/graph/contacts is inconsistent: offsets (P + 1,) must rise from 0 to the "
                                 f"{vertices.size} vertices (each < {vertex_count}) and planted be ({frames}, P)")
     return ContactsRecord(vertices=vertices, offsets=offsets, planted=planted, ground=np.asarray(data["ground"]),
-                          height=float(data.get("@height", 1.0)),
+                          height=float(data.get("@character_height", 1.0)),
                           options={name: float(data[f"@{name}"]) for name in CONTACT_OPTIONS if f"@{name}" in data})
 
 

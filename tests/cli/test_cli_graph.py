@@ -139,3 +139,77 @@ def test_clips_left_out_of_the_walks_get_no_transition_and_are_never_played(bar_
                           "part:2"), "input frame part:2", "dead end")
     assert_user_error(cli("build-graph", bar_clips, "-o", tmp_path / "x.h5", "--clips", "bend,trot"),
                       "--clips", "no clip named 'trot'", "bend, part")
+
+
+# --- ground contacts (issue 35, part 1) ----------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def contact_files(tmp_path_factory):
+    """A block that rests, lifts and rests again (contacts), and the bending bar floating around
+    a circle, never at rest (none); each fitted."""
+    import trimesh
+
+    root = tmp_path_factory.mktemp("contacts")
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    rest, faces = trimesh.remesh.subdivide(box.vertices, box.faces)
+    rest = rest - [0.0, rest[:, 1].min(), 0.0]
+    lift = np.zeros(30)
+    lift[10:18] = [0.1, 0.3, 0.4, 0.5, 0.4, 0.3, 0.2, 0.1]
+    write_array_sequence(root / "block.npz", rest[None] + lift[:, None, None] * [0.0, 1.0, 0.0], faces, 10.0)
+    cycle, bar_faces = bending_bar(frames=20, rings=10, segments=8)
+    bar = np.concatenate([cycle, cycle, cycle[:6]])
+    turn = 4.0 * np.pi * np.arange(len(bar)) / len(bar)  # two whole turns of a circle: no belt to stand on
+    bar = bar + (6.0 * np.stack([np.cos(turn), np.zeros_like(turn), np.sin(turn)], axis=1))[:, None]
+    write_array_sequence(root / "bar.npz", bar, bar_faces, 24.0)
+    for name, bones in (("block", 2), ("bar", 5)):
+        assert_ok(cli("fit-skin", root / f"{name}.npz", "-o", root / f"{name}.skin.h5", "--bones", bones,
+                      "--iterations", 8, "-q"))
+    return root
+
+
+def test_contacts_are_stored_read_back_and_drawn(contact_files, tmp_path):
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.synthesis.contact_patches import find_contacts
+
+    out = assert_ok(cli("build-graph", contact_files / "block.skin.h5", "-o", tmp_path / "g.h5", "--json",
+                        "--plot", tmp_path / "plots")).stdout
+    summary = json.loads(out)
+    assert summary["contacts"]["patches"] == 1 and summary["contacts"]["plants"] == 2
+    graph = read_graph(tmp_path / "g.h5")
+    skin = read_skin(contact_files / "block.skin.h5")
+    found = find_contacts(skin.examples, skin.faces, skin.fps, 1, Clips(skin.clip_names, skin.clip_frames))
+    record = graph.contacts
+    assert record.count == 1 and np.array_equal(record.vertices, found.vertices)
+    assert np.array_equal(record.offsets, found.offsets) and np.array_equal(record.planted, found.planted)
+    assert np.array_equal(record.ground, found.ground) and record.height == found.height
+    assert record.options == {"height": 0.02, "speed": 1.0, "release": 1.5, "min_duration": 0.1}
+    assert record.planted[:10, 0].all() and not record.planted[10:18, 0].any() and record.planted[18:, 0].all()
+    assert (tmp_path / "plots" / "contacts.png").read_bytes()[:4] == b"\x89PNG"
+    assert_ok(cli("build-graph", contact_files / "block.skin.h5", "-o", tmp_path / "none.h5", "--no-contacts", "-q"))
+    assert read_graph(tmp_path / "none.h5").contacts is None
+
+
+def test_a_capture_that_never_rests_keeps_its_graph_file(contact_files, tmp_path):
+    from skinsynth.formats.model import content_digests
+
+    out = assert_ok(cli("build-graph", contact_files / "bar.skin.h5", "-o", tmp_path / "a.h5", "--plot",
+                        tmp_path / "plots")).stdout
+    assert "ground contacts: none" in out
+    assert_ok(cli("build-graph", contact_files / "bar.skin.h5", "-o", tmp_path / "b.h5", "--no-contacts", "-q"))
+    assert content_digests(tmp_path / "a.h5") == content_digests(tmp_path / "b.h5")
+    with h5py.File(tmp_path / "a.h5") as f:
+        assert "contacts" not in f["graph"]
+    assert not (tmp_path / "plots" / "contacts.png").exists()
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["--contact-height", "0"], ["--contact-height"]),
+    (["--contact-speed", "-1"], ["--contact-speed"]),
+    (["--contact-release", "0.5"], ["--contact-release", "at least 1"]),
+    (["--contact-min-duration", "-1"], ["--contact-min-duration"]),
+])
+def test_bad_contact_options(contact_files, tmp_path, args, needles):
+    assert_user_error(cli("build-graph", contact_files / "block.skin.h5", "-o", tmp_path / "g.h5", *args), *needles,
+                      folder=tmp_path)
