@@ -26,6 +26,12 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` and adds ``/graph``:
   (frames on the motion graph's largest strongly connected part). Key-vertex data use the component's own weights, renormalised over
   its bones (the component is synthesised as if it were the whole mesh).
 
+- ``/graph/contacts``, only when the input's ground contacts were found (issue 35): ``vertices (N,)``
+  patch after patch, ``offsets (P + 1,)``, ``planted (F, P)`` uint8, ``ground (C,)`` per clip;
+  attributes ``@patches``, ``@character_height`` and the thresholds ``@height``, ``@speed``,
+  ``@release``, ``@min_duration`` (:func:`~skinsynth.pipeline.synthesis.contact_patches.find_contacts`).
+  A capture without contacts gets no group and no attribute: its file is --no-contacts' file.
+
 Several clips (issue 26) need nothing new here: the clip table lives in ``/examples``
 (``clip_frames``, ``@clip_names``), copied forward, and every frame-indexed dataset above uses
 the global frame numbers of the clips in order. ``reference_motion`` holds eq. 6 within each
