@@ -146,7 +146,7 @@ def write_contact_timeline_plot(path, planted, sizes, title, clip_starts=None, c
                 axes.annotate(str(clip_names[c]), (start, -0.5), textcoords="offset points", xytext=(2, 4),
                               fontsize=7, color="red", annotation_clip=False)
     axes.set_xlabel("input frame")
-    axes.set_title(title)
+    axes.set_title(title, pad=14.0)  # room for the clip names above the first row
     _save(figure, path)
 
 
