@@ -88,19 +88,25 @@ def contact_steps(vertices, ground, height, up_axis=1, band=BAND, plays_on=None,
     above = x[..., up_axis] - ground[:, None]  # (M, V)
     near = above <= band * height
     contact = near[:-1] & near[1:] & counted[:-1, None]  # (M−1, V)
-    rows = np.flatnonzero(contact.any(axis=1))
-    step = x[rows + 1] - x[rows]
-    step[..., up_axis] = 0.0
-    moved = np.where(contact[rows], np.linalg.norm(step, axis=-1), np.nan)
-    slide = np.nanmedian(moved, axis=1) / height if rows.size else np.zeros(0)
-    offset = np.where(contact[rows], above[rows], np.inf).min(axis=1) / height
+    # only the contact pairs (a few % of the vertices): their steps, grouped by step (rows sorted)
+    r, v = np.nonzero(contact)
+    step = x[r + 1, v] - x[r, v]
+    step[:, up_axis] = 0.0
+    moved = np.sqrt(np.einsum("ij,ij->i", step, step))
+    slide, offset = np.zeros(0), np.zeros(0)
+    if r.size:
+        _, starts, counts = np.unique(r, return_index=True, return_counts=True)
+        ordered = moved[np.lexsort((moved, r))]  # by step, then by distance
+        slide = 0.5 * (ordered[starts + (counts - 1) // 2] + ordered[starts + counts // 2]) / height
+        offset = np.minimum.reduceat(above[r, v], starts) / height
     # second differences whose three frames play on one into the next
     accel = float("nan")
-    if M >= 3:
-        both = plays[:-2] & plays[1:-1] & counted[:-2]
-        if both.any():
-            second = x[2:][both] - 2.0 * x[1:-1][both] + x[:-2][both]
-            accel = float(np.linalg.norm(second, axis=-1).max())
+    centred = np.flatnonzero(plays[:-2] & plays[1:-1] & counted[:-2]) if M >= 3 else np.zeros(0, np.int64)
+    if centred.size:
+        second = np.subtract(x[2:], x[1:-1])
+        second -= x[1:-1]
+        second += x[:-2]
+        accel = float(np.sqrt(np.einsum("mvi,mvi->mv", second, second).max(axis=1)[centred].max()))
     return Steps(slide, offset, int(counted[:-1].sum()), accel)
 
 

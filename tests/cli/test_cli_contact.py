@@ -111,4 +111,4 @@ def test_json_reports_the_feet_of_the_input_and_of_the_first_animations_and_writ
     again = read_synthesis(tmp_path / "b.h5")
     assert np.array_equal(again["F"], data["F"]) and np.array_equal(again["t"], data["t"])
     text = assert_ok(cli(*common, "-o", tmp_path / "c.h5")).stdout
-    assert "feet (first 5 animations" in text
+    assert "feet (first 4 animations" in text  # the default
