@@ -4,7 +4,8 @@ One JSON line per (capture, mode), mode = multi_component (build-graph's default
 single_component (``--single-component``). Every figure comes from the command line as a user
 runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``, then
 
-- ``synthesize GRAPH -n 1000 -m 600 --seed 0``, timed as the whole command (reading the graph
+- ``synthesize GRAPH -n 1000 -m 600 --seed 0 --measure-feet 0`` (the feet are measured here, below,
+  by the same function), timed as the whole command (reading the graph
   and writing the result included), with the peak resident memory of its largest process and of
   the next largest (a worker; the shared result block counts in both);
 - smoothness on baked vertices of the first 50 of those animations (LBS with the skin file's own
@@ -137,7 +138,7 @@ def measure(name, spec, single, work, args):
     out = os.path.join(work, f"{name}.{mode}.bones.h5")
     extra = args.synthesize_args.split()
     seconds, peak, worker, _ = run(["synthesize", graph_path, "-o", out, "-n", str(args.count), "-m",
-                                    str(args.frames), "--seed", "0", "-q", *extra], work)
+                                    str(args.frames), "--seed", "0", "-q", "--measure-feet", "0", *extra], work)
     line.update(seconds=round(seconds, 2), peak_rss_mib=round(peak), peak_rss_second_process_mib=round(worker))
     skin = read_skin(skin_path)
     examples = skin["examples"]
@@ -166,7 +167,7 @@ def measure(name, spec, single, work, args):
 
     long_out = os.path.join(work, f"{name}.{mode}.long.h5")
     run(["synthesize", graph_path, "-o", long_out, "-n", str(args.long_count), "-m", str(args.long_frames),
-         "--seed", "0", "-q", *extra], work)
+         "--seed", "0", "-q", "--measure-feet", "0", *extra], work)
     low_in = examples[..., UP].min(axis=1)
     height = float(np.ptp(skin["rest"][:, UP]))
     subset = np.linspace(0, skin["rest"].shape[0] - 1, min(2000, skin["rest"].shape[0])).astype(int)
