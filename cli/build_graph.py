@@ -60,13 +60,16 @@ DEFAULTS = GraphOptions()
               help="A vertex leaves contact beyond this multiple (≥ 1) of both thresholds (hysteresis).")
 @click.option("--contact-min-duration", default=DEFAULTS.contact_min_duration, show_default=True, type=float,
               help="Shortest plant kept, in seconds (shorter ones are dropped).")
+@click.option("--contact-min-support", default=DEFAULTS.contact_min_support, show_default=True, type=float,
+              help="A ground bears the body often: a clip keeps no plant unless some patch is planted in at least "
+                   "this share of its frames (a part that only pauses at its lowest is no contact).")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,
               help="Write PNGs here: the cost matrix of each component with its transitions, and the bone graph.")
 @summary_options
 @user_errors
 def build_graph(path, output, threshold_scale, threshold_reference, edge_threshold, single_component, svd_threshold,
                 min_gap, min_segment, coverage, up_axis, posture_weight, walk_clips, no_contacts, contact_height,
-                contact_speed, contact_release, contact_min_duration, plot_dir, quiet, as_json):
+                contact_speed, contact_release, contact_min_duration, contact_min_support, plot_dir, quiet, as_json):
     """Analyse a skin fit for synthesis (Zheng 2013 §3.2, §3.3, §4.1).
 
     Finds, per weakly coupled bone component, its reference bone, reduced coordinates and the
@@ -110,7 +113,8 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     up_axis = up_axis or skin.scene.up_axis
     validate_graph_options(skin.rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap,
                            min_segment, coverage, posture_weight)
-    validate_contact_options(contact_height, contact_speed, contact_release, contact_min_duration)
+    validate_contact_options(contact_height, contact_speed, contact_release, contact_min_duration,
+                             contact_min_support)
     clips = Clips(skin.clip_names, skin.clip_frames)
     if walk_clips is not None:
         walk_clips = clips.subset([n.strip() for n in walk_clips.split(",") if n.strip()] or [""]).names
@@ -123,14 +127,14 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     if not no_contacts:
         analysis.contacts = find_contacts(skin.examples, skin.faces, skin.fps, "XYZ".index(up_axis), clips,
                                           height=contact_height, speed=contact_speed, release=contact_release,
-                                          min_duration=contact_min_duration)
+                                          min_duration=contact_min_duration, min_support=contact_min_support)
     seconds = time.perf_counter() - started
     parameters = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                       edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
                       min_gap=min_gap, min_segment=min_segment, coverage=coverage, up_axis=up_axis,
                       posture_weight=posture_weight, clips=list(walk_clips or clips.names), contacts=not no_contacts,
                       contact_height=contact_height, contact_speed=contact_speed, contact_release=contact_release,
-                      contact_min_duration=contact_min_duration)
+                      contact_min_duration=contact_min_duration, contact_min_support=contact_min_support)
     record = provenance_record("graph", command_line(), parameters, [path], tool_version())
     write_model(output, "graph", graph_groups(model, analysis), model["provenance"] + [record], tool_version())
     if plot_dir is not None:

@@ -15,7 +15,8 @@ class GraphOptions:
     up_axis (0, 1, 2) and posture_weight (:func:`.transitions.posture_costs`); contacts (look for the
     input's ground contacts) and their thresholds contact_height (share of the height above the
     ground), contact_speed (share of the height per second), contact_release (the factor beyond
-    which a contact is left) and contact_min_duration (seconds) (:func:`.contact_patches.find_contacts`)."""
+    which a contact is left), contact_min_duration (seconds) and contact_min_support (the least share
+    of the frames the ground must bear the body in) (:func:`.contact_patches.find_contacts`)."""
 
     threshold_scale: float = 3.0
     threshold_reference: str = "median-step"
@@ -33,6 +34,7 @@ class GraphOptions:
     contact_speed: float = 1.0
     contact_release: float = 1.5
     contact_min_duration: float = 0.1
+    contact_min_support: float = 0.12
 
     @classmethod
     def recorded(cls, values):

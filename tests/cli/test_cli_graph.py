@@ -184,7 +184,7 @@ def test_contacts_are_stored_read_back_and_drawn(contact_files, tmp_path):
     assert record.count == 1 and np.array_equal(record.vertices, found.vertices)
     assert np.array_equal(record.offsets, found.offsets) and np.array_equal(record.planted, found.planted)
     assert np.array_equal(record.ground, found.ground) and record.height == found.height
-    assert record.options == {"height": 0.02, "speed": 1.0, "release": 1.5, "min_duration": 0.1}
+    assert record.options == {"height": 0.02, "speed": 1.0, "release": 1.5, "min_duration": 0.1, "min_support": 0.12}
     assert record.planted[:10, 0].all() and not record.planted[10:18, 0].any() and record.planted[18:, 0].all()
     assert (tmp_path / "plots" / "contacts.png").read_bytes()[:4] == b"\x89PNG"
     assert_ok(cli("build-graph", contact_files / "block.skin.h5", "-o", tmp_path / "none.h5", "--no-contacts", "-q"))
@@ -209,6 +209,7 @@ def test_a_capture_that_never_rests_keeps_its_graph_file(contact_files, tmp_path
     (["--contact-speed", "-1"], ["--contact-speed"]),
     (["--contact-release", "0.5"], ["--contact-release", "at least 1"]),
     (["--contact-min-duration", "-1"], ["--contact-min-duration"]),
+    (["--contact-min-support", "1.5"], ["--contact-min-support"]),
 ])
 def test_bad_contact_options(contact_files, tmp_path, args, needles):
     assert_user_error(cli("build-graph", contact_files / "block.skin.h5", "-o", tmp_path / "g.h5", *args), *needles,

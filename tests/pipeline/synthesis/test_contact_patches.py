@@ -90,8 +90,42 @@ def test_runs_split_at_clip_starts():
 
 
 @pytest.mark.parametrize("option", [dict(height=0.0), dict(speed=-1.0), dict(release=0.5), dict(min_duration=-0.1),
-                                    dict(height=np.inf)])
+                                    dict(height=np.inf), dict(min_support=-0.1), dict(min_support=1.5)])
 def test_options_out_of_range(option):
     vertices, faces = rest_lift_rest()
     with pytest.raises(OptionError):
         find_contacts(vertices, faces, FPS, **option)
+
+
+def resting_for(frames_on_ground, frames=100):
+    """The block held 0.5 heights up, lowered onto the ground for frames_on_ground frames in the
+    middle of the frames (like a hem at the bottom of its swing, or a foot planted): (frames, V, 3)."""
+    rest, faces = block()
+    heights = np.full(frames, 0.5)
+    first = (frames - frames_on_ground) // 2
+    heights[first:first + frames_on_ground] = 0.0
+    return rest[None] + heights[:, None, None] * [0.0, 1.0, 0.0], faces
+
+
+def test_a_ground_touched_in_few_frames_bears_no_weight():
+    # 8 % of the frames on the ground (a pause at the lowest, as the vellum sheet's hem): no contact at
+    # the default share (0.12), though the block lies flat on its ground for 0.8 s
+    vertices, faces = resting_for(8)
+    assert find_contacts(vertices, faces, FPS).count == 0
+    # ... found when the share asked is lower, as one plant of those 8 frames
+    assert find_contacts(vertices, faces, FPS, min_support=0.04).plants() == [(0, 46, 53)]
+
+
+def test_a_ground_touched_in_many_frames_is_kept():
+    vertices, faces = resting_for(30)  # 30 %: well above the default share
+    found = find_contacts(vertices, faces, FPS)
+    assert found.plants() == [(0, 35, 64)] and found.options["min_support"] == 0.12
+    assert find_contacts(vertices, faces, FPS, min_support=0.5).count == 0  # fewer frames than asked
+
+
+def test_the_share_is_each_clips_own():
+    brief, faces = resting_for(8)  # clip a: a pause at the lowest (8 %)
+    long, _ = resting_for(30)  # clip b: resting 30 % of its frames
+    clips = Clips(("a", "b"), (100, 100))
+    found = find_contacts(np.concatenate([brief, long]), faces, FPS, clips=clips)
+    assert found.plants(clips) == [(0, 135, 164)]  # clip b's plant only
