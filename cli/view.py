@@ -91,7 +91,7 @@ def _read(path, animation, error_scale, extrapolation_scale, record_path, device
         if stage == "synthesis":
             return ("synthesis", *_synthesis(path, animation))
         if stage in ("skin", "controls", "graph"):  # each carries the skin it was made from
-            return ("skin", *_skin(path, error_scale), None)
+            return ("skin", *_skin(path, error_scale, contacts=stage == "graph"), None)
         if stage is not None:
             raise FormatError(path, f"a '{stage}' file holds no animation view can show")
     return ("sequence", *_sequence(path), None)
@@ -142,7 +142,9 @@ def _save_trajectory(path, trajectory):
         raise OptionError(str(error)) from None
 
 
-def _skin(path, error_scale):
+def _skin(path, error_scale, contacts=False):
+    """The skin view; contacts: also a graph file's input ground contacts (/graph/contacts), if any."""
+    from skinsynth.formats.graph_file import read_contacts
     from skinsynth.formats.model import read_model
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs_reference
@@ -150,7 +152,9 @@ def _skin(path, error_scale):
 
     from .web_view import SkinView
 
-    skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
+    model = read_model(path, groups=("mesh", "examples", "skin") + (("graph",) if contacts else ()))
+    skin = read_skin(path, model)
+    found = read_contacts(path, model["graph"], skin.examples.shape[0], skin.examples.shape[1]) if contacts else None
 
     def fit(frame):
         return lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights,
@@ -158,8 +162,10 @@ def _skin(path, error_scale):
 
     scale = error_scale * bounding_box_diagonal(skin.rest_vertices)
     return (SkinView(faces=skin.faces, examples=skin.examples, fit=fit, error_scale=scale, error_fraction=error_scale,
-                     fps=skin.fps, up_axis=skin.scene.up_axis),
-            {"frames": int(skin.examples.shape[0]), "error_scale": error_scale})
+                     fps=skin.fps, up_axis=skin.scene.up_axis,
+                     contacts=None if found is None else (found.vertices, found.offsets, found.planted)),
+            {"frames": int(skin.examples.shape[0]), "error_scale": error_scale,
+             **({"contact_patches": int(found.offsets.size - 1)} if found is not None else {})})
 
 
 def _synthesis(path, animation):

@@ -70,7 +70,8 @@ class PuppetView:
 @dataclass
 class SkinView:
     """A skin fit: faces (T, 3), examples (F, V, 3), fit(frame) -> reconstruction (V, 3), the
-    error shown full red (absolute, and as the fraction of the diagonal it was given), fps, up axis."""
+    error shown full red (absolute, and as the fraction of the diagonal it was given), fps, up axis;
+    contacts: a graph file's input ground contacts (/graph/contacts), None when it has none."""
 
     faces: np.ndarray
     examples: np.ndarray
@@ -79,6 +80,7 @@ class SkinView:
     error_fraction: float
     fps: float
     up_axis: str
+    contacts: tuple = None  # a graph file's ground contacts: (vertices (N,), offsets (P + 1,), planted (F, P))
 
 
 @dataclass
@@ -407,6 +409,9 @@ class SkinPage:
         server.gui.add_markdown(f"**Skin fit**: input (grey) and reconstruction, red at an error of "
                                 f"{view.error_fraction:g} of the diagonal or more")
         self.layout = server.gui.add_dropdown("layout", ("side by side", "overlaid"), initial_value="side by side")
+        if view.contacts is not None:
+            server.gui.add_markdown("ground contacts: the planted patches' vertices of the input frame in cyan")
+        self.contact, self.point_size = None, 0.006 * float(np.ptp(view.examples[0], axis=0).max())
         self.info = server.gui.add_markdown("")
         self.timeline = Timeline(server, len(view.examples), view.fps, self.show)
         self.layout.on_update(lambda _: self.timeline._show())
@@ -429,8 +434,22 @@ class SkinPage:
                     f"/fit/level_{level}", fitted[ids] + offset, local, color=tuple(int(c) for c in self.colors[level]))
             for level in [k for k in self.parts if k not in present]:
                 self.parts.pop(level).remove()
+            self._contacts(frame, truth)
             self.info.content = (f"frame {frame}: RMS error {np.sqrt(np.mean(errors ** 2)):.4g}, "
                                  f"largest {errors.max():.4g}")
+
+    def _contacts(self, frame, truth):
+        """The planted contact vertices of input frame ``frame`` as cyan points on the input."""
+        if self.view.contacts is None:
+            return
+        ids = scenes.planted_vertices(*self.view.contacts, frame)
+        if ids.size == 0:
+            if self.contact is not None:
+                self.contact.remove()
+                self.contact = None
+            return
+        self.contact = self.server.scene.add_point_cloud(
+            "/input_contacts", truth[ids], tuple(int(c) for c in scenes.CONTACT_COLOR), point_size=self.point_size)
 
     def close(self):
         self.timeline.close()

@@ -15,6 +15,6 @@ _EXPORTS = {"render": "rasteriser", "frame_bounds": "rasteriser", "ground_layer"
             "walk_captions": "preview", "compile_loops": "precompile", **{name: "scenes" for name in (
                 "split_by_key", "error_levels", "level_colors", "vertex_errors", "vertex_components",
                 "face_components", "component_colors", "seam_frames", "extrapolation", "extrapolation_scale",
-                "extrapolation_color", "resample_session", "side_by_side")}}
+                "extrapolation_color", "resample_session", "side_by_side", "planted_vertices")}}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -9,6 +9,8 @@ its own vertex ids and local faces. The rest is what the colours mean:
 - synthesis: each vertex's bone component (the component holding most of its weight), each
   face's (most of its corners'), a colour per component, and the frames where a component's
   source jumps (a seam);
+- skin fit of a graph file: the vertices of the input's ground-contact patches planted at the
+  shown frame (build-graph's ``/graph/contacts``), drawn in :data:`CONTACT_COLOR`;
 - puppet: how far the controls lie from the nearest training example (the extrapolation
   indicator), in ``evaluate``'s unit (the largest side of the rest bounding box), and a colour
   for it; a drag session resampled at the file's frame rate (the recorded trajectory).
@@ -23,6 +25,8 @@ PALETTE = np.array([[76, 114, 176], [221, 132, 82], [85, 168, 104], [196, 78, 82
                     [147, 120, 96], [218, 139, 195], [140, 140, 140]], dtype=np.uint8)
 #: A component at a seam frame: drawn in this colour (preview marks seams red too).
 SEAM_COLOR = np.array([230, 30, 30], dtype=np.uint8)
+#: The vertices of a ground-contact patch planted at the shown input frame.
+CONTACT_COLOR = np.array([20, 200, 230], dtype=np.uint8)
 #: Extrapolation indicator: green inside the training examples, amber at the scale, red at twice it.
 INSIDE, EDGE, OUTSIDE = (np.array(c, dtype=float) for c in ([40, 170, 80], [240, 170, 30], [220, 40, 40]))
 
@@ -161,3 +165,14 @@ def side_by_side(rest_vertices, gap=0.2):
     offset = np.zeros(3)
     offset[0] = (1.0 + gap) * float(np.ptp(rest[:, 0])) or 1.0
     return offset
+
+
+def planted_vertices(vertices, offsets, planted, frame):
+    """The ids (n,) ascending of the vertices of every contact patch planted at input frame
+    ``frame``: patches p = vertices[offsets[p]:offsets[p + 1]] (/graph/contacts), planted (F, P)
+    bool; none (an empty array) at a frame where no patch is planted."""
+    vertices, offsets = np.asarray(vertices, dtype=np.int64), np.asarray(offsets, dtype=np.int64)
+    down = np.flatnonzero(np.asarray(planted, dtype=bool)[frame])
+    if down.size == 0:
+        return np.zeros(0, np.int64)
+    return np.unique(np.concatenate([vertices[offsets[p]:offsets[p + 1]] for p in down]))

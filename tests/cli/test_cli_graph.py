@@ -191,6 +191,23 @@ def test_contacts_are_stored_read_back_and_drawn(contact_files, tmp_path):
     assert read_graph(tmp_path / "none.h5").contacts is None
 
 
+def test_view_shows_a_graph_files_contacts_on_its_input_frames(contact_files, tmp_path):
+    # `view GRAPH.h5` opens the skin page (the input frames and the fit); it carries the contacts
+    # its page colours: the planted patch's vertices at a planted frame, none while lifted.
+    from skinsynth.cli.view import _read
+    from skinsynth.pipeline.view import scenes
+
+    assert_ok(cli("build-graph", contact_files / "block.skin.h5", "-o", tmp_path / "g.h5", "-q"))
+    kind, view, details, _ = _read(tmp_path / "g.h5", 0, 0.01, 0.1, None, "cpu")
+    record = read_graph(tmp_path / "g.h5").contacts
+    assert kind == "skin" and details["contact_patches"] == 1
+    assert [np.array_equal(a, b) for a, b in zip(view.contacts, (record.vertices, record.offsets, record.planted))] \
+        == [True] * 3
+    assert np.array_equal(scenes.planted_vertices(*view.contacts, 0), record.vertices)  # its one patch
+    assert scenes.planted_vertices(*view.contacts, 13).size == 0
+    assert _read(contact_files / "block.skin.h5", 0, 0.01, 0.1, None, "cpu")[1].contacts is None  # a skin file
+
+
 def test_a_capture_that_never_rests_keeps_its_graph_file(contact_files, tmp_path):
     from skinsynth.formats.model import content_digests
 

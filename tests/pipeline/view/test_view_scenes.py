@@ -157,3 +157,13 @@ def test_the_parts_of_an_error_map_cover_the_mesh_once():
     triangles = np.concatenate([vertices[ids][local] for _, ids, local in parts])
     expected = np.concatenate([vertices[faces[levels == k]] for k, _, _ in parts])
     assert np.array_equal(triangles, expected) and len(triangles) == len(faces)
+
+
+def test_planted_vertices_are_the_patches_planted_at_the_frame():
+    # Two patches, {7, 2, 9} and {4, 2} (a vertex may sit in both), three frames.
+    vertices, offsets = np.array([2, 7, 9, 2, 4]), np.array([0, 3, 5])
+    planted = np.array([[True, False], [True, True], [False, False]])
+    assert scenes.planted_vertices(vertices, offsets, planted, 0).tolist() == [2, 7, 9]
+    assert scenes.planted_vertices(vertices, offsets, planted, 1).tolist() == [2, 4, 7, 9]  # each once, ascending
+    none = scenes.planted_vertices(vertices, offsets, planted, 2)
+    assert none.size == 0 and none.dtype == np.int64
