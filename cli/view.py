@@ -144,7 +144,7 @@ def _save_trajectory(path, trajectory):
 
 def _skin(path, error_scale, contacts=False):
     """The skin view; contacts: also a graph file's input ground contacts (/graph/contacts), if any."""
-    from skinsynth.formats.graph_file import read_contacts
+    from skinsynth.formats.graph_file import read_graph_contacts
     from skinsynth.formats.model import read_model
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs_reference
@@ -154,7 +154,7 @@ def _skin(path, error_scale, contacts=False):
 
     model = read_model(path, groups=("mesh", "examples", "skin") + (("graph",) if contacts else ()))
     skin = read_skin(path, model)
-    found = read_contacts(path, model["graph"], skin.examples.shape[0], skin.examples.shape[1]) if contacts else None
+    found = read_graph_contacts(path, model, skin) if contacts else None
 
     def fit(frame):
         return lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights,

@@ -121,26 +121,27 @@ class ContactsRecord:
 CONTACT_OPTIONS = ("height", "speed", "release", "min_duration", "min_support")
 
 
-def read_contacts(path, graph, frames, vertex_count):
-    """The :class:`ContactsRecord` of a read /graph, or None when it has none (no contact found,
-    or a file from before); FormatError when it is inconsistent."""
+def read_contacts(graph):
+    """The :class:`ContactsRecord` of a read /graph (checked by :func:`.validation.check_graph`),
+    or None when it has none (no contact found, or a file from before)."""
     data = graph.get("contacts")
     if data is None:
         return None
-    missing = [name for name in ("vertices", "offsets", "planted", "ground") if name not in data]
-    if missing:
-        raise FormatError(path, f"/graph/contacts lacks {', '.join(missing)}: the file is incomplete")
-    vertices, offsets = np.asarray(data["vertices"]), np.asarray(data["offsets"])
-    planted = np.asarray(data["planted"]).astype(bool)
-    patches = offsets.size - 1
-    if (offsets.ndim != 1 or patches < 1 or offsets[0] != 0 or offsets[-1] != vertices.size
-            or np.any(np.diff(offsets) < 1) or planted.shape != (frames, patches)
-            or vertices.size and (vertices.min() < 0 or vertices.max() >= vertex_count)):
-        raise FormatError(path, f"/graph/contacts is inconsistent: offsets (P + 1,) must rise from 0 to the "
-                                f"{vertices.size} vertices (each < {vertex_count}) and planted be ({frames}, P)")
-    return ContactsRecord(vertices=vertices, offsets=offsets, planted=planted, ground=np.asarray(data["ground"]),
+    return ContactsRecord(vertices=np.asarray(data["vertices"]), offsets=np.asarray(data["offsets"]),
+                          planted=np.asarray(data["planted"]).astype(bool), ground=np.asarray(data["ground"]),
                           height=float(data.get("@character_height", 1.0)),
                           options={name: float(data[f"@{name}"]) for name in CONTACT_OPTIONS if f"@{name}" in data})
+
+
+def read_graph_contacts(path, model, skin):
+    """/graph/contacts of a graph file read as ``model`` (with its skin, a :class:`SkinFile`), the
+    graph checked first (:func:`.validation.check_graph`): a :class:`ContactsRecord` or None."""
+    check_graph(path, model, _dims(skin))
+    return read_contacts(model["graph"])
+
+
+def _dims(skin):
+    return {"F": skin.rotations.shape[0], "B": skin.bones, "V": skin.rest_vertices.shape[0]}
 
 
 #: build-graph's options as /graph records them (attribute names without "@").
@@ -209,7 +210,7 @@ def read_graph(path):
     model = read_model(path, stages=("graph",))
     skin = read_skin(path, model)
     graph = require(model, path, "graph", ("weights", "kept_edges", "cut_nodes"))
-    check_graph(path, model, {"F": skin.rotations.shape[0], "B": skin.bones, "V": skin.rest_vertices.shape[0]})
+    check_graph(path, model, _dims(skin))
     names = sorted(k for k in graph if k.startswith("component_"))
     if not names:
         raise FormatError(path, "/graph has no components: the file is incomplete")
@@ -220,6 +221,6 @@ def read_graph(path):
             raise FormatError(path, f"/graph/{name} lacks {', '.join(missing)}: the file is incomplete")
         components.append(_component_record(graph[name]))
     options = {name: graph[f"@{name}"] for name in GRAPH_OPTIONS if f"@{name}" in graph}
-    contacts = read_contacts(path, graph, skin.rotations.shape[0], skin.rest_vertices.shape[0])
+    contacts = read_contacts(graph)
     return GraphFile(skin=skin, graph=graph, options=options, components=components, provenance=model["provenance"],
                      contacts=contacts)

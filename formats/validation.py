@@ -169,6 +169,11 @@ def check_clips(path, examples, frames):
 GRAPH = {"weights": Field("float", ("B", "B")), "kept_edges": Field("int", ("E", 2), low=0, high="B"),
          "cut_nodes": Field("int", (None,), low=0, high="B"),
          "articulation_points": Field("int", (None,), low=0, high="B", optional=True)}
+GRAPH_CONTACTS = {  # /graph/contacts, only where ground contacts were found (issue 35)
+    "vertices": Field("int", (None,), low=0, high="V"),
+    "offsets": Field("int", (None,), low=0),
+    "planted": Field("bool", ("F", None), low=0, high=2),
+    "ground": Field("float", (None,))}
 GRAPH_COMPONENT = {
     "bones": Field("int", ("b",), low=0, high="B"),
     "local_bones": Field("int", ("l",), low=0, high="B"),
@@ -201,6 +206,9 @@ def check_graph(path, model, dims):
     check_attribute(path, "graph", graph, "coverage", "float", low=0.0, high=1.0)
     check_attribute(path, "graph", graph, "up_axis", None, choices=("Y", "Z"))
     check_attribute(path, "graph", graph, "threshold_reference", None, choices=("median-step", "max-step"))
+    if "contacts" in graph:
+        _check_contacts(path, graph["contacts"], dims,
+                        len(np.atleast_1d(model["examples"].get("clip_frames", [0]))))
     for name in sorted(k for k in graph if k.startswith("component_")):
         component, local = graph[name], dict(dims)
         check_group(path, f"graph/{name}", component, GRAPH_COMPONENT, local)
@@ -214,6 +222,18 @@ def check_graph(path, model, dims):
                 np.sort(np.asarray(component["local_bones"])), np.setdiff1d(bones, [reference])):
             raise FormatError(path, f"/graph/{name}: bones, local_bones and @reference disagree (the local bones are "
                                     "the component's bones other than its reference)")
+
+
+def _check_contacts(path, contacts, dims, clips):
+    """/graph/contacts: each dataset (:data:`GRAPH_CONTACTS`), offsets (P + 1,) rising from 0 to
+    the vertices' count (each patch at least one vertex), planted (F, P) and a ground per clip."""
+    check_group(path, "graph/contacts", contacts, GRAPH_CONTACTS, dict(dims))
+    offsets, count = np.asarray(contacts["offsets"]), np.asarray(contacts["vertices"]).size
+    patches = offsets.size - 1
+    if (patches < 1 or offsets[0] != 0 or offsets[-1] != count or np.any(np.diff(offsets) < 1)
+            or np.shape(contacts["planted"])[1] != patches or np.size(contacts["ground"]) != clips):
+        raise FormatError(path, f"/graph/contacts is inconsistent: offsets (P + 1,) must rise from 0 to the {count} "
+                                f"vertices, planted be (F, P) and ground hold one height per clip ({clips})")
 
 
 def _check_transition_pairs(path, where, pairs, clips=1):

@@ -36,6 +36,11 @@ class GraphOptions:
     contact_min_duration: float = 0.1
     contact_min_support: float = 0.12
 
+    def analysis_options(self):
+        """{name: value} of the options :func:`.graph.build_graph` takes: all but the contacts'
+        (found apart from the analysis, by :func:`.contact_patches.find_contacts`)."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if not f.name.startswith("contact")}
+
     @classmethod
     def recorded(cls, values):
         """The options a graph file records ({name: value}, ``up_axis`` as "X", "Y" or "Z"), with

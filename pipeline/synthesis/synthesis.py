@@ -84,12 +84,10 @@ def synthesis_components(skin, records, single_component=False, graph_options=No
     clips, walk_clips: the input's clips and those the graph let walks play, for an analysis made
     again (:func:`.graph.build_graph`)."""
     if single_component and len(records) > 1:
-        import dataclasses
-
         from .graph import build_graph  # networkx: only imported when needed
         from .graph_options import GraphOptions
 
-        options = dataclasses.asdict(graph_options or GraphOptions())
+        options = (graph_options or GraphOptions()).analysis_options()
         options["single_component"] = True
         return build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
                            skin.translations, **options, clips=clips, walk_clips=walk_clips).components

@@ -417,7 +417,7 @@ def _corrupt(path, name, kind):
             value = np.array([b"x"] * max(1, min(np.size(value), 3)))
         else:  # an index far out of range
             value = np.asarray(value).copy()
-            value.flat[0] = 10 ** 6
+            value.flat[0] = min(10 ** 6, np.iinfo(value.dtype).max)  # uint8 flags: 255
         f[name] = value
 
 
