@@ -1,8 +1,8 @@
 """Ground contacts found on the input (issue 35, part 1): per input frame, which patches of the
 mesh rest on the ground.
 
-The ground, per clip: a low percentile (:data:`GROUND_PERCENTILE`) of the clip's per-frame lowest
-heights along the up axis, not a fixed axis value, so a clip shot a little above or below 0, or
+The ground, per clip: a low percentile of the clip's per-frame lowest heights along the up axis
+(:func:`.contact_measures.clip_ground`, the ground the feet are measured against), not a fixed axis value, so a clip shot a little above or below 0, or
 one whose lowest point dips through the floor for a frame, still finds its floor.
 
 A vertex is *in contact* at a frame when it is near that ground and slow:
@@ -38,12 +38,11 @@ import numpy as np
 
 from ..clips import Clips
 from ..errors import OptionError
+from .contact_measures import clip_ground
 from .graph_options import GraphOptions
 
 _DEFAULT = GraphOptions()
 
-#: Percentile of a clip's per-frame lowest heights taken as its ground.
-GROUND_PERCENTILE = 5.0
 #: Least |cos| between a contact vertex's normal and the up axis: a surface that faces the ground (a
 #: sole, a hoof, a side lying down), not one that meets it edge-on (a hanging sheet's hem).
 FACING = 0.5
@@ -120,8 +119,7 @@ def find_contacts(vertices, faces, fps, up_axis=1, clips=None, height=_DEFAULT.c
                    min_duration=float(min_duration), min_support=float(min_support))
     H = character_height(vertices, up_axis)
     heights = vertices[..., up_axis]
-    lowest = heights.min(axis=1)
-    ground = np.array([np.percentile(lowest[a:b], GROUND_PERCENTILE) for a, b in zip(starts[:-1], starts[1:])])
+    ground = np.array([clip_ground(vertices[a:b], up_axis) for a, b in zip(starts[:-1], starts[1:])])
     above = heights - np.repeat(ground, clips.frames)[:, None]  # (F, V)
     candidates = np.flatnonzero((above <= release * height * H).any(axis=0))
     empty = ContactPatches(vertices=np.zeros(0, np.int64), offsets=np.zeros(1, np.int64),
