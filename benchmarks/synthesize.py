@@ -38,7 +38,9 @@ dembones_bone (a bending limb whose lowest point wanders over 128 % of its heigh
 vellum_sheet (a falling cloth). ``--feet-only`` skips the smoothness bake and the long runs.
 
 Besides the captures, ``walker`` (``skinsynth example walker``: an articulated figure whose legs
-are components of their own) is measured too. ``--synthesize-args`` adds options to every
+are components of their own) is measured too, and ``walker_planted`` (``example walker --planted``:
+the same figure walking forward on feet that truly plant, its input's slide 0), the one whose feet
+a synthesis must keep planted (the default walker's own feet slide 3.5 % of its height a frame). ``--synthesize-args`` adds options to every
 ``synthesize`` (e.g. ``--no-contact`` for a before/after table).
 
 Built-in procedural stand-ins run only when ../shared/data is absent.
@@ -61,7 +63,7 @@ from datasets import BONES, captures, run
 
 UP = 1  # every capture in shared/data is Y up
 #: Captures that rest on a ground (module notes): their feet are measured.
-GROUNDED = {"vlasic_samba", "horse_gallop", "elephant_clips", "horse_clips", "walker"}
+GROUNDED = {"vlasic_samba", "horse_gallop", "elephant_clips", "horse_clips", "walker", "walker_planted"}
 
 
 def bake(skin, F, t):
@@ -204,10 +206,12 @@ def main():
     work = args.work or tempfile.mkdtemp(prefix="skinsynth_bench_")
     os.makedirs(work, exist_ok=True)
     work = str(pathlib.Path(work).resolve())
-    walker = os.path.join(work, "walker.npz")
-    if not os.path.exists(walker) and (not args.only or args.only == "walker"):
-        run(["example", "walker", "-o", walker, "-q"], work)
-    for name, spec in list(captures(work)) + [("walker", walker)]:
+    walkers = []
+    for name, options in (("walker", []), ("walker_planted", ["--planted"])):
+        walkers.append((name, os.path.join(work, f"{name}.npz")))
+        if not os.path.exists(walkers[-1][1]) and (not args.only or args.only == name):
+            run(["example", "walker", *options, "-o", walkers[-1][1], "-q"], work)
+    for name, spec in list(captures(work)) + walkers:
         if args.only and args.only != name:
             continue
         for single in (False, True):

@@ -141,13 +141,19 @@ def summary(measured, limit=LIMIT):
     return out
 
 
+#: An input figure at most this (a share of the height, or of the largest acceleration's units) is
+#: rounding, not motion: no ratio is taken over it (the planted walker's slide p95 is 6e-17).
+RATIO_FLOOR = 1e-9
+
+
 def ratios(output, input_):
     """Output over input of the slide figures and the largest acceleration (None where the
-    input's is 0 or missing)."""
+    input's is missing, or 0 up to rounding: at most :data:`RATIO_FLOOR`)."""
     out = {}
     for key in ("slide_median", "slide_p95", "sliding_share", "largest_accel"):
         a, b = output.get(key), input_.get(key)
-        out[key] = float(a / b) if a is not None and b and np.isfinite(a) and np.isfinite(b) else None
+        out[key] = (float(a / b) if a is not None and b is not None and np.isfinite(a) and np.isfinite(b)
+                    and b > RATIO_FLOOR else None)
     return out
 
 

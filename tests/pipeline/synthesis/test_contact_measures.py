@@ -98,3 +98,5 @@ def test_summary_and_ratios():
     assert r["slide_median"] == pytest.approx(5.0 / 3.0)
     assert summary(Steps(np.zeros(0), np.zeros(0), 3, float("nan")))["contact_steps"] == 0
     assert ratios({"slide_median": 1.0}, {"slide_median": 0.0})["slide_median"] is None
+    # an input still up to rounding (the planted walker's p95: 6e-17 of its height) gives no ratio
+    assert ratios({"slide_p95": 0.17}, {"slide_p95": 5.6e-17})["slide_p95"] is None
