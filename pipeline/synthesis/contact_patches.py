@@ -38,6 +38,7 @@ import numpy as np
 
 from ..clips import Clips
 from ..errors import OptionError
+from ..geometry import vertex_normals
 from .contact_measures import clip_ground
 from .graph_options import GraphOptions
 
@@ -95,7 +96,7 @@ def runs(state, clips):
     return list(zip(np.flatnonzero(starts).tolist(), np.flatnonzero(ends).tolist()))
 
 
-def character_height(vertices, up_axis):
+def largest_extent(vertices, up_axis):
     """H: the largest extent along up of any frame of vertices (F, V, 3) (1.0 if they are flat)."""
     up = np.asarray(vertices)[..., up_axis]
     return float((up.max(axis=1) - up.min(axis=1)).max()) or 1.0
@@ -117,7 +118,7 @@ def find_contacts(vertices, faces, fps, up_axis=1, clips=None, height=_DEFAULT.c
     starts = clips.starts
     options = dict(height=float(height), speed=float(speed), release=float(release),
                    min_duration=float(min_duration), min_support=float(min_support))
-    H = character_height(vertices, up_axis)
+    H = largest_extent(vertices, up_axis)
     heights = vertices[..., up_axis]
     ground = np.array([clip_ground(vertices[a:b], up_axis) for a, b in zip(starts[:-1], starts[1:])])
     above = heights - np.repeat(ground, clips.frames)[:, None]  # (F, V)
@@ -191,23 +192,13 @@ def _mesh_parts(faces, members, count):
 
 
 def _vertex_normals(vertices, faces, members):
-    """Unit area-weighted normals (F, N, 3) of the vertices ``members`` in every frame of
-    vertices (F, V, 3), from the faces that touch them."""
-    from scipy.sparse import coo_matrix
-
+    """Unit area-weighted normals (F, N, 3) of the vertices ``members`` (sorted ids) in every
+    frame of vertices (F, V, 3): :func:`~skinsynth.pipeline.geometry.vertex_normals` of the part of
+    the mesh made of the faces that touch them (a member's normal depends on those faces alone)."""
     faces = np.asarray(faces, dtype=np.int64)
-    local = np.full(vertices.shape[1], -1, np.int64)
-    local[members] = np.arange(members.size)
-    touching = np.flatnonzero((local[faces] >= 0).any(axis=1))
-    corners = faces[touching]
-    a, b, c = (vertices[:, corners[:, k]] for k in range(3))
-    normals = np.cross(b - a, c - a)  # (F, T', 3), twice the area
-    rows = local[corners].ravel()
-    cols = np.repeat(np.arange(touching.size), 3)
-    keep = rows >= 0
-    incidence = coo_matrix((np.ones(keep.sum()), (rows[keep], cols[keep])), shape=(members.size, touching.size)).tocsr()
-    frames = vertices.shape[0]
-    summed = (incidence @ normals.transpose(1, 0, 2).reshape(touching.size, -1)).reshape(members.size, frames, 3)
-    summed = summed.transpose(1, 0, 2)
-    length = np.linalg.norm(summed, axis=-1, keepdims=True)
-    return np.divide(summed, length, out=np.zeros_like(summed), where=length > 0.0)
+    inside = np.zeros(vertices.shape[1], bool)
+    inside[members] = True
+    touching = faces[inside[faces].any(axis=1)]
+    used = np.unique(touching)
+    normals = vertex_normals(vertices[:, used], np.searchsorted(used, touching))
+    return normals[:, np.searchsorted(used, members)]
