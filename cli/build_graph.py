@@ -101,7 +101,8 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.clips import Clips
     from skinsynth.pipeline.synthesis import build_graph as analyse, validate_graph_options
-    from skinsynth.pipeline.synthesis import default_min_segment, find_contacts, validate_contact_options
+    from skinsynth.pipeline.synthesis import (default_min_segment, find_contacts, refuse_contact_jumps,
+                                              validate_contact_options)
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
     folders = FolderOutputs([path], [output, plot_dir])
@@ -128,6 +129,10 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
         analysis.contacts = find_contacts(skin.examples, skin.faces, skin.fps, "XYZ".index(up_axis), clips,
                                           height=contact_height, speed=contact_speed, release=contact_release,
                                           min_duration=contact_min_duration, min_support=contact_min_support)
+    refused = None
+    if analysis.contacts is not None and analysis.contacts.count:  # a planted foot never jumps to a swinging one
+        refused = refuse_contact_jumps(analysis.components, analysis.contacts, skin.bone_indices, skin.bone_weights,
+                                       clips)
     seconds = time.perf_counter() - started
     parameters = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
                       edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
@@ -139,7 +144,7 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     write_model(output, "graph", graph_groups(model, analysis), model["provenance"] + [record], tool_version())
     if plot_dir is not None:
         _write_plots(plot_dir, skin, analysis, folders, clips)
-    summary, lines = _summary(output, analysis, min_segment, up_axis, seconds, clips)
+    summary, lines = _summary(output, analysis, min_segment, up_axis, seconds, clips, refused)
     report(summary, lines, as_json, quiet)
     if analysis.transition_count == 0:
         click.echo("warning: no candidate transitions: the clip has no repeated states at this threshold; "
@@ -176,7 +181,7 @@ def _write_plots(plot_dir, skin, analysis, folders, clips):
                                         clip_starts=clips.starts, clip_names=clips.names)
 
 
-def _summary(output, analysis, min_segment, up_axis, seconds, clips):
+def _summary(output, analysis, min_segment, up_axis, seconds, clips, refused=None):
     """The command's summary (--json) and its text lines. ``transitions_between`` ({"a->b": count},
     a component's, and over all components at the top) counts transitions by the clip they leave
     and the clip they enter; the text names them only when there are several clips."""
@@ -211,6 +216,13 @@ def _summary(output, analysis, min_segment, up_axis, seconds, clips):
                                "share_of_frames": round(share, 4)}
         lines.append(f"  ground contacts: {contacts.count} patch(es), {summary['contacts']['plants']} plant(s), "
                      f"{share:.0%} of the frames" if contacts.count else "  ground contacts: none (no ground found)")
+        if refused is not None:
+            summary["contacts"]["refused_transitions"] = [n for n, _ in refused]
+            summary["contacts"]["kept_for_walks"] = [bool(k) for _, k in refused]
+            kept = [str(c) for c, (_, k) in enumerate(refused) if k]
+            lines.append(f"  transitions refused for a contact jump (a planted patch to a swinging one): "
+                         f"{sum(n for n, _ in refused)}" + (f"; component(s) {', '.join(kept)} kept theirs (refusing "
+                                                              f"them left too few frames to walk)" if kept else ""))
     left_out = [n for n in clips.names if n not in summary["walk_clips"]]
     if left_out:
         lines.insert(2, f"  walks play {', '.join(summary['walk_clips'])}; left out (--clips): {', '.join(left_out)}")

@@ -141,7 +141,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.pipeline.clips import Clips
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.synthesis import (BATCH_REVISION, GraphOptions, Request, avoid_obstacles, default_min_segment,
-                                              keep_input_support, synthesis_components, validate_request)
+                                              keep_input_plants, keep_input_support, synthesis_components,
+                                              validate_request)
 
     if cluster is not None and not cluster.strip():
         raise OptionError("--cluster needs an address: tcp://HOST:PORT of a running scheduler, or local:N")
@@ -184,7 +185,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           up_axis=1 if up_axis == "Y" else 2, contact=contact,
                           clips=clips if len(clips) > 1 else None)
         validate_request(request, skin.rotations.shape[0])
-        if contact:
+        contacts = graph_file.contacts if graph_file.contacts is not None and graph_file.contacts.count else None
+        if contact and contacts is None:
             keep_input_support(request, skin)
         # the bone motions (float32 3×3 + 3 per bone) and sources (int32 per component), in memory
         # (on a cluster, in the shards on disk): refused before any is allocated; then the output
@@ -202,7 +204,10 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         walk_clips = graph_file.graph.get("@clips")
         components = synthesis_components(skin, graph_file.components, single_component,
                                           GraphOptions.recorded(graph_file.options), request.clips,
-                                          None if walk_clips is None else [str(n) for n in walk_clips])
+                                          None if walk_clips is None else [str(n) for n in walk_clips],
+                                          contacts=contacts)
+        if contact and contacts is not None:
+            keep_input_plants(request, skin, contacts, components)
 
         parameters = dict(count=count, frames=frames, seed=seed, start_frame=start_frame, end_frame=end_frame,
                           targets=[list(t) for t in targets], obstacles=list(obstacles), ground_plane=ground_plane,

@@ -107,11 +107,16 @@ def merge_order(components):
     return order
 
 
-def assemble(components, parts, bones, rng, tries=32, dtype=np.float32):
+def assemble(components, parts, bones, rng, tries=32, dtype=np.float32, contacts=None):
     """Merge per-component animations into whole-rig animations.
 
     components: list of sorted bone-id lists; parts: one :class:`.splicing.SplicedWalks` per
-    component (N walks each); bones: B; dtype of the outputs. Returns (F (N, M, B, 3, 3),
+    component (N walks each); bones: B; dtype of the outputs. contacts: None, or (sources
+    (C, N, M) the walks, per component the planted states (Fi, p) of the ground-contact patches
+    it moves): among the candidates that pass eq. 12, a component that moves patches takes
+    the one whose patches are planted at the most frames where the anchor's walk has them
+    planted, and swinging where it has them swinging (the legs' contacts agree with the body's
+    travel; ties: the first in the seeded order). Returns (F (N, M, B, 3, 3),
     t (N, M, B, 3) (float64 arithmetic, stored in ``dtype``), choice (N, C) the walk used from
     each component, rejected (int): merges that fell back to the closest).
     """
@@ -121,10 +126,12 @@ def assemble(components, parts, bones, rng, tries=32, dtype=np.float32):
     order = merge_order(components)
     choice = np.zeros((count, len(components)), dtype=np.int64)
     rejected = 0
+    anchor = None
     for c, cut in order:
         part = parts[c]
         ids = np.asarray(components[c])
         if cut is None:  # the anchor of a piece of the mesh: eq. 10 as it is
+            anchor = c
             apply_rigid_into(F, t, ids, part.rotation, part.translation, part.F, part.t)
             choice[:, c] = np.arange(count)
             continue
@@ -148,6 +155,8 @@ def assemble(components, parts, bones, rng, tries=32, dtype=np.float32):
         threshold = 0.05 * np.maximum(peak_a[:, None], peak_c[candidates])  # Zheng's T_c
         passing = difference < threshold
         first = np.argmax(passing, axis=1)
+        if contacts is not None and contacts[1][c].shape[1]:
+            first = np.argmax(np.where(passing, _agreement(contacts, c, anchor, candidates), -1.0), axis=1)
         closest = np.argmin(difference, axis=1)
         found = passing.any(axis=1)
         pick = candidates[np.arange(count), np.where(found, first, closest)]
@@ -155,3 +164,13 @@ def assemble(components, parts, bones, rng, tries=32, dtype=np.float32):
         choice[:, c] = pick
         merge_into(F, t, cut, part, pick, ids, (U_a, S_a), (U_c, S_c))
     return F, t, choice, rejected
+
+
+def _agreement(contacts, c, anchor, candidates):
+    """(N, tries): the share of frames and patches of component c where candidate walk
+    ``candidates[a, k]`` has c's patches in the contact state the anchor's walk a has them in."""
+    sources, owned = contacts
+    states = owned[c]
+    theirs = states[sources[anchor]]  # (N, M, p)
+    return np.stack([(states[sources[c][candidates[:, k]]] == theirs).mean(axis=(1, 2))
+                     for k in range(candidates.shape[1])], axis=1)

@@ -28,6 +28,7 @@ import numpy as np
 from .assembly import assemble, cut_bones, merge_order
 from .collisions import build_obstacles, colliding, vertex_subset
 from .contact import keep_contact, lowest_range, support
+from .planting import plant_feet, plant_rig
 from .deformation_gradients import gradient_operator
 from ..errors import OptionError
 from ..execution import concatenate_rows, run_batches
@@ -50,7 +51,9 @@ REPLACEMENT_CAP = 8
 #: 2: replacement rounds ask for twice as many animations each round (:func:`_replacements`).
 #: 3: the merged rig keeps the input's support (``Request.contact``, :mod:`.contact`).
 #: 4: replacement rounds are sized by the last round's yield and bounded (:data:`DIVERSITY_ROUNDS`).
-BATCH_REVISION = 4
+#: 5: an input with ground contacts has its plants kept (``Request.plants``, :mod:`.planting`) and its
+#: merges prefer legs whose contacts agree with the body's (:func:`.assembly.assemble`).
+BATCH_REVISION = 5
 
 
 def component_from_file(data, rest):
@@ -75,22 +78,29 @@ def component_from_file(data, rest):
                              strain=np.asarray(data.rotation_strain), operator=operator)
 
 
-def synthesis_components(skin, records, single_component=False, graph_options=None, clips=None, walk_clips=None):
+def synthesis_components(skin, records, single_component=False, graph_options=None, clips=None, walk_clips=None,
+                         contacts=None):
     """The components synthesize walks: each of a graph file's component records
     (:func:`component_from_file`), or with ``single_component`` (and more than one in the file)
     the whole rig analysed again as one (:func:`.graph.build_graph` with the file's
     ``graph_options``, a :class:`.graph_options.GraphOptions`). ``skin``: rest_vertices (V, 3),
     faces, bone_indices and bone_weights (V, K), rotations (F, B, 3, 3), translations (F, B, 3);
     clips, walk_clips: the input's clips and those the graph let walks play, for an analysis made
-    again (:func:`.graph.build_graph`)."""
+    again (:func:`.graph.build_graph`); contacts: the input's ground contacts, whose jumps an
+    analysis made again refuses as build-graph did (:func:`.planting.refuse_contact_jumps`)."""
     if single_component and len(records) > 1:
         from .graph import build_graph  # networkx: only imported when needed
         from .graph_options import GraphOptions
 
         options = (graph_options or GraphOptions()).analysis_options()
         options["single_component"] = True
-        return build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
-                           skin.translations, **options, clips=clips, walk_clips=walk_clips).components
+        components = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
+                                 skin.translations, **options, clips=clips, walk_clips=walk_clips).components
+        if contacts is not None:
+            from .planting import refuse_contact_jumps
+
+            refuse_contact_jumps(components, contacts, skin.bone_indices, skin.bone_weights, clips)
+        return components
     return [component_from_file(record, skin.rest_vertices) for record in records]
 
 
@@ -122,6 +132,23 @@ def keep_input_support(request, skin):
                               skin.translations, request.up_axis, ground=lowest_range(skin.examples, request.up_axis))
 
 
+def keep_input_plants(request, skin, contacts, components):
+    """Set ``request.plants`` (:class:`.planting.PlantRig`), what the output's plants need from
+    the input's ground contacts (a :class:`.contact_patches.ContactPatches` or the graph file's
+    record of it, with at least one patch), made once here, not in every batch: they replace the
+    vertical shift of :func:`keep_input_support` (:mod:`.planting`). ``skin``: the fit (rest
+    vertices, weights, rotations, translations, fps) and its input frames (examples); components:
+    the synthesis's."""
+    from ..clips import Clips
+
+    clips = request.clips or Clips.single(skin.rotations.shape[0])
+    patches = [contacts.vertices[contacts.offsets[p]:contacts.offsets[p + 1]] for p in range(contacts.count)]
+    bones = [c.bones for c in components]
+    request.plants = plant_rig(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
+                               skin.translations, skin.examples, patches, np.asarray(contacts.planted, bool), contacts.ground,
+                               clips.starts, skin.fps, bones, request.up_axis)
+
+
 @dataclass
 class Request:
     """What to make: count animations of ``frames`` frames; targets [(input frame, output time)],
@@ -144,6 +171,9 @@ class Request:
     contact: keep the merged rig's lowest point within the input's range (:mod:`.contact`);
     ``support`` (a :class:`.contact.Support`, from :func:`keep_input_support`: the input frames'
     own range of lowest points), or None: made in each batch from the fit's playback of them.
+    plants: the input's ground contacts kept on the output (:class:`.planting.PlantRig`, from
+    :func:`keep_input_plants`; None: the input has none, or ``contact`` is off); where set they
+    replace the support's vertical shift.
 
     clips: the :class:`~skinsynth.pipeline.clips.Clips` of the input frames when they are several
     clips (frames, targets, start and end are global frame numbers), None for one clip."""
@@ -167,6 +197,7 @@ class Request:
     up_axis: int = 1
     contact: bool = True
     support: object = None
+    plants: object = None
     clips: object = None
 
 
@@ -260,11 +291,15 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             F, t = parts[0].world()
             choice = np.arange(tries)[:, None]
         else:
-            F, t, choice, failed = assemble([c.bones for c in components], parts, bones, rng)
+            agree = None if request.plants is None else (sources, [request.plants.concerning(k, c.bones)
+                                                                   for k, c in enumerate(components)])
+            F, t, choice, failed = assemble([c.bones for c in components], parts, bones, rng, contacts=agree)
             rejected["merges"] += failed
             # Output a uses walk choice[a, c] of component c: keep the walks actually used.
             sources = np.stack([sources[k, choice[:, k]] for k in range(len(components))])
-        if request.contact:  # the merged bones are final: keep the input's support (:mod:`.contact`)
+        if request.contact and request.plants is not None:  # the merged bones are final: plant the feet
+            plant_feet(F, t, sources, request.plants)
+        elif request.contact:  # no contacts found: keep the input's support (:mod:`.contact`)
             if held is None:
                 held = support(rest, bone_indices, bone_weights, rotations, translations, request.up_axis)
             keep_contact(F, t, held)

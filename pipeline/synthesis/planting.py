@@ -1,0 +1,456 @@
+"""Feet that stay planted (issue 35, part 3): the input's ground contacts enforced on the output.
+
+build-graph finds, per input frame, which patches of the mesh rest on the ground
+(:mod:`.contact_patches`). An output frame plays, per bone component, some input frame (its
+walk's source), so a patch is *planted* at an output frame where the component that owns it (the
+one whose bones carry most of the patch's skin weight) plays a frame where the patch was planted.
+A run of planted output frames is a *plant*. During a plant the patch must do what the input's
+patch did at those source frames, and nothing else: stay where it landed (on a treadmill, travel
+with the belt, as the input's did) and keep the input's height above the ground.
+
+Splicing (a seam's blend) and the multi-component merge (a body from one input frame, legs from
+others: Zheng §4.2) break that, and the foot slides. The correction, per animation, all
+animations and patches at once (no loop over frames):
+
+1. **The patch's error.** Its centroid c(m) is linear in the bones (``centroid = Σ_b F_b ā_pb +
+   ω_pb t_b``, ā and ω the patch's weighted rest positions and weights: no skinning). Its step
+   c(m) − c(m−1) should be the input's own step at the source frame, Δ(src(m)) (zero for a foot
+   at rest, the belt's travel under a treadmill), carried into the output by the patch bone's
+   map A(m) = F_out(m) F_in(src(m))⁻¹ (the identity where the output plays the input unchanged;
+   the segment's heading after a seam); only its horizontal part, for the input's vertical step
+   would leak sideways through a tilted bone (the height has a target of its own). The slide error v(m) = c(m) − c(m−1) − A(m) Δ(src(m)),
+   at each step inside a plant. The height error z(m) = target(m) − c_up(m), the target being the
+   height that puts the patch's lowest vertex where the input's was at the source frame (measured
+   from its clip's ground, placed on the output's; the fit's foot differs from the input's by its
+   error, and its lowest point is what meets the floor). The input's steps and heights are the
+   input frames' own, not the fit's playback of them.
+2. **A root offset** (the body travels as its planted feet push it): the horizontal velocity
+   correction u(m) = −mean over the patches stepping inside a plant of v(m), smoothed over time
+   (a Gaussian of σ = ``half_life`` seconds) and summed into a horizontal offset; a vertical
+   offset, the planted patches' mean height error smoothed the same way (a normalised
+   convolution: zero far from any plant). Both move every bone.
+3. **A limb correction** e_p(m) per patch: what is left after the root's, exactly — inside a
+   plant, the residual slide summed from the plant's first frame (0 there) and the residual
+   height error — so the planted patch's step is exactly A(m) Δ(src(m)) and its height the
+   target. It moves the bones near the patch: ``α_pb`` = 1 on the bones that move the patch,
+   falling linearly to 0 over ``reach`` hops of the bone graph (Zheng eq. 11's couplings); the shift of each bone's
+   translation Σ_q α_qb g_q is solved so that every patch's centroid moves by its e_p (the patches
+   × patches system ω αᵀ g = e). LBS is linear, so the vertices between a corrected bone and an
+   uncorrected one move part of the way: the leg takes the correction, the body does not.
+4. **Blending in and out** (inertialization, Holden's critically damped spring): outside plants
+   the limb correction is the decay of the one at the nearest plant's edge, matching its value and
+   its velocity there: x(k) = (x₀ + (v₀ + y x₀) k) e^(−y k), y = 2 ln 2 / half-life, k frames from
+   the plant's last frame (forward) or first frame (backward, time reversed), summed where a gap
+   lies between two plants. So a plant's start and end carry no velocity jump.
+
+Why translations, not rotations: the fitted rig has no joints (one root, every bone free:
+:mod:`~skinsynth.pipeline.skeleton`), so there is no chain to bend by IK; a bone's translation is
+its free parameter, and a correction spread by the weights is how the rig itself blends bones.
+The corrections are small where the input is followed (a few % of the height at most), and a
+leg takes them over ``reach`` bones.
+
+Where the input has no contacts there is nothing to plant and this module is not used (the
+outputs stay byte-identical). ``synthesize --no-contact`` turns it off.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Half-life (seconds) of the blend in and out of a limb correction, and the σ of the root's smoothing.
+HALF_LIFE = 0.1
+#: Hops of the bone graph over which a limb correction falls from 1 to 0.
+REACH = 3
+#: Largest turn (degrees) given a planted patch's own bones: a foot that a merge tilted further than
+#: this (a shin from another frame) is turned this far only, for turning it all the way tears the ankle.
+MAX_TURN = 20.0
+#: Least share of a bone's largest coupling that makes two bones neighbours (Zheng's pruning rule, §4.1).
+COUPLING = 0.1
+
+
+@dataclass
+class PlantRig:
+    """What the output's plants need from the input, made once per synthesis
+    (:func:`plant_rig`). P patches, b the bones that move them, Fi input frames.
+
+    planted (Fi, P) bool; owner (P,) the component owning each patch; bones (b,) ids; rest_terms
+    (P, b, 3) ā (each patch's weighted rest centroid per bone) and weight_terms (P, b) ω (each
+    patch's mean weight per bone); anchor_bone (P,) the bone carrying most of each patch (slot in
+    ``bones``); inverse_in (Fi, P, 3, 3) that bone's inverse input matrix; steps_in (Fi, P, 3) the
+    input patch centroid's step into each frame (0 at a clip's first frame); heights_in (Fi, P)
+    its height above its clip's ground; ground (Fi,) the ground of each frame's clip; influence
+    (P, B) α; own: per patch the bones that move it (α = 1); orientation_in (Fi, P, 3, 3) the
+    orientation the anchor bone should have to carry the patch as the input's (E R_in); solve (P, P) (ω αᵀ)⁺; decay y per frame; sigma (frames) of the root's smoothing;
+    up_axis."""
+
+    planted: np.ndarray
+    owner: np.ndarray
+    bones: np.ndarray
+    rest_terms: np.ndarray
+    weight_terms: np.ndarray
+    anchor_bone: np.ndarray
+    inverse_in: np.ndarray
+    steps_in: np.ndarray
+    heights_in: np.ndarray
+    ground: np.ndarray
+    influence: np.ndarray
+    own: list
+    orientation_in: np.ndarray
+    solve: np.ndarray
+    decay: float
+    sigma: float
+    turn_sigma: float
+    max_turn: float
+    up_axis: int
+
+    def concerning(self, component, bones):
+        """The planted states (Fi, p) of the patches a component (its index, its bones) moves:
+        those it owns and those whose limb correction reaches one of its bones (a thigh or a shin
+        cut into a component of its own decides where its foot goes)."""
+        reached = self.influence[:, np.asarray(bones, dtype=np.int64)].any(axis=1)
+        return self.planted[:, (self.owner == component) | reached]
+
+
+def dense_weights(bone_indices, bone_weights, bones):
+    """Sparse skin weights (V, K) -> dense (V, B) float64."""
+    idx = np.asarray(bone_indices, dtype=np.int64)
+    dense = np.zeros((idx.shape[0], bones))
+    np.add.at(dense, (np.repeat(np.arange(idx.shape[0]), idx.shape[1]), idx.ravel()),
+              np.asarray(bone_weights, dtype=np.float64).ravel())
+    return dense
+
+
+def patch_owners(patches, dense, components):
+    """(P,) the component (index into ``components``, sorted bone-id lists) carrying most of each
+    patch's skin weight; patches: lists of vertex ids; dense (V, B) weights."""
+    mass = np.array([[dense[np.asarray(p)][:, c].sum() for c in components] for p in patches]).reshape(len(patches), -1)
+    return np.argmax(mass, axis=1).astype(np.int64) if len(components) else np.zeros(len(patches), np.int64)
+
+
+def bone_hops(bone_indices, bone_weights, bones, coupling=COUPLING):
+    """(B, B) hops between bones in the bone graph (Zheng eq. 11 couplings of at least ``coupling``
+    × the largest; unreachable: inf)."""
+    from scipy.sparse.csgraph import shortest_path
+
+    from .bone_graph import bone_graph_weights
+
+    d = bone_graph_weights(bone_indices, bone_weights, bones)
+    adjacent = (d >= coupling * d.max()) if d.max() > 0 else np.zeros_like(d, bool)
+    return shortest_path(adjacent.astype(np.float64), unweighted=True, directed=False)
+
+
+def limb_influence(weight_terms, hops, reach=REACH):
+    """α (P, B): 1 on the bones moving each patch (its ω above 1 % of the largest), falling
+    linearly with their hops in the bone graph to 0 at ``reach`` + 1 hops. weight_terms (P, B) ω;
+    hops (B, B) (:func:`bone_hops`). Not stopped at the synthesis's cut nodes: a leg cut into
+    components of a bone or two (the walker's foot is one) must still bend as a whole."""
+    alpha = np.zeros(weight_terms.shape)
+    for p in range(weight_terms.shape[0]):  # few patches
+        moving = np.flatnonzero(weight_terms[p] > 0.01 * weight_terms[p].max())
+        alpha[p] = np.clip(1.0 - hops[moving].min(axis=0) / (reach + 1.0), 0.0, 1.0)
+    return alpha
+
+
+def plant_rig(rest, bone_indices, bone_weights, rotations, translations, examples, patches, planted, grounds,
+              clip_starts, fps, components, up_axis=1, half_life=HALF_LIFE, reach=REACH, max_turn=MAX_TURN):
+    """The :class:`PlantRig` of an input: rest (V, 3), weights (V, K), its fit rotations
+    (Fi, B, 3, 3) and translations (Fi, B, 3), and the input frames themselves, examples
+    (Fi, V, 3): the plants follow the input, not the fit's playback of it (a 20-bone fit of the
+    samba slides its feet 0.22 % of the height a frame where the dancer slides 0.08 %); patches:
+    the contact patches' vertex ids (list of P arrays), planted (Fi, P) bool and grounds (C,) each
+    clip's ground (:class:`.contact_patches.ContactPatches`); clip_starts (C + 1,); fps;
+    components (sorted bone-id lists: the synthesis's, which own the patches)."""
+    from ..rotations import polar_rotation
+
+    rest = np.asarray(rest, dtype=np.float64)
+    frames, B = rotations.shape[:2]
+    dense = dense_weights(bone_indices, bone_weights, B)
+    weight_terms = np.stack([dense[np.asarray(p)].mean(axis=0) for p in patches])  # (P, B)
+    rest_terms = np.stack([(dense[np.asarray(p)][:, :, None] * rest[np.asarray(p)][:, None, :]).mean(axis=0)
+                           for p in patches])  # (P, B, 3)
+    bones = np.flatnonzero(weight_terms.any(axis=0))
+    owner = patch_owners(patches, dense, components)
+    anchor = np.argmax(weight_terms[:, bones], axis=1)  # slot in bones
+    R = np.asarray(rotations, dtype=np.float64)
+    T = np.asarray(translations, dtype=np.float64)
+    examples = np.asarray(examples, dtype=np.float64)
+    centroids = np.stack([examples[:, np.asarray(p)].mean(axis=1) for p in patches], axis=1)  # (Fi, P, 3)
+    # E: the turn taking the fit's patch onto the input's, per frame (Kabsch about the centroids)
+    # and the centroid's height that puts the (turned) fit's lowest patch vertex where the input's is:
+    # the fit's foot is not the input's (a few mm lower or higher), and its lowest point is what meets the floor
+    turns, levels = [], []
+    for p, ids in enumerate(patches):
+        ids = np.asarray(ids)
+        fitted = np.einsum("vb,fbij,vj->fvi", dense[ids], R, rest[ids]) + np.einsum("vb,fbi->fvi", dense[ids], T)
+        fitted -= fitted.mean(axis=1, keepdims=True)
+        turn = polar_rotation(np.einsum("fvi,fvj->fij", examples[:, ids] - centroids[:, None, p], fitted))
+        turns.append(turn)
+        lowest_turned = np.einsum("fj,fvj->fv", turn[:, up_axis], fitted).min(axis=1)
+        levels.append(examples[:, ids, up_axis].min(axis=1) - lowest_turned)
+    turns = np.stack(turns, axis=1)  # (Fi, P, 3, 3)
+    starts = np.asarray(clip_starts, dtype=np.int64)
+    first = np.zeros(frames, bool)
+    first[starts[:-1]] = True
+    steps = np.zeros_like(centroids)
+    steps[1:] = centroids[1:] - centroids[:-1]
+    steps[first] = 0.0
+    steps[..., up_axis] = 0.0  # only the slide is carried: the height has its own target
+    clip = np.searchsorted(starts, np.arange(frames), side="right") - 1
+    ground = np.asarray(grounds, dtype=np.float64)[clip]
+    heights = np.stack(levels, axis=1) - ground[:, None]
+    anchor_in = R[:, bones[anchor]]  # (Fi, P, 3, 3)
+    hops = bone_hops(bone_indices, bone_weights, B)
+    influence = limb_influence(weight_terms, hops, reach)
+    coupling = weight_terms @ influence.T  # (P, P): patch p's centroid moves by Σ_q coupling[p, q] g_q
+    own = [np.flatnonzero(influence[p] >= 1.0) for p in range(len(patches))]
+    return PlantRig(planted=np.asarray(planted, bool), owner=owner, bones=bones, rest_terms=rest_terms[:, bones],
+                    weight_terms=weight_terms[:, bones], anchor_bone=anchor, inverse_in=np.linalg.inv(anchor_in),
+                    steps_in=steps, heights_in=heights, ground=ground, influence=influence, own=own,
+                    orientation_in=turns @ anchor_in, solve=np.linalg.pinv(coupling, rcond=1e-6),
+                    decay=2.0 * np.log(2.0) / (half_life * fps), sigma=half_life * fps,
+                    turn_sigma=2.0 * half_life * fps, max_turn=np.radians(max_turn), up_axis=int(up_axis))
+
+
+def plant_feet(F, t, sources, rig, block=64):
+    """Keep every plant of the animations F (A, M, B, 3, 3), t (A, M, B, 3) on its anchor (module
+    notes): t is corrected in place, in blocks of ``block`` animations; sources (C, A, M) the
+    input frame each component plays. Returns the planted states (A, P, M) bool."""
+    states = np.zeros((F.shape[0], rig.owner.size, F.shape[1]), bool)
+    for a in range(0, F.shape[0], block):
+        states[a:a + block] = _plant_block(F[a:a + block], t[a:a + block], sources[:, a:a + block], rig)
+    return states
+
+
+def output_states(sources, rig):
+    """(A, P, M) bool: patch p is planted at output frame m of animation a where its owner's
+    source frame has it planted. sources (C, A, M)."""
+    patches = np.arange(rig.owner.size)
+    return rig.planted[np.moveaxis(sources[rig.owner], 0, 1), patches[None, :, None]]
+
+
+def _shifted(x, by, fill):
+    """x (..., M) moved by ``by`` frames along the last axis (x[m − by] at m), ``fill`` outside."""
+    out = np.full_like(x, fill)
+    if by > 0:
+        out[..., by:] = x[..., :-by]
+    else:
+        out[..., :by] = x[..., -by:]
+    return out
+
+
+def _plant_block(F, t, sources, rig):
+    from scipy.ndimage import gaussian_filter1d
+
+    P, up = rig.owner.size, rig.up_axis
+    patches = np.arange(P)[None, :, None]
+    src = np.moveaxis(sources[rig.owner], 0, 1)  # (A, P, M)
+    state = rig.planted[src, patches]
+    if not state.any():
+        return state
+    A, M = F.shape[:2]
+    _turn_feet(F, t, src, state, rig)
+    Fb = F[:, :, rig.bones].astype(np.float64)  # (A, M, b, 3, 3)
+    tb = t[:, :, rig.bones].astype(np.float64)
+    centre = _centres(Fb, tb, rig)  # (A, P, M, 3)
+    # the input's step into the source frame, carried by the patch bone's input → output map
+    carried = np.einsum("apmjk,apmk->apmj", rig.inverse_in[src, patches], rig.steps_in[src, patches])
+    expected = np.einsum("ampij,apmj->apmi", Fb[:, :, rig.anchor_bone], carried)
+    slide = np.zeros_like(centre)
+    slide[:, :, 1:] = centre[:, :, 1:] - centre[:, :, :-1] - expected[:, :, 1:]
+    slide[..., up] = 0.0
+    stepping = state & _shifted(state, 1, False)  # (A, P, M): steps m−1 → m inside a plant
+    # the root: horizontal, the planted patches' mean slide undone, smoothed and summed into an offset
+    count = stepping.sum(axis=1)
+    push = -(stepping[..., None] * slide).sum(axis=1) / np.maximum(count, 1)[..., None]  # (A, M, 3)
+    push = gaussian_filter1d(push, rig.sigma, axis=1, mode="constant")
+    root = np.cumsum(push, axis=1)
+    # vertical: the planted patches' mean height error, a normalised smoothing (0 far from plants)
+    target = rig.heights_in[src, patches] + rig.ground[sources[0]][:, None, :]
+    error = np.where(state, target - centre[..., up], 0.0)
+    weight = gaussian_filter1d(state.sum(axis=1).astype(np.float64), rig.sigma, axis=1, mode="constant")
+    level = gaussian_filter1d(error.sum(axis=1), rig.sigma, axis=1, mode="constant")
+    root[..., up] = level / np.maximum(weight, 1.0)
+    # each limb: the residual slide summed from its plant's first frame, the residual height
+    residual = np.where(stepping[..., None], -slide - push[:, None], 0.0)
+    summed = np.cumsum(residual, axis=2)
+    frames = np.arange(M)
+    first = state & ~_shifted(state, 1, False)
+    last = state & ~_shifted(state, -1, False)
+    since = np.maximum.accumulate(np.where(first, frames, 0), axis=2)
+    correction = np.where(state[..., None], summed - np.take_along_axis(summed, since[..., None], axis=2), 0.0)
+    correction[..., up] = np.where(state, error - root[:, None, :, up], 0.0)
+    _blend_edges(correction, state, stepping, first, last, rig.decay)
+    # bone shifts: every patch's centroid moves by its correction (ω αᵀ g = e), the root moves all
+    shifts = np.einsum("qp,apmi->aqmi", rig.solve, correction)
+    moved = np.flatnonzero(rig.influence.any(axis=0))
+    bones = np.einsum("qb,aqmi->ambi", rig.influence[:, moved], shifts)
+    t += root[:, :, None, :].astype(t.dtype)
+    t[:, :, moved] += bones.astype(t.dtype)
+    return state
+
+
+def _blend_edges(correction, state, stepping, first, last, decay):
+    """Outside the plants, ``correction`` (A, P, M, 3) (zero there on entry) becomes the decay of
+    the correction at the nearest plant edges: forward from a plant's last frame and backward into
+    the next plant's first, each a critically damped spring (Holden's inertialization) whose first
+    step across the edge equals the last step inside (matched per frame, not only in continuous
+    time: y = 0.58 a frame at 24 fps). In a gap between two plants the backward spring starts from
+    what the forward one leaves at the next plant (value and step), so the two add up to the
+    next plant's correction there."""
+    M = state.shape[-1]
+    frames = np.arange(M)
+    outside = ~state
+    growth = np.exp(decay)
+
+    def spring(x0, step, k):  # x(0) = x0, x(1) − x(0) = step, then decays: (x0 + c k) e^(−y k)
+        c = (x0 + step) * growth - x0
+        return (x0 + c * k) * np.exp(-decay * k)
+
+    def gather(values, at):
+        return np.take_along_axis(values, np.clip(at, 0, M - 1)[..., None], axis=2)
+
+    stepped = np.where(stepping[..., None], correction - _shifted_frames(correction, 1), 0.0)
+    ahead = np.where((state & _shifted(state, -1, False))[..., None],
+                     correction - _shifted_frames(correction, -1), 0.0)
+    ended = np.maximum.accumulate(np.where(last, frames, -1), axis=2)
+    coming = np.flip(np.minimum.accumulate(np.flip(np.where(first, frames, M), axis=2), axis=2), axis=2)
+    after_ok = (ended >= 0)[..., None]
+    x_end, v_end = gather(correction, ended), gather(stepped, ended)
+    since = np.maximum(frames - ended, 0)[..., None].astype(np.float64)
+    after = np.where(after_ok, spring(x_end, v_end, since), 0.0)
+    # the backward spring takes what is left at the next plant's first frame once the forward one is counted
+    until = np.maximum(coming - frames, 0)[..., None].astype(np.float64)
+    left_there = np.where(after_ok, spring(x_end, v_end, since + until), 0.0)
+    left_before = np.where(after_ok, spring(x_end, v_end, since + until - 1.0), 0.0)
+    x_start = gather(correction, coming) - left_there
+    v_start = gather(ahead, coming) - (left_before - left_there)
+    before = np.where((coming < M)[..., None], spring(x_start, v_start, until), 0.0)
+    correction += np.where(outside[..., None], after + before, 0.0)
+
+
+def _shifted_frames(x, by):
+    """x (A, P, M, 3) moved by ``by`` frames along axis 2, edge values repeated."""
+    out = np.empty_like(x)
+    if by > 0:
+        out[:, :, by:], out[:, :, :by] = x[:, :, :-by], x[:, :, :1]
+    else:
+        out[:, :, :by], out[:, :, by:] = x[:, :, -by:], x[:, :, -1:]
+    return out
+
+
+#: A component keeps its transitions as they are when refusing the contact jumps would leave it
+#: fewer than this share of the frames it could play forever from (the walks' coverage).
+KEEP_USABLE = 0.9
+
+
+def agreeing_transitions(pairs, owned, clips):
+    """(M,) bool: which transitions (i, j) (pairs (M, 2), j identified with i; j < 0 a clip's
+    start) keep the contact state of every patch in owned (Fi, p) bool: the frame played next,
+    counted from the frame it replaces, is planted where frame i is (Zheng's transition from i to
+    j + 1, a planted foot never jumps to a swinging one)."""
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    nxt = clips.targets(pairs[:, 1])
+    same = np.where(clips.first_frames()[nxt], nxt, nxt - 1)  # the frame identified with i
+    return (owned[pairs[:, 0]] == owned[same]).all(axis=1)
+
+
+def refuse_contact_jumps(components, contacts, bone_indices, bone_weights, clips=None):
+    """Drop, in place, each component's candidate transitions (``ComponentAnalysis.transitions``:
+    pairs, costs) that change the contact state of a patch the component owns (the one carrying
+    most of its weight; :func:`agreeing_transitions`) within a clip, unless that leaves the
+    component's motion graph under :data:`KEEP_USABLE` of the frames it could play forever from (a transition between clips is
+    a clip's way in or out, which build-graph gives every clip: the ground contacts of a gallop and
+    of a collapse never agree, so they are kept). contacts: the input's
+    :class:`.contact_patches.ContactPatches`. Returns (refused, kept_all) per component: how many
+    were dropped, and whether the component kept them all for want of walks."""
+    from ..clips import Clips
+
+    frames = contacts.planted.shape[0]
+    clips = clips or Clips.single(frames)
+    dense = dense_weights(bone_indices, bone_weights, int(np.max(bone_indices)) + 1)
+    patches = [contacts.vertices[contacts.offsets[p]:contacts.offsets[p + 1]] for p in range(contacts.count)]
+    owner = patch_owners(patches, dense, [c.bones for c in components])
+    report = []
+    for k, component in enumerate(components):
+        owned = contacts.planted[:, owner == k]
+        transitions = component.transitions
+        if owned.shape[1] == 0 or len(transitions.pairs) == 0:
+            report.append((0, False))
+            continue
+        pairs = np.asarray(transitions.pairs, dtype=np.int64).reshape(-1, 2)
+        within = clips.clip_of(pairs[:, 0]) == clips.clip_of(clips.targets(pairs[:, 1]))
+        keep = agreeing_transitions(pairs, owned, clips) | ~within  # a clip's way in and out is kept
+        if keep.all():
+            report.append((0, False))
+            continue
+        before, after = (_usable(frames, pairs, clips) for pairs in (transitions.pairs, transitions.pairs[keep]))
+        if after < KEEP_USABLE * before:
+            report.append((0, not keep.all()))
+            continue
+        transitions.pairs = transitions.pairs[keep]
+        transitions.costs = np.asarray(transitions.costs)[keep]
+        report.append((int((~keep).sum()), False))
+    return report
+
+
+def _usable(frames, pairs, clips):
+    """How many frames a motion graph over ``pairs`` can play forever from (0: none)."""
+    from ..errors import OptionError
+    from .motion_graph import MotionGraph
+
+    try:
+        return MotionGraph(frames, pairs, None, clips).usable_count
+    except OptionError:
+        return 0
+
+
+def _centres(Fb, tb, rig):
+    """The patches' centroids (A, P, M, 3) from the bones that move them, Fb (A, M, b, 3, 3), tb (A, M, b, 3)."""
+    return np.einsum("ambij,pbj->apmi", Fb, rig.rest_terms) + np.einsum("ambi,pb->apmi", tb, rig.weight_terms)
+
+
+def _heading(matrices, up_axis):
+    """The turn about the up axis within each matrix (..., 3, 3) (any, not only rotations) -> (..., 3, 3)."""
+    from ..rotations import rotation_exp
+
+    i, j = (up_axis + 1) % 3, (up_axis + 2) % 3
+    angle = np.arctan2(matrices[..., j, i] - matrices[..., i, j], matrices[..., i, i] + matrices[..., j, j])
+    return rotation_exp(angle[..., None] * np.eye(3)[up_axis])
+
+
+def _turn_feet(F, t, src, state, rig):
+    """Turn each planted patch's own bones about its centroid so that the patch's anchor bone has
+    the input's orientation at the source frame (the fit's error at the patch undone, E), under
+    the output's heading (module notes), blended in and out like the translations; F, t in place."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from ..rotations import rotation_exp, rotation_log
+
+    P = rig.owner.size
+    where = np.nonzero(state)  # (a, p, m) of the planted frames
+    anchor = rig.bones[rig.anchor_bone]
+    now = F[where[0], where[2], anchor[where[1]]].astype(np.float64)  # (n, 3, 3)
+    frames = src[where]
+    mapped = now @ rig.inverse_in[frames, where[1]]
+    wanted = _heading(mapped, rig.up_axis) @ rig.orientation_in[frames, where[1]]
+    turn = np.zeros(state.shape + (3,))
+    change = rotation_log(wanted @ np.linalg.inv(now))
+    angle = np.linalg.norm(change, axis=-1, keepdims=True)
+    turn[where] = change * np.minimum(1.0, rig.max_turn / np.maximum(angle, 1e-12))
+    stepping = state & _shifted(state, 1, False)
+    _blend_edges(turn, state, stepping, state & ~_shifted(state, 1, False), state & ~_shifted(state, -1, False),
+                 rig.decay)
+    # the wanted orientation jumps where a seam changes the source frame: smoothed over time (the
+    # turn is a small correction; the centroids are made exact afterwards, whatever it is)
+    turn = gaussian_filter1d(turn, rig.turn_sigma, axis=2, mode="nearest")
+    Fb = F[:, :, rig.bones].astype(np.float64)
+    centre = _centres(Fb, t[:, :, rig.bones].astype(np.float64), rig)
+    for p in range(P):  # few patches: each turns its own bones about its centroid
+        if not rig.own[p].size:
+            continue
+        rotation = rotation_exp(turn[:, p])  # (A, M, 3, 3)
+        c = centre[:, p][:, :, None, :]
+        bones = rig.own[p]
+        F[:, :, bones] = np.einsum("amij,ambjk->ambik", rotation, F[:, :, bones].astype(np.float64)).astype(F.dtype)
+        moved = t[:, :, bones].astype(np.float64) - c
+        t[:, :, bones] = (np.einsum("amij,ambj->ambi", rotation, moved) + c).astype(t.dtype)
