@@ -80,8 +80,10 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
 
     It also finds the input's ground contacts: per input frame, the patches of the mesh that
     rest on the ground (near the clip's ground, slow, facing it; with hysteresis and a shortest
-    plant), stored in the graph file and drawn by --plot on a timeline. A capture that never
-    rests on a ground has none, and its graph file is the same as with --no-contacts.
+    plant), stored in the graph file and drawn by --plot on a timeline. Transitions within a
+    clip that would take a planted patch to a swinging one (or back) are refused, unless that
+    leaves the walks under 90 % of the frames they could play. A capture that never rests on a
+    ground has none, and its graph file is the same as with --no-contacts.
 
     A skin fitted to several clips (fit-skin A.npz B.npz) keeps them apart: playback never runs
     from one clip's last frame into the next clip's first, and transitions are found within each

@@ -64,6 +64,9 @@ REACH = 3
 #: Largest turn (degrees) given a planted patch's own bones: a foot that a merge tilted further than
 #: this (a shin from another frame) is turned this far only, for turning it all the way tears the ankle.
 MAX_TURN = 20.0
+#: A bone carries a patch (and is turned with it) when its mean weight on the patch is at least this
+#: share of the patch's heaviest bone's (a foot bone, not the shin's few percent at the ankle).
+CARRIES = 0.25
 #: Least share of a bone's largest coupling that makes two bones neighbours (Zheng's pruning rule, §4.1).
 COUPLING = 0.1
 
@@ -79,7 +82,8 @@ class PlantRig:
     ``bones``); inverse_in (Fi, P, 3, 3) that bone's inverse input matrix; steps_in (Fi, P, 3) the
     input patch centroid's step into each frame (0 at a clip's first frame); heights_in (Fi, P)
     its height above its clip's ground; ground (Fi,) the ground of each frame's clip; influence
-    (P, B) α; own: per patch the bones that move it (α = 1); orientation_in (Fi, P, 3, 3) the
+    (P, B) α; own: per patch the bones that carry it and turn with it (:data:`CARRIES`; none where
+    another patch shares one); orientation_in (Fi, P, 3, 3) the
     orientation the anchor bone should have to carry the patch as the input's (E R_in); solve (P, P) (ω αᵀ)⁺; decay y per frame; sigma (frames) of the root's smoothing;
     up_axis."""
 
@@ -175,15 +179,22 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     T = np.asarray(translations, dtype=np.float64)
     examples = np.asarray(examples, dtype=np.float64)
     centroids = np.stack([examples[:, np.asarray(p)].mean(axis=1) for p in patches], axis=1)  # (Fi, P, 3)
-    # E: the turn taking the fit's patch onto the input's, per frame (Kabsch about the centroids)
-    # and the centroid's height that puts the (turned) fit's lowest patch vertex where the input's is:
-    # the fit's foot is not the input's (a few mm lower or higher), and its lowest point is what meets the floor
+    own = [np.flatnonzero(weight_terms[p] >= CARRIES * weight_terms[p].max()) for p in range(len(patches))]
+    # only a patch at the end of a limb turns its bones: where two patches share one (the flank and
+    # the shoulder of a horse lying down), turning it for each about its own centroid would fight
+    shared = np.bincount(np.concatenate(own), minlength=B) > 1 if own else np.zeros(B, bool)
+    own = [bones_p if not shared[bones_p].any() else bones_p[:0] for bones_p in own]
+    # E: the turn taking the fit's patch onto the input's, per frame (Kabsch about the centroids; the
+    # identity for a patch that does not turn), and the centroid's height that puts the (turned) fit's
+    # lowest patch vertex where the input's is: the fit's foot is not the input's (a few mm lower or
+    # higher), and its lowest point is what meets the floor
     turns, levels = [], []
     for p, ids in enumerate(patches):
         ids = np.asarray(ids)
         fitted = np.einsum("vb,fbij,vj->fvi", dense[ids], R, rest[ids]) + np.einsum("vb,fbi->fvi", dense[ids], T)
         fitted -= fitted.mean(axis=1, keepdims=True)
-        turn = polar_rotation(np.einsum("fvi,fvj->fij", examples[:, ids] - centroids[:, None, p], fitted))
+        turn = polar_rotation(np.einsum("fvi,fvj->fij", examples[:, ids] - centroids[:, None, p], fitted)) \
+            if own[p].size else np.broadcast_to(np.eye(3), (frames, 3, 3))
         turns.append(turn)
         lowest_turned = np.einsum("fj,fvj->fv", turn[:, up_axis], fitted).min(axis=1)
         levels.append(examples[:, ids, up_axis].min(axis=1) - lowest_turned)
@@ -202,13 +213,12 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     hops = bone_hops(bone_indices, bone_weights, B)
     influence = limb_influence(weight_terms, hops, reach)
     coupling = weight_terms @ influence.T  # (P, P): patch p's centroid moves by Σ_q coupling[p, q] g_q
-    own = [np.flatnonzero(influence[p] >= 1.0) for p in range(len(patches))]
     return PlantRig(planted=np.asarray(planted, bool), owner=owner, bones=bones, rest_terms=rest_terms[:, bones],
                     weight_terms=weight_terms[:, bones], anchor_bone=anchor, inverse_in=np.linalg.inv(anchor_in),
                     steps_in=steps, heights_in=heights, ground=ground, influence=influence, own=own,
-                    orientation_in=turns @ anchor_in, solve=np.linalg.pinv(coupling, rcond=1e-6),
+                    orientation_in=turns @ anchor_in, solve=_regularised_inverse(coupling),
                     decay=2.0 * np.log(2.0) / (half_life * fps), sigma=half_life * fps,
-                    turn_sigma=2.0 * half_life * fps, max_turn=np.radians(max_turn), up_axis=int(up_axis))
+                    turn_sigma=half_life * fps, max_turn=np.radians(max_turn), up_axis=int(up_axis))
 
 
 def plant_feet(F, t, sources, rig, block=64):
@@ -440,9 +450,12 @@ def _turn_feet(F, t, src, state, rig):
     stepping = state & _shifted(state, 1, False)
     _blend_edges(turn, state, stepping, state & ~_shifted(state, 1, False), state & ~_shifted(state, -1, False),
                  rig.decay)
-    # the wanted orientation jumps where a seam changes the source frame: smoothed over time (the
-    # turn is a small correction; the centroids are made exact afterwards, whatever it is)
-    turn = gaussian_filter1d(turn, rig.turn_sigma, axis=2, mode="nearest")
+    # the wanted orientation jumps where a seam changes the source frame: each jump is spread over
+    # the frames about its seam (the step it makes, smoothed), the turn elsewhere left exact
+    seam = stepping & (src != _shifted(src, 1, -1) + 1)
+    jumps = np.where(seam[..., None], turn - _shifted_frames(turn, 1), 0.0)
+    held = np.cumsum(jumps, axis=2)
+    turn += gaussian_filter1d(held, rig.turn_sigma, axis=2, mode="nearest") - held
     Fb = F[:, :, rig.bones].astype(np.float64)
     centre = _centres(Fb, t[:, :, rig.bones].astype(np.float64), rig)
     for p in range(P):  # few patches: each turns its own bones about its centroid
@@ -454,3 +467,15 @@ def _turn_feet(F, t, src, state, rig):
         F[:, :, bones] = np.einsum("amij,ambjk->ambik", rotation, F[:, :, bones].astype(np.float64)).astype(F.dtype)
         moved = t[:, :, bones].astype(np.float64) - c
         t[:, :, bones] = (np.einsum("amij,ambj->ambi", rotation, moved) + c).astype(t.dtype)
+
+
+#: Singular values of the patches' coupling below this share of the largest are dropped in its solve:
+#: patches moved by the same bones (a body lying on its side) ask them for conflicting shifts, and
+#: the exact solution of a near-singular coupling is huge shifts; patches on bones of their own
+#: (feet, hooves: singular values near 1) are solved exactly.
+RCOND = 0.05
+
+
+def _regularised_inverse(coupling, rcond=RCOND):
+    """The truncated pseudo-inverse of the patches' coupling C (P, P) (:data:`RCOND`)."""
+    return np.linalg.pinv(coupling, rcond=rcond)
