@@ -44,6 +44,7 @@ def precompile(influences, quiet, as_json):
     from skinsynth.gpu import compile_cpu_kernels
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.skin import compile_loops as skin_loops
+    from skinsynth.pipeline.synthesis import compile_loops as synthesis_loops
     from skinsynth.pipeline.view import compile_loops as view_loops
 
     if any(k < 1 for k in influences):
@@ -59,6 +60,7 @@ def precompile(influences, quiet, as_json):
 
     done(skin_loops())
     done(view_loops())
+    done(synthesis_loops())
     compile_cpu_kernels(tuple(dict.fromkeys(influences)), done=done)
     seconds = time.perf_counter() - start
     compiled, loaded = sum(i["compiled"] for i in items), sum(i["loaded"] for i in items)

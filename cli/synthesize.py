@@ -187,7 +187,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           clips=clips if len(clips) > 1 else None)
         validate_request(request, skin.rotations.shape[0])
         contacts = graph_file.contacts if graph_file.contacts is not None and graph_file.contacts.count else None
-        if contact:
+        if contact and contacts is None:
             keep_input_support(request, skin)
         # the bone motions (float32 3×3 + 3 per bone) and sources (int32 per component), in memory
         # (on a cluster, in the shards on disk): refused before any is allocated; then the output

@@ -12,12 +12,12 @@ zero padding):
    cut nodes. Blocks smaller than ``min_bones`` are merged into a neighbour so a chain of bones
    does not shatter into single edges.
 
-Graph algorithms are networkx's (articulation points, biconnected components, paths).
+Graph algorithms are networkx's (articulation points, biconnected components, paths), imported by
+the functions that use them: synthesize reads eq. 11's couplings (:func:`bone_graph_weights`) alone.
 """
 
 from dataclasses import dataclass, field
 
-import networkx as nx
 import numpy as np
 
 from ..errors import OptionError
@@ -66,6 +66,8 @@ def prune_weak_edges(d, edge_threshold=0.1):
     if not np.allclose(d, d.T):
         raise ValueError("d must be symmetric")
     bones = d.shape[0]
+    import networkx as nx
+
     graph = nx.Graph()
     graph.add_nodes_from(range(bones))
     i, j = np.nonzero(np.triu(d, k=1) > 0.0)
@@ -129,6 +131,8 @@ def decompose(graph, single_component=False, min_bones=3):
     if single_component:
         return Decomposition(cut_nodes=[], components=[nodes] if nodes else [], component_of_cut={},
                              blocks=[nodes] if nodes else [], min_bones=min_bones)
+    import networkx as nx
+
     cut_nodes = sorted(int(n) for n in nx.articulation_points(graph))
     blocks = [frozenset(int(n) for n in block) for block in nx.biconnected_components(graph)]
     blocks += [frozenset([n]) for n in nodes if graph.degree(n) == 0]

@@ -79,8 +79,8 @@ class PlantRig:
     planted (Fi, P) bool; owner (P,) the component owning each patch; bones (b,) ids; rest_terms
     (P, b, 3) ā (each patch's weighted rest centroid per bone) and weight_terms (P, b) ω (each
     patch's mean weight per bone); anchor_bone (P,) the bone carrying most of each patch (slot in
-    ``bones``); inverse_in (Fi, P, 3, 3) that bone's inverse input matrix; steps_in (Fi, P, 3) the
-    input patch centroid's step into each frame (0 at a clip's first frame); heights_in (Fi, P)
+    ``bones``); inverse_in (Fi, P, 3, 3) that bone's inverse input matrix; steps_in (Fi, P, 3) the input patch centroid's horizontal step into
+    each frame (0 at a clip's first frame) in that bone's frame (F_in⁻¹ Δ); heights_in (Fi, P)
     its height above its clip's ground; ground (Fi,) the ground of each frame's clip; influence
     (P, B) α; own: per patch the bones that carry it and turn with it (:data:`CARRIES`; none where
     another patch shares one); orientation_in (Fi, P, 3, 3) the
@@ -213,22 +213,55 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     hops = bone_hops(bone_indices, bone_weights, B)
     influence = limb_influence(weight_terms, hops, reach)
     coupling = weight_terms @ influence.T  # (P, P): patch p's centroid moves by Σ_q coupling[p, q] g_q
+    inverse_in = np.linalg.inv(anchor_in)
     return PlantRig(planted=np.asarray(planted, bool), owner=owner, bones=bones, rest_terms=rest_terms[:, bones],
-                    weight_terms=weight_terms[:, bones], anchor_bone=anchor, inverse_in=np.linalg.inv(anchor_in),
-                    steps_in=steps, heights_in=heights, ground=ground, influence=influence, own=own,
+                    weight_terms=weight_terms[:, bones], anchor_bone=anchor, inverse_in=inverse_in,
+                    steps_in=(inverse_in @ steps[..., None])[..., 0], heights_in=heights, ground=ground, influence=influence, own=own,
                     orientation_in=turns @ anchor_in, solve=_regularised_inverse(coupling),
                     decay=2.0 * np.log(2.0) / (half_life * fps), sigma=half_life * fps,
                     turn_sigma=half_life * fps, max_turn=np.radians(max_turn), up_axis=int(up_axis))
 
 
-def plant_feet(F, t, sources, rig, block=64):
+def plant_feet(F, t, sources, rig):
     """Keep every plant of the animations F (A, M, B, 3, 3), t (A, M, B, 3) on its anchor (module
-    notes): t is corrected in place, in blocks of ``block`` animations; sources (C, A, M) the
-    input frame each component plays. Returns the planted states (A, P, M) bool."""
-    states = np.zeros((F.shape[0], rig.owner.size, F.shape[1]), bool)
-    for a in range(0, F.shape[0], block):
-        states[a:a + block] = _plant_block(F[a:a + block], t[a:a + block], sources[:, a:a + block], rig)
-    return states
+    notes), in place (:func:`.planting_loops.plant_animations`, compiled: the same steps, one
+    animation at a time); sources (C, A, M) the input frame each component plays. Returns the
+    planted states (A, P, M) bool."""
+    from .planting_loops import plant_animations
+
+    A, M = F.shape[:2]
+    P = rig.owner.size
+    src = np.ascontiguousarray(np.moveaxis(sources[rig.owner], 0, 1), dtype=np.int64)  # (A, P, M)
+    width = max([1] + [bones.size for bones in rig.own])
+    own = np.full((P, width), -1, np.int64)
+    for p, bones in enumerate(rig.own):
+        own[p, :bones.size] = bones
+    states = np.zeros((A, P, M), bool)
+    def c(array, dtype=np.float64):  # one specialisation of the loops: C-ordered arrays of these types
+        return np.ascontiguousarray(array, dtype=dtype)
+
+    return plant_animations(F, t, src, c(sources[0], np.int64), c(rig.planted, np.bool_), c(rig.bones, np.int64),
+                            c(rig.rest_terms), c(rig.weight_terms), c(rig.anchor_bone, np.int64), c(rig.inverse_in),
+                            c(rig.steps_in), c(rig.heights_in), c(rig.ground), c(rig.orientation_in), own,
+                            c(rig.influence), c(rig.solve), float(rig.decay), gaussian_weights(rig.sigma),
+                            gaussian_weights(rig.turn_sigma), float(rig.max_turn), int(rig.up_axis), states)
+
+
+def warm_up(rig):
+    """Load (or compile) :func:`plant_feet`'s compiled loops for ``rig`` on one animation of two
+    frames: a synthesis's workers are forked after it, and would each load them again."""
+    B = int(max(rig.bones.max(), rig.influence.shape[1] - 1)) + 1
+    F = np.broadcast_to(np.eye(3, dtype=np.float32), (1, 2, B, 3, 3)).copy()
+    t = np.zeros((1, 2, B, 3), np.float32)
+    plant_feet(F, t, np.zeros((int(rig.owner.max()) + 1, 1, 2), np.int64), rig)
+
+
+def gaussian_weights(sigma, truncate=4.0):
+    """scipy.ndimage's Gaussian weights (2r + 1,), r = int(truncate σ + 0.5), normalised."""
+    radius = int(truncate * sigma + 0.5)
+    x = np.arange(-radius, radius + 1, dtype=np.float64)
+    weights = np.exp(-0.5 * x * x / (sigma * sigma))
+    return weights / weights.sum()
 
 
 def output_states(sources, rig):
@@ -236,116 +269,6 @@ def output_states(sources, rig):
     source frame has it planted. sources (C, A, M)."""
     patches = np.arange(rig.owner.size)
     return rig.planted[np.moveaxis(sources[rig.owner], 0, 1), patches[None, :, None]]
-
-
-def _shifted(x, by, fill):
-    """x (..., M) moved by ``by`` frames along the last axis (x[m − by] at m), ``fill`` outside."""
-    out = np.full_like(x, fill)
-    if by > 0:
-        out[..., by:] = x[..., :-by]
-    else:
-        out[..., :by] = x[..., -by:]
-    return out
-
-
-def _plant_block(F, t, sources, rig):
-    from scipy.ndimage import gaussian_filter1d
-
-    P, up = rig.owner.size, rig.up_axis
-    patches = np.arange(P)[None, :, None]
-    src = np.moveaxis(sources[rig.owner], 0, 1)  # (A, P, M)
-    state = rig.planted[src, patches]
-    if not state.any():
-        return state
-    A, M = F.shape[:2]
-    _turn_feet(F, t, src, state, rig)
-    Fb = F[:, :, rig.bones].astype(np.float64)  # (A, M, b, 3, 3)
-    tb = t[:, :, rig.bones].astype(np.float64)
-    centre = _centres(Fb, tb, rig)  # (A, P, M, 3)
-    # the input's step into the source frame, carried by the patch bone's input → output map
-    carried = np.einsum("apmjk,apmk->apmj", rig.inverse_in[src, patches], rig.steps_in[src, patches])
-    expected = np.einsum("ampij,apmj->apmi", Fb[:, :, rig.anchor_bone], carried)
-    slide = np.zeros_like(centre)
-    slide[:, :, 1:] = centre[:, :, 1:] - centre[:, :, :-1] - expected[:, :, 1:]
-    slide[..., up] = 0.0
-    stepping = state & _shifted(state, 1, False)  # (A, P, M): steps m−1 → m inside a plant
-    # the root: horizontal, the planted patches' mean slide undone, smoothed and summed into an offset
-    count = stepping.sum(axis=1)
-    push = -(stepping[..., None] * slide).sum(axis=1) / np.maximum(count, 1)[..., None]  # (A, M, 3)
-    push = gaussian_filter1d(push, rig.sigma, axis=1, mode="constant")
-    root = np.cumsum(push, axis=1)
-    # vertical: the planted patches' mean height error, a normalised smoothing (0 far from plants)
-    target = rig.heights_in[src, patches] + rig.ground[sources[0]][:, None, :]
-    error = np.where(state, target - centre[..., up], 0.0)
-    weight = gaussian_filter1d(state.sum(axis=1).astype(np.float64), rig.sigma, axis=1, mode="constant")
-    level = gaussian_filter1d(error.sum(axis=1), rig.sigma, axis=1, mode="constant")
-    root[..., up] = level / np.maximum(weight, 1.0)
-    # each limb: the residual slide summed from its plant's first frame, the residual height
-    residual = np.where(stepping[..., None], -slide - push[:, None], 0.0)
-    summed = np.cumsum(residual, axis=2)
-    frames = np.arange(M)
-    first = state & ~_shifted(state, 1, False)
-    last = state & ~_shifted(state, -1, False)
-    since = np.maximum.accumulate(np.where(first, frames, 0), axis=2)
-    correction = np.where(state[..., None], summed - np.take_along_axis(summed, since[..., None], axis=2), 0.0)
-    correction[..., up] = np.where(state, error - root[:, None, :, up], 0.0)
-    _blend_edges(correction, state, stepping, first, last, rig.decay)
-    # bone shifts: every patch's centroid moves by its correction (ω αᵀ g = e), the root moves all
-    shifts = np.einsum("qp,apmi->aqmi", rig.solve, correction)
-    moved = np.flatnonzero(rig.influence.any(axis=0))
-    bones = np.einsum("qb,aqmi->ambi", rig.influence[:, moved], shifts)
-    t += root[:, :, None, :].astype(t.dtype)
-    t[:, :, moved] += bones.astype(t.dtype)
-    return state
-
-
-def _blend_edges(correction, state, stepping, first, last, decay):
-    """Outside the plants, ``correction`` (A, P, M, 3) (zero there on entry) becomes the decay of
-    the correction at the nearest plant edges: forward from a plant's last frame and backward into
-    the next plant's first, each a critically damped spring (Holden's inertialization) whose first
-    step across the edge equals the last step inside (matched per frame, not only in continuous
-    time: y = 0.58 a frame at 24 fps). In a gap between two plants the backward spring starts from
-    what the forward one leaves at the next plant (value and step), so the two add up to the
-    next plant's correction there."""
-    M = state.shape[-1]
-    frames = np.arange(M)
-    outside = ~state
-    growth = np.exp(decay)
-
-    def spring(x0, step, k):  # x(0) = x0, x(1) − x(0) = step, then decays: (x0 + c k) e^(−y k)
-        c = (x0 + step) * growth - x0
-        return (x0 + c * k) * np.exp(-decay * k)
-
-    def gather(values, at):
-        return np.take_along_axis(values, np.clip(at, 0, M - 1)[..., None], axis=2)
-
-    stepped = np.where(stepping[..., None], correction - _shifted_frames(correction, 1), 0.0)
-    ahead = np.where((state & _shifted(state, -1, False))[..., None],
-                     correction - _shifted_frames(correction, -1), 0.0)
-    ended = np.maximum.accumulate(np.where(last, frames, -1), axis=2)
-    coming = np.flip(np.minimum.accumulate(np.flip(np.where(first, frames, M), axis=2), axis=2), axis=2)
-    after_ok = (ended >= 0)[..., None]
-    x_end, v_end = gather(correction, ended), gather(stepped, ended)
-    since = np.maximum(frames - ended, 0)[..., None].astype(np.float64)
-    after = np.where(after_ok, spring(x_end, v_end, since), 0.0)
-    # the backward spring takes what is left at the next plant's first frame once the forward one is counted
-    until = np.maximum(coming - frames, 0)[..., None].astype(np.float64)
-    left_there = np.where(after_ok, spring(x_end, v_end, since + until), 0.0)
-    left_before = np.where(after_ok, spring(x_end, v_end, since + until - 1.0), 0.0)
-    x_start = gather(correction, coming) - left_there
-    v_start = gather(ahead, coming) - (left_before - left_there)
-    before = np.where((coming < M)[..., None], spring(x_start, v_start, until), 0.0)
-    correction += np.where(outside[..., None], after + before, 0.0)
-
-
-def _shifted_frames(x, by):
-    """x (A, P, M, 3) moved by ``by`` frames along axis 2, edge values repeated."""
-    out = np.empty_like(x)
-    if by > 0:
-        out[:, :, by:], out[:, :, :by] = x[:, :, :-by], x[:, :, :1]
-    else:
-        out[:, :, :by], out[:, :, by:] = x[:, :, -by:], x[:, :, -1:]
-    return out
 
 
 #: A component keeps its transitions as they are when refusing the contact jumps would leave it
@@ -414,61 +337,6 @@ def _usable(frames, pairs, clips):
         return 0
 
 
-def _centres(Fb, tb, rig):
-    """The patches' centroids (A, P, M, 3) from the bones that move them, Fb (A, M, b, 3, 3), tb (A, M, b, 3)."""
-    return np.einsum("ambij,pbj->apmi", Fb, rig.rest_terms) + np.einsum("ambi,pb->apmi", tb, rig.weight_terms)
-
-
-def _heading(matrices, up_axis):
-    """The turn about the up axis within each matrix (..., 3, 3) (any, not only rotations) -> (..., 3, 3)."""
-    from ..rotations import rotation_exp
-
-    i, j = (up_axis + 1) % 3, (up_axis + 2) % 3
-    angle = np.arctan2(matrices[..., j, i] - matrices[..., i, j], matrices[..., i, i] + matrices[..., j, j])
-    return rotation_exp(angle[..., None] * np.eye(3)[up_axis])
-
-
-def _turn_feet(F, t, src, state, rig):
-    """Turn each planted patch's own bones about its centroid so that the patch's anchor bone has
-    the input's orientation at the source frame (the fit's error at the patch undone, E), under
-    the output's heading (module notes), blended in and out like the translations; F, t in place."""
-    from scipy.ndimage import gaussian_filter1d
-
-    from ..rotations import rotation_exp, rotation_log
-
-    P = rig.owner.size
-    where = np.nonzero(state)  # (a, p, m) of the planted frames
-    anchor = rig.bones[rig.anchor_bone]
-    now = F[where[0], where[2], anchor[where[1]]].astype(np.float64)  # (n, 3, 3)
-    frames = src[where]
-    mapped = now @ rig.inverse_in[frames, where[1]]
-    wanted = _heading(mapped, rig.up_axis) @ rig.orientation_in[frames, where[1]]
-    turn = np.zeros(state.shape + (3,))
-    change = rotation_log(wanted @ np.linalg.inv(now))
-    angle = np.linalg.norm(change, axis=-1, keepdims=True)
-    turn[where] = change * np.minimum(1.0, rig.max_turn / np.maximum(angle, 1e-12))
-    stepping = state & _shifted(state, 1, False)
-    _blend_edges(turn, state, stepping, state & ~_shifted(state, 1, False), state & ~_shifted(state, -1, False),
-                 rig.decay)
-    # the wanted orientation jumps where a seam changes the source frame: each jump is spread over
-    # the frames about its seam (the step it makes, smoothed), the turn elsewhere left exact
-    seam = stepping & (src != _shifted(src, 1, -1) + 1)
-    jumps = np.where(seam[..., None], turn - _shifted_frames(turn, 1), 0.0)
-    held = np.cumsum(jumps, axis=2)
-    turn += gaussian_filter1d(held, rig.turn_sigma, axis=2, mode="nearest") - held
-    Fb = F[:, :, rig.bones].astype(np.float64)
-    centre = _centres(Fb, t[:, :, rig.bones].astype(np.float64), rig)
-    for p in range(P):  # few patches: each turns its own bones about its centroid
-        if not rig.own[p].size:
-            continue
-        rotation = rotation_exp(turn[:, p])  # (A, M, 3, 3)
-        c = centre[:, p][:, :, None, :]
-        bones = rig.own[p]
-        F[:, :, bones] = np.einsum("amij,ambjk->ambik", rotation, F[:, :, bones].astype(np.float64)).astype(F.dtype)
-        moved = t[:, :, bones].astype(np.float64) - c
-        t[:, :, bones] = (np.einsum("amij,ambj->ambi", rotation, moved) + c).astype(t.dtype)
-
-
 #: Singular values of the patches' coupling below this share of the largest are dropped in its solve:
 #: patches moved by the same bones (a body lying on its side) ask them for conflicting shifts, and
 #: the exact solution of a near-singular coupling is huge shifts; patches on bones of their own
@@ -479,3 +347,5 @@ RCOND = 0.05
 def _regularised_inverse(coupling, rcond=RCOND):
     """The truncated pseudo-inverse of the patches' coupling C (P, P) (:data:`RCOND`)."""
     return np.linalg.pinv(coupling, rcond=rcond)
+
+

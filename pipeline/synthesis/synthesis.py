@@ -144,9 +144,12 @@ def keep_input_plants(request, skin, contacts, components):
     clips = request.clips or Clips.single(skin.rotations.shape[0])
     patches = [contacts.vertices[contacts.offsets[p]:contacts.offsets[p + 1]] for p in range(contacts.count)]
     bones = [c.bones for c in components]
+    from .planting import warm_up
+
     request.plants = plant_rig(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
                                skin.translations, skin.examples, patches, np.asarray(contacts.planted, bool), contacts.ground,
                                clips.starts, skin.fps, bones, request.up_axis)
+    warm_up(request.plants)  # the compiled loops loaded here, once, not in every forked worker
 
 
 @dataclass
@@ -297,14 +300,12 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             rejected["merges"] += failed
             # Output a uses walk choice[a, c] of component c: keep the walks actually used.
             sources = np.stack([sources[k, choice[:, k]] for k in range(len(components))])
-        if request.contact:  # the merged bones are final: keep the input's range of lowest points (:mod:`.contact`)
+        if request.contact and request.plants is not None:  # the merged bones are final: plant the feet
+            plant_feet(F, t, sources, request.plants)
+        elif request.contact:  # no contacts found: keep the input's support (:mod:`.contact`)
             if held is None:
                 held = support(rest, bone_indices, bone_weights, rotations, translations, request.up_axis)
             keep_contact(F, t, held)
-        if request.contact and request.plants is not None:  # then plant the feet, exactly (:mod:`.planting`);
-            # the range first: patches that share their bones (a body lying on its side) are planted by a
-            # compromise that alone sank the horse collapse 1 % of its height into the floor
-            plant_feet(F, t, sources, request.plants)
         ok = np.ones(tries, dtype=bool)
         if request.obstacles:
             from skinsynth.gpu import lbs_reference

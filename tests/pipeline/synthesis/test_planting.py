@@ -16,8 +16,11 @@ from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.clips import Clips
 from skinsynth.pipeline.examples import walker_contacts
 from skinsynth.pipeline.synthesis import Request, keep_input_plants, synthesis_components
-from skinsynth.pipeline.synthesis.planting import (KEEP_USABLE, _blend_edges, _shifted, agreeing_transitions,
-                                                   limb_influence, output_states, plant_feet, refuse_contact_jumps)
+from skinsynth.pipeline.synthesis.planting import (KEEP_USABLE, agreeing_transitions, limb_influence, output_states,
+                                                   plant_feet, refuse_contact_jumps)
+from skinsynth.pipeline.synthesis.planting_loops import blend_edges_row
+
+from planting_reference import _blend_edges, _shifted, plant_feet_reference
 from skinsynth.pipeline.synthesis.synthesis import synthesize
 
 UP = 1
@@ -191,7 +194,7 @@ def test_input_played_straight_is_left_alone(walker_graph, single, start, frames
 # ---------------------------------------------------------------------------------------------- 3. plant edges
 
 
-def _edge_jumps(w, single, seeds, count=8, frames=600):
+def _edge_jumps(w, single, seeds, count=8, frames=600, plant=plant_feet):
     """The largest change of the correction's per-frame velocity (skinned patch centroid, corrected
     minus uncorrected) at any plant's first or last frame, over ``seeds``; the correction made by
     plant_feet on a copy of the uncorrected bones. Also checks, single-component (where the walks
@@ -200,7 +203,7 @@ def _edge_jumps(w, single, seeds, count=8, frames=600):
     for seed in seeds:
         r, rig = _synthesize(w, single, seed, plants=False, count=count, frames=frames)
         F, t = r.F.copy(), r.t.copy()  # plant_feet turns the feet (F) and moves them (t) in place
-        states = plant_feet(F, t, r.sources, rig)
+        states = plant(F, t, r.sources, rig)
         np.testing.assert_array_equal(states, output_states(r.sources, rig))
         if single:
             planted, _ = _synthesize(w, single, seed, plants=True, count=count, frames=frames)
@@ -226,12 +229,12 @@ def _input_acceleration(w):
 def test_blend_cuts_the_edge_jumps_of_the_merged_walker(walker_graph, monkeypatch):
     """The spring of _blend_edges at work: without it (the correction zero outside the plants) the
     edges jump far more (measured 1.6x the input's largest acceleration with it, ~5x without)."""
-    import skinsynth.pipeline.synthesis.planting as planting
+    import planting_reference
 
     w = walker_graph
-    blended = _edge_jumps(w, False, seeds=(0,))
-    monkeypatch.setattr(planting, "_blend_edges", lambda *args: None)
-    cut = _edge_jumps(w, False, seeds=(0,))
+    blended = _edge_jumps(w, False, seeds=(0,), plant=plant_feet_reference)
+    monkeypatch.setattr(planting_reference, "_blend_edges", lambda *args: None)
+    cut = _edge_jumps(w, False, seeds=(0,), plant=plant_feet_reference)
     assert blended < 0.5 * cut, (blended / _input_acceleration(w), cut / _input_acceleration(w))
 
 
@@ -314,8 +317,6 @@ def test_blend_edges_gap_between_plants_meets_both():
     rng = np.random.default_rng(3)
     values = np.cumsum(rng.normal(size=(1, 1, M, 3)), axis=2)
     correction = np.where(state[..., None], values, 0.0)
-    from skinsynth.pipeline.synthesis.planting import _blend_edges, _shifted
-
     stepping = state & _shifted(state, 1, False)
     first = state & ~_shifted(state, 1, False)
     last = state & ~_shifted(state, -1, False)
@@ -457,3 +458,35 @@ def test_output_states_by_hand():
                          [[1, 0, 0, 1],  # animation 1, patch 0: planted[[0, 3, 3, 1], 0]
                           [0, 1, 1, 0]]], bool)  # patch 1: planted[[3, 2, 1, 0], 1]
     np.testing.assert_array_equal(states, expected)
+
+
+# ---------------------------------------------------------------------------------------------- 5. compiled = numpy
+
+
+@pytest.mark.parametrize("single", [False, True], ids=["components", "single-component"])
+def test_compiled_loops_match_the_numpy_reference(walker_graph, single):
+    """plant_feet (numba, one animation at a time) against the numpy reference of the same steps
+    on whole arrays, on uncorrected walker syntheses: bones and states."""
+    w = walker_graph
+    r, rig = _synthesize(w, single, 5, plants=False, count=6, frames=300)
+    F, t = r.F.copy(), r.t.copy()
+    states = plant_feet(F, t, r.sources, rig)
+    F_ref, t_ref = r.F.copy(), r.t.copy()
+    states_ref = plant_feet_reference(F_ref, t_ref, r.sources, rig)
+    np.testing.assert_array_equal(states, states_ref)
+    assert np.abs(t.astype(np.float64) - t_ref).max() <= 1e-5 * w.H
+    assert np.abs(F.astype(np.float64) - F_ref).max() <= 1e-5
+    if not single:  # the merged walker's feet slide: it did correct something
+        assert np.abs(t.astype(np.float64) - r.t).max() > 1e-3 * w.H
+
+
+def test_compiled_blend_matches_the_numpy_reference():
+    rng = np.random.default_rng(11)
+    M = 90
+    state = rng.random(M) < 0.6
+    state[:3] = True  # a plant from the first frame, and one to the last
+    state[-2:] = True
+    values = np.where(state[:, None], np.cumsum(rng.normal(size=(M, 3)), axis=0), 0.0)
+    expected = values[None, None].copy()
+    _blend_edges(expected, *_edge_masks(state), 0.4)
+    np.testing.assert_allclose(blend_edges_row(values.copy(), state, 0.4), expected[0, 0], rtol=1e-12, atol=1e-12)

@@ -1,0 +1,337 @@
+"""The plants kept on the output (:mod:`.planting`), compiled: one pass per animation.
+
+:func:`plant_animations` does what :mod:`.planting`'s module notes say, animation by animation
+and frame by frame, reading the bones in place: the numpy version of the same steps took 0.6 s
+of a 250-animation batch whose splice and merge take 0.8 s (arrays of every frame and patch
+made, gathered and blended in some forty passes); compiled it takes a small part of that. The
+numpy version is kept as the reference in the tests (``tests/pipeline/synthesis/
+planting_reference.py``), which this must match to rounding.
+
+Smoothing is scipy's ``gaussian_filter1d`` written out (truncated at 4 σ, weights normalised;
+zeros beyond the ends for the root, the end values repeated for a turn's seams), so the two
+agree.
+"""
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def _smooth(values, kernel, nearest):
+    """values (M,) convolved with a symmetric kernel (2r + 1,): zeros beyond the ends, or (nearest)
+    the end values repeated."""
+    M = values.shape[0]
+    radius = kernel.shape[0] // 2
+    out = np.zeros(M)
+    for m in range(M):
+        total = 0.0
+        for k in range(-radius, radius + 1):
+            i = m + k
+            if i < 0:
+                if not nearest:
+                    continue
+                i = 0
+            elif i >= M:
+                if not nearest:
+                    continue
+                i = M - 1
+            total += kernel[k + radius] * values[i]
+        out[m] = total
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _spring(x0, step, k, decay, growth):
+    """x(0) = x0, x(1) − x(0) = step, then (x0 + c k) e^(−y k) (:func:`.planting._blend_edges`)."""
+    c = (x0 + step) * growth - x0
+    return (x0 + c * k) * np.exp(-decay * k)
+
+
+@numba.njit(cache=True, nogil=True)
+def blend_edges_row(values, state, decay):
+    """One row of :func:`.planting._blend_edges`: values (M, 3) (zero outside the plants on entry),
+    state (M,) bool; the frames outside become the springs from the plants' edges, in place."""
+    M = state.shape[0]
+    growth = np.exp(decay)
+    last_end = -1
+    m = 0
+    while m < M:
+        if state[m]:
+            last_end = m  # the latest planted frame: a plant's last once the next gap begins
+            m += 1
+            continue
+        gap_start = m
+        while m < M and not state[m]:
+            m += 1
+        coming = m  # the next plant's first frame (M: none)
+        for d in range(3):
+            x_end = 0.0
+            v_end = 0.0
+            if last_end >= 0:
+                x_end = values[last_end, d]
+                if last_end >= 1 and state[last_end - 1]:
+                    v_end = values[last_end, d] - values[last_end - 1, d]
+            x_start = 0.0
+            v_start = 0.0
+            if coming < M:
+                until0 = coming - last_end
+                left_there = 0.0
+                left_before = 0.0
+                if last_end >= 0:
+                    left_there = _spring(x_end, v_end, float(until0), decay, growth)
+                    left_before = _spring(x_end, v_end, float(until0 - 1), decay, growth)
+                ahead = 0.0
+                if coming + 1 < M and state[coming + 1]:
+                    ahead = values[coming, d] - values[coming + 1, d]
+                x_start = values[coming, d] - left_there
+                v_start = ahead - (left_before - left_there)
+            for f in range(gap_start, coming):
+                total = 0.0
+                if last_end >= 0:
+                    total += _spring(x_end, v_end, float(f - last_end), decay, growth)
+                if coming < M:
+                    total += _spring(x_start, v_start, float(coming - f), decay, growth)
+                values[f, d] = total
+    return values
+
+
+@numba.njit(cache=True, nogil=True)
+def _mul(a, b, out):
+    """out = a @ b for 3×3 matrices (written out: no allocation, no BLAS call for a matrix this small)."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@numba.njit(cache=True, nogil=True)
+def _mul_t(a, b, out):
+    """out = a @ bᵀ for 3×3 matrices."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[j, 0] + a[i, 1] * b[j, 1] + a[i, 2] * b[j, 2]
+
+
+@numba.njit(cache=True, nogil=True)
+def _rotation_exp(x, y, z, r):
+    """r = the rotation of axis-angle (x, y, z) (Rodrigues, the small-angle series near 0)."""
+    theta2 = x * x + y * y + z * z
+    if theta2 < 1e-8:
+        a = 1.0 - theta2 / 6.0
+        b = 0.5 - theta2 / 24.0
+    else:
+        theta = np.sqrt(theta2)
+        a = np.sin(theta) / theta
+        b = (1.0 - np.cos(theta)) / theta2
+    r[0, 0] = 1.0 - b * (y * y + z * z)
+    r[1, 1] = 1.0 - b * (x * x + z * z)
+    r[2, 2] = 1.0 - b * (x * x + y * y)
+    r[0, 1] = b * x * y - a * z
+    r[1, 0] = b * x * y + a * z
+    r[0, 2] = b * x * z + a * y
+    r[2, 0] = b * x * z - a * y
+    r[1, 2] = b * y * z - a * x
+    r[2, 1] = b * y * z + a * x
+
+
+@numba.njit(cache=True, nogil=True)
+def _near_log(m, out):
+    """out = the axis-angle of a matrix near a rotation (:func:`.planting._near_log`)."""
+    out[0] = 0.5 * (m[2, 1] - m[1, 2])
+    out[1] = 0.5 * (m[0, 2] - m[2, 0])
+    out[2] = 0.5 * (m[1, 0] - m[0, 1])
+    sine = np.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2)
+    angle = np.arctan2(sine, 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0))
+    if sine > 1e-12:
+        for d in range(3):
+            out[d] *= angle / sine
+
+
+@numba.njit(cache=True, nogil=True)
+def _heading(m, up, out):
+    """out = the turn about axis ``up`` within a 3×3 matrix (:func:`.planting._heading`)."""
+    i = (up + 1) % 3
+    j = (up + 2) % 3
+    angle = np.arctan2(m[j, i] - m[i, j], m[i, i] + m[j, j])
+    _rotation_exp(angle if up == 0 else 0.0, angle if up == 1 else 0.0, angle if up == 2 else 0.0, out)
+
+
+@numba.njit(cache=True, nogil=True)
+def _centres(F, t, a, bones, rest_terms, weight_terms, out):
+    """The patches' centroids out (P, M, 3) of animation a: Σ_b F_b ā_pb + ω_pb t_b."""
+    P = rest_terms.shape[0]
+    M = F.shape[1]
+    for p in range(P):
+        for m in range(M):
+            for i in range(3):
+                total = 0.0
+                for k in range(bones.shape[0]):
+                    b = bones[k]
+                    w = weight_terms[p, k]
+                    if w == 0.0:
+                        continue
+                    total += (F[a, m, b, i, 0] * rest_terms[p, k, 0] + F[a, m, b, i, 1] * rest_terms[p, k, 1]
+                              + F[a, m, b, i, 2] * rest_terms[p, k, 2] + w * t[a, m, b, i])
+                out[p, m, i] = total
+
+
+@numba.njit(cache=True, nogil=True)
+def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_terms, anchor_slot, inverse_in,
+                     steps_in, heights_in, ground, orientation_in, own, influence, solve, decay, root_kernel,
+                     turn_kernel, max_turn, up, states):
+    """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
+    (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
+    :class:`.planting.PlantRig` tables (own (P, K) padded with −1); root_kernel and turn_kernel
+    the Gaussian weights of the root's smoothing and of a seam's turn; states (A, P, M) written."""
+    A, M, B = F.shape[0], F.shape[1], F.shape[2]
+    P = planted.shape[1]
+    state = np.zeros((P, M), dtype=np.bool_)
+    centre = np.zeros((P, M, 3))
+    turn = np.zeros((M, 3))
+    correction = np.zeros((P, M, 3))
+    now = np.empty((3, 3))
+    mapped = np.empty((3, 3))
+    head = np.empty((3, 3))
+    wanted = np.empty((3, 3))
+    product = np.empty((3, 3))
+    rotation = np.empty((3, 3))
+    change = np.empty(3)
+    for a in range(A):
+        anything = False
+        for p in range(P):
+            for m in range(M):
+                state[p, m] = planted[src[a, p, m], p]
+                states[a, p, m] = state[p, m]
+                anything = anything or state[p, m]
+        if not anything:
+            continue
+        # 1. the feet's turn: the input's orientation under the output's heading, about each centroid
+        for p in range(P):
+            if own[p, 0] < 0:
+                continue
+            _centres(F, t, a, bones, rest_terms, weight_terms, centre)  # as the turns before left them
+            anchor = bones[anchor_slot[p]]
+            for m in range(M):
+                turn[m, 0] = 0.0
+                turn[m, 1] = 0.0
+                turn[m, 2] = 0.0
+                if not state[p, m]:
+                    continue
+                f = src[a, p, m]
+                for i in range(3):
+                    for j in range(3):
+                        now[i, j] = F[a, m, anchor, i, j]
+                _mul(now, inverse_in[f, p], mapped)
+                _heading(mapped, up, head)
+                _mul(head, orientation_in[f, p], wanted)
+                _mul_t(wanted, now, product)
+                _near_log(product, change)
+                angle = np.sqrt(change[0] ** 2 + change[1] ** 2 + change[2] ** 2)
+                scale = min(1.0, max_turn / max(angle, 1e-12))
+                for d in range(3):
+                    turn[m, d] = change[d] * scale
+            blend_edges_row(turn, state[p], decay)
+            # a seam's jump in the wanted orientation, spread over the frames about it
+            held = np.zeros((M, 3))
+            for m in range(1, M):
+                seam = state[p, m] and state[p, m - 1] and src[a, p, m] != src[a, p, m - 1] + 1
+                for d in range(3):
+                    held[m, d] = held[m - 1, d] + (turn[m, d] - turn[m - 1, d] if seam else 0.0)
+            for d in range(3):
+                spread = _smooth(held[:, d], turn_kernel, True)
+                for m in range(M):
+                    turn[m, d] += spread[m] - held[m, d]
+            for m in range(M):
+                _rotation_exp(turn[m, 0], turn[m, 1], turn[m, 2], rotation)
+                for k in range(own.shape[1]):
+                    b = own[p, k]
+                    if b < 0:
+                        break
+                    for i in range(3):
+                        for j in range(3):
+                            now[i, j] = F[a, m, b, i, j]
+                    _mul(rotation, now, product)
+                    for d in range(3):
+                        change[d] = t[a, m, b, d] - centre[p, m, d]
+                    for i in range(3):
+                        t[a, m, b, i] = (rotation[i, 0] * change[0] + rotation[i, 1] * change[1]
+                                         + rotation[i, 2] * change[2] + centre[p, m, i])
+                        for j in range(3):
+                            F[a, m, b, i, j] = product[i, j]
+        # 2. the centroids after the turn; the input's steps, carried; the slide
+        _centres(F, t, a, bones, rest_terms, weight_terms, centre)
+        push = np.zeros((M, 3))
+        for m in range(1, M):
+            count = 0
+            for p in range(P):
+                if state[p, m] and state[p, m - 1]:
+                    count += 1
+                    f = src[a, p, m]
+                    b = bones[anchor_slot[p]]
+                    for d in range(3):
+                        if d != up:
+                            expected = (F[a, m, b, d, 0] * steps_in[f, p, 0] + F[a, m, b, d, 1] * steps_in[f, p, 1]
+                                        + F[a, m, b, d, 2] * steps_in[f, p, 2])
+                            push[m, d] -= centre[p, m, d] - centre[p, m - 1, d] - expected
+            if count > 0:
+                for d in range(3):
+                    push[m, d] /= count
+        root = np.zeros((M, 3))
+        for d in range(3):
+            if d == up:
+                continue
+            smooth = _smooth(push[:, d], root_kernel, False)
+            total = 0.0
+            for m in range(M):
+                push[m, d] = smooth[m]
+                total += smooth[m]
+                root[m, d] = total
+        level = np.zeros(M)
+        weight = np.zeros(M)
+        for m in range(M):
+            for p in range(P):
+                if state[p, m]:
+                    weight[m] += 1.0
+                    level[m] += heights_in[src[a, p, m], p] + ground[ground_src[a, m]] - centre[p, m, up]
+        level = _smooth(level, root_kernel, False)
+        weight = _smooth(weight, root_kernel, False)
+        for m in range(M):
+            root[m, up] = level[m] / max(weight[m], 1.0)
+        # 3. each limb: the residual slide summed over its plant, the residual height; blended
+        for p in range(P):
+            acc = np.zeros(3)
+            for m in range(M):
+                for d in range(3):
+                    correction[p, m, d] = 0.0
+                if not state[p, m]:
+                    continue
+                if m > 0 and state[p, m - 1]:
+                    f = src[a, p, m]
+                    b = bones[anchor_slot[p]]
+                    for d in range(3):
+                        if d != up:
+                            expected = (F[a, m, b, d, 0] * steps_in[f, p, 0] + F[a, m, b, d, 1] * steps_in[f, p, 1]
+                                        + F[a, m, b, d, 2] * steps_in[f, p, 2])
+                            acc[d] += -(centre[p, m, d] - centre[p, m - 1, d] - expected) - push[m, d]
+                else:
+                    acc[:] = 0.0
+                for d in range(3):
+                    correction[p, m, d] = acc[d]
+                target = heights_in[src[a, p, m], p] + ground[ground_src[a, m]]
+                correction[p, m, up] = target - centre[p, m, up] - root[m, up]
+            blend_edges_row(correction[p], state[p], decay)
+        # 4. the bones: the root moves all, each limb's share solved so every centroid lands
+        shifts = np.empty((P, 3))
+        for m in range(M):
+            for q in range(P):  # every patch's centroid moves by its correction: shifts = solve · corrections
+                for i in range(3):
+                    total = 0.0
+                    for p in range(P):
+                        total += solve[q, p] * correction[p, m, i]
+                    shifts[q, i] = total
+            for b in range(B):
+                for i in range(3):
+                    delta = root[m, i]
+                    for q in range(P):
+                        delta += influence[q, b] * shifts[q, i]
+                    t[a, m, b, i] += delta
+    return states

@@ -1,0 +1,217 @@
+"""The numpy reference of :func:`skinsynth.pipeline.synthesis.planting_loops.plant_animations`:
+the same steps (:mod:`skinsynth.pipeline.synthesis.planting`'s module notes) on whole arrays of
+animations, patches and frames, as they were first written. The compiled loops must match it to
+rounding (tests/pipeline/synthesis/test_planting.py)."""
+
+import numpy as np
+
+
+def plant_feet_reference(F, t, sources, rig, block=16):
+    """:func:`skinsynth.pipeline.synthesis.planting.plant_feet` in numpy: F, t in place; returns
+    the planted states (A, P, M)."""
+    states = np.zeros((F.shape[0], rig.owner.size, F.shape[1]), bool)
+    for a in range(0, F.shape[0], block):
+        states[a:a + block] = _plant_block(F[a:a + block], t[a:a + block], sources[:, a:a + block], rig)
+    return states
+
+
+def _shifted(x, by, fill):
+    """x (..., M) moved by ``by`` frames along the last axis (x[m − by] at m), ``fill`` outside."""
+    out = np.full_like(x, fill)
+    if by > 0:
+        out[..., by:] = x[..., :-by]
+    else:
+        out[..., :by] = x[..., -by:]
+    return out
+
+
+def _plant_block(F, t, sources, rig):
+    from scipy.ndimage import gaussian_filter1d
+
+    P, up = rig.owner.size, rig.up_axis
+    patches = np.arange(P)[None, :, None]
+    src = np.moveaxis(sources[rig.owner], 0, 1)  # (A, P, M)
+    state = rig.planted[src, patches]
+    if not state.any():
+        return state
+    A, M = F.shape[:2]
+    centre = _centres(F, t, rig)  # (A, P, M, 3)
+    _turn_feet(F, t, src, state, centre, rig)
+    # the input's step into the source frame, carried by the patch bone's input → output map
+    anchor = np.moveaxis(F[:, :, rig.bones[rig.anchor_bone]], 2, 1).astype(np.float64)  # (A, P, M, 3, 3)
+    expected = (anchor @ rig.steps_in[src, patches][..., None])[..., 0]
+    slide = np.zeros_like(centre)
+    slide[:, :, 1:] = centre[:, :, 1:] - centre[:, :, :-1] - expected[:, :, 1:]
+    slide[..., up] = 0.0
+    stepping = state & _shifted(state, 1, False)  # (A, P, M): steps m−1 → m inside a plant
+    # the root: horizontal, the planted patches' mean slide undone, smoothed and summed into an offset
+    count = stepping.sum(axis=1)
+    push = -(stepping[..., None] * slide).sum(axis=1) / np.maximum(count, 1)[..., None]  # (A, M, 3)
+    push = gaussian_filter1d(push, rig.sigma, axis=1, mode="constant")
+    root = np.cumsum(push, axis=1)
+    # vertical: the planted patches' mean height error, a normalised smoothing (0 far from plants)
+    target = rig.heights_in[src, patches] + rig.ground[sources[0]][:, None, :]
+    error = np.where(state, target - centre[..., up], 0.0)
+    weight = gaussian_filter1d(state.sum(axis=1).astype(np.float64), rig.sigma, axis=1, mode="constant")
+    level = gaussian_filter1d(error.sum(axis=1), rig.sigma, axis=1, mode="constant")
+    root[..., up] = level / np.maximum(weight, 1.0)
+    # each limb: the residual slide summed from its plant's first frame, the residual height
+    residual = np.where(stepping[..., None], -slide - push[:, None], 0.0)
+    summed = np.cumsum(residual, axis=2)
+    frames = np.arange(M)
+    first = state & ~_shifted(state, 1, False)
+    last = state & ~_shifted(state, -1, False)
+    since = np.maximum.accumulate(np.where(first, frames, 0), axis=2)
+    correction = np.where(state[..., None], summed - np.take_along_axis(summed, since[..., None], axis=2), 0.0)
+    correction[..., up] = np.where(state, error - root[:, None, :, up], 0.0)
+    _blend_edges(correction, state, stepping, first, last, rig.decay)
+    # bone shifts: every patch's centroid moves by its correction (ω αᵀ g = e), the root moves all
+    shifts = np.tensordot(rig.solve, correction, axes=([1], [1]))  # (P, A, M, 3)
+    moved = np.flatnonzero(rig.influence.any(axis=0))
+    bones = np.moveaxis(np.tensordot(rig.influence[:, moved], shifts, axes=([0], [0])), 0, 2)  # (A, M, b', 3)
+    root = root.astype(t.dtype)
+    for slot in range(t.shape[2]):  # one bone slot at a time: a fancy-index scatter is several times slower
+        t[:, :, slot] += root
+    for k, b in enumerate(moved):
+        t[:, :, b] += bones[:, :, k].astype(t.dtype)
+    return state
+
+
+def _blend_edges(correction, state, stepping, first, last, decay):
+    """Outside the plants, ``correction`` (A, P, M, 3) (zero there on entry) becomes the decay of
+    the correction at the nearest plant edges: forward from a plant's last frame and backward into
+    the next plant's first, each a critically damped spring (Holden's inertialization) whose first
+    step across the edge equals the last step inside (matched per frame, not only in continuous
+    time: y = 0.58 a frame at 24 fps). In a gap between two plants the backward spring starts from
+    what the forward one leaves at the next plant (value and step), so the two add up to the
+    next plant's correction there."""
+    M = state.shape[-1]
+    frames = np.arange(M)
+    outside = ~state
+    growth = np.exp(decay)
+
+    def spring(x0, step, k):  # x(0) = x0, x(1) − x(0) = step, then decays: (x0 + c k) e^(−y k)
+        c = (x0 + step) * growth - x0
+        return (x0 + c * k) * np.exp(-decay * k)
+
+    def gather(values, at):
+        return np.take_along_axis(values, np.clip(at, 0, M - 1)[..., None], axis=2)
+
+    stepped = np.where(stepping[..., None], correction - _shifted_frames(correction, 1), 0.0)
+    ahead = np.where((state & _shifted(state, -1, False))[..., None],
+                     correction - _shifted_frames(correction, -1), 0.0)
+    ended = np.maximum.accumulate(np.where(last, frames, -1), axis=2)
+    coming = np.flip(np.minimum.accumulate(np.flip(np.where(first, frames, M), axis=2), axis=2), axis=2)
+    after_ok = (ended >= 0)[..., None]
+    x_end, v_end = gather(correction, ended), gather(stepped, ended)
+    since = np.maximum(frames - ended, 0)[..., None].astype(np.float64)
+    after = np.where(after_ok, spring(x_end, v_end, since), 0.0)
+    # the backward spring takes what is left at the next plant's first frame once the forward one is counted
+    until = np.maximum(coming - frames, 0)[..., None].astype(np.float64)
+    left_there = np.where(after_ok, spring(x_end, v_end, since + until), 0.0)
+    left_before = np.where(after_ok, spring(x_end, v_end, since + until - 1.0), 0.0)
+    x_start = gather(correction, coming) - left_there
+    v_start = gather(ahead, coming) - (left_before - left_there)
+    before = np.where((coming < M)[..., None], spring(x_start, v_start, until), 0.0)
+    correction += np.where(outside[..., None], after + before, 0.0)
+
+
+def _shifted_frames(x, by):
+    """x (A, P, M, 3) moved by ``by`` frames along axis 2, edge values repeated."""
+    out = np.empty_like(x)
+    if by > 0:
+        out[:, :, by:], out[:, :, :by] = x[:, :, :-by], x[:, :, :1]
+    else:
+        out[:, :, :by], out[:, :, by:] = x[:, :, -by:], x[:, :, -1:]
+    return out
+
+
+def centre_operator(rest_terms, weight_terms):
+    """Q (12b, 3P): the patches' centroids are [F (9b), t (3b)] Q for the bones' entries in a row
+    (each F_b row-major, then each t_b): centroid_p = Σ_b F_b ā_pb + ω_pb t_b, one matrix product
+    for every frame at once. rest_terms ā (P, b, 3), weight_terms ω (P, b)."""
+    P, b = weight_terms.shape
+    Q = np.zeros((b, 3, 3, P, 3))  # F_b[i, j] → centroid_p[i] with ā_pbj
+    for i in range(3):
+        Q[:, i, :, :, i] = np.transpose(rest_terms, (1, 2, 0))
+    T = np.zeros((b, 3, P, 3))  # t_b[i] → centroid_p[i] with ω_pb
+    for i in range(3):
+        T[:, i, :, i] = weight_terms.T
+    return np.concatenate([Q.reshape(9 * b, 3 * P), T.reshape(3 * b, 3 * P)])
+
+
+def _centres(F, t, rig):
+    """The patches' centroids (A, P, M, 3) from F (A, M, B, 3, 3), t (A, M, B, 3): one product."""
+    A, M = F.shape[:2]
+    b = rig.bones.size
+    rows = np.concatenate([F[:, :, rig.bones].reshape(A * M, 9 * b), t[:, :, rig.bones].reshape(A * M, 3 * b)],
+                          axis=1)
+    operator = centre_operator(rig.rest_terms, rig.weight_terms).astype(rows.dtype)  # float32 bones: a float32 product, its sums then widened
+    return np.moveaxis((rows @ operator).reshape(A, M, -1, 3), 2, 1).astype(np.float64)
+
+
+def _heading(matrices, up_axis):
+    """The turn about the up axis within each matrix (..., 3, 3) (any, not only rotations) -> (..., 3, 3)."""
+    from skinsynth.pipeline.rotations import rotation_exp
+
+    i, j = (up_axis + 1) % 3, (up_axis + 2) % 3
+    angle = np.arctan2(matrices[..., j, i] - matrices[..., i, j], matrices[..., i, i] + matrices[..., j, j])
+    return rotation_exp(angle[..., None] * np.eye(3)[up_axis])
+
+
+def _turn_feet(F, t, src, state, centre, rig):
+    """Turn each planted patch's own bones about its centroid so that the patch's anchor bone has
+    the input's orientation at the source frame (the fit's error at the patch undone, E), under
+    the output's heading (module notes), blended in and out like the translations; F, t and the
+    centroids centre (A, P, M, 3) (the patches that share a turned bone move with it) in place."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from skinsynth.pipeline.rotations import rotation_exp
+
+    turning = np.flatnonzero([bones.size > 0 for bones in rig.own])
+    if not turning.size:
+        return
+    state = state[:, turning]
+    src = src[:, turning]
+    slots = rig.anchor_bone[turning]
+    now = np.moveaxis(F[:, :, rig.bones[slots]], 2, 1).astype(np.float64)  # (A, p, M, 3, 3)
+    patches = turning[None, :, None]
+    mapped = now @ rig.inverse_in[src, patches]
+    wanted = _heading(mapped, rig.up_axis) @ rig.orientation_in[src, patches]
+    change = _near_log(wanted @ np.swapaxes(now, -1, -2))
+    angle = np.linalg.norm(change, axis=-1, keepdims=True)
+    turn = np.where(state[..., None], change * np.minimum(1.0, rig.max_turn / np.maximum(angle, 1e-12)), 0.0)
+    stepping = state & _shifted(state, 1, False)
+    _blend_edges(turn, state, stepping, state & ~_shifted(state, 1, False), state & ~_shifted(state, -1, False),
+                 rig.decay)
+    # the wanted orientation jumps where a seam changes the source frame: each jump is spread over
+    # the frames about its seam (the step it makes, smoothed), the turn elsewhere left exact
+    seam = stepping & (src != _shifted(src, 1, -1) + 1)
+    jumps = np.where(seam[..., None], turn - _shifted_frames(turn, 1), 0.0)
+    held = np.cumsum(jumps, axis=2)
+    turn += gaussian_filter1d(held, rig.turn_sigma, axis=2, mode="nearest") - held
+    slot_of = {int(b): k for k, b in enumerate(rig.bones)}
+    for k, p in enumerate(turning):  # few patches: each turns its own bones about its centroid
+        rotation = rotation_exp(turn[:, k])  # (A, M, 3, 3)
+        c = centre[:, p].copy()
+        for b in rig.own[p]:
+            before_F, before_t = F[:, :, b].astype(np.float64), t[:, :, b].astype(np.float64)
+            after_F = rotation @ before_F
+            after_t = (rotation @ (before_t - c)[..., None])[..., 0] + c
+            F[:, :, b], t[:, :, b] = after_F, after_t
+            # every patch the bone moves moves with it: Δcentroid_q = ΔF ā_qb + ω_qb Δt
+            slot = slot_of[int(b)]
+            change_F, change_t = after_F - before_F, after_t - before_t
+            centre += np.moveaxis(change_F @ rig.rest_terms[:, slot].T, -1, 1) \
+                + rig.weight_terms[None, :, slot, None, None] * change_t[:, None]
+
+
+def _near_log(matrices):
+    """Axis-angle (..., 3) of matrices (..., 3, 3) near rotations, from their skew part and trace
+    (angle below π; what is not a rotation in them, a blend window's stretch, is ignored): entry
+    by entry, no decomposition (scipy's from_matrix orthonormalises each by an SVD)."""
+    m = matrices
+    skew = 0.5 * np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], -1)
+    sine = np.linalg.norm(skew, axis=-1)
+    angle = np.arctan2(sine, 0.5 * (m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2] - 1.0))
+    return skew * np.where(sine > 1e-12, angle / np.maximum(sine, 1e-300), 1.0)[..., None]
