@@ -103,7 +103,7 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.clips import Clips
     from skinsynth.pipeline.synthesis import build_graph as analyse, validate_graph_options
-    from skinsynth.pipeline.synthesis import (default_min_segment, find_contacts, refuse_contact_jumps,
+    from skinsynth.pipeline.synthesis import (default_min_segment, find_contacts, mark_contact_jumps,
                                               validate_contact_options)
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
@@ -133,7 +133,7 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
                                           min_duration=contact_min_duration, min_support=contact_min_support)
     refused = None
     if analysis.contacts is not None and analysis.contacts.count:  # a planted foot never jumps to a swinging one
-        refused = refuse_contact_jumps(analysis.components, analysis.contacts, skin.bone_indices, skin.bone_weights,
+        refused = mark_contact_jumps(analysis.components, analysis.contacts, skin.bone_indices, skin.bone_weights,
                                        clips)
     seconds = time.perf_counter() - started
     parameters = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,

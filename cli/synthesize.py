@@ -206,7 +206,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         components = synthesis_components(skin, graph_file.components, single_component,
                                           GraphOptions.recorded(graph_file.options), request.clips,
                                           None if walk_clips is None else [str(n) for n in walk_clips],
-                                          contacts=contacts)
+                                          contacts=contacts if contact else None)
         if contact and contacts is not None:
             keep_input_plants(request, skin, contacts, components)
 

@@ -84,6 +84,8 @@ def graph_groups(model, analysis):
             "@reference": int(t.reference), "@threshold": float(t.threshold), "@alpha": float(t.alpha),
             "@beta": float(t.beta), "@lambda": float(op.lam), "@ridge": float(op.ridge),
             "@admitted": int(t.admitted), "@recurrent_share": float(t.share)}
+        if getattr(c, "contact_agrees", None) is not None:  # issue 35: the transitions keeping the contacts
+            graph[f"component_{number:03d}"]["contact_agrees"] = np.asarray(c.contact_agrees, dtype=np.uint8)
         if getattr(t, "thresholds", None) is not None:  # several clips: T_c per (clip left, clip entered)
             graph[f"component_{number:03d}"]["clip_thresholds"] = np.asarray(t.thresholds, dtype=np.float64)
     contacts = getattr(analysis, "contacts", None)
@@ -155,8 +157,9 @@ class ComponentRecord:
     the reference bone, reduced coordinates q (F, r) with basis, singular values and the
     reference motion (None in files that lack them), the cost matrix costs (F, F), transitions
     (n, 2) with transition_costs (n,), the threshold T_c and the cost balance alpha, beta; key
-    vertices (k,) with key_bones, key_weights, weight_gradients and rotation_strain; and the
-    ridge of the eq. 9 solve."""
+    vertices (k,) with key_bones, key_weights, weight_gradients and rotation_strain; the
+    ridge of the eq. 9 solve; contact_agrees (n,) bool, which transitions keep the input's ground
+    contacts (None: no contacts, or a file from before)."""
 
     bones: np.ndarray
     local_bones: np.ndarray
@@ -177,6 +180,7 @@ class ComponentRecord:
     weight_gradients: np.ndarray
     rotation_strain: np.ndarray
     ridge: float
+    contact_agrees: np.ndarray | None = None
 
 
 @dataclass
@@ -202,7 +206,8 @@ def _component_record(data):
         transition_costs=data["transition_costs"], threshold=float(data.get("@threshold", 0.0)),
         alpha=float(data.get("@alpha", 1.0)), beta=float(data.get("@beta", 1.0)), key_vertices=data["key_vertices"],
         key_bones=data["key_bones"], key_weights=data["key_weights"], weight_gradients=data["weight_gradients"],
-        rotation_strain=data["rotation_strain"], ridge=float(data.get("@ridge", 1e-9)))
+        rotation_strain=data["rotation_strain"], ridge=float(data.get("@ridge", 1e-9)),
+        contact_agrees=None if data.get("contact_agrees") is None else np.asarray(data["contact_agrees"]).astype(bool))
 
 
 def read_graph(path):

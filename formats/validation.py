@@ -181,6 +181,9 @@ GRAPH_COMPONENT = {
     "costs": Field("float", ("F", "F"), low=0.0),
     "transitions": Field("int", ("M", 2), high="F"),  # lower bounds: _check_transition_pairs
     "transition_costs": Field("float", ("M",)),
+    # which transitions keep every ground contact of the component (issue 35): synthesize --contact
+    # walks only those, --no-contact all of them
+    "contact_agrees": Field("bool", ("M",), low=0, high=2, optional=True),
     "clip_thresholds": Field("float", ("clips", "clips"), low=0.0, optional=True),
     "key_vertices": Field("int", ("n",), low=0, high="V"),
     "key_bones": Field("int", ("n", "k"), low=-1, high="B"),

@@ -32,7 +32,8 @@ class ComponentAnalysis:
     (n,)), key_bones (n, K') (−1 padding), key_weights (n, K'), key_gradients (n, K', 3),
     strain (F, n, 9) rotation–strain coordinates of the local-frame deformation gradients,
     operator (GradientOperator); key data use the component's own weights (renormalised over
-    its bones)."""
+    its bones); contact_agrees (M,) bool or None: which of its transitions keep the input's ground
+    contacts (:func:`.planting.mark_contact_jumps`; synthesize --contact walks only those)."""
 
     bones: list
     transitions: object
@@ -42,6 +43,7 @@ class ComponentAnalysis:
     key_gradients: np.ndarray
     strain: np.ndarray
     operator: object
+    contact_agrees: np.ndarray | None = None
 
 
 @dataclass

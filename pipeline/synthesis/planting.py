@@ -287,15 +287,18 @@ def agreeing_transitions(pairs, owned, clips):
     return (owned[pairs[:, 0]] == owned[same]).all(axis=1)
 
 
-def refuse_contact_jumps(components, contacts, bone_indices, bone_weights, clips=None):
-    """Drop, in place, each component's candidate transitions (``ComponentAnalysis.transitions``:
-    pairs, costs) that change the contact state of a patch the component owns (the one carrying
-    most of its weight; :func:`agreeing_transitions`) within a clip, unless that leaves the
-    component's motion graph under :data:`KEEP_USABLE` of the frames it could play forever from (a transition between clips is
-    a clip's way in or out, which build-graph gives every clip: the ground contacts of a gallop and
-    of a collapse never agree, so they are kept). contacts: the input's
-    :class:`.contact_patches.ContactPatches`. Returns (refused, kept_all) per component: how many
-    were dropped, and whether the component kept them all for want of walks."""
+def mark_contact_jumps(components, contacts, bone_indices, bone_weights, clips=None):
+    """Mark, on each component (``ComponentAnalysis``: its ``transitions.pairs``), which candidate
+    transitions keep the contact state of every patch it owns (the one carrying most of its weight;
+    :func:`agreeing_transitions`): ``component.contact_agrees`` (M,) bool, the others being
+    refused by a synthesis with contacts (:func:`contact_transitions`), or None where none is
+    refused. A transition between clips is a clip's way in or out, which build-graph gives every
+    clip (the ground contacts of a gallop and of a collapse never agree), so it is kept; and a
+    component keeps all its transitions when refusing them would leave its motion graph under
+    :data:`KEEP_USABLE` of the frames it could play forever from. The pairs themselves are left
+    as they are: a synthesis without contacts (``--no-contact``) walks every one. contacts: the
+    input's :class:`.contact_patches.ContactPatches`. Returns (refused, kept_all) per component:
+    how many are refused, and whether the component kept them all for want of walks."""
     from ..clips import Clips
 
     frames = contacts.planted.shape[0]
@@ -305,25 +308,37 @@ def refuse_contact_jumps(components, contacts, bone_indices, bone_weights, clips
     owner = patch_owners(patches, dense, [c.bones for c in components])
     report = []
     for k, component in enumerate(components):
-        owned = contacts.planted[:, owner == k]
-        transitions = component.transitions
-        if owned.shape[1] == 0 or len(transitions.pairs) == 0:
+        component.contact_agrees = None
+        owned = np.asarray(contacts.planted, bool)[:, owner == k]
+        pairs = np.asarray(component.transitions.pairs, dtype=np.int64).reshape(-1, 2)
+        if owned.shape[1] == 0 or len(pairs) == 0:
             report.append((0, False))
             continue
-        pairs = np.asarray(transitions.pairs, dtype=np.int64).reshape(-1, 2)
         within = clips.clip_of(pairs[:, 0]) == clips.clip_of(clips.targets(pairs[:, 1]))
         keep = agreeing_transitions(pairs, owned, clips) | ~within  # a clip's way in and out is kept
         if keep.all():
             report.append((0, False))
             continue
-        before, after = (_usable(frames, pairs, clips) for pairs in (transitions.pairs, transitions.pairs[keep]))
-        if after < KEEP_USABLE * before:
-            report.append((0, not keep.all()))
+        if _usable(frames, pairs[keep], clips) < KEEP_USABLE * _usable(frames, pairs, clips):
+            report.append((0, True))
             continue
-        transitions.pairs = transitions.pairs[keep]
-        transitions.costs = np.asarray(transitions.costs)[keep]
+        component.contact_agrees = keep
         report.append((int((~keep).sum()), False))
     return report
+
+
+def contact_transitions(transitions, agrees):
+    """``transitions`` (a :class:`.transitions.Transitions`) with only the pairs (and their costs)
+    that ``agrees`` (M,) bool marks (:func:`mark_contact_jumps`); as they are for None."""
+    if agrees is None:
+        return transitions
+    import copy
+
+    agrees = np.asarray(agrees, bool)
+    kept = copy.copy(transitions)
+    kept.pairs = np.asarray(transitions.pairs).reshape(-1, 2)[agrees]
+    kept.costs = np.asarray(transitions.costs)[agrees]
+    return kept
 
 
 def _usable(frames, pairs, clips):

@@ -56,10 +56,11 @@ REPLACEMENT_CAP = 8
 BATCH_REVISION = 5
 
 
-def component_from_file(data, rest):
+def component_from_file(data, rest, contacts=False):
     """ComponentAnalysis from a graph file's component record (``formats.graph_file.ComponentRecord``;
     the eq. 9 operator is rebuilt from the stored key-vertex data: cheap and exactly what
-    build-graph computed)."""
+    build-graph computed). contacts: walk only the transitions that keep the input's ground contacts
+    (the record's ``contact_agrees``, when it has one: :func:`.planting.contact_transitions`)."""
     local = np.asarray(data.local_bones, dtype=np.int64)
     reference = int(data.reference)
     operator = gradient_operator(local, reference, rest, data.key_vertices, data.key_bones, data.key_weights,
@@ -71,6 +72,10 @@ def component_from_file(data, rest):
                               D=data.costs, threshold=float(data.threshold),
                               pairs=np.asarray(data.transitions, dtype=np.int64).reshape(-1, 2),
                               costs=data.transition_costs)
+    if contacts:
+        from .planting import contact_transitions
+
+        transitions = contact_transitions(transitions, getattr(data, "contact_agrees", None))
     return ComponentAnalysis(bones=[int(b) for b in data.bones], transitions=transitions,
                              key=np.asarray(data.key_vertices), key_bones=np.asarray(data.key_bones),
                              key_weights=np.asarray(data.key_weights),
@@ -86,8 +91,10 @@ def synthesis_components(skin, records, single_component=False, graph_options=No
     ``graph_options``, a :class:`.graph_options.GraphOptions`). ``skin``: rest_vertices (V, 3),
     faces, bone_indices and bone_weights (V, K), rotations (F, B, 3, 3), translations (F, B, 3);
     clips, walk_clips: the input's clips and those the graph let walks play, for an analysis made
-    again (:func:`.graph.build_graph`); contacts: the input's ground contacts, whose jumps an
-    analysis made again refuses as build-graph did (:func:`.planting.refuse_contact_jumps`)."""
+    again (:func:`.graph.build_graph`); contacts: the input's ground contacts when the synthesis
+    keeps them (None: ``--no-contact``, or none found): the components then walk only the
+    transitions that keep them (a graph file's ``contact_agrees``; an analysis made again marks
+    them as build-graph did, :func:`.planting.mark_contact_jumps`)."""
     if single_component and len(records) > 1:
         from .graph import build_graph  # networkx: only imported when needed
         from .graph_options import GraphOptions
@@ -97,11 +104,13 @@ def synthesis_components(skin, records, single_component=False, graph_options=No
         components = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
                                  skin.translations, **options, clips=clips, walk_clips=walk_clips).components
         if contacts is not None:
-            from .planting import refuse_contact_jumps
+            from .planting import contact_transitions, mark_contact_jumps
 
-            refuse_contact_jumps(components, contacts, skin.bone_indices, skin.bone_weights, clips)
+            mark_contact_jumps(components, contacts, skin.bone_indices, skin.bone_weights, clips)
+            for component in components:
+                component.transitions = contact_transitions(component.transitions, component.contact_agrees)
         return components
-    return [component_from_file(record, skin.rest_vertices) for record in records]
+    return [component_from_file(record, skin.rest_vertices, contacts is not None) for record in records]
 
 
 def avoid_obstacles(request, skin, meshes, ground_plane=False):

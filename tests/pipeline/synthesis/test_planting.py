@@ -17,7 +17,7 @@ from skinsynth.pipeline.clips import Clips
 from skinsynth.pipeline.examples import walker_contacts
 from skinsynth.pipeline.synthesis import Request, keep_input_plants, synthesis_components
 from skinsynth.pipeline.synthesis.planting import (KEEP_USABLE, agreeing_transitions, limb_influence, output_states,
-                                                   plant_feet, refuse_contact_jumps)
+                                                   plant_feet, mark_contact_jumps, contact_transitions)
 from skinsynth.pipeline.synthesis.planting_loops import blend_edges_row
 
 from planting_reference import _blend_edges, _shifted, plant_feet_reference
@@ -389,7 +389,7 @@ def _contacts(planted, patches):
     return SimpleNamespace(planted=np.asarray(planted, bool), vertices=verts, offsets=offsets, count=len(patches))
 
 
-def test_refuse_contact_jumps_drops_disagreeing_when_walks_remain():
+def test_mark_contact_jumps_refuses_disagreeing_when_walks_remain():
     frames = 20
     planted = np.zeros((frames, 1), bool)
     planted[:12] = True
@@ -400,14 +400,19 @@ def test_refuse_contact_jumps_drops_disagreeing_when_walks_remain():
     contacts = _contacts(planted, [np.array([0, 1, 2])])
     owner = _component([0], [[19, -1], [15, -1]])  # 19 → 0 agrees (T, T); 15 → 0 does not (F, T)
     other = _component([1], [[15, -1], [5, 3]])  # owns no patch: left alone
-    report = refuse_contact_jumps([owner, other], contacts, idx, w)
+    report = mark_contact_jumps([owner, other], contacts, idx, w)
     assert report == [(1, False), (0, False)]  # every frame still reaches the loop 19 → 0
-    np.testing.assert_array_equal(owner.transitions.pairs, [[19, -1]])
-    np.testing.assert_array_equal(owner.transitions.costs, [0.0])
+    np.testing.assert_array_equal(owner.contact_agrees, [True, False])
+    np.testing.assert_array_equal(owner.transitions.pairs, [[19, -1], [15, -1]])  # marked, not removed
+    assert other.contact_agrees is None
+    kept = contact_transitions(owner.transitions, owner.contact_agrees)
+    np.testing.assert_array_equal(kept.pairs, [[19, -1]])
+    np.testing.assert_array_equal(kept.costs, [0.0])
+    assert contact_transitions(other.transitions, None) is other.transitions
     np.testing.assert_array_equal(other.transitions.pairs, [[15, -1], [5, 3]])
 
 
-def test_refuse_contact_jumps_keeps_all_when_too_few_frames_remain():
+def test_mark_contact_jumps_keeps_all_when_too_few_frames_remain():
     frames = 20
     planted = np.zeros((frames, 1), bool)
     planted[:12] = True
@@ -420,11 +425,11 @@ def test_refuse_contact_jumps_keeps_all_when_too_few_frames_remain():
     short = _component([0, 1], [[4, -1], [19, -1]])
     assert 5 < KEEP_USABLE * frames
     before = [c.transitions.pairs.copy() for c in (lone, short)]
-    report = refuse_contact_jumps([lone], contacts, idx, w)
-    assert report == [(0, True)]
+    report = mark_contact_jumps([lone], contacts, idx, w)
+    assert report == [(0, True)] and lone.contact_agrees is None
     np.testing.assert_array_equal(lone.transitions.pairs, before[0])
-    report = refuse_contact_jumps([short], contacts, idx, w)
-    assert report == [(0, True)]
+    report = mark_contact_jumps([short], contacts, idx, w)
+    assert report == [(0, True)] and short.contact_agrees is None
     np.testing.assert_array_equal(short.transitions.pairs, before[1])
 
 
