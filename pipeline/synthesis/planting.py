@@ -57,6 +57,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .contact import dense_weights
+
 #: Half-life (seconds) of the blend in and out of a limb correction, and the σ of the root's smoothing.
 HALF_LIFE = 0.1
 #: Hops of the bone graph over which a limb correction falls from 1 to 0.
@@ -113,15 +115,6 @@ class PlantRig:
         cut into a component of its own decides where its foot goes)."""
         reached = self.influence[:, np.asarray(bones, dtype=np.int64)].any(axis=1)
         return self.planted[:, (self.owner == component) | reached]
-
-
-def dense_weights(bone_indices, bone_weights, bones):
-    """Sparse skin weights (V, K) -> dense (V, B) float64."""
-    idx = np.asarray(bone_indices, dtype=np.int64)
-    dense = np.zeros((idx.shape[0], bones))
-    np.add.at(dense, (np.repeat(np.arange(idx.shape[0]), idx.shape[1]), idx.ravel()),
-              np.asarray(bone_weights, dtype=np.float64).ravel())
-    return dense
 
 
 def patch_owners(patches, dense, components):

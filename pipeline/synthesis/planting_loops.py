@@ -259,6 +259,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
                             F[a, m, b, i, j] = product[i, j]
         # 2. the centroids after the turn; the input's steps, carried; the slide
         _centres(F, t, a, bones, rest_terms, weight_terms, centre)
+        slide = np.zeros((P, M, 3))  # each step's horizontal slide beyond the input's own, inside a plant
         push = np.zeros((M, 3))
         for m in range(1, M):
             count = 0
@@ -271,7 +272,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
                         if d != up:
                             expected = (F[a, m, b, d, 0] * steps_in[f, p, 0] + F[a, m, b, d, 1] * steps_in[f, p, 1]
                                         + F[a, m, b, d, 2] * steps_in[f, p, 2])
-                            push[m, d] -= centre[p, m, d] - centre[p, m - 1, d] - expected
+                            slide[p, m, d] = centre[p, m, d] - centre[p, m - 1, d] - expected
+                            push[m, d] -= slide[p, m, d]
             if count > 0:
                 for d in range(3):
                     push[m, d] /= count
@@ -305,13 +307,9 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
                 if not state[p, m]:
                     continue
                 if m > 0 and state[p, m - 1]:
-                    f = src[a, p, m]
-                    b = bones[anchor_slot[p]]
                     for d in range(3):
                         if d != up:
-                            expected = (F[a, m, b, d, 0] * steps_in[f, p, 0] + F[a, m, b, d, 1] * steps_in[f, p, 1]
-                                        + F[a, m, b, d, 2] * steps_in[f, p, 2])
-                            acc[d] += -(centre[p, m, d] - centre[p, m - 1, d] - expected) - push[m, d]
+                            acc[d] += -slide[p, m, d] - push[m, d]
                 else:
                     acc[:] = 0.0
                 for d in range(3):
