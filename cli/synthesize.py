@@ -79,8 +79,8 @@ def _frames(clips, start, end, targets):
               help="Keep the feet on the ground. A graph with the input's ground contacts: each plant stays on its "
                    "anchor (the patch follows the input's own steps and height, the body's travel follows the "
                    "planted feet, the legs take the rest), blended in and out with a 0.1 s half-life "
-                   "(docs/contact.md). Without contacts: where a frame's lowest point would leave the input's own "
-                   "range of lowest points, the whole character moves vertically back into it.")
+                   "(docs/contact.md). Then, and alone for a graph without contacts: where a frame's lowest point "
+                   "would leave the input's own range of lowest points, the whole character moves vertically back.")
 @click.option("--measure-feet", "measure_feet", default=4, show_default=True, type=click.IntRange(min=0),
               metavar="N",
               help="Measure how well the feet stay planted (slide, float and penetration of the contact vertices, "
@@ -187,7 +187,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           clips=clips if len(clips) > 1 else None)
         validate_request(request, skin.rotations.shape[0])
         contacts = graph_file.contacts if graph_file.contacts is not None and graph_file.contacts.count else None
-        if contact and contacts is None:
+        if contact:
             keep_input_support(request, skin)
         # the bone motions (float32 3×3 + 3 per bone) and sources (int32 per component), in memory
         # (on a cluster, in the shards on disk): refused before any is allocated; then the output

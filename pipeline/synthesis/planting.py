@@ -49,8 +49,10 @@ its free parameter, and a correction spread by the weights is how the rig itself
 The corrections are small where the input is followed (a few % of the height at most), and a
 leg takes them over ``reach`` bones.
 
+After the plants, synthesize still keeps the input's range of lowest points (:mod:`.contact`), a
+safety net that is zero wherever the plants kept it: a merge can plant one foot and sink the other.
 Where the input has no contacts there is nothing to plant and this module is not used (the
-outputs stay byte-identical). ``synthesize --no-contact`` turns it off.
+outputs stay byte-identical). ``synthesize --no-contact`` turns both off.
 """
 
 from dataclasses import dataclass
@@ -83,7 +85,8 @@ class PlantRig:
     patch's mean weight per bone); anchor_bone (P,) the bone carrying most of each patch (slot in
     ``bones``); inverse_in (Fi, P, 3, 3) that bone's inverse input matrix; steps_in (Fi, P, 3) the input patch centroid's horizontal step into
     each frame (0 at a clip's first frame) in that bone's frame (F_in⁻¹ Δ); heights_in (Fi, P)
-    its height above its clip's ground; ground (Fi,) the ground of each frame's clip; influence
+    the height of its lowest vertex above its clip's ground; samples (P, S) the vertex ids whose
+    lowest is the patch's lowest point (:func:`lowest_samples`; −1 padding); ground (Fi,) the ground of each frame's clip; influence
     (P, B) α; own: per patch the bones that carry it and turn with it (:data:`CARRIES`; none where
     another patch shares one); orientation_in (Fi, P, 3, 3) the
     orientation the anchor bone should have to carry the patch as the input's (E R_in); solve (P, P) (ω αᵀ)⁺; decay y per frame; sigma (frames) of the root's smoothing;
@@ -98,6 +101,10 @@ class PlantRig:
     inverse_in: np.ndarray
     steps_in: np.ndarray
     heights_in: np.ndarray
+    samples: np.ndarray
+    sample_rest: np.ndarray
+    sample_bones: np.ndarray
+    sample_weights: np.ndarray
     ground: np.ndarray
     influence: np.ndarray
     own: list
@@ -137,13 +144,14 @@ def bone_hops(bone_indices, bone_weights, bones, coupling=COUPLING):
 
 
 def limb_influence(weight_terms, hops, reach=REACH):
-    """α (P, B): 1 on the bones moving each patch (its ω above 1 % of the largest), falling
+    """α (P, B): 1 on every bone moving each patch (any weight on it: then all its vertices move
+    by the same shift, its lowest point as its centroid), falling
     linearly with their hops in the bone graph to 0 at ``reach`` + 1 hops. weight_terms (P, B) ω;
     hops (B, B) (:func:`bone_hops`). Not stopped at the synthesis's cut nodes: a leg cut into
     components of a bone or two (the walker's foot is one) must still bend as a whole."""
     alpha = np.zeros(weight_terms.shape)
     for p in range(weight_terms.shape[0]):  # few patches
-        moving = np.flatnonzero(weight_terms[p] > 0.01 * weight_terms[p].max())
+        moving = np.flatnonzero(weight_terms[p] > 0.0)
         alpha[p] = np.clip(1.0 - hops[moving].min(axis=0) / (reach + 1.0), 0.0, 1.0)
     return alpha
 
@@ -178,10 +186,8 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     shared = np.bincount(np.concatenate(own), minlength=B) > 1 if own else np.zeros(B, bool)
     own = [bones_p if not shared[bones_p].any() else bones_p[:0] for bones_p in own]
     # E: the turn taking the fit's patch onto the input's, per frame (Kabsch about the centroids; the
-    # identity for a patch that does not turn), and the centroid's height that puts the (turned) fit's
-    # lowest patch vertex where the input's is: the fit's foot is not the input's (a few mm lower or
-    # higher), and its lowest point is what meets the floor
-    turns, levels = [], []
+    # identity for a patch that does not turn)
+    turns = []
     for p, ids in enumerate(patches):
         ids = np.asarray(ids)
         fitted = np.einsum("vb,fbij,vj->fvi", dense[ids], R, rest[ids]) + np.einsum("vb,fbi->fvi", dense[ids], T)
@@ -189,8 +195,6 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
         turn = polar_rotation(np.einsum("fvi,fvj->fij", examples[:, ids] - centroids[:, None, p], fitted)) \
             if own[p].size else np.broadcast_to(np.eye(3), (frames, 3, 3))
         turns.append(turn)
-        lowest_turned = np.einsum("fj,fvj->fv", turn[:, up_axis], fitted).min(axis=1)
-        levels.append(examples[:, ids, up_axis].min(axis=1) - lowest_turned)
     turns = np.stack(turns, axis=1)  # (Fi, P, 3, 3)
     starts = np.asarray(clip_starts, dtype=np.int64)
     first = np.zeros(frames, bool)
@@ -201,7 +205,10 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     steps[..., up_axis] = 0.0  # only the slide is carried: the height has its own target
     clip = np.searchsorted(starts, np.arange(frames), side="right") - 1
     ground = np.asarray(grounds, dtype=np.float64)[clip]
-    heights = np.stack(levels, axis=1) - ground[:, None]
+    # the height each patch's lowest point keeps (the input's lowest patch vertex), and the vertices
+    # that find the output's lowest point: a merge can tilt a foot further than its turn undoes
+    heights = np.stack([examples[:, np.asarray(ids), up_axis].min(axis=1) for ids in patches], axis=1) - ground[:, None]
+    samples = lowest_samples(rest, examples, patches, up_axis)
     anchor_in = R[:, bones[anchor]]  # (Fi, P, 3, 3)
     hops = bone_hops(bone_indices, bone_weights, B)
     influence = limb_influence(weight_terms, hops, reach)
@@ -209,7 +216,9 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     inverse_in = np.linalg.inv(anchor_in)
     return PlantRig(planted=np.asarray(planted, bool), owner=owner, bones=bones, rest_terms=rest_terms[:, bones],
                     weight_terms=weight_terms[:, bones], anchor_bone=anchor, inverse_in=inverse_in,
-                    steps_in=(inverse_in @ steps[..., None])[..., 0], heights_in=heights, ground=ground, influence=influence, own=own,
+                    steps_in=(inverse_in @ steps[..., None])[..., 0], heights_in=heights, samples=samples,
+                    sample_rest=rest[np.maximum(samples, 0)], sample_bones=np.asarray(bone_indices)[np.maximum(samples, 0)],
+                    sample_weights=np.where(samples[..., None] >= 0, np.asarray(bone_weights, np.float64)[np.maximum(samples, 0)], 0.0), ground=ground, influence=influence, own=own,
                     orientation_in=turns @ anchor_in, solve=_regularised_inverse(coupling),
                     decay=2.0 * np.log(2.0) / (half_life * fps), sigma=half_life * fps,
                     turn_sigma=half_life * fps, max_turn=np.radians(max_turn), up_axis=int(up_axis))
@@ -235,9 +244,36 @@ def plant_feet(F, t, sources, rig):
 
     return plant_animations(F, t, src, c(sources[0], np.int64), c(rig.planted, np.bool_), c(rig.bones, np.int64),
                             c(rig.rest_terms), c(rig.weight_terms), c(rig.anchor_bone, np.int64), c(rig.inverse_in),
-                            c(rig.steps_in), c(rig.heights_in), c(rig.ground), c(rig.orientation_in), own,
+                            c(rig.steps_in), c(rig.heights_in), c(rig.sample_rest), c(rig.sample_bones, np.int64),
+                            c(rig.sample_weights), c(rig.ground), c(rig.orientation_in), own,
                             c(rig.influence), c(rig.solve), float(rig.decay), gaussian_weights(rig.sigma),
                             gaussian_weights(rig.turn_sigma), float(rig.max_turn), int(rig.up_axis), states)
+
+
+#: Most vertices per patch that find its lowest point (:func:`lowest_samples`).
+SAMPLES = 48
+
+
+def lowest_samples(rest, examples, patches, up_axis, most=SAMPLES):
+    """(P, S) vertex ids per patch, −1 padded: those whose lowest is the patch's lowest point however
+    it turns. All of a patch of at most ``most`` vertices; of a larger one, its lowest vertex in each
+    input frame and its outermost vertices at rest along eight horizontal directions (a sole's
+    corners and heel), at most ``most`` of them (evenly spaced by id)."""
+    rest = np.asarray(rest, dtype=np.float64)
+    across = [axis for axis in range(3) if axis != up_axis]
+    angles = np.arange(8) * np.pi / 4
+    directions = np.zeros((8, 3))
+    directions[:, across[0]], directions[:, across[1]] = np.cos(angles), np.sin(angles)
+    chosen = []
+    for ids in patches:
+        ids = np.asarray(ids)
+        found = np.sort(ids) if ids.size <= most else np.union1d(
+            ids[np.argmin(examples[:, ids, up_axis], axis=1)], ids[np.argmax(rest[ids] @ directions.T, axis=0)])
+        chosen.append(found[np.linspace(0, found.size - 1, min(most, found.size)).astype(np.int64)])
+    table = np.full((len(patches), max(c.size for c in chosen)), -1, np.int64)
+    for p, found in enumerate(chosen):
+        table[p, :found.size] = found
+    return table
 
 
 def warm_up(rig):

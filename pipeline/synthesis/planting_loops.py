@@ -175,8 +175,31 @@ def _centres(F, t, a, bones, rest_terms, weight_terms, out):
 
 
 @numba.njit(cache=True, nogil=True)
+def _lowest(F, t, a, sample_rest, sample_bones, sample_weights, up, out):
+    """The patches' lowest points out (P, M) of animation a: the lowest of their sample vertices (LBS)."""
+    P, S, K = sample_bones.shape
+    M = F.shape[1]
+    for p in range(P):
+        for m in range(M):
+            lowest = np.inf
+            for s in range(S):
+                height = 0.0
+                for k in range(K):
+                    w = sample_weights[p, s, k]
+                    if w == 0.0:
+                        continue
+                    b = sample_bones[p, s, k]
+                    height += w * (F[a, m, b, up, 0] * sample_rest[p, s, 0] + F[a, m, b, up, 1] * sample_rest[p, s, 1]
+                                   + F[a, m, b, up, 2] * sample_rest[p, s, 2] + t[a, m, b, up])
+                if height < lowest and sample_weights[p, s].sum() > 0.0:
+                    lowest = height
+            out[p, m] = lowest
+
+
+@numba.njit(cache=True, nogil=True)
 def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_terms, anchor_slot, inverse_in,
-                     steps_in, heights_in, ground, orientation_in, own, influence, solve, decay, root_kernel,
+                     steps_in, heights_in, sample_rest, sample_bones, sample_weights, ground, orientation_in, own,
+                     influence, solve, decay, root_kernel,
                      turn_kernel, max_turn, up, states):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
@@ -186,6 +209,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
     P = planted.shape[1]
     state = np.zeros((P, M), dtype=np.bool_)
     centre = np.zeros((P, M, 3))
+    low = np.zeros((P, M))
     turn = np.zeros((M, 3))
     correction = np.zeros((P, M, 3))
     now = np.empty((3, 3))
@@ -257,8 +281,9 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
                                          + rotation[i, 2] * change[2] + centre[p, m, i])
                         for j in range(3):
                             F[a, m, b, i, j] = product[i, j]
-        # 2. the centroids after the turn; the input's steps, carried; the slide
+        # 2. the centroids and lowest points after the turn; the input's steps, carried; the slide
         _centres(F, t, a, bones, rest_terms, weight_terms, centre)
+        _lowest(F, t, a, sample_rest, sample_bones, sample_weights, up, low)
         slide = np.zeros((P, M, 3))  # each step's horizontal slide beyond the input's own, inside a plant
         push = np.zeros((M, 3))
         for m in range(1, M):
@@ -293,7 +318,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
             for p in range(P):
                 if state[p, m]:
                     weight[m] += 1.0
-                    level[m] += heights_in[src[a, p, m], p] + ground[ground_src[a, m]] - centre[p, m, up]
+                    level[m] += heights_in[src[a, p, m], p] + ground[ground_src[a, m]] - low[p, m]
         level = _smooth(level, root_kernel, False)
         weight = _smooth(weight, root_kernel, False)
         for m in range(M):
@@ -315,7 +340,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
                 for d in range(3):
                     correction[p, m, d] = acc[d]
                 target = heights_in[src[a, p, m], p] + ground[ground_src[a, m]]
-                correction[p, m, up] = target - centre[p, m, up] - root[m, up]
+                correction[p, m, up] = target - low[p, m] - root[m, up]
             blend_edges_row(correction[p], state[p], decay)
         # 4. the bones: the root moves all, each limb's share solved so every centroid lands
         shifts = np.empty((P, 3))

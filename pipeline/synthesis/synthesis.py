@@ -311,7 +311,8 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             sources = np.stack([sources[k, choice[:, k]] for k in range(len(components))])
         if request.contact and request.plants is not None:  # the merged bones are final: plant the feet
             plant_feet(F, t, sources, request.plants)
-        elif request.contact:  # no contacts found: keep the input's support (:mod:`.contact`)
+        if request.contact:  # keep the input's range of lowest points (:mod:`.contact`): after the plants, a
+            # safety net, zero wherever they kept it (a merge can plant one foot and sink the other)
             if held is None:
                 held = support(rest, bone_indices, bone_weights, rotations, translations, request.up_axis)
             keep_contact(F, t, held)

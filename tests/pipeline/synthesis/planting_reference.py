@@ -51,7 +51,7 @@ def _plant_block(F, t, sources, rig):
     root = np.cumsum(push, axis=1)
     # vertical: the planted patches' mean height error, a normalised smoothing (0 far from plants)
     target = rig.heights_in[src, patches] + rig.ground[sources[0]][:, None, :]
-    error = np.where(state, target - centre[..., up], 0.0)
+    error = np.where(state, target - _lowest(F, t, rig), 0.0)
     weight = gaussian_filter1d(state.sum(axis=1).astype(np.float64), rig.sigma, axis=1, mode="constant")
     level = gaussian_filter1d(error.sum(axis=1), rig.sigma, axis=1, mode="constant")
     root[..., up] = level / np.maximum(weight, 1.0)
@@ -215,3 +215,13 @@ def _near_log(matrices):
     sine = np.linalg.norm(skew, axis=-1)
     angle = np.arctan2(sine, 0.5 * (m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2] - 1.0))
     return skew * np.where(sine > 1e-12, angle / np.maximum(sine, 1e-300), 1.0)[..., None]
+
+
+def _lowest(F, t, rig):
+    """The patches' lowest points (A, P, M): the lowest of their sample vertices, skinned."""
+    up = rig.up_axis
+    bones, weights, rest = rig.sample_bones, rig.sample_weights, rig.sample_rest  # (P, S, K), (P, S, K), (P, S, 3)
+    rows = F[:, :, bones, up, :].astype(np.float64)  # (A, M, P, S, K, 3)
+    heights = (weights * (np.einsum("ampskj,psj->ampsk", rows, rest) + t[:, :, bones, up])).sum(axis=-1)
+    heights = np.where((weights.sum(axis=-1) > 0.0)[None, None], heights, np.inf)
+    return np.moveaxis(heights.min(axis=-1), 2, 1)
