@@ -158,9 +158,12 @@ def support_lowest(F, t, found, block_bytes=1 << 26):
     out = np.empty((A, M))
     operator = found.operator.astype(np.float32)
     step = max(1, block_bytes // max(1, 4 * M * operator.shape[1]))
+    up = found.up_axis
     for a in range(0, A, step):
-        rows = bone_rows(F[a:a + step, :, found.bones], t[a:a + step, :, found.bones], found.up_axis)
-        rows = rows.astype(np.float32)
+        # bone_rows' layout (each bone's up row of F, then of t), gathered in the bones' own float32
+        # (bone_rows widens to float64, which this product narrowed again: the same numbers, twice the copies)
+        rows = np.concatenate([F[a:a + step, :, found.bones, up, :], t[a:a + step, :, found.bones, up, None]], axis=-1)
+        rows = rows.reshape(rows.shape[:2] + (-1,)).astype(np.float32, copy=False)
         out[a:a + step] = (rows @ operator).min(axis=-1)
     return out
 
