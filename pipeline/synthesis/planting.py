@@ -1,59 +1,62 @@
-"""Feet that stay planted (issue 35, part 3): the input's ground contacts enforced on the output.
+"""Feet that stay planted (issue 35, parts 2 and 3): the input's ground contacts kept on the output.
 
 build-graph finds, per input frame, which patches of the mesh rest on the ground
-(:mod:`.contact_patches`). An output frame plays, per bone component, some input frame (its
+(:mod:`.contact_patches`), and marks the transitions within a clip that would take a patch from
+planted to swinging or back (:func:`mark_contact_jumps`: a synthesis with contacts walks the
+others, :func:`contact_transitions`); the merge prefers legs whose contacts agree with the body's
+(:func:`.assembly.assemble`). An output frame plays, per bone component, some input frame (its
 walk's source), so a patch is *planted* at an output frame where the component that owns it (the
-one whose bones carry most of the patch's skin weight) plays a frame where the patch was planted.
-A run of planted output frames is a *plant*. During a plant the patch must do what the input's
-patch did at those source frames, and nothing else: stay where it landed (on a treadmill, travel
-with the belt, as the input's did) and keep the input's height above the ground.
+one whose bones carry most of the patch's skin weight) plays a frame where the patch was planted
+(:func:`output_states`). A run of planted output frames is a *plant*. During a plant the patch
+must do what the input's patch did at those source frames, and nothing else: stay where it
+landed (on a treadmill, travel with the belt, as the input's did) and keep the input's height.
+The targets are the input frames themselves, not the fit's playback of them (a 20-bone fit of the
+samba slides its feet 0.22 % of the height a frame where the dancer slides 0.08 %).
 
 Splicing (a seam's blend) and the multi-component merge (a body from one input frame, legs from
-others: Zheng §4.2) break that, and the foot slides. The correction, per animation, all
-animations and patches at once (no loop over frames):
+others: Zheng §4.2) break that, and the foot slides. The correction (:func:`plant_feet`, compiled
+in :mod:`.planting_loops`, one animation at a time):
 
-1. **The patch's error.** Its centroid c(m) is linear in the bones (``centroid = Σ_b F_b ā_pb +
-   ω_pb t_b``, ā and ω the patch's weighted rest positions and weights: no skinning). Its step
-   c(m) − c(m−1) should be the input's own step at the source frame, Δ(src(m)) (zero for a foot
-   at rest, the belt's travel under a treadmill), carried into the output by the patch bone's
-   map A(m) = F_out(m) F_in(src(m))⁻¹ (the identity where the output plays the input unchanged;
-   the segment's heading after a seam); only its horizontal part, for the input's vertical step
-   would leak sideways through a tilted bone (the height has a target of its own). The slide error v(m) = c(m) − c(m−1) − A(m) Δ(src(m)),
-   at each step inside a plant. The height error z(m) = target(m) − c_up(m), the target being the
-   height that puts the patch's lowest vertex where the input's was at the source frame (measured
-   from its clip's ground, placed on the output's; the fit's foot differs from the input's by its
-   error, and its lowest point is what meets the floor). The input's steps and heights are the
-   input frames' own, not the fit's playback of them.
-2. **A root offset** (the body travels as its planted feet push it): the horizontal velocity
-   correction u(m) = −mean over the patches stepping inside a plant of v(m), smoothed over time
-   (a Gaussian of σ = ``half_life`` seconds) and summed into a horizontal offset; a vertical
-   offset, the planted patches' mean height error smoothed the same way (a normalised
-   convolution: zero far from any plant). Both move every bone.
-3. **A limb correction** e_p(m) per patch: what is left after the root's, exactly — inside a
-   plant, the residual slide summed from the plant's first frame (0 there) and the residual
-   height error — so the planted patch's step is exactly A(m) Δ(src(m)) and its height the
-   target. It moves the bones near the patch: ``α_pb`` = 1 on the bones that move the patch,
-   falling linearly to 0 over ``reach`` hops of the bone graph (Zheng eq. 11's couplings); the shift of each bone's
-   translation Σ_q α_qb g_q is solved so that every patch's centroid moves by its e_p (the patches
-   × patches system ω αᵀ g = e). LBS is linear, so the vertices between a corrected bone and an
-   uncorrected one move part of the way: the leg takes the correction, the body does not.
-4. **Blending in and out** (inertialization, Holden's critically damped spring): outside plants
-   the limb correction is the decay of the one at the nearest plant's edge, matching its value and
-   its velocity there: x(k) = (x₀ + (v₀ + y x₀) k) e^(−y k), y = 2 ln 2 / half-life, k frames from
-   the plant's last frame (forward) or first frame (backward, time reversed), summed where a gap
-   lies between two plants. So a plant's start and end carry no velocity jump.
+1. **The feet's turn.** Each patch on bones of its own (:data:`CARRIES`) has them turned about
+   its centroid to the orientation the input's patch had at the source frame (the fit's error at
+   the patch undone by a Kabsch fit E per input frame, then under the output's heading), at most
+   :data:`MAX_TURN`; a seam's jump in that orientation is spread over σ = ``half_life``.
+2. **The patch's error.** Its centroid c(m) is linear in the bones (Σ_b F_b ā_pb + ω_pb t_b, ā
+   and ω the patch's weighted rest positions and weights). Its step c(m) − c(m−1) should be the
+   input's own horizontal step into the source frame, carried by the patch bone's map
+   A(m) = F_out(m) F_in(src(m))⁻¹ (the identity where the output plays the input unchanged; the
+   segment's heading after a seam): the slide error v(m) at each step inside a plant. The height
+   error: the input patch's lowest height at the source frame (above its clip's ground, placed on
+   the output's) minus the output patch's lowest point (its skinned sample vertices,
+   :func:`lowest_samples`: a tilted foot lands on its toe, not its centroid).
+3. **A root offset** (the body travels as its planted feet push it): −mean v(m) over the patches
+   stepping inside a plant, smoothed (a Gaussian of σ = ``half_life``) and summed into a
+   horizontal offset; a vertical offset, the planted patches' mean height error smoothed the same
+   way (normalised: zero far from any plant). Both move every bone.
+4. **A limb correction** e_p(m) per patch, what the root leaves, exactly: inside a plant the
+   residual slide summed from the plant's first frame (0 there) and the residual height error.
+   It moves the bones near the patch: ``α_pb`` = 1 on every bone with weight on it, falling
+   linearly to 0 over ``reach`` hops of the bone graph (Zheng eq. 11's couplings); the bones'
+   shifts Σ_q α_qb g_q are solved so that every patch moves by its e_p (the patches × patches
+   system ω αᵀ g = e, truncated where patches share their bones: :data:`RCOND`).
+5. **Blending in and out** (inertialization, Holden's critically damped spring, for the turn and
+   the limb corrections): outside plants each is the decay x(k) = (x₀ + c k) e^(−y k) of its
+   value at the nearest plant edge, y = 2 ln 2 / half-life a frame, c chosen so that the first
+   step out equals the last step in (frame for frame, not only in continuous time); in a gap
+   between two plants the backward spring starts from what the forward one leaves. So a plant's
+   start and end carry no velocity jump.
 
-Why translations, not rotations: the fitted rig has no joints (one root, every bone free:
-:mod:`~skinsynth.pipeline.skeleton`), so there is no chain to bend by IK; a bone's translation is
+Why translations and a foot's turn, not IK: the fitted rig has no joints (one root, every bone
+free: :mod:`~skinsynth.pipeline.skeleton`), so there is no chain to bend; a bone's translation is
 its free parameter, and a correction spread by the weights is how the rig itself blends bones.
-The corrections are small where the input is followed (a few % of the height at most), and a
-leg takes them over ``reach`` bones.
 
 After the plants, synthesize still keeps the input's range of lowest points (:mod:`.contact`), a
 safety net that is zero wherever the plants kept it: a merge can plant one foot and sink the other.
 Where the input has no contacts there is nothing to plant and this module is not used (the
-outputs stay byte-identical). ``synthesize --no-contact`` turns both off.
+outputs stay byte-identical). ``synthesize --no-contact`` turns both off, and walks every
+transition.
 """
+
 
 from dataclasses import dataclass
 
