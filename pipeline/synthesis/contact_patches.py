@@ -68,12 +68,18 @@ class ContactPatches:
         return int(self.offsets.size - 1)
 
     def patch(self, p):
-        return self.vertices[self.offsets[p]:self.offsets[p + 1]]
+        return patch_vertices(self)[p]
 
     def plants(self, clips=None):
         """[(patch, first, last)] every plant (inclusive global frames), by patch then frame."""
         clips = clips or Clips.single(self.planted.shape[0])
         return [(p, a, b) for p in range(self.count) for a, b in runs(self.planted[:, p], clips)]
+
+
+def patch_vertices(contacts):
+    """[vertex ids (n_p,)] of every patch of ``contacts`` (a :class:`ContactPatches`, or the graph
+    file's record of one: anything with vertices, offsets and count)."""
+    return [contacts.vertices[contacts.offsets[p]:contacts.offsets[p + 1]] for p in range(contacts.count)]
 
 
 def validate_contact_options(height, speed, release, min_duration, min_support=_DEFAULT.contact_min_support):

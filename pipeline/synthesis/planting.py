@@ -63,6 +63,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .contact import dense_weights
+from .contact_patches import patch_vertices
 
 #: Half-life (seconds) of the blend in and out of a limb correction, and the σ of the root's smoothing.
 HALF_LIFE = 0.1
@@ -81,19 +82,21 @@ COUPLING = 0.1
 @dataclass
 class PlantRig:
     """What the output's plants need from the input, made once per synthesis
-    (:func:`plant_rig`). P patches, b the bones that move them, Fi input frames.
+    (:func:`plant_rig`). P patches, b the bones that move them, Fi input frames, S sample vertices.
 
     planted (Fi, P) bool; owner (P,) the component owning each patch; bones (b,) ids; rest_terms
     (P, b, 3) ā (each patch's weighted rest centroid per bone) and weight_terms (P, b) ω (each
     patch's mean weight per bone); anchor_bone (P,) the bone carrying most of each patch (slot in
-    ``bones``); inverse_in (Fi, P, 3, 3) that bone's inverse input matrix; steps_in (Fi, P, 3) the input patch centroid's horizontal step into
-    each frame (0 at a clip's first frame) in that bone's frame (F_in⁻¹ Δ); heights_in (Fi, P)
-    the height of its lowest vertex above its clip's ground; samples (P, S) the vertex ids whose
-    lowest is the patch's lowest point (:func:`lowest_samples`; −1 padding); ground (Fi,) the ground of each frame's clip; influence
-    (P, B) α; own: per patch the bones that carry it and turn with it (:data:`CARRIES`; none where
-    another patch shares one); orientation_in (Fi, P, 3, 3) the
-    orientation the anchor bone should have to carry the patch as the input's (E R_in); solve (P, P) (ω αᵀ)⁺; decay y per frame; sigma (frames) of the root's smoothing;
-    up_axis."""
+    ``bones``); inverse_in (Fi, P, 3, 3) that bone's inverse input matrix; steps_in (Fi, P, 3) the
+    input patch centroid's horizontal step into each frame (0 at a clip's first frame) in that
+    bone's frame (F_in⁻¹ Δ); heights_in (Fi, P) the height of its lowest vertex above its clip's
+    ground; sample_rest (P, S, 3), sample_bones and sample_weights (P, S, K) the rest positions and
+    skin of the vertices that find each patch's lowest point (:func:`lowest_samples`; padding:
+    weight 0); ground (Fi,) the ground of each frame's clip; influence (P, B) α; own: per patch the
+    bones that carry it and turn with it (:data:`CARRIES`; none where another patch shares one);
+    orientation_in (Fi, P, 3, 3) the orientation the anchor bone should have to carry the patch as
+    the input's (E R_in); solve (P, P) (ω αᵀ)⁺; decay y per frame; sigma (frames) of the root's
+    smoothing and of a seam's turn; max_turn (radians); up_axis."""
 
     planted: np.ndarray
     owner: np.ndarray
@@ -104,7 +107,6 @@ class PlantRig:
     inverse_in: np.ndarray
     steps_in: np.ndarray
     heights_in: np.ndarray
-    samples: np.ndarray
     sample_rest: np.ndarray
     sample_bones: np.ndarray
     sample_weights: np.ndarray
@@ -115,7 +117,6 @@ class PlantRig:
     solve: np.ndarray
     decay: float
     sigma: float
-    turn_sigma: float
     max_turn: float
     up_axis: int
 
@@ -212,6 +213,8 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     # that find the output's lowest point: a merge can tilt a foot further than its turn undoes
     heights = np.stack([examples[:, np.asarray(ids), up_axis].min(axis=1) for ids in patches], axis=1) - ground[:, None]
     samples = lowest_samples(rest, examples, patches, up_axis)
+    at = np.maximum(samples, 0)  # padding (−1) reads vertex 0 with weight 0
+    sample_weights = np.where(samples[..., None] >= 0, np.asarray(bone_weights, np.float64)[at], 0.0)
     anchor_in = R[:, bones[anchor]]  # (Fi, P, 3, 3)
     hops = bone_hops(bone_indices, bone_weights, B)
     influence = limb_influence(weight_terms, hops, reach)
@@ -219,12 +222,12 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     inverse_in = np.linalg.inv(anchor_in)
     return PlantRig(planted=np.asarray(planted, bool), owner=owner, bones=bones, rest_terms=rest_terms[:, bones],
                     weight_terms=weight_terms[:, bones], anchor_bone=anchor, inverse_in=inverse_in,
-                    steps_in=(inverse_in @ steps[..., None])[..., 0], heights_in=heights, samples=samples,
-                    sample_rest=rest[np.maximum(samples, 0)], sample_bones=np.asarray(bone_indices)[np.maximum(samples, 0)],
-                    sample_weights=np.where(samples[..., None] >= 0, np.asarray(bone_weights, np.float64)[np.maximum(samples, 0)], 0.0), ground=ground, influence=influence, own=own,
+                    steps_in=(inverse_in @ steps[..., None])[..., 0], heights_in=heights, sample_rest=rest[at],
+                    sample_bones=np.asarray(bone_indices)[at], sample_weights=sample_weights, ground=ground,
+                    influence=influence, own=own,
                     orientation_in=turns @ anchor_in, solve=_regularised_inverse(coupling),
                     decay=2.0 * np.log(2.0) / (half_life * fps), sigma=half_life * fps,
-                    turn_sigma=half_life * fps, max_turn=np.radians(max_turn), up_axis=int(up_axis))
+                    max_turn=np.radians(max_turn), up_axis=int(up_axis))
 
 
 def plant_feet(F, t, sources, rig):
@@ -250,7 +253,7 @@ def plant_feet(F, t, sources, rig):
                             c(rig.steps_in), c(rig.heights_in), c(rig.sample_rest), c(rig.sample_bones, np.int64),
                             c(rig.sample_weights), c(rig.ground), c(rig.orientation_in), own,
                             c(rig.influence), c(rig.solve), float(rig.decay), gaussian_weights(rig.sigma),
-                            gaussian_weights(rig.turn_sigma), float(rig.max_turn), int(rig.up_axis), states)
+                            float(rig.max_turn), int(rig.up_axis), states)
 
 
 #: Most vertices per patch that find its lowest point (:func:`lowest_samples`).
@@ -336,7 +339,7 @@ def mark_contact_jumps(components, contacts, bone_indices, bone_weights, clips=N
     frames = contacts.planted.shape[0]
     clips = clips or Clips.single(frames)
     dense = dense_weights(bone_indices, bone_weights, int(np.max(bone_indices)) + 1)
-    patches = [contacts.vertices[contacts.offsets[p]:contacts.offsets[p + 1]] for p in range(contacts.count)]
+    patches = patch_vertices(contacts)
     owner = patch_owners(patches, dense, [c.bones for c in components])
     report = []
     for k, component in enumerate(components):

@@ -199,12 +199,11 @@ def _lowest(F, t, a, sample_rest, sample_bones, sample_weights, up, out):
 @numba.njit(cache=True, nogil=True)
 def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_terms, anchor_slot, inverse_in,
                      steps_in, heights_in, sample_rest, sample_bones, sample_weights, ground, orientation_in, own,
-                     influence, solve, decay, root_kernel,
-                     turn_kernel, max_turn, up, states):
+                     influence, solve, decay, kernel, max_turn, up, states):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
-    :class:`.planting.PlantRig` tables (own (P, K) padded with −1); root_kernel and turn_kernel
-    the Gaussian weights of the root's smoothing and of a seam's turn; states (A, P, M) written."""
+    :class:`.planting.PlantRig` tables (own (P, K) padded with −1); kernel the Gaussian weights of
+    the root's smoothing and of a seam's turn; states (A, P, M) written."""
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
     state = np.zeros((P, M), dtype=np.bool_)
@@ -261,7 +260,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
                 for d in range(3):
                     held[m, d] = held[m - 1, d] + (turn[m, d] - turn[m - 1, d] if seam else 0.0)
             for d in range(3):
-                spread = _smooth(held[:, d], turn_kernel, True)
+                spread = _smooth(held[:, d], kernel, True)
                 for m in range(M):
                     turn[m, d] += spread[m] - held[m, d]
             for m in range(M):
@@ -306,7 +305,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
         for d in range(3):
             if d == up:
                 continue
-            smooth = _smooth(push[:, d], root_kernel, False)
+            smooth = _smooth(push[:, d], kernel, False)
             total = 0.0
             for m in range(M):
                 push[m, d] = smooth[m]
@@ -319,8 +318,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
                 if state[p, m]:
                     weight[m] += 1.0
                     level[m] += heights_in[src[a, p, m], p] + ground[ground_src[a, m]] - low[p, m]
-        level = _smooth(level, root_kernel, False)
-        weight = _smooth(weight, root_kernel, False)
+        level = _smooth(level, kernel, False)
+        weight = _smooth(weight, kernel, False)
         for m in range(M):
             root[m, up] = level[m] / max(weight[m], 1.0)
         # 3. each limb: the residual slide summed over its plant, the residual height; blended

@@ -28,6 +28,7 @@ import numpy as np
 from .assembly import assemble, cut_bones, merge_order
 from .collisions import build_obstacles, colliding, vertex_subset
 from .contact import keep_contact, lowest_range, support
+from .contact_patches import patch_vertices
 from .planting import plant_feet, plant_rig
 from .deformation_gradients import gradient_operator
 from ..errors import OptionError
@@ -151,7 +152,7 @@ def keep_input_plants(request, skin, contacts, components):
     from ..clips import Clips
 
     clips = request.clips or Clips.single(skin.rotations.shape[0])
-    patches = [contacts.vertices[contacts.offsets[p]:contacts.offsets[p + 1]] for p in range(contacts.count)]
+    patches = patch_vertices(contacts)
     bones = [c.bones for c in components]
     from .planting import warm_up
 

@@ -189,7 +189,7 @@ def _turn_feet(F, t, src, state, centre, rig):
     seam = stepping & (src != _shifted(src, 1, -1) + 1)
     jumps = np.where(seam[..., None], turn - _shifted_frames(turn, 1), 0.0)
     held = np.cumsum(jumps, axis=2)
-    turn += gaussian_filter1d(held, rig.turn_sigma, axis=2, mode="nearest") - held
+    turn += gaussian_filter1d(held, rig.sigma, axis=2, mode="nearest") - held
     slot_of = {int(b): k for k, b in enumerate(rig.bones)}
     for k, p in enumerate(turning):  # few patches: each turns its own bones about its centroid
         rotation = rotation_exp(turn[:, k])  # (A, M, 3, 3)
