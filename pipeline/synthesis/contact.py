@@ -149,11 +149,13 @@ def support(rest, bone_indices, bone_weights, rotations, translations, up_axis=1
                    lo=low - slack * height, hi=high + slack * height, height=height, up_axis=int(up_axis))
 
 
-def support_lowest(F, t, found, block_bytes=1 << 26):
+def support_lowest(F, t, found, block_bytes=1 << 22):
     """Lowest height of the support vertices per frame: F (A, M, B, 3, 3), t (A, M, B, 3) -> (A, M)
     float64 (blocks of animations, one float32 matrix product each: a batch of 250 animations ×
     600 frames is 150,000 × 4b by 4b × S, b the bones that move the supports; float32 halves its
-    time against float64, and its 1e-7 relative error is far inside the band's slack)."""
+    time against float64, and its 1e-7 relative error is far inside the band's slack). Blocks of
+    4 MB of heights, not more: the product's output then stays in the cache for the minimum (the
+    samba's 250-animation batch: 0.08 s, against 0.19 s in one 64 MB block; the same numbers)."""
     A, M = F.shape[:2]
     out = np.empty((A, M))
     operator = found.operator.astype(np.float32)
@@ -168,6 +170,12 @@ def support_lowest(F, t, found, block_bytes=1 << 26):
     return out
 
 
+def raised_cosine(radius):
+    """The raised-cosine kernel (2·radius + 1,), normalised, that :func:`_raise` smooths with."""
+    kernel = 1.0 - np.cos(2.0 * np.pi * (np.arange(2 * radius + 1) + 1.0) / (2 * radius + 2))
+    return kernel / kernel.sum()
+
+
 def _raise(need, radius):
     """Smooth s ≥ need (A, M) ≥ 0, zero farther than 2·radius from any need: dilated over
     ±radius, then averaged with a raised-cosine kernel of the same support."""
@@ -175,8 +183,7 @@ def _raise(need, radius):
 
     if radius == 0:
         return need
-    kernel = 1.0 - np.cos(2.0 * np.pi * (np.arange(2 * radius + 1) + 1.0) / (2 * radius + 2))
-    kernel /= kernel.sum()
+    kernel = raised_cosine(radius)
     return convolve1d(maximum_filter1d(need, 2 * radius + 1, axis=1, mode="nearest"), kernel, axis=1, mode="nearest")
 
 

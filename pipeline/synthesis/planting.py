@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contact import dense_weights
+from .contact import dense_weights, raised_cosine
 from .contact_patches import patch_vertices
 
 #: Half-life (seconds) of the blend in and out of a limb correction, and the σ of the root's smoothing.
@@ -119,6 +119,12 @@ class PlantRig:
     sigma: float
     max_turn: float
     up_axis: int
+
+    @property
+    def lift_radius(self):
+        """Frames (⌈σ⌉, at least 1) over which a swinging patch's lift (the floor: module notes)
+        is dilated and smoothed, and tapered off at the plants."""
+        return max(1, int(np.ceil(self.sigma)))
 
     def concerning(self, component, bones):
         """The planted states (Fi, p) of the patches a component (its index, its bones) moves:
@@ -249,11 +255,43 @@ def plant_feet(F, t, sources, rig):
         return np.ascontiguousarray(array, dtype=dtype)
 
     return plant_animations(F, t, src, c(sources[0], np.int64), c(rig.planted, np.bool_), c(rig.bones, np.int64),
-                            c(rig.rest_terms), c(rig.weight_terms), c(rig.anchor_bone, np.int64), c(rig.inverse_in),
-                            c(rig.steps_in), c(rig.heights_in), c(rig.sample_rest), c(rig.sample_bones, np.int64),
-                            c(rig.sample_weights), c(rig.ground), c(rig.orientation_in), own,
-                            c(rig.influence), c(rig.solve), float(rig.decay), gaussian_weights(rig.sigma),
+                            centre_operator(rig.rest_terms, rig.weight_terms), lowest_operator(rig),
+                            c((rig.sample_weights.sum(axis=2) > 0.0).sum(axis=1), np.int64),
+                            c(rig.anchor_bone, np.int64), c(rig.inverse_in), c(rig.steps_in), c(rig.heights_in),
+                            c(rig.ground), c(rig.orientation_in), own, c(rig.influence), c(rig.solve),
+                            float(rig.decay), gaussian_weights(rig.sigma), raised_cosine(rig.lift_radius),
                             float(rig.max_turn), int(rig.up_axis), states)
+
+
+def centre_operator(rest_terms, weight_terms):
+    """Q (12b, 3P): the patches' centroids are [F (9b), t (3b)] Q for the bones' entries in a row
+    (each F_b row-major, then each t_b): centroid_p = Σ_b F_b ā_pb + ω_pb t_b, one matrix product
+    for every frame at once. rest_terms ā (P, b, 3), weight_terms ω (P, b)."""
+    P, b = weight_terms.shape
+    Q = np.zeros((b, 3, 3, P, 3))  # F_b[i, j] → centroid_p[i] with ā_pbj
+    for i in range(3):
+        Q[:, i, :, :, i] = np.transpose(rest_terms, (1, 2, 0))
+    T = np.zeros((b, 3, P, 3))  # t_b[i] → centroid_p[i] with ω_pb
+    for i in range(3):
+        T[:, i, :, i] = weight_terms.T
+    return np.concatenate([Q.reshape(9 * b, 3 * P), T.reshape(3 * b, 3 * P)])
+
+
+def lowest_operator(rig):
+    """Q (12b, P·S): the heights of the patches' sample vertices (linear blend skinning, along up)
+    are [F (9b), t (3b)] Q (:func:`centre_operator`'s layout; patch p's in columns p·S to p·S + S,
+    the padding's 0)."""
+    P, S, K = rig.sample_bones.shape
+    b = rig.bones.size
+    slot = np.zeros(int(max(rig.bones.max(), rig.sample_bones.max())) + 1, np.int64)
+    slot[rig.bones] = np.arange(b)
+    Q = np.zeros((12 * b, P * S))
+    column = np.broadcast_to(np.arange(P * S).reshape(P, S, 1), (P, S, K))
+    slots = slot[rig.sample_bones]
+    for j in range(3):  # F_b[up, j] x_j, weighted
+        np.add.at(Q, (9 * slots + 3 * rig.up_axis + j, column), rig.sample_weights * rig.sample_rest[:, :, None, j])
+    np.add.at(Q, (9 * b + 3 * slots + rig.up_axis, column), rig.sample_weights)  # t_b[up], weighted
+    return Q
 
 
 #: Most vertices per patch that find its lowest point (:func:`lowest_samples`).

@@ -41,6 +41,42 @@ def _smooth(values, kernel, nearest):
 
 
 @numba.njit(cache=True, nogil=True)
+def _dilate(values, radius):
+    """values (M,) → the largest within ±radius frames of each (the ends repeated)."""
+    M = values.shape[0]
+    out = np.empty(M)
+    for m in range(M):
+        largest = values[m]
+        for i in range(max(0, m - radius), min(M, m + radius + 1)):
+            largest = max(largest, values[i])
+        out[m] = largest
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _taper(state, radius, out):
+    """out (M,): 0 at the planted frames of state (M,) bool, rising as a smoothstep to 1 at
+    ``radius`` frames from the nearest (1 everywhere without one)."""
+    M = state.shape[0]
+    distance = np.full(M, M + radius + 1.0)
+    last = -1
+    for m in range(M):
+        if state[m]:
+            last = m
+        if last >= 0:
+            distance[m] = m - last
+    last = -1
+    for m in range(M - 1, -1, -1):
+        if state[m]:
+            last = m
+        if last >= 0:
+            distance[m] = min(distance[m], last - m)
+    for m in range(M):
+        x = min(distance[m], float(radius)) / radius
+        out[m] = x * x * (3.0 - 2.0 * x)
+
+
+@numba.njit(cache=True, nogil=True)
 def _spring(x0, step, k, decay, growth):
     """x(0) = x0, x(1) − x(0) = step, then (x0 + c k) e^(−y k) (:func:`.planting._blend_edges`)."""
     c = (x0 + step) * growth - x0
@@ -156,54 +192,57 @@ def _heading(m, up, out):
 
 
 @numba.njit(cache=True, nogil=True)
-def _centres(F, t, a, bones, rest_terms, weight_terms, out):
-    """The patches' centroids out (P, M, 3) of animation a: Σ_b F_b ā_pb + ω_pb t_b."""
-    P = rest_terms.shape[0]
+def _bone_rows(F, t, a, bones, rows):
+    """rows (M, 12b) of animation a: per frame the bones' F (row-major, bone after bone), then their
+    t, in float64 (:func:`.planting.centre_operator`'s layout)."""
     M = F.shape[1]
-    for p in range(P):
-        for m in range(M):
+    nb = bones.shape[0]
+    for m in range(M):
+        for k in range(nb):
+            b = bones[k]
             for i in range(3):
-                total = 0.0
-                for k in range(bones.shape[0]):
-                    b = bones[k]
-                    w = weight_terms[p, k]
-                    if w == 0.0:
-                        continue
-                    total += (F[a, m, b, i, 0] * rest_terms[p, k, 0] + F[a, m, b, i, 1] * rest_terms[p, k, 1]
-                              + F[a, m, b, i, 2] * rest_terms[p, k, 2] + w * t[a, m, b, i])
-                out[p, m, i] = total
+                for j in range(3):
+                    rows[m, 9 * k + 3 * i + j] = F[a, m, b, i, j]
+                rows[m, 9 * nb + 3 * k + i] = t[a, m, b, i]
 
 
 @numba.njit(cache=True, nogil=True)
-def _lowest(F, t, a, sample_rest, sample_bones, sample_weights, up, out):
-    """The patches' lowest points out (P, M) of animation a: the lowest of their sample vertices (LBS)."""
-    P, S, K = sample_bones.shape
-    M = F.shape[1]
+def _centres(rows, centre_operator, out):
+    """The patches' centroids out (P, M, 3) from the bones' rows (M, 12b): one product."""
+    product = np.dot(rows, centre_operator)  # (M, 3P)
+    for p in range(out.shape[0]):
+        for m in range(out.shape[1]):
+            for i in range(3):
+                out[p, m, i] = product[m, 3 * p + i]
+
+
+@numba.njit(cache=True, nogil=True)
+def _lowest(rows, lowest_operator, samples, out):
+    """The patches' lowest points out (P, M): the lowest of each patch's sample vertices (LBS: one
+    product of the bones' rows (M, 12b) by the samples' heights (12b, P·S); patch p's first
+    samples[p] columns of its S)."""
+    heights = np.dot(rows, lowest_operator)
+    P, M = out.shape
+    S = lowest_operator.shape[1] // P
     for p in range(P):
         for m in range(M):
             lowest = np.inf
-            for s in range(S):
-                height = 0.0
-                for k in range(K):
-                    w = sample_weights[p, s, k]
-                    if w == 0.0:
-                        continue
-                    b = sample_bones[p, s, k]
-                    height += w * (F[a, m, b, up, 0] * sample_rest[p, s, 0] + F[a, m, b, up, 1] * sample_rest[p, s, 1]
-                                   + F[a, m, b, up, 2] * sample_rest[p, s, 2] + t[a, m, b, up])
-                if height < lowest and sample_weights[p, s].sum() > 0.0:
-                    lowest = height
+            for s in range(samples[p]):
+                lowest = min(lowest, heights[m, p * S + s])
             out[p, m] = lowest
 
 
 @numba.njit(cache=True, nogil=True)
-def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_terms, anchor_slot, inverse_in,
-                     steps_in, heights_in, sample_rest, sample_bones, sample_weights, ground, orientation_in, own,
-                     influence, solve, decay, kernel, max_turn, up, states):
+def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, lowest_operator, samples, anchor_slot,
+                     inverse_in, steps_in, heights_in, ground, orientation_in, own,
+                     influence, solve, decay, kernel, lift_kernel, max_turn, up, states):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
-    :class:`.planting.PlantRig` tables (own (P, K) padded with −1); kernel the Gaussian weights of
-    the root's smoothing and of a seam's turn; states (A, P, M) written."""
+    :class:`.planting.PlantRig` tables (own (P, K) padded with −1), the operators of the patches'
+    centroids and of their sample vertices' heights (:func:`.planting.centre_operator`,
+    :func:`.planting.lowest_operator`; samples (P,) each patch's count); kernel the Gaussian weights of
+    the root's smoothing and of a seam's turn; lift_kernel the raised cosine (2r + 1,) of a
+    swinging patch's lift (r its dilation); states (A, P, M) written."""
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
     state = np.zeros((P, M), dtype=np.bool_)
@@ -211,6 +250,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
     low = np.zeros((P, M))
     turn = np.zeros((M, 3))
     correction = np.zeros((P, M, 3))
+    rows = np.zeros((M, centre_operator.shape[0]))
     now = np.empty((3, 3))
     mapped = np.empty((3, 3))
     head = np.empty((3, 3))
@@ -231,7 +271,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
         for p in range(P):
             if own[p, 0] < 0:
                 continue
-            _centres(F, t, a, bones, rest_terms, weight_terms, centre)  # as the turns before left them
+            _bone_rows(F, t, a, bones, rows)  # as the turns before left them
+            _centres(rows, centre_operator, centre)
             anchor = bones[anchor_slot[p]]
             for m in range(M):
                 turn[m, 0] = 0.0
@@ -281,8 +322,9 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
                         for j in range(3):
                             F[a, m, b, i, j] = product[i, j]
         # 2. the centroids and lowest points after the turn; the input's steps, carried; the slide
-        _centres(F, t, a, bones, rest_terms, weight_terms, centre)
-        _lowest(F, t, a, sample_rest, sample_bones, sample_weights, up, low)
+        _bone_rows(F, t, a, bones, rows)
+        _centres(rows, centre_operator, centre)
+        _lowest(rows, lowest_operator, samples, low)
         slide = np.zeros((P, M, 3))  # each step's horizontal slide beyond the input's own, inside a plant
         push = np.zeros((M, 3))
         for m in range(1, M):
@@ -341,6 +383,26 @@ def plant_animations(F, t, src, ground_src, planted, bones, rest_terms, weight_t
                 target = heights_in[src[a, p, m], p] + ground[ground_src[a, m]]
                 correction[p, m, up] = target - low[p, m] - root[m, up]
             blend_edges_row(correction[p], state[p], decay)
+        # 3b. the floor: a swinging patch no lower than the input's at its source frame, lifted
+        # smoothly (dilated, raised-cosine), the lift tapered to 0 at the plants
+        radius = lift_kernel.shape[0] // 2
+        need = np.zeros(M)
+        taper = np.zeros(M)
+        for p in range(P):
+            below = False
+            for m in range(M):
+                need[m] = 0.0
+                if state[p, m]:
+                    continue
+                want = heights_in[src[a, p, m], p] + ground[ground_src[a, m]]
+                need[m] = max(0.0, want - (low[p, m] + root[m, up] + correction[p, m, up]))
+                below = below or need[m] > 0.0
+            if not below:
+                continue
+            lift = _smooth(_dilate(need, radius), lift_kernel, True)
+            _taper(state[p], radius, taper)
+            for m in range(M):
+                correction[p, m, up] += lift[m] * taper[m]
         # 4. the bones: the root moves all, each limb's share solved so every centroid lands
         shifts = np.empty((P, 3))
         for m in range(M):

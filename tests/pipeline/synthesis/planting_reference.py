@@ -5,6 +5,9 @@ rounding (tests/pipeline/synthesis/test_planting.py)."""
 
 import numpy as np
 
+from skinsynth.pipeline.synthesis.contact import _raise
+from skinsynth.pipeline.synthesis.planting import centre_operator
+
 
 def plant_feet_reference(F, t, sources, rig, block=16):
     """:func:`skinsynth.pipeline.synthesis.planting.plant_feet` in numpy: F, t in place; returns
@@ -51,7 +54,8 @@ def _plant_block(F, t, sources, rig):
     root = np.cumsum(push, axis=1)
     # vertical: the planted patches' mean height error, a normalised smoothing (0 far from plants)
     target = rig.heights_in[src, patches] + rig.ground[sources[0]][:, None, :]
-    error = np.where(state, target - _lowest(F, t, rig), 0.0)
+    lowest = _lowest(F, t, rig)
+    error = np.where(state, target - lowest, 0.0)
     weight = gaussian_filter1d(state.sum(axis=1).astype(np.float64), rig.sigma, axis=1, mode="constant")
     level = gaussian_filter1d(error.sum(axis=1), rig.sigma, axis=1, mode="constant")
     root[..., up] = level / np.maximum(weight, 1.0)
@@ -65,6 +69,12 @@ def _plant_block(F, t, sources, rig):
     correction = np.where(state[..., None], summed - np.take_along_axis(summed, since[..., None], axis=2), 0.0)
     correction[..., up] = np.where(state, error - root[:, None, :, up], 0.0)
     _blend_edges(correction, state, stepping, first, last, rig.decay)
+    # the floor: a swinging patch no lower than the input's at its source frame, lifted smoothly and
+    # tapered off at the plants
+    need = np.where(state, 0.0, np.maximum(0.0, target - (lowest + root[:, None, :, up] + correction[..., up])))
+    radius = rig.lift_radius
+    lift = _raise(need.reshape(A * P, M), radius).reshape(A, P, M)
+    correction[..., up] += np.where(need.any(axis=2, keepdims=True), lift * _taper(state, radius), 0.0)
     # bone shifts: every patch's centroid moves by its correction (ω αᵀ g = e), the root moves all
     shifts = np.tensordot(rig.solve, correction, axes=([1], [1]))  # (P, A, M, 3)
     moved = np.flatnonzero(rig.influence.any(axis=0))
@@ -75,6 +85,18 @@ def _plant_block(F, t, sources, rig):
     for k, b in enumerate(moved):
         t[:, :, b] += bones[:, :, k].astype(t.dtype)
     return state
+
+
+def _taper(state, radius):
+    """(A, P, M): 0 at the planted frames, a smoothstep to 1 at ``radius`` frames from the nearest
+    (1 where a patch has none)."""
+    M = state.shape[-1]
+    frames = np.arange(M)
+    before = np.maximum.accumulate(np.where(state, frames, -(M + radius + 1)), axis=-1)
+    after = np.flip(np.minimum.accumulate(np.flip(np.where(state, frames, 2 * M + radius + 1), axis=-1), axis=-1),
+                    axis=-1)
+    x = np.minimum(np.minimum(frames - before, after - frames), radius) / radius
+    return x * x * (3.0 - 2.0 * x)
 
 
 def _blend_edges(correction, state, stepping, first, last, decay):
@@ -124,20 +146,6 @@ def _shifted_frames(x, by):
     else:
         out[:, :, :by], out[:, :, by:] = x[:, :, -by:], x[:, :, -1:]
     return out
-
-
-def centre_operator(rest_terms, weight_terms):
-    """Q (12b, 3P): the patches' centroids are [F (9b), t (3b)] Q for the bones' entries in a row
-    (each F_b row-major, then each t_b): centroid_p = Σ_b F_b ā_pb + ω_pb t_b, one matrix product
-    for every frame at once. rest_terms ā (P, b, 3), weight_terms ω (P, b)."""
-    P, b = weight_terms.shape
-    Q = np.zeros((b, 3, 3, P, 3))  # F_b[i, j] → centroid_p[i] with ā_pbj
-    for i in range(3):
-        Q[:, i, :, :, i] = np.transpose(rest_terms, (1, 2, 0))
-    T = np.zeros((b, 3, P, 3))  # t_b[i] → centroid_p[i] with ω_pb
-    for i in range(3):
-        T[:, i, :, i] = weight_terms.T
-    return np.concatenate([Q.reshape(9 * b, 3 * P), T.reshape(3 * b, 3 * P)])
 
 
 def _centres(F, t, rig):

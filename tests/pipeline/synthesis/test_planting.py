@@ -508,3 +508,29 @@ def test_compiled_blend_matches_the_numpy_reference():
     expected = values[None, None].copy()
     _blend_edges(expected, *_edge_masks(state), 0.4)
     np.testing.assert_allclose(blend_edges_row(values.copy(), state, 0.4), expected[0, 0], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("single", [False, True], ids=["components", "single-component"])
+def test_swinging_patches_no_lower_than_the_input(walker_graph, single):
+    """The floor: at every frame a patch swings (away from its plants by the taper's radius), its
+    lowest point is no lower than the input patch's lowest at the source frame; the merged
+    walker's uncorrected feet do sink below it (so the check can fail)."""
+    w = walker_graph
+    r, rig = _synthesize(w, single, 7, plants=False, count=4, frames=400)
+    F, t = r.F.copy(), r.t.copy()
+    states = plant_feet(F, t, r.sources, rig)
+    radius = rig.lift_radius
+    worst_before, worst_after = 0.0, 0.0
+    for a in range(F.shape[0]):
+        before, after = _patch_lowest(w, r.F[a], r.t[a]), _patch_lowest(w, F[a], t[a])
+        for p in range(rig.owner.size):
+            src = r.sources[rig.owner[p], a]
+            want = rig.heights_in[src, p] + rig.ground[0]
+            planted = np.flatnonzero(states[a, p])
+            far = np.ones(F.shape[1], bool) if not planted.size else \
+                np.abs(np.arange(F.shape[1])[:, None] - planted[None]).min(axis=1) >= radius
+            worst_before = max(worst_before, float((want - before[:, p])[far].max()))
+            worst_after = max(worst_after, float((want - after[:, p])[far].max()))
+    assert worst_after <= 1e-4 * w.H  # measured 3e-6 H with components
+    if not single:
+        assert worst_before >= 1e-2 * w.H  # measured 10 % of the height
