@@ -156,7 +156,7 @@ def assemble(components, parts, bones, rng, tries=32, dtype=np.float32, contacts
         passing = difference < threshold
         first = np.argmax(passing, axis=1)
         if contacts is not None and contacts[1][c].shape[1]:
-            first = np.argmax(np.where(passing, _agreement(contacts, c, anchor, candidates), -1.0), axis=1)
+            first = np.argmax(np.where(passing, _agreement(contacts, c, anchor, candidates), -1), axis=1)
         closest = np.argmin(difference, axis=1)
         found = passing.any(axis=1)
         pick = candidates[np.arange(count), np.where(found, first, closest)]
@@ -167,10 +167,20 @@ def assemble(components, parts, bones, rng, tries=32, dtype=np.float32, contacts
 
 
 def _agreement(contacts, c, anchor, candidates):
-    """(N, tries): the share of frames and patches of component c where candidate walk
-    ``candidates[a, k]`` has c's patches in the contact state the anchor's walk a has them in."""
+    """(N, tries) int: at how many frames and patches of component c candidate walk
+    ``candidates[a, k]`` has c's patches in the contact state the anchor's walk a has them in.
+    Each frame's states are one small integer (a bit per patch), so a candidate costs a gather, an
+    exclusive or and a table of bit counts per frame, not a comparison per patch."""
     sources, owned = contacts
-    states = owned[c]
-    theirs = states[sources[anchor]]  # (N, M, p)
-    return np.stack([(states[sources[c][candidates[:, k]]] == theirs).mean(axis=(1, 2))
-                     for k in range(candidates.shape[1])], axis=1)
+    states = np.asarray(owned[c], bool)
+    patches = states.shape[1]
+    frames = sources.shape[2]
+    if patches > 16:  # more patches than a 16-bit code: compared one by one
+        theirs = states[sources[anchor]]  # (N, M, p)
+        return np.stack([(states[sources[c][candidates[:, k]]] == theirs).sum(axis=(1, 2))
+                         for k in range(candidates.shape[1])], axis=1)
+    code = (states.astype(np.uint16) << np.arange(patches, dtype=np.uint16)).sum(axis=1, dtype=np.uint16)
+    differing = np.array([bin(x).count("1") for x in range(1 << patches)], dtype=np.uint8)
+    theirs, mine = code[sources[anchor]], code[sources[c]]  # (N, M)
+    return frames * patches - np.stack([differing[mine[candidates[:, k]] ^ theirs].sum(axis=1, dtype=np.int64)
+                                        for k in range(candidates.shape[1])], axis=1)

@@ -78,3 +78,24 @@ def test_merge_order_starts_each_piece_at_its_most_central_component():
     # Ties in centrality go to the component with more bones, then the lower index.
     assert merge_order([[0, 1], [1, 2, 3]])[0] == (1, None)
     assert merge_order([[0, 1], [1, 2]])[0] == (0, None)
+
+
+@pytest.mark.parametrize("patches", [1, 3, 20])
+def test_contact_agreement_counts_by_brute_force(patches):
+    """The merge's contact agreement (frames × patches where a candidate's states equal the
+    anchor walk's), whether the states are packed into a code per frame (≤ 16 patches) or not,
+    against counting every comparison in Python."""
+    from skinsynth.pipeline.synthesis.assembly import _agreement
+
+    rng = np.random.default_rng(patches)
+    frames_in, walks, frames = 30, 7, 13
+    sources = rng.integers(0, frames_in, size=(2, walks, frames))
+    owned = [rng.random((frames_in, 2)) < 0.5, rng.random((frames_in, patches)) < 0.5]
+    candidates = np.stack([rng.permutation(walks)[:4] for _ in range(walks)])
+    found = _agreement((sources, owned), 1, 0, candidates)
+    states = owned[1]
+    for a in range(walks):
+        for k in range(4):
+            count = sum(int(states[sources[1, candidates[a, k], m], q] == states[sources[0, a, m], q])
+                        for m in range(frames) for q in range(patches))
+            assert found[a, k] == count
