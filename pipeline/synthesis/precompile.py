@@ -8,10 +8,10 @@ import numpy as np
 from .. import compiled
 
 
-def compile_loops():
-    """Compile (or load from numba's cache) synthesize's numba loops; returns
-    :func:`skinsynth.pipeline.compiled.compile_run`'s report."""
-    from . import planting, planting_loops
+def tiny_rig():
+    """The :class:`.planting.PlantRig` of a two-bone bar with one patch planted in all six frames:
+    what loading (or compiling) the loops runs them on."""
+    from . import planting
 
     rest = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
     indices = np.array([[0, 1], [0, 1], [0, 1], [1, 0]])
@@ -21,10 +21,43 @@ def compile_loops():
     translations = np.zeros((frames, 2, 3))
     examples = np.broadcast_to(rest, (frames, 4, 3)).copy()
     planted = np.ones((frames, 1), bool)
+    return planting.plant_rig(rest, indices, weights, rotations, translations, examples, [np.array([0, 1, 2])],
+                              planted, np.zeros(1), np.array([0, frames]), 24.0, [[0, 1]])
 
-    def exercise():
-        rig = planting.plant_rig(rest, indices, weights, rotations, translations, examples, [np.array([0, 1, 2])],
-                                 planted, np.zeros(1), np.array([0, frames]), 24.0, [[0, 1]])
-        planting.warm_up(rig)
 
-    return compiled.compile_run("synthesis", [planting_loops], exercise)
+def compile_loops():
+    """Compile (or load from numba's cache) synthesize's numba loops; returns
+    :func:`skinsynth.pipeline.compiled.compile_run`'s report."""
+    from . import planting, planting_loops
+
+    return compiled.compile_run("synthesis", [planting_loops], lambda: planting.warm_up(tiny_rig()))
+
+
+_LOADING = []
+
+
+def load_in_background():
+    """Start loading the loops (:func:`compile_loops`' work) in a thread, while a command reads and
+    prepares its input: numba's import and its cache's load take 0.4 s, which a synthesis with
+    contacts would otherwise spend before its workers start, one core idle. :func:`wait_loaded`
+    joins it (before any fork: a process must not fork while the thread holds numba's locks)."""
+    import threading
+
+    from . import planting
+
+    def load():
+        try:
+            planting.warm_up(tiny_rig())
+        except Exception:  # noqa: BLE001 (the command's own warm_up meets it again, and reports it)
+            pass
+
+    if not _LOADING:
+        thread = threading.Thread(target=load, name="skinsynth-load-loops", daemon=True)
+        thread.start()
+        _LOADING.append(thread)
+
+
+def wait_loaded():
+    """Join the thread :func:`load_in_background` started (none started: nothing to do)."""
+    while _LOADING:
+        _LOADING.pop().join()
