@@ -184,11 +184,28 @@ def _near_log(m, out):
 
 @numba.njit(cache=True, nogil=True)
 def _heading(m, up, out):
-    """out = the turn about axis ``up`` within a 3×3 matrix (:func:`.planting._heading`)."""
+    """out = the turn about axis ``up`` within a 3×3 matrix (the reference's ``_heading``): its
+    cosine and sine are the normalised (m_ii + m_jj, m_ji − m_ij), no angle taken (the identity
+    for a matrix with no turn in it)."""
     i = (up + 1) % 3
     j = (up + 2) % 3
-    angle = np.arctan2(m[j, i] - m[i, j], m[i, i] + m[j, j])
-    _rotation_exp(angle if up == 0 else 0.0, angle if up == 1 else 0.0, angle if up == 2 else 0.0, out)
+    c = m[i, i] + m[j, j]
+    s = m[j, i] - m[i, j]
+    norm = np.sqrt(c * c + s * s)
+    if norm > 0.0:
+        c /= norm
+        s /= norm
+    else:
+        c = 1.0
+        s = 0.0
+    for k in range(3):
+        for l in range(3):
+            out[k, l] = 0.0
+    out[up, up] = 1.0
+    out[i, i] = c
+    out[j, j] = c
+    out[j, i] = s
+    out[i, j] = -s
 
 
 @numba.njit(cache=True, nogil=True)
