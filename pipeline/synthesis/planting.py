@@ -75,6 +75,12 @@ MAX_TURN = 20.0
 #: A bone carries a patch (and is turned with it) when its mean weight on the patch is at least this
 #: share of the patch's heaviest bone's (a foot bone, not the shin's few percent at the ankle).
 CARRIES = 0.25
+#: Longest gap (seconds) between two plants of a patch that the output treats as one plant: a foot
+#: lifted for a frame or two (the input's own flicker, or a seam between two plants) keeps its
+#: correction instead of ending one plant and starting the next from zero, which within two
+#: frames was the samba's largest acceleration (1.5× the input's); the patch follows the input's
+#: own steps and heights through the gap, as it would inside a plant.
+BRIDGE = 0.2
 #: Least share of a bone's largest coupling that makes two bones neighbours (Zheng's pruning rule, §4.1).
 COUPLING = 0.1
 
@@ -96,7 +102,8 @@ class PlantRig:
     bones that carry it and turn with it (:data:`CARRIES`; none where another patch shares one);
     orientation_in (Fi, P, 3, 3) the orientation the anchor bone should have to carry the patch as
     the input's (E R_in); solve (P, P) (ω αᵀ)⁺; decay y per frame; sigma (frames) of the root's
-    smoothing and of a seam's turn; max_turn (radians); up_axis."""
+    smoothing and of a seam's turn; bridge (frames) the longest gap between plants bridged
+    (:data:`BRIDGE`); max_turn (radians); up_axis."""
 
     planted: np.ndarray
     owner: np.ndarray
@@ -117,6 +124,7 @@ class PlantRig:
     solve: np.ndarray
     decay: float
     sigma: float
+    bridge: int
     max_turn: float
     up_axis: int
 
@@ -167,7 +175,8 @@ def limb_influence(weight_terms, hops, reach=REACH):
 
 
 def plant_rig(rest, bone_indices, bone_weights, rotations, translations, examples, patches, planted, grounds,
-              clip_starts, fps, components, up_axis=1, half_life=HALF_LIFE, reach=REACH, max_turn=MAX_TURN):
+              clip_starts, fps, components, up_axis=1, half_life=HALF_LIFE, reach=REACH, max_turn=MAX_TURN,
+              bridge=BRIDGE):
     """The :class:`PlantRig` of an input: rest (V, 3), weights (V, K), its fit rotations
     (Fi, B, 3, 3) and translations (Fi, B, 3), and the input frames themselves, examples
     (Fi, V, 3): the plants follow the input, not the fit's playback of it (a 20-bone fit of the
@@ -233,6 +242,7 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
                     influence=influence, own=own,
                     orientation_in=turns @ anchor_in, solve=_regularised_inverse(coupling),
                     decay=2.0 * np.log(2.0) / (half_life * fps), sigma=half_life * fps,
+                    bridge=int(round(bridge * fps)),
                     max_turn=np.radians(max_turn), up_axis=int(up_axis))
 
 
@@ -260,7 +270,7 @@ def plant_feet(F, t, sources, rig):
                             c(rig.anchor_bone, np.int64), c(rig.inverse_in), c(rig.steps_in), c(rig.heights_in),
                             c(rig.ground), c(rig.orientation_in), own, c(rig.influence), c(rig.solve),
                             float(rig.decay), gaussian_weights(rig.sigma), raised_cosine(rig.lift_radius),
-                            float(rig.max_turn), int(rig.up_axis), states)
+                            float(rig.max_turn), int(rig.up_axis), int(rig.bridge), states)
 
 
 def centre_operator(rest_terms, weight_terms):

@@ -77,6 +77,21 @@ def _taper(state, radius, out):
 
 
 @numba.njit(cache=True, nogil=True)
+def bridge_gaps(state, longest):
+    """state (M,) bool with every run of False of at most ``longest`` frames between two runs of
+    True set True, in place (:data:`.planting.BRIDGE`)."""
+    M = state.shape[0]
+    last = -1  # the latest planted frame
+    for m in range(M):
+        if state[m]:
+            if last >= 0 and 1 < m - last <= longest + 1:
+                for f in range(last + 1, m):
+                    state[f] = True
+            last = m
+    return state
+
+
+@numba.njit(cache=True, nogil=True)
 def _spring(x0, step, k, decay, growth):
     """x(0) = x0, x(1) − x(0) = step, then (x0 + c k) e^(−y k) (:func:`.planting._blend_edges`)."""
     c = (x0 + step) * growth - x0
@@ -252,14 +267,15 @@ def _lowest(rows, lowest_operator, samples, out):
 @numba.njit(cache=True, nogil=True)
 def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, lowest_operator, samples, anchor_slot,
                      inverse_in, steps_in, heights_in, ground, orientation_in, own,
-                     influence, solve, decay, kernel, lift_kernel, max_turn, up, states):
+                     influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, states):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
     :class:`.planting.PlantRig` tables (own (P, K) padded with −1), the operators of the patches'
     centroids and of their sample vertices' heights (:func:`.planting.centre_operator`,
     :func:`.planting.lowest_operator`; samples (P,) each patch's count); kernel the Gaussian weights of
     the root's smoothing and of a seam's turn; lift_kernel the raised cosine (2r + 1,) of a
-    swinging patch's lift (r its dilation); states (A, P, M) written."""
+    swinging patch's lift (r its dilation); bridge: the longest gap between two plants that is
+    bridged (:func:`bridge_gaps`); states (A, P, M) written."""
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
     state = np.zeros((P, M), dtype=np.bool_)
@@ -280,6 +296,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
         for p in range(P):
             for m in range(M):
                 state[p, m] = planted[src[a, p, m], p]
+            bridge_gaps(state[p], bridge)
+            for m in range(M):
                 states[a, p, m] = state[p, m]
                 anything = anything or state[p, m]
         if not anything:

@@ -34,7 +34,7 @@ def _plant_block(F, t, sources, rig):
     P, up = rig.owner.size, rig.up_axis
     patches = np.arange(P)[None, :, None]
     src = np.moveaxis(sources[rig.owner], 0, 1)  # (A, P, M)
-    state = rig.planted[src, patches]
+    state = _bridged(rig.planted[src, patches], rig.bridge)
     if not state.any():
         return state
     A, M = F.shape[:2]
@@ -85,6 +85,17 @@ def _plant_block(F, t, sources, rig):
     for k, b in enumerate(moved):
         t[:, :, b] += bones[:, :, k].astype(t.dtype)
     return state
+
+
+def _bridged(state, longest):
+    """state (A, P, M) with every gap of at most ``longest`` frames between two plants filled."""
+    state = state.copy()
+    M = state.shape[-1]
+    frames = np.arange(M)
+    before = np.maximum.accumulate(np.where(state, frames, -1), axis=-1)  # latest planted frame
+    after = np.flip(np.minimum.accumulate(np.flip(np.where(state, frames, M), axis=-1), axis=-1), axis=-1)
+    inside = (before >= 0) & (after < M) & (after - before - 1 <= longest)
+    return state | inside
 
 
 def _taper(state, radius):

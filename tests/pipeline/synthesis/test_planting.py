@@ -534,3 +534,21 @@ def test_swinging_patches_no_lower_than_the_input(walker_graph, single):
     assert worst_after <= 1e-4 * w.H  # measured 3e-6 H with components
     if not single:
         assert worst_before >= 1e-2 * w.H  # measured 10 % of the height
+
+
+def test_bridge_gaps_by_hand_and_against_the_reference():
+    """A gap of at most ``longest`` frames between two plants is filled; a longer one, and the
+    frames before the first plant or after the last, are not."""
+    from planting_reference import _bridged
+
+    from skinsynth.pipeline.synthesis.planting_loops import bridge_gaps
+
+    state = np.array([0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 0], bool)
+    expected = np.array([0, 1, 1, 1, 1, 1, 0, 0, 0, 1, 0], bool)
+    np.testing.assert_array_equal(bridge_gaps(state.copy(), 2), expected)
+    np.testing.assert_array_equal(bridge_gaps(state.copy(), 0), state)
+    rng = np.random.default_rng(4)
+    states = rng.random((3, 2, 50)) < 0.6
+    for longest in (0, 1, 3, 6):
+        bridged = np.stack([[bridge_gaps(row.copy(), longest) for row in patch] for patch in states])
+        np.testing.assert_array_equal(bridged, _bridged(states, longest))
