@@ -76,6 +76,13 @@ SLACK = 0.002
 SPREAD = 0
 
 
+#: With ground contacts (:mod:`.planting`), the band's lower end is raised to the clips' ground less
+#: this share of the height where the input's own lowest point dips further (a hoof through the
+#: floor at an impact: the horse's gallop 0.56 % of the height, two frames): the floor is then the
+#: ground found on the input, not its worst frame (:func:`ground_floored`).
+GROUND_TOLERANCE = 0.0025
+
+
 @dataclass
 class Support:
     """vertices (S,) ids; bones (b,) the bones that move them; operator (4b, S)
@@ -147,6 +154,15 @@ def support(rest, bone_indices, bone_weights, rotations, translations, up_axis=1
     bones = np.flatnonzero(dense[vertices].any(axis=0))  # the feet's bones: the product's other side
     return Support(vertices=vertices, bones=bones, operator=height_operator(rest[vertices], dense[vertices][:, bones]),
                    lo=low - slack * height, hi=high + slack * height, height=height, up_axis=int(up_axis))
+
+
+def ground_floored(found, grounds, tolerance=GROUND_TOLERANCE):
+    """``found`` (a :class:`Support`) with its band's lower end no lower than the lowest of the
+    clips' grounds (C,) less ``tolerance`` × its height (:data:`GROUND_TOLERANCE`)."""
+    import dataclasses
+
+    floor = float(np.min(grounds)) - tolerance * found.height
+    return dataclasses.replace(found, lo=max(found.lo, min(floor, found.hi)))
 
 
 def support_lowest(F, t, found, block_bytes=1 << 22):

@@ -27,7 +27,7 @@ import numpy as np
 
 from .assembly import assemble, cut_bones, merge_order
 from .collisions import build_obstacles, colliding, vertex_subset
-from .contact import keep_contact, lowest_range, support
+from .contact import ground_floored, keep_contact, lowest_range, support
 from .contact_patches import patch_vertices
 from .planting import plant_feet, plant_rig
 from .deformation_gradients import gradient_operator
@@ -148,7 +148,8 @@ def keep_input_plants(request, skin, contacts, components):
     record of it, with at least one patch), made once here, not in every batch: they replace the
     vertical shift of :func:`keep_input_support` (:mod:`.planting`). ``skin``: the fit (rest
     vertices, weights, rotations, translations, fps) and its input frames (examples); components:
-    the synthesis's."""
+    the synthesis's. The band :func:`keep_input_support` set, if it did, then keeps its floor at
+    the contacts' ground (:func:`.contact.ground_floored`)."""
     from ..clips import Clips
 
     clips = request.clips or Clips.single(skin.rotations.shape[0])
@@ -162,6 +163,8 @@ def keep_input_plants(request, skin, contacts, components):
                                skin.translations, skin.examples, patches, np.asarray(contacts.planted, bool), contacts.ground,
                                clips.starts, skin.fps, bones, request.up_axis)
     warm_up(request.plants)  # the compiled loops loaded here, once, not in every forked worker
+    if request.support is not None:  # the band's floor: the ground the contacts stand on (contact.GROUND_TOLERANCE)
+        request.support = ground_floored(request.support, contacts.ground)
 
 
 @dataclass

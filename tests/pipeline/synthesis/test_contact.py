@@ -126,3 +126,16 @@ def test_the_band_of_lowest_points_spans_every_clip():
     walk = body[None] + np.arange(12)[:, None, None] * np.array([0.02, 0.0, 0.01])
     both = np.concatenate([walk, walk[:8] + np.array([5.0, -0.7, -3.0])])  # a second take, 0.7 lower
     assert lowest_range(both) == pytest.approx((body[:, 1].min() - 0.7, body[:, 1].min()))
+
+
+def test_ground_floored_raises_only_the_lower_end():
+    """The band's floor with ground contacts: the lowest clip ground less the tolerance, never
+    lowered, never above the band's upper end."""
+    from skinsynth.pipeline.synthesis.contact import Support, ground_floored
+
+    found = Support(vertices=np.arange(3), bones=np.arange(2), operator=np.zeros((8, 3)), lo=-0.05, hi=0.1,
+                    height=2.0, up_axis=1)
+    assert ground_floored(found, [0.0, 0.02], tolerance=0.01).lo == pytest.approx(-0.02)
+    assert ground_floored(found, [-0.2], tolerance=0.01).lo == -0.05  # the input's own range already higher
+    assert ground_floored(found, [0.5], tolerance=0.01).lo == 0.1  # never above the upper end
+    assert ground_floored(found, [0.0], tolerance=0.01).hi == 0.1
