@@ -165,6 +165,20 @@ def ground_floored(found, grounds, tolerance=GROUND_TOLERANCE):
     return dataclasses.replace(found, lo=max(found.lo, min(floor, found.hi)))
 
 
+def support_without(found, vertices):
+    """``found`` (a :class:`Support`) less the given vertex ids (their columns and the bones only
+    they needed): the support the plants' own lowest points (their patches' sample vertices) do
+    not already cover (:func:`.synthesis.make_batch`); its band is ``found``'s."""
+    import dataclasses
+
+    keep = ~np.isin(found.vertices, vertices)
+    B, S = found.bones.size, int(keep.sum())
+    operator = found.operator[:, keep].reshape(B, 4, S)  # each bone's up row of F (3), then of t (1)
+    needed = np.abs(operator).sum(axis=(1, 2)) > 0.0
+    return dataclasses.replace(found, vertices=found.vertices[keep], bones=found.bones[needed],
+                               operator=operator[needed].reshape(4 * int(needed.sum()), S))
+
+
 def support_lowest(F, t, found, block_bytes=1 << 22):
     """Lowest height of the support vertices per frame: F (A, M, B, 3, 3), t (A, M, B, 3) -> (A, M)
     float64 (blocks of animations, one float32 matrix product each: a batch of 250 animations ×
@@ -218,11 +232,16 @@ def contact_offsets(lowest, lo, hi, radius=RADIUS, rounds=3):
     return np.clip(delta, lo - lowest, hi - lowest)
 
 
-def keep_contact(F, t, found, radius=RADIUS):
+def keep_contact(F, t, found, radius=RADIUS, lowest=None):
     """Move each frame of F (A, M, B, 3, 3), t (A, M, B, 3) vertically so that its support keeps
     the input's range (:func:`contact_offsets`); t is changed in place, and only at the frames
-    whose shift is not zero. Returns δ (A, M)."""
-    delta = contact_offsets(support_lowest(F, t, found), found.lo, found.hi, radius)
+    whose shift is not zero. lowest: None, or (A, M) the lowest points of vertices found already
+    (the plants' patches, :func:`.planting.plant_feet`), taken with ``found``'s. Returns δ (A, M)."""
+    if lowest is None:
+        lowest = support_lowest(F, t, found)
+    elif found.vertices.size:
+        lowest = np.minimum(lowest, support_lowest(F, t, found))
+    delta = contact_offsets(lowest, found.lo, found.hi, radius)
     rows, frames = np.nonzero(delta)
     if rows.size:
         t[rows, frames, :, found.up_axis] += delta[rows, frames, None].astype(t.dtype)

@@ -246,11 +246,13 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
                     max_turn=np.radians(max_turn), up_axis=int(up_axis))
 
 
-def plant_feet(F, t, sources, rig):
+def plant_feet(F, t, sources, rig, lowest=None):
     """Keep every plant of the animations F (A, M, B, 3, 3), t (A, M, B, 3) on its anchor (module
     notes), in place (:func:`.planting_loops.plant_animations`, compiled: the same steps, one
     animation at a time); sources (C, A, M) the input frame each component plays. Returns the
-    planted states (A, P, M) bool."""
+    planted states (A, P, M) bool (the gaps of at most :data:`BRIDGE` bridged). lowest: None, or
+    an (A, M) float64 array filled with the lowest of the patches' sample vertices once planted
+    (what the band after the plants keeps, :func:`.synthesis.make_batch`)."""
     from .planting_loops import plant_animations
 
     A, M = F.shape[:2]
@@ -270,7 +272,8 @@ def plant_feet(F, t, sources, rig):
                             c(rig.anchor_bone, np.int64), c(rig.inverse_in), c(rig.steps_in), c(rig.heights_in),
                             c(rig.ground), c(rig.orientation_in), own, c(rig.influence), c(rig.solve),
                             float(rig.decay), gaussian_weights(rig.sigma), raised_cosine(rig.lift_radius),
-                            float(rig.max_turn), int(rig.up_axis), int(rig.bridge), states)
+                            float(rig.max_turn), int(rig.up_axis), int(rig.bridge), states, lowest is not None,
+                            np.zeros((0, 0)) if lowest is None else lowest)
 
 
 def centre_operator(rest_terms, weight_terms):

@@ -267,7 +267,7 @@ def _lowest(rows, lowest_operator, samples, out):
 @numba.njit(cache=True, nogil=True)
 def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, lowest_operator, samples, anchor_slot,
                      inverse_in, steps_in, heights_in, ground, orientation_in, own,
-                     influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, states):
+                     influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, states, want_lowest, lowest):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
     :class:`.planting.PlantRig` tables (own (P, K) padded with −1), the operators of the patches'
@@ -275,7 +275,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     :func:`.planting.lowest_operator`; samples (P,) each patch's count); kernel the Gaussian weights of
     the root's smoothing and of a seam's turn; lift_kernel the raised cosine (2r + 1,) of a
     swinging patch's lift (r its dilation); bridge: the longest gap between two plants that is
-    bridged (:func:`bridge_gaps`); states (A, P, M) written."""
+    bridged (:func:`bridge_gaps`); states (A, P, M) written; with want_lowest, lowest (A, M) too:
+    the lowest of the patches' sample vertices once planted (the band's, :mod:`.contact`)."""
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
     state = np.zeros((P, M), dtype=np.bool_)
@@ -301,6 +302,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                 states[a, p, m] = state[p, m]
                 anything = anything or state[p, m]
         if not anything:
+            if want_lowest:
+                _lowest_after(F, t, a, bones, rows, lowest_operator, samples, low, lowest)
             continue
         # 1. the feet's turn: the input's orientation under the output's heading, about each centroid
         for p in range(P):
@@ -453,4 +456,18 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                     for q in range(P):
                         delta += influence[q, b] * shifts[q, i]
                     t[a, m, b, i] += delta
+        if want_lowest:
+            _lowest_after(F, t, a, bones, rows, lowest_operator, samples, low, lowest)
     return states
+
+
+@numba.njit(cache=True, nogil=True)
+def _lowest_after(F, t, a, bones, rows, lowest_operator, samples, low, lowest):
+    """lowest[a] (M,): the lowest of every patch's sample vertices at each frame of animation a, as
+    its bones are now (``rows`` and ``low`` are work space)."""
+    _bone_rows(F, t, a, bones, rows)
+    _lowest(rows, lowest_operator, samples, low)
+    for m in range(low.shape[1]):
+        lowest[a, m] = np.inf
+        for p in range(low.shape[0]):
+            lowest[a, m] = min(lowest[a, m], low[p, m])

@@ -27,9 +27,9 @@ import numpy as np
 
 from .assembly import assemble, cut_bones, merge_order
 from .collisions import build_obstacles, colliding, vertex_subset
-from .contact import ground_floored, keep_contact, lowest_range, support
+from .contact import ground_floored, keep_contact, lowest_range, support, support_without
 from .contact_patches import patch_vertices
-from .planting import plant_feet, plant_rig
+from .planting import lowest_samples, plant_feet, plant_rig
 from .deformation_gradients import gradient_operator
 from ..errors import OptionError
 from ..execution import concatenate_rows, run_batches
@@ -165,6 +165,10 @@ def keep_input_plants(request, skin, contacts, components):
     warm_up(request.plants)  # the compiled loops loaded here, once, not in every forked worker
     if request.support is not None:  # the band's floor: the ground the contacts stand on (contact.GROUND_TOLERANCE)
         request.support = ground_floored(request.support, contacts.ground)
+        # the band's lowest points after the plants: the plant loop's own (its patches' sample
+        # vertices), with those of the other support vertices
+        sampled = lowest_samples(skin.rest_vertices, skin.examples, patches, request.up_axis)
+        request.support_beyond_plants = support_without(request.support, sampled[sampled >= 0])
 
 
 @dataclass
@@ -191,7 +195,8 @@ class Request:
     own range of lowest points), or None: made in each batch from the fit's playback of them.
     plants: the input's ground contacts kept on the output (:class:`.planting.PlantRig`, from
     :func:`keep_input_plants`; None: the input has none, or ``contact`` is off); where set they
-    replace the support's vertical shift.
+    come before the support's vertical shift, which then takes its lowest points from the plants'
+    patches and from ``support_beyond_plants`` (the support's vertices outside them).
 
     clips: the :class:`~skinsynth.pipeline.clips.Clips` of the input frames when they are several
     clips (frames, targets, start and end are global frame numbers), None for one clip."""
@@ -216,6 +221,7 @@ class Request:
     contact: bool = True
     support: object = None
     plants: object = None
+    support_beyond_plants: object = None
     clips: object = None
 
 
@@ -315,13 +321,18 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             rejected["merges"] += failed
             # Output a uses walk choice[a, c] of component c: keep the walks actually used.
             sources = np.stack([sources[k, choice[:, k]] for k in range(len(components))])
+        lowest = None
         if request.contact and request.plants is not None:  # the merged bones are final: plant the feet
-            plant_feet(F, t, sources, request.plants)
+            lowest = np.empty(F.shape[:2]) if request.support_beyond_plants is not None else None
+            plant_feet(F, t, sources, request.plants, lowest)
         if request.contact:  # keep the input's range of lowest points (:mod:`.contact`): after the plants, a
             # safety net, zero wherever they kept it (a merge can plant one foot and sink the other)
             if held is None:
                 held = support(rest, bone_indices, bone_weights, rotations, translations, request.up_axis)
-            keep_contact(F, t, held)
+            if lowest is None:
+                keep_contact(F, t, held)
+            else:  # the plants' lowest points, and the support's outside their patches
+                keep_contact(F, t, request.support_beyond_plants, lowest=lowest)
         ok = np.ones(tries, dtype=bool)
         if request.obstacles:
             from skinsynth.gpu import lbs_reference

@@ -139,3 +139,26 @@ def test_ground_floored_raises_only_the_lower_end():
     assert ground_floored(found, [-0.2], tolerance=0.01).lo == -0.05  # the input's own range already higher
     assert ground_floored(found, [0.5], tolerance=0.01).lo == 0.1  # never above the upper end
     assert ground_floored(found, [0.0], tolerance=0.01).hi == 0.1
+
+
+def test_support_without_drops_the_vertices_and_keeps_the_others_heights():
+    """support_without: the remaining vertices' lowest heights are those of the full support's
+    columns for them (bones only they needed dropped); removing every vertex leaves none."""
+    from skinsynth.pipeline.synthesis.contact import support, support_lowest, support_without
+
+    rng = np.random.default_rng(2)
+    V, B, frames = 40, 5, 6
+    rest = rng.normal(size=(V, 3))
+    indices = np.stack([rng.permutation(B)[:2] for _ in range(V)])
+    weights = np.full((V, 2), 0.5)
+    rotations = np.stack([[rotation_exp(rng.normal(scale=0.3, size=3)) for _ in range(B)] for _ in range(frames)])
+    translations = rng.normal(scale=0.1, size=(frames, B, 3))
+    found = support(rest, indices, weights, rotations, translations, band=1.0, most=V)
+    dropped = found.vertices[::2]
+    kept = support_without(found, dropped)
+    np.testing.assert_array_equal(kept.vertices, found.vertices[1::2])
+    assert (kept.lo, kept.hi) == (found.lo, found.hi)
+    F, t = rotations[None].astype(np.float32), translations[None].astype(np.float32)
+    heights = lbs_reference(rest, indices, weights, rotations, translations)[..., 1]
+    np.testing.assert_allclose(support_lowest(F, t, kept)[0], heights[:, kept.vertices].min(axis=1), atol=1e-5)
+    assert support_without(found, found.vertices).vertices.size == 0
