@@ -260,8 +260,8 @@ def plant_feet(F, t, sources, rig, lowest=None):
     src = np.ascontiguousarray(np.moveaxis(sources[rig.owner], 0, 1), dtype=np.int64)  # (A, P, M)
     width = max([1] + [bones.size for bones in rig.own])
     own = np.full((P, width), -1, np.int64)
-    for p, bones in enumerate(rig.own):
-        own[p, :bones.size] = bones
+    for p, bones in enumerate(rig.own):  # as slots in rig.bones
+        own[p, :bones.size] = np.searchsorted(rig.bones, bones)
     states = np.zeros((A, P, M), bool)
     def c(array, dtype=np.float64):  # one specialisation of the loops: C-ordered arrays of these types
         return np.ascontiguousarray(array, dtype=dtype)

@@ -92,6 +92,29 @@ def bridge_gaps(state, longest):
 
 
 @numba.njit(cache=True, nogil=True)
+def _spread_seams(turn, held, seams, kernel):
+    """turn (M, 3) += held smoothed by kernel (ends repeated) − held, at the frames within the
+    kernel's radius of a seam (elsewhere held is constant over the kernel: the change is 0)."""
+    M = turn.shape[0]
+    radius = kernel.shape[0] // 2
+    near = 0  # frames left to do since the latest seam seen ahead
+    for m in range(-radius, M):
+        ahead = m + radius
+        if ahead < M and seams[ahead]:
+            near = 2 * radius + 1
+        if near > 0:
+            near -= 1
+            if m < 0:
+                continue
+            for d in range(3):
+                total = 0.0
+                for k in range(-radius, radius + 1):
+                    i = min(max(m + k, 0), M - 1)
+                    total += kernel[k + radius] * held[i, d]
+                turn[m, d] += total - held[m, d]
+
+
+@numba.njit(cache=True, nogil=True)
 def _spring(x0, step, k, decay, growth):
     """x(0) = x0, x(1) − x(0) = step, then (x0 + c k) e^(−y k) (:func:`.planting._blend_edges`)."""
     c = (x0 + step) * growth - x0
@@ -270,7 +293,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                      influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, states, want_lowest, lowest):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
-    :class:`.planting.PlantRig` tables (own (P, K) padded with −1), the operators of the patches'
+    :class:`.planting.PlantRig` tables (own (P, K) the slots in ``bones`` of each patch's own bones,
+    padded with −1), the operators of the patches'
     centroids and of their sample vertices' heights (:func:`.planting.centre_operator`,
     :func:`.planting.lowest_operator`; samples (P,) each patch's count); kernel the Gaussian weights of
     the root's smoothing and of a seam's turn; lift_kernel the raised cosine (2r + 1,) of a
@@ -285,6 +309,10 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     turn = np.zeros((M, 3))
     correction = np.zeros((P, M, 3))
     rows = np.zeros((M, centre_operator.shape[0]))
+    held = np.zeros((M, 3))
+    seams = np.zeros(M, dtype=np.bool_)
+    turned = np.empty((3, 3))
+    step = np.empty(3)
     now = np.empty((3, 3))
     mapped = np.empty((3, 3))
     head = np.empty((3, 3))
@@ -306,11 +334,12 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                 _lowest_after(F, t, a, bones, rows, lowest_operator, samples, low, lowest)
             continue
         # 1. the feet's turn: the input's orientation under the output's heading, about each centroid
+        if own[:, 0].max() >= 0:
+            _bone_rows(F, t, a, bones, rows)
+            _centres(rows, centre_operator, centre)  # then moved with each bone a turn moves
         for p in range(P):
             if own[p, 0] < 0:
                 continue
-            _bone_rows(F, t, a, bones, rows)  # as the turns before left them
-            _centres(rows, centre_operator, centre)
             anchor = bones[anchor_slot[p]]
             for m in range(M):
                 turn[m, 0] = 0.0
@@ -332,22 +361,30 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                 for d in range(3):
                     turn[m, d] = change[d] * scale
             blend_edges_row(turn, state[p], decay)
-            # a seam's jump in the wanted orientation, spread over the frames about it
-            held = np.zeros((M, 3))
-            for m in range(1, M):
-                seam = state[p, m] and state[p, m - 1] and src[a, p, m] != src[a, p, m - 1] + 1
+            # a seam's jump in the wanted orientation, spread over the frames about it (a Gaussian
+            # of the held jumps; it changes only the frames within its radius of a seam)
+            radius = kernel.shape[0] // 2
+            last_seam = -M - radius - 1
+            for m in range(M):
+                seams[m] = False
                 for d in range(3):
-                    held[m, d] = held[m - 1, d] + (turn[m, d] - turn[m - 1, d] if seam else 0.0)
-            for d in range(3):
-                spread = _smooth(held[:, d], kernel, True)
-                for m in range(M):
-                    turn[m, d] += spread[m] - held[m, d]
+                    held[m, d] = 0.0 if m == 0 else held[m - 1, d]
+                if m > 0 and state[p, m] and state[p, m - 1] and src[a, p, m] != src[a, p, m - 1] + 1:
+                    seams[m] = True
+                    last_seam = m
+                    for d in range(3):
+                        held[m, d] += turn[m, d] - turn[m - 1, d]
+            if last_seam >= 0:
+                _spread_seams(turn, held, seams, kernel)
+            # the turn, about the patch's centroid; every patch centroid moves with each bone turned
+            nb = bones.shape[0]
             for m in range(M):
                 _rotation_exp(turn[m, 0], turn[m, 1], turn[m, 2], rotation)
                 for k in range(own.shape[1]):
-                    b = own[p, k]
-                    if b < 0:
+                    slot = own[p, k]
+                    if slot < 0:
                         break
+                    b = bones[slot]
                     for i in range(3):
                         for j in range(3):
                             now[i, j] = F[a, m, b, i, j]
@@ -355,10 +392,19 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                     for d in range(3):
                         change[d] = t[a, m, b, d] - centre[p, m, d]
                     for i in range(3):
-                        t[a, m, b, i] = (rotation[i, 0] * change[0] + rotation[i, 1] * change[1]
-                                         + rotation[i, 2] * change[2] + centre[p, m, i])
+                        moved = (rotation[i, 0] * change[0] + rotation[i, 1] * change[1]
+                                 + rotation[i, 2] * change[2] + centre[p, m, i])
+                        step[i] = moved - t[a, m, b, i]
+                        t[a, m, b, i] = moved
                         for j in range(3):
+                            turned[i, j] = product[i, j] - now[i, j]
                             F[a, m, b, i, j] = product[i, j]
+                    for q in range(P):  # Δc_q = ΔF ā_qb + ω_qb Δt (the centroid operator's entries)
+                        for i in range(3):
+                            total = step[i] * centre_operator[9 * nb + 3 * slot + i, 3 * q + i]
+                            for j in range(3):
+                                total += turned[i, j] * centre_operator[9 * slot + 3 * i + j, 3 * q + i]
+                            centre[q, m, i] += total
         # 2. the centroids and lowest points after the turn; the input's steps, carried; the slide
         _bone_rows(F, t, a, bones, rows)
         _centres(rows, centre_operator, centre)
