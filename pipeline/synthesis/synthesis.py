@@ -54,7 +54,9 @@ REPLACEMENT_CAP = 8
 #: 4: replacement rounds are sized by the last round's yield and bounded (:data:`DIVERSITY_ROUNDS`).
 #: 5: an input with ground contacts has its plants kept (``Request.plants``, :mod:`.planting`) and its
 #: merges prefer legs whose contacts agree with the body's (:func:`.assembly.assemble`).
-BATCH_REVISION = 5
+#: 6: with contacts, swinging feet kept no lower than the input's, short gaps between plants bridged,
+#: and the band's floor at the contacts' ground (its lowest points from the plants).
+BATCH_REVISION = 6
 
 
 def component_from_file(data, rest, contacts=False):
