@@ -79,8 +79,9 @@ def _frames(clips, start, end, targets):
               help="Keep the feet on the ground. A graph with the input's ground contacts: each plant stays on its "
                    "anchor (the patch follows the input's own steps and height, the body's travel follows the "
                    "planted feet, the legs take the rest), blended in and out with a 0.1 s half-life, gaps of "
-                   "at most 0.2 s bridged; a swinging foot stays no lower than the input's (docs/contact.md). Then, and alone for a graph without contacts: where a frame's lowest point "
-                   "would leave the input's own range of lowest points, the whole character moves vertically back.")
+                   "at most 0.2 s bridged; a swinging foot stays no lower than the input's (docs/contact.md). "
+                   "Then, and alone for a graph without contacts: where a frame's lowest point would leave the "
+                   "input's own range of lowest points, the whole character moves vertically back.")
 @click.option("--measure-feet", "measure_feet", default=4, show_default=True, type=click.IntRange(min=0),
               metavar="N",
               help="Measure how well the feet stay planted (slide, float and penetration of the contact vertices, "

@@ -9,8 +9,9 @@ with Poisson blending (:mod:`.splicing`, eq. 7–10), the multi-component merge
 Public: build_graph, GraphOptions, validate_graph_options, bone_layout, default_min_segment, walk_statistics,
 synthesize, batch_sizes, BATCH_REVISION, Request, validate_request, component_from_file, synthesis_components, avoid_obstacles,
 keep_input_support, keep_input_plants, mark_contact_jumps, compile_loops (the plants' compiled loops built
-ahead of use: ``skinsynth precompile``), load_in_background (loaded while a command reads its input), SkinnedAnimations, measure_feet, build_obstacles, colliding,
-vertex_subset, find_contacts, validate_contact_options.
+ahead of use: ``skinsynth precompile``), load_in_background (loaded while a command reads its input),
+SkinnedAnimations, measure_feet, build_obstacles, colliding, vertex_subset, find_contacts,
+validate_contact_options.
 """
 
 from .._lazy import lazy_exports

@@ -176,14 +176,16 @@ def limb_influence(weight_terms, hops, reach=REACH):
 
 def plant_rig(rest, bone_indices, bone_weights, rotations, translations, examples, patches, planted, grounds,
               clip_starts, fps, components, up_axis=1, half_life=HALF_LIFE, reach=REACH, max_turn=MAX_TURN,
-              bridge=BRIDGE):
+              bridge=BRIDGE, samples=None):
     """The :class:`PlantRig` of an input: rest (V, 3), weights (V, K), its fit rotations
     (Fi, B, 3, 3) and translations (Fi, B, 3), and the input frames themselves, examples
     (Fi, V, 3): the plants follow the input, not the fit's playback of it (a 20-bone fit of the
     samba slides its feet 0.22 % of the height a frame where the dancer slides 0.08 %); patches:
     the contact patches' vertex ids (list of P arrays), planted (Fi, P) bool and grounds (C,) each
     clip's ground (:class:`.contact_patches.ContactPatches`); clip_starts (C + 1,); fps;
-    components (sorted bone-id lists: the synthesis's, which own the patches)."""
+    components (sorted bone-id lists: the synthesis's, which own the patches); bridge (seconds,
+    :data:`BRIDGE`); samples: the sample vertex ids (P, S) of :func:`lowest_samples` when the
+    caller has them already (None: found here)."""
     from ..rotations import polar_rotation
 
     rest = np.asarray(rest, dtype=np.float64)
@@ -227,7 +229,7 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     # the height each patch's lowest point keeps (the input's lowest patch vertex), and the vertices
     # that find the output's lowest point: a merge can tilt a foot further than its turn undoes
     heights = np.stack([examples[:, np.asarray(ids), up_axis].min(axis=1) for ids in patches], axis=1) - ground[:, None]
-    samples = lowest_samples(rest, examples, patches, up_axis)
+    samples = lowest_samples(rest, examples, patches, up_axis) if samples is None else np.asarray(samples)
     at = np.maximum(samples, 0)  # padding (−1) reads vertex 0 with weight 0
     sample_weights = np.where(samples[..., None] >= 0, np.asarray(bone_weights, np.float64)[at], 0.0)
     anchor_in = R[:, bones[anchor]]  # (Fi, P, 3, 3)

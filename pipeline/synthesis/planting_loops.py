@@ -363,18 +363,17 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
             blend_edges_row(turn, state[p], decay)
             # a seam's jump in the wanted orientation, spread over the frames about it (a Gaussian
             # of the held jumps; it changes only the frames within its radius of a seam)
-            radius = kernel.shape[0] // 2
-            last_seam = -M - radius - 1
+            any_seam = False
             for m in range(M):
                 seams[m] = False
                 for d in range(3):
                     held[m, d] = 0.0 if m == 0 else held[m - 1, d]
                 if m > 0 and state[p, m] and state[p, m - 1] and src[a, p, m] != src[a, p, m - 1] + 1:
                     seams[m] = True
-                    last_seam = m
+                    any_seam = True
                     for d in range(3):
                         held[m, d] += turn[m, d] - turn[m - 1, d]
-            if last_seam >= 0:
+            if any_seam:
                 _spread_seams(turn, held, seams, kernel)
             # the turn, about the patch's centroid; every patch centroid moves with each bone turned
             nb = bones.shape[0]

@@ -161,15 +161,15 @@ def keep_input_plants(request, skin, contacts, components):
     from .precompile import wait_loaded
 
     wait_loaded()  # started by the command while it read its input (precompile.load_in_background), if it was
+    sampled = lowest_samples(skin.rest_vertices, skin.examples, patches, request.up_axis)  # (P, S), −1 padded
     request.plants = plant_rig(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
                                skin.translations, skin.examples, patches, np.asarray(contacts.planted, bool), contacts.ground,
-                               clips.starts, skin.fps, bones, request.up_axis)
+                               clips.starts, skin.fps, bones, request.up_axis, samples=sampled)
     warm_up(request.plants)  # the compiled loops loaded here, once, not in every forked worker
     if request.support is not None:  # the band's floor: the ground the contacts stand on (contact.GROUND_TOLERANCE)
         request.support = ground_floored(request.support, contacts.ground)
         # the band's lowest points after the plants: the plant loop's own (its patches' sample
         # vertices), with those of the other support vertices
-        sampled = lowest_samples(skin.rest_vertices, skin.examples, patches, request.up_axis)
         request.support_beyond_plants = support_without(request.support, sampled[sampled >= 0])
 
 
