@@ -290,7 +290,7 @@ def _lowest(rows, lowest_operator, samples, out):
 @numba.njit(cache=True, nogil=True)
 def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, lowest_operator, samples, anchor_slot,
                      inverse_in, steps_in, heights_in, ground, orientation_in, own,
-                     influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, states, want_lowest, lowest):
+                     influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, hold, keep, states, want_lowest, lowest):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
     :class:`.planting.PlantRig` tables (own (P, K) the slots in ``bones`` of each patch's own bones,
@@ -299,7 +299,9 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     :func:`.planting.lowest_operator`; samples (P,) each patch's count); kernel the Gaussian weights of
     the root's smoothing and of a seam's turn; lift_kernel the raised cosine (2r + 1,) of a
     swinging patch's lift (r its dilation); bridge: the longest gap between two plants that is
-    bridged (:func:`bridge_gaps`); states (A, P, M) written; with want_lowest, lowest (A, M) too:
+    bridged (:func:`bridge_gaps`); hold: the frames a plant holds its patch exactly; keep: past
+    them, the share of a limb's summed slide kept from one frame to the next
+    (:data:`.planting.HOLD`, :data:`.planting.LIMB_MEMORY`); states (A, P, M) written; with want_lowest, lowest (A, M) too:
     the lowest of the patches' sample vertices once planted (the band's, :mod:`.contact`)."""
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
@@ -447,20 +449,24 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
         weight = _smooth(weight, kernel, False)
         for m in range(M):
             root[m, up] = level[m] / max(weight[m], 1.0)
-        # 3. each limb: the residual slide summed over its plant, the residual height; blended
+        # 3. each limb: the residual slide summed over its plant (leaking), the residual height; blended
         for p in range(P):
             acc = np.zeros(3)
+            age = 0  # frames since the plant's first
             for m in range(M):
                 for d in range(3):
                     correction[p, m, d] = 0.0
                 if not state[p, m]:
                     continue
                 if m > 0 and state[p, m - 1]:
+                    age += 1
+                    kept = 1.0 if age <= hold else keep
                     for d in range(3):
                         if d != up:
-                            acc[d] += -slide[p, m, d] - push[m, d]
+                            acc[d] = kept * acc[d] - slide[p, m, d] - push[m, d]
                 else:
                     acc[:] = 0.0
+                    age = 0
                 for d in range(3):
                     correction[p, m, d] = acc[d]
                 target = heights_in[src[a, p, m], p] + ground[ground_src[a, m]]

@@ -59,14 +59,18 @@ def _plant_block(F, t, sources, rig):
     weight = gaussian_filter1d(state.sum(axis=1).astype(np.float64), rig.sigma, axis=1, mode="constant")
     level = gaussian_filter1d(error.sum(axis=1), rig.sigma, axis=1, mode="constant")
     root[..., up] = level / np.maximum(weight, 1.0)
-    # each limb: the residual slide summed from its plant's first frame, the residual height
+    # each limb: the residual slide summed (leaking) from its plant's first frame, the residual height
     residual = np.where(stepping[..., None], -slide - push[:, None], 0.0)
-    summed = np.cumsum(residual, axis=2)
-    frames = np.arange(M)
     first = state & ~_shifted(state, 1, False)
     last = state & ~_shifted(state, -1, False)
-    since = np.maximum.accumulate(np.where(first, frames, 0), axis=2)
-    correction = np.where(state[..., None], summed - np.take_along_axis(summed, since[..., None], axis=2), 0.0)
+    keep = np.exp(-1.0 / rig.memory)  # past rig.hold frames the sum leaks (planting.HOLD, LIMB_MEMORY)
+    correction = np.zeros_like(residual)
+    age = np.zeros(state.shape[:2], np.int64)  # frames since each plant's first
+    for m in range(1, M):  # frame by frame, every animation and patch at once
+        age = np.where(stepping[:, :, m], age + 1, 0)
+        kept = np.where(age <= rig.hold, 1.0, keep)[..., None]
+        correction[:, :, m] = np.where(stepping[:, :, m, None], kept * correction[:, :, m - 1] + residual[:, :, m], 0.0)
+    correction = np.where(state[..., None], correction, 0.0)
     correction[..., up] = np.where(state, error - root[:, None, :, up], 0.0)
     _blend_edges(correction, state, stepping, first, last, rig.decay)
     # the floor: a swinging patch no lower than the input's at its source frame, lifted smoothly and

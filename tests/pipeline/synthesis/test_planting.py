@@ -481,12 +481,19 @@ def test_output_states_by_hand():
 # ---------------------------------------------------------------------------------------------- 5. compiled = numpy
 
 
-@pytest.mark.parametrize("single", [False, True], ids=["components", "single-component"])
-def test_compiled_loops_match_the_numpy_reference(walker_graph, single):
+@pytest.mark.parametrize("single,hold", [(False, None), (True, None), (False, 4)],
+                         ids=["components", "single-component", "components-leaking"])
+def test_compiled_loops_match_the_numpy_reference(walker_graph, single, hold):
     """plant_feet (numba, one animation at a time) against the numpy reference of the same steps
-    on whole arrays, on uncorrected walker syntheses: bones and states."""
+    on whole arrays, on uncorrected walker syntheses: bones and states. ``hold``: frames a plant
+    is held exactly before its limb correction leaks (the walker's stances are shorter than the
+    default's 2 s: 4 frames makes them leak)."""
+    import dataclasses
+
     w = walker_graph
     r, rig = _synthesize(w, single, 5, plants=False, count=6, frames=300)
+    if hold is not None:
+        rig = dataclasses.replace(rig, hold=hold)
     F, t = r.F.copy(), r.t.copy()
     states = plant_feet(F, t, r.sources, rig)
     F_ref, t_ref = r.F.copy(), r.t.copy()
