@@ -17,6 +17,8 @@ Splicing (a seam's blend) and the multi-component merge (a body from one input f
 others: Zheng §4.2) break that, and the foot slides. The correction (:func:`plant_feet`, compiled
 in :mod:`.planting_loops`, one animation at a time):
 
+0. **Plants**: a patch's states at its owner's source frames, a gap of at most :data:`BRIDGE`
+   between two plants bridged (the patch follows the input's steps and heights through it).
 1. **The feet's turn.** Each patch on bones of its own (:data:`CARRIES`) has them turned about
    its centroid to the orientation the input's patch had at the source frame (the fit's error at
    the patch undone by a Kabsch fit E per input frame, then under the output's heading), at most
@@ -34,11 +36,16 @@ in :mod:`.planting_loops`, one animation at a time):
    horizontal offset; a vertical offset, the planted patches' mean height error smoothed the same
    way (normalised: zero far from any plant). Both move every bone.
 4. **A limb correction** e_p(m) per patch, what the root leaves, exactly: inside a plant the
-   residual slide summed from the plant's first frame (0 there) and the residual height error.
+   residual slide summed from the plant's first frame (0 there; past :data:`HOLD` the sum leaks,
+   :data:`LIMB_MEMORY`) and the residual height error.
    It moves the bones near the patch: ``α_pb`` = 1 on every bone with weight on it, falling
-   linearly to 0 over ``reach`` hops of the bone graph (Zheng eq. 11's couplings); the bones'
-   shifts Σ_q α_qb g_q are solved so that every patch moves by its e_p (the patches × patches
-   system ω αᵀ g = e, truncated where patches share their bones: :data:`RCOND`).
+   linearly to 0 over ``reach`` hops of the bone graph (Zheng eq. 11's couplings, neighbours at
+   :data:`COUPLING`); the bones' shifts Σ_q α_qb g_q are solved so that every patch moves by its
+   e_p (the patches × patches system ω αᵀ g = e, truncated where patches share their bones:
+   :data:`RCOND`).
+   **The floor**: where a patch is not planted, its lowest point is kept no lower than the input
+   patch's at the source frame, the lift it needs dilated and smoothed (a raised cosine over
+   ``lift_radius`` frames) and tapered to 0 at the plants, added to its e_p.
 5. **Blending in and out** (inertialization, Holden's critically damped spring, for the turn and
    the limb corrections): outside plants each is the decay x(k) = (x₀ + c k) e^(−y k) of its
    value at the nearest plant edge, y = 2 ln 2 / half-life a frame, c chosen so that the first
@@ -52,6 +59,8 @@ its free parameter, and a correction spread by the weights is how the rig itself
 
 After the plants, synthesize still keeps the input's range of lowest points (:mod:`.contact`), a
 safety net that is zero wherever the plants kept it: a merge can plant one foot and sink the other.
+With contacts its floor is the contacts' ground (:func:`.contact.ground_floored`) and its lowest
+points are the plant loop's own (the patches' samples, once planted) with the support's others.
 Where the input has no contacts there is nothing to plant and this module is not used (the
 outputs stay byte-identical). ``synthesize --no-contact`` turns both off, and walks every
 transition.
@@ -204,8 +213,9 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     the contact patches' vertex ids (list of P arrays), planted (Fi, P) bool and grounds (C,) each
     clip's ground (:class:`.contact_patches.ContactPatches`); clip_starts (C + 1,); fps;
     components (sorted bone-id lists: the synthesis's, which own the patches); bridge (seconds,
-    :data:`BRIDGE`); hold and limb_memory (seconds, :data:`HOLD`, :data:`LIMB_MEMORY`); samples: the sample vertex ids (P, S) of :func:`lowest_samples` when the
-    caller has them already (None: found here)."""
+    :data:`BRIDGE`); hold and limb_memory (seconds, :data:`HOLD`, :data:`LIMB_MEMORY`); samples:
+    the sample vertex ids (P, S) of :func:`lowest_samples` when the caller has them already
+    (None: found here)."""
     from ..rotations import polar_rotation
 
     rest = np.asarray(rest, dtype=np.float64)

@@ -55,7 +55,8 @@ REPLACEMENT_CAP = 8
 #: 5: an input with ground contacts has its plants kept (``Request.plants``, :mod:`.planting`) and its
 #: merges prefer legs whose contacts agree with the body's (:func:`.assembly.assemble`).
 #: 6: with contacts, swinging feet kept no lower than the input's, short gaps between plants bridged,
-#: and the band's floor at the contacts' ground (its lowest points from the plants).
+#: long plants' limb corrections leaking, reaching 2 hops, and the band's floor at the contacts'
+#: ground (its lowest points from the plants).
 BATCH_REVISION = 6
 
 
