@@ -134,11 +134,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
       skinsynth synthesize horse.graph.h5 -o h.h5 -n 50 -m 240 --start gallop:0 --end collapse:-1
       skinsynth synthesize cloth.graph.h5 -o c.h5 -n 60 -m 480 --obstacle sphere.obj --usd cloths/
     """
-    from skinsynth.formats.graph_file import read_graph, records_contacts
-    from skinsynth.pipeline.synthesis import load_in_background
-
-    if contact and not cluster and records_contacts(path):  # (a cluster may fork its workers meanwhile)
-        load_in_background()  # the plants' compiled loops, while the input is read and prepared
+    from skinsynth.formats.graph_file import read_graph
     from skinsynth.formats.obstacles import read_obstacle
     from skinsynth.formats.model import write_model
     from skinsynth.formats.provenance import provenance_record

@@ -135,20 +135,6 @@ def read_contacts(graph):
                           options={name: float(data[f"@{name}"]) for name in CONTACT_OPTIONS if f"@{name}" in data})
 
 
-def records_contacts(path):
-    """Whether the graph file at ``path`` records ground contacts (a /graph/contacts group with at
-    least one patch), looked up without reading the file (False where it cannot tell:
-    :func:`read_graph` then says what is wrong)."""
-    import h5py
-
-    try:
-        with h5py.File(path, "r") as f:
-            group = f.get("graph/contacts")
-            return group is not None and int(group.attrs.get("patches", 0)) > 0
-    except (OSError, ValueError, TypeError):
-        return False
-
-
 def read_graph_contacts(path, model, skin):
     """/graph/contacts of a graph file read as ``model`` (with its skin, a :class:`SkinFile`), the
     graph checked first (:func:`.validation.check_graph`): a :class:`ContactsRecord` or None."""

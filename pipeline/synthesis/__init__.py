@@ -9,8 +9,7 @@ with Poisson blending (:mod:`.splicing`, eq. 7–10), the multi-component merge
 Public: build_graph, GraphOptions, validate_graph_options, bone_layout, default_min_segment, walk_statistics,
 synthesize, batch_sizes, BATCH_REVISION, Request, validate_request, component_from_file, synthesis_components, avoid_obstacles,
 keep_input_support, keep_input_plants, mark_contact_jumps, compile_loops (the plants' compiled loops built
-ahead of use: ``skinsynth precompile``), load_in_background (loaded while a command reads its input),
-SkinnedAnimations, measure_feet, build_obstacles, colliding, vertex_subset, find_contacts,
+ahead of use: ``skinsynth precompile``), SkinnedAnimations, measure_feet, build_obstacles, colliding, vertex_subset, find_contacts,
 validate_contact_options.
 """
 
@@ -21,7 +20,6 @@ _EXPORTS = {"build_graph": "graph", "GraphOptions": "graph_options", "validate_g
             "batch_sizes": "synthesis", "BATCH_REVISION": "synthesis", "Request": "synthesis", "validate_request": "synthesis", "component_from_file": "synthesis",
             "synthesis_components": "synthesis", "avoid_obstacles": "synthesis", "keep_input_support": "synthesis",
             "keep_input_plants": "synthesis", "mark_contact_jumps": "planting", "compile_loops": "precompile",
-            "load_in_background": "precompile",
             "SkinnedAnimations": "skinned", "find_contacts": "contact_patches",
             "validate_contact_options": "contact_patches", "measure_feet": "skinned", "build_obstacles": "collisions", "colliding": "collisions", "vertex_subset": "collisions"}
 __all__ = sorted(_EXPORTS)

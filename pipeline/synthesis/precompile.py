@@ -31,33 +31,3 @@ def compile_loops():
     from . import planting, planting_loops
 
     return compiled.compile_run("synthesis", [planting_loops], lambda: planting.warm_up(tiny_rig()))
-
-
-_LOADING = []
-
-
-def load_in_background():
-    """Start loading the loops (:func:`compile_loops`' work) in a thread, while a command reads and
-    prepares its input: numba's import and its cache's load take 0.4 s, which a synthesis with
-    contacts would otherwise spend before its workers start, one core idle. :func:`wait_loaded`
-    joins it (before any fork: a process must not fork while the thread holds numba's locks)."""
-    import threading
-
-    from . import planting
-
-    def load():
-        try:
-            planting.warm_up(tiny_rig())
-        except Exception:  # noqa: BLE001 (the command's own warm_up meets it again, and reports it)
-            pass
-
-    if not _LOADING:
-        thread = threading.Thread(target=load, name="skinsynth-load-loops", daemon=True)
-        thread.start()
-        _LOADING.append(thread)
-
-
-def wait_loaded():
-    """Join the thread :func:`load_in_background` started (none started: nothing to do)."""
-    while _LOADING:
-        _LOADING.pop().join()

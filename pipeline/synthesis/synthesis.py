@@ -159,9 +159,7 @@ def keep_input_plants(request, skin, contacts, components):
     patches = patch_vertices(contacts)
     bones = [c.bones for c in components]
     from .planting import warm_up
-    from .precompile import wait_loaded
 
-    wait_loaded()  # started by the command while it read its input (precompile.load_in_background), if it was
     sampled = lowest_samples(skin.rest_vertices, skin.examples, patches, request.up_axis)  # (P, S), −1 padded
     request.plants = plant_rig(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
                                skin.translations, skin.examples, patches, np.asarray(contacts.planted, bool), contacts.ground,
