@@ -40,6 +40,16 @@ MAX_TRANSFORM_STEPS = 100
 @device_option(default="cpu",
               help="Where the weight solve and the bone sweep run: cpu (compiled, every core), cuda or cuda:N (warp "
                    "kernels on that GPU; the same fit to rounding), or auto (a GPU when there is one).")
+@click.option("--skeleton", "skeleton", is_flag=True, default=False,
+              help="Also find joints and a bone hierarchy (Le & Deng 2014) and refit the rig so that every joint "
+                   "holds: each bone turns about its joint with its parent, only the root (and any free bone) "
+                   "translates. Exported as a real skeleton (glTF, UsdSkel). docs/skeleton.md.")
+@click.option("--root-bone", default=None, type=click.IntRange(min=0),
+              help="--skeleton: the root bone. Default: the bone that carries the most weight (the body).")
+@click.option("--max-joint-drift", default=None, type=click.FloatRange(min=0.0),
+              help="--skeleton: the largest drift of a joint (RMS distance its two bones carry it apart, over the "
+                   "rest diagonal) the hierarchy uses; bones with no such joint to the rest hang free from the "
+                   "root. Default 0.02.")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
 @click.option("--fps", default=None, type=float, help="Frame rate, when the input does not carry one (default 24).")
 @click.option("--meters-per-unit", default=None, type=float,
@@ -51,7 +61,8 @@ MAX_TRANSFORM_STEPS = 100
 @summary_options
 @user_errors
 def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolerance, patience, device, rest_frame, seed,
-             transform_steps, prim, fps, meters_per_unit, up_axis, start_frame, quiet, as_json):
+             transform_steps, skeleton, root_bone, max_joint_drift, prim, fps, meters_per_unit, up_axis, start_frame,
+             quiet, as_json):
     """Fit a linear-blend-skinning model with rigid bones to one or more clips of a mesh.
 
     Each INPUT is a clip: a folder or glob of OBJ/PLY/OFF frames (natural frame order), a USD
@@ -89,6 +100,10 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
         if given:
             raise OptionError(f"{', '.join(given)} do(es) not apply with --rig: the rig's rest pose and weights are "
                               "kept, only the bone transforms are solved")
+    if not skeleton and (root_bone is not None or max_joint_drift is not None):
+        raise OptionError("--root-bone and --max-joint-drift apply only with --skeleton")
+    if skeleton and rig is not None:
+        raise OptionError("--skeleton and --rig do not combine yet: --rig keeps a rig's weights, --skeleton refits them")
     if rig is None and bones is None:
         raise OptionError("--bones is required (or --rig, a skin file whose bones and weights to keep)")
     if tolerance is None:
@@ -114,6 +129,8 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     else:
         rest_frame = clips.frame(rest_frame, "--rest-frame")
         validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
+        if root_bone is not None and root_bone >= bones:
+            raise OptionError(f"--root-bone {root_bone} is not one of the {bones} bones (0..{bones - 1})")
         check_memory(fit_memory_bytes(frames, count, bones, transform_steps),
                      f"fit-skin --bones {bones} on {count} vertices × {frames} frames"
                      + (f" with --transform-steps {transform_steps}" if transform_steps else ""))
@@ -132,6 +149,9 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     with Progress(iterations, f"fit-skin {bones} bones" + (" on the rig" if rig else ""), quiet) as bar:
         result = _fit(sequence.vertices, rig_model, bones, max_influences, iterations, rest_frame, seed, tolerance,
                       patience, transform_steps, warp_device, progress)
+    jointed = None
+    if skeleton:
+        result, jointed = _fit_skeleton(sequence, result, root_bone, max_joint_drift, max_influences, diagonal, quiet)
     seconds = time.perf_counter() - started
 
     from skinsynth.formats.model import write_model
@@ -145,13 +165,17 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     scene = sequence.scene
     parameters = dict(bones=bones, rig=rig, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
                       patience=patience, device=device,
-                      rest_frame=rest_frame, seed=seed, transform_steps=transform_steps, prim=prim, fps=sequence.fps,
+                      rest_frame=rest_frame, seed=seed, transform_steps=transform_steps, skeleton=skeleton,
+                      root_bone=root_bone, max_joint_drift=max_joint_drift, prim=prim, fps=sequence.fps,
                       meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame)
     record = provenance_record("skin", command_line(), parameters, list(input_specs) + ([rig] if rig else []),
                                tool_version(), seed)
-    write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal),
-                [record], tool_version())
+    write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal,
+                                            jointed), [record], tool_version())
     summary, lines = _summary(output, sequence, bones, result, diagonal, seconds, device, history, clips, frame_rmse)
+    if jointed is not None:
+        summary["skeleton"], line = _skeleton_summary(jointed, result, sequence, diagonal)
+        lines.append(line)
     report(summary, lines, as_json, quiet)
     if result.bones_without_weight:
         click.echo(f"warning: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
@@ -170,6 +194,44 @@ def _fit(vertices, rig, bones, max_influences, iterations, rest_frame, seed, tol
     return fit_skin(vertices, bones, max_influences=max_influences, iterations=iterations, rest_frame=rest_frame,
                     seed=seed, tolerance=tolerance, patience=patience, joint_steps=transform_steps, device=device,
                     progress=progress)
+
+
+def _fit_skeleton(sequence, free, root_bone, max_joint_drift, max_influences, diagonal, quiet):
+    """The free fit's joints and tree, then the rig refitted so that they hold: (SkinFit, the
+    /skin/skeleton record)."""
+    from skinsynth.pipeline.skin import MAX_JOINT_DRIFT, find_skeleton, fit_jointed
+
+    max_drift = MAX_JOINT_DRIFT if max_joint_drift is None else max_joint_drift
+    found = find_skeleton(free.rest_vertices, sequence.faces, free.bone_indices, free.bone_weights, free.rotations,
+                          free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal)
+    iterations = 40  # per phase: joints moving, then fixed inside the body (pipeline/skin/jointed_fit.py)
+    with Progress(2 * iterations, "fit-skin --skeleton: the rig refitted on its joints", quiet) as bar:
+        fitted, skeleton = fit_jointed(sequence.vertices, free.rest_vertices, free.bone_indices, free.bone_weights,
+                                       free.rotations, found, faces=sequence.faces, max_influences=max_influences,
+                                       iterations=iterations,
+                                       progress=lambda i, rmse: bar.update(1, f"RMSE/diag {rmse / diagonal:.2e}"))
+    record = {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints,
+              "drift": found.drift, "root": skeleton.root, "free_rmse": free.rmse, "max_drift": max_drift}
+    return fitted, record
+
+
+def _skeleton_summary(record, fit, sequence, diagonal):
+    """--json's "skeleton" and its text line."""
+    from skinsynth.pipeline.geometry import points_inside
+
+    jointed = np.asarray(record["jointed"])
+    inside = points_inside(np.asarray(record["joints"])[jointed], fit.rest_vertices, sequence.faces)
+    free = int((~jointed).sum()) - 1
+    summary = {"root": int(record["root"]), "joints": int(jointed.sum()), "free_bones": free,
+               "parents": [int(p) for p in record["parents"]],
+               "joints_inside": int(inside.sum()), "largest_drift": float(np.max(record["drift"], initial=0.0)),
+               "free_rmse": float(record["free_rmse"]), "rmse": float(fit.rmse),
+               "rmse_over_free": float(fit.rmse / record["free_rmse"]) if record["free_rmse"] > 0 else None}
+    ratio = f"{summary['rmse_over_free']:.2f}×" if summary["rmse_over_free"] is not None else "—"
+    line = (f"skeleton: root bone {summary['root']}, {summary['joints']} joints ({summary['joints_inside']} inside the "
+            f"mesh, largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
+            f"RMSE {ratio} the free fit's ({record['free_rmse'] / diagonal:.2e} of the diagonal)")
+    return summary, line
 
 
 def _read_rig(path, sequence, bones):

@@ -17,6 +17,14 @@ Groups (all arrays float64 unless noted; conventions in docs/format.md):
   ``frame_rmse (F,)``, ``initial_labels (V,)`` int32; attributes ``@rmse``, ``@rmse_over_diagonal``,
   ``@diagonal``, ``@bones``, ``@max_influences``, ``@iterations``, ``@converged``,
   ``@bones_without_weight``.
+- ``/skin/skeleton`` (only from ``fit-skin --skeleton``): the rig's joints and hierarchy, the
+  bones above already fitted so that every joint holds. ``parents (B,)`` int64 (−1: the root
+  bone, exactly one), ``jointed (B,)`` bool (the bone turns about its joint with its parent;
+  False for the root and for free bones, which hang from the root with translations of their
+  own), ``joints (B, 3)`` (each bone's joint in the rest pose; its weighted rest centroid where
+  it has none), ``drift (B,)`` (each joint's drift on the free fit it was found from, over the
+  diagonal; 0 without a joint); attributes ``@root``, ``@free_rmse`` (the free fit's RMSE at
+  the same bones), ``@max_drift``.
 """
 
 from dataclasses import dataclass, field
@@ -52,14 +60,16 @@ class SkinModel:
     face_uvs: np.ndarray | None = None
     clip_names: tuple = ("clip",)
     clip_frames: tuple = ()
+    skeleton: dict | None = None  # /skin/skeleton's arrays and attributes, as read (module notes)
 
     @property
     def bones(self):
         return self.rotations.shape[1]
 
 
-def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, frame_rmse, diagonal):
-    """The HDF5 groups of a skin file, from a MeshSequence and a pipeline SkinFit."""
+def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, frame_rmse, diagonal, skeleton=None):
+    """The HDF5 groups of a skin file, from a MeshSequence and a pipeline SkinFit; ``skeleton``:
+    /skin/skeleton's arrays and attributes (module notes), None for a free rig."""
     mesh = {"rest_vertices": fit.rest_vertices, "faces": sequence.faces.astype(np.int64)}
     if sequence.face_uvs is not None:  # only then: a file without UVs keeps its datasets
         mesh["face_uvs"] = np.asarray(sequence.face_uvs, dtype=np.float64)
@@ -85,8 +95,16 @@ def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, f
             "@iterations": int(fit.iterations),
             "@converged": bool(fit.converged),
             "@bones_without_weight": int(fit.bones_without_weight),
+            **({} if skeleton is None else {"skeleton": skeleton_group(**skeleton)}),
         },
     }
+
+
+def skeleton_group(parents, jointed, joints, drift, root, free_rmse, max_drift):
+    """/skin/skeleton (module notes) from plain arrays and numbers."""
+    return {"parents": np.asarray(parents, dtype=np.int64), "jointed": np.asarray(jointed, dtype=bool),
+            "joints": np.asarray(joints, dtype=np.float64), "drift": np.asarray(drift, dtype=np.float64),
+            "@root": int(root), "@free_rmse": float(free_rmse), "@max_drift": float(max_drift)}
 
 
 def clip_groups(sequence):
@@ -133,4 +151,15 @@ def read_skin(path, model=None):
         translations=skin["translations"], dual_quaternions=skin["dual_quaternions"],
         bone_rest_frames=skin["bone_rest_frames"], rmse=float(skin.get("@rmse", np.nan)),
         rmse_over_diagonal=float(skin.get("@rmse_over_diagonal", np.nan)), provenance=model["provenance"],
-        scene=Scene.from_attributes(examples), face_uvs=mesh.get("face_uvs"), clip_names=names, clip_frames=frames)
+        scene=Scene.from_attributes(examples), face_uvs=mesh.get("face_uvs"), clip_names=names, clip_frames=frames,
+        skeleton=_read_skeleton(skin.get("skeleton")))
+
+
+def _read_skeleton(group):
+    """/skin/skeleton as read (validated by ``check_skin``), the arrays in their kinds, or None."""
+    if group is None:
+        return None
+    return {"parents": np.asarray(group["parents"], dtype=np.int64), "jointed": np.asarray(group["jointed"]).astype(bool),
+            "joints": np.asarray(group["joints"], dtype=np.float64), "drift": np.asarray(group["drift"], dtype=np.float64),
+            "root": int(group.get("@root", int(np.flatnonzero(np.asarray(group["parents"]) < 0)[0]))),
+            "free_rmse": float(group.get("@free_rmse", np.nan)), "max_drift": float(group.get("@max_drift", np.nan))}

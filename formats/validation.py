@@ -127,6 +127,33 @@ SKIN = {
 }
 
 
+SKELETON = {
+    "parents": Field("int", ("B",), low=-1, high="B"),
+    "jointed": Field("bool", ("B",), low=0, high=2),
+    "joints": Field("float", ("B", 3)),
+    "drift": Field("float", ("B",), low=0.0),
+}
+
+
+def check_skeleton(path, skeleton, dims):
+    """/skin/skeleton: the arrays (:data:`SKELETON`), one root (parent −1, not jointed), every
+    bone reaching it through its parents (a tree, no cycle)."""
+    check_group(path, "skin/skeleton", skeleton, SKELETON, dims)
+    parents = np.asarray(skeleton["parents"], dtype=np.int64)
+    jointed = np.asarray(skeleton["jointed"]).astype(bool)
+    roots = np.flatnonzero(parents < 0)
+    if roots.size != 1:
+        raise FormatError(path, f"/skin/skeleton/parents must have exactly one root (parent -1), not {roots.size}")
+    if jointed[roots[0]]:
+        raise FormatError(path, f"/skin/skeleton/jointed marks the root bone {roots[0]}, which has no parent to turn about")
+    reached = parents < 0
+    for _ in range(parents.size):  # each pass reaches one level deeper
+        reached = reached | reached[np.maximum(parents, 0)] & (parents >= 0)
+    if not reached.all():
+        raise FormatError(path, f"/skin/skeleton/parents is not a tree: bone {int(np.flatnonzero(~reached)[0])} "
+                                "never reaches the root (a cycle)")
+
+
 def check_skin(path, model):
     """/mesh, /examples and /skin of any file that carries a skin fit; returns the bound sizes."""
     dims = {}
@@ -148,6 +175,8 @@ def check_skin(path, model):
         raise FormatError(path, f"/examples/@prim_path is {prim_path!r}, not an absolute USD prim path")
     check_attribute(path, "mesh", model["mesh"], "rest_frame", "int", low=0, high=dims["F"] - 1)
     check_clips(path, model["examples"], dims["F"])
+    if "skeleton" in model["skin"]:
+        check_skeleton(path, model["skin"]["skeleton"], dims)
     return dims
 
 

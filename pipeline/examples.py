@@ -15,6 +15,8 @@
 
 from typing import NamedTuple
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .rotations import rotation_exp
@@ -275,8 +277,25 @@ def _two_link(hip, ankle, upper, lower):
 WALKER_PARTS = ("pelvis", "chest", "thigh_l", "shin_l", "foot_l", "thigh_r", "shin_r", "foot_r", "arm_l", "arm_r")
 
 
+@dataclass
+class WalkerRig:
+    """The walker's true rig (:func:`walker` with ``rig=True``): ``parents (10,)`` int64 (−1 for the
+    pelvis) and ``joints (10, 3)`` (each part's joint with its parent at rest; the pelvis's at the
+    hips' height) over :data:`WALKER_PARTS`; ``weights (V, 10)``; the parts' LBS transforms
+    ``rotations (F, 10, 3, 3)`` and ``translations (F, 10, 3)``, so v = Σ_k w_k (R_k r + t_k)
+    gives the walker's vertices exactly from its rest pose ``rest (V, 3)`` (legs straight, arms
+    down; ``planted=False``'s lift to the ground is in the translations)."""
+
+    rest: np.ndarray
+    parents: np.ndarray
+    joints: np.ndarray
+    weights: np.ndarray
+    rotations: np.ndarray
+    translations: np.ndarray
+
+
 def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, stance=0.6, arm_swing=0.4,
-           blend=0.05, coupling=0.1, start=0.0, planted=False):
+           blend=0.05, coupling=0.1, start=0.0, planted=False, rig=False):
     """An articulated figure walking in place (as on a treadmill): ``cycles`` gait cycles over ``frames``.
 
     Returns (vertices (F, V, 3) float64, faces (T, 3) int64): metres, Y up, facing +z, about 1.75
@@ -321,6 +340,8 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     pelvis bobs over the straighter stance leg as before, sways and turns; ``stride`` is then the
     angle of the leg at heel strike and ``knee`` is unused (the knees bend as the legs need).
     Frame ``f + frames / cycles`` is frame ``f`` moved ``walker_contacts(...).travel`` along z.
+
+    ``rig=True`` also returns the true rig, a :class:`WalkerRig`: (vertices, faces, rig).
     """
     hip_y, knee_y, ankle_y, hip_x = WALKER_HIP_Y, WALKER_KNEE_Y, WALKER_ANKLE_Y, WALKER_HIP_X
     waist_y, shoulder_y, hand_y = 1.12, 1.45, 0.87
@@ -431,6 +452,16 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
         used = weights[:, k] > 0.0
         moved = np.einsum("fab,vb->fva", rot[part], rest[used] - joint[part][1]) + pos[part][:, None]
         vertices[:, used] += weights[used, k][None, :, None] * moved
+    lift = np.zeros(frames)
     if not planted:
-        vertices[..., 1] -= vertices[..., 1].min(axis=1, keepdims=True)  # the lowest point on the ground
-    return vertices, faces
+        lift = -vertices[..., 1].min(axis=1)
+        vertices[..., 1] += lift[:, None]  # the lowest point on the ground
+    if not rig:
+        return vertices, faces
+    rotations = np.stack([rot[part] for part in WALKER_PARTS], axis=1)
+    joints = np.array([joint[part][1] for part in WALKER_PARTS], dtype=np.float64)
+    translations = np.stack([pos[part] for part in WALKER_PARTS], axis=1) - np.einsum("fkab,kb->fka", rotations, joints)
+    translations[..., 1] += lift[:, None]
+    parents = np.array([-1 if joint[part][0] is None else WALKER_PARTS.index(joint[part][0]) for part in WALKER_PARTS])
+    return vertices, faces, WalkerRig(rest=rest, parents=parents, joints=joints, weights=weights, rotations=rotations,
+                                      translations=translations)

@@ -5,6 +5,8 @@ weights (:mod:`.skin_weights`, :mod:`.vertex_weights`, :mod:`.simplex_qp`), alte
 convergence (:mod:`.skin_fit`).
 
 Public: fit_skin, fit_bones_to_rig (a new take on a given rig), finish_fit, validate_fit_options, fit_memory_bytes, bone_rest_frames, SkinFit;
+find_skeleton, Skeleton, MAX_JOINT_DRIFT (joints and a hierarchy found from a free fit: :mod:`.joints`),
+fit_jointed (the rig refitted on its joints: :mod:`.jointed_fit`);
 compile_loops (the compiled loops built ahead of use: ``skinsynth precompile``).
 """
 
@@ -12,6 +14,7 @@ from .._lazy import lazy_exports
 
 _EXPORTS = {"fit_skin": "skin_fit", "fit_bones_to_rig": "skin_fit", "finish_fit": "skin_fit", "validate_fit_options": "skin_fit",
             "fit_memory_bytes": "skin_fit", "bone_rest_frames": "skin_fit",
-            "SkinFit": "skin_fit", "compile_loops": "precompile"}
+            "SkinFit": "skin_fit", "compile_loops": "precompile",
+            "find_skeleton": "joints", "Skeleton": "joints", "MAX_JOINT_DRIFT": "joints", "fit_jointed": "jointed_fit"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

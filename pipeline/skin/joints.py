@@ -1,0 +1,269 @@
+"""Joints and a bone hierarchy found from a free rigid-bone fit (Le & Deng 2014, §4).
+
+A free fit (:mod:`.skin_fit`) moves every bone on its own: ``x ↦ R_j(f) x + t_j(f)`` from the
+rest pose. Two bones that meet at a joint carry the joint's rest point p to the same place in
+every frame, so the joint is the point that moves least relative to both bones:
+
+    p_jk = argmin_p  Σ_f ‖(R_j(f) − R_k(f)) p + t_j(f) − t_k(f)‖² / F  +  (p − c_jk)ᵀ Q (p − c_jk)
+
+(least squares, one 3×3 solve per pair). The data term A = Σ_f D_fᵀ D_f / F alone leaves a
+hinge's axis free (the rotation differences have rank 2) and a pair that never bends free in
+every direction, so a pull Q towards ``c_jk``, the centre of the region where the two bones
+meet, picks the point on that axis nearest it (Le & Deng pull the joint towards the bones'
+shared vertices too). The pull is a prior with the data's own noise, not a fixed share: with σ²
+the mean squared drift of the data's own answer (a ridge of 1e-9) and s a priori how far a joint
+lies from where its bones meet (``spread``, default 5 % of the rest diagonal),
+
+    Q = σ²/s² · ((I − A/λ_max) + JOINT_FLOOR · I)
+
+so it acts along the directions the pair bends in much less than its main bend (a hinge's axis:
+0.3 % of it on the horse's legs), little across them, and not at all on exact data: the
+walker's true bones give its true joints to 1e-15 (an isotropic pull of 1 % of the bend moved
+its ankles by 0.4 % of its height). The floor places the joint of two bones that hardly bend at
+all (a torso that moves as one) at ``c_jk``.
+
+A joint found outside the mesh (where ``c_jk`` is: the shared region is a patch of skin on a
+curved body) is moved into it (:func:`inside_mesh`, inside meaning a winding number of at least
+½: :func:`..geometry.points_inside`): along the segment to the first of ``c_jk``, the midpoint of
+the two bones' centroids and each centroid that is inside, to a quarter of the way past the skin,
+before its drift is measured. So every joint lies in the body, as a rig's joints do.
+
+Which bones meet (:func:`bone_neighbours`): those whose dominated vertices share a mesh edge, or
+that share weight (Σ_i min(w_ij, w_ik) at least :data:`MIN_SHARE` of the lighter bone's: the skin
+blends them; the walker's limbs are tubes of their own, tied to the torso by weights alone). ``c_jk`` is the
+centroid of that region: the shared vertices weighted by min(w_ij, w_ik), each boundary edge's
+midpoint by ½.
+
+The joint's **drift** (:func:`joint_positions`) is its RMS distance apart over the frames,
+‖(R_j − R_k) p + t_j − t_k‖: zero for bones that truly hinge there. The hierarchy
+(:func:`skeleton_tree`) is the minimum spanning forest of the neighbour graph weighted by
+drift, keeping only pairs whose drift is at most ``max_drift`` (rigid neighbours), rooted at
+the bone that carries the most weight (the body). A bone or group of bones with no rigid
+neighbour path to the root (cloth, a prop) hangs from the root *free*: it keeps its own
+translation, no joint holds it.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import mesh_edges
+from ..influence import most_influential_bone, weight_sums
+
+#: How far a joint may lie from where its two bones meet, a priori, as a share of the rest
+#: diagonal (module notes: the pull).
+JOINT_SPREAD = 0.05
+#: Shared weight that makes two bones neighbours without a mesh edge between their regions, as a
+#: share of the lighter bone's total weight (module notes).
+MIN_SHARE = 0.001
+#: The pull in every direction, as a share of the pull along a hinge's axis: what places the
+#: joint of two bones that never bend (module notes).
+JOINT_FLOOR = 0.01
+#: Largest drift (RMS over frames, share of the rest diagonal) of a joint the tree may use.
+MAX_JOINT_DRIFT = 0.02
+
+
+@dataclass
+class Skeleton:
+    """A tree over the B bones of a skin.
+
+    parents (B,) int64: each bone's parent, −1 for the root (exactly one); jointed (B,) bool: the
+    bone rotates about its joint with its parent (False for the root and for free bones, which
+    keep their own translation); joints (B, 3): each bone's joint in the rest pose (its own
+    weighted rest centroid where it has none); drift (B,): each joint's drift over the rest
+    diagonal on the fit it was found from (0 where there is no joint); root: the root bone.
+    """
+
+    parents: np.ndarray
+    jointed: np.ndarray
+    joints: np.ndarray
+    drift: np.ndarray
+
+    @property
+    def root(self):
+        return int(np.flatnonzero(self.parents < 0)[0])
+
+    @property
+    def bones(self):
+        return self.parents.size
+
+    def order(self):
+        """Bone ids (B,), every parent before its children (breadth first from the root)."""
+        return topological_order(self.parents)
+
+
+def topological_order(parents):
+    """Bone ids (B,), parents before children, of a tree ``parents (B,)`` (−1: the root)."""
+    parents = np.asarray(parents)
+    order, frontier = [], list(np.flatnonzero(parents < 0))
+    while frontier:
+        order.extend(frontier)
+        frontier = list(np.flatnonzero(np.isin(parents, frontier)))
+    if len(order) != parents.size:
+        raise ValueError("parents do not form one tree (a cycle, or a bone outside it)")
+    return np.asarray(order, dtype=np.int64)
+
+
+def bone_neighbours(rest, faces, bone_indices, bone_weights, bones, min_share=None):
+    """Bones that meet, and where: (pairs (P, 2) int64 with j < k, centres (P, 3)).
+
+    rest (V, 3), faces (T, 3), bone_indices (V, K), bone_weights (V, K). Module notes: a mesh
+    edge between vertices that the two bones dominate, or shared weight Σ_i min(w_ij, w_ik) of at
+    least ``min_share`` (default :data:`MIN_SHARE`) of the lighter bone's Σ_i w_ij."""
+    min_share = MIN_SHARE if min_share is None else min_share
+    rest = np.asarray(rest, dtype=np.float64)
+    indices, weights = np.asarray(bone_indices, dtype=np.int64), np.asarray(bone_weights, dtype=np.float64)
+    mass = np.zeros((bones, bones))
+    moment = np.zeros((bones, bones, 3))
+    slots = indices.shape[1]
+    for a in range(slots):  # K(K−1)/2 slot pairs, each over every vertex at once
+        for b in range(a + 1, slots):
+            share = np.minimum(weights[:, a], weights[:, b])
+            use = (share > 0.0) & (indices[:, a] != indices[:, b])
+            j, k = np.minimum(indices[use, a], indices[use, b]), np.maximum(indices[use, a], indices[use, b])
+            np.add.at(mass, (j, k), share[use])
+            np.add.at(moment, (j, k), share[use, None] * rest[use])
+    dominant = indices[np.arange(len(indices)), np.argmax(weights, axis=1)]
+    edges = mesh_edges(np.asarray(faces, dtype=np.int64))
+    edges = edges[dominant[edges[:, 0]] != dominant[edges[:, 1]]]
+    j, k = np.minimum(dominant[edges[:, 0]], dominant[edges[:, 1]]), np.maximum(dominant[edges[:, 0]], dominant[edges[:, 1]])
+    totals = weight_sums(indices, weights, bones)
+    shared = mass > min_share * np.minimum(totals[:, None], totals[None, :])
+    np.add.at(mass, (j, k), 0.5)
+    np.add.at(moment, (j, k), 0.25 * (rest[edges[:, 0]] + rest[edges[:, 1]]))
+    touching = np.zeros((bones, bones), dtype=bool)
+    touching[j, k] = True
+    j, k = np.nonzero(np.triu(shared | touching, 1))
+    return np.stack([j, k], axis=1).astype(np.int64), moment[j, k] / mass[j, k, None]
+
+
+def joint_positions(rotations, translations, pairs, centres, spread, floor=JOINT_FLOOR):
+    """Each pair's joint in the rest pose and its drift: (joints (P, 3), drift (P,)).
+
+    rotations (F, B, 3, 3), translations (F, B, 3): the free bones; pairs (P, 2); centres (P, 3)
+    where each pair meets; spread: how far from its meeting centre a joint may be a priori, in
+    the mesh's units (module notes: the pull). drift: RMS over the frames of the joint's two
+    images' distance, in the mesh's units."""
+    R, t = np.asarray(rotations, dtype=np.float64), np.asarray(translations, dtype=np.float64)
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    centres = np.asarray(centres, dtype=np.float64).reshape(-1, 3)
+    D = R[:, pairs[:, 0]] - R[:, pairs[:, 1]]  # (F, P, 3, 3)
+    d = t[:, pairs[:, 0]] - t[:, pairs[:, 1]]  # (F, P, 3)
+    frames = R.shape[0]
+    normal = np.einsum("fpij,fpik->pjk", D, D) / frames
+    right = -np.einsum("fpij,fpi->pj", D, d) / frames
+    largest = np.linalg.eigvalsh(normal)[:, -1] if len(pairs) else np.zeros(0)
+
+    def solve(pull):
+        return np.linalg.solve(normal + pull, (right[..., None] + pull @ centres[..., None]))[..., 0]
+
+    eye = np.eye(3)
+    # The data's own answer (a ridge of 1e-9 of the bend), its residual drift is the noise σ.
+    least = solve((1e-9 * largest + 1e-300)[:, None, None] * eye)
+    noise = joint_drift(R, t, pairs, least) ** 2
+    weak = eye - normal / np.maximum(largest, 1e-300)[:, None, None]  # 1 along a hinge's axis, 0 across it
+    pull = (noise / spread ** 2)[:, None, None] * (weak + floor * eye) + 1e-12 * eye
+    joints = solve(pull)
+    return joints, joint_drift(R, t, pairs, joints)
+
+
+def joint_drift(rotations, translations, pairs, joints):
+    """drift (P,): RMS over the frames of ‖(R_j − R_k) p + t_j − t_k‖ for each pair (j, k) of
+    ``pairs`` (P, 2) and its joint p (``joints`` (P, 3)), in the mesh's units."""
+    R, t = np.asarray(rotations, dtype=np.float64), np.asarray(translations, dtype=np.float64)
+    gap = (np.einsum("fpij,pj->fpi", R[:, pairs[:, 0]] - R[:, pairs[:, 1]], joints)
+           + t[:, pairs[:, 0]] - t[:, pairs[:, 1]])
+    return np.sqrt(np.mean(np.sum(gap ** 2, axis=2), axis=0))
+
+
+def inside_mesh(points, anchors, vertices, faces, steps=20):
+    """points (P, 3) moved into the closed mesh (vertices, faces) where outside: along the segment to
+    the first inside one of each point's ``anchors`` (P, N, 3), bisected to the skin (``steps``
+    halvings, all points at once), then a quarter of the rest of the way on. A point with no
+    inside anchor stays. Returns (points (P, 3), moved (P,) bool)."""
+    from ..geometry import points_inside
+
+    points = np.array(points, dtype=np.float64)
+    anchors = np.asarray(anchors, dtype=np.float64)
+    outside = np.flatnonzero(~points_inside(points, vertices, faces))
+    moved = np.zeros(len(points), dtype=bool)
+    if outside.size == 0:
+        return points, moved
+    inside = points_inside(anchors[outside].reshape(-1, 3), vertices, faces).reshape(outside.size, -1)
+    outside, inside = outside[inside.any(axis=1)], inside[inside.any(axis=1)]
+    start = points[outside]
+    target = anchors[outside, np.argmax(inside, axis=1)]
+    low, high = np.zeros(outside.size), np.ones(outside.size)  # outside at low, inside at high
+    for _ in range(steps):
+        middle = 0.5 * (low + high)
+        now = points_inside(start + middle[:, None] * (target - start), vertices, faces)
+        high, low = np.where(now, middle, high), np.where(now, low, middle)
+    points[outside] = start + (high + 0.25 * (1.0 - high))[:, None] * (target - start)
+    moved[outside] = True
+    return points, moved
+
+
+def skeleton_tree(bones, pairs, drift, weight_totals, root=None, max_drift=np.inf):
+    """The hierarchy: (parents (B,) int64, jointed (B,) bool, joint_pair (B,) int64).
+
+    pairs (P, 2), drift (P,): the neighbour pairs and their joints' drift; weight_totals (B,):
+    each bone's Σ weights (the root, unless ``root`` is given, is the largest; a detached group's
+    own top bone is its largest too). Pairs with drift above ``max_drift`` are not joints. Ties
+    between equal drifts go to the lower pair index (scipy's spanning tree is deterministic).
+    joint_pair[b]: the pair whose joint holds bone b to its parent, −1 where none."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components, minimum_spanning_tree
+
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    drift = np.asarray(drift, dtype=np.float64)
+    rigid = np.flatnonzero(drift <= max_drift)
+    # +1 keeps zero-drift joints as edges (scipy reads a 0 as no edge); the order is unchanged.
+    graph = coo_matrix((drift[rigid] / max(float(drift.max(initial=0.0)), 1e-300) + 1.0,
+                        (pairs[rigid, 0], pairs[rigid, 1])), shape=(bones, bones)).tocsr()
+    forest = minimum_spanning_tree(graph)
+    forest = forest + forest.T
+    root = int(np.argmax(weight_totals)) if root is None else int(root)
+    parents = np.full(bones, -1, dtype=np.int64)
+    jointed = np.zeros(bones, dtype=bool)
+    _, labels = connected_components(forest, directed=False)
+    for group in np.unique(labels):
+        members = np.flatnonzero(labels == group)
+        top = root if group == labels[root] else int(members[np.argmax(np.asarray(weight_totals)[members])])
+        order, predecessors = breadth_first_order(forest, top, directed=False, return_predecessors=True)
+        below = order[1:]
+        parents[below] = predecessors[below]
+        jointed[below] = True
+        if top != root:
+            parents[top] = root  # a free child of the root: no rigid neighbour path to it
+    key = {(int(a), int(b)): p for p, (a, b) in enumerate(pairs)}
+    joint_pair = np.array([key[(min(b, parents[b]), max(b, parents[b]))] if jointed[b] else -1 for b in range(bones)],
+                          dtype=np.int64)
+    return parents, jointed, joint_pair
+
+
+def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translations, root=None,
+                  max_drift=MAX_JOINT_DRIFT, spread=JOINT_SPREAD, diagonal=None):
+    """A :class:`Skeleton` for a free fit: neighbours, joints, drift, tree (module notes).
+
+    rest (V, 3), faces (T, 3), bone_indices / bone_weights (V, K), rotations (F, B, 3, 3),
+    translations (F, B, 3). ``max_drift`` is a share of ``diagonal`` (default: the rest pose's
+    bounding-box diagonal); ``root``: the root bone, default the one carrying the most weight."""
+    from ..geometry import bounding_box_diagonal
+    from ..influence import bone_centroids
+
+    bones = np.asarray(rotations).shape[1]
+    diagonal = bounding_box_diagonal(rest) if diagonal is None else float(diagonal)
+    totals = weight_sums(bone_indices, bone_weights, bones)
+    if root is None:
+        root = most_influential_bone(bone_indices, bone_weights, bones)
+    pairs, centres = bone_neighbours(rest, faces, bone_indices, bone_weights, bones)
+    joints, _ = joint_positions(rotations, translations, pairs, centres, spread * diagonal)
+    points = bone_centroids(rest, bone_indices, bone_weights, bones)
+    ends = points[pairs]  # (P, 2, 3): each pair's two bone centroids
+    joints, _ = inside_mesh(joints, np.concatenate([centres[:, None], ends.mean(axis=1, keepdims=True), ends], axis=1),
+                            rest, faces)
+    drift = joint_drift(rotations, translations, pairs, joints) / diagonal
+    parents, jointed, joint_pair = skeleton_tree(bones, pairs, drift, totals, root, max_drift)
+    points[jointed] = joints[joint_pair[jointed]]
+    bone_drift = np.where(jointed, drift[joint_pair], 0.0)
+    return Skeleton(parents=parents, jointed=jointed, joints=points, drift=bone_drift)

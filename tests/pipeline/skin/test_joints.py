@@ -1,0 +1,143 @@
+"""Joints and the bone hierarchy found from bone motions (Le & Deng 2014 §4), against closed forms:
+the walker's true rig, a ball joint and a hinge between random rigid motions, meshes whose
+inside is known."""
+
+import numpy as np
+import pytest
+
+from skinsynth.pipeline.examples import walker
+from skinsynth.pipeline.geometry import points_inside, winding_numbers
+from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.skin.joints import (Skeleton, find_skeleton, inside_mesh, joint_positions, skeleton_tree,
+                                            topological_order)
+
+
+def _sphere(centre=(0.0, 0.0, 0.0), radius=1.0, subdivisions=3):
+    import trimesh
+
+    mesh = trimesh.creation.icosphere(subdivisions, radius=radius)
+    return mesh.vertices + np.asarray(centre), np.asarray(mesh.faces)
+
+
+def _top_four(weights):
+    order = np.argsort(-weights, axis=1, kind="stable")[:, :4]
+    return order, np.take_along_axis(weights, order, axis=1)
+
+
+@pytest.fixture(scope="module")
+def true_walker():
+    vertices, faces, rig = walker(rig=True)
+    return vertices, faces, rig
+
+
+def test_the_walkers_true_bones_give_its_joints_and_its_tree(true_walker):
+    vertices, faces, rig = true_walker
+    indices, weights = _top_four(rig.weights)
+    found = find_skeleton(rig.rest, faces, indices, weights, rig.rotations, rig.translations, root=0)
+    height = np.ptp(vertices[..., 1])
+    assert found.parents.tolist() == rig.parents.tolist()
+    assert found.jointed.tolist() == [False] + [True] * 9
+    assert np.abs(found.joints[1:] - rig.joints[1:]).max() < 1e-9 * height
+    assert found.drift.max() < 1e-9
+
+
+def test_the_root_defaults_to_the_heaviest_bone_and_the_tree_is_the_same(true_walker):
+    vertices, faces, rig = true_walker
+    indices, weights = _top_four(rig.weights)
+    found = find_skeleton(rig.rest, faces, indices, weights, rig.rotations, rig.translations)
+    assert found.root == int(np.argmax(rig.weights.sum(axis=0)))
+    edges = {frozenset((b, int(p))) for b, p in enumerate(found.parents) if p >= 0}
+    assert edges == {frozenset((b, int(p))) for b, p in enumerate(rig.parents) if p >= 0}
+
+
+def _two_bones(joint, frames=20, seed=0, axis=None):
+    """Bone 0 moves rigidly at random; bone 1 turns about ``joint`` relative to it (about the
+    fixed ``axis`` only, if given)."""
+    rng = np.random.default_rng(seed)
+    R0 = rotation_exp(rng.normal(scale=0.8, size=(frames, 3)))
+    t0 = rng.normal(size=(frames, 3))
+    relative = rotation_exp((rng.normal(scale=0.7, size=(frames, 1)) * axis) if axis is not None
+                            else rng.normal(scale=0.7, size=(frames, 3)))
+    R1 = R0 @ relative
+    t1 = np.einsum("fij,j->fi", R0 - R1, joint) + t0  # the joint goes where bone 0 takes it
+    return np.stack([R0, R1], axis=1), np.stack([t0, t1], axis=1)
+
+
+def test_a_ball_joint_is_found_exactly_whatever_the_meeting_centre():
+    joint = np.array([0.3, -0.2, 0.5])
+    R, t = _two_bones(joint)
+    found, drift = joint_positions(R, t, [[0, 1]], [[5.0, 5.0, 5.0]], spread=0.1)
+    assert np.abs(found[0] - joint).max() < 1e-9 and drift[0] < 1e-9
+
+
+def test_a_hinge_joint_lands_on_its_axis_nearest_the_meeting_centre():
+    joint, axis = np.array([0.3, -0.2, 0.5]), np.array([0.0, 0.6, 0.8])
+    R, t = _two_bones(joint, axis=axis)
+    centre = joint + 0.7 * axis + np.array([0.0, 0.8, -0.6])  # 0.7 along the axis, 1 off it
+    found, drift = joint_positions(R, t, [[0, 1]], [centre], spread=0.1)
+    assert np.abs(found[0] - (joint + 0.7 * axis)).max() < 1e-4 and drift[0] < 1e-9  # conditioning: 1e-12 pull
+
+
+def test_a_noisy_hinge_is_pulled_to_the_meeting_centre_along_its_axis_only():
+    joint, axis = np.array([0.3, -0.2, 0.5]), np.array([0.0, 0.6, 0.8])
+    R, t = _two_bones(joint, axis=axis, frames=200)
+    t = t + np.random.default_rng(1).normal(scale=0.01, size=t.shape)  # 1 cm of noise on each bone
+    centre = joint + 0.7 * axis
+    loose, _ = joint_positions(R, t, [[0, 1]], [centre], spread=10.0)
+    pulled, _ = joint_positions(R, t, [[0, 1]], [centre], spread=0.05)
+    along = lambda p: float((p - joint) @ axis)  # noqa: E731
+    across = lambda p: float(np.linalg.norm((p - joint) - along(p) * axis))  # noqa: E731
+    assert abs(along(pulled[0]) - 0.7) < 0.1 * abs(along(loose[0]) - 0.7) + 0.01
+    assert across(pulled[0]) < 0.01 and across(loose[0]) < 0.01
+
+
+def test_winding_numbers_count_overlapping_shells():
+    a_vertices, a_faces = _sphere((0.0, 0.0, 0.0))
+    b_vertices, b_faces = _sphere((1.2, 0.0, 0.0))
+    vertices = np.concatenate([a_vertices, b_vertices])
+    faces = np.concatenate([a_faces, b_faces + len(a_vertices)])
+    points = np.array([[0.6, 0.0, 0.0], [-0.5, 0.0, 0.0], [1.8, 0.0, 0.0], [0.6, 0.95, 0.0], [3.0, 0.0, 0.0]])
+    assert np.allclose(winding_numbers(points, vertices, faces), [2, 1, 1, 0, 0], atol=1e-6)
+    assert points_inside(points, vertices, faces).tolist() == [True, True, True, False, False]
+    assert points_inside(points, vertices, faces[:, ::-1]).tolist() == [True, True, True, False, False]  # inward
+
+
+def test_points_inside_a_sphere_agree_with_their_distance():
+    vertices, faces = _sphere(subdivisions=3)
+    points = np.random.default_rng(0).uniform(-1.3, 1.3, size=(500, 3))
+    radius = np.linalg.norm(points, axis=1)
+    clear = (radius < 0.98) | (radius > 1.0)  # the icosphere's faces lie between 0.99 and 1
+    assert np.array_equal(points_inside(points, vertices, faces)[clear], (radius < 0.98)[clear])
+
+
+def test_a_joint_outside_is_moved_inside_towards_its_first_inside_anchor():
+    vertices, faces = _sphere()
+    points = np.array([[2.0, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, 3.0, 0.0]])
+    anchors = np.array([[[5.0, 5.0, 5.0], [0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]] * 2, [[4.0, 4.0, 4.0]] * 2])
+    moved_points, moved = inside_mesh(points, anchors, vertices, faces)
+    assert moved.tolist() == [True, False, False]  # the last has no inside anchor
+    assert np.allclose(moved_points[1:], points[1:])
+    # a quarter of the way past the skin (radius ~1) towards the origin
+    assert 0.7 < moved_points[0, 0] < 0.78 and np.allclose(moved_points[0, 1:], 0.0)
+
+
+def test_a_group_without_rigid_neighbours_hangs_free_from_the_root():
+    pairs = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
+    drift = np.array([0.001, 0.002, 0.5, 0.003])  # 2–3 is no joint
+    parents, jointed, joint_pair = skeleton_tree(5, pairs, drift, weight_totals=[1.0, 5.0, 1.0, 1.0, 2.0],
+                                                 max_drift=0.02)
+    assert parents.tolist() == [1, -1, 1, 4, 1] and jointed.tolist() == [True, False, True, True, False]
+    assert joint_pair.tolist() == [0, -1, 1, 3, -1]
+    assert topological_order(parents)[0] == 1
+
+
+def test_the_spanning_tree_keeps_the_least_drifting_joints():
+    pairs = np.array([[0, 1], [0, 2], [1, 2]])
+    parents, _, _ = skeleton_tree(3, pairs, np.array([0.01, 0.002, 0.001]), [3.0, 1.0, 1.0], max_drift=1.0)
+    assert parents.tolist() == [-1, 2, 0]
+
+
+def test_a_cycle_is_not_a_tree():
+    with pytest.raises(ValueError):
+        topological_order(np.array([-1, 2, 1]))
+    assert Skeleton(np.array([-1, 0, 1]), np.array([False, True, True]), np.zeros((3, 3)), np.zeros(3)).root == 0
