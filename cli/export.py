@@ -8,7 +8,7 @@ import numpy as np
 from .options import check_max_width, device_option, texture_options, up_axis_option
 from .common import FolderOutputs, report, summary_options, user_errors
 from .outputs import (TEXTURES, check_animation_output, check_bone_texture_output, check_texture_output,
-                      write_bone_textures, write_gltf, write_textures)
+                      usd_joint_tree, write_bone_textures, write_gltf, write_textures)
 
 
 def _selection(text):
@@ -109,7 +109,7 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
         elif output_kind == "gltf":
             write_gltf(output, source.skin, (part for a in chosen for part in source.parts(a)),
                        up_axis or source.scene.up_axis, None if quantize is None else int(quantize), root_motion,
-                       label=source.path)
+                       label=source.path, skeleton=source.skin.skeleton)
         elif to_exr:
             frames = (part for a in chosen for part in source.vertex_parts(a)) if output_kind == "folder" else \
                 ((source.names[a], source.vertices(a)) for a in chosen)  # a folder: a texture per clip
@@ -127,9 +127,11 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
                 up = np.eye(3)["XYZ".index(up_axis or skin.scene.up_axis)]
                 root = ground_motion(np.asarray(rotations, np.float64), np.asarray(translations, np.float64),
                                      skin.rest_vertices, skin.bone_indices, skin.bone_weights, up)
+            tree = None if skin.skeleton is None else usd_joint_tree(skin.skeleton, rotations, translations, root)
             write_skel_cache(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, rotations,
-                             translations, skin.bone_rest_frames[:, :3, 3], skin.fps, up_axis=up_axis,
-                             scene=skin.scene, root_motion=root, clips=source.clips)
+                             translations, skin.bone_rest_frames[:, :3, 3] if tree is None else skin.skeleton["joints"],
+                             skin.fps, up_axis=up_axis, scene=skin.scene, root_motion=root, clips=source.clips,
+                             joint_tree=tree)
         else:
             from skinsynth.formats.usd import write_points_cache
 

@@ -52,6 +52,10 @@ def inspect_file(path, as_json, quiet, digests):
             click.echo(f"clips: {len(value)}")
             for clip in value:
                 click.echo(f"  {clip['name']}: {clip['frames']} frames ({clip['first']}–{clip['last']})")
+        elif key == "skeleton":  # one line: the joint tree (fit-skin --skeleton)
+            free = ", ".join(str(b) for b in value["free_bones"]) or "none"
+            click.echo(f"skeleton: root bone {value['root']}, {value['joints']} joints, free bones: {free}; "
+                       f"tree {value['tree']} (~ free); parents {value['parents']}")
         elif isinstance(value, float):
             click.echo(f"{key}: {value:.6g}")
         else:

@@ -118,6 +118,9 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
 
     names = [f"character_{c:03d}" for c in range(characters)]
     morph = None
+    # A puppet's rig is written flat, every bone under the root, even when its skin has a skeleton
+    # (/skin/skeleton): the bones play's path predicts do not hold the joints, so a tree would
+    # have bones that stretch from frame to frame (export writes the skin's own fit as the tree).
     if output_kind == "gltf" or bone_textures:  # one rig, each character a clip in place (no grid: clips alternate)
         rotations, translations, shape_weights = world_bones(puppet, flat, translation_solver)
         rotations = rotations.reshape(characters, frames, *rotations.shape[1:])

@@ -238,7 +238,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                                      texture=dict(half=half, max_width=max_width))
         if gltf is not None:
             write_gltf(gltf, skin, ((f"animation_{a:04d}", motions.F[a], motions.t[a]) for a in range(count)),
-                       up_axis, root_motion=root_motion, label=path)
+                       up_axis, root_motion=root_motion, label=path, skeleton=skin.skeleton)
             written.append(gltf)
         if plot_dir is not None:
             written += _write_plots(plot_dir, skin, motions, min(plot_count, count), device, folders,

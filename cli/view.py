@@ -160,12 +160,24 @@ def _skin(path, error_scale, contacts=False):
         return lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights,
                              skin.rotations[frame:frame + 1], skin.translations[frame:frame + 1])[0]
 
+    skeleton = None if skin.skeleton is None else _skeleton_lines(skin)  # fit-skin --skeleton: drawn over the fit
     scale = error_scale * bounding_box_diagonal(skin.rest_vertices)
     return (SkinView(faces=skin.faces, examples=skin.examples, fit=fit, error_scale=scale, error_fraction=error_scale,
                      fps=skin.fps, up_axis=skin.scene.up_axis,
-                     contacts=None if found is None else (found.vertices, found.offsets, found.planted)),
+                     contacts=None if found is None else (found.vertices, found.offsets, found.planted),
+                     skeleton=skeleton),
             {"frames": int(skin.examples.shape[0]), "error_scale": error_scale,
              **({"contact_patches": int(found.offsets.size - 1)} if found is not None else {})})
+
+
+def _skeleton_lines(skin):
+    """frame -> (joints (B, 3), bones (S, 2, 3)) of a skin's skeleton as its fit carries it."""
+    from skinsynth.pipeline.view import skeleton_lines
+
+    def at(frame):
+        return skeleton_lines(skin.rotations[frame], skin.translations[frame], skin.skeleton["joints"],
+                              skin.skeleton["parents"], skin.skeleton["jointed"])
+    return at
 
 
 def _synthesis(path, animation):

@@ -35,6 +35,8 @@ MESH_COLOR = (175, 185, 205)
 INPUT_COLOR = (150, 150, 150)
 #: Error shades of a skin fit's reconstruction (``scenes.error_levels``): 8 steps grey to red.
 ERROR_STEPS = 8
+#: The opacity of a skin fit's reconstruction with a skeleton drawn inside it (its joints and bones show through).
+SEE_THROUGH = 0.55
 #: A synthesis component is drawn in the seam colour for this share of a second after a seam,
 #: so that a seam stays visible while playing (at 24 fps: 6 frames).
 SEAM_HOLD_SECONDS = 0.25
@@ -71,7 +73,9 @@ class PuppetView:
 class SkinView:
     """A skin fit: faces (T, 3), examples (F, V, 3), fit(frame) -> reconstruction (V, 3), the
     error shown full red (absolute, and as the fraction of the diagonal it was given), fps, up axis;
-    contacts: a graph file's input ground contacts (/graph/contacts), None when it has none."""
+    contacts: a graph file's input ground contacts (/graph/contacts), None when it has none;
+    skeleton: skeleton(frame) -> (joints (B, 3), bones (S, 2, 3)) of the fit (``scenes.skeleton_lines``),
+    None for a skin without one."""
 
     faces: np.ndarray
     examples: np.ndarray
@@ -81,6 +85,7 @@ class SkinView:
     fps: float
     up_axis: str
     contacts: tuple = None  # a graph file's ground contacts: (vertices (N,), offsets (P + 1,), planted (F, P))
+    skeleton: Callable = None
 
 
 @dataclass
@@ -397,7 +402,8 @@ def _indicator(distance, frame, scale, color):
 
 class SkinPage:
     """Examples and reconstruction, side by side or overlaid, the reconstruction coloured by
-    each face's error; a frame slider with play/pause."""
+    each face's error (see-through, with the fit's joints and bones inside, for a skin with a
+    skeleton); a frame slider with play/pause."""
 
     def __init__(self, server, view):
         self.server, self.view = server, view
@@ -411,6 +417,8 @@ class SkinPage:
         self.layout = server.gui.add_dropdown("layout", ("side by side", "overlaid"), initial_value="side by side")
         if view.contacts is not None:
             server.gui.add_markdown("ground contacts: the planted patches' vertices of the input frame in cyan")
+        if view.skeleton is not None:
+            server.gui.add_markdown("skeleton: the fit's joints and bones in yellow, inside the see-through fit")
         self.contact, self.point_size = None, 0.006 * float(np.ptp(view.examples[0], axis=0).max())
         self.info = server.gui.add_markdown("")
         self.timeline = Timeline(server, len(view.examples), view.fps, self.show)
@@ -431,12 +439,25 @@ class SkinPage:
             for level, ids, local in scenes.split_by_key(view.faces, levels):
                 present.add(level)
                 self.parts[level] = self.server.scene.add_mesh_simple(
-                    f"/fit/level_{level}", fitted[ids] + offset, local, color=tuple(int(c) for c in self.colors[level]))
+                    f"/fit/level_{level}", fitted[ids] + offset, local, color=tuple(int(c) for c in self.colors[level]),
+                    opacity=None if view.skeleton is None else SEE_THROUGH)
             for level in [k for k in self.parts if k not in present]:
                 self.parts.pop(level).remove()
             self._contacts(frame, truth)
+            self._skeleton(frame, offset)
             self.info.content = (f"frame {frame}: RMS error {np.sqrt(np.mean(errors ** 2)):.4g}, "
                                  f"largest {errors.max():.4g}")
+
+    def _skeleton(self, frame, offset):
+        """The fit's joints (points) and bones (lines) at ``frame``, over the reconstruction."""
+        if self.view.skeleton is None:
+            return
+        joints, bones = self.view.skeleton(frame)
+        color = tuple(int(c) for c in scenes.SKELETON_COLOR)
+        self.server.scene.add_point_cloud("/fit_joints", joints + offset, color, point_size=2 * self.point_size,
+                                          point_shape="circle")
+        if len(bones):
+            self.server.scene.add_line_segments("/fit_bones", bones + offset, color, thickness=self.point_size / 2)
 
     def _contacts(self, frame, truth):
         """The planted contact vertices of input frame ``frame`` as cyan points on the input."""

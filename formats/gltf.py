@@ -4,8 +4,11 @@
 
 Layout: scene 0 holds the mesh node (with the skin) and the root joint node; the bone joint
 nodes are children of the root, their default TRS the bind pose (a translation to each bone's
-centre). One animation per clip, LINEAR samplers keyed at each frame's time (frame / fps), a
-translation and a rotation channel per moving joint. All data in one buffer, the GLB's BIN chunk.
+centre). A scene with joint ``parents`` (a skeleton's tree) nests them as it says instead, each
+node's ``children`` in ascending joint order and its default translation local to its parent; a
+scene without them is written byte for byte as before they existed. One animation per clip,
+LINEAR samplers keyed at each frame's time (frame / fps), a translation and a rotation channel
+per moving joint. All data in one buffer, the GLB's BIN chunk.
 
 Morph targets (§3.7.2.2), when the scene has them: POSITION displacements of the rest pose, added
 before skinning, each a float32 accessor with its min and max (as the spec requires of POSITION);
@@ -58,7 +61,8 @@ class SkinnedScene:
     each joint's default translation (the root's its parent's frame, the bones' the root's);
     uvs (V, 2) or None; clips [Clip]; ``mesh_name``; morph_targets (k, V, 3) POSITION
     displacements added before skinning, or None, named ``target_names`` (k,) (default
-    "target_N")."""
+    "target_N"); parents (J,) each joint's parent joint (−1 for joint 0, the root, and
+    ``bind_translations`` then local to the parent), or None: every bone under the root."""
     positions: np.ndarray
     normals: np.ndarray
     faces: np.ndarray
@@ -72,6 +76,7 @@ class SkinnedScene:
     mesh_name: str = "mesh"
     morph_targets: np.ndarray | None = None
     target_names: list | None = None
+    parents: np.ndarray | None = None
 
 
 class _Buffer:
@@ -143,11 +148,14 @@ def write_skinned_glb(path, scene: SkinnedScene):
     bones = len(scene.joint_names) - 1
     mesh_node, root_node = 0, 1
     joint_nodes = [root_node] + list(range(2, 2 + bones))
+    children = _joint_children(scene.parents, bones + 1)
     nodes = [{"name": scene.mesh_name, "mesh": 0, "skin": 0},
-             {"name": scene.joint_names[0], "children": joint_nodes[1:]}]
+             {"name": scene.joint_names[0], "children": [joint_nodes[c] for c in children[0]]}]
     for j in range(1, bones + 1):
         nodes.append({"name": scene.joint_names[j],
                       "translation": [float(v) for v in scene.bind_translations[j]]})
+        if children[j]:
+            nodes[-1]["children"] = [joint_nodes[c] for c in children[j]]
     if np.any(scene.bind_translations[0]):
         nodes[root_node]["translation"] = [float(v) for v in scene.bind_translations[0]]
     ibm = np.ascontiguousarray(np.swapaxes(np.asarray(scene.inverse_binds, dtype=np.float32), 1, 2))  # column-major
@@ -167,6 +175,27 @@ def write_skinned_glb(path, scene: SkinnedScene):
     with atomic_output(path, expected_bytes=buffer.length + (1 << 20)) as tmp:
         with open(tmp, "wb") as handle:
             _write_glb(handle, document, buffer.parts, buffer.length)
+
+
+def _joint_children(parents, joints):
+    """Each joint's children, ascending: every bone under the root when ``parents`` is None;
+    ValueError unless ``parents`` (J,) is one tree under joint 0."""
+    if parents is None:
+        return [list(range(1, joints))] + [[] for _ in range(joints - 1)]
+    parents = np.asarray(parents, dtype=np.int64)
+    if parents.shape != (joints,) or parents[0] != -1 or (parents[1:] < 0).any() or (parents >= joints).any():
+        raise ValueError(f"joint parents must be ({joints},), -1 for the root joint 0 and a joint for every other, "
+                         f"got {parents.tolist()}")
+    children = [[] for _ in range(joints)]
+    for joint in range(1, joints):
+        children[parents[joint]].append(joint)
+    reached, stack = 0, [0]
+    while stack and reached <= joints:
+        reached += 1
+        stack.extend(children[stack.pop()])
+    if reached != joints:
+        raise ValueError("the joint parents are not a tree under the root joint (a cycle)")
+    return children
 
 
 def _check_morph_targets(path, scene):

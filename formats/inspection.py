@@ -37,6 +37,24 @@ def clip_table(examples, frames):
             for name, count, end in zip(names, counts, ends)]
 
 
+def describe_skeleton(skeleton):
+    """What ``inspect`` says of a read /skin/skeleton: {root, joints (bones jointed to their parent),
+    free_bones (ids), parents, tree}: the tree nested as ``root(child(...) child ...)``, children in
+    ascending id, a free bone marked ``~``."""
+    parents = [int(p) for p in np.asarray(skeleton["parents"])]
+    jointed = np.asarray(skeleton["jointed"]).astype(bool)
+    root = parents.index(-1)
+    children = {bone: [c for c, p in enumerate(parents) if p == bone] for bone in range(len(parents))}
+
+    def nested(bone):
+        name = ("~" if not jointed[bone] and bone != root else "") + str(bone)
+        return name + (f"({' '.join(nested(c) for c in children[bone])})" if children[bone] else "")
+
+    return {"root": root, "joints": int(jointed.sum()),
+            "free_bones": [b for b in range(len(parents)) if b != root and not jointed[b]],
+            "parents": parents, "tree": nested(root)}
+
+
 def describe_model(path, model):
     """What ``inspect`` reports of a model file (``model``: :func:`.model.read_model`'s dict),
     after the checks every reader makes (:func:`validate_model`): {name: plain value}."""
@@ -65,6 +83,8 @@ def describe_model(path, model):
             if f"@{key}" in skin:
                 value = skin[f"@{key}"]
                 out[key] = bool(value) if key == "converged" else (int(value) if key in ("iterations", "bones_without_weight") else float(value))
+        if "skeleton" in skin:
+            out["skeleton"] = describe_skeleton(skin["skeleton"])
     if "controls" in model:
         controls = model["controls"]
         out["control_vertex_indices"] = [int(v) for v in np.asarray(controls.get("vertex_indices", []))]

@@ -7,6 +7,7 @@ Skinning convention of skinsynth (column vectors): for vertex i with influences 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import os
 import re
@@ -119,7 +120,7 @@ def write_points_characters(path, vertices, faces, fps, names=None, up_axis=None
 
 def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
                      bind_centers, fps, prim_name=None, up_axis=None, skinning="linear", scene=None,
-                     root_motion=None, clips=None) -> None:
+                     root_motion=None, clips=None, joint_tree=None) -> None:
     """Write a rigid-bone animation as UsdSkel so that UsdSkel's skinning reproduces skinsynth's.
 
     rest_vertices (V, 3); faces (T, 3); bone_indices (V, K) int and bone_weights (V, K)
@@ -139,23 +140,74 @@ def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rot
     ``root_motion``: (rotations (F, 3, 3), translations (F, 3)), the root joint's world transform
     per frame (the bones' are divided by it); None keeps the root at the origin. ``clips`` as
     :func:`write_points_cache`: one timeline, the takes' boundaries in the layer's metadata.
+
+    ``joint_tree``: a :class:`JointTree` (its locals (F, B, 3, 3) and (F, B, 3), this one
+    animation's) to write the bones as that tree, ``bind_centers`` then its joints; None: every
+    bone under the root.
     """
     scene = _scene(scene, up_axis, prim_name)
     rotations = _float_array("rotations", rotations, (None, None, 3, 3))
+    if joint_tree is not None:
+        joint_tree = dataclasses.replace(joint_tree, rotations=np.asarray(joint_tree.rotations)[None],
+                                         translations=np.asarray(joint_tree.translations)[None])
     write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations[None],
                           np.asarray(translations)[None], bind_centers, fps, names=[scene.prim_name],
                           skinning=skinning, group=None, scene=scene, clips=clips,
-                          root_motion=None if root_motion is None else tuple(np.asarray(a)[None] for a in root_motion))
+                          root_motion=None if root_motion is None else tuple(np.asarray(a)[None] for a in root_motion),
+                          joint_tree=joint_tree)
 
 
 SKINNING_METHODS = {"linear": "classicLinear", "dual-quaternion": "dualQuaternion"}
-#: The one root joint of every skeleton written; the bones are ``root/bone_NNN``.
+#: The one root joint of every skeleton written; the bones are ``root/bone_NNN`` (a
+#: :class:`JointTree`'s: ``root/<its root bone>/...``, each bone under its parent).
 ROOT_JOINT = "root"
+
+
+@dataclasses.dataclass
+class JointTree:
+    """A rig whose bones are a tree under the root joint, as ``pipeline.skeleton`` computes it
+    (this module lays it out): ``parents`` (B,) each bone's parent bone, −1 for the one bone
+    under the root joint; ``names`` (B,) the bones' joint names (USD identifiers); ``rest`` (B, 3)
+    each bone's rest translation local to its parent joint; ``rotations`` (C, F, B, 3, 3) and
+    ``translations`` (C, F, B, 3), each bone's joint transform local to its parent joint per
+    character and frame (the top bone's local to the root joint, whose own transform is the
+    writer's ``root_motion`` or the identity). The bind transforms stay world translations to
+    the joints (the writer's ``bind_centers``)."""
+
+    parents: np.ndarray
+    names: list
+    rest: np.ndarray
+    rotations: np.ndarray
+    translations: np.ndarray
+
+    def order(self):
+        """The bones in UsdSkel's joint order (every parent before its children: by depth, then
+        by bone id), (B,) int64; ValueError unless the parents are one tree."""
+        parents = np.asarray(self.parents, dtype=np.int64)
+        depth = np.where(parents < 0, 0, -1)
+        if np.count_nonzero(parents < 0) != 1 or (parents >= len(parents)).any():
+            raise ValueError(f"a joint tree has one bone under the root joint (parent -1), got {parents.tolist()}")
+        for _ in range(len(parents)):
+            undone = (depth < 0) & (depth[np.maximum(parents, 0)] >= 0)
+            if not undone.any():
+                break
+            depth[undone] = depth[parents[undone]] + 1
+        if (depth < 0).any():
+            raise ValueError("the joint tree's parents are not a tree (a cycle)")
+        return np.argsort(depth, kind="stable")
+
+    def paths(self, order):
+        """The joints' paths for UsdSkel (``root/<top bone>/.../<bone>``), in ``order``."""
+        paths = {}
+        for bone in order:
+            parent = self.parents[bone]
+            paths[bone] = (ROOT_JOINT if parent < 0 else paths[parent]) + "/" + self.names[bone]
+        return [paths[bone] for bone in order]
 
 
 def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights, rotations, translations,
                           bind_centers, fps, names=None, up_axis=None, skinning="linear", group="characters",
-                          blend_shapes=None, scene=None, root_motion=None, clips=None) -> None:
+                          blend_shapes=None, scene=None, root_motion=None, clips=None, joint_tree=None) -> None:
     """Several characters sharing one rig, each with its own bone animation, as UsdSkel.
 
     rotations (C, F, B, 3, 3), translations (C, F, B, 3); the rest as :func:`write_skel_cache`.
@@ -168,6 +220,9 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
     ± pairs with weights in [0, 1], ``pipeline.morph_targets.unit_range_pairs``: Blender's shape
     keys clamp to [0, 1]); the shapes are written once, under the first character's mesh, and
     every character's mesh targets them.
+    joint_tree: a :class:`JointTree` to write the bones as that tree (``bind_centers`` its joints;
+    the joints in UsdSkel's order, parents first, and the meshes' joint indices to match), None
+    for every bone under the root.
     """
     rest = _float_array("rest_vertices", rest_vertices, (None, 3))
     count = len(rest)
@@ -195,11 +250,23 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
 
     # One root joint with every bone under it (engines such as Unreal refuse several roots); the
     # root stays at the origin, so each bone's parent-local transform is its world transform.
-    joints = Vt.TokenArray([ROOT_JOINT] + [f"{ROOT_JOINT}/bone_{b:03d}" for b in range(bones)])
+    # A joint tree: the bones under it as the tree says, in UsdSkel's order (parents first).
+    order = np.arange(bones) if joint_tree is None else _checked_tree(joint_tree, characters, frames, bones, path)
+    joints = Vt.TokenArray([ROOT_JOINT] + ([f"{ROOT_JOINT}/bone_{b:03d}" for b in range(bones)] if joint_tree is None
+                                           else joint_tree.paths(order)))
     bind = np.tile(np.eye(4), (bones + 1, 1, 1))
-    bind[1:, 3, :3] = centers
+    bind[1:, 3, :3] = centers[order]
+    rest_transforms = None
+    if joint_tree is not None:
+        rest_transforms = np.tile(np.eye(4), (bones + 1, 1, 1))
+        rest_transforms[1:, 3, :3] = np.asarray(joint_tree.rest, dtype=np.float64)[order]
+        rest_transforms = Vt.Matrix4dArray.FromNumpy(rest_transforms)
     bind = Vt.Matrix4dArray.FromNumpy(bind)
     ones = Vt.Vec3hArray.FromNumpy(np.ones((bones + 1, 3), dtype=np.float16))
+    if joint_tree is not None:  # bone b is the joint at its place in the order
+        position = np.empty(bones, dtype=np.int32)
+        position[order] = np.arange(bones)
+        indices = position[indices]
     indices = indices + 1  # joint 0 is the root, which carries no vertex
 
     with atomic_output(path) as tmp:
@@ -212,8 +279,10 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
             if group is None and c == 0:
                 _set_default_prim(stage, root_path)
             root = None if root_motion is None else (root_motion[0][c], root_motion[1][c])
+            tree = None if joint_tree is None else (joint_tree.rotations[c][:, order],
+                                                    joint_tree.translations[c][:, order], rest_transforms)
             animation = _define_skeleton(stage, root_path, joints, bind, ones, rotations[c], translations[c], centers,
-                                         start, root)
+                                         start, root, tree)
             mesh = _define_mesh(stage, mesh_path, faces)
             mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(rest.astype(np.float32)))
             mesh.GetExtentAttr().Set(_extent(rest))
@@ -241,16 +310,23 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
         del stage
 
 
-def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translations, centers, start=0.0, root=None):
+def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translations, centers, start=0.0, root=None,
+                     tree=None):
     """Skeleton and Animation of one character: rotations (F, B, 3, 3), translations (F, B, 3);
     root None (the root joint at the origin) or its (rotations (F, 3, 3), translations (F, 3)).
+    tree: (local rotations (F, B, 3, 3), local translations (F, B, 3), rest transforms (B + 1))
+    of a joint tree, in the joints' order, written as they are; None: the bones under the root.
     Returns the UsdSkel.Animation."""
     frames, bones = rotations.shape[:2]
-    joint_translations = np.einsum("fbij,bj->fbi", rotations, centers) + translations
-    if root is not None:  # each bone local to the moving root: root⁻¹ ∘ world
-        inverse = np.swapaxes(np.asarray(root[0], dtype=np.float64), -1, -2)
-        rotations = np.einsum("fij,fbjk->fbik", inverse, rotations)
-        joint_translations = np.einsum("fij,fbj->fbi", inverse, joint_translations - np.asarray(root[1])[:, None])
+    if tree is not None:  # the joints' parent-local transforms as given (pipeline.skeleton's)
+        rotations, joint_translations = np.asarray(tree[0], dtype=np.float64), tree[1]
+    else:
+        joint_translations = np.einsum("fbij,bj->fbi", rotations, centers) + translations
+        if root is not None:  # each bone local to the moving root: root⁻¹ ∘ world
+            inverse = np.swapaxes(np.asarray(root[0], dtype=np.float64), -1, -2)
+            rotations = np.einsum("fij,fbjk->fbik", inverse, rotations)
+            joint_translations = np.einsum("fij,fbj->fbi", inverse, joint_translations - np.asarray(root[1])[:, None])
+    if root is not None:
         rotations = np.concatenate([np.asarray(root[0])[:, None], rotations], axis=1)
     joint_matrices = np.zeros((rotations.shape[0] * rotations.shape[1], 4, 4))
     joint_matrices[:, :3, :3] = rotations.reshape(-1, 3, 3).transpose(0, 2, 1)  # row-vector form
@@ -263,7 +339,8 @@ def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translatio
     skeleton.CreateJointsAttr(joints)
     skeleton.CreateJointNamesAttr(joints)
     skeleton.CreateBindTransformsAttr(bind)
-    skeleton.CreateRestTransformsAttr(bind)  # the root at the origin: parent-local equals world
+    # the root at the origin: parent-local equals world; a tree's rest transforms are its own
+    skeleton.CreateRestTransformsAttr(bind if tree is None else tree[2])
 
     animation = UsdSkel.Animation.Define(stage, skeleton.GetPath().AppendChild("Animation"))
     animation.CreateJointsAttr(joints)
@@ -280,6 +357,18 @@ def _define_skeleton(stage, root_path, joints, bind, ones, rotations, translatio
         anim_rotations.Set(Vt.QuatfArray.FromNumpy(np.ascontiguousarray(quats[frame])), Usd.TimeCode(start + frame))
     UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
     return animation
+
+
+def _checked_tree(tree, characters, frames, bones, path):
+    """A :class:`JointTree`'s joint order, after checking its shapes (ValueError) and values."""
+    if len(tree.parents) != bones or len(tree.names) != bones:
+        raise ValueError(f"a joint tree of {len(tree.parents)} parents and {len(tree.names)} names for {bones} bones")
+    if not all(Sdf.Path.IsValidIdentifier(n) for n in tree.names):
+        raise ValueError(f"joint names must be USD identifiers, got {list(tree.names)!r}")
+    _float_array("joint tree rest", tree.rest, (bones, 3), path)
+    _float_array("joint tree rotations", tree.rotations, (characters, frames, bones, 3, 3), path)
+    _float_array("joint tree translations", tree.translations, (characters, frames, bones, 3), path)
+    return tree.order()
 
 
 def _character_names(names, characters):

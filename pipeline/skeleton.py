@@ -8,6 +8,14 @@ matrices B_j⁻¹. With each bone's bind transform a translation to its rest cen
 J_j(f) = [R_j(f) | R_j(f) c_j + t_j(f)] makes J_j(f) B_j⁻¹ = [R_j(f) | t_j(f)] exactly. The root's
 bind is the identity; its world transform P(f) (identity, or the ground motion with root motion)
 is divided out of every bone: local_j(f) = P(f)⁻¹ J_j(f).
+
+A rig with a skeleton (``fit-skin --skeleton``: each bone's ``parents`` bone, −1 for the root
+bone; its ``joints``, the rest positions c_j it turns about) is exported as a tree instead
+(:func:`tree_locals`, :func:`joint_names`): the root bone under the root joint, every other bone
+under its parent bone, each joint at c_j with the same inverse bind (a translation by −c_j) and
+the same world matrix J_j(f), now local to its parent: local_j(f) = J_p(f)⁻¹ J_j(f) (the root
+bone's p the root joint, P(f)). For a jointed bone, R_j c_j + t_j = R_p c_j + t_p makes its local
+translation the constant c_j − c_p: bones of constant length, as an animator's skeleton has.
 """
 
 import numpy as np
@@ -48,6 +56,104 @@ def joint_locals(rotations, translations, centres, root_rotations=None, root_tra
         world_r = np.einsum("fij,fbjk->fbik", inverse, world_r)
         world_t = np.einsum("fij,fbj->fbi", inverse, world_t - root_translations[:, None, :])
     return _xyzw(world_r), world_t
+
+
+def depth_first(parents):
+    """The bones of a tree (parents (B,), −1 for the one root bone) in depth-first order, each
+    bone's children in ascending id: (B,) int64, parents always before their children.
+    ValueError unless ``parents`` is one tree (one root, every bone reaching it)."""
+    parents = np.asarray(parents, dtype=np.int64)
+    roots = np.flatnonzero(parents < 0)
+    if roots.size != 1:
+        raise ValueError(f"a skeleton has exactly one root bone (parent -1), not {roots.size}")
+    children = _children(parents)
+    order, stack = [], [int(roots[0])]
+    while stack:
+        bone = stack.pop()
+        order.append(bone)
+        stack.extend(reversed(children[bone]))
+    if len(order) != len(parents):
+        raise ValueError("the skeleton's parents are not a tree: some bone never reaches the root (a cycle)")
+    return np.array(order, dtype=np.int64)
+
+
+def _children(parents):
+    """Each bone's children, ascending: [list] (B,)."""
+    children = [[] for _ in range(len(parents))]
+    for bone, parent in enumerate(parents):
+        if parent >= 0:
+            children[parent].append(bone)
+    return children
+
+
+def joint_names(parents, jointed=None):
+    """The joint name of each bone of a tree (parents (B,), −1 for the root bone), saying where it
+    is: ``chain_CC_joint_JJ``, the JJ-th joint of chain CC. A chain is a maximal path down the
+    tree through bones of exactly one child: the root bone starts chain 00; the children of a
+    branch (a bone with several children, or a free bone) each start a new chain, and so does a
+    free bone itself (``jointed`` (B,) False: it hangs from its parent without a joint, so it
+    continues no chain; None: every bone but the root is jointed). Chains are numbered in
+    depth-first order, children in ascending bone id. Returns [str] (B,), by bone id."""
+    parents = np.asarray(parents, dtype=np.int64)
+    jointed = parents >= 0 if jointed is None else np.asarray(jointed, dtype=bool)
+    free = ~jointed & (parents >= 0)
+    children = _children(parents)
+    names, chains = [None] * len(parents), 0
+    for bone in depth_first(parents):
+        parent = parents[bone]
+        if parent >= 0 and len(children[parent]) == 1 and not free[parent] and not free[bone]:
+            chain, joint = names[parent]
+            names[bone] = (chain, joint + 1)
+        else:
+            names[bone], chains = (chains, 0), chains + 1
+    return [f"chain_{chain:02d}_joint_{joint:02d}" for chain, joint in names]
+
+
+def rest_locals(centres, parents):
+    """Each joint's rest translation local to its parent joint (B, 3): c_j − c_p, the root bone's
+    c_j (its parent, the root joint, at the origin). centres (B, 3), parents (B,)."""
+    centres = np.asarray(centres, dtype=np.float64)
+    parents = np.asarray(parents, dtype=np.int64)
+    return centres - np.where((parents >= 0)[:, None], centres[np.maximum(parents, 0)], 0.0)
+
+
+def tree_local_transforms(rotations, translations, centres, parents, root_rotations=None, root_translations=None):
+    """Each bone's joint transform local to its parent joint, per frame, as matrices: local_j =
+    J_p⁻¹ J_j with J_j = [R_j | R_j c_j + t_j] (module notes), the root bone's parent the root
+    joint (root_rotations (F, 3, 3), root_translations (F, 3): its world transform; None for the
+    origin). rotations (F, B, 3, 3), translations (F, B, 3): the LBS bone transforms; centres
+    (B, 3) the joints' rest positions; parents (B,). Returns (rotations (F, B, 3, 3),
+    translations (F, B, 3)). Exact for any bone transforms; a jointed bone's translation is
+    c_j − c_p in every frame (to rounding) when its joint holds."""
+    world_r, world_t = bone_world(rotations, translations, centres)
+    parents = np.asarray(parents, dtype=np.int64)
+    top = parents < 0
+    parent_r, parent_t = world_r[:, np.maximum(parents, 0)], world_t[:, np.maximum(parents, 0)]
+    if root_rotations is None:
+        parent_r[:, top], parent_t[:, top] = np.eye(3), 0.0
+    else:
+        parent_r[:, top] = np.asarray(root_rotations, dtype=np.float64)[:, None]
+        parent_t[:, top] = np.asarray(root_translations, dtype=np.float64)[:, None]
+    local_r = np.einsum("fbji,fbjk->fbik", parent_r, world_r)
+    local_t = np.einsum("fbji,fbj->fbi", parent_r, world_t - parent_t)
+    return local_r, local_t
+
+
+def tree_locals(rotations, translations, centres, parents, root_rotations=None, root_translations=None):
+    """:func:`tree_local_transforms` as glTF animates joints: (quaternions (F, B, 4) (x, y, z, w),
+    each bone's sequence on one hemisphere, translations (F, B, 3))."""
+    local_r, local_t = tree_local_transforms(rotations, translations, centres, parents, root_rotations,
+                                             root_translations)
+    return _xyzw(local_r), local_t
+
+
+def joint_parents(parents=None, bones=None):
+    """The parent joint of each joint of an exported rig, (B + 1,) int64: −1 for joint 0, the
+    root; bone j is joint j + 1, under joint parents[j] + 1, the root bone under the root. None
+    (a rig without a skeleton, ``bones`` of them): every bone under the root."""
+    if parents is None:
+        return np.concatenate([[-1], np.zeros(bones, dtype=np.int64)])
+    return np.concatenate([[-1], np.asarray(parents, dtype=np.int64) + 1])
 
 
 def inverse_bind_matrices(centres):
@@ -110,7 +216,7 @@ def _converted(up_axis, meters_per_unit, points):
 
 
 def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis="Y", meters_per_unit=1.0,
-             quantize=None, face_uvs=None, morph_targets=None):
+             quantize=None, face_uvs=None, morph_targets=None, parents=None, jointed=None):
     """What a glTF skin needs of a fitted rig, in glTF's axes and metres (:func:`to_gltf_axes`):
     {positions, normals (V, 3), faces, joints (V, 4), weights (V, 4) (float32, or ``quantize`` 8
     or 16 bits), inverse_binds (B + 1, 4, 4), bind_translations (B + 1, 3), joint_names}: joint 0
@@ -126,7 +232,13 @@ def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis=
 
     ``morph_targets`` (k, V, 3), rest-pose displacements in the rig's axes and units (a puppet's
     correctives, :mod:`.morph_targets`), adds ``morph_targets`` (k, V', 3) in glTF's: they turn
-    and scale as positions do (no translation), and a copy at a seam takes its original's."""
+    and scale as positions do (no translation), and a copy at a seam takes its original's.
+
+    ``parents`` (B,), a skeleton's tree (−1 for the root bone; ``centres`` then its joints), makes
+    the joints that tree (module notes): ``parents`` (B + 1,) each joint's parent joint
+    (:func:`joint_parents`), ``bind_translations`` local to it (:func:`rest_locals`) and the
+    bones named by :func:`joint_names` (``jointed`` (B,) marks the free bones); the inverse
+    binds are the same translations by −c_j."""
     from .geometry import vertex_normals
 
     positions = _converted(up_axis, meters_per_unit, rest_vertices)
@@ -140,6 +252,9 @@ def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis=
            "weights": weights, "inverse_binds": inverse_bind_matrices(bone_centres),
            "bind_translations": np.vstack([np.zeros((1, 3)), bone_centres]),
            "joint_names": ["root"] + [f"bone_{j:03d}" for j in range(len(centres))]}
+    if parents is not None:
+        rig.update(parents=joint_parents(parents), joint_names=["root"] + joint_names(parents, jointed),
+                   bind_translations=np.vstack([np.zeros((1, 3)), rest_locals(bone_centres, parents)]))
     if morph_targets is not None:
         rig["morph_targets"] = _converted(up_axis, meters_per_unit, morph_targets)
     if face_uvs is not None:
@@ -166,13 +281,15 @@ def ground_motion(rotations, translations, rest, bone_indices, bone_weights, up)
     return turn, shift
 
 
-def gltf_clip(name, rotations, translations, centres, fps, up_axis="Y", meters_per_unit=1.0, ground=None):
+def gltf_clip(name, rotations, translations, centres, fps, up_axis="Y", meters_per_unit=1.0, ground=None,
+              parents=None):
     """One glTF animation clip of an LBS animation: rotations (F, B, 3, 3), translations (F, B, 3)
     in the rig's axes and units, as :func:`gltf_rig`; {name, times (F,) seconds at ``fps``,
     rotations (F, B, 4) (x, y, z, w), translations (F, B, 3)} local to the root. ``ground``: the
     rig's (rest (V, 3), bone_indices, bone_weights) to give the root the ground motion
     (:func:`ground_motion`, Y up) and ``root_rotations`` (F, 4), ``root_translations`` (F, 3);
-    None for a root fixed at the origin."""
+    None for a root fixed at the origin. ``parents`` (B,): a skeleton's tree, as :func:`gltf_rig`'s
+    (``centres`` its joints): each bone local to its parent joint (:func:`tree_locals`)."""
     rotation, scale = to_gltf_axes(up_axis, meters_per_unit)
     turned = np.einsum("ij,fbjk,lk->fbil", rotation, np.asarray(rotations, dtype=np.float64), rotation)
     moved = scale * (np.asarray(translations, dtype=np.float64) @ rotation.T)
@@ -181,7 +298,11 @@ def gltf_clip(name, rotations, translations, centres, fps, up_axis="Y", meters_p
         rest, bone_indices, bone_weights = ground
         root_r, root_t = ground_motion(turned, moved, _converted(up_axis, meters_per_unit, rest), bone_indices,
                                        bone_weights, np.array([0.0, 1.0, 0.0]))
-    quaternions, locals_ = joint_locals(turned, moved, _converted(up_axis, meters_per_unit, centres), root_r, root_t)
+    joints = _converted(up_axis, meters_per_unit, centres)
+    if parents is None:
+        quaternions, locals_ = joint_locals(turned, moved, joints, root_r, root_t)
+    else:
+        quaternions, locals_ = tree_locals(turned, moved, joints, parents, root_r, root_t)
     clip = {"name": name, "times": np.arange(len(turned)) / float(fps), "rotations": quaternions,
             "translations": locals_}
     if ground is not None:

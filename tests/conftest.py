@@ -155,6 +155,25 @@ def horse_clips(shared_data, tmp_path_factory):
     return folder, skin, summary
 
 
+@pytest.fixture(scope="session")
+def jointed_skins(tmp_path_factory):
+    """Skins whose rig is a joint tree (fit-skin --skeleton), once per session, in one folder:
+    walker.npz (the walker example, two gait cycles in 32 frames, 648 vertices), skin.h5 (10 bones,
+    every bone jointed), free.h5 (the same with --max-joint-drift 0.0003: some bones hang free from
+    the root) and zup.h5 (skin.h5's fit recorded Z up in centimetres). A test copies what it
+    changes; it must not change these."""
+    from cli_helpers import assert_ok, cli
+
+    folder = tmp_path_factory.mktemp("jointed")
+    assert_ok(cli("example", "walker", "-o", folder / "walker.npz", "--frames", 32, "--cycles", 2, "--rings", 12, "-q"))
+    fit = ("--bones", 10, "--skeleton", "--iterations", 20, "-q")
+    assert_ok(cli("fit-skin", folder / "walker.npz", "-o", folder / "skin.h5", *fit))
+    assert_ok(cli("fit-skin", folder / "walker.npz", "-o", folder / "free.h5", *fit, "--max-joint-drift", 0.0003))
+    assert_ok(cli("fit-skin", folder / "walker.npz", "-o", folder / "zup.h5", *fit, "--up-axis", "Z",
+                  "--meters-per-unit", 0.01))
+    return folder
+
+
 # The warp devices of the kernel tests: a test taking ``device`` runs once per device here.
 import functools  # noqa: E402 (this block stands alone)
 

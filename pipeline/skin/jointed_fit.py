@@ -34,6 +34,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..rotations import polar_rotation, rotation_exp
+from ..skeleton import depth_first
 from .bone_transforms import Trajectories
 from .skin_fit import SkinFit
 from .joints import inside_mesh
@@ -91,9 +92,7 @@ def world_transforms(rotations, anchor_translations, parents, jointed, joints):
     _, anchors = chain_masks(parents, jointed)
     translations = np.zeros(rotations.shape[:2] + (3,))
     translations[:, anchors] = anchor_translations
-    from .joints import topological_order
-
-    for j in topological_order(parents):
+    for j in depth_first(parents):
         if jointed[j]:
             p = parents[j]
             translations[:, j] = translations[:, p] + np.einsum("fxy,y->fx", rotations[:, p] - rotations[:, j],

@@ -49,6 +49,7 @@ import numpy as np
 
 from ..geometry import mesh_edges
 from ..influence import most_influential_bone, weight_sums
+from ..skeleton import depth_first
 
 #: How far a joint may lie from where its two bones meet, a priori, as a share of the rest
 #: diagonal (module notes: the pull).
@@ -88,20 +89,8 @@ class Skeleton:
         return self.parents.size
 
     def order(self):
-        """Bone ids (B,), every parent before its children (breadth first from the root)."""
-        return topological_order(self.parents)
-
-
-def topological_order(parents):
-    """Bone ids (B,), parents before children, of a tree ``parents (B,)`` (−1: the root)."""
-    parents = np.asarray(parents)
-    order, frontier = [], list(np.flatnonzero(parents < 0))
-    while frontier:
-        order.extend(frontier)
-        frontier = list(np.flatnonzero(np.isin(parents, frontier)))
-    if len(order) != parents.size:
-        raise ValueError("parents do not form one tree (a cycle, or a bone outside it)")
-    return np.asarray(order, dtype=np.int64)
+        """Bone ids (B,), every parent before its children (depth first from the root)."""
+        return depth_first(self.parents)
 
 
 def bone_neighbours(rest, faces, bone_indices, bone_weights, bones, min_share=None):

@@ -11,6 +11,9 @@ its own vertex ids and local faces. The rest is what the colours mean:
   source jumps (a seam);
 - skin fit of a graph file: the vertices of the input's ground-contact patches planted at the
   shown frame (build-graph's ``/graph/contacts``), drawn in :data:`CONTACT_COLOR`;
+- skin fit with a skeleton (``fit-skin --skeleton``): its joints where the bones carry them at the
+  shown frame, and a line along each bone from its parent's joint to its own
+  (:func:`skeleton_lines`), in :data:`SKELETON_COLOR`;
 - puppet: how far the controls lie from the nearest training example (the extrapolation
   indicator), in ``evaluate``'s unit (the largest side of the rest bounding box), and a colour
   for it; a drag session resampled at the file's frame rate (the recorded trajectory).
@@ -27,6 +30,8 @@ PALETTE = np.array([[76, 114, 176], [221, 132, 82], [85, 168, 104], [196, 78, 82
 SEAM_COLOR = np.array([230, 30, 30], dtype=np.uint8)
 #: The vertices of a ground-contact patch planted at the shown input frame.
 CONTACT_COLOR = np.array([20, 200, 230], dtype=np.uint8)
+#: A skin's skeleton drawn over its reconstruction: joints as points, bones as lines.
+SKELETON_COLOR = np.array([250, 200, 30], dtype=np.uint8)
 #: Extrapolation indicator: green inside the training examples, amber at the scale, red at twice it.
 INSIDE, EDGE, OUTSIDE = (np.array(c, dtype=float) for c in ([40, 170, 80], [240, 170, 30], [220, 40, 40]))
 
@@ -176,3 +181,15 @@ def planted_vertices(vertices, offsets, planted, frame):
     if down.size == 0:
         return np.zeros(0, np.int64)
     return np.unique(np.concatenate([vertices[offsets[p]:offsets[p + 1]] for p in down]))
+
+
+def skeleton_lines(rotations, translations, joints, parents, jointed):
+    """A skeleton at one frame: (points (B, 3), each bone's joint where its bone carries it,
+    R_j q_j + t_j; segments (S, 2, 3), for each jointed bone a line from its parent's joint to its
+    own: the parent bone between its two joints). rotations (B, 3, 3), translations (B, 3): the
+    frame's LBS transforms; joints (B, 3) the rest joints q_j; parents (B,) (−1 for the root bone);
+    jointed (B,) bool (a free bone, hanging from the root without a joint, gets no line)."""
+    points = np.einsum("bij,bj->bi", np.asarray(rotations, dtype=float), np.asarray(joints, dtype=float)) + translations
+    parents = np.asarray(parents, dtype=np.int64)
+    lined = np.flatnonzero(np.asarray(jointed, dtype=bool) & (parents >= 0))
+    return points, np.stack([points[parents[lined]], points[lined]], axis=1)

@@ -573,3 +573,30 @@ def test_any_host_warns_and_ctrl_c_stops_cleanly(files):
     lines = stderr.splitlines()
     assert lines[0].startswith("warning: --host 0.0.0.0: anyone") and "network" in lines[0]
     assert lines[1:] == ["skinsynth: interrupted (SIGINT); no output written"], stderr
+
+
+def test_skin_view_draws_a_skeleton_inside_the_see_through_fit(jointed_skins, browser):
+    """fit-skin --skeleton: the fit's joints (points) and bones (lines) at the shown frame, over the
+    reconstruction, which is see-through; a skin without a skeleton has neither (the test above)."""
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.view.scenes import side_by_side, skeleton_lines
+
+    skin = read_skin(jointed_skins / "free.h5")
+    skeleton = skin.skeleton
+    offset = side_by_side(skin.examples[0])
+    with serving(jointed_skins / "free.h5") as (summary, _):
+        page = Page(browser, summary["url"])
+        try:
+            page.wait(lambda: "/fit_joints" in page.scene(), "the skeleton's joints")
+            scene = page.scene()
+            joints, bones = skeleton_lines(skin.rotations[0], skin.translations[0], skeleton["joints"],
+                                           skeleton["parents"], skeleton["jointed"])
+            shown = np.asarray(scene["/fit_joints"]["points"], dtype=np.float64).reshape(-1, 3)
+            scale = np.ptp(skin.examples[0], axis=0).max()
+            assert np.abs(shown - (joints + offset)).max() <= 2e-3 * scale  # points are sent as float16
+            lines = np.asarray(scene["/fit_bones"]["points"], dtype=np.float64).reshape(-1, 2, 3)
+            assert len(lines) == int(skeleton["jointed"].sum()) and len(lines) < skin.bones - 1  # free bones: none
+            assert np.abs(lines - (bones + offset)).max() <= 1e-5 * scale
+            assert all(node["opacity"] < 1 for name, node in scene.items() if name.startswith("/fit/"))
+        finally:
+            page.close()

@@ -2,6 +2,10 @@
 animations and print the evaluated (armature modifier applied) world-space vertices as JSON.
 
 Usage: BLENDER_PYTHON blender_gltf_probe.py FILE.glb FPS FRAME [FRAME ...]
+       BLENDER_PYTHON blender_gltf_probe.py FILE.glb --bones
+
+With --bones it prints "PROBE" then {bone: its parent's name or null} of the armature the import
+made (every bone's parent), and nothing else.
 
 Prints "PROBE" then {"vertices": V, "rest": the mesh's own vertices (V, 3), "animations": {name:
 {frame: (V, 3)}}}, the animations in the file's order. Blender's axes: Z up, (x, y, z) of glTF is
@@ -25,6 +29,13 @@ import struct
 import sys
 
 import bpy
+
+if sys.argv[2:] == ["--bones"]:
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.gltf(filepath=sys.argv[1], merge_vertices=False, disable_bone_shape=True)
+    (armature,) = [o for o in bpy.context.scene.objects if o.type == "ARMATURE"]
+    print("PROBE" + json.dumps({b.name: b.parent.name if b.parent else None for b in armature.data.bones}))
+    sys.exit(0)
 
 path, fps, frames = sys.argv[1], int(sys.argv[2]), [int(f) for f in sys.argv[3:]]
 with open(path, "rb") as f:

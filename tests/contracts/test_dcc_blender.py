@@ -187,3 +187,54 @@ def test_blender_finds_one_root_in_the_usdskel_rig(stages, tmp_path):
     (bones,) = armatures.values()
     assert [name for name, parent in bones.items() if parent is None] == ["root"]
     assert len(bones) == 1 + read_skin(stages / "skin.h5").rotations.shape[1]
+
+
+# -- a skin with a skeleton (fit-skin --skeleton): Blender's armature is its tree ------------------------------
+
+def _tree_by_name(skin):
+    """{joint name: its parent joint's name} of a skin's skeleton as skinsynth exports it."""
+    from skinsynth.pipeline.skeleton import joint_names
+
+    parents = skin.skeleton["parents"]
+    names = joint_names(parents, skin.skeleton["jointed"])
+    return {"root": None, **{names[b]: "root" if parents[b] < 0 else names[parents[b]] for b in range(len(names))}}
+
+
+@pytest.mark.parametrize("source", ["skin.h5", "free.h5"])
+def test_blender_imports_a_jointed_skins_glb_as_its_tree_and_plays_it_as_its_lbs(jointed_skins, tmp_path, source):
+    """Blender's glTF import of a skin with a skeleton: an armature whose bones are parented as
+    the tree, and the mesh it skins at three frames is skinsynth's LBS to 1e-4 of the diagonal."""
+    from test_gltf import in_gltf_axes, skin_of
+
+    skin = skin_of(jointed_skins / source)
+    out = tmp_path / "tree.glb"
+    assert_ok(cli("export", jointed_skins / source, "-o", out, "-q"))
+    assert probe("blender_gltf_probe.py", out, "--bones") == _tree_by_name(skin)
+    frames = [0, len(skin.rotations) // 2, len(skin.rotations) - 1]
+    played = probe("blender_gltf_probe.py", out, round(skin.fps), *frames)
+    truth = _skinned(skin, skin.rotations, skin.translations)
+    diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
+    (by_frame,) = played["animations"].values()
+    for frame in frames:
+        want = z_up(in_gltf_axes(truth[frame], skin.scene))
+        error = np.abs(np.array(by_frame[str(frame)]) - want).max() / diagonal
+        assert error < 1e-4, (source, frame, error)
+
+
+@pytest.mark.parametrize("source", ["skin.h5", "free.h5"])
+def test_blender_imports_a_jointed_skins_usdskel_as_its_tree_and_plays_it_as_its_lbs(jointed_skins, tmp_path, source):
+    """export --as skel of a skin with a skeleton: Blender's USD import makes one armature whose
+    bones are parented as the tree (the root joint on top), and plays it as skinsynth's LBS."""
+    skin = read_skin(jointed_skins / source)
+    usd = tmp_path / "tree.usdc"
+    assert_ok(cli("export", jointed_skins / source, "-o", usd, "--as", "skel", "-q"))
+    armatures = probe("blender_probe.py", usd, "--bones")
+    assert len(armatures) == 1
+    (bones,) = armatures.values()
+    assert bones == _tree_by_name(skin)
+    expected = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
+                             skin.translations)
+    played = probe("blender_probe.py", usd, 0, 7, 19)
+    diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
+    for frame, points in played.items():
+        assert np.abs(np.array(points) - z_up(expected[int(frame)])).max() < 1e-4 * diagonal, (source, frame)

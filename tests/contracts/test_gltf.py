@@ -103,6 +103,33 @@ def test_every_glb_is_valid_and_three_js_plays_it_as_skinsynth_skins_it(files, t
         assert np.abs(played[clip] - truth).max() <= tolerance * diagonal, (case, clip)
 
 
+JOINTED_CASES = {"jointed": ("skin.h5", []), "free bones": ("free.h5", []),
+                 "Z up cm, root motion": ("zup.h5", ["--root-motion"])}
+
+
+@pytest.mark.parametrize("case", list(JOINTED_CASES))
+def test_the_glb_of_a_jointed_skin_is_valid_and_three_js_plays_its_tree_as_skinsynth_skins_it(jointed_skins,
+                                                                                               tmp_path, case):
+    """fit-skin --skeleton: the joints nested as the skeleton's tree (tests/cli/test_cli_skeleton_exports.py
+    checks the nesting), no validator error or warning, and three.js's skinning of the nested
+    joints is skinsynth's LBS."""
+    source, extra = JOINTED_CASES[case]
+    out = tmp_path / "out.glb"
+    assert_ok(cli("export", jointed_skins / source, "-o", out, "-q", *extra))
+    report = validate(out)
+    assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
+    skin = skin_of(jointed_skins / source)
+    document, _ = glb_document(out)
+    assert any("children" in document["nodes"][n] for n in document["skins"][0]["joints"][1:])  # nested
+    frames = [0, len(skin.rotations) // 2, len(skin.rotations) - 1]
+    played, _ = three_positions(out, skin.fps, frames, tmp_path)
+    truth = in_gltf_axes(lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
+                             skin.translations, device="cpu")[frames], skin.scene)
+    diagonal = np.linalg.norm(np.ptp(in_gltf_axes(skin.rest_vertices, skin.scene), axis=0))
+    error = np.abs(played[0] - truth).max() / diagonal
+    assert error <= 1e-5, (case, error)
+
+
 def test_with_root_motion_the_root_travels_on_the_ground_and_without_it_stays(files, tmp_path):
     for flag in ([], ["--root-motion"]):
         out = tmp_path / f"root{len(flag)}.glb"

@@ -250,3 +250,57 @@ def test_a_crowd_saved_as_it_is_written_holds_what_a_crowd_saved_once_holds(tmp_
         for c, prim in enumerate(paths):
             vertices, read_faces, fps = read_points_cache(tmp_path / name, prim)
             assert np.array_equal(vertices, crowd[c].astype(np.float32)) and fps == 24.0
+
+
+# ---------------------------------------------------------------- UsdSkel of a joint tree
+
+
+@pytest.fixture
+def walker_tree():
+    """The walker's true rig (an exact jointed LBS) and its JointTree, as pipeline.skeleton makes it."""
+    from skinsynth.formats.usd import JointTree
+    from skinsynth.pipeline.examples import walker
+    from skinsynth.pipeline.skeleton import joint_names, rest_locals, tree_local_transforms
+
+    _, faces, rig = walker(frames=8, cycles=1, rings=8, segments=6, rig=True)
+    local_r, local_t = tree_local_transforms(rig.rotations, rig.translations, rig.joints, rig.parents)
+    tree = JointTree(parents=rig.parents, names=joint_names(rig.parents), rest=rest_locals(rig.joints, rig.parents),
+                     rotations=local_r, translations=local_t)
+    return rig, faces, tree
+
+
+def test_a_joint_tree_is_the_usdskel_topology_and_usdskel_skins_it_as_the_lbs(tmp_path, walker_tree):
+    rig, faces, tree = walker_tree
+    indices = np.tile(np.arange(10), (len(rig.rest), 1))
+    path = tmp_path / "tree.usda"
+    write_skel_cache(path, rig.rest, faces, indices, rig.weights, rig.rotations, rig.translations, rig.joints, 24.0,
+                     joint_tree=tree)
+    expected = lbs(rig.rest, indices, rig.weights, rig.rotations, rig.translations)
+    error = np.abs(read_skel_points(path) - expected).max() / np.linalg.norm(np.ptp(expected[0], axis=0))
+    assert error < 1e-5, error
+    stage = Usd.Stage.Open(str(path))
+    skeleton = UsdSkel.Skeleton(stage.GetPrimAtPath("/mesh/Skeleton"))
+    paths = [str(p) for p in skeleton.GetJointsAttr().Get()]
+    topology = UsdSkel.Topology(skeleton.GetJointsAttr().Get())
+    assert topology.Validate()[0]  # parents before children
+    bone = {i: tree.names.index(p.rsplit("/", 1)[-1]) for i, p in enumerate(paths) if i}
+    assert sorted(bone.values()) == list(range(10)) and paths[0] == "root"
+    parent_joints = topology.GetParentIndices()
+    assert [-1 if parent_joints[i] == 0 else bone[parent_joints[i]] for i in range(1, 11)] == \
+        [int(rig.parents[bone[i]]) for i in range(1, 11)]
+    assert paths[1] == "root/chain_00_joint_00" and paths[2].startswith("root/chain_00_joint_00/")  # the pelvis
+    binding = UsdSkel.BindingAPI(stage.GetPrimAtPath("/mesh/Mesh"))
+    written = np.asarray(binding.GetJointIndicesPrimvar().Get()).reshape(-1, 10)
+    np.testing.assert_array_equal([bone[j] for j in written[0]], np.arange(10))  # indices follow the joints' order
+
+
+def test_a_joint_tree_that_is_no_tree_is_refused(tmp_path, walker_tree):
+    import dataclasses
+
+    rig, faces, tree = walker_tree
+    indices = np.tile(np.arange(10), (len(rig.rest), 1))
+    cyclic = dataclasses.replace(tree, parents=np.array([-1, 2, 1, 2, 3, 0, 5, 6, 1, 1]))
+    with pytest.raises(ValueError, match="not a tree"):
+        write_skel_cache(tmp_path / "bad.usda", rig.rest, faces, indices, rig.weights, rig.rotations,
+                         rig.translations, rig.joints, 24.0, joint_tree=cyclic)
+    assert not list(tmp_path.iterdir())

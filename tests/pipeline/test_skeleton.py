@@ -96,3 +96,124 @@ def test_bone_texels_rotate_as_the_shader_formula_says():
     bones, weights = texture_influences(np.array([[2, 0, 1]]), np.array([[0.2, 0.5, 0.3]]))
     np.testing.assert_array_equal(bones, [[0, 1, 2, 0]])
     np.testing.assert_allclose(weights, [[0.5, 0.3, 0.2, 0.0]])
+
+
+# -- a skeleton's tree (fit-skin --skeleton): names, parent-local joints, a glTF rig of it ------------------
+
+#: A tree of 10 bones: the root 0 with three children (a chain 1-2-3; a free bone 4 with a child 5;
+#: 6-7, which branches into 8 and 9).
+TREE = np.array([-1, 0, 1, 2, 0, 4, 0, 6, 7, 7])
+TREE_JOINTED = np.array([False, True, True, True, False, True, True, True, True, True])
+
+
+def test_joint_names_follow_the_chains_in_depth_first_order():
+    from skinsynth.pipeline.skeleton import depth_first, joint_names
+
+    assert joint_names(TREE, TREE_JOINTED) == [
+        "chain_00_joint_00", "chain_01_joint_00", "chain_01_joint_01", "chain_01_joint_02",
+        "chain_02_joint_00",  # a free bone starts a chain
+        "chain_03_joint_00",  # and its child another
+        "chain_04_joint_00", "chain_04_joint_01", "chain_05_joint_00", "chain_06_joint_00"]
+    assert joint_names(np.array([-1, 0, 1])) == ["chain_00_joint_00", "chain_00_joint_01", "chain_00_joint_02"]
+    # the root bone need not be bone 0; children in ascending id, each subtree whole before the next
+    assert joint_names(np.array([1, -1, 1, 0])) == ["chain_01_joint_00", "chain_00_joint_00", "chain_02_joint_00",
+                                                    "chain_01_joint_01"]
+    np.testing.assert_array_equal(depth_first(TREE), [0, 1, 2, 3, 4, 5, 6, 7, 8, 9])
+    np.testing.assert_array_equal(depth_first(np.array([1, -1, 1, 0])), [1, 0, 3, 2])
+    with pytest.raises(ValueError, match="exactly one root"):
+        depth_first(np.array([-1, -1]))
+    with pytest.raises(ValueError, match="not a tree"):
+        depth_first(np.array([-1, 2, 1]))
+
+
+def _compose_down(parents, local_r, local_t, root_r, root_t):
+    """World matrices (F, B, 4, 4) of a tree's joints from their parent-local transforms."""
+    from skinsynth.pipeline.skeleton import depth_first
+
+    frames, bones = local_r.shape[:2]
+    local = np.tile(np.eye(4), (frames, bones, 1, 1))
+    local[..., :3, :3], local[..., :3, 3] = local_r, local_t
+    root = np.tile(np.eye(4), (frames, 1, 1))
+    root[:, :3, :3], root[:, :3, 3] = root_r, root_t
+    world = np.empty_like(local)
+    for bone in depth_first(parents):
+        world[:, bone] = (root if parents[bone] < 0 else world[:, parents[bone]]) @ local[:, bone]
+    return world
+
+
+@pytest.mark.parametrize("moving_root", [False, True], ids=["fixed root", "moving root"])
+def test_tree_locals_composed_down_the_tree_are_the_joints_world_matrices(moving_root):
+    from skinsynth.pipeline.skeleton import tree_local_transforms, tree_locals
+
+    rng = np.random.default_rng(4)
+    frames, bones = 6, len(TREE)
+    rotations, translations = random_rotations(rng, (frames, bones)), rng.normal(size=(frames, bones, 3))
+    centres = rng.normal(size=(bones, 3))
+    root_r, root_t = (random_rotations(rng, (frames,)), rng.normal(size=(frames, 3))) if moving_root else \
+        (np.tile(np.eye(3), (frames, 1, 1)), np.zeros((frames, 3)))
+    root = (root_r, root_t) if moving_root else (None, None)
+    local_r, local_t = tree_local_transforms(rotations, translations, centres, TREE, *root)
+    world = _compose_down(TREE, local_r, local_t, root_r, root_t)
+    np.testing.assert_allclose(world[..., :3, :3], rotations, atol=1e-12)
+    np.testing.assert_allclose(world[..., :3, 3], np.einsum("fbij,bj->fbi", rotations, centres) + translations,
+                               atol=1e-12)
+    quaternions, same_t = tree_locals(rotations, translations, centres, TREE, *root)
+    np.testing.assert_allclose(xyzw_to_matrix(quaternions), local_r, atol=1e-12)
+    np.testing.assert_array_equal(same_t, local_t)
+    assert (np.sum(quaternions[1:] * quaternions[:-1], axis=-1) >= 0).all()
+    flat = np.full(bones, -1)  # every bone under the root: the one-root rig's locals
+    flat_q, flat_t = tree_locals(rotations, translations, centres, flat, *root)
+    want_q, want_t = joint_locals(rotations, translations, centres, *root)
+    np.testing.assert_allclose(flat_q, want_q, atol=1e-12)
+    np.testing.assert_allclose(flat_t, want_t, atol=1e-12)
+
+
+def test_a_jointed_bones_local_translation_is_its_constant_bone_vector():
+    """The walker's true rig: every joint holds, so each jointed bone's translation local to its
+    parent is c_j − c_p in every frame (its length constant); the rest locals compose to the joints."""
+    from skinsynth.pipeline.examples import walker
+    from skinsynth.pipeline.skeleton import rest_locals, tree_local_transforms
+
+    _, _, rig = walker(frames=12, cycles=1, rings=8, segments=6, rig=True)
+    local_r, local_t = tree_local_transforms(rig.rotations, rig.translations, rig.joints, rig.parents)
+    jointed = rig.parents >= 0
+    bone_vectors = rig.joints[jointed] - rig.joints[rig.parents[jointed]]
+    assert np.abs(local_t[:, jointed] - bone_vectors).max() <= 1e-9
+    np.testing.assert_allclose(rest_locals(rig.joints, rig.parents)[jointed], bone_vectors)
+    np.testing.assert_allclose(rest_locals(rig.joints, rig.parents)[~jointed], rig.joints[~jointed])
+    assert np.ptp(local_t[:, ~jointed], axis=0).max() > 1e-3  # the root bone moves (the walker bobs)
+
+
+@pytest.mark.parametrize("up_axis, meters_per_unit, moving_root", [("Y", 1.0, False), ("Z", 0.01, True)])
+def test_a_gltf_rig_of_a_tree_skins_as_the_lbs(up_axis, meters_per_unit, moving_root):
+    """An engine's skinning of the tree rig (locals composed down the joints' parents, times the
+    inverse binds) is the LBS, in glTF's axes and units; the nodes' rest translations compose to
+    the joints."""
+    from skinsynth.pipeline.examples import walker
+    from skinsynth.pipeline.skeleton import _converted
+
+    _, faces, rig = walker(frames=12, cycles=1, rings=8, segments=6, rig=True)
+    indices = np.tile(np.arange(10), (len(rig.rest), 1))
+    built = gltf_rig(rig.rest, faces, indices, rig.weights, rig.joints, up_axis=up_axis,
+                     meters_per_unit=meters_per_unit, parents=rig.parents)
+    assert built["joint_names"][0] == "root" and built["parents"][0] == -1
+    np.testing.assert_array_equal(built["parents"][1:], rig.parents + 1)
+    joints = _converted(up_axis, meters_per_unit, rig.joints)
+    rest_world = _compose_down(built["parents"][1:] - 1, np.tile(np.eye(3), (1, 10, 1, 1)),
+                               built["bind_translations"][None, 1:], np.eye(3)[None], np.zeros((1, 3)))
+    np.testing.assert_allclose(rest_world[0, :, :3, 3], joints, atol=1e-12)
+    ground = (rig.rest, indices, rig.weights) if moving_root else None
+    clip = gltf_clip("walk", rig.rotations, rig.translations, rig.joints, 24.0, up_axis=up_axis,
+                     meters_per_unit=meters_per_unit, ground=ground, parents=rig.parents)
+    root_r = xyzw_to_matrix(clip["root_rotations"]) if moving_root else np.tile(np.eye(3), (12, 1, 1))
+    root_t = clip["root_translations"] if moving_root else np.zeros((12, 3))
+    world = _compose_down(rig.parents, xyzw_to_matrix(clip["rotations"]), clip["translations"], root_r, root_t)
+    skinning = world @ built["inverse_binds"][1:]
+    posed = np.einsum("fvk,fvkij,vj->fvi", np.broadcast_to(built["weights"], (12,) + built["weights"].shape),
+                      skinning[:, built["joints"] - 1][..., :3, :3], built["positions"]) + \
+        np.einsum("vk,fvki->fvi", built["weights"], skinning[:, built["joints"] - 1][..., :3, 3])
+    truth = np.einsum("vk,fvki->fvi", rig.weights,
+                      np.einsum("fkij,vj->fvki", rig.rotations, rig.rest) + rig.translations[:, None])
+    truth = _converted(up_axis, meters_per_unit, truth)
+    diagonal = np.linalg.norm(np.ptp(built["positions"], axis=0))
+    assert np.abs(posed - truth).max() <= 1e-7 * diagonal  # the weights are float32; the rest exact

@@ -8,8 +8,8 @@ import pytest
 from skinsynth.pipeline.examples import walker
 from skinsynth.pipeline.geometry import points_inside, winding_numbers
 from skinsynth.pipeline.rotations import rotation_exp
-from skinsynth.pipeline.skin.joints import (Skeleton, find_skeleton, inside_mesh, joint_positions, skeleton_tree,
-                                            topological_order)
+from skinsynth.pipeline.skeleton import depth_first
+from skinsynth.pipeline.skin.joints import Skeleton, find_skeleton, inside_mesh, joint_positions, skeleton_tree
 
 
 def _sphere(centre=(0.0, 0.0, 0.0), radius=1.0, subdivisions=3):
@@ -128,7 +128,7 @@ def test_a_group_without_rigid_neighbours_hangs_free_from_the_root():
                                                  max_drift=0.02)
     assert parents.tolist() == [1, -1, 1, 4, 1] and jointed.tolist() == [True, False, True, True, False]
     assert joint_pair.tolist() == [0, -1, 1, 3, -1]
-    assert topological_order(parents)[0] == 1
+    assert depth_first(parents)[0] == 1
 
 
 def test_the_spanning_tree_keeps_the_least_drifting_joints():
@@ -139,5 +139,5 @@ def test_the_spanning_tree_keeps_the_least_drifting_joints():
 
 def test_a_cycle_is_not_a_tree():
     with pytest.raises(ValueError):
-        topological_order(np.array([-1, 2, 1]))
+        depth_first(np.array([-1, 2, 1]))
     assert Skeleton(np.array([-1, 0, 1]), np.array([False, True, True]), np.zeros((3, 3)), np.zeros(3)).root == 0

@@ -167,3 +167,23 @@ def test_planted_vertices_are_the_patches_planted_at_the_frame():
     assert scenes.planted_vertices(vertices, offsets, planted, 1).tolist() == [2, 4, 7, 9]  # each once, ascending
     none = scenes.planted_vertices(vertices, offsets, planted, 2)
     assert none.size == 0 and none.dtype == np.int64
+
+
+def test_skeleton_lines_join_each_jointed_bone_to_its_parent_where_the_bones_carry_them():
+    """The walker's true rig: every joint where both its bones put it, a line per jointed bone from
+    its parent's joint, none for a bone marked free."""
+    from skinsynth.pipeline.examples import walker
+
+    _, _, rig = walker(frames=6, cycles=1, rings=6, segments=4, rig=True)
+    jointed = rig.parents >= 0
+    jointed[9] = False  # an arm hanging free: no line
+    points, segments = scenes.skeleton_lines(rig.rotations[3], rig.translations[3], rig.joints, rig.parents, jointed)
+    carried = np.einsum("bij,bj->bi", rig.rotations[3], rig.joints) + rig.translations[3]
+    np.testing.assert_allclose(points, carried)
+    by_parent = np.einsum("bij,bj->bi", rig.rotations[3][np.maximum(rig.parents, 0)], rig.joints) + \
+        rig.translations[3][np.maximum(rig.parents, 0)]
+    np.testing.assert_allclose(points[rig.parents >= 0], by_parent[rig.parents >= 0], atol=1e-12)  # joints hold
+    lined = [b for b in range(10) if jointed[b]]
+    assert segments.shape == (len(lined), 2, 3) == (8, 2, 3)
+    np.testing.assert_allclose(segments[:, 0], points[rig.parents[lined]])
+    np.testing.assert_allclose(segments[:, 1], points[lined])

@@ -1,0 +1,75 @@
+"""fit-skin --skeleton on every capture: the joints and the tree found, and what holding them costs.
+
+For each capture in ../shared/data (and the built-in walker) it runs, as a user would,
+``skinsynth fit-skin INPUT --bones B --skeleton --json`` and prints one JSON line: the jointed
+rig's RMSE over the free fit's at the same bones (``rmse_over_free``), the joints (how many, how
+many inside the mesh by winding number, the largest drift over the rest diagonal), the free
+bones hanging from the root, the feet (leaf bones whose rest centroid lies in the lowest 15 % of
+the height) with the joints on each one's path to the root, the seconds and the peak memory.
+
+    python benchmarks/skeleton.py [--only NAME] [--work DIR]
+"""
+
+import argparse
+import json
+import os
+import pathlib
+import tempfile
+
+import numpy as np
+from datasets import BONES, captures, run
+
+
+def feet_paths(path, summary):
+    """[(bone, joints on its path to the root)] for the leaf bones low in the rest pose."""
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.influence import bone_centroids
+
+    skin = read_skin(path)
+    parents = np.asarray(summary["parents"])
+    jointed = np.asarray(skin.skeleton["jointed"])
+    up = 1 if skin.scene.up_axis == "Y" else 2
+    centres = bone_centroids(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
+    low = skin.rest_vertices[:, up].min() + 0.15 * np.ptp(skin.rest_vertices[:, up])
+    leaves = [b for b in range(skin.bones) if b not in parents and centres[b, up] < low]
+    paths = []
+    for bone in leaves:
+        count, node = 0, bone
+        while parents[node] >= 0:
+            count += int(jointed[node])
+            node = parents[node]
+        paths.append((int(bone), count))
+    return paths
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", default=None)
+    parser.add_argument("--work", default=None, help="folder kept between runs")
+    options = parser.parse_args()
+    work = options.work or tempfile.mkdtemp(prefix="skeleton_bench_")
+    os.makedirs(work, exist_ok=True)
+    walker = os.path.join(work, "walker.npz")
+    run(["example", "walker", "-o", walker], work)
+    for name, source in [*captures(work), ("walker", walker)]:
+        if options.only and name != options.only:
+            continue
+        out = os.path.join(work, f"{name}.skeleton.h5")
+        bones = BONES.get(name, 20)
+        seconds, peak, _, stdout = run(["fit-skin", source, "-o", out, "--bones", str(bones), "--skeleton", "--json",
+                                        "-q"], work)
+        summary = json.loads(stdout)
+        skeleton = summary["skeleton"]
+        line = {"capture": name, "input": pathlib.Path(source).name, "bones": bones,
+                "rmse_over_free": round(skeleton["rmse_over_free"], 3),
+                "free_rmse_over_diagonal": skeleton["free_rmse"] / summary["rmse"] * summary["rmse_over_diagonal"],
+                "rmse_over_diagonal": summary["rmse_over_diagonal"], "joints": skeleton["joints"],
+                "joints_inside": skeleton["joints_inside"], "largest_drift": round(skeleton["largest_drift"], 4),
+                "free_bones": skeleton["free_bones"], "root": skeleton["root"],
+                "feet_joints_to_root": feet_paths(out, skeleton), "seconds": round(seconds, 1),
+                "peak_mib": round(peak)}
+        print(json.dumps(line), flush=True)
+
+
+if __name__ == "__main__":
+    main()

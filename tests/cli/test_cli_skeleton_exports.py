@@ -1,0 +1,147 @@
+"""A skin whose rig is a joint tree (fit-skin --skeleton) exports as that tree: glTF nodes and
+UsdSkel joints parented as /skin/skeleton says, each joint at its rest position, parent-local
+transforms, the skinning still skinsynth's LBS; inspect shows the tree. (The Khronos validator and
+three.js on the same files: tests/contracts/test_gltf.py.)"""
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from skinsynth.formats.model import read_model
+from skinsynth.formats.skin_file import read_skin
+from skinsynth.gpu import lbs_reference
+from skinsynth.pipeline.skeleton import joint_names
+
+from cli_helpers import assert_ok, cli
+from glb_reading import glb_document, glb_node_parents, glb_skinned
+
+
+def skin_of(path):
+    return read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
+
+
+def in_gltf_axes(vertices, scene):
+    vertices = np.asarray(vertices, dtype=np.float64) * scene.meters_per_unit
+    return vertices if scene.up_axis == "Y" else np.stack([vertices[..., 0], vertices[..., 2], -vertices[..., 1]], -1)
+
+
+def bone_of_node(document):
+    """{node: bone id} of the skin's joints (joint j + 1 is bone j), the root joint -1."""
+    return {node: j - 1 for j, node in enumerate(document["skins"][0]["joints"])}
+
+
+@pytest.mark.parametrize("source, flags", [("skin.h5", []), ("free.h5", []), ("zup.h5", ["--root-motion"])],
+                         ids=["jointed", "free bones", "Z up cm, root motion"])
+def test_the_glb_of_a_jointed_skin_is_its_tree_and_skins_as_its_lbs(jointed_skins, tmp_path, source, flags):
+    skin = skin_of(jointed_skins / source)
+    skeleton = skin.skeleton
+    assert skeleton is not None
+    out = tmp_path / "out.glb"
+    summary = json.loads(assert_ok(cli("export", jointed_skins / source, "-o", out, "--json", *flags)).stdout)
+    assert summary["joints"] == skin.bones + 1
+    document, _ = glb_document(out)
+    bones, parents = bone_of_node(document), glb_node_parents(document)
+    root = document["skins"][0]["joints"][0]
+    assert document["nodes"][root]["name"] == "root" and root not in parents
+    for node, bone in bones.items():
+        if bone >= 0:  # each bone's node under its parent bone's, the root bone under the root joint
+            assert bones[parents[node]] == skeleton["parents"][bone], (bone, skeleton["parents"])
+            assert document["nodes"][node]["name"] == joint_names(skeleton["parents"], skeleton["jointed"])[bone]
+    assert [bone for node, bone in bones.items() if parents.get(node) == root] == [skeleton["root"]]
+    played = glb_skinned(out)  # every key of the one animation
+    truth = in_gltf_axes(lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
+                                       skin.translations), skin.scene)
+    diagonal = np.linalg.norm(np.ptp(truth[0], axis=0))
+    assert played.shape == truth.shape
+    error = np.abs(played - truth).max() / diagonal
+    assert error <= 1e-5, error
+
+
+def test_a_jointed_bones_node_keeps_its_length_in_every_frame(jointed_skins, tmp_path):
+    """The skin's joints hold, so each jointed bone's animated translation is its rest one (float32)."""
+    from glb_reading import glb_accessor
+
+    out = tmp_path / "out.glb"
+    assert_ok(cli("export", jointed_skins / "skin.h5", "-o", out, "-q"))
+    document, binary = glb_document(out)
+    animation = document["animations"][0]
+    bones, skin = bone_of_node(document), skin_of(jointed_skins / "skin.h5")
+    checked = 0
+    for channel in animation["channels"]:
+        node, path = channel["target"]["node"], channel["target"]["path"]
+        if path == "translation" and bones.get(node, -1) >= 0 and skin.skeleton["jointed"][bones[node]]:
+            keys = glb_accessor(document, binary, animation["samplers"][channel["sampler"]]["output"])
+            assert np.abs(keys - np.asarray(document["nodes"][node]["translation"], np.float32)).max() <= 1e-6
+            checked += 1
+    assert checked == int(skin.skeleton["jointed"].sum())
+
+
+def test_a_synthesis_of_a_jointed_skin_exports_its_tree_and_synthesize_writes_the_same(jointed_skins, tmp_path):
+    for name in ("walker.npz", "skin.h5"):
+        (tmp_path / name).write_bytes((jointed_skins / name).read_bytes())
+    assert_ok(cli("build-graph", tmp_path / "skin.h5", "-o", tmp_path / "graph.h5", "-q"))
+    assert_ok(cli("synthesize", tmp_path / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 20, "--seed", 1,
+                  "--gltf", tmp_path / "run.glb", "-q"))
+    assert_ok(cli("export", tmp_path / "b.h5", "-o", tmp_path / "later.glb", "-q"))
+    assert (tmp_path / "run.glb").read_bytes() == (tmp_path / "later.glb").read_bytes()
+    skin = skin_of(tmp_path / "b.h5")
+    document, _ = glb_document(tmp_path / "run.glb")
+    assert document["nodes"][document["skins"][0]["joints"][1]]["name"].startswith("chain_")
+    with h5py.File(tmp_path / "b.h5") as f:
+        rotations, translations = f["synthesis/bone_matrices"][()], f["synthesis/bone_translations"][()]
+    for animation in range(2):
+        truth = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations[animation],
+                              translations[animation])
+        diagonal = np.linalg.norm(np.ptp(truth[0], axis=0))
+        assert np.abs(glb_skinned(tmp_path / "run.glb", animation) - truth).max() <= 1e-5 * diagonal
+
+
+@pytest.mark.parametrize("source, flags", [("skin.h5", []), ("free.h5", ["--root-motion"])],
+                         ids=["jointed", "free bones, root motion"])
+def test_the_usdskel_of_a_jointed_skin_is_its_tree_and_usdskel_skins_it_as_its_lbs(jointed_skins, tmp_path,
+                                                                                     source, flags):
+    from pxr import Usd, UsdSkel
+
+    from skinsynth.formats.usd import read_skel_points
+
+    skin = skin_of(jointed_skins / source)
+    skeleton = skin.skeleton
+    out = tmp_path / "rig.usda"
+    assert_ok(cli("export", jointed_skins / source, "-o", out, "-q", *flags))
+    played = read_skel_points(out)  # UsdSkel's own skinning
+    truth = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations, skin.translations)
+    diagonal = np.linalg.norm(np.ptp(truth[0], axis=0))
+    error = np.abs(played - truth).max() / diagonal
+    assert error <= 1e-5, error
+    stage = Usd.Stage.Open(str(out))
+    usd_skeleton = UsdSkel.Skeleton(next(p for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton)))
+    paths = [str(p) for p in usd_skeleton.GetJointsAttr().Get()]
+    topology = UsdSkel.Topology(usd_skeleton.GetJointsAttr().Get())
+    assert topology.Validate()[0] and paths[0] == "root"
+    names = joint_names(skeleton["parents"], skeleton["jointed"])
+    bone = {i: names.index(path.rsplit("/", 1)[-1]) for i, path in enumerate(paths) if i}
+    usd_parents = topology.GetParentIndices()
+    for i, b in bone.items():
+        assert (usd_parents[i] == 0) if skeleton["parents"][b] < 0 else bone[usd_parents[i]] == skeleton["parents"][b]
+    # restTransforms are parent-local: composed down the joints they are the world bind transforms
+    rest = np.array(usd_skeleton.GetRestTransformsAttr().Get())
+    world = [rest[0]]
+    for i in range(1, len(paths)):
+        world.append(rest[i] @ world[usd_parents[i]])  # row-vector form: local, then parent
+    np.testing.assert_allclose(np.array(world), np.array(usd_skeleton.GetBindTransformsAttr().Get()), atol=1e-12)
+    np.testing.assert_allclose(np.array(world)[1:, 3, :3], skeleton["joints"][[bone[i] for i in range(1, len(paths))]],
+                               atol=1e-12)
+
+
+def test_inspect_shows_the_skeleton(jointed_skins):
+    text = assert_ok(cli("inspect", jointed_skins / "free.h5")).stdout
+    skeleton = skin_of(jointed_skins / "free.h5").skeleton
+    (line,) = [line for line in text.splitlines() if line.startswith("skeleton:")]
+    free = [b for b in range(len(skeleton["parents"])) if b != skeleton["root"] and not skeleton["jointed"][b]]
+    assert free and f"root bone {skeleton['root']}" in line and f"{int(skeleton['jointed'].sum())} joints" in line
+    assert f"free bones: {', '.join(map(str, free))}" in line and str(skeleton["parents"].tolist()) in line
+    summary = json.loads(assert_ok(cli("inspect", jointed_skins / "free.h5", "--json")).stdout)["skeleton"]
+    assert summary["parents"] == skeleton["parents"].tolist() and summary["free_bones"] == free
+    assert summary["tree"].startswith(f"{skeleton['root']}(") and all(f"~{b}" in summary["tree"] for b in free)
