@@ -185,7 +185,9 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                           end=end_frame, min_difference=min_difference, window=window, spread_velocity=spread_velocity,
                           cut_damping=cut_damping, min_segment=min_segment, blend=blend, alignment=alignment,
                           up_axis=1 if up_axis == "Y" else 2, contact=contact,
-                          clips=clips if len(clips) > 1 else None)
+                          clips=clips if len(clips) > 1 else None,
+                          skeleton=None if skin.skeleton is None else tuple(skin.skeleton[k] for k in
+                                                                            ("parents", "jointed", "joints")))
         validate_request(request, skin.rotations.shape[0])
         contacts = graph_file.contacts if graph_file.contacts is not None and graph_file.contacts.count else None
         if contact:

@@ -109,6 +109,21 @@ def joint_names(parents, jointed=None):
     return [f"chain_{chain:02d}_joint_{joint:02d}" for chain, joint in names]
 
 
+def hold_joints(rotations, translations, parents, jointed, joints):
+    """Put every jointed bone back on its joint, in place: t_j = t_p + (R_p − R_j) q_j, parents
+    first, so each joint goes where its parent takes it and its bone keeps its turn (R_j, any
+    3×3). rotations (..., B, 3, 3), translations (..., B, 3) (any leading axes: frames,
+    animations); parents (B,), jointed (B,), joints (B, 3) as ``fit-skin --skeleton`` stores them.
+    The root and the free bones keep their translations."""
+    joints = np.asarray(joints, dtype=np.float64)
+    for bone in depth_first(parents):
+        if jointed[bone]:
+            parent = parents[bone]
+            translations[..., bone, :] = translations[..., parent, :] + np.einsum(
+                "...xy,y->...x", rotations[..., parent, :, :] - rotations[..., bone, :, :], joints[bone])
+    return translations
+
+
 def rest_locals(centres, parents):
     """Each joint's rest translation local to its parent joint (B, 3): c_j − c_p, the root bone's
     c_j (its parent, the root joint, at the origin). centres (B, 3), parents (B,)."""

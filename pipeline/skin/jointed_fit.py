@@ -34,7 +34,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..rotations import polar_rotation, rotation_exp
-from ..skeleton import depth_first
+from ..skeleton import hold_joints
 from .bone_transforms import Trajectories
 from .skin_fit import SkinFit
 from .joints import inside_mesh
@@ -88,16 +88,10 @@ def chain_coefficients(rest, weights, parents, jointed, joints):
 def world_transforms(rotations, anchor_translations, parents, jointed, joints):
     """(rotations (F, B, 3, 3), translations (F, B, 3)): the LBS bones of a jointed rig, its
     anchors' translations (F, A, 3) given (anchors in bone order)."""
-    parents, jointed = np.asarray(parents), np.asarray(jointed, dtype=bool)
     _, anchors = chain_masks(parents, jointed)
     translations = np.zeros(rotations.shape[:2] + (3,))
     translations[:, anchors] = anchor_translations
-    for j in depth_first(parents):
-        if jointed[j]:
-            p = parents[j]
-            translations[:, j] = translations[:, p] + np.einsum("fxy,y->fx", rotations[:, p] - rotations[:, j],
-                                                                joints[j])
-    return rotations, translations
+    return rotations, hold_joints(rotations, translations, np.asarray(parents), np.asarray(jointed, dtype=bool), joints)
 
 
 class _Sums:

@@ -34,6 +34,7 @@ from .deformation_gradients import gradient_operator
 from ..errors import OptionError
 from ..execution import concatenate_rows, run_batches
 from .graph import ComponentAnalysis
+from ..skeleton import hold_joints
 from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks, walk_statistics
 from .splicing import splice_local
 from .transitions import Transitions, bone_centroids
@@ -200,7 +201,14 @@ class Request:
     patches and from ``support_beyond_plants`` (the support's vertices outside them).
 
     clips: the :class:`~skinsynth.pipeline.clips.Clips` of the input frames when they are several
-    clips (frames, targets, start and end are global frame numbers), None for one clip."""
+    clips (frames, targets, start and end are global frame numbers), None for one clip.
+
+    skeleton: a jointed skin's (parents (B,), jointed (B,), joints (B, 3)) (``fit-skin
+    --skeleton``), or None. Splices, merges and plants move bones apart at their joints (on the
+    walker, by 2–9 cm); the last step of each batch puts every jointed bone back on its joint
+    (:func:`~skinsynth.pipeline.skeleton.hold_joints`: its turn kept, its translation from its
+    parent's), so bone lengths stay constant. The plants' limb corrections (translations) are
+    undone there; their root offset stays."""
 
     count: int
     frames: int
@@ -224,6 +232,7 @@ class Request:
     plants: object = None
     support_beyond_plants: object = None
     clips: object = None
+    skeleton: object = None
 
 
 @dataclass
@@ -334,6 +343,8 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
                 keep_contact(F, t, held)
             else:  # the plants' lowest points, and the support's outside their patches
                 keep_contact(F, t, request.support_beyond_plants, lowest=lowest)
+        if request.skeleton is not None:  # the joints hold again (Request notes), bone lengths constant
+            hold_joints(F, t, *request.skeleton)
         ok = np.ones(tries, dtype=bool)
         if request.obstacles:
             from skinsynth.gpu import lbs_reference

@@ -14,7 +14,7 @@ from skinsynth.formats.skin_file import read_skin
 from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.skeleton import joint_names
 
-from cli_helpers import assert_ok, cli
+from cli_helpers import assert_ok, assert_user_error, cli
 from glb_reading import glb_document, glb_node_parents, glb_skinned
 
 
@@ -96,6 +96,23 @@ def test_a_synthesis_of_a_jointed_skin_exports_its_tree_and_synthesize_writes_th
                               translations[animation])
         diagonal = np.linalg.norm(np.ptp(truth[0], axis=0))
         assert np.abs(glb_skinned(tmp_path / "run.glb", animation) - truth).max() <= 1e-5 * diagonal
+    # Every joint holds in the synthesized bones (splices and merges moved them apart: the walker's by
+    # centimetres), so each bone keeps its length: its parent-local translation in the .glb is its rest one.
+    parents, jointed, joints = (skin.skeleton[k] for k in ("parents", "jointed", "joints"))
+    for bone in np.flatnonzero(jointed):
+        gap = (np.einsum("afxy,y->afx", rotations[:, :, bone].astype(float) - rotations[:, :, parents[bone]], joints[bone])
+               + translations[:, :, bone] - translations[:, :, parents[bone]])
+        assert np.abs(gap).max() <= 1e-6 * diagonal
+    document, binary = glb_document(tmp_path / "run.glb")
+    bones = bone_of_node(document)
+    from glb_reading import glb_accessor
+
+    for animation in document["animations"]:
+        for channel in animation["channels"]:
+            node, path = channel["target"]["node"], channel["target"]["path"]
+            if path == "translation" and bones.get(node, -1) >= 0 and jointed[bones[node]]:
+                keys = glb_accessor(document, binary, animation["samplers"][channel["sampler"]]["output"])
+                assert np.abs(keys - np.asarray(document["nodes"][node]["translation"], np.float32)).max() <= 1e-6 * diagonal
 
 
 @pytest.mark.parametrize("source, flags", [("skin.h5", []), ("free.h5", ["--root-motion"])],
@@ -145,3 +162,24 @@ def test_inspect_shows_the_skeleton(jointed_skins):
     summary = json.loads(assert_ok(cli("inspect", jointed_skins / "free.h5", "--json")).stdout)["skeleton"]
     assert summary["parents"] == skeleton["parents"].tolist() and summary["free_bones"] == free
     assert summary["tree"].startswith(f"{skeleton['root']}(") and all(f"~{b}" in summary["tree"] for b in free)
+
+
+def test_skeleton_options_are_refused_in_one_line(jointed_skins, tmp_path):
+    walker = jointed_skins / "walker.npz"
+    assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--root-bone", 1),
+                      "--root-bone and --max-joint-drift apply only with --skeleton")
+    assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--skeleton", "--root-bone", 9),
+                      "--root-bone 9 is not one of the 4 bones")
+    assert not (tmp_path / "a.h5").exists()
+
+
+def test_a_skeleton_that_is_not_a_tree_is_refused_naming_the_file(jointed_skins, tmp_path):
+    broken = tmp_path / "broken.h5"
+    broken.write_bytes((jointed_skins / "skin.h5").read_bytes())
+    with h5py.File(broken, "r+") as f:
+        parents = f["skin/skeleton/parents"][()]
+        root = int(np.flatnonzero(parents < 0)[0])
+        child = int(np.flatnonzero(parents == root)[0])
+        parents[root] = child  # root and child now each other's parent: a cycle, no root
+        f["skin/skeleton/parents"][...] = parents
+    assert_user_error(cli("inspect", broken), str(broken), "exactly one root")
