@@ -9,6 +9,8 @@ import numpy as np
 from .common import Progress, check_memory, check_output_path, command_line, report, summary_options, tool_version, user_errors
 from .options import device_option, up_axis_option
 
+#: ``--skeleton`` without a file: find the skeleton.
+FOUND = "found"
 #: More joint steps per iteration than this is a typo, not a fit (one step costs about 5 iterations).
 MAX_TRANSFORM_STEPS = 100
 
@@ -40,10 +42,13 @@ MAX_TRANSFORM_STEPS = 100
 @device_option(default="cpu",
               help="Where the weight solve and the bone sweep run: cpu (compiled, every core), cuda or cuda:N (warp "
                    "kernels on that GPU; the same fit to rounding), or auto (a GPU when there is one).")
-@click.option("--skeleton", "skeleton", is_flag=True, default=False,
+@click.option("--skeleton", "skeleton", is_flag=False, flag_value=FOUND, default=None, metavar="[FROM.usd]",
               help="Also find joints and a bone hierarchy (Le & Deng 2014) and refit the rig so that every joint "
                    "holds: each bone turns about its joint with its parent, only the root (and any free bone) "
-                   "translates. Exported as a real skeleton (glTF, UsdSkel). docs/skeleton.md.")
+                   "translates. Exported as a real skeleton (glTF, UsdSkel). With a USD file, use its UsdSkel "
+                   "Skeleton instead (joints, topology, bind pose, which must be the rest frame's): one bone per "
+                   "joint, fitted under it (then --bones may be left out). Put a bare --skeleton after the INPUTs "
+                   "or before another option. docs/skeleton.md.")
 @click.option("--root-bone", default=None, type=click.IntRange(min=0),
               help="--skeleton: the root bone. Default: the bone that carries the most weight (the body).")
 @click.option("--max-joint-drift", default=None, type=click.FloatRange(min=0.0),
@@ -85,7 +90,8 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     from skinsynth.pipeline.geometry import bounding_box_diagonal
     from skinsynth.pipeline.skin import fit_memory_bytes, validate_fit_options
 
-    check_output_path(output, (".h5", ".hdf5"), inputs=list(input_specs) + ([rig] if rig else []))
+    given_file = [skeleton] if skeleton not in (None, FOUND) else []
+    check_output_path(output, (".h5", ".hdf5"), inputs=list(input_specs) + ([rig] if rig else []) + given_file)
     if fps is not None and not 0 < fps < float("inf"):
         raise OptionError(f"--fps must be positive and finite (got {fps})")
     if (tolerance is not None and tolerance < 0) or (transform_steps is not None and transform_steps < 0):
@@ -104,6 +110,12 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
         raise OptionError("--root-bone and --max-joint-drift apply only with --skeleton")
     if skeleton and rig is not None:
         raise OptionError("--skeleton and --rig do not combine yet: --rig keeps a rig's weights, --skeleton refits them")
+    given = None
+    if skeleton not in (None, FOUND):
+        if root_bone is not None or max_joint_drift is not None:
+            raise OptionError("--root-bone and --max-joint-drift apply to a skeleton found, not to --skeleton FILE")
+        given = _read_given_skeleton(skeleton, bones)
+        bones = given[0].bones
     if rig is None and bones is None:
         raise OptionError("--bones is required (or --rig, a skin file whose bones and weights to keep)")
     if tolerance is None:
@@ -146,12 +158,16 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
         history.append((round(time.perf_counter() - started, 3), rmse / diagonal))
         bar.update(1, f"RMSE/diag {rmse / diagonal:.2e}")
 
-    with Progress(iterations, f"fit-skin {bones} bones" + (" on the rig" if rig else ""), quiet) as bar:
-        result = _fit(sequence.vertices, rig_model, bones, max_influences, iterations, rest_frame, seed, tolerance,
-                      patience, transform_steps, warp_device, progress)
     jointed = None
-    if skeleton:
-        result, jointed = _fit_skeleton(sequence, result, root_bone, max_joint_drift, max_influences, diagonal, quiet)
+    if given is not None:
+        result, jointed = _fit_under(sequence, rest_vertices, given, max_influences, diagonal, quiet)
+    else:
+        with Progress(iterations, f"fit-skin {bones} bones" + (" on the rig" if rig else ""), quiet) as bar:
+            result = _fit(sequence.vertices, rig_model, bones, max_influences, iterations, rest_frame, seed,
+                          tolerance, patience, transform_steps, warp_device, progress)
+        if skeleton:
+            result, jointed = _fit_skeleton(sequence, result, root_bone, max_joint_drift, max_influences, diagonal,
+                                            quiet)
     seconds = time.perf_counter() - started
 
     from skinsynth.formats.model import write_model
@@ -168,7 +184,7 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
                       rest_frame=rest_frame, seed=seed, transform_steps=transform_steps, skeleton=skeleton,
                       root_bone=root_bone, max_joint_drift=max_joint_drift, prim=prim, fps=sequence.fps,
                       meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame)
-    record = provenance_record("skin", command_line(), parameters, list(input_specs) + ([rig] if rig else []),
+    record = provenance_record("skin", command_line(), parameters, list(input_specs) + ([rig] if rig else []) + given_file,
                                tool_version(), seed)
     write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal,
                                             jointed), [record], tool_version())
@@ -215,6 +231,43 @@ def _fit_skeleton(sequence, free, root_bone, max_joint_drift, max_influences, di
     return fitted, record
 
 
+def _read_given_skeleton(path, bones):
+    """(Skeleton, its joint names) of ``--skeleton FILE``; refused in one line unless it is a
+    USD file with a UsdSkel Skeleton of one tree, and (--bones given) that many bones."""
+    from skinsynth.formats.errors import FormatError
+    from skinsynth.formats.usd import read_skeleton
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.skin import given_skeleton
+
+    if not str(path).lower().endswith((".usd", ".usda", ".usdc", ".usdz")):
+        raise OptionError(f"--skeleton {path}: a skeleton comes from a USD file (.usd, .usda, .usdc) with a UsdSkel "
+                          "Skeleton; leave the file out to find one")
+    record = read_skeleton(path)
+    try:
+        found, kept = given_skeleton(record.names, record.parents, record.positions, record.free)
+    except ValueError as error:
+        raise FormatError(path, str(error)) from None
+    if bones is not None and bones != found.bones:
+        raise OptionError(f"--bones {bones} differs from the {found.bones} bones of --skeleton {path} (leave --bones "
+                          "out: the skeleton gives one bone per joint)")
+    return found, [record.names[k] for k in kept]
+
+
+def _fit_under(sequence, rest, given, max_influences, diagonal, quiet):
+    """The rig fitted under ``--skeleton FILE``'s joints: (SkinFit, the /skin/skeleton record)."""
+    from skinsynth.pipeline.skin import fit_given_skeleton
+
+    skeleton, _ = given
+    iterations = 40
+    with Progress(iterations, f"fit-skin under the given skeleton ({skeleton.bones} bones)", quiet) as bar:
+        fitted, skeleton = fit_given_skeleton(sequence.vertices, rest, skeleton, max_influences=max_influences,
+                                              iterations=iterations,
+                                              progress=lambda i, rmse: bar.update(1, f"RMSE/diag {rmse / diagonal:.2e}"))
+    record = {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints,
+              "drift": skeleton.drift, "root": skeleton.root, "free_rmse": float("nan"), "max_drift": float("nan")}
+    return fitted, record
+
+
 def _skeleton_summary(record, fit, sequence, diagonal):
     """--json's "skeleton" and its text line."""
     from skinsynth.pipeline.geometry import points_inside
@@ -227,10 +280,13 @@ def _skeleton_summary(record, fit, sequence, diagonal):
                "joints_inside": int(inside.sum()), "largest_drift": float(np.max(record["drift"], initial=0.0)),
                "free_rmse": float(record["free_rmse"]), "rmse": float(fit.rmse),
                "rmse_over_free": float(fit.rmse / record["free_rmse"]) if record["free_rmse"] > 0 else None}
+    # --skeleton FILE has no free fit to compare with (NaN stored; null here)
+    summary["free_rmse"] = summary["free_rmse"] if np.isfinite(summary["free_rmse"]) else None
     ratio = f"{summary['rmse_over_free']:.2f}×" if summary["rmse_over_free"] is not None else "—"
+    free_error = f" ({record['free_rmse'] / diagonal:.2e} of the diagonal)" if summary["free_rmse"] else ""
     line = (f"skeleton: root bone {summary['root']}, {summary['joints']} joints ({summary['joints_inside']} inside the "
             f"mesh, largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
-            f"RMSE {ratio} the free fit's ({record['free_rmse'] / diagonal:.2e} of the diagonal)")
+            + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else "given (--skeleton FILE)"))
     return summary, line
 
 

@@ -171,4 +171,5 @@ def usd_joint_tree(skeleton, rotations, translations, root_motion=None):
     local_r, local_t = tree_local_transforms(np.asarray(rotations, np.float64), np.asarray(translations, np.float64),
                                              joints, parents, *(root_motion or (None, None)))
     return JointTree(parents=parents, names=joint_names(parents, skeleton["jointed"]),
-                     rest=rest_locals(joints, parents), rotations=local_r, translations=local_t)
+                     rest=rest_locals(joints, parents), rotations=local_r, translations=local_t,
+                     free=~np.asarray(skeleton["jointed"], dtype=bool) & (np.asarray(parents) >= 0))

@@ -24,7 +24,7 @@ Groups (all arrays float64 unless noted; conventions in docs/format.md):
   own), ``joints (B, 3)`` (each bone's joint in the rest pose; its weighted rest centroid where
   it has none), ``drift (B,)`` (each joint's drift on the free fit it was found from, over the
   diagonal; 0 without a joint); attributes ``@root``, ``@free_rmse`` (the free fit's RMSE at
-  the same bones), ``@max_drift``.
+  the same bones), ``@max_drift`` (both absent for a skeleton given with ``--skeleton FILE``).
 """
 
 from dataclasses import dataclass, field
@@ -102,9 +102,13 @@ def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, f
 
 def skeleton_group(parents, jointed, joints, drift, root, free_rmse, max_drift):
     """/skin/skeleton (module notes) from plain arrays and numbers."""
-    return {"parents": np.asarray(parents, dtype=np.int64), "jointed": np.asarray(jointed, dtype=bool),
-            "joints": np.asarray(joints, dtype=np.float64), "drift": np.asarray(drift, dtype=np.float64),
-            "@root": int(root), "@free_rmse": float(free_rmse), "@max_drift": float(max_drift)}
+    group = {"parents": np.asarray(parents, dtype=np.int64), "jointed": np.asarray(jointed, dtype=bool),
+             "joints": np.asarray(joints, dtype=np.float64), "drift": np.asarray(drift, dtype=np.float64),
+             "@root": int(root)}
+    # A skeleton the user brought (--skeleton FILE) has no free fit and no threshold: left out.
+    group.update({f"@{name}": float(value) for name, value in (("free_rmse", free_rmse), ("max_drift", max_drift))
+                  if np.isfinite(value)})
+    return group
 
 
 def clip_groups(sequence):

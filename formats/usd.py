@@ -158,6 +158,9 @@ def write_skel_cache(path, rest_vertices, faces, bone_indices, bone_weights, rot
 
 
 SKINNING_METHODS = {"linear": "classicLinear", "dual-quaternion": "dualQuaternion"}
+#: A custom attribute of a written Skeleton prim: the joints (paths) that hang from their parent
+#: without a joint (a ``fit-skin --skeleton`` rig's free bones); :func:`read_skeleton` reads it.
+FREE_JOINTS = "skinsynth:freeJoints"
 #: The one root joint of every skeleton written; the bones are ``root/bone_NNN`` (a
 #: :class:`JointTree`'s: ``root/<its root bone>/...``, each bone under its parent).
 ROOT_JOINT = "root"
@@ -179,6 +182,7 @@ class JointTree:
     rest: np.ndarray
     rotations: np.ndarray
     translations: np.ndarray
+    free: np.ndarray | None = None  # (B,) bool: bones that hang from their parent without a joint
 
     def order(self):
         """The bones in UsdSkel's joint order (every parent before its children: by depth, then
@@ -283,6 +287,10 @@ def write_skel_characters(path, rest_vertices, faces, bone_indices, bone_weights
                                                     joint_tree.translations[c][:, order], rest_transforms)
             animation = _define_skeleton(stage, root_path, joints, bind, ones, rotations[c], translations[c], centers,
                                          start, root, tree)
+            if joint_tree is not None and joint_tree.free is not None and np.any(joint_tree.free):
+                free = [str(joints[1 + i]) for i, bone in enumerate(order) if joint_tree.free[bone]]
+                stage.GetPrimAtPath(root_path.AppendChild("Skeleton")).CreateAttribute(
+                    FREE_JOINTS, Sdf.ValueTypeNames.TokenArray, custom=True).Set(Vt.TokenArray(free))
             mesh = _define_mesh(stage, mesh_path, faces)
             mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(rest.astype(np.float32)))
             mesh.GetExtentAttr().Set(_extent(rest))
@@ -626,6 +634,51 @@ def read_scene(path, prim=None):
     return Scene(meters_per_unit=meters_per_unit,
                  up_axis="Z" if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z else "Y",
                  start_frame=float(times[0]) if times else 0.0, prim_path=str(mesh.GetPath()))
+
+
+@dataclasses.dataclass
+class UsdSkeleton:
+    """A UsdSkel ``Skeleton`` as :func:`read_skeleton` reads it: ``names`` (J,) each joint's path
+    (``root/chain_00_joint_00/...``), ``parents`` (J,) int64 (−1 for a top joint), ``positions``
+    (J, 3) each joint's origin in its bind pose (world, the file's units), ``free`` (J,) bool
+    (listed in :data:`FREE_JOINTS`: no joint holds it to its parent), and the stage's
+    ``meters_per_unit`` and ``up_axis``."""
+
+    names: list
+    parents: np.ndarray
+    positions: np.ndarray
+    free: np.ndarray
+    meters_per_unit: float
+    up_axis: str
+
+
+@_reader
+def read_skeleton(path) -> UsdSkeleton:
+    """The first UsdSkel ``Skeleton`` of a USD file: its joints, topology and bind pose
+    (bindTransforms, world: each joint's origin is where it turns). FormatError when the file has
+    none, or its bind transforms do not match its joints."""
+    stage = _open(path)
+    for prim in stage.Traverse():
+        if prim.IsA(UsdSkel.Skeleton):
+            skeleton = UsdSkel.Skeleton(prim)
+            joints = [str(j) for j in (skeleton.GetJointsAttr().Get() or [])]
+            binds = skeleton.GetBindTransformsAttr().Get()
+            if not joints:
+                raise FormatError(path, f"the Skeleton {prim.GetPath()} has no joints")
+            if binds is None or len(binds) != len(joints):
+                raise FormatError(path, f"the Skeleton {prim.GetPath()} has {0 if binds is None else len(binds)} bind "
+                                        f"transforms for its {len(joints)} joints")
+            parents = np.asarray(UsdSkel.Topology(Vt.TokenArray(joints)).GetParentIndices(), dtype=np.int64)
+            positions = np.array([[m[3][0], m[3][1], m[3][2]] for m in binds], dtype=np.float64)  # row-vector form
+            if not np.isfinite(positions).all():
+                raise FormatError(path, f"the Skeleton {prim.GetPath()}'s bind transforms hold NaN or inf values")
+            listed = prim.GetAttribute(FREE_JOINTS)
+            free_names = set(str(n) for n in (listed.Get() or [])) if listed and listed.IsValid() else set()
+            return UsdSkeleton(names=joints, parents=parents, positions=positions,
+                               free=np.array([j in free_names for j in joints], dtype=bool),
+                               meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)),
+                               up_axis=str(UsdGeom.GetStageUpAxis(stage)))
+    raise FormatError(path, "holds no UsdSkel Skeleton (--skeleton FILE needs one: joints, topology, bind transforms)")
 
 
 @_reader

@@ -256,3 +256,29 @@ def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translatio
     points[jointed] = joints[joint_pair[jointed]]
     bone_drift = np.where(jointed, drift[joint_pair], 0.0)
     return Skeleton(parents=parents, jointed=jointed, joints=points, drift=bone_drift)
+
+
+def given_skeleton(names, parents, positions, free):
+    """A :class:`Skeleton` from a rig the user brings (a UsdSkel ``Skeleton``: joint ``names``
+    (J,) as paths, ``parents`` (J,) −1 at the top, bind ``positions`` (J, 3), ``free`` (J,) bool):
+    (skeleton, kept (B,) the joints that are bones). Every joint is a bone turning about its
+    position, except: the top joint when it is skinsynth's own ``root`` above one bone (the
+    exporter's root joint, which carries no vertex: docs/skeleton.md), and the ``free`` joints,
+    which hang from their parent with translations of their own. ValueError for several top
+    joints."""
+    parents = np.asarray(parents, dtype=np.int64)
+    positions = np.asarray(positions, dtype=np.float64)
+    free = np.asarray(free, dtype=bool)
+    tops = np.flatnonzero(parents < 0)
+    if tops.size != 1:
+        raise ValueError(f"the skeleton has {tops.size} top joints; a rig has one")
+    top = int(tops[0])
+    kept = np.arange(parents.size)
+    if str(names[top]).split("/")[-1] == "root" and np.count_nonzero(parents == top) == 1 and parents.size > 1:
+        kept = kept[kept != top]
+    index = np.full(parents.size, -1, dtype=np.int64)
+    index[kept] = np.arange(kept.size)
+    bone_parents = np.where(parents[kept] >= 0, index[np.maximum(parents[kept], 0)], -1)
+    jointed = (bone_parents >= 0) & ~free[kept]
+    return Skeleton(parents=bone_parents, jointed=jointed, joints=positions[kept],
+                    drift=np.zeros(kept.size)), kept

@@ -183,3 +183,40 @@ def test_a_skeleton_that_is_not_a_tree_is_refused_naming_the_file(jointed_skins,
         parents[root] = child  # root and child now each other's parent: a cycle, no root
         f["skin/skeleton/parents"][...] = parents
     assert_user_error(cli("inspect", broken), str(broken), "exactly one root")
+
+
+def test_a_skeleton_given_as_usdskel_is_fitted_under_with_its_tree_and_names(jointed_skins, tmp_path):
+    """--skeleton FROM.usd: the found skeleton exported as UsdSkel, then the same clip fitted under
+    it keeps the tree, the free bones and the joint names, at about the found rig's error
+    (the walker: 1.01x; the horse gallop: 1.20x, docs/skeleton.md)."""
+    rig = tmp_path / "rig.usda"
+    assert_ok(cli("export", jointed_skins / "free.h5", "-o", rig, "-q"))
+    out = tmp_path / "given.h5"
+    result = cli("fit-skin", jointed_skins / "walker.npz", "-o", out, "--skeleton", rig, "--json", "-q")
+    assert_ok(result)
+    assert json.loads(result.output)["skeleton"]["free_rmse"] is None
+    found, given = skin_of(jointed_skins / "free.h5"), skin_of(out)
+
+    def tree(skin):
+        names = joint_names(skin.skeleton["parents"], skin.skeleton["jointed"])
+        return {(names[b], names[p] if p >= 0 else None, bool(j))
+                for b, (p, j) in enumerate(zip(skin.skeleton["parents"], skin.skeleton["jointed"]))}
+
+    assert tree(given) == tree(found) and (~found.skeleton["jointed"]).sum() >= 2
+    assert given.rmse <= 1.5 * found.rmse
+    assert np.allclose(np.sort(given.skeleton["joints"], axis=0), np.sort(found.skeleton["joints"], axis=0), atol=1e-5)
+
+
+def test_a_given_skeleton_is_refused_in_one_line_when_it_is_not_one(jointed_skins, tmp_path):
+    walker = jointed_skins / "walker.npz"
+    assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--skeleton", walker),
+                      "a skeleton comes from a USD file")
+    points = tmp_path / "points.usda"
+    assert_ok(cli("export", jointed_skins / "skin.h5", "-o", points, "--as", "points", "-q"))
+    assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--skeleton", points), str(points),
+                      "holds no UsdSkel Skeleton")
+    rig = tmp_path / "rig.usda"
+    assert_ok(cli("export", jointed_skins / "skin.h5", "-o", rig, "-q"))
+    assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--skeleton", rig, "--bones", 7),
+                      "--bones 7 differs from the 10 bones")
+    assert not (tmp_path / "a.h5").exists()

@@ -3,9 +3,12 @@ animations and print the evaluated (armature modifier applied) world-space verti
 
 Usage: BLENDER_PYTHON blender_gltf_probe.py FILE.glb FPS FRAME [FRAME ...]
        BLENDER_PYTHON blender_gltf_probe.py FILE.glb --bones
+       BLENDER_PYTHON blender_gltf_probe.py FILE.glb --turn BONE [BONE ...]
 
 With --bones it prints "PROBE" then {bone: its parent's name or null} of the armature the import
-made (every bone's parent), and nothing else.
+made (every bone's parent), and nothing else. With --turn it prints "PROBE" then what
+blender_probe.py's ``turned`` says of the imported mesh: the vertices at rest and each vertex's
+displacement when each BONE alone is rotated by hand in pose mode.
 
 Prints "PROBE" then {"vertices": V, "rest": the mesh's own vertices (V, 3), "animations": {name:
 {frame: (V, 3)}}}, the animations in the file's order. Blender's axes: Z up, (x, y, z) of glTF is
@@ -35,6 +38,14 @@ if sys.argv[2:] == ["--bones"]:
     bpy.ops.import_scene.gltf(filepath=sys.argv[1], merge_vertices=False, disable_bone_shape=True)
     (armature,) = [o for o in bpy.context.scene.objects if o.type == "ARMATURE"]
     print("PROBE" + json.dumps({b.name: b.parent.name if b.parent else None for b in armature.data.bones}))
+    sys.exit(0)
+if sys.argv[2:3] == ["--turn"]:
+    from blender_probe import turned  # beside this script
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.gltf(filepath=sys.argv[1], merge_vertices=False, disable_bone_shape=True)
+    (mesh,) = [o for o in bpy.context.scene.objects if o.type == "MESH"]
+    print("PROBE" + json.dumps(turned(mesh, sys.argv[3:])))
     sys.exit(0)
 
 path, fps, frames = sys.argv[1], int(sys.argv[2]), [int(f) for f in sys.argv[3:]]

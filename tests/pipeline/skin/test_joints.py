@@ -141,3 +141,31 @@ def test_a_cycle_is_not_a_tree():
     with pytest.raises(ValueError):
         depth_first(np.array([-1, 2, 1]))
     assert Skeleton(np.array([-1, 0, 1]), np.array([False, True, True]), np.zeros((3, 3)), np.zeros(3)).root == 0
+
+
+def test_a_given_skeleton_drops_the_exporters_root_and_keeps_free_joints_free():
+    from skinsynth.pipeline.skin.joints import given_skeleton
+
+    names = ["root", "root/a", "root/a/b", "root/a/c", "root/a/c/d"]
+    parents = np.array([-1, 0, 1, 1, 3])
+    positions = np.arange(15.0).reshape(5, 3)
+    skeleton, kept = given_skeleton(names, parents, positions, free=[False, False, False, True, False])
+    assert kept.tolist() == [1, 2, 3, 4]
+    assert skeleton.parents.tolist() == [-1, 0, 0, 2] and skeleton.jointed.tolist() == [False, True, False, True]
+    assert np.array_equal(skeleton.joints, positions[1:])
+    # a top joint that is a bone (several children, or another name) stays
+    other, kept = given_skeleton(["hips", "hips/l", "hips/r"], np.array([-1, 0, 0]), np.zeros((3, 3)), [False] * 3)
+    assert kept.tolist() == [0, 1, 2] and other.jointed.tolist() == [False, True, True]
+    with pytest.raises(ValueError):
+        given_skeleton(["a", "b"], np.array([-1, -1]), np.zeros((2, 3)), [False, False])
+
+
+def test_segment_distances_are_to_each_bones_nearest_segment():
+    from skinsynth.pipeline.skin.jointed_fit import segment_distances
+
+    skeleton = Skeleton(np.array([-1, 0, 0]), np.array([False, True, True]),
+                        np.array([[0.0, 0, 0], [1.0, 0, 0], [0.0, 2.0, 0]]), np.zeros(3))
+    points = np.array([[0.5, 1.0, 0.0], [3.0, 0.0, 0.0], [0.0, 5.0, 0.0]])
+    # bone 0: segments to (1,0,0) and to (0,2,0); bones 1 and 2 are leaves: their joints alone
+    expected = np.array([[0.25, 1.25, 1.25], [4.0, 4.0, 13.0], [9.0, 26.0, 9.0]])
+    assert np.allclose(segment_distances(points, skeleton), expected)
