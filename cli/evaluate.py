@@ -11,6 +11,7 @@ METHODS = {
     "kcca_no_translation_solver": "kernel CCA, predicted translations",
     "pca_blendshape": "PCA blendshapes, weights by least squares",
     "rbf": "direct RBF regression",
+    "kcca_on_joints": "kernel CCA, bones put back on the skeleton's joints (play's rig of a jointed skin)",
 }
 
 
@@ -63,7 +64,9 @@ def evaluate(path, as_json, quiet, plot, skinning, pca_components, extrapolate, 
     clips = Clips(skin.clip_names, skin.clip_frames)
     if hold_out_clips:  # a bad name fails before any work
         clip_hold_out_split(clips, hold_out_clips, record.training_clips)
-    result = evaluate_puppet(puppet, skin.examples, test_frames, skinning=skinning, pca_components=pca_components)
+    skeleton = None if skin.skeleton is None else tuple(skin.skeleton[k] for k in ("parents", "jointed", "joints"))
+    result = evaluate_puppet(puppet, skin.examples, test_frames, skinning=skinning, pca_components=pca_components,
+                             skeleton=skeleton)
     skinning = result.notes["skinning"]
     beyond = None
     if split is not None:
@@ -106,6 +109,9 @@ def evaluate(path, as_json, quiet, plot, skinning, pca_components, extrapolate, 
                + f"; correctives: {result.notes['correctives'] or 'off'}"
                + (f"; clips {', '.join(record.training_clips or clips.names)}" if len(clips) > 1 else ""))
     _table(result)
+    if "joint_projection_cost" in result.notes:
+        click.echo(f"  the skeleton's joints: play's rig puts the predicted bones back on them, which moves the "
+                   f"prediction by {result.notes['joint_projection_cost']:.5f} (RMS, same scale)")
     if beyond is not None:
         click.echo(f"extrapolation: trained on frames 0..{beyond.notes['train_frames'] - 1}, tested on the "
                    f"{len(beyond.test_frames)} after")
@@ -123,6 +129,8 @@ def evaluate(path, as_json, quiet, plot, skinning, pca_components, extrapolate, 
 def _table(result):
     best = min(result.overall, key=result.overall.get)
     for name, label in METHODS.items():
+        if name not in result.overall:  # kcca_on_joints: only for a skin with a skeleton
+            continue
         if name == "kcca" and not result.notes["translation_solver"]:
             label += " (trained without the solver: same as below)"
         mark = "  <- lowest" if name == best else ""

@@ -70,6 +70,7 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.geometry import grid_offsets, largest_side
     from skinsynth.pipeline.puppet import instance_trajectories, play_characters, world_bones
+    from skinsynth.pipeline.skeleton import hold_joints
 
     folders = FolderOutputs([path, *control_files], [output])
     output_kind = check_animation_output(output, ("usd", "gltf", "exr", "h5", "folder"), [path, *control_files],
@@ -118,11 +119,15 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
 
     names = [f"character_{c:03d}" for c in range(characters)]
     morph = None
-    # A puppet's rig is written flat, every bone under the root, even when its skin has a skeleton
-    # (/skin/skeleton): the bones play's path predicts do not hold the joints, so a tree would
-    # have bones that stretch from frame to frame (export writes the skin's own fit as the tree).
+    # A skin with a skeleton (/skin/skeleton): the bones play's path predicts do not hold its joints
+    # (about 1.5 % of the diagonal on the walker), so its rig outputs put every jointed bone back on
+    # its joint (pipeline.skeleton.hold_joints) and are written as the joint tree; `evaluate` reports
+    # what that costs (kcca_on_joints). Vertex outputs play the prediction itself.
+    skeleton = None if skin.skeleton is None else tuple(skin.skeleton[k] for k in ("parents", "jointed", "joints"))
     if output_kind == "gltf" or bone_textures:  # one rig, each character a clip in place (no grid: clips alternate)
         rotations, translations, shape_weights = world_bones(puppet, flat, translation_solver)
+        if skeleton is not None:
+            hold_joints(rotations, translations, *skeleton)
         rotations = rotations.reshape(characters, frames, *rotations.shape[1:])
         translations = translations.reshape(characters, frames, *translations.shape[1:])
         clips = ((name, rotations[c], translations[c]) for c, name in enumerate(names))
@@ -130,12 +135,15 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
             write_bone_textures(output, skin, clips, half, max_width, folders.guard(output), label=path)
         else:
             morph = _corrective_morph_targets(path, skin, puppet, shape_weights, characters)
-            write_gltf(output, skin, clips, up_axis, morph=morph[:2] if morph and len(morph[0]) else None)
+            write_gltf(output, skin, clips, up_axis, morph=morph[:2] if morph and len(morph[0]) else None,
+                       skeleton=skin.skeleton)
         written = [output]
     elif output_kind == "usd":
         if kind == "skel":
-            _write_rig(output, skin, puppet, world_bones(puppet, flat, translation_solver), offsets, names,
-                       up_axis, skinning)
+            bones = world_bones(puppet, flat, translation_solver)
+            if skeleton is not None:
+                hold_joints(bones[0], bones[1], *skeleton)
+            _write_rig(output, skin, puppet, bones, offsets, names, up_axis, skinning)
         else:
             from skinsynth.formats.usd import write_points_characters
 
@@ -203,9 +211,20 @@ def _write_rig(output, skin, puppet, bones, offsets, names, up_axis, skinning):
 
         pairs, weights = unit_range_pairs(puppet.correctives.offsets, shape_weights.reshape(characters, frames, -1))
         shapes = (pairs, weights, [f"shape_{j:03d}{s}" for j in range(len(pairs) // 2) for s in "pn"])
+    tree, centres = None, skin.bone_rest_frames[:, :3, 3]
+    if skin.skeleton is not None:  # the joint tree, every character's frames at once (locals are per frame)
+        from dataclasses import replace
+
+        from .outputs import usd_joint_tree
+
+        tree = usd_joint_tree(skin.skeleton, rotations.reshape(-1, *rotations.shape[2:]),
+                              translations.reshape(-1, *translations.shape[2:]))
+        tree = replace(tree, rotations=tree.rotations.reshape(rotations.shape),
+                       translations=tree.translations.reshape(translations.shape))
+        centres = skin.skeleton["joints"]
     write_skel_characters(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
-                          rotations, translations, skin.bone_rest_frames[:, :3, 3], skin.fps, names=names,
-                          up_axis=up_axis, skinning=skinning, blend_shapes=shapes, scene=skin.scene)
+                          rotations, translations, centres, skin.fps, names=names,
+                          up_axis=up_axis, skinning=skinning, blend_shapes=shapes, scene=skin.scene, joint_tree=tree)
     if skinning == "dual-quaternion":
         click.echo("warning: Blender's USD importer ignores skinningMethod dualQuaternion and skins this rig "
                    "linearly, away from what skinsynth computed; --skinning linear gives a rig every DCC "

@@ -38,12 +38,35 @@ def relative_errors(predicted, truth, scale):
     return np.sqrt(squared.mean(axis=1)) / scale, float(np.sqrt(squared.mean()) / scale)
 
 
-def evaluate_puppet(puppet, examples, test_frames, skinning=None, pca_components=None):
+def vertices_on_joints(puppet, controls, skeleton, translation_solver=True):
+    """What ``play``'s rig outputs of a jointed skin show: the puppet's predicted world bones with
+    every jointed bone put back on its joint (:func:`~skinsynth.pipeline.skeleton.hold_joints`),
+    skinned linearly (the rig's model) with the correctives' offsets. controls (F, n_c, 3);
+    skeleton (parents (B,), jointed (B,), joints (B, 3)) -> (vertices (F, V, 3), the same
+    without the projection (F, V, 3))."""
+    from skinsynth.gpu import lbs_reference
+
+    from ..skeleton import hold_joints
+    from .playback import world_bones
+
+    rotations, translations, weights = world_bones(puppet, controls, translation_solver)
+    offsets = None if weights is None else np.einsum("fp,pvx->fvx", weights, puppet.correctives.offsets)
+    free = lbs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, rotations, translations,
+                         offsets)
+    held = hold_joints(rotations, translations.copy(), *skeleton)
+    return lbs_reference(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, rotations, held,
+                         offsets), free
+
+
+def evaluate_puppet(puppet, examples, test_frames, skinning=None, pca_components=None, skeleton=None):
     """Errors of the puppet (with and without the translation solver) and of the baselines.
 
     examples (F, V, 3) the example frames the puppet was trained from; test_frames (T,) the
     held-out ones; skinning None for the puppet's own. Returns :class:`Evaluation` with methods
-    ``kcca``, ``kcca_no_translation_solver``, ``pca_blendshape``, ``rbf``.
+    ``kcca``, ``kcca_no_translation_solver``, ``pca_blendshape``, ``rbf``. ``skeleton``: a jointed
+    skin's (parents, jointed, joints) adds ``kcca_on_joints``, the rig ``play`` writes for it
+    (:func:`vertices_on_joints`), and notes ``joint_projection_cost``: how far that projection
+    moves the linearly skinned prediction (RMS, same scale).
     """
     skinning = skinning or puppet.skinning
     test_frames = np.asarray(test_frames)
@@ -64,8 +87,14 @@ def evaluate_puppet(puppet, examples, test_frames, skinning=None, pca_components
     predictions["pca_blendshape"] = predict_pca_blendshape(pca, controls)
     rbf = fit_rbf(train, puppet.control_indices, puppet.reference_controls, global_motion=puppet.global_motion)
     predictions["rbf"] = predict_rbf(rbf, controls)
+    cost = None
+    if skeleton is not None:
+        predictions["kcca_on_joints"], free = vertices_on_joints(puppet, controls, skeleton,
+                                                                 translation_solver=puppet.translations is not None)
+        cost = relative_errors(predictions["kcca_on_joints"], free, scale)[1]
     per_frame, overall = {}, {}
-    for name in ("kcca", "kcca_no_translation_solver", "pca_blendshape", "rbf"):
+    for name in ("kcca", "kcca_no_translation_solver", "pca_blendshape", "rbf") + (("kcca_on_joints",) if cost is not None
+                                                                                   else ()):
         per_frame[name], overall[name] = relative_errors(predictions[name], truth, scale)
     notes = {"global_motion": puppet.global_motion, "global_motion_reason": puppet.global_motion_reason,
              "skinning": skinning,
@@ -73,6 +102,8 @@ def evaluate_puppet(puppet, examples, test_frames, skinning=None, pca_components
              "translation_prior": (float(puppet.translation_prior) if puppet.translations is not None
                                    and np.isfinite(puppet.translation_prior) else None),
              "kernel": puppet.kernel.kind, "correctives": puppet.correctives_reason}
+    if cost is not None:
+        notes["joint_projection_cost"] = cost
     return Evaluation(per_frame=per_frame, overall=overall, test_frames=test_frames, scale=scale, notes=notes)
 
 

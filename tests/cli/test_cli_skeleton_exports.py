@@ -220,3 +220,36 @@ def test_a_given_skeleton_is_refused_in_one_line_when_it_is_not_one(jointed_skin
     assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--skeleton", rig, "--bones", 7),
                       "--bones 7 differs from the 10 bones")
     assert not (tmp_path / "a.h5").exists()
+
+
+def test_a_jointed_skins_puppet_plays_its_rig_on_the_joints_and_evaluate_says_what_that_costs(jointed_skins, tmp_path):
+    """play's rig outputs of a jointed skin's puppet put the predicted bones back on the joints and
+    write the tree (bones of constant length); evaluate reports that rig's error and the cost."""
+    from glb_reading import glb_accessor
+    from skinsynth.formats.usd import read_skel_points, read_skeleton
+
+    walker = jointed_skins / "walker.npz"
+    assert_ok(cli("select-controls", jointed_skins / "skin.h5", "-o", tmp_path / "controls.h5", "--count", 6, "-q"))
+    assert_ok(cli("train-kcca", tmp_path / "controls.h5", "-o", tmp_path / "puppet.h5", "-q"))
+    report = json.loads(assert_ok(cli("evaluate", tmp_path / "puppet.h5", "--json")).output)
+    assert report["joint_projection_cost"] > 0.0 and report["kcca_on_joints"] > 0.0
+    assert "kcca_on_joints" in assert_ok(cli("evaluate", tmp_path / "puppet.h5")).output
+
+    assert_ok(cli("play", tmp_path / "puppet.h5", "-c", walker, "-o", tmp_path / "p.glb", "-q"))
+    skin = skin_of(jointed_skins / "skin.h5")
+    diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
+    document, binary = glb_document(tmp_path / "p.glb")
+    bones, checked = bone_of_node(document), 0
+    assert document["nodes"][document["skins"][0]["joints"][1]]["name"].startswith("chain_")
+    for animation in document["animations"]:
+        for channel in animation["channels"]:
+            node, path = channel["target"]["node"], channel["target"]["path"]
+            if path == "translation" and bones.get(node, -1) >= 0 and skin.skeleton["jointed"][bones[node]]:
+                keys = glb_accessor(document, binary, animation["samplers"][channel["sampler"]]["output"])
+                assert np.abs(keys - np.asarray(document["nodes"][node]["translation"], np.float32)).max() <= 1e-6 * diagonal
+                checked += 1
+    assert checked >= int(skin.skeleton["jointed"].sum())
+
+    assert_ok(cli("play", tmp_path / "puppet.h5", "-c", walker, "-o", tmp_path / "p.usda", "--as", "skel", "-q"))
+    assert any(name.endswith("chain_00_joint_00") for name in read_skeleton(tmp_path / "p.usda").names)
+    assert np.isfinite(read_skel_points(tmp_path / "p.usda")).all()
