@@ -259,8 +259,9 @@ def _fit_under(sequence, rest, given, max_influences, diagonal, quiet):
 
     skeleton, _ = given
     iterations = 40
-    with Progress(iterations, f"fit-skin under the given skeleton ({skeleton.bones} bones)", quiet) as bar:
-        fitted, skeleton = fit_given_skeleton(sequence.vertices, rest, skeleton, max_influences=max_influences,
+    with Progress(4 * iterations, f"fit-skin under the given skeleton ({skeleton.bones} bones)", quiet) as bar:
+        fitted, skeleton = fit_given_skeleton(sequence.vertices, rest, sequence.faces, skeleton,
+                                              max_influences=max_influences,
                                               iterations=iterations,
                                               progress=lambda i, rmse: bar.update(1, f"RMSE/diag {rmse / diagonal:.2e}"))
     record = {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints,

@@ -181,3 +181,26 @@ def test_horse_gallop_skeleton_is_one_tree_of_joints_inside_the_horse_that_hold(
         while parents[bone] >= 0:
             count, bone = count + int(jointed[bone]), parents[bone]
         assert count >= 3
+
+
+def test_horse_gallop_fitted_under_its_own_skeleton_as_usdskel_keeps_tree_names_and_error(shared_data, tmp_path):
+    """--skeleton FROM.usd on the horse (issue: a skeleton given): its found skeleton exported as
+    UsdSkel, then the gallop fitted under it: the same tree, free bones and joint names, the error
+    within 1.1x the found rig's (measured 1.04x)."""
+    from cli_helpers import assert_ok, cli
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.skeleton import joint_names
+
+    gallop = shared_data / "horse_gallop" / "horse_gallop.npz"
+    assert_ok(cli("fit-skin", gallop, "-o", tmp_path / "found.h5", "--bones", 22, "--skeleton", "-q"))
+    assert_ok(cli("export", tmp_path / "found.h5", "-o", tmp_path / "rig.usda", "-q"))
+    assert_ok(cli("fit-skin", gallop, "-o", tmp_path / "given.h5", "--skeleton", tmp_path / "rig.usda", "-q"))
+    found, given = read_skin(tmp_path / "found.h5"), read_skin(tmp_path / "given.h5")
+
+    def tree(skin):
+        names = joint_names(skin.skeleton["parents"], skin.skeleton["jointed"])
+        return {(names[b], names[p] if p >= 0 else None, bool(j))
+                for b, (p, j) in enumerate(zip(skin.skeleton["parents"], skin.skeleton["jointed"]))}
+
+    assert tree(given) == tree(found)
+    assert given.rmse <= 1.1 * found.rmse
