@@ -68,12 +68,7 @@ mesh = meshes[0]
 armature = mesh.find_armature()
 
 
-def points(obj):
-    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    data = evaluated.to_mesh()
-    out = [list(evaluated.matrix_world @ v.co) for v in data.vertices]
-    evaluated.to_mesh_clear()
-    return out
+from blender_probe import evaluated_points as points  # noqa: E402 (beside this script; bpy first)
 
 
 def play(data, name, rest):
