@@ -1,4 +1,4 @@
-"""How much each bone carries of a skin: weight sums and weighted rest centroids (the "most
+"""How much each bone carries of a skin: weight sums, dense weights and weighted rest centroids (the "most
 influential bone" of Zheng §3.2 is the largest sum). A floor module: synthesis's transitions and
 the engine skeleton's root motion both use it."""
 
@@ -9,6 +9,15 @@ def weight_sums(bone_indices, bone_weights, bones):
     """Σ_v w_vb per bone: bone_indices (V, K), bone_weights (V, K) -> (B,)."""
     return np.bincount(np.asarray(bone_indices).ravel(), weights=np.asarray(bone_weights, float).ravel(),
                        minlength=bones)[:bones]
+
+
+def dense_weights(bone_indices, bone_weights, bones):
+    """Sparse skin weights (V, K) -> dense (V, B)."""
+    idx = np.asarray(bone_indices, dtype=np.int64)
+    w = np.asarray(bone_weights, dtype=np.float64)
+    dense = np.zeros((idx.shape[0], bones))
+    np.add.at(dense, (np.repeat(np.arange(idx.shape[0]), idx.shape[1]), idx.ravel()), w.ravel())
+    return dense
 
 
 def bone_centroids(rest, bone_indices, bone_weights, bones):

@@ -33,6 +33,7 @@ from dataclasses import replace
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from ..influence import dense_weights
 from ..rotations import polar_rotation, rotation_exp
 from ..skeleton import hold_joints
 from .bone_transforms import Trajectories
@@ -47,14 +48,6 @@ JOINT_FLOOR = 1e-3
 #: Levenberg–Marquardt steps on all of a frame's bones together after each iteration's sweeps: the
 #: chain couples every bone to its ancestors, where one-bone-at-a-time updates crawl (module notes).
 NEWTON_STEPS = 4
-
-
-def dense_weights(bone_indices, bone_weights, bones):
-    """(V, B) weights from the sparse (V, K) pair."""
-    dense = np.zeros((len(bone_indices), bones))
-    np.add.at(dense, (np.arange(len(bone_indices))[:, None], np.asarray(bone_indices, np.int64)),
-              np.asarray(bone_weights, np.float64))
-    return dense
 
 
 def chain_masks(parents, jointed):
@@ -228,12 +221,6 @@ def _gauss_newton(sums, squared, R, T, damping):
     R = np.where(better[:, None, None, None], R_new, R)
     T = np.where(better[:, None, None], T_new, T)
     return R, T, np.where(better, damping / 3.0, damping * 10.0)
-
-
-def jointed_error(vertices, s, a, R, T):
-    """Squared error per vertex (V,) of the rig: Σ_f ‖v_i(f) − model‖²."""
-    model = np.einsum("va,fax->fvx", s, T) + np.einsum("fkxy,vky->fvx", R, a)
-    return np.sum((model - vertices) ** 2, axis=(0, 2))
 
 
 class _State:

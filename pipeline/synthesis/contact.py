@@ -63,6 +63,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..influence import dense_weights
+
 #: Frames over which a correction is dilated and then smoothed (each side).
 RADIUS = 8
 #: Band of support vertices (share of the height above an input frame's lowest point).
@@ -97,15 +99,6 @@ class Support:
     hi: float
     height: float
     up_axis: int
-
-
-def dense_weights(bone_indices, bone_weights, bones):
-    """Sparse skin weights (V, K) -> dense (V, B)."""
-    idx = np.asarray(bone_indices, dtype=np.int64)
-    w = np.asarray(bone_weights, dtype=np.float64)
-    dense = np.zeros((idx.shape[0], bones))
-    np.add.at(dense, (np.repeat(np.arange(idx.shape[0]), idx.shape[1]), idx.ravel()), w.ravel())
-    return dense
 
 
 def height_operator(rest, weights):

@@ -71,7 +71,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contact import dense_weights, raised_cosine
+from .contact import raised_cosine
+from ..influence import dense_weights
 from .contact_patches import patch_vertices
 
 #: Half-life (seconds) of the blend in and out of a limb correction, and the σ of the root's smoothing.

@@ -7,7 +7,8 @@ import pytest
 
 from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.rotations import rotation_exp
-from skinsynth.pipeline.synthesis.contact import (contact_offsets, dense_weights,
+from skinsynth.pipeline.influence import dense_weights
+from skinsynth.pipeline.synthesis.contact import (contact_offsets,
                                                   ground_excess, height_operator, keep_contact, lowest_heights, lowest_range,
                                                   support, support_lowest)
 
