@@ -101,17 +101,18 @@ def world_transforms(rotations, anchor_translations, parents, jointed, joints):
 class _Sums:
     """What a rotation sweep needs from the vertices, formed once per weight update."""
 
-    def __init__(self, vertices, s, a):
-        frames, count = vertices.shape[:2]
-        bones = a.shape[1]
+    def __init__(self, data, s, a):
+        """data: the examples' :class:`.bone_transforms.Trajectories` (``flat`` (V, F·3)); s (V, A),
+        a (V, B, 3): :func:`chain_coefficients`. Every sum is one matrix product over the vertices."""
+        count, bones = a.shape[:2]
+        frames = data.frames
         flat = a.reshape(count, bones * 3)
         self.gram = (flat.T @ flat).reshape(bones, 3, bones, 3).transpose(0, 2, 1, 3)  # (B, B, 3, 3): Σ a_m a_kᵀ
-        # Σ_i v_i(f) a_ikᵀ (F, B, 3, 3), as one product over the vertices.
-        moved = vertices.transpose(0, 2, 1).reshape(frames * 3, count)
-        self.cross = (moved @ flat).reshape(frames, 3, bones, 3).transpose(0, 2, 1, 3)
+        # Σ_i v_i(f) a_ikᵀ (F, B, 3, 3)
+        self.cross = (data.flat.T @ flat).reshape(frames, 3, bones, 3).transpose(0, 2, 1, 3)
         self.anchor_gram = s.T @ s  # (A, A)
-        self.anchor_cross = np.einsum("va,vkx->akx", s, a)  # (A, B, 3): Σ_i s_ia a_ik
-        self.anchor_vertices = np.einsum("va,fvx->fax", s, vertices)  # (F, A, 3)
+        self.anchor_cross = (s.T @ flat).reshape(-1, bones, 3)  # (A, B, 3): Σ_i s_ia a_ik
+        self.anchor_vertices = (s.T @ data.flat).reshape(-1, frames, 3).transpose(1, 0, 2)  # (F, A, 3)
 
 
 def _solve_translations(sums, R):
@@ -203,7 +204,7 @@ def _gauss_newton(sums, squared, R, T, damping):
     is divided by 3 there, multiplied by 10 elsewhere. Returns (R, T, damping)."""
     frames, bones = R.shape[:2]
     anchors = T.shape[1]
-    Y = np.einsum("fkxy,kmyz,fmwz->fkmxw", R, sums.gram, R)  # M_km = R_k G_km R_mᵀ
+    Y = np.einsum("fkmxz,fmwz->fkmxw", np.einsum("fkxy,kmyz->fkmxz", R, sums.gram), R)  # M_km = R_k G_km R_mᵀ
     n = 3 * (bones + anchors)
     H = np.zeros((frames, n, n))
     trace = np.einsum("fkmxx->fkm", Y)
@@ -254,7 +255,7 @@ def _iterate(state, vertices, rest, skeleton, data, found, max_influences, itera
     first = len(history)
     squared = np.einsum("fvx,fvx->f", vertices, vertices)
     for iteration in range(1, iterations + 1):
-        sums = _Sums(vertices, *state.coefficients(rest, skeleton))
+        sums = _Sums(data, *state.coefficients(rest, skeleton))
         T = _solve_translations(sums, state.R)
         for _ in range(sweeps):
             state.R = _sweep_rotations(sums, state.R, T, order)
@@ -265,7 +266,7 @@ def _iterate(state, vertices, rest, skeleton, data, found, max_influences, itera
         if move_joints:
             state.joints = _solve_joints(vertices, rest, dense_weights(state.indices, state.weights, skeleton.bones),
                                          state.R, skeleton.parents, skeleton.jointed, state.joints, found, stiffness)
-            T = _solve_translations(_Sums(vertices, *state.coefficients(rest, skeleton)), state.R)
+            T = _solve_translations(_Sums(data, *state.coefficients(rest, skeleton)), state.R)
         world_R, world_t = world_transforms(state.R, T, skeleton.parents, skeleton.jointed, state.joints)
         transforms = np.concatenate([world_R, world_t[..., None]], axis=-1)
         state.indices, state.weights, error = update_weights(transforms, data, state.indices, state.weights,
@@ -313,7 +314,7 @@ def fit_jointed(vertices, rest, bone_indices, bone_weights, rotations, skeleton,
             stopped = _iterate(state, vertices, rest, skeleton, data, found, *options, False, stiffness, history,
                                progress)
     s, a = state.coefficients(rest, skeleton)
-    T = _solve_translations(_Sums(vertices, s, a), state.R)
+    T = _solve_translations(_Sums(data, s, a), state.R)
     world_R, world_t = world_transforms(state.R, T, skeleton.parents, skeleton.jointed, state.joints)
     dense = dense_weights(state.indices, state.weights, skeleton.bones)
     fitted = SkinFit(rest_vertices=rest.copy(), bone_indices=state.indices, bone_weights=state.weights,
