@@ -124,6 +124,65 @@ def hold_joints(rotations, translations, parents, jointed, joints):
     return translations
 
 
+def _turn_between(a, b):
+    """The smallest rotations (..., 3, 3) taking directions a (..., 3) to b (..., 3) (Rodrigues;
+    the identity where either is zero; a half turn about a perpendicular where they oppose)."""
+    a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-300)
+    b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-300)
+    axis = np.cross(a, b)
+    sine, cosine = np.linalg.norm(axis, axis=-1), np.einsum("...x,...x->...", a, b)
+    k = axis / np.maximum(sine, 1e-300)[..., None]
+    opposed = (sine < 1e-9) & (cosine < 0.0)
+    if opposed.any():  # any axis perpendicular to a
+        other = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+        perpendicular = np.cross(a, other)
+        k = np.where(opposed[..., None], perpendicular / np.linalg.norm(perpendicular, axis=-1, keepdims=True), k)
+    K = np.zeros(k.shape + (3,))
+    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -k[..., 2], k[..., 1], -k[..., 0]
+    K = K - np.swapaxes(K, -1, -2)
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    return eye + sine[..., None, None] * K + (1.0 - cosine)[..., None, None] * (K @ K)
+
+
+def reach_with_legs(rotations, translations, parents, jointed, joints, feet, targets):
+    """Two-bone inverse kinematics, in place: each of ``feet`` (bone ids) has its joint brought to
+    ``targets`` (..., len(feet), 3) by turning its parent (the shin) and grandparent (the thigh)
+    about their joints, the leg bending in the plane it bends in already; the foot keeps its world
+    rotation, and everything below follows (:func:`hold_joints` after). Out of reach, the leg
+    straightens (or folds) towards the target. A foot whose shin or thigh is not jointed is left
+    alone. rotations (..., B, 3, 3), translations (..., B, 3): a jointed rig's bones (joints
+    holding). Returns the translations."""
+    joints = np.asarray(joints, dtype=np.float64)
+    for n, foot in enumerate(feet):
+        shin = parents[foot]
+        thigh = parents[shin] if shin >= 0 else -1
+        if thigh < 0 or not (jointed[foot] and jointed[shin] and jointed[thigh]):
+            continue
+        target = np.asarray(targets[..., n, :], dtype=np.float64)
+        R_t, R_s = rotations[..., thigh, :, :].astype(np.float64), rotations[..., shin, :, :].astype(np.float64)
+        hip = np.einsum("...xy,y->...x", R_t, joints[thigh]) + translations[..., thigh, :]
+        upper, lower = joints[shin] - joints[thigh], joints[foot] - joints[shin]
+        l1, l2 = np.linalg.norm(upper), np.linalg.norm(lower)
+        knee = hip + np.einsum("...xy,y->...x", R_t, upper)
+        ankle = knee + np.einsum("...xy,y->...x", R_s, lower)
+        to_target = target - hip
+        distance = np.clip(np.linalg.norm(to_target, axis=-1), abs(l1 - l2) + 1e-9 * (l1 + l2),
+                           (1.0 - 1e-9) * (l1 + l2))
+        u = to_target / np.maximum(np.linalg.norm(to_target, axis=-1, keepdims=True), 1e-300)
+        bend = (knee - hip) - np.einsum("...x,...x->...", knee - hip, u)[..., None] * u  # the knee's side
+        fallback = np.cross(u, np.where(np.abs(u[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])))
+        bend = np.where(np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-9 * l1, bend, fallback)
+        w = bend / np.linalg.norm(bend, axis=-1, keepdims=True)
+        cosine = np.clip((l1 * l1 + distance * distance - l2 * l2) / (2.0 * l1 * distance), -1.0, 1.0)
+        wanted_knee = hip + l1 * (cosine[..., None] * u + np.sqrt(1.0 - cosine * cosine)[..., None] * w)
+        turn = _turn_between(knee - hip, wanted_knee - hip)
+        R_t, R_s = turn @ R_t, turn @ R_s
+        ankle = wanted_knee + np.einsum("...xy,y->...x", R_s, lower)
+        R_s = _turn_between(ankle - wanted_knee, hip + distance[..., None] * u - wanted_knee) @ R_s
+        rotations[..., thigh, :, :], rotations[..., shin, :, :] = R_t, R_s
+    return hold_joints(rotations, translations, parents, jointed, joints)
+
+
 def rest_locals(centres, parents):
     """Each joint's rest translation local to its parent joint (B, 3): c_j − c_p, the root bone's
     c_j (its parent, the root joint, at the origin). centres (B, 3), parents (B,)."""

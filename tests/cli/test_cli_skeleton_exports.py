@@ -253,3 +253,16 @@ def test_a_jointed_skins_puppet_plays_its_rig_on_the_joints_and_evaluate_says_wh
     assert_ok(cli("play", tmp_path / "puppet.h5", "-c", walker, "-o", tmp_path / "p.usda", "--as", "skel", "-q"))
     assert any(name.endswith("chain_00_joint_00") for name in read_skeleton(tmp_path / "p.usda").names)
     assert np.isfinite(read_skel_points(tmp_path / "p.usda")).all()
+
+
+def test_a_jointed_walkers_synthesized_feet_stay_planted_by_inverse_kinematics(tmp_path):
+    """Putting the bones back on their joints undoes the plants' limb corrections; the legs then
+    reach for the planted feet again (two-bone IK). Measured on the planted walker: 3 % of its
+    contact steps slide more than 0.5 % of the height (69 % without the IK; 0 % unjointed)."""
+    assert_ok(cli("example", "walker", "--planted", "-o", tmp_path / "w.npz", "-q"))
+    assert_ok(cli("fit-skin", tmp_path / "w.npz", "-o", tmp_path / "s.h5", "--bones", 12, "--skeleton", "-q"))
+    assert_ok(cli("build-graph", tmp_path / "s.h5", "-o", tmp_path / "g.h5", "-q"))
+    report = json.loads(assert_ok(cli("synthesize", tmp_path / "g.h5", "-o", tmp_path / "b.h5", "-n", 8, "-m", 200,
+                                      "--measure-feet", 8, "--json", "-q")).output)
+    output = report["contact"]["output"]
+    assert output["sliding_share"] < 0.2 and output["penetration_p95"] < 0.005

@@ -217,3 +217,35 @@ def test_a_gltf_rig_of_a_tree_skins_as_the_lbs(up_axis, meters_per_unit, moving_
     truth = _converted(up_axis, meters_per_unit, truth)
     diagonal = np.linalg.norm(np.ptp(built["positions"], axis=0))
     assert np.abs(posed - truth).max() <= 1e-7 * diagonal  # the weights are float32; the rest exact
+
+
+def test_two_bone_inverse_kinematics_brings_each_foot_to_its_target_and_keeps_the_joints():
+    from skinsynth.pipeline.rotations import rotation_exp
+    from skinsynth.pipeline.skeleton import hold_joints, reach_with_legs
+
+    rng = np.random.default_rng(4)
+    parents, jointed = np.array([-1, 0, 1, 2]), np.array([False, True, True, True])  # body, thigh, shin, foot
+    joints = np.array([[0.0, 1.2, 0.0], [0.1, 1.0, 0.0], [0.1, 0.55, 0.02], [0.1, 0.1, 0.0]])
+    frames = 30
+    R = rotation_exp(rng.normal(scale=0.4, size=(frames, 4, 3)))
+    t = np.zeros((frames, 4, 3))
+    t[:, 0] = rng.normal(scale=0.2, size=(frames, 3))
+    hold_joints(R, t, parents, jointed, joints)
+    hip = np.einsum("fxy,y->fx", R[:, 1], joints[1]) + t[:, 1]
+    direction = rng.normal(size=(frames, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    reach = np.linalg.norm(joints[2] - joints[1]) + np.linalg.norm(joints[3] - joints[2])
+    length = np.where(np.arange(frames) < 20, rng.uniform(0.3, 0.9, frames) * reach, 1.5 * reach)  # last 10: too far
+    targets = (hip + length[:, None] * direction)[:, None]
+    foot_turn = R[:, 3].copy()
+    reach_with_legs(R, t, parents, jointed, joints, [3], targets)
+    ankle = np.einsum("fxy,y->fx", R[:, 3], joints[3]) + t[:, 3]
+    assert np.abs(ankle[:20] - targets[:20, 0]).max() < 1e-9
+    # out of reach: the straight leg points at the target
+    assert np.allclose(ankle[20:], hip[20:] + reach * direction[20:], atol=1e-6)
+    assert np.array_equal(R[:, 3], foot_turn)
+    for bone in (1, 2, 3):
+        gap = (np.einsum("fxy,y->fx", R[:, bone] - R[:, parents[bone]], joints[bone]) + t[:, bone]
+               - t[:, parents[bone]])
+        assert np.abs(gap).max() < 1e-12
+    assert np.allclose(np.einsum("fbxy,fbzy->fbxz", R[:, 1:3], R[:, 1:3]), np.eye(3), atol=1e-12)
