@@ -21,7 +21,7 @@ translation the constant c_j − c_p: bones of constant length, as an animator's
 import numpy as np
 
 from .influence import bone_centroids, most_influential_bone
-from .rotations import align_hemispheres, heading_and_posture, matrix_to_quaternion
+from .rotations import align_hemispheres, heading_and_posture, matrix_to_quaternion, rotation_exp
 
 #: Influences per vertex a glTF skin carries in JOINTS_0/WEIGHTS_0 (engines read no more).
 GLTF_INFLUENCES = 4
@@ -125,23 +125,18 @@ def hold_joints(rotations, translations, parents, jointed, joints):
 
 
 def _turn_between(a, b):
-    """The smallest rotations (..., 3, 3) taking directions a (..., 3) to b (..., 3) (Rodrigues;
-    the identity where either is zero; a half turn about a perpendicular where they oppose)."""
+    """The smallest rotations (..., 3, 3) taking directions a (..., 3) to b (..., 3): about a × b by
+    the angle between them (a half turn about a perpendicular where they oppose)."""
     a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-300)
     b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-300)
     axis = np.cross(a, b)
     sine, cosine = np.linalg.norm(axis, axis=-1), np.einsum("...x,...x->...", a, b)
-    k = axis / np.maximum(sine, 1e-300)[..., None]
     opposed = (sine < 1e-9) & (cosine < 0.0)
     if opposed.any():  # any axis perpendicular to a
         other = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
-        perpendicular = np.cross(a, other)
-        k = np.where(opposed[..., None], perpendicular / np.linalg.norm(perpendicular, axis=-1, keepdims=True), k)
-    K = np.zeros(k.shape + (3,))
-    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -k[..., 2], k[..., 1], -k[..., 0]
-    K = K - np.swapaxes(K, -1, -2)
-    eye = np.broadcast_to(np.eye(3), K.shape)
-    return eye + sine[..., None, None] * K + (1.0 - cosine)[..., None, None] * (K @ K)
+        axis = np.where(opposed[..., None], np.cross(a, other), axis)
+    axis = axis / np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-300)
+    return rotation_exp(axis * np.arctan2(sine, cosine)[..., None])
 
 
 def reach_with_legs(rotations, translations, parents, jointed, joints, feet, targets):
