@@ -110,12 +110,12 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
         raise OptionError("--root-bone and --max-joint-drift apply only with --skeleton")
     if skeleton and rig is not None:
         raise OptionError("--skeleton and --rig do not combine yet: --rig keeps a rig's weights, --skeleton refits them")
-    given = None
+    brought = None  # --skeleton FILE: (Skeleton, the file's UsdSkeleton record)
     if skeleton not in (None, FOUND):
         if root_bone is not None or max_joint_drift is not None:
             raise OptionError("--root-bone and --max-joint-drift apply to a skeleton found, not to --skeleton FILE")
-        given = _read_given_skeleton(skeleton, bones)
-        bones = given[0].bones
+        brought = _read_given_skeleton(skeleton, bones)
+        bones = brought[0].bones
     if rig is None and bones is None:
         raise OptionError("--bones is required (or --rig, a skin file whose bones and weights to keep)")
     if tolerance is None:
@@ -134,6 +134,8 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
         raise OptionError(str(error)) from None
     clips = Clips(sequence.clip_names, sequence.clip_frames)
     frames, count = sequence.vertices.shape[:2]
+    if brought is not None:
+        _check_skeleton_scene(skeleton, brought[1], sequence.scene)
     rig_model = _read_rig(rig, sequence, bones) if rig else None
     if rig_model is not None:
         bones = rig_model.bones
@@ -159,8 +161,8 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
         bar.update(1, f"RMSE/diag {rmse / diagonal:.2e}")
 
     jointed = None
-    if given is not None:
-        result, jointed = _fit_under(sequence, rest_vertices, given, max_influences, diagonal, quiet)
+    if brought is not None:
+        result, jointed = _fit_under(sequence, rest_vertices, brought[0], max_influences, diagonal, quiet)
     else:
         with Progress(iterations, f"fit-skin {bones} bones" + (" on the rig" if rig else ""), quiet) as bar:
             result = _fit(sequence.vertices, rig_model, bones, max_influences, iterations, rest_frame, seed,
@@ -232,8 +234,8 @@ def _fit_skeleton(sequence, free, root_bone, max_joint_drift, max_influences, di
 
 
 def _read_given_skeleton(path, bones):
-    """(Skeleton, its joint names) of ``--skeleton FILE``; refused in one line unless it is a
-    USD file with a UsdSkel Skeleton of one tree, and (--bones given) that many bones."""
+    """(Skeleton, the file's UsdSkeleton record) of ``--skeleton FILE``; refused in one line unless
+    it is a USD file with a UsdSkel Skeleton of one tree, and (--bones given) that many bones."""
     from skinsynth.formats.errors import FormatError
     from skinsynth.formats.usd import read_skeleton
     from skinsynth.pipeline.errors import OptionError
@@ -244,20 +246,30 @@ def _read_given_skeleton(path, bones):
                           "Skeleton; leave the file out to find one")
     record = read_skeleton(path)
     try:
-        found, kept = given_skeleton(record.names, record.parents, record.positions, record.free)
+        found, _ = given_skeleton(record.names, record.parents, record.positions, record.free)
     except ValueError as error:
         raise FormatError(path, str(error)) from None
     if bones is not None and bones != found.bones:
         raise OptionError(f"--bones {bones} differs from the {found.bones} bones of --skeleton {path} (leave --bones "
                           "out: the skeleton gives one bone per joint)")
-    return found, [record.names[k] for k in kept]
+    return found, record
 
 
-def _fit_under(sequence, rest, given, max_influences, diagonal, quiet):
+def _check_skeleton_scene(path, record, scene):
+    """Refuse ``--skeleton FILE`` whose stage's units or up axis are not the input's: its bind pose
+    would then sit at another scale, or lie on its side."""
+    from skinsynth.formats.errors import FormatError
+
+    if not np.isclose(record.meters_per_unit, scene.meters_per_unit, rtol=1e-9) or record.up_axis != scene.up_axis:
+        raise FormatError(path, f"its skeleton is in {record.meters_per_unit:g} m per unit, {record.up_axis} up, the "
+                                f"input in {scene.meters_per_unit:g}, {scene.up_axis} up: give --meters-per-unit and "
+                                "--up-axis of the skeleton's scene, or a skeleton exported from this character's fit")
+
+
+def _fit_under(sequence, rest, skeleton, max_influences, diagonal, quiet):
     """The rig fitted under ``--skeleton FILE``'s joints: (SkinFit, the /skin/skeleton record)."""
     from skinsynth.pipeline.skin import fit_given_skeleton
 
-    skeleton, _ = given
     iterations = 40
     with Progress(4 * iterations, f"fit-skin under the given skeleton ({skeleton.bones} bones)", quiet) as bar:
         fitted, skeleton = fit_given_skeleton(sequence.vertices, rest, sequence.faces, skeleton,

@@ -30,6 +30,7 @@ import numpy as np
 
 from .atomic import atomic_output
 from .errors import require_finite
+from .validation import tree_depths
 
 _FLOAT, _UBYTE, _USHORT, _UINT = 5126, 5121, 5123, 5125
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
@@ -186,15 +187,11 @@ def _joint_children(parents, joints):
     if parents.shape != (joints,) or parents[0] != -1 or (parents[1:] < 0).any() or (parents >= joints).any():
         raise ValueError(f"joint parents must be ({joints},), -1 for the root joint 0 and a joint for every other, "
                          f"got {parents.tolist()}")
+    if (tree_depths(parents) < 0).any():
+        raise ValueError("the joint parents are not a tree under the root joint (a cycle)")
     children = [[] for _ in range(joints)]
     for joint in range(1, joints):
         children[parents[joint]].append(joint)
-    reached, stack = 0, [0]
-    while stack and reached <= joints:
-        reached += 1
-        stack.extend(children[stack.pop()])
-    if reached != joints:
-        raise ValueError("the joint parents are not a tree under the root joint (a cycle)")
     return children
 
 

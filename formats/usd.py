@@ -19,6 +19,7 @@ import numpy as np
 from skinsynth.formats.atomic import Interrupted, atomic_output, held_signals
 from skinsynth.formats.errors import FormatError, declared_size_problem, require_finite
 from skinsynth.formats.meshseq import USD_EXTENSIONS, fan_corners
+from skinsynth.formats.validation import tree_depths
 
 # pxr loads the Python modules of the C++ libraries it uses as it is imported, through Tf's C++
 # module loader, which catches what they raise, prints it and goes on: a signal's exception raised
@@ -188,14 +189,9 @@ class JointTree:
         """The bones in UsdSkel's joint order (every parent before its children: by depth, then
         by bone id), (B,) int64; ValueError unless the parents are one tree."""
         parents = np.asarray(self.parents, dtype=np.int64)
-        depth = np.where(parents < 0, 0, -1)
         if np.count_nonzero(parents < 0) != 1 or (parents >= len(parents)).any():
             raise ValueError(f"a joint tree has one bone under the root joint (parent -1), got {parents.tolist()}")
-        for _ in range(len(parents)):
-            undone = (depth < 0) & (depth[np.maximum(parents, 0)] >= 0)
-            if not undone.any():
-                break
-            depth[undone] = depth[parents[undone]] + 1
+        depth = tree_depths(parents)
         if (depth < 0).any():
             raise ValueError("the joint tree's parents are not a tree (a cycle)")
         return np.argsort(depth, kind="stable")

@@ -135,6 +135,20 @@ SKELETON = {
 }
 
 
+def tree_depths(parents):
+    """Each node's depth below its root (parent −1) in ``parents`` (N,) (every value −1 or a node
+    id): (N,) int64, −1 for a node that never reaches a root (a cycle). The one tree check of the
+    skin file, the glTF and the UsdSkel writers."""
+    parents = np.asarray(parents, dtype=np.int64)
+    depths = np.where(parents < 0, 0, -1)
+    for _ in range(parents.size):  # each pass reaches one level deeper
+        undone = (depths < 0) & (depths[np.maximum(parents, 0)] >= 0)
+        if not undone.any():
+            break
+        depths[undone] = depths[parents[undone]] + 1
+    return depths
+
+
 def check_skeleton(path, skeleton, dims):
     """/skin/skeleton: the arrays (:data:`SKELETON`), one root (parent −1, not jointed), every
     bone reaching it through its parents (a tree, no cycle)."""
@@ -146,11 +160,9 @@ def check_skeleton(path, skeleton, dims):
         raise FormatError(path, f"/skin/skeleton/parents must have exactly one root (parent -1), not {roots.size}")
     if jointed[roots[0]]:
         raise FormatError(path, f"/skin/skeleton/jointed marks the root bone {roots[0]}, which has no parent to turn about")
-    reached = parents < 0
-    for _ in range(parents.size):  # each pass reaches one level deeper
-        reached = reached | reached[np.maximum(parents, 0)] & (parents >= 0)
-    if not reached.all():
-        raise FormatError(path, f"/skin/skeleton/parents is not a tree: bone {int(np.flatnonzero(~reached)[0])} "
+    depths = tree_depths(parents)
+    if (depths < 0).any():
+        raise FormatError(path, f"/skin/skeleton/parents is not a tree: bone {int(np.flatnonzero(depths < 0)[0])} "
                                 "never reaches the root (a cycle)")
 
 

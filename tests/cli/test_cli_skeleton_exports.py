@@ -219,6 +219,10 @@ def test_a_given_skeleton_is_refused_in_one_line_when_it_is_not_one(jointed_skin
     assert_ok(cli("export", jointed_skins / "skin.h5", "-o", rig, "-q"))
     assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--skeleton", rig, "--bones", 7),
                       "--bones 7 differs from the 10 bones")
+    centimetres = tmp_path / "zup.usda"  # the same rig recorded Z up in centimetres
+    assert_ok(cli("export", jointed_skins / "zup.h5", "-o", centimetres, "-q"))
+    assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--skeleton", centimetres), str(centimetres),
+                      "0.01 m per unit, Z up", "the input in 1, Y up")
     assert not (tmp_path / "a.h5").exists()
 
 
