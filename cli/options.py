@@ -29,3 +29,46 @@ def check_max_width(max_width):
     """OptionError unless ``--max-width`` is a usable texture width."""
     if max_width < 1:
         raise OptionError(f"--max-width must be at least 1 (got {max_width})")
+
+
+def marker_take_options(command):
+    """What carries a motion-capture take (C3D) over to a puppet's controls
+    (``pipeline.puppet.markers``; read by ``cli.marker_take.take_controls``)."""
+    from skinsynth.cli.marker_take import TAKE_DEFAULTS
+    from skinsynth.formats.c3d import MARKER_UNITS
+
+    options = [
+        click.option("--markers", "marker_layout", default=None, type=click.Path(dir_okay=False),
+                     help="C3D controls: the marker layout (JSON {LABEL: vertex | [x, y, z]}, docs/mocap.md) "
+                          "tying the take's labels to the puppet's control vertices  [default: the layout "
+                          "select-controls --markers stored in the puppet]"),
+        click.option("--marker-units", default=None, type=click.Choice(list(MARKER_UNITS)),
+                     help="C3D: the take's length unit instead of its POINT:UNITS."),
+        click.option("--take-up-axis", default="Z", show_default=True, type=click.Choice(["X", "Y", "Z"]),
+                     help="C3D: the take's up axis (Vicon, Qualisys: Z; OptiTrack exports: Y)."),
+        click.option("--fps", default=None, type=float,
+                     help="C3D: frames per second the take is resampled to and the output plays at  "
+                          "[default: the puppet's]"),
+        click.option("--neutral-frame", default=None, type=int,
+                     help="C3D: the take frame (0-based) whose pose matches the puppet's rest pose; the take is "
+                          "aligned to the puppet there  [default: the first frame with every marker]"),
+        click.option("--retarget", default="delta", show_default=True, type=click.Choice(["delta", "absolute"]),
+                     help="C3D: delta moves each control by its marker's displacement from the neutral frame (a "
+                          "performer of other proportions keeps the character's shape); absolute puts the "
+                          "controls on the aligned markers."),
+        click.option("--stabilize", default=None, metavar="A,B,C",
+                     help="C3D: remove each frame's rigid motion of these markers (3 or more, e.g. a face's head "
+                          "markers) from every marker."),
+        click.option("--max-gap", default=TAKE_DEFAULTS["max_gap"], show_default=True, type=int,
+                     help="C3D: gaps of at most this many take frames are interpolated; longer ones are filled "
+                          "from the other markers through the puppet's training poses."),
+        click.option("--min-markers", default=None, type=int,
+                     help="C3D: a frame seeing fewer markers is held from the last good one  [default: half the "
+                          "layout, at least 3]"),
+        click.option("--allow-missing", is_flag=True,
+                     help="C3D: play even when the take lacks some of the layout's markers (filled every frame "
+                          "from the others)."),
+    ]
+    for option in reversed(options):
+        command = option(command)
+    return command

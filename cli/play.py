@@ -5,7 +5,7 @@ import os
 import click
 import numpy as np
 
-from .options import device_option, texture_options, up_axis_option
+from .options import device_option, marker_take_options, texture_options, up_axis_option
 from .common import check_memory, report, summary_options, FolderOutputs, user_errors
 from .outputs import (TEXTURES, check_animation_output, check_bone_texture_output, check_texture_output,
                       write_bone_textures, write_gltf, write_textures)
@@ -15,8 +15,9 @@ from .outputs import (TEXTURES, check_animation_output, check_bone_texture_outpu
 @click.command("play")
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("--controls", "-c", "control_files", multiple=True, required=True,
-              help="Control trajectories: CSV (frame,point,x,y,z), .npy (F, n_c, 3), or a mesh sequence whose "
-                   "control vertices are used. Repeat for several characters.")
+              help="Control trajectories: CSV (frame,point,x,y,z), .npy (F, n_c, 3), a mesh sequence whose "
+                   "control vertices are used, or a motion-capture take (.c3d, with a marker layout: --markers; "
+                   "docs/mocap.md). Repeat for several characters.")
 @click.option("-o", "--output", required=True, type=click.Path(),
               help="USD (.usd/.usda/.usdc), glTF (.glb: the rig, one clip per character, a puppet's correctives "
                    "as at most 8 morph targets; --skinning linear), an OpenEXR vertex-animation texture (.exr, one "
@@ -45,10 +46,11 @@ from .outputs import (TEXTURES, check_animation_output, check_bone_texture_outpu
 @device_option("auto, cpu, cuda or cuda:N.")
 @click.option("--threads", default=0, type=int, help="CPU threads for the kernels (default: all cores).")
 @up_axis_option("Ground plane and USD up axis (default: the input's, as fit-skin recorded it).")
+@marker_take_options
 @summary_options
 @user_errors
 def play(path, control_files, output, instances, kind, skinning, half, max_width, spacing, translation_solver, device,
-         threads, up_axis, as_json, quiet):
+         threads, up_axis, as_json, quiet, **take_options):
     """Play a puppet: control-point trajectories in, whole-surface animation out (Feng §6).
 
     Per frame and character: kernel vector, d = M ξ for all bones, dual-quaternion
@@ -62,6 +64,7 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
       skinsynth play horse.puppet.h5 --controls gallop.npy --instances 100 -o herd.usdc --as points
       skinsynth play horse.puppet.h5 -c a.npy -c b.npy -o horses.h5 --json
       skinsynth play bar.puppet.h5 -c bar.npz --instances 16 -o crowd_vat/
+      skinsynth play samba.puppet.h5 -c serve.c3d --markers samba.layout.json -o serve.glb
     """
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.pipeline.puppet import puppet_from_record
@@ -72,6 +75,9 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     from skinsynth.pipeline.puppet import instance_trajectories, play_characters, world_bones
     from skinsynth.pipeline.skeleton import hold_joints
 
+    from .marker_take import check_take_options, is_take, take_controls
+
+    check_take_options(control_files, take_options)
     folders = FolderOutputs([path, *control_files], [output])
     output_kind = check_animation_output(output, ("usd", "gltf", "exr", "h5", "folder"), [path, *control_files],
                                          folders)
@@ -95,8 +101,15 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     if translation_solver and puppet.translations is None:
         raise OptionError(f"{path}: trained without the translation solver; play with --no-translation-solver")
     count = len(puppet.control_indices)
-    trajectories = [read_control_trajectories(f, count, puppet.control_indices, skin.rest_vertices.shape[0])
+    takes = {f: take_controls(f, puppet, record, skin, take_options, path) for f in control_files if is_take(f)}
+    trajectories = [takes[f].controls if f in takes else
+                    read_control_trajectories(f, count, puppet.control_indices, skin.rest_vertices.shape[0])
                     for f in control_files]
+    if takes:  # the output plays at the takes' rate, from the first take's time
+        from dataclasses import replace
+
+        first = next(iter(takes.values()))
+        skin = replace(skin, fps=first.fps, scene=skin.scene.overridden(start_frame=first.start_time * first.fps))
     if instances > 0 and trajectories:  # the vertices (float32, and their placed copy) before any is allocated
         played = max(len(trajectories), instances) * trajectories[0].shape[0]
         check_memory(played * (skin.rest_vertices.shape[0] * 3 * 4 * 2 + count * 3 * 8 * 3),
@@ -161,19 +174,47 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
 
         write_vertex_animation(output, vertices, skin.faces, skin.fps, names)
         written = [output]
+    extrapolation, extrapolation_lines = _extrapolation(puppet, skin, control_files, trajectories)
     summary = {"frames": int(frames), "characters": int(characters), "seconds": round(seconds, 4),
               "frames_per_second": round(frames / seconds, 1),
               "character_frames_per_second": round(characters * frames / seconds, 1),
               "device": device, "translation_solver": bool(translation_solver), "skinning": skinning,
-              "outputs": written}
-    lines = [f"played {characters} character(s) × {frames} frames on {device} in {seconds:.3f} s: "
+              "outputs": written, "extrapolation": extrapolation}
+    if takes:
+        summary["takes"] = [take.summary for take in takes.values()]
+    lines = [line for take in takes.values() for line in take.lines] + [f"played {characters} character(s) × {frames} frames on {device} in {seconds:.3f} s: "
              f"{summary['frames_per_second']:.0f} frames/s, {summary['character_frames_per_second']:.0f} "
              f"character-frames/s (compute only); wrote {', '.join(written)}"]
     if morph is not None:
         summary.update(morph_targets=len(morph[0]), morph_target_error=morph[2])
         lines.append(f"correctives: {len(puppet.correctives.offsets)} shapes as {len(morph[0])} morph target(s), "
                      f"{morph[2]:.2g} of the diagonal away at most")
-    report(summary, lines, as_json, quiet)
+    report(summary, lines + extrapolation_lines, as_json, quiet)
+
+
+def _extrapolation(puppet, skin, control_files, trajectories):
+    """How far each trajectory's controls go from what the puppet was trained on, per frame: the
+    ``view`` page's indicator (RMS distance over the controls, in place, to the nearest training
+    example, the rest box's largest side = 1) -> (summary entries, lines)."""
+    from skinsynth.pipeline.geometry import largest_side
+    from skinsynth.pipeline.puppet import host_inputs
+    from skinsynth.pipeline.view import extrapolation_distances, extrapolation_scale
+
+    training = host_inputs(puppet, skin.examples[puppet.train_frames][:, puppet.control_indices])[1]
+    unit = largest_side(skin.rest_vertices)
+    scale = extrapolation_scale(training, unit)
+    entries, lines = [], []
+    for name, trajectory in zip(control_files, trajectories):
+        distances, _ = extrapolation_distances(host_inputs(puppet, trajectory)[1], training, unit)
+        worst = int(np.argmax(distances))
+        entries.append({"controls": str(name), "per_frame": [round(float(d), 6) for d in distances],
+                        "mean": float(distances.mean()), "worst": float(distances[worst]), "worst_frame": worst,
+                        "scale": scale, "frames_beyond_scale": int(np.sum(distances > scale))})
+        lines.append(f"extrapolation of {name}: mean {distances.mean():.3g}, worst {distances[worst]:.3g} at frame "
+                     f"{worst}; {int(np.sum(distances > scale))} of {len(distances)} frames beyond {scale:.3g}, the "
+                     "largest gap between training poses (distance to the nearest training pose, RMS over the "
+                     "controls, the rest box's largest side = 1)")
+    return entries, lines
 
 
 def _corrective_morph_targets(path, skin, puppet, shape_weights, characters):

@@ -13,6 +13,10 @@ from .common import report, summary_options, check_output_path, command_line, to
               help="Number of control points n_c  [default: 8, or as many as --vertices gives].")
 @click.option("--vertices", "vertex_list", default=None, metavar="I,J,...",
               help="Use these vertex ids (comma-separated, 0-based) instead of the automatic choice.")
+@click.option("--markers", "marker_layout", default=None, type=click.Path(dir_okay=False),
+              help="Use the vertices of this marker layout (JSON {LABEL: vertex | [x, y, z] rest position}, "
+                   "docs/mocap.md) as the controls, where a performer's markers sit (Feng §6), and store the "
+                   "layout so play and view read C3D takes with it.")
 @click.option("--components", "-k", default=None, type=int,
               help="Number of PCA bases K  [default: smallest explaining 99% of the in-place variance, "
                    "at least ceil(n_c/2), at most min(frames-1, 3 x vertices)].")
@@ -27,7 +31,7 @@ from .common import report, summary_options, check_output_path, command_line, to
                    "[default: every clip].")
 @summary_options
 @user_errors
-def select_controls(input_path, output, count, vertex_list, components, min_spacing, rigid_tolerance, clip_list, quiet,
+def select_controls(input_path, output, count, vertex_list, marker_layout, components, min_spacing, rigid_tolerance, clip_list, quiet,
                     as_json):
     """Choose control points from a skin file's examples (Feng et al. 2008 §3).
 
@@ -50,6 +54,7 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
       skinsynth select-controls face.skin.h5 -o face.controls.h5 --count 12 --components 10
       skinsynth select-controls face.skin.h5 -o face.controls.h5 --vertices 120,455,873,1021
       skinsynth select-controls horse.skin.h5 -o horse.controls.h5 --clips gallop
+      skinsynth select-controls samba.skin.h5 -o samba.controls.h5 --markers samba.layout.json
     """
     from skinsynth.formats.controls_file import controls_groups
     from skinsynth.formats.model import read_model, write_model
@@ -70,6 +75,11 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
             raise OptionError("--vertices needs at least one vertex id")
     model = read_model(input_path, stages=("skin",))
     skin = read_skin(input_path, model)
+    markers = None
+    if marker_layout is not None:
+        if user is not None:
+            raise OptionError("--markers and --vertices both choose the controls: give one")
+        user, markers = _layout_controls(marker_layout, skin)
     clips = Clips(skin.clip_names, skin.clip_frames)
     frames = clips.select(clip_list, "--clips")
     used = tuple(clips.names[c] for c in np.unique(clips.clip_of(frames)))
@@ -79,11 +89,13 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
     selection = select(examples, skin.rest_vertices, count=count, components=components,
                        user_vertices=user, min_spacing_fraction=min_spacing, rigid_tolerance=rigid_tolerance)
 
-    parameters = dict(count=len(selection.indices), vertices=user, components=selection.components,
+    if markers is not None:
+        selection.reasons = [f"marker {label} of {marker_layout}" for label in markers[0]]
+    parameters = dict(count=len(selection.indices), vertices=user, markers=marker_layout, components=selection.components,
                       components_option=components, min_spacing=min_spacing, rigid_tolerance=rigid_tolerance,
                       method=selection.method, clips=list(used))
     record = provenance_record("controls", command_line(), parameters, [input_path], tool_version(), None)
-    write_model(output, "controls", controls_groups(selection, model, clips=used), model["provenance"] + [record],
+    write_model(output, "controls", controls_groups(selection, model, clips=used, markers=markers), model["provenance"] + [record],
                 tool_version())
     for warning in selection.warnings:
         click.echo(f"warning: {warning}", err=True)
@@ -100,3 +112,18 @@ def select_controls(input_path, output, count, vertex_list, components, min_spac
                "explained": float(selection.explained), "warnings": list(selection.warnings),
                "clips": list(used), "frames": int(len(frames))}
     report(summary, lines, as_json, quiet)
+
+
+def _layout_controls(path, skin):
+    """A marker layout's vertices as the user's controls: (vertex ids, (labels, offsets)), in the
+    layout's order; a marker given by a rest position takes the nearest vertex."""
+    from skinsynth.formats.errors import FormatError
+    from skinsynth.formats.marker_layout import read_marker_layout
+    from skinsynth.pipeline.puppet.markers import layout_vertex_ids
+
+    layout = read_marker_layout(path, vertex_count=skin.rest_vertices.shape[0])
+    vertices = layout_vertex_ids(layout.vertices, layout.positions, skin.rest_vertices)
+    if len(set(vertices.tolist())) != len(vertices):
+        twice = [label for label, v in zip(layout.labels, vertices) if (vertices == v).sum() > 1]
+        raise FormatError(path, f"markers {', '.join(twice)} sit on one vertex: each control needs its own")
+    return vertices.tolist(), (layout.labels, layout.offsets)

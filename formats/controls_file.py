@@ -13,7 +13,10 @@ It copies ``/mesh``, ``/examples`` and ``/skin`` forward unchanged from the skin
   ``@method`` ("auto" or "user"), ``@explained`` (sum of ``basis_variance``), ``@min_spacing``
   (absolute spacing the automatic rule used), ``@clips`` (the names of the clips of
   ``/examples`` whose frames the selection used, in file order; ``select-controls --clips``;
-  absent in files written before it, which used every frame).
+  absent in files written before it, which used every frame), and where ``select-controls
+  --markers`` chose the controls, the marker layout: ``marker_labels (N,)`` UTF-8 (the marker on
+  each control, in control order) and ``marker_offsets (N,)`` float64 (each marker's distance out
+  from the skin along the rest normal, mesh units); ``play`` and ``view`` read a C3D take with it.
 """
 
 from dataclasses import dataclass
@@ -48,14 +51,17 @@ class ControlsData:
     explained: float
     min_spacing: float
     clips: tuple = ()
+    marker_labels: tuple = ()
+    marker_offsets: np.ndarray | None = None
 
 
-def controls_groups(selection, model=None, clips=None):
+def controls_groups(selection, model=None, clips=None, markers=None):
     """The HDF5 groups of a controls file from a pipeline ControlSelection.
 
     model: the skin file as :func:`~skinsynth.formats.model.read_model` returned it; its
     ``/mesh``, ``/examples`` and ``/skin`` are carried forward unchanged. clips: the names of the
-    clips the selection used (``@clips``; None writes no attribute).
+    clips the selection used (``@clips``; None writes no attribute). markers: (labels (N,),
+    offsets (N,)) of a marker layout, in control order, or None.
     """
     groups = {} if model is None else {name: model[name] for name in CARRIED_GROUPS}
     groups["controls"] = {
@@ -74,6 +80,11 @@ def controls_groups(selection, model=None, clips=None):
     }
     if clips is not None:
         groups["controls"]["@clips"] = [str(name) for name in clips]
+    if markers is not None:
+        labels, offsets = markers
+        groups["controls"]["marker_labels"] = np.array([str(label) for label in labels],
+                                                       dtype=h5py.string_dtype("utf-8"))
+        groups["controls"]["marker_offsets"] = np.asarray(offsets, dtype=np.float64)
     return groups
 
 
@@ -109,6 +120,15 @@ def read_controls(path, model=None):
             raise FormatError(path, f"/controls: vertex ids outside the mesh's {count} vertices")
     if np.unique(indices).size != indices.size:
         raise FormatError(path, "/controls: a control vertex is listed twice")
+    labels, offsets = (), None
+    if ("marker_labels" in group) != ("marker_offsets" in group):
+        raise FormatError(path, "/controls has one of marker_labels and marker_offsets without the other")
+    if "marker_labels" in group:
+        labels = tuple(_text(label) for label in np.atleast_1d(group["marker_labels"]))
+        offsets = np.asarray(group["marker_offsets"], dtype=np.float64)
+        if len(labels) != indices.size or offsets.shape != indices.shape or not np.isfinite(offsets).all():
+            raise FormatError(path, "/controls: marker_labels and marker_offsets must give one finite entry per "
+                                    "control vertex")
     return ControlsData(
         vertex_indices=indices, control_basis=control_basis, reasons=reasons, candidate_vertices=candidates,
         candidate_basis=candidate_basis, candidate_loading=np.asarray(group["candidate_loading"], dtype=np.float64),
@@ -116,4 +136,5 @@ def read_controls(path, model=None):
         count=int(group.get("@count", indices.size)), method=_text(group.get("@method", "")),
         explained=float(group.get("@explained", variance.sum())),
         min_spacing=float(group.get("@min_spacing", np.nan)),
-        clips=tuple(_text(name) for name in np.atleast_1d(group.get("@clips", []))))
+        clips=tuple(_text(name) for name in np.atleast_1d(group.get("@clips", []))),
+        marker_labels=labels, marker_offsets=offsets)

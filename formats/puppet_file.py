@@ -99,7 +99,8 @@ class PuppetRecord:
     regularization}, ``translations`` {rotation_operator, control_operator, prior_operator} or
     None, and ``correctives`` {weights, offsets, ridge, power, tail, axes, reason} or None;
     ``training_clips``: the clip names trained on (``/training/@clips``; empty in older files:
-    every clip)."""
+    every clip); ``marker_labels`` (n_c,) and ``marker_offsets`` (n_c,): the marker layout the
+    controls were chosen from (``select-controls --markers``; empty and None without one)."""
 
     rest_vertices: np.ndarray
     bone_indices: np.ndarray
@@ -121,6 +122,8 @@ class PuppetRecord:
     correctives_reason: str
     skinning: str = "dual-quaternion"
     training_clips: tuple = ()
+    marker_labels: tuple = ()
+    marker_offsets: np.ndarray | None = None
 
 
 def read_puppet(path, with_options=False):
@@ -168,7 +171,8 @@ def read_puppet(path, with_options=False):
                           kernel_width_reason=str(kcca.get("@width_reason", "")), correctives=correctives,
                           correctives_reason=str(training.get("@correctives_reason", "")),
                           skinning=_skinning(path, training),
-                          training_clips=tuple(str(name) for name in np.atleast_1d(training.get("@clips", []))))
+                          training_clips=tuple(str(name) for name in np.atleast_1d(training.get("@clips", []))),
+                          marker_labels=controls.marker_labels, marker_offsets=controls.marker_offsets)
     if with_options:
         return puppet, training["test_frames"], skin, training_options(model)
     return puppet, training["test_frames"], skin

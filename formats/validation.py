@@ -303,6 +303,7 @@ CONTROLS = {  # basis_variance first: it binds Kb, the bound of candidate_basis
     "candidate_vertices": Field("int", ("C",), low=0, high="V"),
     "candidate_basis": Field("int", ("C",), low=0, high="Kb"),
     "candidate_loading": Field("float", ("C",), low=0.0),
+    "marker_offsets": Field("float", ("N",), low=0.0, optional=True),  # with marker_labels (N,) strings
 }
 TRAINING = {"train_frames": Field("int", ("P",), low=0, high="F"), "test_frames": Field("int", (None,), low=0, high="F"),
             "reference_controls": Field("float", ("N", 3))}

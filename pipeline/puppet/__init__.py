@@ -7,7 +7,8 @@ held-out evaluation (:mod:`.baselines`, :mod:`.evaluation`), and many characters
 
 Public: select_controls, train_puppet, predict_vertices, parse_frame_spec, clip_training_frames, Puppet, puppet_from_record, KccaRegression,
 ControlKernel, KERNELS, TranslationOperator, Correctives, evaluate_puppet, evaluate_extrapolation,
-extrapolation_split, clip_hold_out_split, evaluate_clip_hold_out, instance_trajectories, host_inputs, world_bones, play_characters, DevicePlayer.
+extrapolation_split, clip_hold_out_split, evaluate_clip_hold_out, instance_trajectories, host_inputs, world_bones, play_characters, DevicePlayer,
+drive_from_markers, MarkerDrive (a motion-capture take as the controls, :mod:`.markers`).
 """
 
 from .._lazy import lazy_exports
@@ -18,6 +19,6 @@ _EXPORTS = {"select_controls": "controls", "train_puppet": "puppet", "predict_ve
             "evaluate_puppet": "evaluation", "evaluate_extrapolation": "evaluation",
             "extrapolation_split": "evaluation", "clip_hold_out_split": "evaluation",
             "evaluate_clip_hold_out": "evaluation", "instance_trajectories": "playback", "host_inputs": "playback", "play_characters": "playback", "DevicePlayer": "playback",
-            "world_bones": "playback"}
+            "world_bones": "playback", "drive_from_markers": "markers", "MarkerDrive": "markers"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -5,7 +5,7 @@ and what ``skinsynth view`` shows, as pure functions on arrays (:mod:`.scenes`).
 Public: render, frame_bounds, ground_layer, Panel, Preview, error_colors, frame_captions, walk_captions,
 compile_loops (the rasteriser built ahead of use: ``skinsynth precompile``),
 split_by_key, error_levels, level_colors, vertex_errors, vertex_components, face_components, component_colors,
-seam_frames, extrapolation, extrapolation_scale, extrapolation_color, resample_session, side_by_side,
+seam_frames, extrapolation, extrapolation_distances, extrapolation_scale, extrapolation_color, resample_session, side_by_side,
 planted_vertices, skeleton_lines.
 """
 
@@ -15,7 +15,7 @@ _EXPORTS = {"render": "rasteriser", "frame_bounds": "rasteriser", "ground_layer"
             "Preview": "preview", "error_colors": "preview", "frame_captions": "preview",
             "walk_captions": "preview", "compile_loops": "precompile", **{name: "scenes" for name in (
                 "split_by_key", "error_levels", "level_colors", "vertex_errors", "vertex_components",
-                "face_components", "component_colors", "seam_frames", "extrapolation", "extrapolation_scale",
+                "face_components", "component_colors", "seam_frames", "extrapolation", "extrapolation_distances", "extrapolation_scale",
                 "extrapolation_color", "resample_session", "side_by_side", "planted_vertices", "skeleton_lines")}}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

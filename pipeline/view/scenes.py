@@ -112,13 +112,28 @@ def seam_frames(sources, clips=None):
     return seams
 
 
+def extrapolation_distances(controls, training, unit):
+    """(distances (N,), nearest (N,)) of controls (N, n_c, 3) from training (n_p, n_c, 3), both
+    in place: each frame's RMS distance over the control points to the nearest training example,
+    divided by ``unit`` (``evaluate``'s: the largest side of the rest bounding box), and that
+    example's row (the first of equally near ones); vectorised over frames in blocks of bounded
+    memory (``play --json`` reports a whole take)."""
+    flat = np.asarray(controls, dtype=np.float64).reshape(len(controls), -1)
+    train = np.asarray(training, dtype=np.float64).reshape(len(training), -1)
+    block = max(1, (32 << 20) // (8 * max(train.size, 1)))
+    distances, nearest = np.empty(len(flat)), np.empty(len(flat), dtype=np.int64)
+    for start in range(0, len(flat), block):
+        gaps = np.sum((train[None] - flat[start:start + block, None]) ** 2, axis=2)  # (block, n_p)
+        nearest[start:start + block] = np.argmin(gaps, axis=1)
+        distances[start:start + block] = np.sqrt(np.min(gaps, axis=1) / np.asarray(training).shape[1]) / unit
+    return distances, nearest
+
+
 def extrapolation(controls, training, unit):
-    """(distance, nearest) of controls (n_c, 3) from training (n_p, n_c, 3), both in place: the
-    RMS distance over the control points to the nearest training example, divided by ``unit``
-    (``evaluate``'s: the largest side of the rest bounding box), and that example's row."""
-    gaps = np.sqrt(np.mean(np.sum((np.asarray(training) - np.asarray(controls)[None]) ** 2, axis=2), axis=1))
-    nearest = int(np.argmin(gaps))
-    return float(gaps[nearest] / unit), nearest
+    """(distance, nearest) of controls (n_c, 3) from training (n_p, n_c, 3): one frame of
+    :func:`extrapolation_distances`."""
+    distances, nearest = extrapolation_distances(np.asarray(controls)[None], training, unit)
+    return float(distances[0]), int(nearest[0])
 
 
 def extrapolation_scale(training, unit, same=1e-6):

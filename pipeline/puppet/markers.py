@@ -1,0 +1,329 @@
+"""A performance drives the puppet: optical markers carried over to its control points (Feng §6).
+
+Feng et al. drive their puppets with a performer's markers ("the control points … are driven by
+motion capture data", §6). A real take is in the performer's space, at the system's rate, with
+gaps; the puppet wants its own control points, at its frame rate, every frame. The steps, in the
+order :func:`drive_from_markers` runs them (each an option of ``play``):
+
+1. **Units and up axis.** Metres to the mesh's units (``metersPerUnit``), the take's up axis (C3D:
+   Z) turned onto the puppet's (:func:`up_axis_rotation`).
+2. **Short gaps** (≤ ``max_gap`` take frames, both ends seen) are filled by linear interpolation
+   in time (:func:`fill_short_gaps`). Linear, not a spline: a gap of a few frames at 50–120 Hz is
+   a few centimetres of travel, and a spline overshoots at a marker's noisy ends.
+3. **Stabilised** (``--stabilize A,B,C``): each frame's rigid motion of three or more markers
+   (a face's head markers) relative to the neutral frame is removed from every marker
+   (:func:`stabilize_markers`).
+4. **The neutral frame** (the pose that matches the puppet's rest pose, as a facial capture's
+   neutral calibration; default the first frame with every marker) is mapped onto the puppet's
+   reference controls by the least-squares similarity of Umeyama 1991 (scale, rotation,
+   translation; :func:`similarity_transform`). Markers sitting ``offset`` out from the skin are
+   aimed at the rest control vertex moved that far along its normal.
+5. **Retargeting.** ``delta`` (default): each control moves by its marker's displacement from
+   the neutral frame, carried by that transform, so the rest shape is the character's own and a
+   performer of other proportions does not distort it; ``absolute``: controls at the aligned
+   markers (less the skin offset, turned with the frame).
+6. **Long gaps** are filled from the other markers through the puppet's own training controls
+   (:func:`fill_from_training`): least squares on their principal subspace, in place. A frame
+   with fewer than ``min_markers`` markers is held from the last good one.
+7. **Resampled** to the output's fps by linear interpolation, the first sample's time kept
+   (:func:`resample_uniform`).
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import OptionError
+from ..rotations import polar_rotation
+
+#: The short-gap rule: gaps of at most this many take frames are interpolated (Vicon Nexus and
+#: Qualisys fill up to 10 frames by default).
+MAX_GAP = 10
+#: Principal directions of the training controls kept for the long-gap fill: the smallest number
+#: explaining this share of their in-place variance (and never more than the seen markers'
+#: coordinates less the 6 of a rigid motion can determine).
+SUBSPACE_VARIANCE = 0.99
+#: The subspace fit's noise, as a share of the largest retained variance: a Gaussian prior on each
+#: coefficient with its direction's training variance v_j gives the ridge ``ridge · v_0 / v_j``, so a
+#: direction the seen markers barely see stays near the training mean instead of being thrown far
+#: outside the training poses, and the well-seen ones are fitted almost freely.
+SUBSPACE_RIDGE = 1e-4
+#: The fill alternates the rigid fit of a frame's seen markers onto its fitted pose and the pose's
+#: subspace coefficients (both least squares, so the error never grows); at most this many rounds.
+FILL_ITERATIONS = 50
+RETARGETS = ("delta", "absolute")
+_UP = {"X": 0, "Y": 1, "Z": 2}
+
+
+@dataclass
+class MarkerDrive:
+    """What :func:`drive_from_markers` made of a take.
+
+    controls (F, n, 3) the puppet's control points at the output frames; markers (F, n, 3) the
+    markers themselves carried by the similarity (where ``absolute`` puts the controls; ``view``
+    draws them beside the controls); times (F,) seconds of each output frame; scale, rotation
+    (3, 3), translation (3,): the whole map from the take's metres to the puppet's space,
+    ``x ↦ scale · rotation @ x + translation`` (units, up axis and Umeyama together);
+    neutral_frame (take frame); interpolated and subspace: {marker index: take frames filled that
+    way}; held: take frames held from the last good one; min_markers: the rule used for ``held``.
+    """
+
+    controls: np.ndarray
+    markers: np.ndarray
+    times: np.ndarray
+    scale: float
+    rotation: np.ndarray
+    translation: np.ndarray
+    neutral_frame: int
+    interpolated: dict = field(default_factory=dict)
+    subspace: dict = field(default_factory=dict)
+    held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    min_markers: int = 3
+
+
+def up_axis_rotation(source, target):
+    """The rotation (3, 3) taking a right-handed frame whose up axis is ``source`` ("X"/"Y"/"Z")
+    to one whose up axis is ``target``: a cyclic permutation of the axes, so no axis is mirrored
+    (Z up → Y up maps (x, y, z) to (y, z, x)). Identity when they agree."""
+    shift = (_UP[target.upper()] - _UP[source.upper()]) % 3
+    return np.roll(np.eye(3), shift, axis=0)
+
+
+def similarity_transform(source, target):
+    """Umeyama 1991 (eq. 40–42): the scale s, rotation R (3, 3) and translation t (3,) minimising
+    ``Σ_i |s R source_i + t − target_i|²`` for points source, target (n, 3), n ≥ 3 not collinear.
+    A reflection is never returned (the sign correction S of eq. 39/43)."""
+    source, target = np.asarray(source, dtype=np.float64), np.asarray(target, dtype=np.float64)
+    mean_s, mean_t = source.mean(axis=0), target.mean(axis=0)
+    centred_s, centred_t = source - mean_s, target - mean_t
+    variance = np.mean(np.sum(centred_s ** 2, axis=1))
+    covariance = centred_t.T @ centred_s / len(source)
+    u, d, vt = np.linalg.svd(covariance)
+    sign = np.ones(3)
+    sign[2] = np.sign(np.linalg.det(u) * np.linalg.det(vt)) or 1.0
+    rotation = (u * sign) @ vt
+    scale = float(np.sum(d * sign) / variance) if variance > 0 else 1.0
+    return scale, rotation, mean_t - scale * rotation @ mean_s
+
+
+def _runs(missing):
+    """Runs of True in missing (T,): (starts, ends) with ends exclusive."""
+    edges = np.diff(np.concatenate([[0], missing.astype(np.int8), [0]]))
+    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+
+
+def fill_short_gaps(points, max_gap):
+    """points (T, M, 3), NaN where missing -> (filled copy, filled (T, M) bool): every gap of at
+    most ``max_gap`` frames with a seen frame on both sides interpolated linearly in time. Gaps at
+    the take's start or end, or longer, stay NaN (:func:`fill_from_training` takes them)."""
+    points = np.array(points, dtype=np.float64)
+    missing = np.isnan(points).any(axis=2)
+    filled = np.zeros_like(missing)
+    frames = np.arange(len(points))
+    for marker in np.flatnonzero(missing.any(axis=0)):  # markers, never vertices
+        starts, ends = _runs(missing[:, marker])
+        short = (starts > 0) & (ends < len(points)) & (ends - starts <= max_gap)
+        if not short.any():
+            continue
+        seen = ~missing[:, marker]
+        take = np.concatenate([np.arange(s, e) for s, e in zip(starts[short], ends[short])])
+        for axis in range(3):
+            points[take, marker, axis] = np.interp(take, frames[seen], points[seen, marker, axis])
+        filled[take, marker] = True
+    return points, filled
+
+
+def _rigid_onto(points, reference, weights):
+    """Per-frame rigid fits (R (T, 3, 3), t (T, 3)) of points (T, M, 3) onto reference (M, 3) or
+    (T, M, 3) over the markers with weight 1 in weights (T, M) (NaN points allowed where the
+    weight is 0)."""
+    w = weights.astype(np.float64)
+    reference = np.broadcast_to(reference, points.shape)
+    count = np.maximum(w.sum(axis=1), 1.0)[:, None]
+    safe = np.where(w[..., None] > 0, points, 0.0)
+    mean_p = np.einsum("tm,tma->ta", w, safe) / count
+    mean_r = np.einsum("tm,tma->ta", w, reference) / count
+    cross = np.einsum("tm,tma,tmb->tab", w, reference - mean_r[:, None], safe - mean_p[:, None])
+    rotations = polar_rotation(cross)
+    return rotations, mean_r - np.einsum("tab,tb->ta", rotations, mean_p)
+
+
+def stabilize_markers(points, stabilizers, neutral):
+    """Remove from every marker the rigid motion of the ``stabilizers`` (indices, ≥ 3) relative to
+    frame ``neutral``: points (T, M, 3) -> (T, M, 3). A frame seeing fewer than 3 of them keeps the
+    last frame's correction (the first one seen for frames before it)."""
+    stabilizers = np.asarray(stabilizers)
+    seen = ~np.isnan(points[:, stabilizers]).any(axis=2)
+    usable = seen.sum(axis=1) >= 3
+    if not usable.any():
+        raise OptionError("--stabilize: no frame sees 3 of its markers")
+    rotations, translations = _rigid_onto(points[:, stabilizers], points[neutral, stabilizers], seen)
+    source = np.maximum.accumulate(np.where(usable, np.arange(len(points)), -1))
+    source = np.where(source < 0, np.flatnonzero(usable)[0], source)
+    rotations, translations = rotations[source], translations[source]
+    return np.einsum("tab,tmb->tma", rotations, points) + translations[:, None]
+
+
+def training_subspace(training, variance=SUBSPACE_VARIANCE):
+    """The principal subspace of training controls (n_p, n, 3), in place: (mean (n, 3), bases
+    (k, n, 3) orthonormal as 3n-vectors, variances (k,)), k the smallest explaining ``variance``
+    of the total (at least 1 where anything varies)."""
+    flat = np.asarray(training, dtype=np.float64).reshape(len(training), -1)
+    mean = flat.mean(axis=0)
+    _, singular, vt = np.linalg.svd(flat - mean, full_matrices=False)
+    energy = singular ** 2
+    if energy.sum() <= 0:
+        return mean.reshape(-1, 3), np.zeros((0, *training.shape[1:])), np.zeros(0)
+    k = int(np.searchsorted(np.cumsum(energy) / energy.sum(), variance - 1e-12) + 1)
+    k = min(k, int(np.sum(energy > energy[0] * 1e-12)))
+    return mean.reshape(-1, 3), vt[:k].reshape(k, -1, 3), energy[:k] / len(flat)
+
+
+def fill_from_training(controls, training, min_markers, ridge=SUBSPACE_RIDGE):
+    """Fill the markers still missing in controls (T, n, 3) (NaN) from the seen ones through the
+    training controls' principal subspace (training (n_p, n, 3), in place):
+    each frame's seen controls are brought rigidly onto the subspace mean, the subspace
+    coefficients fitted to them by ridge least squares (``ridge``, :data:`SUBSPACE_RIDGE`), the missing ones
+    read off and moved back. Frames are solved together by which markers they miss.
+
+    A frame seeing fewer than ``min_markers`` (≥ 3) markers is held: a copy of the last good
+    frame (of the first, before it). Returns (filled (T, n, 3), subspace_filled (T, n) bool,
+    held (h,) frame indices); OptionError when no frame has enough."""
+    controls = np.array(controls, dtype=np.float64)
+    missing = np.isnan(controls).any(axis=2)
+    good = (~missing).sum(axis=1) >= min_markers
+    if not good.any():
+        raise OptionError(f"no frame of the take sees {min_markers} of its {controls.shape[1]} markers")
+    mean, bases, variances = training_subspace(training)
+    filled = np.zeros_like(missing)
+    todo = good & missing.any(axis=1)
+    patterns, which = np.unique(missing[todo], axis=0, return_inverse=True)
+    frames = np.flatnonzero(todo)
+    for number, pattern in enumerate(patterns):  # one solve per pattern of missing markers
+        at = frames[which.reshape(-1) == number]
+        seen = ~pattern
+        k = min(len(variances), max(3 * int(seen.sum()) - 6, 0))
+        design = bases[:k, seen].reshape(k, -1).T  # (3 |seen|, k)
+        penalty = np.diag(ridge * variances[0] / variances[:k]) if k else np.zeros((0, 0))
+        solve = np.linalg.inv(design.T @ design + penalty) @ design.T if k else np.zeros((0, design.shape[0]))
+        weights = np.broadcast_to(seen, (len(at), len(seen)))
+        shape = np.broadcast_to(mean, (len(at), *mean.shape))  # the fitted pose, in place
+        for _ in range(FILL_ITERATIONS):  # alternate: the rigid fit onto the pose, the pose's coefficients
+            rotations, translations = _rigid_onto(controls[at], shape, weights)
+            local = np.einsum("tab,tmb->tma", rotations, np.where(seen[None, :, None], controls[at], 0.0)) \
+                + translations[:, None]
+            coefficients = solve @ (local[:, seen] - mean[seen]).reshape(len(at), -1).T
+            previous, shape = shape, mean[None] + np.einsum("kt,kma->tma", coefficients, bases[:k])
+            if np.abs(shape - previous).max() <= 1e-12 * (1.0 + np.abs(mean).max()):
+                break
+        back = np.einsum("tba,tmb->tma", rotations, shape[:, pattern] - translations[:, None])  # Rᵀ (x − t)
+        controls[at[:, None], np.flatnonzero(pattern)[None, :]] = back
+        filled[at[:, None], np.flatnonzero(pattern)[None, :]] = True
+    good_frames = np.flatnonzero(good)
+    source = np.maximum.accumulate(np.where(good, np.arange(len(controls)), -1))
+    source = np.where(source < 0, good_frames[0], source)
+    held = np.flatnonzero(~good)
+    controls[held] = controls[source[held]]
+    return controls, filled, held
+
+
+def resample_uniform(values, rate, fps):
+    """values (T, ...) sampled at ``rate`` Hz -> (F, ...) at ``fps`` by linear interpolation, frame
+    k at k / fps seconds after the first sample (so the first sample's time is kept), up to the
+    last sample. A sample time within 1e-9 of a frame's counts as on it (no interpolation)."""
+    values = np.asarray(values, dtype=np.float64)
+    count = int(np.floor((len(values) - 1) * fps / rate + 1e-9)) + 1
+    position = np.arange(count) * (rate / fps)
+    lower = np.minimum(np.floor(position + 1e-9).astype(np.int64), len(values) - 1)
+    upper = np.minimum(lower + 1, len(values) - 1)
+    mix = np.clip(position - lower, 0.0, 1.0).reshape(-1, *([1] * (values.ndim - 1)))
+    return (1.0 - mix) * values[lower] + mix * values[upper]
+
+
+def layout_vertex_ids(vertices, positions, rest_vertices):
+    """A marker layout's vertex of each marker: vertices (M,) int, −1 where the marker is given by
+    a rest position instead (positions (M, 3), NaN elsewhere), which takes the nearest vertex of
+    rest_vertices (V, 3) (ties: the lowest id). -> (M,) int64."""
+    vertices = np.array(vertices, dtype=np.int64)
+    placed = np.flatnonzero(vertices < 0)
+    if len(placed):
+        rest = np.asarray(rest_vertices, dtype=np.float64)
+        squared = (np.sum(rest ** 2, axis=1)[None] - 2.0 * np.asarray(positions)[placed] @ rest.T)  # |p|² is common
+        vertices[placed] = np.argmin(squared, axis=1)
+    return vertices
+
+
+def first_complete_frame(points):
+    """The first frame (T, M, 3) with every marker seen, or None."""
+    complete = np.flatnonzero(~np.isnan(points).any(axis=(1, 2)))
+    return int(complete[0]) if len(complete) else None
+
+
+def drive_from_markers(points, rate, fps, reference, training, *, meters_per_unit=1.0, take_up="Z", puppet_up="Y",
+                       offsets=None, normals=None, neutral_frame=None, retarget="delta", stabilize=(),
+                       max_gap=MAX_GAP, min_markers=None):
+    """A take's markers as the puppet's controls (the module's steps 1–7).
+
+    points (T, n, 3) metres, the markers in the puppet's control order, NaN where missing; rate
+    (Hz); fps (the output's); reference (n, 3) the puppet's reference (rest) controls; training
+    (n_p, n, 3) its training controls in place (for the long-gap fill); offsets (n,) and normals
+    (n, 3): markers sitting ``offset`` along the rest normal from their control (mesh units);
+    neutral_frame: take frame of the neutral pose (default the first complete one after the short
+    fill); stabilize: marker indices; min_markers: a frame seeing fewer is held (default half the
+    markers, at least 3). -> :class:`MarkerDrive`; OptionError (one line) for an option the take
+    cannot satisfy."""
+    points = np.asarray(points, dtype=np.float64)
+    frames, count = points.shape[:2]
+    if retarget not in RETARGETS:
+        raise OptionError(f"--retarget must be one of {', '.join(RETARGETS)} (got {retarget})")
+    if max_gap < 0:
+        raise OptionError(f"--max-gap must be ≥ 0 frames (got {max_gap})")
+    if not (np.isfinite(fps) and fps > 0):
+        raise OptionError(f"--fps must be a positive number (got {fps})")
+    min_markers = max(3, -(-count // 2)) if min_markers is None else int(min_markers)
+    if not 3 <= min_markers <= count:
+        raise OptionError(f"--min-markers must be between 3 and the layout's {count} markers (got {min_markers})")
+    offsets = np.zeros(count) if offsets is None else np.asarray(offsets, dtype=np.float64)
+    normals = np.zeros((count, 3)) if normals is None else np.asarray(normals, dtype=np.float64)
+    turn = up_axis_rotation(take_up, puppet_up) / meters_per_unit  # metres, take up -> mesh units, puppet up
+    local = points @ turn.T
+    local, interpolated = fill_short_gaps(local, max_gap)
+    if neutral_frame is None:
+        neutral_frame = first_complete_frame(local)
+        if neutral_frame is None:
+            raise OptionError("no frame of the take sees every marker (after filling short gaps): give "
+                              "--neutral-frame a frame that does, or --max-gap more frames")
+    elif not 0 <= neutral_frame < frames:
+        raise OptionError(f"--neutral-frame {neutral_frame} is outside the take's frames 0..{frames - 1}")
+    elif np.isnan(local[neutral_frame]).any():
+        lost = np.flatnonzero(np.isnan(local[neutral_frame]).any(axis=1))
+        raise OptionError(f"--neutral-frame {neutral_frame} lacks markers {', '.join(map(str, lost))}: the neutral "
+                          "frame needs every marker")
+    if len(stabilize):
+        if len(set(stabilize)) < 3:
+            raise OptionError("--stabilize needs at least 3 distinct markers")
+        local = stabilize_markers(local, stabilize, neutral_frame)
+    targets = reference + offsets[:, None] * normals
+    scale, rotation, translation = similarity_transform(local[neutral_frame], targets)
+    markers = scale * local @ rotation.T + translation  # NaN where still missing
+    if retarget == "delta":
+        controls = reference + (markers - markers[neutral_frame])
+    else:
+        controls = markers
+        if np.any(offsets):  # back onto the skin: the rest normal turned with the frame's markers
+            seen = ~np.isnan(markers).any(axis=2)
+            turns, _ = _rigid_onto(markers, targets, seen)  # frame -> rest; its transpose turns rest normals
+            controls = markers - offsets[None, :, None] * np.einsum("tba,mb->tma", turns, normals)
+    controls, by_subspace, held = fill_from_training(controls, training, min_markers)
+    # the drawn markers follow their controls where they were filled
+    markers = np.where(np.isnan(markers), controls + (markers[neutral_frame] - reference
+                                                      if retarget == "delta" else 0.0), markers)
+    controls, markers = resample_uniform(controls, rate, fps), resample_uniform(markers, rate, fps)
+    total = scale * rotation @ turn
+    return MarkerDrive(controls=controls, markers=markers, times=np.arange(len(controls)) / fps,
+                       scale=float(np.cbrt(np.linalg.det(total))), rotation=total / np.cbrt(np.linalg.det(total)),
+                       translation=translation, neutral_frame=int(neutral_frame),
+                       interpolated={m: np.flatnonzero(interpolated[:, m]) for m in range(count)
+                                     if interpolated[:, m].any()},
+                       subspace={m: np.flatnonzero(by_subspace[:, m]) for m in range(count) if by_subspace[:, m].any()},
+                       held=held, min_markers=min_markers)

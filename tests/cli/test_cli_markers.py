@@ -1,0 +1,136 @@
+"""A motion-capture take drives a puppet: select-controls --markers, play --controls take.c3d."""
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from c3d_writing import write_c3d
+from cli_helpers import assert_ok, assert_user_error, cli
+from skinsynth.pipeline.rotations import rotation_exp
+
+#: The known map from the puppet's space (Y up, metres) to the take's (Z up, millimetres).
+SCALE, TURN, SHIFT = 1.3, rotation_exp(np.array([0.2, -0.4, 1.1])), np.array([250.0, -1200.0, 30.0])
+Y_TO_Z = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # (x, y, z) -> (z, x, y): y becomes up
+
+
+@pytest.fixture(scope="module")
+def puppet(tmp_path_factory):
+    """The walker's puppet on 8 markers of a layout (one given by its rest position), its skin,
+    and the layout: (folder, labels, control vertices)."""
+    folder = tmp_path_factory.mktemp("markers")
+    assert_ok(cli("example", "walker", "-o", folder / "walker.npz", "--frames", 48, "--cycles", 2, "--rings", 10, "-q"))
+    assert_ok(cli("fit-skin", folder / "walker.npz", "-o", folder / "skin.h5", "--bones", 10, "--iterations", 10, "-q"))
+    with h5py.File(folder / "skin.h5", "r") as f:
+        rest = f["mesh/rest_vertices"][()]
+    height = np.ptp(rest[:, 1])
+    picks = [int(np.argmax(rest[:, 1]))]  # farthest-point spread over the body, from the top
+    for _ in range(7):
+        picks.append(int(np.argmax(np.min(np.linalg.norm(rest[:, None] - rest[picks][None], axis=2), axis=1))))
+    labels = [f"M{i}" for i in range(8)]
+    layout = {label: vertex for label, vertex in zip(labels, picks)}
+    layout["M3"] = rest[picks[3]].tolist()  # given by its position: the nearest vertex
+    (folder / "layout.json").write_text(json.dumps(layout))
+    assert height > 0
+    assert_ok(cli("select-controls", folder / "skin.h5", "-o", folder / "controls.h5", "--markers",
+                  folder / "layout.json", "-q"))
+    assert_ok(cli("train-kcca", folder / "controls.h5", "-o", folder / "puppet.h5", "-q"))
+    return folder, labels, picks
+
+
+def _take(folder, labels, picks, name, rate_factor=5, holes=(), **write):
+    """The walker's own control vertices as a take at rate_factor × its fps, in the known map;
+    holes: (label index, first, last) take frames made missing. -> (take path, clean controls
+    (F, n, 3) at the walker's frames)."""
+    with h5py.File(folder / "skin.h5", "r") as f:
+        frames = f["examples/vertices"][()][:, picks]
+        fps = float(f["examples"].attrs["fps"])
+    times = np.arange((len(frames) - 1) * rate_factor + 1) / rate_factor
+    low = np.minimum(np.floor(times).astype(int), len(frames) - 1)
+    high = np.minimum(low + 1, len(frames) - 1)
+    mix = (times - low)[:, None, None]
+    dense = (1 - mix) * frames[low] + mix * frames[high]
+    points = (SCALE * (dense @ Y_TO_Z.T) @ TURN.T) * 1000.0 + SHIFT
+    for marker, first, last in holes:
+        points[first:last + 1, marker] = np.nan
+    path = folder / name
+    write_c3d(path, [f"Actor:{label}" for label in labels], points, fps * rate_factor, **write)
+    return path, frames
+
+
+def test_layout_is_stored_with_the_controls(puppet):
+    folder, labels, picks = puppet
+    with h5py.File(folder / "puppet.h5", "r") as f:
+        assert [s.decode() for s in f["controls/marker_labels"][()]] == labels
+        assert f["controls/vertex_indices"][()].tolist() == picks
+
+
+def test_a_clean_take_plays_as_its_own_controls_and_recovers_the_transform(puppet, tmp_path):
+    folder, labels, picks = puppet
+    take, clean = _take(folder, labels, picks, "clean.c3d")
+    np.save(tmp_path / "clean.npy", clean)
+    report = json.loads(assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / "take.h5",
+                                      "--json")).stdout)
+    assert_ok(cli("play", folder / "puppet.h5", "-c", tmp_path / "clean.npy", "-o", tmp_path / "clean.h5", "-q"))
+    with h5py.File(tmp_path / "take.h5", "r") as a, h5py.File(tmp_path / "clean.h5", "r") as b:
+        played, truth = a["vertices"][()], b["vertices"][()]
+    assert played.shape == truth.shape
+    assert np.abs(played - truth).max() < 1e-5 * np.ptp(truth[..., 1])
+    summary = report["takes"][0]
+    total = np.array(summary["transform"]["rotation"]) * summary["transform"]["scale"]
+    expected = np.linalg.inv(SCALE * 1000.0 * TURN @ Y_TO_Z) * 1000.0  # take metres -> puppet units
+    assert np.abs(total - expected).max() < 1e-6 * np.abs(expected).max()
+    assert np.abs(np.array(summary["transform"]["translation"]) + expected @ SHIFT / 1000.0).max() < 1e-6
+    assert summary["neutral_frame"] == 0 and summary["units"] == "mm" and summary["filled"] == {}
+    assert len(report["extrapolation"][0]["per_frame"]) == report["frames"]
+
+
+def test_gaps_are_filled_and_listed(puppet, tmp_path):
+    folder, labels, picks = puppet
+    take, _ = _take(folder, labels, picks, "gaps.c3d", holes=[(2, 10, 14), (5, 40, 140)])
+    report = json.loads(assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / "take.h5",
+                                      "--json")).stdout)
+    filled = report["takes"][0]["filled"]
+    assert filled["M2"] == {"interpolated": "10–14", "from_other_markers": "", "frames": 5}
+    assert filled["M5"] == {"interpolated": "", "from_other_markers": "40–140", "frames": 101}
+    with h5py.File(tmp_path / "take.h5", "r") as f:
+        assert np.isfinite(f["vertices"][()]).all()
+
+
+@pytest.mark.parametrize("case, needle", [
+    ("garbage", "c3d"), ("truncated", "truncated"), ("units", "unit"), ("missing", "lacks markers"),
+    ("few", "fewer than 3"), ("vertex", "outside the mesh"), ("differ", "differ from the puppet's controls"),
+])
+def test_bad_takes_and_layouts_are_refused_in_one_line(puppet, tmp_path, case, needle):
+    folder, labels, picks = puppet
+    take, _ = _take(folder, labels, picks, "ok.c3d")
+    layout = folder / "layout.json"
+    if case == "garbage":
+        take = tmp_path / "garbage.c3d"
+        take.write_bytes(b"not a c3d file at all" * 50)
+    elif case == "truncated":
+        data = (folder / "ok.c3d").read_bytes()
+        take = tmp_path / "cut.c3d"
+        take.write_bytes(data[: len(data) * 2 // 3])
+    elif case == "units":
+        take, _ = _take(folder, labels, picks, "furlong.c3d", units="furlong")
+    elif case in ("missing", "few"):
+        kept = labels[:-1] if case == "missing" else labels[:2]
+        take, _ = _take(folder, kept, [picks[labels.index(k)] for k in kept], f"{case}.c3d")
+    elif case == "vertex":
+        layout = tmp_path / "far.json"
+        layout.write_text(json.dumps({**{l: v for l, v in zip(labels, picks)}, "M7": 10 ** 7}))
+    elif case == "differ":
+        layout = tmp_path / "other.json"
+        layout.write_text(json.dumps({**{l: v for l, v in zip(labels, picks)}, "M7": picks[7] + 1}))
+    result = cli("play", folder / "puppet.h5", "-c", take, "--markers", layout, "-o", tmp_path / "out.glb")
+    assert_user_error(result, needle, folder=tmp_path, keep=[p.name for p in tmp_path.iterdir()])
+
+
+def test_take_options_need_a_take(puppet, tmp_path):
+    folder, _, _ = puppet
+    np.save(tmp_path / "c.npy", np.zeros((3, 8, 3)))
+    result = cli("play", folder / "puppet.h5", "-c", tmp_path / "c.npy", "--retarget", "absolute", "-o",
+                 tmp_path / "o.h5")
+    assert_user_error(result, "--retarget applies to a motion-capture take")

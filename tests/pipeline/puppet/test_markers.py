@@ -1,0 +1,175 @@
+"""Markers to controls (pipeline/puppet/markers.py) against closed-form truth."""
+
+import numpy as np
+import pytest
+
+from skinsynth.pipeline.errors import OptionError
+from skinsynth.pipeline.puppet.markers import (drive_from_markers, fill_from_training, fill_short_gaps,
+                                               resample_uniform, similarity_transform, stabilize_markers,
+                                               training_subspace, up_axis_rotation)
+from skinsynth.pipeline.rotations import rotation_exp
+
+
+def _rotation(seed):
+    return rotation_exp(np.random.default_rng(seed).normal(size=3))
+
+
+def _poses(frames=60, markers=10, rank=4, seed=0):
+    """Controls (frames, markers, 3) on a rank-`rank` subspace around a rest shape, plus a slow
+    rigid drift, and the rest shape (markers, 3)."""
+    rng = np.random.default_rng(seed)
+    rest = rng.normal(size=(markers, 3))
+    bases = rng.normal(size=(rank, markers, 3)) * 0.1
+    time = np.linspace(0, 2 * np.pi, frames)
+    amplitudes = np.stack([np.sin((j + 1) * time + j) for j in range(rank)], axis=1)
+    amplitudes[0] = 0.0  # frame 0 is the rest pose
+    shapes = rest + np.einsum("fk,kma->fma", amplitudes, bases)
+    return shapes, rest
+
+
+def test_similarity_recovers_scale_rotation_translation():
+    rng = np.random.default_rng(1)
+    source = rng.normal(size=(12, 3))
+    rotation, scale, shift = _rotation(2), 3.7, np.array([0.4, -2.0, 9.0])
+    s, r, t = similarity_transform(source, scale * source @ rotation.T + shift)
+    assert abs(s - scale) < 1e-12 and np.abs(r - rotation).max() < 1e-12 and np.abs(t - shift).max() < 1e-11
+
+
+def test_similarity_never_reflects():
+    rng = np.random.default_rng(3)
+    source = rng.normal(size=(8, 3))
+    mirrored = source * np.array([-1.0, 1.0, 1.0])
+    _, rotation, _ = similarity_transform(source, mirrored)
+    assert np.linalg.det(rotation) == pytest.approx(1.0)
+
+
+def test_up_axis_rotation_is_proper_and_turns_up():
+    turn = up_axis_rotation("Z", "Y")
+    assert np.linalg.det(turn) == pytest.approx(1.0)
+    assert np.allclose(turn @ [0, 0, 1], [0, 1, 0])
+    assert np.allclose(up_axis_rotation("Y", "Y"), np.eye(3))
+    assert np.allclose(up_axis_rotation("Y", "Z") @ turn, np.eye(3))
+
+
+def test_short_gaps_interpolate_linear_motion_exactly_and_leave_long_and_edge_gaps():
+    time = np.arange(40, dtype=float)
+    points = np.stack([np.stack([time, 2 * time, -time], axis=1)] * 3, axis=1)  # (40, 3, 3) linear
+    holed = points.copy()
+    holed[5:9, 0] = np.nan  # 4 frames: filled
+    holed[10:25, 1] = np.nan  # 15 frames: too long
+    holed[:3, 2] = np.nan  # at the start: no frame before it
+    filled, mask = fill_short_gaps(holed, max_gap=10)
+    assert np.abs(filled[5:9, 0] - points[5:9, 0]).max() < 1e-12 and mask[5:9, 0].all()
+    assert np.isnan(filled[10:25, 1]).all() and np.isnan(filled[:3, 2]).all()
+    assert mask.sum() == 4
+
+
+def test_resample_keeps_samples_on_frames_and_interpolates_between():
+    rate, fps = 120.0, 24.0
+    values = np.random.default_rng(4).normal(size=(121, 5, 3))
+    out = resample_uniform(values, rate, fps)
+    assert out.shape[0] == 25 and np.array_equal(out, values[::5])
+    line = np.arange(11, dtype=float)[:, None] * np.array([1.0, -3.0])  # 50 Hz linear
+    resampled = resample_uniform(line, 50.0, 24.0)
+    assert np.allclose(resampled, (np.arange(len(resampled)) * 50 / 24)[:, None] * np.array([1.0, -3.0]))
+
+
+def test_stabilize_removes_a_rigid_head_motion_exactly():
+    shapes, _ = _poses(frames=20)
+    rotations = np.stack([rotation_exp(np.array([0.0, 0.03 * f, 0.01 * f])) for f in range(20)])
+    moved = np.einsum("fab,fmb->fma", rotations, shapes) + np.arange(20)[:, None, None] * 0.1
+    head = [0, 1, 2, 3]
+    shapes[:, head] = shapes[0, head]  # the head markers are rigid in the truth
+    moved = np.einsum("fab,fmb->fma", rotations, shapes) + np.arange(20)[:, None, None] * 0.1
+    steady = stabilize_markers(moved, head, neutral=0)
+    truth = np.einsum("ab,fmb->fma", rotations[0], shapes)
+    assert np.abs(steady - truth).max() < 1e-10
+
+
+def test_training_fill_recovers_markers_of_a_subspace_pose_under_rigid_motion():
+    shapes, rest = _poses(frames=80, markers=12, rank=3)
+    training = shapes[:60]
+    test = shapes[60:].copy()
+    turned = np.einsum("ab,fmb->fma", _rotation(5), test) + np.array([3.0, 0.0, -1.0])
+    holed = turned.copy()
+    holed[:, [2, 7]] = np.nan  # two markers lost for every test frame
+    holed[5, [0, 3, 4]] = np.nan  # another pattern in one frame
+    filled, mask, held = fill_from_training(holed, training, min_markers=3, ridge=0.0)
+    assert len(held) == 0 and mask.sum() == 2 * len(test) + 3
+    assert np.abs(filled - turned).max() < 1e-9
+    ridged, _, _ = fill_from_training(holed, training, min_markers=3)  # the default ridge: shrinks a little
+    motion = np.abs(turned - turned.mean(axis=0)).max()
+    assert np.abs(ridged - turned).max() < 0.02 * motion
+
+
+def test_training_fill_holds_frames_with_too_few_markers():
+    shapes, _ = _poses(frames=10, markers=6)
+    holed = shapes.copy()
+    holed[4:6, :4] = np.nan  # 2 of 6 seen
+    holed[0, :5] = np.nan  # the first frame too: held from the first good one
+    filled, _, held = fill_from_training(holed, shapes, min_markers=3)
+    assert held.tolist() == [0, 4, 5]
+    assert np.array_equal(filled[4], filled[3]) and np.array_equal(filled[5], filled[3])
+    assert np.array_equal(filled[0], filled[1])
+    with pytest.raises(OptionError, match="no frame"):
+        fill_from_training(np.full((3, 6, 3), np.nan), shapes, min_markers=3)
+
+
+def test_subspace_keeps_enough_variance():
+    shapes, _ = _poses(frames=50, rank=3)
+    mean, bases, variances = training_subspace(shapes)
+    assert len(variances) <= 3 and np.allclose(np.einsum("kma,jma->kj", bases, bases), np.eye(len(variances)))
+
+
+def _take(shapes, scale, rotation, shift, units=1.0):
+    """Markers in a Z-up take (metres / units) seeing Y-up controls shapes (F, n, 3)."""
+    z_up = shapes @ up_axis_rotation("Y", "Z").T
+    return (scale * z_up @ rotation.T + shift) * units
+
+
+def test_drive_recovers_the_transform_and_the_controls_exactly_without_noise():
+    shapes, rest = _poses(frames=121, markers=10, rank=3)
+    rotation, scale, shift = _rotation(7), 1.8, np.array([0.5, 2.0, 0.1])
+    take = _take(shapes, scale, rotation, shift)
+    holed = take.copy()
+    holed[30:34, 2] = np.nan  # short: interpolated
+    holed[50:90, 5] = np.nan  # long: from the training subspace
+    drive = drive_from_markers(holed, rate=120.0, fps=24.0, reference=rest, training=shapes, take_up="Z",
+                               puppet_up="Y")
+    truth = np.linalg.inv(scale * rotation @ up_axis_rotation("Y", "Z"))
+    assert abs(drive.scale - np.cbrt(np.linalg.det(truth))) < 1e-9
+    assert np.abs(drive.scale * drive.rotation - truth).max() < 1e-9
+    assert np.abs(drive.translation + truth @ shift).max() < 1e-9
+    assert drive.neutral_frame == 0 and drive.controls.shape == (25, 10, 3)
+    kept = [f for f in range(25) if not 30 <= 5 * f < 34 and not 50 <= 5 * f < 90]
+    assert np.abs(drive.controls[kept] - shapes[::5][kept]).max() < 1e-9
+    assert drive.interpolated[2].tolist() == [30, 31, 32, 33] and drive.subspace[5].tolist() == list(range(50, 90))
+    assert np.abs(drive.controls - shapes[::5]).max() < 0.05  # filled frames: near, through the subspace
+
+
+def test_drive_absolute_places_controls_on_the_aligned_markers():
+    shapes, rest = _poses(frames=30, markers=8)
+    performer = shapes * np.array([1.2, 0.9, 1.0])  # other proportions
+    take = _take(performer, 1.0, _rotation(9), np.zeros(3), units=1.0)
+    delta = drive_from_markers(take, 30.0, 30.0, rest, shapes, retarget="delta")
+    absolute = drive_from_markers(take, 30.0, 30.0, rest, shapes, retarget="absolute")
+    assert np.abs(delta.controls[0] - rest).max() < 1e-12  # the rest shape is the character's own
+    assert np.abs(absolute.controls - absolute.markers).max() < 1e-12
+    assert np.abs(absolute.controls[0] - rest).max() > 1e-3
+
+
+def test_drive_refuses_what_the_take_cannot_give():
+    shapes, rest = _poses(frames=20, markers=6)
+    take = _take(shapes, 1.0, np.eye(3), np.zeros(3))
+    with pytest.raises(OptionError, match="retarget"):
+        drive_from_markers(take, 20.0, 20.0, rest, shapes, retarget="nearest")
+    with pytest.raises(OptionError, match="outside"):
+        drive_from_markers(take, 20.0, 20.0, rest, shapes, neutral_frame=20)
+    holed = take.copy()
+    holed[:, 0] = np.nan
+    with pytest.raises(OptionError, match="every marker"):
+        drive_from_markers(holed, 20.0, 20.0, rest, shapes)
+    with pytest.raises(OptionError, match="lacks markers 0"):
+        drive_from_markers(holed, 20.0, 20.0, rest, shapes, neutral_frame=3)
+    with pytest.raises(OptionError, match="stabilize"):
+        drive_from_markers(take, 20.0, 20.0, rest, shapes, stabilize=[0, 1])
