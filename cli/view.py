@@ -1,5 +1,6 @@
 """``skinsynth view``: a local web page for any file skinsynth reads or writes (served by
-``cli/web_view.py``): a puppet to pose by hand and record, a skin fit against its examples, a
+``cli/web_view.py``): a puppet to pose by hand and record (or playing a control trajectory, a
+motion-capture take's markers beside their controls), a skin fit against its examples, a
 synthesis's animations, any sequence."""
 
 import os
@@ -8,7 +9,7 @@ import click
 import numpy as np
 
 from .common import report, summary_options, user_errors
-from .options import device_option
+from .options import device_option, marker_take_options
 
 #: Hosts only this machine can reach; any other makes the command warn.
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
@@ -32,41 +33,53 @@ LOOPBACK = ("127.0.0.1", "localhost", "::1")
 @click.option("--record", "record_path", default=None, type=click.Path(dir_okay=False),
               help="Puppet: where the record button saves a drag session (.csv or .npy, a control trajectory "
                    "play reads; the page can change it).  [default: PUPPET_NAME.session.csv here]")
+@click.option("--controls", "-c", "controls_path", default=None, type=click.Path(dir_okay=False),
+              help="Puppet: a control trajectory to play on the page (a timeline; any file play reads: CSV, .npy, a "
+                   "mesh sequence, or a motion-capture take .c3d, its markers drawn beside their controls; "
+                   "docs/mocap.md).")
 @device_option("Puppet: where the run-time path runs (auto, cpu, cuda or cuda:N), as play.")
+@marker_take_options
 @summary_options
 @user_errors
-def view(path, port, host, no_open, animation, error_scale, extrapolation_scale, record_path, device, as_json, quiet):
+def view(path, port, host, no_open, animation, error_scale, extrapolation_scale, record_path, controls_path, device,
+         as_json, quiet, **take_options):
     """Look at PATH in a web browser: a page served on this machine until Ctrl-C.
 
     PATH: a puppet (train-kcca: drag its control points; every move is play's own prediction;
     an extrapolation indicator; reset to a training frame; record a session as a trajectory
-    play reads), a skin file (its examples beside fit-skin's reconstruction, the error as
-    colour), a synthesis file (any of its animations, components coloured, seams marked), or a
-    sequence (a folder or glob of OBJ/PLY/OFF frames, .npz, .h5, USD, play's .h5). The page's
-    client is served by the command itself: it works offline.
+    play reads; --controls plays a trajectory or a take), a skin file (its examples beside
+    fit-skin's reconstruction, the error as colour), a synthesis file (any of its animations,
+    components coloured, seams marked), or a sequence (a folder or glob of OBJ/PLY/OFF frames,
+    .npz, .h5, USD, play's .h5). The page's client is served by the command itself: it works
+    offline.
 
     \b
     Examples:
       skinsynth view horse.puppet.h5
       skinsynth view horse.skin.h5 --port 8081
       skinsynth view herd.h5 --animation 12 --no-open --json
+      skinsynth view samba.puppet.h5 --controls serve.c3d --markers samba.layout.json
     """
     from skinsynth.pipeline.errors import OptionError
 
+    from .marker_take import check_take_options
     from .web_view import serve
 
     if not error_scale > 0:
         raise OptionError(f"--error-scale must be positive (got {error_scale})")
     if extrapolation_scale is not None and not extrapolation_scale > 0:
         raise OptionError(f"--extrapolation-scale must be positive (got {extrapolation_scale})")
-    kind, scene, details, motions = _read(path, animation, error_scale, extrapolation_scale, record_path, device)
+    check_take_options([controls_path] if controls_path else [], take_options)
+    kind, scene, details, motions = _read(path, animation, error_scale, extrapolation_scale, record_path, device,
+                                          controls_path, take_options)
+    lines = details.pop("lines", [])  # a take's, said before the URL
     if host not in LOOPBACK:
         click.echo(f"warning: --host {host}: anyone who can reach this machine on the network can open the page"
                    + (" (and save sessions here)" if kind == "puppet" else ""), err=True)
 
     def listening(url, bound):
         summary = {"url": url, "host": host, "port": bound, "kind": kind, "path": str(path), **details}
-        report(summary, [f"viewing {path} ({kind}) at {url}; Ctrl-C stops"], as_json, quiet)
+        report(summary, lines + [f"viewing {path} ({kind}) at {url}; Ctrl-C stops"], as_json, quiet)
 
     try:
         serve(scene, host, port, f"skinsynth view {os.path.basename(str(path).rstrip('/'))}", listening,
@@ -76,10 +89,12 @@ def view(path, port, host, no_open, animation, error_scale, extrapolation_scale,
             motions.close()
 
 
-def _read(path, animation, error_scale, extrapolation_scale, record_path, device):
+def _read(path, animation, error_scale, extrapolation_scale, record_path, device, controls_path=None,
+          take_options=None):
     """(kind, the page's view record, summary details, an open synthesis file or None)."""
     from skinsynth.formats.errors import FormatError
     from skinsynth.formats.model import read_header
+    from skinsynth.pipeline.errors import OptionError
 
     if str(path).lower().endswith((".h5", ".hdf5")) and os.path.isfile(path):
         try:
@@ -87,17 +102,28 @@ def _read(path, animation, error_scale, extrapolation_scale, record_path, device
         except FormatError:
             stage = None  # not a skinsynth model file: a sequence or play's characters
         if stage == "puppet":
-            return ("puppet", *_puppet(path, extrapolation_scale, record_path, device), None)
+            return ("puppet", *puppet_view(path, extrapolation_scale, record_path, device, controls_path,
+                                           take_options), None)
+        if controls_path is not None:
+            raise OptionError(f"--controls plays a trajectory on a puppet (train-kcca's file), and {path} is "
+                              f"{'a ' + repr(stage) + ' file' if stage else 'a sequence'}")
         if stage == "synthesis":
             return ("synthesis", *_synthesis(path, animation))
         if stage in ("skin", "controls", "graph"):  # each carries the skin it was made from
             return ("skin", *_skin(path, error_scale, contacts=stage == "graph"), None)
         if stage is not None:
             raise FormatError(path, f"a '{stage}' file holds no animation view can show")
+    if controls_path is not None:
+        raise OptionError(f"--controls plays a trajectory on a puppet (train-kcca's file), and {path} is a sequence")
     return ("sequence", *_sequence(path), None)
 
 
-def _puppet(path, extrapolation_scale, record_path, device):
+def puppet_view(path, extrapolation_scale=None, record_path=None, device="auto", controls_path=None,
+                take_options=None):
+    """The puppet page's :class:`~skinsynth.cli.web_view.PuppetView` of the puppet at ``path``
+    and its summary details (with ``lines``, a take's text, said before the URL); controls_path:
+    a trajectory it plays (any file play reads; a .c3d take read with ``take_options``,
+    ``marker_take_options``'s values by name)."""
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.geometry import largest_side
@@ -109,6 +135,11 @@ def _puppet(path, extrapolation_scale, record_path, device):
     record, _, skin = read_puppet(path)
     puppet = puppet_from_record(record)
     device = resolve_device(device)
+    training = skin.examples[puppet.train_frames][:, puppet.control_indices]  # (n_p, n_c, 3) world
+    in_place = host_inputs(puppet, training)[1]
+    unit = largest_side(skin.rest_vertices)
+    trajectory, played = (None, {}) if controls_path is None else _trajectory(
+        controls_path, path, record, puppet, skin, take_options or {}, in_place, unit)
     # uploaded once, warm for every move; as play: the solver whenever the puppet has one
     player = DevicePlayer(puppet, device, translation_solver=puppet.translations is not None)
 
@@ -116,19 +147,47 @@ def _puppet(path, extrapolation_scale, record_path, device):
         """World controls (n_c, 3) -> vertices (V, 3) float32: play's path, one frame."""
         return player.play(np.asarray(controls)[None])[0]
 
-    predict(skin.examples[puppet.train_frames[0], puppet.control_indices])  # compile or load the kernels now
-    training = skin.examples[puppet.train_frames][:, puppet.control_indices]  # (n_p, n_c, 3) world
-    in_place = host_inputs(puppet, training)[1]
-    unit = largest_side(skin.rest_vertices)
+    predict(training[0])  # compile or load the kernels now
     scale = extrapolation_scale or default_scale(in_place, unit)
     stem = os.path.basename(str(path))
     stem = stem[:-len(".puppet.h5")] if stem.endswith(".puppet.h5") else os.path.splitext(stem)[0]
     scene = PuppetView(faces=skin.faces, predict=predict, place=lambda c: host_inputs(puppet, np.asarray(c)[None])[1][0],
                        controls=training[0], training_frames=np.asarray(puppet.train_frames), training_controls=training,
                        training_in_place=in_place, unit=unit, scale=scale, fps=skin.fps, up_axis=skin.scene.up_axis,
-                       record_path=record_path or f"{stem}.session.csv", save=_save_trajectory, size=unit)
+                       record_path=record_path or f"{stem}.session.csv", save=_save_trajectory, size=unit,
+                       trajectory=trajectory)
     return scene, {"controls": int(len(puppet.control_indices)), "device": device, "skinning": puppet.skinning,
-                   "extrapolation_scale": scale, "record": scene.record_path}
+                   "extrapolation_scale": scale, "record": scene.record_path, **played}
+
+
+def _trajectory(controls_path, path, record, puppet, skin, take_options, training_in_place, unit):
+    """(the :class:`~skinsynth.cli.web_view.TrajectoryView` of ``--controls``, summary details
+    ``trajectory`` and the take's ``lines``): read as play reads it, every frame's extrapolation
+    computed once; frames are predicted as shown."""
+    from skinsynth.formats.trajectories import read_control_trajectories
+    from skinsynth.pipeline.puppet import host_inputs
+    from skinsynth.pipeline.view import extrapolation_distances
+
+    from .marker_take import is_take, take_controls
+    from .web_view import TrajectoryView
+
+    take = take_controls(controls_path, puppet, record, skin, take_options, path) if is_take(controls_path) else None
+    if take is None:
+        controls = read_control_trajectories(controls_path, len(puppet.control_indices), puppet.control_indices,
+                                             skin.rest_vertices.shape[0])
+    else:
+        controls = take.controls
+    distances, nearest = extrapolation_distances(host_inputs(puppet, controls)[1], training_in_place, unit)
+    fps = float(skin.fps if take is None else take.fps)
+    trajectory = TrajectoryView(controls=controls, fps=fps, distances=distances, nearest=nearest,
+                                name=os.path.basename(str(controls_path)),
+                                **({} if take is None else {"markers": take.markers, "labels": tuple(take.labels),
+                                                            "start_time": take.start_time}))
+    summary = {"path": str(controls_path), "frames": int(len(controls)), "fps": fps,
+               "extrapolation_worst": float(distances.max()), "extrapolation_worst_frame": int(np.argmax(distances))}
+    if take is not None:
+        summary["take"] = take.summary
+    return trajectory, {"trajectory": summary, **({"lines": list(take.lines)} if take is not None else {})}
 
 
 def _save_trajectory(path, trajectory):

@@ -8,7 +8,9 @@ One page per kind of file, each from a plain description (the ``*View`` records 
 - :class:`PuppetPage`: the mesh, a draggable handle per control point; every move is predicted
   by the ``predict`` callable (``play``'s run-time path on a warm ``DevicePuppet``), on one
   worker thread that always computes the latest controls (moves arriving during a prediction
-  are merged into the next one, so the page never lags behind a drag);
+  are merged into the next one, so the page never lags behind a drag); with a control
+  trajectory (``view --controls``, a :class:`TrajectoryView`), a timeline plays it through the
+  same path, one frame predicted at a time, a take's markers drawn beside their controls;
 - :class:`SkinPage`: examples and fit-skin's reconstruction, the reconstruction coloured by error;
 - :class:`SynthesisPage`: one animation at a time, components coloured, seams marked;
 - :class:`SequencePage`: any animated meshes.
@@ -22,6 +24,7 @@ import socket
 import threading
 import time
 import webbrowser
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Callable
 
@@ -42,6 +45,27 @@ SEE_THROUGH = 0.55
 SEAM_HOLD_SECONDS = 0.25
 #: Slider marks for at most this many seams (a long animation's slider stays readable).
 MAX_MARKS = 120
+#: A motion-capture take's markers (aligned into the puppet's space) and the line from each to its control.
+TAKE_MARKER_COLOR, TAKE_LINE_COLOR = (225, 60, 215), (150, 90, 170)
+
+
+@dataclass
+class TrajectoryView:
+    """A control trajectory the puppet page plays (``view --controls``): controls (F, n_c, 3)
+    world; fps; distances (F,) and nearest (F,) (rows of the training examples): each frame's
+    extrapolation, ``scenes.extrapolation_distances`` computed once for every frame; name (the
+    file, for the panel); a motion-capture take's markers (F, n_c, 3), aligned into the puppet's
+    space, marker i on control i, with their labels (n_c,) and the take's start_time (seconds of
+    frame 0); markers None for any other trajectory."""
+
+    controls: np.ndarray
+    fps: float
+    distances: np.ndarray
+    nearest: np.ndarray
+    name: str = ""
+    markers: np.ndarray = None
+    labels: tuple = ()
+    start_time: float = 0.0
 
 
 @dataclass
@@ -51,7 +75,8 @@ class PuppetView:
     training_frames (n_p,) and training_controls (n_p, n_c, 3) world, training_in_place
     (n_p, n_c, 3); unit (evaluate's: the rest box's largest side); scale (the indicator's colour
     scale, in that unit); fps; up_axis "Y"/"Z"; record_path (the record button's default file);
-    save(path, trajectory (F, n_c, 3)); size (the rest box's largest side, for the handles)."""
+    save(path, trajectory (F, n_c, 3)); size (the rest box's largest side, for the handles);
+    trajectory: a :class:`TrajectoryView` the page plays (it starts on its frame 0), or None."""
 
     faces: np.ndarray
     predict: Callable
@@ -67,6 +92,7 @@ class PuppetView:
     record_path: str
     save: Callable
     size: float
+    trajectory: TrajectoryView = None
 
 
 @dataclass
@@ -124,6 +150,22 @@ def serve(view, host, port, label, on_listening, open_browser=False):
     OptionError when the port is taken or the host cannot be listened on."""
     from skinsynth.formats.atomic import stop_if_received
 
+    with open_page(view, host, port, label) as (server, _):
+        shown = "localhost" if host in ("0.0.0.0", "::") else (f"[{host}]" if ":" in host else host)
+        url = f"http://{shown}:{server.get_port()}"
+        on_listening(url, server.get_port())
+        if open_browser:
+            webbrowser.open(url)
+        while True:
+            time.sleep(0.2)  # a signal's handler raises here (cli.common.raise_interrupted)
+            stop_if_received()
+
+
+@contextmanager
+def open_page(view, host="127.0.0.1", port=0, label="skinsynth view"):
+    """A viser server at host:port (0: any free port) holding ``view``'s page: yields (server,
+    page), both stopped on leaving. What :func:`serve` serves; the tests drive a page through it
+    without a browser. OptionError when the port is taken or the host cannot be listened on."""
     check_port(host, port)
     server = _start_server(host, port, label)
     page = None
@@ -133,14 +175,7 @@ def serve(view, host, port, label, on_listening, open_browser=False):
         server.gui.configure_theme(control_layout="floating", control_width="medium", show_logo=False,
                                    show_share_button=False)
         page = PAGES[type(view)](server, view)
-        shown = "localhost" if host in ("0.0.0.0", "::") else (f"[{host}]" if ":" in host else host)
-        url = f"http://{shown}:{server.get_port()}"
-        on_listening(url, server.get_port())
-        if open_browser:
-            webbrowser.open(url)
-        while True:
-            time.sleep(0.2)  # a signal's handler raises here (cli.common.raise_interrupted)
-            stop_if_received()
+        yield server, page
     finally:
         if page is not None:
             page.close()
@@ -267,18 +302,25 @@ def _slider_marks(frames):
 
 class PuppetPage:
     """The puppet (see the module doc): handles, the extrapolation indicator, reset to a training
-    frame, record a drag session."""
+    frame, record a drag session; with a trajectory, a timeline playing it (a take's markers
+    drawn beside their controls)."""
 
     def __init__(self, server, view):
-        self.server, self.view = server, view
+        self.server, self.view, self.trajectory = server, view, view.trajectory
         self.lock, self.wake, self.closed = threading.Lock(), threading.Event(), threading.Event()
-        self.controls = np.array(view.controls, dtype=np.float64)
+        self.controls = np.array(view.controls if self.trajectory is None else self.trajectory.controls[0],
+                                 dtype=np.float64)
         self.version, self.shown_version = 0, -1
-        self.shown_controls = self.controls.copy()
+        # the trajectory frame on the slider (its markers are drawn), and whether the controls are still that
+        # frame's (no move since: the frame's indicator is the one computed for every frame up front)
+        self.frame, self.on_frame = (None, False) if self.trajectory is None else (0, True)
+        self.shown_controls, self.shown_frame = self.controls.copy(), None
         self.recording = None  # [(seconds, controls (n_c, 3))] while recording
-        _frame_camera(server, np.concatenate([view.predict(self.controls), self.controls]), view.up_axis)
-        self.mesh = server.scene.add_mesh_simple("/puppet/mesh", view.predict(self.controls), view.faces,
-                                                 color=MESH_COLOR)
+        vertices = view.predict(self.controls)
+        takes = self.trajectory is not None and self.trajectory.markers is not None
+        _frame_camera(server, np.concatenate([vertices, self.controls]
+                                             + ([self.trajectory.markers[0]] if takes else [])), view.up_axis)
+        self.mesh = server.scene.add_mesh_simple("/puppet/mesh", vertices, view.faces, color=MESH_COLOR)
         self.handles, self.markers = [], []
         for i, position in enumerate(self.controls):
             handle = server.scene.add_transform_controls(
@@ -288,14 +330,31 @@ class PuppetPage:
             self.handles.append(handle)
             self.markers.append(server.scene.add_icosphere(f"/puppet/control_{i}/marker", radius=0.012 * view.size,
                                                            color=(40, 170, 80)))
+        self.take_markers = self.take_lines = None
+        if takes:  # marker i beside control i, a line between them
+            markers = self.trajectory.markers[0]
+            self.take_markers = server.scene.add_point_cloud(
+                "/puppet/take_markers", np.asarray(markers, dtype=np.float32), TAKE_MARKER_COLOR,
+                point_size=0.02 * view.size, point_shape="circle", precision="float32")
+            self.take_lines = server.scene.add_line_segments(
+                "/puppet/take_lines", _marker_lines(markers, self.controls), TAKE_LINE_COLOR, thickness=1.5,
+                thickness_units="screen")
         self._panel(server, view)
         self.worker = threading.Thread(target=self._work, daemon=True, name="skinsynth-view-puppet")
-        self._publish(self.controls, self.version)
+        self._publish(self.controls, self.version, self.frame, self.on_frame, vertices)
         self.worker.start()
 
     def _panel(self, server, view):
         server.gui.add_markdown("**Puppet**: drag a control point's arrows; the mesh is `play`'s.")
         self.indicator = server.gui.add_html("")
+        self.timeline = None
+        if self.trajectory is not None:
+            trajectory = self.trajectory
+            server.gui.add_markdown(
+                f"**Trajectory** `{html.escape(trajectory.name)}`: play it, or pause and drag"
+                + ("; the take's markers in magenta, a line to each one's control" if self.take_markers else ""))
+            self.info = server.gui.add_markdown("")
+            self.timeline = Timeline(server, len(trajectory.controls), trajectory.fps, self.show_frame)
         frames = [str(int(f)) for f in view.training_frames]
         self.training = server.gui.add_dropdown("training frame", frames, initial_value=frames[0])
         server.gui.add_button("reset to the training frame").on_click(lambda _: self.reset(self.training.value))
@@ -303,6 +362,15 @@ class PuppetPage:
         self.record_button = server.gui.add_button("record")
         self.record_button.on_click(lambda _: self.toggle_record())
         self.status = server.gui.add_markdown("")
+
+    def show_frame(self, frame):
+        """Put the controls on the trajectory's frame ``frame`` (the timeline's ``show``); the
+        worker predicts its mesh and moves the handles and markers there."""
+        with self.lock:
+            self.controls = np.array(self.trajectory.controls[frame], dtype=np.float64)
+            self.frame, self.on_frame = frame, True
+            self.version += 1
+        self.wake.set()
 
     def _on_move(self, index):
         """The handle's callback: on the server's event loop (a coroutine), so that moves are
@@ -314,6 +382,7 @@ class PuppetPage:
     def _moved(self, index, position):
         with self.lock:
             self.controls[index] = position
+            self.on_frame = False
             self.version += 1
         self.wake.set()
 
@@ -322,6 +391,7 @@ class PuppetPage:
         row = int(np.flatnonzero(self.view.training_frames == int(frame))[0])
         with self.lock:
             self.controls = np.array(self.view.training_controls[row], dtype=np.float64)
+            self.on_frame = False
             self.version += 1
             controls = self.controls.copy()
         with self.server.atomic():
@@ -329,35 +399,65 @@ class PuppetPage:
                 handle.position = tuple(position)
         self.wake.set()
 
+    def settled(self):
+        """Whether the page shows the latest controls (no prediction pending)."""
+        with self.lock:
+            return self.shown_version == self.version
+
     def _work(self):
         while not self.closed.is_set():
             self.wake.wait(0.5)
             self.wake.clear()
             with self.lock:
-                version, controls = self.version, self.controls.copy()
+                version, controls, frame, on_frame = self.version, self.controls.copy(), self.frame, self.on_frame
             if version != self.shown_version:
                 try:
-                    self._publish(controls, version)
+                    self._publish(controls, version, frame, on_frame)
                 except Exception as error:  # shown on the page and on stderr; the page stays up
                     _warn(f"prediction failed: {error}")
                     self.status.content = f"prediction failed: {html.escape(str(error))}"
 
-    def _publish(self, controls, version):
-        """Predict ``controls`` and send the mesh, the indicator and the markers' colour."""
-        view = self.view
-        vertices = view.predict(controls)
-        distance, nearest = scenes.extrapolation(view.place(controls), view.training_in_place, view.unit)
+    def _publish(self, controls, version, frame=None, on_frame=False, vertices=None):
+        """Predict ``controls`` and send the mesh, the indicator and the markers' colour; on a
+        trajectory's frame (``on_frame``: the controls are frame ``frame``'s) its indicator, computed
+        up front, and the handles moved there; a take's markers of frame ``frame``, lines to the
+        controls."""
+        view, trajectory = self.view, self.trajectory
+        vertices = view.predict(controls) if vertices is None else vertices
+        if on_frame:
+            distance, nearest = float(trajectory.distances[frame]), int(trajectory.nearest[frame])
+        else:
+            distance, nearest = scenes.extrapolation(view.place(controls), view.training_in_place, view.unit)
         color = scenes.extrapolation_color(distance, view.scale)
+        with self.lock:
+            latest = version == self.version  # no move since: the handles can be put on these controls
         with self.server.atomic():
             self.mesh.vertices = vertices
+            if on_frame and latest:
+                for handle, position in zip(self.handles, controls):
+                    handle.position = tuple(position)
             for marker in self.markers:
                 marker.color = tuple(int(c) for c in color)
             self.indicator.content = _indicator(distance, int(view.training_frames[nearest]), view.scale, color)
+            if frame is not None:
+                self._trajectory_frame(frame, on_frame, controls)
         self.server.flush()
         with self.lock:
             self.shown_version, self.shown_controls = version, controls
+            self.shown_frame = frame if on_frame else None
             if self.recording is not None:
                 self.recording.append((time.perf_counter(), controls))
+
+    def _trajectory_frame(self, frame, on_frame, controls):
+        """The panel's frame line, and a take's markers of ``frame`` with a line to each control."""
+        trajectory = self.trajectory
+        seconds = trajectory.start_time + frame / trajectory.fps
+        self.info.content = (f"trajectory frame {frame} of {len(trajectory.controls)} ({seconds:.3f} s)"
+                             + ("" if on_frame else ", controls moved"))
+        if self.take_markers is not None:
+            markers = trajectory.markers[frame]
+            self.take_markers.points = np.asarray(markers, dtype=np.float32)
+            self.take_lines.points = _marker_lines(markers, controls)
 
     def toggle_record(self):
         """Start recording the poses the page shows, or stop and save them (``record to``) as a
@@ -384,9 +484,16 @@ class PuppetPage:
                                f"(`skinsynth play PUPPET -c {html.escape(path)} -o OUT`)")
 
     def close(self):
+        if self.timeline is not None:
+            self.timeline.close()
         self.closed.set()
         self.wake.set()
         self.worker.join(timeout=5.0)
+
+
+def _marker_lines(markers, controls):
+    """Segments (n_c, 2, 3) float32 from each marker (n_c, 3) to its control (n_c, 3)."""
+    return np.stack([np.asarray(markers), np.asarray(controls)], axis=1).astype(np.float32)
 
 
 def _indicator(distance, frame, scale, color):

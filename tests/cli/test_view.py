@@ -407,6 +407,148 @@ def test_a_recorded_session_played_by_play_is_what_the_page_showed(files, browse
     assert matches == sorted(matches) and set(matches) == set(range(len(shown)))
 
 
+# -- a trajectory, a motion-capture take ------------------------------------------------------------
+
+def until(condition, what, timeout=WAIT):
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"waited {timeout} s for {what}")
+        time.sleep(0.01)
+
+
+def shown_distance(content):
+    return float(content.split('data-distance="')[1].split('"')[0])
+
+
+def test_a_trajectory_plays_play_s_frames_and_their_indicator(files, tmp_path):
+    """view --controls .npy, the page driven without a browser (``open_page``): each frame the
+    slider shows is play's prediction of that frame, the handles on its controls, its indicator
+    the one ``extrapolation_distances`` gives every frame."""
+    from skinsynth.cli.view import puppet_view
+    from skinsynth.cli.web_view import open_page
+    from skinsynth.pipeline.geometry import largest_side
+    from skinsynth.pipeline.puppet import host_inputs, puppet_from_record
+    from skinsynth.pipeline.view import extrapolation_color, extrapolation_distances
+
+    record, skin, training, diagonal = puppet_facts(files / "puppet.h5")
+    rng = np.random.default_rng(3)
+    trajectory = training[np.arange(12) % len(training)] + rng.normal(scale=0.04 * diagonal,
+                                                                      size=(12, *training.shape[1:]))
+    trajectory[7] += 0.5 * diagonal * (rng.random(trajectory[7].shape) - 0.5)  # one frame far off the training poses
+    expected = played(files, tmp_path, files / "puppet.h5", trajectory, "trajectory")  # writes trajectory.npy
+    view, details = puppet_view(files / "puppet.h5", device="cpu", controls_path=tmp_path / "trajectory.npy")
+    assert details["trajectory"]["frames"] == 12 and details["trajectory"]["fps"] == skin.fps
+    puppet = puppet_from_record(record)
+    distances, nearest = extrapolation_distances(host_inputs(puppet, trajectory)[1], host_inputs(puppet, training)[1],
+                                                 largest_side(skin.rest_vertices))
+    assert np.array_equal(view.trajectory.distances, distances) and np.array_equal(view.trajectory.nearest, nearest)
+    assert distances[7] > 2 * view.scale > distances.min()  # the indicator tells frames apart
+    with open_page(view) as (_, page):
+        for frame in (0, 7, 11, 3):
+            if frame:
+                page.timeline.slider.value = frame  # as the page's slider does
+            until(lambda: page.settled() and page.shown_frame == frame, f"frame {frame} shown")
+            assert np.abs(page.mesh.vertices - expected[frame]).max() <= 1e-5 * diagonal
+            assert np.allclose([h.position for h in page.handles], trajectory[frame], rtol=0, atol=1e-12)
+            assert shown_distance(page.indicator.content) == float(f"{distances[frame]:.6g}")
+            color = extrapolation_color(distances[frame], view.scale)
+            assert all(tuple(m.color) == tuple(int(c) for c in color) for m in page.markers)
+            assert page.info.content.startswith(f"trajectory frame {frame} of 12")
+        page.timeline.toggle()  # play: frames go by, each play's prediction
+        until(lambda: page.shown_frame not in (None, 3), "the timeline playing on")
+        page.timeline.toggle()
+        until(lambda: page.settled(), "the paused frame")
+        frame = int(page.timeline.slider.value)
+        assert page.shown_frame == frame and np.abs(page.mesh.vertices - expected[frame]).max() <= 1e-5 * diagonal
+
+
+def test_a_take_plays_with_its_markers_beside_their_controls(files, browser, tmp_path):
+    """view --controls take.c3d (a marker layout on the puppet's controls), in the browser: the
+    --json summary holds the take's, each frame's mesh is play's of the take, one marker point per
+    control at the aligned markers of the frame and a line from each to its control; a drag on a
+    paused frame moves off the take (the indicator computed for the new controls)."""
+    from c3d_writing import write_c3d
+    from skinsynth.cli.marker_take import take_controls
+    from skinsynth.pipeline.puppet import puppet_from_record
+
+    record, skin, training, diagonal = puppet_facts(files / "puppet.h5")
+    controls = np.asarray(record.control_indices)
+    labels = [f"M{i}" for i in range(len(controls))]
+    layout = tmp_path / "layout.json"
+    layout.write_text(json.dumps({label: int(v) for label, v in zip(labels, controls)}))
+    # the examples' control vertices as a take: Z up, millimetres, twice the frame rate
+    frames = skin.examples[:, controls]
+    dense = np.concatenate([np.stack([a, (a + b) / 2]) for a, b in zip(frames[:-1], frames[1:])] + [frames[-1:]])
+    points = dense[..., [0, 2, 1]] * np.array([1.0, -1.0, 1.0]) * 1000.0
+    take = tmp_path / "take.c3d"
+    write_c3d(take, labels, points, 2 * skin.fps, units="mm")
+    from skinsynth.cli.marker_take import TAKE_DEFAULTS
+    from skinsynth.cli.view import view
+
+    # what view's options give take_controls: their defaults, the layout given
+    options = {**{p.name: p.default for p in view.params if p.name in TAKE_DEFAULTS}, "marker_layout": str(layout)}
+    expected_take = take_controls(take, puppet_from_record(record), record, skin, options, files / "puppet.h5")
+    baked = tmp_path / "take.h5"
+    assert_ok(cli("play", files / "puppet.h5", "-c", take, "--markers", layout, "-o", baked, "--device", "cpu",
+                  "-q"))
+    expected = h5py.File(baked)["vertices"][()].reshape(len(expected_take.controls), -1, 3)
+    with serving(files / "puppet.h5", "--device", "cpu", "-c", take, "--markers", layout) as (summary, _):
+        assert summary["trajectory"]["frames"] == len(expected_take.controls) == len(expected)
+        assert summary["trajectory"]["fps"] == expected_take.fps
+        assert summary["trajectory"]["take"] == json.loads(json.dumps(expected_take.summary))
+        page = Page(browser, summary["url"])
+        try:
+            page.wait(lambda: "/puppet/take_markers" in page.scene(), "the take's markers")
+            for frame in (0, len(expected) - 3):
+                if frame:
+                    start = len(page.frames)
+                    page.send({"type": "GuiUpdateMessage", "uuid": page.gui("frame")["uuid"],
+                               "updates": {"value": frame}})
+                    page.next_mesh("/puppet/mesh", start)
+                scene = page.scene()
+                assert np.abs(page.vertices("/puppet/mesh", scene) - expected[frame]).max() <= 1e-5 * diagonal
+                markers = np.asarray(scene["/puppet/take_markers"]["points"], dtype=np.float64).reshape(-1, 3)
+                assert markers.shape == (len(controls), 3)  # one marker per control
+                assert np.abs(markers - expected_take.markers[frame]).max() <= 1e-6 * diagonal
+                lines = np.asarray(scene["/puppet/take_lines"]["points"], dtype=np.float64).reshape(-1, 2, 3)
+                assert np.abs(lines[:, 0] - expected_take.markers[frame]).max() <= 1e-6 * diagonal
+                assert np.abs(lines[:, 1] - expected_take.controls[frame]).max() <= 1e-6 * diagonal
+                assert any(f"trajectory frame {frame} of {len(expected)}" in text for text in page.texts())
+            moved = expected_take.controls[frame].copy()  # paused: a drag still moves the mesh
+            moved[1] += np.array([0.05, 0.1, -0.05]) * diagonal
+            start = len(page.frames)
+            page.drag("/puppet/control_1", moved[1])
+            shown = page.next_mesh("/puppet/mesh", start)
+            assert np.abs(shown - played(files, tmp_path, files / "puppet.h5", moved[None], "moved")[0]).max() \
+                <= 1e-5 * diagonal
+            page.wait(lambda: any("controls moved" in text for text in page.texts()), "the frame line")
+            lines = np.asarray(page.scene()["/puppet/take_lines"]["points"], dtype=np.float64).reshape(-1, 2, 3)
+            assert np.abs(lines[1, 1] - moved[1]).max() <= 1e-6 * diagonal
+            assert page.external == []
+        finally:
+            page.close()
+
+
+def test_a_bad_trajectory_is_refused_in_one_line(files, tmp_path):
+    np.save(tmp_path / "five.npy", np.zeros((3, 5, 3)))
+    (tmp_path / "bad.csv").write_text("frame,point,x,y,z\n0,0,1,2\n")
+    (tmp_path / "garbage.c3d").write_bytes(b"not a c3d file at all" * 50)
+    puppet = files / "puppet.h5"
+    assert_user_error(cli("view", puppet, "--no-open", "--controls", tmp_path / "five.npy"), "five.npy",
+                      "5 control points per frame")
+    assert_user_error(cli("view", puppet, "--no-open", "-c", tmp_path / "bad.csv"), "bad.csv")
+    assert_user_error(cli("view", puppet, "--no-open", "-c", tmp_path / "missing.npy"), "missing.npy", "no such file")
+    record, _, _, _ = puppet_facts(puppet)
+    (tmp_path / "layout.json").write_text(json.dumps({f"M{i}": int(v) for i, v in enumerate(record.control_indices)}))
+    assert_user_error(cli("view", puppet, "--no-open", "-c", tmp_path / "garbage.c3d", "--markers",
+                          tmp_path / "layout.json"), "garbage.c3d")
+    assert_user_error(cli("view", files / "skin.h5", "--no-open", "-c", tmp_path / "five.npy"),
+                      "--controls plays a trajectory on a puppet")
+    assert_user_error(cli("view", puppet, "--no-open", "--retarget", "absolute"),
+                      "--retarget applies to a motion-capture take")
+
+
 # -- skin fit, synthesis, sequences ----------------------------------------------------------------
 
 def triangles(node):
