@@ -98,6 +98,7 @@ bench: setup
 	$(BIN)/python benchmarks/lbs.py
 	$(BIN)/python benchmarks/render.py
 	$(BIN)/python benchmarks/cold_start.py
+	$(BIN)/python benchmarks/markers.py
 
 # Optional: Blender 5 as the bpy module (~370 MB) in a venv of its own, for tests/contracts/test_dcc_blender.py.
 # bpy 5.0 wheels are built for Python 3.11 only; not part of setup.

@@ -195,3 +195,22 @@ def pytest_generate_tests(metafunc):
 def device(request):
     """A warp device name, "cpu" or "cuda:0": each kernel test runs on every one present."""
     return request.param
+
+
+@pytest.fixture(scope="session")
+def samba_marker_puppet(shared_data, tmp_path_factory):
+    """The shared samba's puppet on the controls of the committed Plug-in-Gait layout
+    (docs/markers/vlasic_samba.layout.json), once per session: fit-skin --bones 22,
+    select-controls --markers, train-kcca --correctives off (its .glb plays in any engine). ->
+    (folder with skin.h5 and puppet.h5, the layout's path). Skips without the capture or the takes."""
+    from cli_helpers import assert_ok, cli
+
+    capture = shared_data / "vlasic_samba" / "vlasic_samba.npz"
+    if not capture.is_file() or not (shared_data / "mocap_c3d").is_dir():
+        pytest.skip(f"the samba capture and the mocap_c3d takes are needed in {shared_data}")
+    layout = pathlib.Path(__file__).resolve().parents[1] / "docs" / "markers" / "vlasic_samba.layout.json"
+    folder = tmp_path_factory.mktemp("samba_markers")
+    assert_ok(cli("fit-skin", capture, "-o", folder / "skin.h5", "--bones", 22, "-q"))
+    assert_ok(cli("select-controls", folder / "skin.h5", "-o", folder / "controls.h5", "--markers", layout, "-q"))
+    assert_ok(cli("train-kcca", folder / "controls.h5", "-o", folder / "puppet.h5", "--correctives", "off", "-q"))
+    return folder, layout

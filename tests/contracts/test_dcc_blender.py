@@ -294,3 +294,18 @@ def test_blender_turning_a_jointed_skins_knee_moves_what_hangs_below_it_and_noth
         assert hung.sum() >= 50 and still.sum() >= 50, (names[knee], hung.sum(), still.sum())
         assert moved[hung].min() > 1e-3, (names[knee], moved[hung].min())
         assert moved[still].max() < 1e-6, (names[knee], moved[still].max())
+
+
+def test_blender_plays_the_samba_driven_by_a_real_take_as_computed(samba_marker_puppet, shared_data, tmp_path):
+    """Issue 37: the UsdSkel rig of the samba puppet driven by the real take with its gap."""
+    folder, _ = samba_marker_puppet
+    take = shared_data / "mocap_c3d" / "kinematics_tennis_serve_nan.c3d"
+    for out in ("take.usdc", "take.h5"):
+        assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / out, "-q"))
+    with h5py.File(tmp_path / "take.h5") as f:
+        expected = f["vertices"][()]  # one character: (F, V, 3)
+    last = len(expected) - 1
+    played = probe("blender_probe.py", tmp_path / "take.usdc", 0, last // 2, last)
+    diagonal = np.linalg.norm(np.ptp(expected[0], axis=0))
+    for frame, points in played.items():
+        assert np.abs(np.array(points) - z_up(expected[int(frame)])).max() < 1e-4 * diagonal

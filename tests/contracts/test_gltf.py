@@ -306,3 +306,23 @@ def test_a_played_puppet_to_gltf_must_skin_linearly_and_have_few_correctives(pup
     assert_user_error(cli("play", tmp_path / "noisy.h5", "-c", tmp_path / "noisy.npz", "-o", out / "p.glb"),
                       "corrective shapes need", "morph targets", "8 leave", "--correctives off", "-o X.usdc",
                       folder=out)
+
+
+@pytest.mark.slow
+def test_a_real_take_played_on_the_samba_as_gltf_is_valid_and_three_js_plays_it(samba_marker_puppet, shared_data,
+                                                                                 tmp_path):
+    """Issue 37: the samba puppet driven by the real take with its 145-frame gap, as .glb."""
+    folder, _ = samba_marker_puppet
+    take = shared_data / "mocap_c3d" / "kinematics_tennis_serve_nan.c3d"
+    for out in ("take.glb", "take.h5"):
+        assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / out, "-q"))
+    report = validate(tmp_path / "take.glb")
+    assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
+    with h5py.File(tmp_path / "take.h5") as f:
+        vertices, fps = f["vertices"][()][None], float(f.attrs["fps"])  # one character: (1, F, V, 3)
+    frames = [0, vertices.shape[1] // 2, vertices.shape[1] - 1]
+    played, _ = three_positions(tmp_path / "take.glb", fps, frames, tmp_path)
+    skin = skin_of(folder / "puppet.h5")
+    truth = in_gltf_axes(vertices[:, frames], skin.scene)
+    diagonal = np.linalg.norm(np.ptp(in_gltf_axes(skin.rest_vertices, skin.scene), axis=0))
+    assert np.abs(played - truth).max() <= 1e-5 * diagonal

@@ -1,0 +1,156 @@
+"""Motion capture drives the samba puppet: truth from the mesh itself, the real takes, and speed.
+
+Builds, as a user would, the samba puppet on the controls of the committed Plug-in-Gait layout
+(``fit-skin --bones 22``, ``select-controls --markers docs/markers/vlasic_samba.layout.json``,
+``train-kcca``), then prints one JSON line each for:
+
+- ``truth``: a take written from the capture's own control vertices (120 Hz from 24 fps,
+  millimetres, Z up, a known rotation, scale and translation; noise of 0.1 % of the height and
+  5 % of the samples missing in gaps of 1–30 frames), played with ``--neutral-frame 0`` (the
+  capture's rest pose): the mean vertex error over the capture's frames against that of playing
+  the clean controls (``error_ratio``), and without the noise the largest error of the recovered
+  map (``transform_error``, relative).
+- ``take``: each real take in ../shared/data/mocap_c3d played to .glb and .usdc: frames, NaN,
+  the extrapolation per frame (mean, worst), the markers filled and frames held.
+- ``speed``: reading, aligning, filling and playing the 1,092-frame take at its own 50 Hz, in
+  process, best of 3: take frames per second.
+
+    python benchmarks/markers.py [--work DIR]
+"""
+
+import argparse
+import json
+import os
+import pathlib
+import sys
+import tempfile
+import time
+
+import numpy as np
+from datasets import SHARED_DATA, run
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+LAYOUT = ROOT / "docs" / "markers" / "vlasic_samba.layout.json"
+TAKES = SHARED_DATA / "mocap_c3d"
+sys.path.insert(0, str(ROOT / "tests"))  # the takes with a known truth, shared with the tests
+
+from c3d_writing import write_c3d  # noqa: E402
+from mocap_takes import rotation_about, take_map, take_points  # noqa: E402
+
+#: The truth take's map (the capture's metres, Y up -> the take's millimetres, Z up).
+SCALE, ROTATION, SHIFT_MM = 1.07, rotation_about([0.3, -0.2, 1.0], 2.1), np.array([812.0, -1450.0, 35.0])
+
+
+def samba_puppet(work):
+    """skin.h5, puppet.h5 of the samba on the layout's controls, built once in work."""
+    skin, controls, puppet = (os.path.join(work, name) for name in ("skin.h5", "controls.h5", "puppet.h5"))
+    if not os.path.exists(puppet):
+        run(["fit-skin", str(SHARED_DATA / "vlasic_samba" / "vlasic_samba.npz"), "-o", skin, "--bones", "22", "-q"],
+            work)
+        run(["select-controls", skin, "-o", controls, "--markers", str(LAYOUT), "-q"], work)
+        # no correctives: the .glb of a take must play in any engine (glTF morph targets are few)
+        run(["train-kcca", controls, "-o", puppet, "--correctives", "off", "-q"], work)
+    return skin, puppet
+
+
+def played(path):
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        return f["vertices"][()].astype(np.float64)  # (F, V, 3): one character
+
+
+def truth(work, puppet):
+    """The must-show's truth take: error ratio against the clean controls, map recovered."""
+    from skinsynth.formats.skin_file import read_skin
+
+    skin = read_skin(os.path.join(work, "skin.h5"))
+    layout = json.loads(LAYOUT.read_text())
+    labels, vertices = list(layout), list(layout.values())
+    frames = skin.examples[:, vertices]
+    height = float(np.ptp(skin.rest_vertices[:, 1]))
+    np.save(os.path.join(work, "clean.npy"), frames)
+    run(["play", puppet, "-c", "clean.npy", "-o", "clean.h5", "-q"], work)
+    rows = {}
+    for name, noise in (("noisy", 0.001 * height), ("exact", 0.0)):
+        points = take_points(frames, 5, SCALE, ROTATION, SHIFT_MM, noise=noise, missing=0.05, longest=30, seed=7)
+        write_c3d(os.path.join(work, f"{name}.c3d"), [f"Samba:{label}" for label in labels], points, 120.0,
+                  units="mm")
+        _, _, _, stdout = run(["play", puppet, "-c", f"{name}.c3d", "--neutral-frame", "0", "-o", f"{name}.h5",
+                               "--json"], work)
+        rows[name] = json.loads(stdout)
+    truth_frames = skin.examples.astype(np.float64)
+    error = {name: float(np.mean(np.linalg.norm(played(os.path.join(work, f"{name}.h5")) - truth_frames, axis=2)))
+             for name in ("clean", "noisy", "exact")}
+    scale, rotation, translation = take_map(SCALE, ROTATION, SHIFT_MM)
+    got = rows["exact"]["takes"][0]["transform"]
+    map_error = max(abs(got["scale"] - scale) / scale, float(np.abs(np.array(got["rotation"]) - rotation).max()),
+                    float(np.abs(np.array(got["translation"]) - translation).max()) / height)
+    filled = rows["noisy"]["takes"][0]["filled"]
+    return {"benchmark": "markers", "case": "truth", "capture": "vlasic_samba", "markers": len(labels),
+            "height": height, "error_clean": error["clean"] / height, "error_take": error["noisy"] / height,
+            "error_ratio": error["noisy"] / error["clean"], "error_exact_take": error["exact"] / height,
+            "transform_error": map_error, "markers_filled": len(filled),
+            "samples_filled": int(sum(v["frames"] for v in filled.values()))}
+
+
+def real_takes(work, puppet):
+    for take in sorted(TAKES.glob("*.c3d")):
+        stem = take.stem
+        _, _, _, stdout = run(["play", puppet, "-c", str(take), "-o", f"{stem}.glb", "--json"], work)
+        run(["play", puppet, "-c", str(take), "-o", f"{stem}.usdc", "-q"], work)
+        seconds, _, _, h5 = run(["play", puppet, "-c", str(take), "-o", f"{stem}.h5", "--json"], work)
+        summary, vertices = json.loads(h5), played(os.path.join(work, f"{stem}.h5"))
+        extrapolation = summary["extrapolation"][0]
+        yield {"benchmark": "markers", "case": "take", "take": take.name, "frames": summary["frames"],
+               "nan": int(np.isnan(vertices).sum()), "extrapolation_mean": extrapolation["mean"],
+               "extrapolation_worst": extrapolation["worst"], "extrapolation_scale": extrapolation["scale"],
+               "frames_beyond_scale": extrapolation["frames_beyond_scale"],
+               "filled": summary["takes"][0]["filled"], "held_frames": summary["takes"][0]["held_frames"],
+               "unmatched_labels": len(summary["takes"][0]["unmatched_labels"]), "command_seconds": round(seconds, 2),
+               "glb_bytes": os.path.getsize(os.path.join(work, f"{stem}.glb"))}
+
+
+def speed(work, puppet):
+    """Read, align, fill and play the take with a gap at its 50 Hz, in process: best of 3."""
+    from skinsynth.cli.marker_take import take_controls
+    from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.pipeline.puppet import play_characters, puppet_from_record
+
+    take = TAKES / "kinematics_tennis_serve_nan.c3d"
+    record, _, skin = read_puppet(puppet)
+    model = puppet_from_record(record)
+    play_characters(model, skin.examples[:2, model.control_indices], "cpu", translation_solver=True)  # warm
+    best = None
+    for _ in range(3):
+        started = time.perf_counter()
+        controls = take_controls(str(take), model, record, skin, {"fps": 50.0}, puppet).controls
+        read = time.perf_counter() - started
+        vertices, _ = play_characters(model, controls, "cpu", translation_solver=True)
+        total = time.perf_counter() - started
+        if best is None or total < best[0]:
+            best = (total, read, len(controls))
+    return {"benchmark": "markers", "case": "speed", "take": take.name, "frames": best[2],
+            "vertices": int(skin.rest_vertices.shape[0]), "controls": int(len(model.control_indices)),
+            "seconds": round(best[0], 4), "take_seconds": round(best[1], 4),
+            "frames_per_second": round(best[2] / best[0], 1), "threads": os.cpu_count()}
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--work", default=None, help="folder kept between runs (the puppet is built once)")
+    options = parser.parse_args()
+    if not (SHARED_DATA / "vlasic_samba").is_dir() or not TAKES.is_dir():
+        print(json.dumps({"benchmark": "markers", "skipped": f"needs vlasic_samba and mocap_c3d in {SHARED_DATA}"}))
+        return
+    work = options.work or tempfile.mkdtemp(prefix="markers_bench_")
+    os.makedirs(work, exist_ok=True)
+    _, puppet = samba_puppet(work)
+    print(json.dumps(truth(work, puppet)), flush=True)
+    for row in real_takes(work, puppet):
+        print(json.dumps(row), flush=True)
+    print(json.dumps(speed(work, puppet)), flush=True)
+
+
+if __name__ == "__main__":
+    main()
