@@ -126,6 +126,9 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     up_axis = up_axis or skin.scene.up_axis
     offsets = grid_offsets(characters, spacing, up_axis) if characters > 1 else np.zeros((1, 3))
 
+    # before any output is written: writing is the last step (a signal after it would say "interrupted"
+    # of a complete file)
+    extrapolation, extrapolation_lines = _extrapolation(puppet, skin, control_files, trajectories)
     flat = controls.reshape(-1, count, 3)
     vertices, seconds = play_characters(puppet, flat, device, skinning, translation_solver, threads)
     vertices = vertices.reshape(characters, frames, -1, 3) + offsets[:, None, None, :].astype(np.float32)
@@ -174,7 +177,6 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
 
         write_vertex_animation(output, vertices, skin.faces, skin.fps, names)
         written = [output]
-    extrapolation, extrapolation_lines = _extrapolation(puppet, skin, control_files, trajectories)
     summary = {"frames": int(frames), "characters": int(characters), "seconds": round(seconds, 4),
               "frames_per_second": round(frames / seconds, 1),
               "character_frames_per_second": round(characters * frames / seconds, 1),

@@ -72,8 +72,10 @@ def test_strict_docs_build_fails_on_a_broken_link(tmp_path):
         target = tmp_path / "docs" / page.relative_to(ROOT / "docs")
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(page, target)
-    for picture in (ROOT / "docs").glob("*.png"):
-        shutil.copy(picture, tmp_path / "docs" / picture.name)
+    for picture in (ROOT / "docs").rglob("*.png"):
+        target = tmp_path / "docs" / picture.relative_to(ROOT / "docs")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(picture, target)
     build = [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")]
     clean = subprocess.run(build, cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert clean.returncode == 0, clean.stderr[-2000:]
