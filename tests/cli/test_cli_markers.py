@@ -134,3 +134,29 @@ def test_take_options_need_a_take(puppet, tmp_path):
     result = cli("play", folder / "puppet.h5", "-c", tmp_path / "c.npy", "--retarget", "absolute", "-o",
                  tmp_path / "o.h5")
     assert_user_error(result, "--retarget applies to a motion-capture take")
+
+
+def test_frames_seeing_too_few_markers_are_held_and_the_first_time_is_kept(puppet, tmp_path):
+    folder, labels, picks = puppet
+    holes = [(m, 60, 64) for m in range(6)]  # 2 of 8 markers seen for 5 take frames: fewer than 4
+    take, _ = _take(folder, labels, picks, "held.c3d", holes=holes, first_frame=15)
+    report = json.loads(assert_ok(cli("play", folder / "puppet.h5", "-c", take, "--max-gap", 0, "--fps", 12,
+                                      "-o", tmp_path / "take.usda", "--as", "points", "--json")).stdout)
+    summary = report["takes"][0]
+    assert summary["held_frames"] == "60–64" and summary["min_markers"] == 4
+    assert summary["fps"] == 12 and report["frames"] == (48 * 5 - 5) * 12 // (24 * 5) + 1
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(tmp_path / "take.usda"))
+    assert stage.GetStartTimeCode() == pytest.approx(15 / (24 * 5) * 12)
+    assert stage.GetTimeCodesPerSecond() == pytest.approx(12)
+
+
+def test_stabilize_removes_the_named_markers_rigid_motion(puppet, tmp_path):
+    folder, labels, picks = puppet
+    take, _ = _take(folder, labels, picks, "steady.c3d")
+    report = json.loads(assert_ok(cli("play", folder / "puppet.h5", "-c", take, "--stabilize", "m0,M1,Actor:M2",
+                                      "-o", tmp_path / "take.h5", "--json")).stdout)
+    assert report["takes"][0]["neutral_frame"] == 0
+    result = cli("play", folder / "puppet.h5", "-c", take, "--stabilize", "M0,M1,NOSE", "-o", tmp_path / "x.h5")
+    assert_user_error(result, "--stabilize names markers the layout lacks: NOSE")
