@@ -104,7 +104,7 @@ def bake(rest, indices, weights, F, t):
 def clip_accel_max(examples, frames, animated=None):
     """The input's largest vertex acceleration within any clip (``animated``: only these clips,
     by position: a clip of unrelated key poses has no acceleration worth the name)."""
-    from skinsynth.pipeline.geometry import frame_accelerations
+    from skinsynth.pipeline.mesh.geometry import frame_accelerations
 
     starts = np.concatenate([[0], np.cumsum(frames)])
     return max(float(frame_accelerations(examples[a:b])[1:-1].max())
@@ -113,7 +113,7 @@ def clip_accel_max(examples, frames, animated=None):
 
 
 def synthesis(work, skin="horse_joint.h5", name="horse", smooth=50, animated=None, graph_args=()):
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.synthesis import walk_statistics
 
     if not os.path.exists(os.path.join(work, skin)):
@@ -142,7 +142,7 @@ def synthesis(work, skin="horse_joint.h5", name="horse", smooth=50, animated=Non
         worst = []
         for a in range(min(smooth, sources.shape[1])):
             v = bake(rest, indices, weights, f["synthesis/bone_matrices"][a], f["synthesis/bone_translations"][a])
-            from skinsynth.pipeline.geometry import frame_accelerations
+            from skinsynth.pipeline.mesh.geometry import frame_accelerations
 
             worst.append(frame_accelerations(v)[1:-1])
     line["worst_accel_ratio"] = round(float(np.concatenate(worst).max()
@@ -154,7 +154,7 @@ def synthesis(work, skin="horse_joint.h5", name="horse", smooth=50, animated=Non
 
 
 def start_end(work):
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
 
     graph = "horse_joint.graph.h5"
     if not os.path.exists(os.path.join(work, graph)):

@@ -19,7 +19,7 @@ from datasets import BONES, shared_sequences
 
 
 def _datasets():
-    from skinsynth.pipeline.examples import articulated_tube
+    from skinsynth.pipeline.inputs.examples import articulated_tube
 
     for name, vertices, faces in shared_sequences():
         yield name, vertices, faces, BONES.get(name, 20)

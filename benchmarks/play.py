@@ -40,7 +40,7 @@ import statistics
 
 import skinsynth.gpu as gpu
 from skinsynth.gpu import available_devices
-from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
+from skinsynth.pipeline.rig.rotations import rigid_to_dual_quaternion
 
 MODELS = {
     "face": dict(verts=23728, bones=260, controls=8, examples=38, influences=4),
@@ -52,7 +52,7 @@ SKINNINGS = ("dual-quaternion", "linear")
 
 
 def rotations(rng, shape, angle=1.0):
-    from skinsynth.pipeline.rotations import rotation_exp
+    from skinsynth.pipeline.rig.rotations import rotation_exp
 
     return rotation_exp(rng.uniform(-angle, angle, size=shape + (3,)))
 
@@ -87,7 +87,7 @@ def random_inputs(rng, samples, puppet):
 def numpy_reference(puppet, x, c, frames, solver, skinning="dual-quaternion"):
     """Stage seconds of the numpy reference (composing the stage references)."""
     from skinsynth.gpu import dqs_reference, lbs_reference
-    from skinsynth.pipeline.rotations import with_translations
+    from skinsynth.pipeline.rig.rotations import with_translations
 
     stages, t0 = {}, time.perf_counter()
 

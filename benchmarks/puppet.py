@@ -82,7 +82,7 @@ def measure(name, spec, work, extra=()):
 
 
 def _face_sized_training():
-    from skinsynth.pipeline.examples import synthetic_lbs
+    from skinsynth.pipeline.inputs.examples import synthetic_lbs
     from skinsynth.pipeline.puppet import train_puppet
 
     data = synthetic_lbs(bones=260, frames=38, rings=1483, segments=16, seed=0, angle=0.3, width=0.5)

@@ -23,7 +23,7 @@ from datasets import BONES, captures, run
 def feet_paths(path, summary):
     """[(bone, joints on its path to the root)] for the leaf bones low in the rest pose."""
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.influence import bone_centroids
+    from skinsynth.pipeline.rig.influence import bone_centroids
 
     skin = read_skin(path)
     parents = np.asarray(summary["parents"])

@@ -17,7 +17,7 @@ runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``,
   one component), coverage (the smallest share, over components, of input frames that the
   1,000 walks play; goal ≥ 0.9);
 - feet (issue 35 part 4; every definition in docs/contact.md and
-  ``pipeline/synthesis/contact_measures.py``): on the captures with a ground (``GROUNDED``) and the
+  ``pipeline/synthesis/contact/measures.py``): on the captures with a ground (``GROUNDED``) and the
   walker, the first ``--feet`` (16) of the 1,000 animations skinned and measured against the input
   by ``measure_feet``, the function behind ``synthesize --json``'s ``"contact"``: for the input and
   the output the slide of the contact vertices (median and 95th percentile per frame, over the
@@ -75,7 +75,7 @@ def bake(skin, F, t):
 
 def frame_accel(vertices):
     """Largest vertex acceleration per frame 1..M−2: (M−2,)."""
-    from skinsynth.pipeline.geometry import frame_accelerations
+    from skinsynth.pipeline.mesh.geometry import frame_accelerations
 
     return frame_accelerations(vertices)[1:-1]
 
@@ -125,7 +125,7 @@ def feet(skin, path, count):
 
 def measure(name, spec, single, work, args):
     from skinsynth.pipeline.synthesis import walk_statistics
-    from skinsynth.pipeline.synthesis.contact import ground_excess, lowest_heights
+    from skinsynth.pipeline.synthesis.contact.ground import ground_excess, lowest_heights
 
     mode = "single_component" if single else "multi_component"
     skin_path = os.path.join(work, f"{name}.skin.h5")

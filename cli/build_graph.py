@@ -101,7 +101,7 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.synthesis import build_graph as analyse, validate_graph_options
     from skinsynth.pipeline.synthesis import (default_min_segment, find_contacts, mark_contact_jumps,
                                               validate_contact_options)

@@ -48,7 +48,7 @@ def evaluate(path, as_json, quiet, plot, skinning, pca_components, extrapolate, 
     """
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.pipeline.puppet import puppet_from_record
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.puppet import (clip_hold_out_split, evaluate_clip_hold_out, evaluate_extrapolation,
                                            evaluate_puppet, extrapolation_split)
 

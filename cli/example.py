@@ -52,7 +52,7 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, quiet, 
       skinsynth fit-skin walker.npz -o walker.skin.h5 --bones 12
     """
     from skinsynth.formats.meshseq import write_array_sequence
-    from skinsynth.pipeline.examples import bending_bar, walker
+    from skinsynth.pipeline.inputs.examples import bending_bar, walker
 
     defaults = DEFAULTS[name]
     frames = defaults["frames"] if frames is None else frames

@@ -122,7 +122,7 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
             rotations, translations = source.motions(chosen[0])
             root = None
             if root_motion:
-                from skinsynth.pipeline.skeleton import ground_motion
+                from skinsynth.pipeline.rig.skeleton import ground_motion
 
                 up = np.eye(3)["XYZ".index(up_axis or skin.scene.up_axis)]
                 root = ground_motion(np.asarray(rotations, np.float64), np.asarray(translations, np.float64),
@@ -301,7 +301,7 @@ def _animations(path, device, clip=None):
         return
     skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
     if stage != "synthesis":
-        from skinsynth.pipeline.clips import Clips
+        from skinsynth.pipeline.inputs.clips import Clips
 
         clips = Clips(skin.clip_names, skin.clip_frames)
         rotations, translations, name = skin.rotations, skin.translations, "animation"

@@ -85,9 +85,9 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
       skinsynth fit-skin horse_poses.npz --rig horse.skin.h5 -o poses.skin.h5
     """
     from skinsynth.formats.clip_inputs import read_clips
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
     from skinsynth.pipeline.skin import fit_memory_bytes, validate_fit_options
 
     given_file = [skeleton] if skeleton not in (None, FOUND) else []
@@ -283,7 +283,7 @@ def _fit_under(sequence, rest, skeleton, max_influences, diagonal, quiet):
 
 def _skeleton_summary(record, fit, sequence, diagonal):
     """--json's "skeleton" and its text line."""
-    from skinsynth.pipeline.geometry import points_inside
+    from skinsynth.pipeline.mesh.geometry import points_inside
 
     jointed = np.asarray(record["jointed"])
     inside = points_inside(np.asarray(record["joints"])[jointed], fit.rest_vertices, sequence.faces)

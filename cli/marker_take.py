@@ -89,7 +89,7 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
     from skinsynth.formats.errors import FormatError
     from skinsynth.formats.marker_layout import MarkerLayout, match_markers, read_marker_layout
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.geometry import vertex_normals
+    from skinsynth.pipeline.mesh.geometry import vertex_normals
     from skinsynth.pipeline.puppet import drive_from_markers, host_inputs
 
     options = {**TAKE_DEFAULTS, **options}

@@ -75,7 +75,7 @@ def write_bone_textures(path, skin, clips, half, max_width, guard, label=None):
     (a skin too wide). Returns the bytes of bones.exr."""
     from skinsynth.formats.bone_textures import write_bone_texture_folder
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.skeleton import bone_texels, texture_influences
+    from skinsynth.pipeline.rig.skeleton import bone_texels, texture_influences
 
     try:
         influences = texture_influences(skin.bone_indices, skin.bone_weights)
@@ -84,7 +84,7 @@ def write_bone_textures(path, skin, clips, half, max_width, guard, label=None):
     texels = ((name, bone_texels(rotations, translations)) for name, rotations, translations in clips)
     uv_split = None
     if skin.face_uvs is not None:  # the rest mesh's material UVs, one per vertex in rest.glb
-        from skinsynth.pipeline.uv_seams import split_uv_seams
+        from skinsynth.pipeline.mesh.uv_seams import split_uv_seams
 
         uv_split = split_uv_seams(skin.faces, skin.face_uvs, len(skin.rest_vertices))
     write_bone_texture_folder(path, skin.rest_vertices, skin.faces, influences, texels, skin.rotations.shape[1],
@@ -99,7 +99,7 @@ def write_textures(path, kind, rest_vertices, faces, animations, fps, scene, hal
     (:meth:`~skinsynth.cli.common.FolderOutputs.guard`)."""
     from skinsynth.formats.exr import check_half_range, write_vat
     from skinsynth.formats.vat_bundle import write_vat_folder
-    from skinsynth.pipeline.geometry import vertex_normals
+    from skinsynth.pipeline.mesh.geometry import vertex_normals
 
     if kind == "folder":
         with_normals = ((name, vertices, vertex_normals(vertices, faces)) for name, vertices in animations)
@@ -126,12 +126,12 @@ def write_gltf(path, skin, clips, up_axis, quantize=None, root_motion=False, lab
     rest centre."""
     from skinsynth.formats.gltf import Clip, SkinnedScene, write_skinned_glb
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.skeleton import gltf_clip, gltf_rig
+    from skinsynth.pipeline.rig.skeleton import gltf_clip, gltf_rig
 
     if morph is not None:  # one scale per target over every clip: the targets are shared
         import numpy as np
 
-        from skinsynth.pipeline.morph_targets import unit_range_pairs
+        from skinsynth.pipeline.rig.morph_targets import unit_range_pairs
 
         lengths = [len(w) for w in morph[1]]
         targets, weights = unit_range_pairs(morph[0], np.concatenate(morph[1]))
@@ -165,7 +165,7 @@ def usd_joint_tree(skeleton, rotations, translations, root_motion=None):
     import numpy as np
 
     from skinsynth.formats.usd import JointTree
-    from skinsynth.pipeline.skeleton import joint_names, rest_locals, tree_local_transforms
+    from skinsynth.pipeline.rig.skeleton import joint_names, rest_locals, tree_local_transforms
 
     parents, joints = skeleton["parents"], skeleton["joints"]
     local_r, local_t = tree_local_transforms(np.asarray(rotations, np.float64), np.asarray(translations, np.float64),

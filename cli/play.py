@@ -71,9 +71,9 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     from skinsynth.formats.trajectories import read_control_trajectories
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.geometry import grid_offsets, largest_side
+    from skinsynth.pipeline.mesh.geometry import grid_offsets, largest_side
     from skinsynth.pipeline.puppet import instance_trajectories, play_characters, world_bones
-    from skinsynth.pipeline.skeleton import hold_joints
+    from skinsynth.pipeline.rig.skeleton import hold_joints
 
     from .marker_take import check_take_options, is_take, take_controls
 
@@ -198,7 +198,7 @@ def _extrapolation(puppet, skin, control_files, trajectories):
     """How far each trajectory's controls go from what the puppet was trained on, per frame: the
     ``view`` page's indicator (RMS distance over the controls, in place, to the nearest training
     example, the rest box's largest side = 1) -> (summary entries, lines)."""
-    from skinsynth.pipeline.geometry import largest_side
+    from skinsynth.pipeline.mesh.geometry import largest_side
     from skinsynth.pipeline.puppet import host_inputs
     from skinsynth.pipeline.view import extrapolation_distances, extrapolation_scale
 
@@ -226,8 +226,8 @@ def _corrective_morph_targets(path, skin, puppet, shape_weights, characters):
     blend needs one), or None for a puppet without correctives; OptionError (one line) when more
     than ``pipeline.morph_targets.MAX_MORPH_TARGETS`` would be needed."""
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.geometry import bounding_box_diagonal
-    from skinsynth.pipeline.morph_targets import corrective_morph_targets
+    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.rig.morph_targets import corrective_morph_targets
 
     if shape_weights is None:
         return None
@@ -250,7 +250,7 @@ def _write_rig(output, skin, puppet, bones, offsets, names, up_axis, skinning):
     translations = translations.reshape(characters, frames, -1, 3) + offsets[:, None, None, :]
     shapes = None  # the correctives are blend shapes, played before skinning, as ± pairs in [0, 1]
     if shape_weights is not None:
-        from skinsynth.pipeline.morph_targets import unit_range_pairs
+        from skinsynth.pipeline.rig.morph_targets import unit_range_pairs
 
         pairs, weights = unit_range_pairs(puppet.correctives.offsets, shape_weights.reshape(characters, frames, -1))
         shapes = (pairs, weights, [f"shape_{j:03d}{s}" for j in range(len(pairs) // 2) for s in "pn"])

@@ -181,7 +181,7 @@ def _no_clips(path, clip, what="holds no skin's examples"):
 
 
 def _clips_of(skin):
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
 
     return Clips(skin.clip_names, skin.clip_frames)
 
@@ -191,7 +191,7 @@ def _model_panels(path, stage, animations, clip, examples, compare, error_scale)
     from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.view import Panel, error_colors, frame_captions
-    from skinsynth.pipeline.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
 
     if animations and stage != "synthesis":
         raise OptionError("--animation applies to synthesis files")
@@ -231,7 +231,7 @@ def _puppet_panels(path, clip, error_scale):
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.view import Panel, error_colors, frame_captions
     from skinsynth.pipeline.puppet import predict_vertices
-    from skinsynth.pipeline.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
 
     record, test_frames, skin = read_puppet(path)
 

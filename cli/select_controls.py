@@ -60,7 +60,7 @@ def select_controls(input_path, output, count, vertex_list, marker_layout, compo
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.puppet import select_controls as select
     from skinsynth.pipeline.errors import OptionError
 

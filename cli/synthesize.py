@@ -2,7 +2,7 @@
 
 The graph's input may be several clips of one mesh (issue 26): input frames are named
 ``CLIP:FRAME`` (``gallop:0``; a negative FRAME counts from the clip's end) or by their global
-number (``--start``, ``--end``, ``--target``; :meth:`~skinsynth.pipeline.clips.Clips.frame`),
+number (``--start``, ``--end``, ``--target``; :meth:`~skinsynth.pipeline.inputs.clips.Clips.frame`),
 walks cross between clips by the graph's transitions, and the summary counts coverage per clip
 and the transitions taken from each clip to each. One clip runs exactly as before."""
 
@@ -140,7 +140,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.synthesis_file import synthesis_groups
     from skinsynth.gpu import resolve_device
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.synthesis import (BATCH_REVISION, GraphOptions, Request, avoid_obstacles, default_min_segment,
                                               keep_input_plants, keep_input_support, synthesis_components,
@@ -302,9 +302,9 @@ def _make(components, skin, request, jobs, joined, shards, quiet):
 
         remote = on_cluster = None
         if joined:
-            # a scheduler slow to answer is announced (pipeline/execution.py: Cluster.starting)
+            # a scheduler slow to answer is announced (pipeline/runtime/execution.py: Cluster.starting)
             on_cluster = joined(waiting=None if quiet else lambda text: click.echo(f"skinsynth: {text}", err=True))
-            from skinsynth.pipeline.execution import Remote
+            from skinsynth.pipeline.runtime.execution import Remote
 
             remote = Remote(on_cluster, shards["store"], shards["stored"])
             if on_cluster.dashboard and not quiet:
@@ -383,7 +383,7 @@ def _measure_feet(skin, motions, clips, count, up_axis, device):
 
 
 def _cluster_starting(address):
-    from skinsynth.pipeline.execution import Cluster
+    from skinsynth.pipeline.runtime.execution import Cluster
 
     return Cluster.starting(address, preload=("skinsynth.pipeline.synthesis.synthesis",))
 
@@ -411,7 +411,7 @@ def _write_plots(folder, skin, result, count, device, folders, clips=None):
     from skinsynth.formats.output_folder import atomic_folder
     from skinsynth.formats.plots import write_synthesis_plot
     from skinsynth.gpu import lbs
-    from skinsynth.pipeline.geometry import frame_accelerations
+    from skinsynth.pipeline.mesh.geometry import frame_accelerations
 
     if clips is None:
         largest = np.nanmax(frame_accelerations(skin.examples))
@@ -440,7 +440,7 @@ def _write_plots(folder, skin, result, count, device, folders, clips=None):
 
 def _write_caches(skin, result, usd_dir, crowd, exr_dir, up_axis, device, folders, threads=1, texture=None):
     from skinsynth.pipeline.synthesis import SkinnedAnimations
-    from skinsynth.pipeline.geometry import grid_offsets, largest_side
+    from skinsynth.pipeline.mesh.geometry import grid_offsets, largest_side
 
     count = result.F.shape[0]
     none = np.zeros((count, 3))

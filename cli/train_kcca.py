@@ -71,7 +71,7 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.puppet_file import puppet_groups
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.puppet import KERNELS
     from skinsynth.pipeline.puppet import clip_training_frames, train_puppet

@@ -126,7 +126,7 @@ def puppet_view(path, extrapolation_scale=None, record_path=None, device="auto",
     ``marker_take_options``'s values by name)."""
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.gpu import resolve_device
-    from skinsynth.pipeline.geometry import largest_side
+    from skinsynth.pipeline.mesh.geometry import largest_side
     from skinsynth.pipeline.puppet import DevicePlayer, host_inputs, puppet_from_record
     from skinsynth.pipeline.view import extrapolation_scale as default_scale
 
@@ -207,7 +207,7 @@ def _skin(path, error_scale, contacts=False):
     from skinsynth.formats.model import read_model
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs_reference
-    from skinsynth.pipeline.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
 
     from .web_view import SkinView
 
@@ -248,7 +248,7 @@ def _synthesis(path, animation):
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.formats.synthesis_file import component_bones, open_motions, read_sources, synthesis_count
     from skinsynth.gpu import lbs_reference
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.view import vertex_components
 

@@ -119,7 +119,7 @@ class SynthesisView:
     """A synthesis: faces (T, 3), rest (V, 3), count animations of frames frames each,
     load(a) -> (frame(m) -> vertices (V, 3), sources (C, M)) reading animation a alone,
     vertex_components (V,), components C, the first animation, fps, up axis; clips: the input's
-    :class:`~skinsynth.pipeline.clips.Clips` when it holds several (seams by the clip-aware rule,
+    :class:`~skinsynth.pipeline.inputs.clips.Clips` when it holds several (seams by the clip-aware rule,
     input frames named CLIP:FRAME), None for one."""
 
     faces: np.ndarray

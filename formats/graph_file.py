@@ -29,7 +29,7 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` and adds ``/graph``:
 - ``/graph/contacts``, only when the input's ground contacts were found (issue 35): ``vertices (N,)``
   patch after patch, ``offsets (P + 1,)``, ``planted (F, P)`` uint8, ``ground (C,)`` per clip;
   attributes ``@patches``, ``@character_height`` and the thresholds ``@height``, ``@speed``,
-  ``@release``, ``@min_duration``, ``@min_support`` (:func:`~skinsynth.pipeline.synthesis.contact_patches.find_contacts`).
+  ``@release``, ``@min_duration``, ``@min_support`` (:func:`~skinsynth.pipeline.synthesis.contact.patches.find_contacts`).
   A capture without contacts gets no group and no attribute: its file is --no-contacts' file.
 
 Several clips (issue 26) need nothing new here: the clip table lives in ``/examples``

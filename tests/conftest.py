@@ -91,7 +91,7 @@ class StageFiles:
 
         from cli_helpers import assert_ok, cli
         from skinsynth.formats.meshseq import write_array_sequence
-        from skinsynth.pipeline.examples import bending_bar
+        from skinsynth.pipeline.inputs.examples import bending_bar
 
         folder.mkdir()
         _, frames, rings, segments, cycles = keys["bar.npz"]

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.rig.rotations import rotation_exp
 from skinsynth.pipeline.skin.bone_transforms import Trajectories
 from skinsynth.pipeline.skin.skin_weights import update_weights
 

@@ -4,7 +4,7 @@
 
 import numpy as np
 
-from skinsynth.pipeline.examples import bending_bar
+from skinsynth.pipeline.inputs.examples import bending_bar
 
 LENGTH = 4.0  # bending_bar's default
 

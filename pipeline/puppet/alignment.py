@@ -8,7 +8,7 @@ control points are known, so a frame fitted to them is the one definition both s
 
 import numpy as np
 
-from ..rotations import polar_rotation
+from ..rig.rotations import polar_rotation
 
 
 def control_frames(controls, reference):

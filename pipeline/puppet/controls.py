@@ -42,7 +42,7 @@ from threadpoolctl import threadpool_limits
 
 from .alignment import apply_frames, control_frames
 from ..errors import OptionError
-from ..geometry import bounding_box_diagonal
+from ..mesh.geometry import bounding_box_diagonal
 from .varimax import varimax
 
 #: Feng et al. use 8 control points for most of their examples.

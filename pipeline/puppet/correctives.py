@@ -42,7 +42,7 @@ import numpy as np
 from skinsynth.gpu import corrective_offsets_reference, corrective_weights_reference, vertex_dual_quaternions
 
 from ..errors import OptionError
-from ..rotations import dual_quaternion_to_rigid
+from ..rig.rotations import dual_quaternion_to_rigid
 
 RIDGE_GRID = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 #: Powers of a Gaussian ξ tried: the corrective's kernel at 1, 1/2 and 1/4 of the regression's width.

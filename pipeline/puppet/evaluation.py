@@ -17,7 +17,7 @@ import numpy as np
 
 from .baselines import fit_pca_blendshape, fit_rbf, predict_pca_blendshape, predict_rbf
 from ..errors import OptionError
-from ..geometry import largest_side
+from ..mesh.geometry import largest_side
 from .puppet import predict_vertices, train_puppet
 
 
@@ -40,13 +40,13 @@ def relative_errors(predicted, truth, scale):
 
 def vertices_on_joints(puppet, controls, skeleton, translation_solver=True):
     """What ``play``'s rig outputs of a jointed skin show: the puppet's predicted world bones with
-    every jointed bone put back on its joint (:func:`~skinsynth.pipeline.skeleton.hold_joints`),
+    every jointed bone put back on its joint (:func:`~skinsynth.pipeline.rig.skeleton.hold_joints`),
     skinned linearly (the rig's model) with the correctives' offsets. controls (F, n_c, 3);
     skeleton (parents (B,), jointed (B,), joints (B, 3)) -> (vertices (F, V, 3), the same
     without the projection (F, V, 3))."""
     from skinsynth.gpu import lbs_reference
 
-    from ..skeleton import hold_joints
+    from ..rig.skeleton import hold_joints
     from .playback import world_bones
 
     rotations, translations, weights = world_bones(puppet, controls, translation_solver)
@@ -160,7 +160,7 @@ def evaluate_clip_hold_out(skin, control_indices, options, clips, held_out, trai
     """Extrapolation to a clip never seen (:func:`clip_hold_out_split`): a puppet trained with
     ``options`` (train_puppet's keywords) on every frame of the other clips, and every method (its
     PCA and RBF baselines fitted to the same frames) tested on the held-out clips' frames. skin:
-    the puppet's SkinModel; clips: its :class:`~skinsynth.pipeline.clips.Clips`. Returns
+    the puppet's SkinModel; clips: its :class:`~skinsynth.pipeline.inputs.clips.Clips`. Returns
     :class:`Evaluation`; its notes add ``train_clips``, ``test_clips`` (names) and
     ``train_frames`` (n,) the frame ids the retrained puppet holds."""
     train, test, train_names, test_names = clip_hold_out_split(clips, held_out, training_clips)

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import OptionError
-from ..rotations import polar_rotation
+from ..rig.rotations import polar_rotation
 
 #: The short-gap rule: gaps of at most this many take frames are interpolated (Vicon Nexus and
 #: Qualisys fill up to 10 frames by default).

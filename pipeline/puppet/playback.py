@@ -16,7 +16,7 @@ from .alignment import apply_frames, invert_frames
 from ..errors import OptionError
 from .correctives import blend_weights
 from .puppet import in_place, predict_bones
-from ..rotations import dual_quaternion_to_rigid
+from ..rig.rotations import dual_quaternion_to_rigid
 
 
 def instance_trajectories(trajectories, instances=1):

@@ -25,12 +25,12 @@ from .alignment import apply_frames, control_frames, frame_conditioning, invert_
 from .correctives import (POWER_GRID, Correctives, Model, choose_model, corrective_offsets, cross_validated_errors,
                           fit_correctives, rest_offsets)
 from ..errors import OptionError
-from ..geometry import mesh_edges
+from ..mesh.geometry import mesh_edges
 from .kcca import (WIDTH_GRID, ControlKernel, KccaRegression, choose_regularization, control_kernel, cv_folds,
                    fit_kcca, predict)
 from .poisson import (PRIOR_GRID, TranslationOperator, choose_translation_prior, fit_edge_weights,
                       operator_from_system, solve_translations, translation_system)
-from ..rotations import dual_quaternion_to_rigid, rigid_to_dual_quaternion, with_translations
+from ..rig.rotations import dual_quaternion_to_rigid, rigid_to_dual_quaternion, with_translations
 
 GLOBAL_MOTION = ("auto", "control-frame", "world")
 SKINNING = ("dual-quaternion", "linear")
@@ -167,7 +167,7 @@ def clip_training_frames(spec, clips, names=None, option="--clips"):
     """Training and held-out frames of the clips ``names`` (train-kcca's ``--train-frames`` and
     ``--clips``; issue 26): (train (n_p,) int64, held_out (n_t,) int64, the clip names used).
 
-    clips: a :class:`~skinsynth.pipeline.clips.Clips`; names: None (every clip), an iterable of
+    clips: a :class:`~skinsynth.pipeline.inputs.clips.Clips`; names: None (every clip), an iterable of
     names or one comma-separated string (an unknown name is an OptionError naming ``option`` and
     the clips). A sampling spec (``every:N``, ``first:N``, ``all``) runs within each chosen clip,
     from that clip's first frame; a list (``0,4,10-20``) names global frames, each of which must

@@ -11,7 +11,7 @@ O(V · F · B).
 import numpy as np
 import scipy.sparse as sp
 
-from ..rotations import polar_rotation
+from ..rig.rotations import polar_rotation
 
 
 class Trajectories:
@@ -160,7 +160,7 @@ def _gauss_newton_system(transforms, p, q):
 
 
 def _apply_increment(transforms, step):
-    from ..rotations import rotation_exp
+    from ..rig.rotations import rotation_exp
 
     frames, bones = transforms.shape[:2]
     step = step.reshape(frames, bones, 6)

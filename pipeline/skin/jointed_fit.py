@@ -43,9 +43,9 @@ from dataclasses import replace
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..influence import dense_weights
-from ..rotations import polar_rotation, rotation_exp
-from ..skeleton import hold_joints
+from ..rig.influence import dense_weights
+from ..rig.rotations import polar_rotation, rotation_exp
+from ..rig.skeleton import hold_joints
 from .bone_transforms import Trajectories
 from .skin_fit import SkinFit
 from .joints import inside_mesh
@@ -369,7 +369,7 @@ def fit_given_skeleton(vertices, rest, faces, skeleton, max_influences=4, iterat
     iterations). Returns what :func:`fit_jointed` does."""
     from scipy.optimize import linear_sum_assignment
 
-    from ..influence import bone_centroids
+    from ..rig.influence import bone_centroids
     from .joints import find_skeleton
     from .skin_fit import fit_skin
 

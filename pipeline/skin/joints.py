@@ -47,9 +47,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import mesh_edges
-from ..influence import most_influential_bone, weight_sums
-from ..skeleton import depth_first
+from ..mesh.geometry import mesh_edges
+from ..rig.influence import most_influential_bone, weight_sums
+from ..rig.skeleton import depth_first
 
 #: How far a joint may lie from where its two bones meet, a priori, as a share of the rest
 #: diagonal (module notes: the pull).
@@ -171,7 +171,7 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
     halvings, all points at once: the skin to 2.4e-4 of the segment, and each halving tests every
     point against every triangle), then a quarter of the rest of the way on. A point with no
     inside anchor stays. Returns (points (P, 3), moved (P,) bool)."""
-    from ..geometry import points_inside
+    from ..mesh.geometry import points_inside
 
     points = np.array(points, dtype=np.float64)
     anchors = np.asarray(anchors, dtype=np.float64)
@@ -238,8 +238,8 @@ def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translatio
     rest (V, 3), faces (T, 3), bone_indices / bone_weights (V, K), rotations (F, B, 3, 3),
     translations (F, B, 3). ``max_drift`` is a share of ``diagonal`` (default: the rest pose's
     bounding-box diagonal); ``root``: the root bone, default the one carrying the most weight."""
-    from ..geometry import bounding_box_diagonal
-    from ..influence import bone_centroids
+    from ..mesh.geometry import bounding_box_diagonal
+    from ..rig.influence import bone_centroids
 
     bones = np.asarray(rotations).shape[1]
     diagonal = bounding_box_diagonal(rest) if diagonal is None else float(diagonal)

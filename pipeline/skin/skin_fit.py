@@ -191,7 +191,7 @@ def finish_fit(fit, vertices):
     bone over the frames (Feng §4.3), the bones' rest frames (B, 4, 4))."""
     from skinsynth.gpu import lbs_reference
 
-    from ..rotations import align_hemispheres, rigid_to_dual_quaternion
+    from ..rig.rotations import align_hemispheres, rigid_to_dual_quaternion
 
     reconstruction = lbs_reference(fit.rest_vertices, fit.bone_indices, fit.bone_weights, fit.rotations,
                                    fit.translations)

@@ -3,7 +3,7 @@
 vertices :mod:`.key_vertices` App. A, deformation gradients :mod:`.deformation_gradients` eq. 8),
 and synthesize (:mod:`.synthesis`): walks on the motion graph (:mod:`.motion_graph`), splicing
 with Poisson blending (:mod:`.splicing`, eq. 7–10), the multi-component merge
-(:mod:`.assembly`, Alg. 1, eq. 12–14), the input's support kept after it (:mod:`.contact`) and obstacles
+(:mod:`.assembly`, Alg. 1, eq. 12–14), ground contact (:mod:`.contact`: the input's plants kept, the support kept after the merge, the feet measures) and obstacles
 (:mod:`.collisions`, §3.4).
 
 Public: build_graph, GraphOptions, validate_graph_options, bone_layout, default_min_segment, walk_statistics,
@@ -19,8 +19,8 @@ _EXPORTS = {"build_graph": "graph", "GraphOptions": "graph_options", "validate_g
             "default_min_segment": "motion_graph", "walk_statistics": "motion_graph", "synthesize": "synthesis",
             "batch_sizes": "synthesis", "BATCH_REVISION": "synthesis", "Request": "synthesis", "validate_request": "synthesis", "component_from_file": "synthesis",
             "synthesis_components": "synthesis", "avoid_obstacles": "synthesis", "keep_input_support": "synthesis",
-            "keep_input_plants": "synthesis", "mark_contact_jumps": "planting", "compile_loops": "precompile",
-            "SkinnedAnimations": "skinned", "find_contacts": "contact_patches",
-            "validate_contact_options": "contact_patches", "measure_feet": "skinned", "build_obstacles": "collisions", "colliding": "collisions", "vertex_subset": "collisions"}
+            "keep_input_plants": "synthesis", "mark_contact_jumps": "contact.planting", "compile_loops": "precompile",
+            "SkinnedAnimations": "skinned", "find_contacts": "contact.patches",
+            "validate_contact_options": "contact.patches", "measure_feet": "skinned", "build_obstacles": "collisions", "colliding": "collisions", "vertex_subset": "collisions"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

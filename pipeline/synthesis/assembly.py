@@ -21,7 +21,7 @@ from collections import deque
 
 import numpy as np
 
-from ..rotations import apply_rigid_into, polar_of_near_rotations
+from ..rig.rotations import apply_rigid_into, polar_of_near_rotations
 
 
 def merge_into(F, t, cut, part, pick, bones_j, polar_i=None, polar_j=None, animation_block=16):

@@ -33,7 +33,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
-from ..rotations import polar_rotation, rotation_exp, rotation_log
+from ..rig.rotations import polar_rotation, rotation_exp, rotation_log
 
 _UPPER = (np.array([0, 0, 0, 1, 1, 2]), np.array([0, 1, 2, 1, 2, 2]))
 

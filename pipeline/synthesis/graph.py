@@ -70,7 +70,7 @@ class GraphAnalysis:
     def transitions_between(self):
         """Per component, its transitions by clip left and clip entered: {"a->b": count}
         (:func:`.motion_graph.transitions_between`; one clip: {"clip->clip": all of them})."""
-        from ..clips import Clips
+        from ..inputs.clips import Clips
 
         clips = self.clips
         if clips is None:

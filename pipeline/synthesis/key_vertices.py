@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import mesh_edges
+from ..mesh.geometry import mesh_edges
 
 
 @dataclass

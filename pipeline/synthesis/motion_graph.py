@@ -71,7 +71,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..clips import Clips
+from ..inputs.clips import Clips
 from ..errors import OptionError
 
 NO_CYCLE_MESSAGE = ("the clip has no repeated states at this threshold: no transition leads back; "

@@ -1,17 +1,17 @@
 """The plants' compiled loops (:mod:`.planting_loops`) built ahead of use: a tiny two-bone bar
 with one planted patch, its :class:`.planting.PlantRig` made and :func:`.planting.warm_up` run, so
 the specialisation synthesize needs is compiled (or loaded) into numba's cache
-(:mod:`skinsynth.pipeline.compiled`)."""
+(:mod:`skinsynth.pipeline.runtime.compiled`)."""
 
 import numpy as np
 
-from .. import compiled
+from ..runtime import compiled
 
 
 def tiny_rig():
     """The :class:`.planting.PlantRig` of a two-bone bar with one patch planted in all six frames:
     what loading (or compiling) the loops runs them on."""
-    from . import planting
+    from .contact import planting
 
     rest = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
     indices = np.array([[0, 1], [0, 1], [0, 1], [1, 0]])
@@ -27,7 +27,7 @@ def tiny_rig():
 
 def compile_loops():
     """Compile (or load from numba's cache) synthesize's numba loops; returns
-    :func:`skinsynth.pipeline.compiled.compile_run`'s report."""
-    from . import planting, planting_loops
+    :func:`skinsynth.pipeline.runtime.compiled.compile_run`'s report."""
+    from .contact import planting, planting_loops
 
     return compiled.compile_run("synthesis", [planting_loops], lambda: planting.warm_up(tiny_rig()))

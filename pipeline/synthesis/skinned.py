@@ -57,7 +57,7 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
     ground (per clip), input, output (:func:`~.contact_measures.summary`), ratios."""
     import numpy as np
 
-    from .contact_measures import Steps, character_height, measure_frames, measure_input, ratios, summary
+    from .contact.measures import Steps, character_height, measure_frames, measure_input, ratios, summary
 
     height = character_height(skin.rest_vertices, up_axis)
     measured_in, grounds = measure_input(skin.examples, starts, height, up_axis, block=block)

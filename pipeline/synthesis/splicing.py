@@ -93,9 +93,9 @@ relative rotation, not a vector) and S(−1) := 2 S(0) − S(1). For motion at c
 through the wrap (frames F−2, F−1, 0, 1 one step apart) both guidance terms and the velocity
 jump vanish and the splice is the clip's periodic continuation exactly.
 
-Several clips (``clips``, a :class:`~skinsynth.pipeline.clips.Clips`; None is one clip of all
+Several clips (``clips``, a :class:`~skinsynth.pipeline.inputs.clips.Clips`; None is one clip of all
 the frames, the code path and the numbers above): the frames are the clips one after another,
-and every rule above holds per clip (:mod:`skinsynth.pipeline.clips` states the conventions).
+and every rule above holds per clip (:mod:`skinsynth.pipeline.inputs.clips` states the conventions).
 A seam is where the source does not play on (:meth:`Clips.seams`), so playing one clip's last
 frame and then the next clip's first (consecutive numbers) is a seam, blended, not playback. Its
 transition is j = :meth:`Clips.transition_j` of the frame played, source[k]: source[k] − 1, or,
@@ -132,7 +132,7 @@ import numpy as np
 import scipy.linalg
 
 from .deformation_gradients import rotation_times_strain
-from ..rotations import apply_rigid_into, heading_and_posture, rotation_exp, rotation_log
+from ..rig.rotations import apply_rigid_into, heading_and_posture, rotation_exp, rotation_log
 from .transitions import local_frame_positions
 
 
@@ -506,7 +506,7 @@ def splice_local(component, rotations, translations, sources, window=8, dtype=np
     bone's frame: bones stay rigid) or "key-vertices" (Zheng eq. 8–9, affine bones); pivots
     (B, 3): each bone's rest point its blend turns about (default the origin; the synthesizer
     passes the bones' rest centroids); up: None for Zheng's eq. 7, or the up axis (3,) for its
-    ground-plane form (:func:`reference_alignment`); clips: a :class:`~skinsynth.pipeline.clips.Clips`
+    ground-plane form (:func:`reference_alignment`); clips: a :class:`~skinsynth.pipeline.inputs.clips.Clips`
     of the F input frames when they are several clips (seams, transitions and the frames before
     and after each clip per clip: module notes), None for one clip.
     """

@@ -1,6 +1,6 @@
 """One clip in, many animations out (Zheng §3.3, §3.4, §4.2): walks, splicing, assembly, checks.
 
-The input may be several clips of one mesh (``Request.clips``, a :class:`~skinsynth.pipeline.clips.Clips`;
+The input may be several clips of one mesh (``Request.clips``, a :class:`~skinsynth.pipeline.inputs.clips.Clips`;
 None: one clip): frames, walks and targets use the global frame numbers, the motion graphs play
 on only inside a clip and cross between clips by their transitions (j = −(c + 1) continues at
 clip c's first frame), splicing blends every seam by the clip-aware rule (:mod:`.splicing`), and
@@ -27,14 +27,14 @@ import numpy as np
 
 from .assembly import assemble, cut_bones, merge_order
 from .collisions import build_obstacles, colliding, vertex_subset
-from .contact import ground_floored, keep_contact, lowest_range, support, support_without
-from .contact_patches import patch_vertices
-from .planting import lowest_samples, plant_feet, plant_rig
+from .contact.ground import ground_floored, keep_contact, lowest_range, support, support_without
+from .contact.patches import patch_vertices
+from .contact.planting import lowest_samples, plant_feet, plant_rig
 from .deformation_gradients import gradient_operator
 from ..errors import OptionError
-from ..execution import concatenate_rows, run_batches
+from ..runtime.execution import concatenate_rows, run_batches
 from .graph import ComponentAnalysis
-from ..skeleton import hold_joints, reach_with_legs
+from ..rig.skeleton import hold_joints, reach_with_legs
 from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks, walk_statistics
 from .splicing import splice_local
 from .transitions import Transitions, bone_centroids
@@ -78,7 +78,7 @@ def component_from_file(data, rest, contacts=False):
                               pairs=np.asarray(data.transitions, dtype=np.int64).reshape(-1, 2),
                               costs=data.transition_costs)
     if contacts:
-        from .planting import contact_transitions
+        from .contact.planting import contact_transitions
 
         transitions = contact_transitions(transitions, getattr(data, "contact_agrees", None))
     return ComponentAnalysis(bones=[int(b) for b in data.bones], transitions=transitions,
@@ -109,7 +109,7 @@ def synthesis_components(skin, records, single_component=False, graph_options=No
         components = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
                                  skin.translations, **options, clips=clips, walk_clips=walk_clips).components
         if contacts is not None:
-            from .planting import contact_transitions, mark_contact_jumps
+            from .contact.planting import contact_transitions, mark_contact_jumps
 
             mark_contact_jumps(components, contacts, skin.bone_indices, skin.bone_weights, clips)
             for component in components:
@@ -154,12 +154,12 @@ def keep_input_plants(request, skin, contacts, components):
     vertices, weights, rotations, translations, fps) and its input frames (examples); components:
     the synthesis's. The band :func:`keep_input_support` set, if it did, then keeps its floor at
     the contacts' ground (:func:`.contact.ground_floored`)."""
-    from ..clips import Clips
+    from ..inputs.clips import Clips
 
     clips = request.clips or Clips.single(skin.rotations.shape[0])
     patches = patch_vertices(contacts)
     bones = [c.bones for c in components]
-    from .planting import warm_up
+    from .contact.planting import warm_up
 
     sampled = lowest_samples(skin.rest_vertices, skin.examples, patches, request.up_axis)  # (P, S), −1 padded
     request.plants = plant_rig(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
@@ -200,17 +200,17 @@ class Request:
     come before the support's vertical shift, which then takes its lowest points from the plants'
     patches and from ``support_beyond_plants`` (the support's vertices outside them).
 
-    clips: the :class:`~skinsynth.pipeline.clips.Clips` of the input frames when they are several
+    clips: the :class:`~skinsynth.pipeline.inputs.clips.Clips` of the input frames when they are several
     clips (frames, targets, start and end are global frame numbers), None for one clip.
 
     skeleton: a jointed skin's (parents (B,), jointed (B,), joints (B, 3)) (``fit-skin
     --skeleton``), or None. Splices, merges and plants move bones apart at their joints (on the
     walker, by 2–9 cm); the last step of each batch puts every jointed bone back on its joint
-    (:func:`~skinsynth.pipeline.skeleton.hold_joints`: its turn kept, its translation from its
+    (:func:`~skinsynth.pipeline.rig.skeleton.hold_joints`: its turn kept, its translation from its
     parent's), so bone lengths stay constant. That undoes the plants' limb corrections
     (translations; their root offset stays), so then each planted patch's bone has its joint
     brought back where the plants put it by two-bone inverse kinematics of its shin and thigh
-    (:func:`~skinsynth.pipeline.skeleton.reach_with_legs`): on the planted walker the sliding
+    (:func:`~skinsynth.pipeline.rig.skeleton.reach_with_legs`): on the planted walker the sliding
     contact steps went from 69 % to 3 % (0 % unjointed)."""
 
     count: int

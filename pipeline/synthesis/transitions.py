@@ -90,10 +90,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import minimum_filter
 
-from ..clips import Clips
+from ..inputs.clips import Clips
 from ..errors import OptionError
-from ..influence import bone_centroids, weight_sums  # noqa: F401 (bone_centroids: part of this module's API)
-from ..rotations import heading_and_posture, rotation_log
+from ..rig.influence import bone_centroids, weight_sums  # noqa: F401 (bone_centroids: part of this module's API)
+from ..rig.rotations import heading_and_posture, rotation_log
 
 THRESHOLD_REFERENCES = ("median-step", "max-step")
 

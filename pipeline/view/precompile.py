@@ -1,16 +1,16 @@
 """The headless rasteriser's compiled loop (:mod:`.rasteriser`) built ahead of use: one tiny mesh
 rendered flat, smooth and with vertex colours over the ground, so every specialisation preview
-needs is compiled (or loaded) into numba's cache (:mod:`skinsynth.pipeline.compiled`)."""
+needs is compiled (or loaded) into numba's cache (:mod:`skinsynth.pipeline.runtime.compiled`)."""
 
 import numpy as np
 
-from .. import compiled
-from ..examples import cylinder_mesh
+from ..runtime import compiled
+from ..inputs.examples import cylinder_mesh
 
 
 def compile_loops():
     """Compile (or load from numba's cache) the rasteriser's numba loop; returns
-    :func:`skinsynth.pipeline.compiled.compile_run`'s report."""
+    :func:`skinsynth.pipeline.runtime.compiled.compile_run`'s report."""
     from . import rasteriser
 
     rest, faces = cylinder_mesh(rings=3, segments=4)

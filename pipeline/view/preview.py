@@ -5,7 +5,7 @@ A panel is one animated mesh: ``vertices (M, V, 3)``, ``faces (T, 3)``, a title,
 per-vertex colours ``(M, V, 3)`` (an error map), and a caption per frame (the source frame;
 for a synthesis, the input frame each component plays, with the seams marked). A source frame
 is named ``clip:frame`` (``collapse:12``) when the input holds several clips
-(:meth:`~skinsynth.pipeline.clips.Clips.label`), else by its number.
+(:meth:`~skinsynth.pipeline.inputs.clips.Clips.label`), else by its number.
 """
 
 from dataclasses import dataclass, field

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..geometry import vertex_normals as geometry_vertex_normals
+from ..mesh.geometry import vertex_normals as geometry_vertex_normals
 
 BACKGROUND = (0.92, 0.93, 0.95)
 MESH_COLOR = (0.72, 0.74, 0.80)
@@ -92,7 +92,7 @@ def face_normals(vertices, faces):
 
 
 def vertex_normals(vertices, faces):
-    """Area-weighted unit vertex normals (V, 3) of one frame (:func:`skinsynth.pipeline.geometry.vertex_normals`)."""
+    """Area-weighted unit vertex normals (V, 3) of one frame (:func:`skinsynth.pipeline.mesh.geometry.vertex_normals`)."""
     return geometry_vertex_normals(vertices[None], faces)[0]
 
 

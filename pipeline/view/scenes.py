@@ -101,7 +101,7 @@ def component_colors(count):
 def seam_frames(sources, clips=None):
     """sources (C, M): the input frame each component plays at each output frame -> (C, M) bool,
     True where a component's source does not play on from its previous one (a transition): not
-    the frame after it, or, with ``clips`` (the input's :class:`~skinsynth.pipeline.clips.Clips`),
+    the frame after it, or, with ``clips`` (the input's :class:`~skinsynth.pipeline.inputs.clips.Clips`),
     the first frame of a clip (:meth:`Clips.seams`: one clip's last frame then the next one's
     first is a seam too). None: one clip."""
     sources = np.asarray(sources)

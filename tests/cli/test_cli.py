@@ -24,7 +24,7 @@ from skinsynth.formats.model import FORMAT_VERSION, write_model
 from skinsynth.formats.skin_file import read_skin
 from skinsynth.formats.usd import read_points_cache, read_skel_points
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.examples import bending_bar
+from skinsynth.pipeline.inputs.examples import bending_bar
 
 from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
 

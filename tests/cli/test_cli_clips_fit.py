@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from skinsynth.formats.skin_file import read_skin
-from skinsynth.pipeline.examples import synthetic_lbs
+from skinsynth.pipeline.inputs.examples import synthetic_lbs
 
 from cli_helpers import assert_ok, assert_user_error, cli
 

@@ -15,7 +15,7 @@ from PIL import Image
 
 from skinsynth.formats.skin_file import read_skin
 from skinsynth.formats.usd import read_clips, read_points_cache, read_skel_points
-from skinsynth.pipeline.examples import synthetic_lbs
+from skinsynth.pipeline.inputs.examples import synthetic_lbs
 
 from cli_helpers import assert_ok, assert_user_error, cli
 from glb_reading import glb_accessor, glb_document
@@ -209,7 +209,7 @@ def test_preview_of_one_clip_shows_its_frames(files, tmp_path):
 
 
 def test_frames_are_named_clip_colon_frame_when_there_are_several_clips():
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.view import frame_captions, walk_captions
 
     clips = Clips(("walk", "turn"), (14, 10))

@@ -10,8 +10,8 @@ import pytest
 
 from skinsynth.formats.meshseq import write_array_sequence
 from skinsynth.formats.skin_file import read_skin
-from skinsynth.pipeline.clips import Clips
-from skinsynth.pipeline.examples import bending_bar
+from skinsynth.pipeline.inputs.clips import Clips
+from skinsynth.pipeline.inputs.examples import bending_bar
 
 from cli_helpers import assert_ok, assert_user_error, cli
 

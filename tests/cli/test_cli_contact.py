@@ -25,7 +25,7 @@ def ground_excess(data, up=1, against="fit"):
     the input's highest lowest point, as shares of the rest pose's height. The input is the skin's
     own playback of the input frames (``against="fit"``: what splicing plays, so a coarse test
     fit's error does not count) or the input frames themselves (``"examples"``)."""
-    from skinsynth.pipeline.synthesis.contact import ground_excess as excess, lowest_heights
+    from skinsynth.pipeline.synthesis.contact.ground import ground_excess as excess, lowest_heights
 
     def skinned(F, t):
         return lbs_reference(data["rest"], data["idx"], data["w"], F, t)
@@ -95,7 +95,7 @@ def test_json_reports_the_feet_of_the_input_and_of_the_first_animations_and_writ
     animations; --measure-feet changes nothing written, and 0 measures nothing."""
     import json
 
-    from skinsynth.pipeline.synthesis.contact_measures import character_height, measure_input, summary
+    from skinsynth.pipeline.synthesis.contact.measures import character_height, measure_input, summary
 
     common = ("synthesize", bar / "graph.h5", "-n", 5, "-m", 60, "--seed", 1, "--device", "cpu")
     report = json.loads(assert_ok(cli(*common, "-o", tmp_path / "a.h5", "--json", "--measure-feet", 3)).stdout)

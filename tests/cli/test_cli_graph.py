@@ -8,7 +8,7 @@ import pytest
 
 from skinsynth.formats.graph_file import read_graph
 from skinsynth.formats.meshseq import write_array_sequence
-from skinsynth.pipeline.examples import bending_bar
+from skinsynth.pipeline.inputs.examples import bending_bar
 
 from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
 
@@ -170,8 +170,8 @@ def contact_files(tmp_path_factory):
 
 def test_contacts_are_stored_read_back_and_drawn(contact_files, tmp_path):
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.clips import Clips
-    from skinsynth.pipeline.synthesis.contact_patches import find_contacts
+    from skinsynth.pipeline.inputs.clips import Clips
+    from skinsynth.pipeline.synthesis.contact.patches import find_contacts
 
     out = assert_ok(cli("build-graph", contact_files / "block.skin.h5", "-o", tmp_path / "g.h5", "--json",
                         "--plot", tmp_path / "plots")).stdout

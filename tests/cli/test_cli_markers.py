@@ -8,7 +8,7 @@ import pytest
 
 from c3d_writing import write_c3d
 from cli_helpers import assert_ok, assert_user_error, cli
-from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.rig.rotations import rotation_exp
 
 #: The known map from the puppet's space (Y up, metres) to the take's (Z up, millimetres).
 SCALE, TURN, SHIFT = 1.3, rotation_exp(np.array([0.2, -0.4, 1.1])), np.array([250.0, -1200.0, 30.0])

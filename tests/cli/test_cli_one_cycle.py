@@ -10,7 +10,7 @@ import pytest
 
 from skinsynth.formats.meshseq import read_mesh_sequence
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.geometry import frame_accelerations
+from skinsynth.pipeline.mesh.geometry import frame_accelerations
 from skinsynth.pipeline.puppet.alignment import control_frames
 
 from cli_helpers import assert_ok, assert_user_error, cli

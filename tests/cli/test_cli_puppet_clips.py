@@ -11,7 +11,7 @@ import pytest
 from skinsynth.formats.puppet_file import read_puppet
 from skinsynth.formats.skin_file import read_skin
 from skinsynth.formats.meshseq import write_array_sequence
-from skinsynth.pipeline.examples import bending_bar
+from skinsynth.pipeline.inputs.examples import bending_bar
 from skinsynth.pipeline.puppet import evaluate_puppet, puppet_from_record, select_controls
 
 from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli

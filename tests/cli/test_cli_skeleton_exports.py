@@ -12,7 +12,7 @@ import pytest
 from skinsynth.formats.model import read_model
 from skinsynth.formats.skin_file import read_skin
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.skeleton import joint_names
+from skinsynth.pipeline.rig.skeleton import joint_names
 
 from cli_helpers import assert_ok, assert_user_error, cli
 from glb_reading import glb_document, glb_node_parents, glb_skinned

@@ -251,7 +251,7 @@ def test_result_does_not_depend_on_jobs(files, tmp_path, monkeypatch):
         assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / name, "-n", 260, "-m", 60, "--seed", 9,
                       "--jobs", jobs, "--min-difference", 0.05, "-q"))
     # Without fork the workers send their bone motions back through the pool instead.
-    monkeypatch.setattr("skinsynth.pipeline.execution._pool_context", lambda: None)
+    monkeypatch.setattr("skinsynth.pipeline.runtime.execution._pool_context", lambda: None)
     assert_ok(cli("synthesize", files / "graph.h5", "-o", tmp_path / "piped.h5", "-n", 260, "-m", 60, "--seed", 9,
                   "--jobs", 2, "--min-difference", 0.05, "-q"))
     for x, y, z in zip(bones(tmp_path / "one.h5"), bones(tmp_path / "two.h5"), bones(tmp_path / "piped.h5")):

@@ -13,7 +13,7 @@ import pathlib
 import subprocess
 import sys
 
-from skinsynth.pipeline.compiled import dispatchers
+from skinsynth.pipeline.runtime.compiled import dispatchers
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 SCRIPT = os.path.join(os.path.dirname(sys.executable), "skinsynth")

@@ -268,7 +268,7 @@ def played(files, tmp_path, puppet, controls, name="t"):
 
 def puppet_facts(path):
     from skinsynth.formats.puppet_file import read_puppet
-    from skinsynth.pipeline.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
 
     record, _, skin = read_puppet(path)
     controls = skin.examples[record.train_frames][:, record.control_indices]
@@ -427,7 +427,7 @@ def test_a_trajectory_plays_play_s_frames_and_their_indicator(files, tmp_path):
     the one ``extrapolation_distances`` gives every frame."""
     from skinsynth.cli.view import puppet_view
     from skinsynth.cli.web_view import open_page
-    from skinsynth.pipeline.geometry import largest_side
+    from skinsynth.pipeline.mesh.geometry import largest_side
     from skinsynth.pipeline.puppet import host_inputs, puppet_from_record
     from skinsynth.pipeline.view import extrapolation_color, extrapolation_distances
 
@@ -565,7 +565,7 @@ def same_triangles(a, b, tolerance):
 def test_skin_view_shows_examples_and_the_coloured_reconstruction(files, browser):
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs_reference
-    from skinsynth.pipeline.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
     from skinsynth.pipeline.view.scenes import level_colors
 
     skin = read_skin(files / "skin.h5")
@@ -609,7 +609,7 @@ def test_skin_view_shows_examples_and_the_coloured_reconstruction(files, browser
 def test_synthesis_view_picks_an_animation_and_colours_components(files, browser):
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs_reference
-    from skinsynth.pipeline.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
 
     skin = read_skin(files / "bones.h5")
     diagonal = bounding_box_diagonal(skin.rest_vertices)

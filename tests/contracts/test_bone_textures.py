@@ -137,7 +137,7 @@ def test_the_rest_mesh_carries_the_input_uvs_split_at_seams(tmp_path):
     vertices copies with their original's influences (the decode still plays every vertex), and
     rest.obj keeps its vertices unsplit with a vt per corner; without UVs TEXCOORD_0 is zero."""
     from skinsynth.formats.meshseq import read_mesh_sequence
-    from skinsynth.pipeline.uv_seams import split_uv_seams
+    from skinsynth.pipeline.mesh.uv_seams import split_uv_seams
     from uv_meshes import uv_bar, write_obj_frames
 
     write_obj_frames(tmp_path / "frames", *uv_bar())

@@ -12,7 +12,7 @@ import pytest
 from distributed import WorkerPlugin
 
 from skinsynth.formats.model import content_digests
-from skinsynth.pipeline.execution import StoredRows, concatenate_rows
+from skinsynth.pipeline.runtime.execution import StoredRows, concatenate_rows
 
 from cli_helpers import assert_ok, assert_user_error, cli
 

@@ -18,7 +18,7 @@ from skinsynth.cli.main import main
 from skinsynth.formats.meshseq import write_array_sequence
 from skinsynth.formats.skin_file import read_skin
 from skinsynth.gpu import lbs, lbs_reference
-from skinsynth.pipeline.examples import bending_bar
+from skinsynth.pipeline.inputs.examples import bending_bar
 
 from cli_helpers import assert_ok, cli
 
@@ -193,7 +193,7 @@ def test_blender_finds_one_root_in_the_usdskel_rig(stages, tmp_path):
 
 def _tree_by_name(skin):
     """{joint name: its parent joint's name} of a skin's skeleton as skinsynth exports it."""
-    from skinsynth.pipeline.skeleton import joint_names
+    from skinsynth.pipeline.rig.skeleton import joint_names
 
     parents = skin.skeleton["parents"]
     names = joint_names(parents, skin.skeleton["jointed"])
@@ -270,7 +270,7 @@ def test_blender_turning_a_jointed_skins_knee_moves_what_hangs_below_it_and_noth
     it by more than 1e-3 of the diagonal (measured at least 9.4e-3), and every vertex without weight
     there by less than 1e-6 (measured 0): a joint turns the bones under it, and only those. The
     import keeps skinsynth's vertex order (its rest is the skin's, vertex for vertex)."""
-    from skinsynth.pipeline.skeleton import joint_names
+    from skinsynth.pipeline.rig.skeleton import joint_names
     from test_gltf import in_gltf_axes, skin_of
 
     skin = skin_of(jointed_skins / source)

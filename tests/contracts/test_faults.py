@@ -374,7 +374,7 @@ def _datasets(path):
 def test_every_stage_gives_byte_identical_datasets_whatever_the_blas_threads(tmp_path):
     """A bar large enough that a threaded BLAS splits its SVDs and products (1282 vertices)."""
     from skinsynth.formats.meshseq import write_array_sequence
-    from skinsynth.pipeline.examples import bending_bar
+    from skinsynth.pipeline.inputs.examples import bending_bar
 
     vertices, faces = bending_bar(frames=48, rings=40, segments=32, cycles=2)
     write_array_sequence(tmp_path / "bar.npz", vertices, faces, 24.0)
@@ -553,7 +553,7 @@ def test_mesh_sequences_cannot_declare_more_than_they_hold(tmp_path):
 
 # ``skinsynth`` whose example command meets a library warning while it works (numpy's overflow in
 # a float32 product, as a hostile input would cause): its bending_bar is wrapped to do one first.
-WARNING_SKINSYNTH = [sys.executable, "-c", "import sys; import numpy as np; import skinsynth.pipeline.examples as ex; "
+WARNING_SKINSYNTH = [sys.executable, "-c", "import sys; import numpy as np; import skinsynth.pipeline.inputs.examples as ex; "
                                            "bar = ex.bending_bar; ex.bending_bar = lambda **options: "
                                            "(np.float32(1e30) * np.float32(1e30), bar(**options))[1]; "
                                            "from skinsynth.cli.main import main; sys.argv[0] = 'skinsynth'; "

@@ -287,7 +287,7 @@ def test_a_played_puppet_to_gltf_must_skin_linearly_and_have_few_correctives(pup
     """A dual-quaternion puppet, and correctives that need more than 8 morph targets (a noisy bar:
     every training frame's residual its own shape), are one line each, naming what to use."""
     from skinsynth.formats.meshseq import write_array_sequence
-    from skinsynth.pipeline.examples import bending_bar
+    from skinsynth.pipeline.inputs.examples import bending_bar
 
     out = tmp_path / "out"
     out.mkdir()

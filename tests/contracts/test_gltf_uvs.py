@@ -10,7 +10,7 @@ import pytest
 from skinsynth.formats.model import read_model
 from skinsynth.formats.skin_file import read_skin
 from skinsynth.gpu import lbs
-from skinsynth.pipeline.uv_seams import split_uv_seams
+from skinsynth.pipeline.mesh.uv_seams import split_uv_seams
 
 from cli_helpers import assert_ok, cli
 from glb_reading import glb_primitive

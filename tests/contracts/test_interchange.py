@@ -36,7 +36,7 @@ def production_capture(path, vertices, faces):
 
 @pytest.fixture(scope="module")
 def chain(tmp_path_factory):
-    from skinsynth.pipeline.examples import bending_bar
+    from skinsynth.pipeline.inputs.examples import bending_bar
 
     root = tmp_path_factory.mktemp("interchange")
     vertices, faces = bending_bar(frames=FRAMES, rings=10, segments=8, cycles=2)
@@ -101,7 +101,7 @@ def test_play_and_synthesize_state_the_input_scene(chain, tmp_path):
 
 def test_array_inputs_take_their_scene_by_option_and_print_the_defaults(tmp_path):
     from skinsynth.formats.meshseq import write_array_sequence
-    from skinsynth.pipeline.examples import bending_bar
+    from skinsynth.pipeline.inputs.examples import bending_bar
 
     vertices, faces = bending_bar(frames=12, rings=6, segments=6)
     write_array_sequence(tmp_path / "bar.npz", vertices, faces, FPS)

@@ -93,17 +93,17 @@ def test_a_planted_wrong_way_import_is_named(tmp_path):
     for package in PACKAGES:
         shutil.copytree(ROOT / package, tmp_path / package, ignore=shutil.ignore_patterns("__pycache__"))
     plants = {
-        "formats/errors.py": ("from skinsynth.pipeline.geometry import largest_side\n",
-                              "formats/errors.py:1: formats imports skinsynth.pipeline.geometry; formats imports "
+        "formats/errors.py": ("from skinsynth.pipeline.mesh.geometry import largest_side\n",
+                              "formats/errors.py:1: formats imports skinsynth.pipeline.mesh.geometry; formats imports "
                               "nothing else of skinsynth"),
         "gpu/runtime.py": ("from skinsynth.formats import errors\n",
                            "gpu/runtime.py:1: gpu imports skinsynth.formats; gpu imports nothing else of skinsynth"),
         "pipeline/skin/skin_init.py": ("from ..puppet.kcca import KERNELS\n",
                                        "pipeline/skin/skin_init.py:1: the stage skin imports "
                                        "skinsynth.pipeline.puppet.kcca, of the stage puppet"),
-        "pipeline/geometry.py": ("def f():\n    from .synthesis import graph\n",
-                                 "pipeline/geometry.py:2: the floor imports skinsynth.pipeline.synthesis, of the stage "
-                                 "synthesis"),
+        "pipeline/mesh/geometry.py": ("def f():\n    from ..synthesis import graph\n",
+                                      "pipeline/mesh/geometry.py:2: the floor imports skinsynth.pipeline.synthesis, of the "
+                                      "stage synthesis"),
         "pipeline/puppet/kcca.py": ("from skinsynth.gpu.skinning import dq_skin\n",
                                     "pipeline/puppet/kcca.py:1: pipeline imports skinsynth.gpu.skinning; "
                                     "pipeline uses gpu through its public API"),

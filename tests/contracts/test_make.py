@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from skinsynth.formats.meshseq import write_array_sequence
-from skinsynth.pipeline.examples import bending_bar
+from skinsynth.pipeline.inputs.examples import bending_bar
 
 SKINSYNTH = os.path.join(os.path.dirname(sys.executable), "skinsynth")
 

@@ -6,7 +6,7 @@ import pytest
 from skinsynth.formats.errors import FormatError
 from skinsynth.formats.meshseq import read_mesh_sequence
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.geometry import bounding_box_diagonal
+from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
 from skinsynth.pipeline.skin.skin_fit import fit_skin
 
 pytestmark = pytest.mark.slow
@@ -48,7 +48,7 @@ def _read(shared_data, name):
 def test_samba_synthesis_has_no_visible_seams_and_plays_the_whole_clip(shared_data, single):
     # The capture where the issue measured 16.9× the input's acceleration at seams (multi-component).
     from skinsynth.gpu import lbs
-    from skinsynth.pipeline.geometry import frame_accelerations
+    from skinsynth.pipeline.mesh.geometry import frame_accelerations
     from skinsynth.pipeline.synthesis.graph import build_graph
     from skinsynth.pipeline.synthesis.synthesis import Request, synthesize
 
@@ -153,8 +153,8 @@ def test_horse_gallop_skeleton_is_one_tree_of_joints_inside_the_horse_that_hold(
 
     from cli_helpers import assert_ok, cli
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.geometry import points_inside
-    from skinsynth.pipeline.influence import bone_centroids
+    from skinsynth.pipeline.mesh.geometry import points_inside
+    from skinsynth.pipeline.rig.influence import bone_centroids
 
     path = tmp_path / "horse.h5"
     result = cli("fit-skin", shared_data / "horse_gallop" / "horse_gallop.npz", "-o", path, "--bones", 22,
@@ -189,7 +189,7 @@ def test_horse_gallop_fitted_under_its_own_skeleton_as_usdskel_keeps_tree_names_
     within 1.1x the found rig's (measured 1.04x)."""
     from cli_helpers import assert_ok, cli
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.skeleton import joint_names
+    from skinsynth.pipeline.rig.skeleton import joint_names
 
     gallop = shared_data / "horse_gallop" / "horse_gallop.npz"
     assert_ok(cli("fit-skin", gallop, "-o", tmp_path / "found.h5", "--bones", 22, "--skeleton", "-q"))

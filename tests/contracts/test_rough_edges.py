@@ -102,7 +102,7 @@ def _sections(data):
 def crate(tmp_path_factory):
     """A .usdc the project's writer makes: the bending bar as a point cache at /mesh."""
     from skinsynth.formats.usd import write_points_cache
-    from skinsynth.pipeline.examples import bending_bar
+    from skinsynth.pipeline.inputs.examples import bending_bar
 
     path = tmp_path_factory.mktemp("crate") / "bar.usdc"
     vertices, faces = bending_bar(frames=24)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from skinsynth.formats.gltf import Clip, SkinnedScene, write_skinned_glb
-from skinsynth.pipeline.examples import walker
-from skinsynth.pipeline.skeleton import gltf_clip, gltf_rig
+from skinsynth.pipeline.inputs.examples import walker
+from skinsynth.pipeline.rig.skeleton import gltf_clip, gltf_rig
 
 from glb_reading import glb_document, glb_node_parents, glb_skinned
 

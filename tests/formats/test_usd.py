@@ -259,8 +259,8 @@ def test_a_crowd_saved_as_it_is_written_holds_what_a_crowd_saved_once_holds(tmp_
 def walker_tree():
     """The walker's true rig (an exact jointed LBS) and its JointTree, as pipeline.skeleton makes it."""
     from skinsynth.formats.usd import JointTree
-    from skinsynth.pipeline.examples import walker
-    from skinsynth.pipeline.skeleton import joint_names, rest_locals, tree_local_transforms
+    from skinsynth.pipeline.inputs.examples import walker
+    from skinsynth.pipeline.rig.skeleton import joint_names, rest_locals, tree_local_transforms
 
     _, faces, rig = walker(frames=8, cycles=1, rings=8, segments=6, rig=True)
     local_r, local_t = tree_local_transforms(rig.rotations, rig.translations, rig.joints, rig.parents)

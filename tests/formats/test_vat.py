@@ -11,8 +11,8 @@ import trimesh
 from skinsynth.formats.errors import FormatError
 from skinsynth.formats.scene import Scene
 from skinsynth.formats.vat_bundle import check_texture_size, write_vat_folder
-from skinsynth.pipeline.geometry import vertex_normals
-from skinsynth.pipeline.examples import bending_bar
+from skinsynth.pipeline.mesh.geometry import vertex_normals
+from skinsynth.pipeline.inputs.examples import bending_bar
 
 from cli_helpers import assert_ok, assert_user_error, cli
 

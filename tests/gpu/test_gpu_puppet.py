@@ -9,7 +9,7 @@ import skinsynth.gpu as gpu
 from skinsynth.gpu import puppet_run, skinning
 from skinsynth.gpu.validation import KERNEL_KINDS
 from skinsynth.pipeline.puppet.playback import host_inputs
-from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
+from skinsynth.pipeline.rig.rotations import rigid_to_dual_quaternion
 
 from rigs import random_skin
 
@@ -274,7 +274,7 @@ def test_run_puppet_rejects_bad_input():
 
 @pytest.fixture(scope="module")
 def trained_puppet():
-    from skinsynth.pipeline.examples import synthetic_lbs
+    from skinsynth.pipeline.inputs.examples import synthetic_lbs
     from skinsynth.pipeline.puppet.puppet import train_puppet
 
     data = synthetic_lbs(bones=5, frames=24, rings=16, segments=8)

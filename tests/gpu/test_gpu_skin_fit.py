@@ -38,7 +38,7 @@ def test_the_sweep_kernel_equals_the_numpy_sweep(device):
 
 
 def test_a_fit_on_a_warp_device_is_the_cpu_fit(device):
-    from skinsynth.pipeline.examples import bending_bar
+    from skinsynth.pipeline.inputs.examples import bending_bar
 
     vertices, _ = bending_bar(frames=24, rings=12, segments=8)
     numba_fit = fit_skin(vertices, 4, iterations=8, seed=1)
@@ -50,7 +50,7 @@ def test_a_fit_on_a_warp_device_is_the_cpu_fit(device):
 
 
 def test_bones_on_a_rig_on_a_warp_device_are_the_cpu_solve(device):
-    from skinsynth.pipeline.examples import synthetic_lbs
+    from skinsynth.pipeline.inputs.examples import synthetic_lbs
     from skinsynth.pipeline.skin.skin_fit import fit_bones_to_rig
 
     truth = synthetic_lbs(bones=5, frames=10, seed=4, rings=16, segments=6)
@@ -64,7 +64,7 @@ def test_bones_on_a_rig_on_a_warp_device_are_the_cpu_solve(device):
 
 def test_an_absent_gpu_is_one_line(tmp_path):
     from skinsynth.gpu import available_devices
-    from skinsynth.pipeline.examples import bending_bar
+    from skinsynth.pipeline.inputs.examples import bending_bar
     from skinsynth.formats.meshseq import write_array_sequence
 
     if any(d.startswith("cuda") for d in available_devices()):

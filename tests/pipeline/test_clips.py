@@ -1,9 +1,9 @@
-"""pipeline/clips.py against brute-force enumeration of the frames of a few clips."""
+"""pipeline/inputs/clips.py against brute-force enumeration of the frames of a few clips."""
 
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.clips import Clips
+from skinsynth.pipeline.inputs.clips import Clips
 from skinsynth.pipeline.errors import OptionError
 
 CLIPS = Clips(("gallop", "collapse", "poses"), (5, 3, 4))

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.geometry import vertex_normals
-from skinsynth.pipeline.examples import cylinder_mesh
+from skinsynth.pipeline.mesh.geometry import vertex_normals
+from skinsynth.pipeline.inputs.examples import cylinder_mesh
 
 
 @pytest.mark.parametrize("block_bytes", [1, 5000, 1 << 30])

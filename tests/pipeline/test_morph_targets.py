@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from skinsynth.pipeline import morph_targets
-from skinsynth.pipeline.morph_targets import MAX_MORPH_TARGETS, corrective_morph_targets
+from skinsynth.pipeline.rig.morph_targets import MAX_MORPH_TARGETS, corrective_morph_targets
 
 
 def low_rank(rng, shapes, rank, verts):
@@ -87,7 +87,7 @@ def test_the_targets_do_not_depend_on_the_shapes_order_or_signs():
 def test_a_rigs_morph_targets_turn_and_scale_as_its_positions_and_follow_its_uv_seams():
     """pipeline.skeleton.gltf_rig: displacements in glTF's axes and metres (Z up, centimetres
     here), and a vertex split at a UV seam carries its original's displacement."""
-    from skinsynth.pipeline.skeleton import gltf_rig, to_gltf_axes
+    from skinsynth.pipeline.rig.skeleton import gltf_rig, to_gltf_axes
 
     rng = np.random.default_rng(8)
     rest, faces = rng.normal(size=(4, 3)), np.array([[0, 1, 2], [0, 2, 3]])
@@ -106,7 +106,7 @@ def test_a_rigs_morph_targets_turn_and_scale_as_its_positions_and_follow_its_uv_
 
 
 def test_unit_range_pairs_blend_the_same_with_weights_in_unit_range():
-    from skinsynth.pipeline.morph_targets import unit_range_pairs
+    from skinsynth.pipeline.rig.morph_targets import unit_range_pairs
 
     rng = np.random.default_rng(4)
     shapes, weights = rng.normal(size=(3, 7, 3)), rng.normal(size=(2, 5, 3))

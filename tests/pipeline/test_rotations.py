@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skinsynth.pipeline.rotations import (align_hemispheres, dual_quaternion_to_rigid, matrix_to_quaternion,
+from skinsynth.pipeline.rig.rotations import (align_hemispheres, dual_quaternion_to_rigid, matrix_to_quaternion,
                                           polar_rotation, quaternion_multiply, quaternion_to_matrix,
                                           rigid_to_dual_quaternion, rotation_exp, rotation_log)
 
@@ -70,7 +70,7 @@ def test_log_exp_inverse(rotations):
 def test_polar_decomposition_matches_scipy_and_near_rotations_shortcut(rotations):
     import scipy.linalg
 
-    from skinsynth.pipeline.rotations import apply_rigid_into, polar_decomposition, polar_of_near_rotations
+    from skinsynth.pipeline.rig.rotations import apply_rigid_into, polar_decomposition, polar_of_near_rotations
 
     rng = np.random.default_rng(1)
     stretched = rotations @ (np.eye(3) + 0.1 * rng.normal(size=(50, 3, 3)))

@@ -4,8 +4,8 @@ bone transforms exactly; influences and quantised weights keep their sums."""
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.rotations import quaternion_to_matrix
-from skinsynth.pipeline.skeleton import (float_weights, four_influences, gltf_clip, gltf_rig, inverse_bind_matrices,
+from skinsynth.pipeline.rig.rotations import quaternion_to_matrix
+from skinsynth.pipeline.rig.skeleton import (float_weights, four_influences, gltf_clip, gltf_rig, inverse_bind_matrices,
                                          joint_locals, quantized_weights)
 
 
@@ -83,7 +83,7 @@ def test_a_z_up_rig_in_centimetres_becomes_y_up_metres():
 
 def test_bone_texels_rotate_as_the_shader_formula_says():
     """rotate(q, r) = r + 2 q.xyz × (q.xyz × r + q.w r) with texel 0, plus texel 1, is R r + t."""
-    from skinsynth.pipeline.skeleton import bone_texels, texture_influences
+    from skinsynth.pipeline.rig.skeleton import bone_texels, texture_influences
 
     rng = np.random.default_rng(3)
     rotations, translations = random_rotations(rng, (5, 4)), rng.normal(size=(5, 4, 3))
@@ -107,7 +107,7 @@ TREE_JOINTED = np.array([False, True, True, True, False, True, True, True, True,
 
 
 def test_joint_names_follow_the_chains_in_depth_first_order():
-    from skinsynth.pipeline.skeleton import depth_first, joint_names
+    from skinsynth.pipeline.rig.skeleton import depth_first, joint_names
 
     assert joint_names(TREE, TREE_JOINTED) == [
         "chain_00_joint_00", "chain_01_joint_00", "chain_01_joint_01", "chain_01_joint_02",
@@ -128,7 +128,7 @@ def test_joint_names_follow_the_chains_in_depth_first_order():
 
 def _compose_down(parents, local_r, local_t, root_r, root_t):
     """World matrices (F, B, 4, 4) of a tree's joints from their parent-local transforms."""
-    from skinsynth.pipeline.skeleton import depth_first
+    from skinsynth.pipeline.rig.skeleton import depth_first
 
     frames, bones = local_r.shape[:2]
     local = np.tile(np.eye(4), (frames, bones, 1, 1))
@@ -143,7 +143,7 @@ def _compose_down(parents, local_r, local_t, root_r, root_t):
 
 @pytest.mark.parametrize("moving_root", [False, True], ids=["fixed root", "moving root"])
 def test_tree_locals_composed_down_the_tree_are_the_joints_world_matrices(moving_root):
-    from skinsynth.pipeline.skeleton import tree_local_transforms, tree_locals
+    from skinsynth.pipeline.rig.skeleton import tree_local_transforms, tree_locals
 
     rng = np.random.default_rng(4)
     frames, bones = 6, len(TREE)
@@ -171,8 +171,8 @@ def test_tree_locals_composed_down_the_tree_are_the_joints_world_matrices(moving
 def test_a_jointed_bones_local_translation_is_its_constant_bone_vector():
     """The walker's true rig: every joint holds, so each jointed bone's translation local to its
     parent is c_j − c_p in every frame (its length constant); the rest locals compose to the joints."""
-    from skinsynth.pipeline.examples import walker
-    from skinsynth.pipeline.skeleton import rest_locals, tree_local_transforms
+    from skinsynth.pipeline.inputs.examples import walker
+    from skinsynth.pipeline.rig.skeleton import rest_locals, tree_local_transforms
 
     _, _, rig = walker(frames=12, cycles=1, rings=8, segments=6, rig=True)
     local_r, local_t = tree_local_transforms(rig.rotations, rig.translations, rig.joints, rig.parents)
@@ -189,8 +189,8 @@ def test_a_gltf_rig_of_a_tree_skins_as_the_lbs(up_axis, meters_per_unit, moving_
     """An engine's skinning of the tree rig (locals composed down the joints' parents, times the
     inverse binds) is the LBS, in glTF's axes and units; the nodes' rest translations compose to
     the joints."""
-    from skinsynth.pipeline.examples import walker
-    from skinsynth.pipeline.skeleton import _converted
+    from skinsynth.pipeline.inputs.examples import walker
+    from skinsynth.pipeline.rig.skeleton import _converted
 
     _, faces, rig = walker(frames=12, cycles=1, rings=8, segments=6, rig=True)
     indices = np.tile(np.arange(10), (len(rig.rest), 1))
@@ -220,8 +220,8 @@ def test_a_gltf_rig_of_a_tree_skins_as_the_lbs(up_axis, meters_per_unit, moving_
 
 
 def test_two_bone_inverse_kinematics_brings_each_foot_to_its_target_and_keeps_the_joints():
-    from skinsynth.pipeline.rotations import rotation_exp
-    from skinsynth.pipeline.skeleton import hold_joints, reach_with_legs
+    from skinsynth.pipeline.rig.rotations import rotation_exp
+    from skinsynth.pipeline.rig.skeleton import hold_joints, reach_with_legs
 
     rng = np.random.default_rng(4)
     parents, jointed = np.array([-1, 0, 1, 2]), np.array([False, True, True, True])  # body, thigh, shin, foot

@@ -4,8 +4,8 @@ vertex, the split is the least one, originals first; and the glTF rig split at t
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.skeleton import gltf_rig
-from skinsynth.pipeline.uv_seams import gltf_texcoords, split_uv_seams
+from skinsynth.pipeline.rig.skeleton import gltf_rig
+from skinsynth.pipeline.mesh.uv_seams import gltf_texcoords, split_uv_seams
 
 
 def reference_split(faces, face_uvs, vertex_count):

@@ -9,7 +9,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from skinsynth.formats.meshseq import read_mesh_sequence
-from skinsynth.pipeline.examples import WALKER_PARTS, _two_link, walker, walker_contacts
+from skinsynth.pipeline.inputs.examples import WALKER_PARTS, _two_link, walker, walker_contacts
 
 from cli_helpers import assert_ok, assert_user_error, cli
 

@@ -14,8 +14,8 @@ from skinsynth.pipeline.puppet.baselines import (
     predict_rbf,
 )
 from skinsynth.pipeline.errors import OptionError
-from skinsynth.pipeline.examples import bending_bar
-from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.inputs.examples import bending_bar
+from skinsynth.pipeline.rig.rotations import rotation_exp
 
 CONTROLS = np.array([3, 17, 29, 41, 55])
 

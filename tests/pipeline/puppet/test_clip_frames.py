@@ -4,7 +4,7 @@ each clip, --clips, and evaluate's whole-clip hold-out, against frames enumerate
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.clips import Clips
+from skinsynth.pipeline.inputs.clips import Clips
 from skinsynth.pipeline.errors import OptionError
 from skinsynth.pipeline.puppet.evaluation import clip_hold_out_split
 from skinsynth.pipeline.puppet.puppet import clip_training_frames, parse_frame_spec

@@ -19,7 +19,7 @@ from skinsynth.formats.model import read_model, write_model
 from skinsynth.pipeline.puppet.controls import (align_in_place, choose_controls, pca_bases, representative_vertices,
                                          select_controls)
 from skinsynth.pipeline.errors import OptionError
-from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.rig.rotations import rotation_exp
 
 from cli_helpers import assert_ok, cli
 from skinsynth.pipeline.puppet.varimax import varimax

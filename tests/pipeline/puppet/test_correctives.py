@@ -8,9 +8,9 @@ from skinsynth.gpu import (corrective_offsets, corrective_offsets_reference, dq_
                            reference_run_puppet, run_puppet)
 from skinsynth.pipeline.puppet.correctives import (POWER_GRID, RIDGE_GRID, Model, blend_weights, choose_model,
                                             fit_correctives, rest_offsets)
-from skinsynth.pipeline.examples import synthetic_lbs
+from skinsynth.pipeline.inputs.examples import synthetic_lbs
 from skinsynth.pipeline.puppet.puppet import predict_vertices, train_puppet
-from skinsynth.pipeline.rotations import rigid_to_dual_quaternion
+from skinsynth.pipeline.rig.rotations import rigid_to_dual_quaternion
 
 from rigs import random_skin
 
@@ -37,7 +37,7 @@ def bulging_tube(frames=40):
     """An LBS tube whose four bones follow a smooth one-parameter motion (a walk-like cycle),
     plus a bulge no bone motion makes: vertices near the middle move along their own radial
     direction by an amount that depends on the pose (the case skinning cannot fit)."""
-    from skinsynth.pipeline.rotations import rotation_exp
+    from skinsynth.pipeline.rig.rotations import rotation_exp
 
     data = synthetic_lbs(bones=4, frames=2, rings=16, segments=8, seed=3)
     rng = np.random.default_rng(1)
@@ -155,7 +155,7 @@ def test_usdskel_plays_the_correctives_as_blend_shapes(tmp_path):
     rotations, translations, weights = world_bones(puppet, controls)
     path = str(tmp_path / "corrected.usda")
     centres = np.zeros((rotations.shape[1], 3))
-    from skinsynth.pipeline.morph_targets import unit_range_pairs
+    from skinsynth.pipeline.rig.morph_targets import unit_range_pairs
 
     pairs = unit_range_pairs(puppet.correctives.offsets, np.stack([weights] * 2))
     names = [f"shape_{j:03d}{s}" for j in range(len(pairs[0]) // 2) for s in "pn"]

@@ -6,13 +6,13 @@ import pytest
 from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.puppet.alignment import apply_frames, control_frames
 from skinsynth.pipeline.errors import OptionError
-from skinsynth.pipeline.examples import synthetic_lbs
+from skinsynth.pipeline.inputs.examples import synthetic_lbs
 from skinsynth.pipeline.puppet.kcca import choose_regularization, control_kernel, fit_kcca, predict
-from skinsynth.pipeline.geometry import mesh_edges
+from skinsynth.pipeline.mesh.geometry import mesh_edges
 from skinsynth.pipeline.puppet.poisson import (fit_edge_weights, solve_translations,
                                         translation_operator)
 from skinsynth.pipeline.puppet.puppet import parse_frame_spec, predict_vertices, train_puppet
-from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.rig.rotations import rotation_exp
 
 
 def inverse_sqrt(s):

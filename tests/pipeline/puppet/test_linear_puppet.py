@@ -8,7 +8,7 @@ from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.puppet.correctives import (LINEAR_RIDGE, Model, blend_operator, cross_validated_errors,
                                                    linear_vertex_maps, rest_offsets)
 from skinsynth.pipeline.puppet.puppet import predict_vertices, train_puppet
-from skinsynth.pipeline.rotations import dual_quaternion_to_rigid
+from skinsynth.pipeline.rig.rotations import dual_quaternion_to_rigid
 
 from rigs import random_skin
 from test_correctives import CONTROLS, bulging_tube, random_dual_quaternions

@@ -7,7 +7,7 @@ from skinsynth.pipeline.errors import OptionError
 from skinsynth.pipeline.puppet.markers import (drive_from_markers, fill_from_training, fill_short_gaps,
                                                resample_uniform, similarity_transform, stabilize_markers,
                                                training_subspace, up_axis_rotation)
-from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.rig.rotations import rotation_exp
 
 
 def _rotation(seed):

@@ -3,8 +3,8 @@
 import numpy as np
 
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.examples import synthetic_lbs
-from skinsynth.pipeline.geometry import bounding_box_diagonal
+from skinsynth.pipeline.inputs.examples import synthetic_lbs
+from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
 from skinsynth.pipeline.skin.skin_fit import fit_bones_to_rig, fit_skin
 
 

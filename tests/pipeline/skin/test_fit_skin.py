@@ -6,9 +6,9 @@ from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.skin.bone_transforms import (Trajectories, refine_bone_transforms, update_bone_transforms,
                                                 weighted_sums)
 from skinsynth.pipeline.errors import OptionError
-from skinsynth.pipeline.examples import cylinder_mesh, synthetic_lbs
-from skinsynth.pipeline.rotations import rotation_exp
-from skinsynth.pipeline.geometry import bounding_box_diagonal
+from skinsynth.pipeline.inputs.examples import cylinder_mesh, synthetic_lbs
+from skinsynth.pipeline.rig.rotations import rotation_exp
+from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
 from skinsynth.pipeline.skin.skin_fit import bone_rest_frames, fit_skin
 
 

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.examples import walker
-from skinsynth.pipeline.geometry import bounding_box_diagonal, points_inside
-from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.inputs.examples import walker
+from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal, points_inside
+from skinsynth.pipeline.rig.rotations import rotation_exp
 from skinsynth.pipeline.skin.joints import Skeleton, find_skeleton
 from skinsynth.pipeline.skin.jointed_fit import chain_coefficients, fit_jointed, world_transforms
 

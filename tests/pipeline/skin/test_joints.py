@@ -5,10 +5,10 @@ inside is known."""
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.examples import walker
-from skinsynth.pipeline.geometry import points_inside, winding_numbers
-from skinsynth.pipeline.rotations import rotation_exp
-from skinsynth.pipeline.skeleton import depth_first
+from skinsynth.pipeline.inputs.examples import walker
+from skinsynth.pipeline.mesh.geometry import points_inside, winding_numbers
+from skinsynth.pipeline.rig.rotations import rotation_exp
+from skinsynth.pipeline.rig.skeleton import depth_first
 from skinsynth.pipeline.skin.joints import Skeleton, find_skeleton, inside_mesh, joint_positions, skeleton_tree
 
 

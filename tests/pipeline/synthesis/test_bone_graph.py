@@ -6,7 +6,7 @@ import pytest
 
 from skinsynth.pipeline.synthesis.bone_graph import (bone_components, bone_graph_weights, decompose,
                                            prune_weak_edges)
-from skinsynth.pipeline.examples import synthetic_lbs
+from skinsynth.pipeline.inputs.examples import synthetic_lbs
 
 
 def random_model(vertices=60, bones=7, slots=3, seed=0):

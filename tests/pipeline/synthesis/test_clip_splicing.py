@@ -1,4 +1,4 @@
-"""Splicing walks over several clips of one mesh (issue 26; pipeline/clips.py conventions).
+"""Splicing walks over several clips of one mesh (issue 26; pipeline/inputs/clips.py conventions).
 
 Independent truths: a periodic world cut into two clips (the second recorded elsewhere on the
 ground) whose exact continuation is known, so walks that cross from one clip into the other —
@@ -10,8 +10,8 @@ exactly; away from windows a segment is its input moved rigidly (eq. 7); one cli
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.clips import Clips
-from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.inputs.clips import Clips
+from skinsynth.pipeline.rig.rotations import rotation_exp
 from skinsynth.pipeline.synthesis.graph import build_graph
 from skinsynth.pipeline.synthesis.splicing import (blend_series, reference_alignment, seam_guidance, seam_windows,
                                                   splice, splice_local, walk_seams)
@@ -114,7 +114,7 @@ def test_away_from_windows_segments_across_clips_are_their_input_moved_rigidly(b
 
 
 def test_seam_guidance_reads_neither_across_a_clip_end_nor_before_a_clip_start():
-    from skinsynth.pipeline.rotations import rotation_log
+    from skinsynth.pipeline.rig.rotations import rotation_log
 
     rng = np.random.default_rng(4)
     clips = Clips(("a", "one", "b"), (12, 1, 8))  # frames 0–11, 12, 13–20

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy.ndimage import minimum_filter
 
-from skinsynth.pipeline.clips import Clips
-from skinsynth.pipeline.examples import synthetic_lbs
-from skinsynth.pipeline.rotations import rotation_exp, rotation_log
+from skinsynth.pipeline.inputs.clips import Clips
+from skinsynth.pipeline.inputs.examples import synthetic_lbs
+from skinsynth.pipeline.rig.rotations import rotation_exp, rotation_log
 from skinsynth.pipeline.synthesis.motion_graph import (MotionGraph, constrained_walks, random_walks, recurrent_frames,
                                                        seams, transitions_between, walk_statistics)
 from skinsynth.pipeline.synthesis.transitions import (candidate_transitions, find_transitions, posture_costs,
@@ -371,7 +371,7 @@ def test_an_analysis_made_again_as_one_component_keeps_the_clips_and_the_walk_cl
     must read the frames as the same clips, with the same clips left out of the walks."""
     from types import SimpleNamespace
 
-    from skinsynth.pipeline.examples import synthetic_lbs
+    from skinsynth.pipeline.inputs.examples import synthetic_lbs
     from skinsynth.pipeline.synthesis.synthesis import synthesis_components
 
     truth = synthetic_lbs(bones=4, frames=30, seed=2, rings=16, segments=6)

@@ -4,9 +4,9 @@ from scipy.spatial.transform import Rotation
 
 from skinsynth.pipeline.synthesis.deformation_gradients import (deformation_gradients, gradient_operator, pack_positions,
                                                       rotation_strain, rotation_strain_to_matrix)
-from skinsynth.pipeline.examples import synthetic_lbs
+from skinsynth.pipeline.inputs.examples import synthetic_lbs
 from skinsynth.pipeline.synthesis.key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
-from skinsynth.pipeline.rotations import rotation_log
+from skinsynth.pipeline.rig.rotations import rotation_log
 
 from test_key_vertices import irregular_sphere, random_sparse_weights
 

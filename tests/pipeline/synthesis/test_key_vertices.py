@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from skinsynth.pipeline.examples import cylinder_mesh, synthetic_lbs
+from skinsynth.pipeline.inputs.examples import cylinder_mesh, synthetic_lbs
 from skinsynth.pipeline.synthesis.key_vertices import (gather_weights, key_vertices, related_bones, vertex_neighbours,
                                              weight_gradients)
 

@@ -3,9 +3,9 @@ import pytest
 
 from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.puppet.alignment import control_frames
-from skinsynth.pipeline.examples import bending_bar, synthetic_lbs
+from skinsynth.pipeline.inputs.examples import bending_bar, synthetic_lbs
 from skinsynth.pipeline.synthesis.graph import build_graph
-from skinsynth.pipeline.rotations import rotation_exp
+from skinsynth.pipeline.rig.rotations import rotation_exp
 from skinsynth.pipeline.skin.skin_fit import fit_skin
 from skinsynth.pipeline.synthesis.splicing import blend_series, seam_windows, splice, walk_sources
 from skinsynth.pipeline.synthesis.transitions import bone_centroids, candidate_transitions
@@ -459,7 +459,7 @@ def test_a_poor_wrap_is_blended_like_any_transition():
 
 def test_seam_guidance_extrapolates_frame_minus_1_as_frame_0_going_backwards():
     from skinsynth.pipeline.synthesis.splicing import seam_guidance
-    from skinsynth.pipeline.rotations import rotation_log
+    from skinsynth.pipeline.rig.rotations import rotation_log
 
     rng = np.random.default_rng(8)
     frames = 20

@@ -3,8 +3,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from skinsynth.pipeline.errors import OptionError
-from skinsynth.pipeline.examples import synthetic_lbs
-from skinsynth.pipeline.rotations import rotation_exp, rotation_log
+from skinsynth.pipeline.inputs.examples import synthetic_lbs
+from skinsynth.pipeline.rig.rotations import rotation_exp, rotation_log
 from skinsynth.pipeline.synthesis.transitions import (bone_coordinate_matrix, candidate_transitions, find_transitions,
                                             local_frame_positions, pairwise_squared_distances,
                                             reduced_coordinates, reference_bone, reference_motion,

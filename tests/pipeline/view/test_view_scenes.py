@@ -82,7 +82,7 @@ def test_seam_frames_mark_every_jump():
 
 
 def test_seam_frames_of_several_clips_mark_playing_into_the_next_clips_first_frame():
-    from skinsynth.pipeline.clips import Clips
+    from skinsynth.pipeline.inputs.clips import Clips
 
     clips = Clips(("a", "b"), (6, 30))  # b begins at frame 6
     sources = np.array([[4, 5, 6, 7, 21, 22], [0, 1, 2, 3, 4, 5], [29, 30, 6, 7, 8, 0]])
@@ -172,7 +172,7 @@ def test_planted_vertices_are_the_patches_planted_at_the_frame():
 def test_skeleton_lines_join_each_jointed_bone_to_its_parent_where_the_bones_carry_them():
     """The walker's true rig: every joint where both its bones put it, a line per jointed bone from
     its parent's joint, none for a bone marked free."""
-    from skinsynth.pipeline.examples import walker
+    from skinsynth.pipeline.inputs.examples import walker
 
     _, _, rig = walker(frames=6, cycles=1, rings=6, segments=4, rig=True)
     jointed = rig.parents >= 0

@@ -13,7 +13,7 @@ axis), so captures of any scale compare; docs/contact.md states the same definit
 - **Contact vertices** of the step m → m+1: the vertices within ``band`` (1 %) of H above the
   ground (or anywhere below it) at both frames m and m+1, where frame m plays on to m+1 (in an
   input of several clips, no step joins one clip's last frame to the next one's first:
-  :meth:`~skinsynth.pipeline.clips.Clips.plays_on`). A step with none is not a contact step.
+  :meth:`~skinsynth.pipeline.inputs.clips.Clips.plays_on`). A step with none is not a contact step.
 - **Slide** of a contact step: the median, over its contact vertices, of their horizontal
   displacement (the up component removed) from m to m+1, over H (the median: one vertex of a
   heel that lifts does not make a planted foot slide). Reported: its median and 95th percentile
@@ -159,7 +159,7 @@ def ratios(output, input_):
 
 def measure_input(vertices, starts, height, up_axis=1, block=64):
     """An input of one or more clips, vertices (F, V, 3), clip c being frames starts[c] …
-    starts[c+1] − 1 (:attr:`~skinsynth.pipeline.clips.Clips.starts`): (its :class:`Steps`, each
+    starts[c+1] − 1 (:attr:`~skinsynth.pipeline.inputs.clips.Clips.starts`): (its :class:`Steps`, each
     clip's ground (C,)). No step or second difference crosses from one clip into the next."""
     starts = np.asarray(starts, dtype=np.int64)
     grounds = np.array([clip_ground(vertices[a:b], up_axis) for a, b in zip(starts[:-1], starts[1:])])

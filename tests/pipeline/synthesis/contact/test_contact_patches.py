@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from skinsynth.pipeline.clips import Clips
+from skinsynth.pipeline.inputs.clips import Clips
 from skinsynth.pipeline.errors import OptionError
-from skinsynth.pipeline.synthesis.contact_patches import find_contacts, runs
+from skinsynth.pipeline.synthesis.contact.patches import find_contacts, runs
 
 FPS = 10.0
 

@@ -63,7 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..influence import dense_weights
+from ...rig.influence import dense_weights
 
 #: Frames over which a correction is dilated and then smoothed (each side).
 RADIUS = 8

@@ -1,10 +1,10 @@
-"""The feet measures (issue 35 part 4) on closed forms: pipeline/synthesis/contact_measures.py."""
+"""The feet measures (issue 35 part 4) on closed forms: pipeline/synthesis/contact/measures.py."""
 
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.clips import Clips
-from skinsynth.pipeline.synthesis.contact_measures import (BAND, Steps, character_height, clip_ground, contact_steps,
+from skinsynth.pipeline.inputs.clips import Clips
+from skinsynth.pipeline.synthesis.contact.measures import (BAND, Steps, character_height, clip_ground, contact_steps,
                                                            measure_frames, measure_input, ratios, summary)
 
 

@@ -308,7 +308,7 @@ def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis=
     (:func:`joint_parents`), ``bind_translations`` local to it (:func:`rest_locals`) and the
     bones named by :func:`joint_names` (``jointed`` (B,) marks the free bones); the inverse
     binds are the same translations by −c_j."""
-    from .geometry import vertex_normals
+    from ..mesh.geometry import vertex_normals
 
     positions = _converted(up_axis, meters_per_unit, rest_vertices)
     normals = vertex_normals(positions[None], faces)[0]
@@ -327,7 +327,7 @@ def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis=
     if morph_targets is not None:
         rig["morph_targets"] = _converted(up_axis, meters_per_unit, morph_targets)
     if face_uvs is not None:
-        from .uv_seams import gltf_texcoords, split_uv_seams
+        from ..mesh.uv_seams import gltf_texcoords, split_uv_seams
 
         vertex_map, split_faces, uvs = split_uv_seams(faces, face_uvs, len(positions))
         rig.update({name: rig[name][vertex_map] for name in ("positions", "normals", "joints", "weights")},

@@ -263,7 +263,7 @@ class Cluster:
         import dask
         from distributed import Client, LocalCluster
 
-        from .errors import OptionError
+        from ..errors import OptionError
 
         self.address, self._local = address, None
         if address.startswith("local:"):
@@ -326,7 +326,7 @@ class Cluster:
         import threading
         import time
 
-        from .errors import OptionError
+        from ..errors import OptionError
 
         timeout = timeout if timeout is not None else cls.CONNECT_TIMEOUT + cls.WORKER_TIMEOUT + 10.0
         remote = not address.startswith("local:")
@@ -404,7 +404,7 @@ def _check_reachable(address, timeout):
 
     from distributed.comm import get_address_host_port
 
-    from .errors import OptionError
+    from ..errors import OptionError
 
     try:
         host, port = get_address_host_port(address)
@@ -498,7 +498,7 @@ def _roomy_allocator():
 def _run_remote(make, args, batches, output_shapes, progress, remote):
     from distributed import CancelledError, KilledWorker, as_completed
 
-    from .errors import OptionError
+    from ..errors import OptionError
 
     client = remote.cluster.client
     handles, rests, done, pending = [None] * len(batches), [None] * len(batches), 0, {}

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from skinsynth.formats.meshseq import read_mesh_sequence
-from skinsynth.pipeline.synthesis.contact_patches import find_contacts
+from skinsynth.pipeline.synthesis.contact.patches import find_contacts
 
 pytestmark = pytest.mark.slow
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.rotations import rotation_exp
-from skinsynth.pipeline.influence import dense_weights
-from skinsynth.pipeline.synthesis.contact import (contact_offsets,
+from skinsynth.pipeline.rig.rotations import rotation_exp
+from skinsynth.pipeline.rig.influence import dense_weights
+from skinsynth.pipeline.synthesis.contact.ground import (contact_offsets,
                                                   ground_excess, height_operator, keep_contact, lowest_heights, lowest_range,
                                                   support, support_lowest)
 
@@ -132,7 +132,7 @@ def test_the_band_of_lowest_points_spans_every_clip():
 def test_ground_floored_raises_only_the_lower_end():
     """The band's floor with ground contacts: the lowest clip ground less the tolerance, never
     lowered, never above the band's upper end."""
-    from skinsynth.pipeline.synthesis.contact import Support, ground_floored
+    from skinsynth.pipeline.synthesis.contact.ground import Support, ground_floored
 
     found = Support(vertices=np.arange(3), bones=np.arange(2), operator=np.zeros((8, 3)), lo=-0.05, hi=0.1,
                     height=2.0, up_axis=1)
@@ -145,7 +145,7 @@ def test_ground_floored_raises_only_the_lower_end():
 def test_support_without_drops_the_vertices_and_keeps_the_others_heights():
     """support_without: the remaining vertices' lowest heights are those of the full support's
     columns for them (bones only they needed dropped); removing every vertex leaves none."""
-    from skinsynth.pipeline.synthesis.contact import support, support_lowest, support_without
+    from skinsynth.pipeline.synthesis.contact.ground import support, support_lowest, support_without
 
     rng = np.random.default_rng(2)
     V, B, frames = 40, 5, 6

@@ -36,11 +36,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..clips import Clips
-from ..errors import OptionError
-from ..geometry import vertex_normals
-from .contact_measures import clip_ground
-from .graph_options import GraphOptions
+from ...inputs.clips import Clips
+from ...errors import OptionError
+from ...mesh.geometry import vertex_normals
+from .measures import clip_ground
+from ..graph_options import GraphOptions
 
 _DEFAULT = GraphOptions()
 
@@ -199,7 +199,7 @@ def _mesh_parts(faces, members, count):
 
 def _vertex_normals(vertices, faces, members):
     """Unit area-weighted normals (F, N, 3) of the vertices ``members`` (sorted ids) in every
-    frame of vertices (F, V, 3): :func:`~skinsynth.pipeline.geometry.vertex_normals` of the part of
+    frame of vertices (F, V, 3): :func:`~skinsynth.pipeline.mesh.geometry.vertex_normals` of the part of
     the mesh made of the faces that touch them (a member's normal depends on those faces alone)."""
     faces = np.asarray(faces, dtype=np.int64)
     inside = np.zeros(vertices.shape[1], bool)

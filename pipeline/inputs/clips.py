@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import OptionError
+from ..errors import OptionError
 
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9_.\-]+$")
 

@@ -1,7 +1,7 @@
-"""Feet that stay planted (issue 35, part 3: :mod:`skinsynth.pipeline.synthesis.planting`).
+"""Feet that stay planted (issue 35, part 3: :mod:`skinsynth.pipeline.synthesis.contact.planting`).
 
 The planted walker (``walker(planted=True)``: its feet truly rest, level and still, on y = 0 during
-stance; :func:`~skinsynth.pipeline.examples.walker_contacts` is the closed-form truth) is fitted and
+stance; :func:`~skinsynth.pipeline.inputs.examples.walker_contacts` is the closed-form truth) is fitted and
 analysed once per module; its syntheses are checked on the skinned vertices of each contact patch,
 never on the module's own linear centroids. The small functions are checked by hand.
 """
@@ -13,12 +13,12 @@ import pytest
 
 from skinsynth.formats.graph_file import read_graph
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.clips import Clips
-from skinsynth.pipeline.examples import walker_contacts
+from skinsynth.pipeline.inputs.clips import Clips
+from skinsynth.pipeline.inputs.examples import walker_contacts
 from skinsynth.pipeline.synthesis import Request, keep_input_plants, synthesis_components
-from skinsynth.pipeline.synthesis.planting import (KEEP_USABLE, agreeing_transitions, limb_influence, output_states,
+from skinsynth.pipeline.synthesis.contact.planting import (KEEP_USABLE, agreeing_transitions, limb_influence, output_states,
                                                    plant_feet, mark_contact_jumps, contact_transitions)
-from skinsynth.pipeline.synthesis.planting_loops import blend_edges_row
+from skinsynth.pipeline.synthesis.contact.planting_loops import blend_edges_row
 
 from planting_reference import _blend_edges, _shifted, plant_feet_reference
 from skinsynth.pipeline.synthesis.synthesis import synthesize
@@ -356,7 +356,7 @@ def test_blend_edges_decays_to_zero_and_is_continuous():
 
 
 def test_blend_edges_per_frame_step_matched_at_default_decay():
-    from skinsynth.pipeline.synthesis.planting import HALF_LIFE
+    from skinsynth.pipeline.synthesis.contact.planting import HALF_LIFE
 
     y = 2 * np.log(2) / (HALF_LIFE * 24)
     _, after, b, e, _ = _one_plant(decay=y)
@@ -548,7 +548,7 @@ def test_bridge_gaps_by_hand_and_against_the_reference():
     frames before the first plant or after the last, are not."""
     from planting_reference import _bridged
 
-    from skinsynth.pipeline.synthesis.planting_loops import bridge_gaps
+    from skinsynth.pipeline.synthesis.contact.planting_loops import bridge_gaps
 
     state = np.array([0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 0], bool)
     expected = np.array([0, 1, 1, 1, 1, 1, 0, 0, 0, 1, 0], bool)

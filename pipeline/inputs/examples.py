@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rotations import rotation_exp
+from ..rig.rotations import rotation_exp
 
 
 def cylinder_mesh(rings=40, segments=16, length=4.0, radius=0.5):

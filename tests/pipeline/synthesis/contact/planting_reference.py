@@ -1,16 +1,16 @@
-"""The numpy reference of :func:`skinsynth.pipeline.synthesis.planting_loops.plant_animations`:
-the same steps (:mod:`skinsynth.pipeline.synthesis.planting`'s module notes) on whole arrays of
+"""The numpy reference of :func:`skinsynth.pipeline.synthesis.contact.planting_loops.plant_animations`:
+the same steps (:mod:`skinsynth.pipeline.synthesis.contact.planting`'s module notes) on whole arrays of
 animations, patches and frames, as they were first written. The compiled loops must match it to
 rounding (tests/pipeline/synthesis/test_planting.py)."""
 
 import numpy as np
 
-from skinsynth.pipeline.synthesis.contact import _raise
-from skinsynth.pipeline.synthesis.planting import centre_operator
+from skinsynth.pipeline.synthesis.contact.ground import _raise
+from skinsynth.pipeline.synthesis.contact.planting import centre_operator
 
 
 def plant_feet_reference(F, t, sources, rig, block=16):
-    """:func:`skinsynth.pipeline.synthesis.planting.plant_feet` in numpy: F, t in place; returns
+    """:func:`skinsynth.pipeline.synthesis.contact.planting.plant_feet` in numpy: F, t in place; returns
     the planted states (A, P, M)."""
     states = np.zeros((F.shape[0], rig.owner.size, F.shape[1]), bool)
     for a in range(0, F.shape[0], block):
@@ -175,7 +175,7 @@ def _centres(F, t, rig):
 
 def _heading(matrices, up_axis):
     """The turn about the up axis within each matrix (..., 3, 3) (any, not only rotations) -> (..., 3, 3)."""
-    from skinsynth.pipeline.rotations import rotation_exp
+    from skinsynth.pipeline.rig.rotations import rotation_exp
 
     i, j = (up_axis + 1) % 3, (up_axis + 2) % 3
     angle = np.arctan2(matrices[..., j, i] - matrices[..., i, j], matrices[..., i, i] + matrices[..., j, j])
@@ -189,7 +189,7 @@ def _turn_feet(F, t, src, state, centre, rig):
     centroids centre (A, P, M, 3) (the patches that share a turned bone move with it) in place."""
     from scipy.ndimage import gaussian_filter1d
 
-    from skinsynth.pipeline.rotations import rotation_exp
+    from skinsynth.pipeline.rig.rotations import rotation_exp
 
     turning = np.flatnonzero([bones.size > 0 for bones in rig.own])
     if not turning.size:

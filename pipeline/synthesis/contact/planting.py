@@ -54,7 +54,7 @@ in :mod:`.planting_loops`, one animation at a time):
    start and end carry no velocity jump.
 
 Why translations and a foot's turn, not IK: the fitted rig has no joints (one root, every bone
-free: :mod:`~skinsynth.pipeline.skeleton`), so there is no chain to bend; a bone's translation is
+free: :mod:`~skinsynth.pipeline.rig.skeleton`), so there is no chain to bend; a bone's translation is
 its free parameter, and a correction spread by the weights is how the rig itself blends bones.
 
 After the plants, synthesize still keeps the input's range of lowest points (:mod:`.contact`), a
@@ -71,9 +71,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contact import raised_cosine
-from ..influence import dense_weights
-from .contact_patches import patch_vertices
+from .ground import raised_cosine
+from ...rig.influence import dense_weights
+from .patches import patch_vertices
 
 #: Half-life (seconds) of the blend in and out of a limb correction, and the σ of the root's smoothing.
 HALF_LIFE = 0.1
@@ -184,7 +184,7 @@ def bone_hops(bone_indices, bone_weights, bones, coupling=COUPLING):
     × the largest; unreachable: inf)."""
     from scipy.sparse.csgraph import shortest_path
 
-    from .bone_graph import bone_graph_weights
+    from ..bone_graph import bone_graph_weights
 
     d = bone_graph_weights(bone_indices, bone_weights, bones)
     adjacent = (d >= coupling * d.max()) if d.max() > 0 else np.zeros_like(d, bool)
@@ -217,7 +217,7 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     :data:`BRIDGE`); hold and limb_memory (seconds, :data:`HOLD`, :data:`LIMB_MEMORY`); samples:
     the sample vertex ids (P, S) of :func:`lowest_samples` when the caller has them already
     (None: found here)."""
-    from ..rotations import polar_rotation
+    from ...rig.rotations import polar_rotation
 
     rest = np.asarray(rest, dtype=np.float64)
     frames, B = rotations.shape[:2]
@@ -419,7 +419,7 @@ def mark_contact_jumps(components, contacts, bone_indices, bone_weights, clips=N
     as they are: a synthesis without contacts (``--no-contact``) walks every one. contacts: the
     input's :class:`.contact_patches.ContactPatches`. Returns (refused, kept_all) per component:
     how many are refused, and whether the component kept them all for want of walks."""
-    from ..clips import Clips
+    from ...inputs.clips import Clips
 
     frames = contacts.planted.shape[0]
     clips = clips or Clips.single(frames)
@@ -463,8 +463,8 @@ def contact_transitions(transitions, agrees):
 
 def _usable(frames, pairs, clips):
     """How many frames a motion graph over ``pairs`` can play forever from (0: none)."""
-    from ..errors import OptionError
-    from .motion_graph import MotionGraph
+    from ...errors import OptionError
+    from ..motion_graph import MotionGraph
 
     try:
         return MotionGraph(frames, pairs, None, clips).usable_count
