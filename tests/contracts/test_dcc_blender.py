@@ -88,7 +88,7 @@ def test_blender_shows_a_centimetre_z_up_capture_at_its_size_axis_and_frames(tmp
     (metersPerUnit 0.01 applied), unrotated (Z up kept), at the same frame numbers."""
     from pxr import Usd, UsdGeom
 
-    from test_interchange import production_capture
+    from capture_cases import production_capture
 
     vertices, faces = bending_bar(frames=24, rings=10, segments=8)
     production_capture(tmp_path / "capture.usda", vertices, faces)
@@ -160,7 +160,7 @@ def test_blender_plays_the_glb_as_skinsynth_skins_it(stages, tmp_path, case):
     """Blender's glTF import of each clip, at its first, a middle and its last frame, is skinsynth's
     own LBS of that clip to 1e-4 of the diagonal, vertex for vertex (measured 2e-7, 3e-7 and 1e-7:
     float32)."""
-    from test_gltf import in_gltf_axes, skin_of
+    from gltf_clients import in_gltf_axes, skin_of
 
     skin = skin_of(stages / "skin.h5")  # the rig of every case: the synthesis's and the puppet's are this fit's
     out = tmp_path / "out.glb"
@@ -204,7 +204,7 @@ def _tree_by_name(skin):
 def test_blender_imports_a_jointed_skins_glb_as_its_tree_and_plays_it_as_its_lbs(jointed_skins, tmp_path, source):
     """Blender's glTF import of a skin with a skeleton: an armature whose bones are parented as
     the tree, and the mesh it skins at three frames is skinsynth's LBS to 1e-4 of the diagonal."""
-    from test_gltf import in_gltf_axes, skin_of
+    from gltf_clients import in_gltf_axes, skin_of
 
     skin = skin_of(jointed_skins / source)
     out = tmp_path / "tree.glb"
@@ -271,7 +271,7 @@ def test_blender_turning_a_jointed_skins_knee_moves_what_hangs_below_it_and_noth
     there by less than 1e-6 (measured 0): a joint turns the bones under it, and only those. The
     import keeps skinsynth's vertex order (its rest is the skin's, vertex for vertex)."""
     from skinsynth.pipeline.rig.skeleton import joint_names
-    from test_gltf import in_gltf_axes, skin_of
+    from gltf_clients import in_gltf_axes, skin_of
 
     skin = skin_of(jointed_skins / source)
     names = joint_names(skin.skeleton["parents"], skin.skeleton["jointed"])

@@ -7,32 +7,10 @@ import sys
 
 import numpy as np
 import pytest
-from pxr import Usd, UsdGeom, UsdSkel, Vt
+from pxr import Usd, UsdGeom, UsdSkel
 
+from capture_cases import FPS, FRAMES, START, production_capture
 from cli_helpers import assert_ok, assert_user_error, cli
-
-START, FPS, FRAMES = 1001, 25.0, 40
-
-
-def production_capture(path, vertices, faces):
-    """A capture as a DCC pipeline writes it: centimetres, Z up, 25 fps, time codes 1001…,
-    the mesh at /World/body under an Xform."""
-    stage = Usd.Stage.CreateNew(str(path))
-    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
-    stage.SetTimeCodesPerSecond(FPS)
-    stage.SetFramesPerSecond(FPS)
-    stage.SetStartTimeCode(START)
-    stage.SetEndTimeCode(START + len(vertices) - 1)
-    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/World").GetPrim())
-    mesh = UsdGeom.Mesh.Define(stage, "/World/body")
-    mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, dtype=np.int32)))
-    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.astype(np.int32).ravel()))
-    points = mesh.CreatePointsAttr()
-    for f, frame in enumerate(vertices):
-        points.Set(Vt.Vec3fArray.FromNumpy((100.0 * frame).astype(np.float32)), Usd.TimeCode(START + f))
-    stage.GetRootLayer().Save()
-
 
 @pytest.fixture(scope="module")
 def chain(tmp_path_factory):

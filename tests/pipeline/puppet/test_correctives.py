@@ -8,20 +8,10 @@ from skinsynth.gpu import (corrective_offsets, corrective_offsets_reference, dq_
                            reference_run_puppet, run_puppet)
 from skinsynth.pipeline.puppet.correctives import (POWER_GRID, RIDGE_GRID, Model, blend_weights, choose_model,
                                             fit_correctives, rest_offsets)
-from skinsynth.pipeline.inputs.examples import synthetic_lbs
 from skinsynth.pipeline.puppet.puppet import predict_vertices, train_puppet
-from skinsynth.pipeline.rig.rotations import rigid_to_dual_quaternion
 
 from rigs import random_skin
-
-CONTROLS = np.array([3, 30, 60, 90, 110, 125])
-
-
-def random_dual_quaternions(rng, frames, bones):
-    from scipy.spatial.transform import Rotation
-
-    rotations = Rotation.random(frames * bones, random_state=rng).as_matrix().reshape(frames, bones, 3, 3)
-    return rigid_to_dual_quaternion(rotations, rng.normal(size=(frames, bones, 3)))
+from puppet_cases import CONTROLS, bulging_tube, random_dual_quaternions
 
 
 def test_rest_offsets_make_skinning_reproduce_any_target():
@@ -31,30 +21,6 @@ def test_rest_offsets_make_skinning_reproduce_any_target():
     targets = rng.normal(size=(5, 300, 3))
     offsets = rest_offsets(rest, idx, w, dq, targets)
     assert np.abs(dqs_reference(rest, idx, w, dq, offsets) - targets).max() < 1e-10
-
-
-def bulging_tube(frames=40):
-    """An LBS tube whose four bones follow a smooth one-parameter motion (a walk-like cycle),
-    plus a bulge no bone motion makes: vertices near the middle move along their own radial
-    direction by an amount that depends on the pose (the case skinning cannot fit)."""
-    from skinsynth.pipeline.rig.rotations import rotation_exp
-
-    data = synthetic_lbs(bones=4, frames=2, rings=16, segments=8, seed=3)
-    rng = np.random.default_rng(1)
-    phase = np.linspace(0.0, 2.0 * np.pi, frames, endpoint=False)
-    pose = np.stack([np.sin(phase), np.cos(2.0 * phase)], axis=1)  # (F, 2)
-    rotations = rotation_exp(np.einsum("fp,pbc->fbc", pose, rng.normal(size=(2, 4, 3)) * 0.3))
-    translations = np.einsum("fp,pbc->fbc", pose, rng.normal(size=(2, 4, 3)) * 0.2)
-    rest, idx, w = data["rest"], data["bone_indices"], data["bone_weights"]
-    moved = np.einsum("fvkab,vb->fvka", rotations[:, idx], rest) + translations[:, idx]
-    vertices = np.einsum("fvka,vk->fva", moved, w)
-    radial = rest * np.array([0.0, 1.0, 1.0])
-    radial /= np.maximum(np.linalg.norm(radial, axis=1, keepdims=True), 1e-9)  # 0 on the axis
-    envelope = np.exp(-((rest[:, 0] - 2.0) / 0.8) ** 2)
-    amount = 0.2 * pose[:, 0] * pose[:, 1]
-    data.update(vertices=vertices + amount[:, None, None] * envelope[None, :, None] * radial[None],
-                rotations=rotations, translations=translations)
-    return data
 
 
 def _train(data, train, correctives):
@@ -181,7 +147,7 @@ def test_usdskel_plays_the_correctives_as_blend_shapes(tmp_path):
 def test_run_puppet_plays_any_corrective_model_as_its_reference(tail, threads, device):
     import dataclasses
 
-    from test_gpu_puppet import random_puppet, random_rigid_frames
+    from random_puppets import random_puppet, random_rigid_frames
 
     rng = np.random.default_rng(10 + tail)
     puppet = random_puppet(rng, "gaussian")

@@ -11,7 +11,7 @@ from skinsynth.pipeline.puppet.puppet import predict_vertices, train_puppet
 from skinsynth.pipeline.rig.rotations import dual_quaternion_to_rigid
 
 from rigs import random_skin
-from test_correctives import CONTROLS, bulging_tube, random_dual_quaternions
+from puppet_cases import CONTROLS, bulging_tube, random_dual_quaternions
 
 
 def _lbs(rest, idx, w, dq, offsets=None):

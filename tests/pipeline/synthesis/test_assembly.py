@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from test_splicing import chain_clip
+from splice_cases import chain_clip
 
 from skinsynth.pipeline.synthesis.assembly import assemble
 from skinsynth.pipeline.synthesis.graph import build_graph

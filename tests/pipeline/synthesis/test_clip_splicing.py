@@ -16,7 +16,7 @@ from skinsynth.pipeline.synthesis.graph import build_graph
 from skinsynth.pipeline.synthesis.splicing import (blend_series, reference_alignment, seam_guidance, seam_windows,
                                                   splice, splice_local, walk_seams)
 from skinsynth.pipeline.synthesis.transitions import bone_centroids
-from test_splicing import chain_clip, rigid_fits, skin, walk, wrap_clip
+from splice_cases import chain_clip, rigid_fits, skin, walk, wrap_clip
 
 UP = np.array([0.0, 1.0, 0.0])
 

@@ -8,7 +8,7 @@ from skinsynth.pipeline.inputs.examples import synthetic_lbs
 from skinsynth.pipeline.synthesis.key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
 from skinsynth.pipeline.rig.rotations import rotation_log
 
-from test_key_vertices import irregular_sphere, random_sparse_weights
+from mesh_cases import irregular_sphere, random_sparse_weights
 
 
 def local_frame(rotations, translations, reference):

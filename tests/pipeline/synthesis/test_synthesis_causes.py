@@ -8,7 +8,7 @@ from skinsynth.pipeline.synthesis.motion_graph import MotionGraph, random_walks,
 from skinsynth.pipeline.rig.rotations import heading_and_posture, rotation_exp, rotation_log
 from skinsynth.pipeline.synthesis.splicing import blend_series, reference_alignment, seam_windows
 from skinsynth.pipeline.synthesis.transitions import select_transitions
-from test_splicing import chain_clip, second_differences, skin, splice_clip, walk
+from splice_cases import chain_clip, second_differences, skin, splice_clip, walk
 
 
 def step_angles(R):
