@@ -65,7 +65,7 @@ def test_contact_moves_the_whole_character_vertically_and_only_where_it_leaves_t
 @pytest.fixture(scope="module")
 def walker(tmp_path_factory):
     """``skinsynth example walker`` fitted with 12 bones: build-graph gives each leg a component of
-    its own (tests/pipeline/test_walker_example.py), 5 components in all."""
+    its own (tests/pipeline/inputs/test_walker_example.py), 5 components in all."""
     root = tmp_path_factory.mktemp("walker")
     assert_ok(cli("example", "walker", "-o", root / "walker.npz", "-q"))
     assert_ok(cli("fit-skin", root / "walker.npz", "-o", root / "skin.h5", "--bones", 12, "--seed", 0, "-q"))

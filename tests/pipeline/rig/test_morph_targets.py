@@ -6,7 +6,7 @@ rig (pipeline.skeleton) carries them in its axes and across its UV seams."""
 import numpy as np
 import pytest
 
-from skinsynth.pipeline import morph_targets
+from skinsynth.pipeline.rig import morph_targets
 from skinsynth.pipeline.rig.morph_targets import MAX_MORPH_TARGETS, corrective_morph_targets
 
 
