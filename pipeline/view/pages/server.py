@@ -9,7 +9,6 @@ import webbrowser
 from contextlib import contextmanager
 
 from ...errors import OptionError
-
 from .puppet_page import PuppetPage
 from .records import PuppetView, SequenceView, SkinView, SynthesisView
 from .sequence_page import SequencePage
