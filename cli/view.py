@@ -1,7 +1,8 @@
-"""``skinsynth view``: a local web page for any file skinsynth reads or writes (served by
-``cli/web_view.py``): a puppet to pose by hand and record (or playing a control trajectory, a
-motion-capture take's markers beside their controls), a skin fit against its examples, a
-synthesis's animations, any sequence."""
+"""``skinsynth view``: a local web page for any file skinsynth reads or writes: a puppet to pose by
+hand and record (or playing a control trajectory, a motion-capture take's markers beside their
+controls), a skin fit against its examples, a synthesis's animations, any sequence. This command
+reads the file into the page's record and serves it; the page itself is the view stage's
+(``pipeline/view/pages/``)."""
 
 import os
 
@@ -60,10 +61,11 @@ def view(path, port, host, no_open, animation, error_scale, extrapolation_scale,
       skinsynth view herd.h5 --animation 12 --no-open --json
       skinsynth view samba.puppet.h5 --controls serve.c3d --markers samba.layout.json
     """
+    from skinsynth.formats.atomic import stop_if_received
     from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.view import serve
 
     from .marker_take import check_take_options
-    from .web_view import serve
 
     if not error_scale > 0:
         raise OptionError(f"--error-scale must be positive (got {error_scale})")
@@ -74,8 +76,8 @@ def view(path, port, host, no_open, animation, error_scale, extrapolation_scale,
                                           controls_path, take_options)
     lines = details.pop("lines", [])  # a take's, said before the URL
     if host not in LOOPBACK:
-        click.echo(f"warning: --host {host}: anyone who can reach this machine on the network can open the page"
-                   + (" (and save sessions here)" if kind == "puppet" else ""), err=True)
+        _warn(f"--host {host}: anyone who can reach this machine on the network can open the page"
+              + (" (and save sessions here)" if kind == "puppet" else ""))
 
     def listening(url, bound):
         summary = {"url": url, "host": host, "port": bound, "kind": kind, "path": str(path), **details}
@@ -83,10 +85,15 @@ def view(path, port, host, no_open, animation, error_scale, extrapolation_scale,
 
     try:
         serve(scene, host, port, f"skinsynth view {os.path.basename(str(path).rstrip('/'))}", listening,
-              open_browser=not no_open)
+              check_stop=stop_if_received, warn=_warn, open_browser=not no_open)
     finally:
         if motions is not None:
             motions.close()
+
+
+def _warn(message):
+    """A warning line on stderr: the command's, and the page's while it stays up."""
+    click.echo(f"warning: {message}", err=True)
 
 
 def _read(path, animation, error_scale, extrapolation_scale, record_path, device, controls_path=None,
@@ -120,7 +127,7 @@ def _read(path, animation, error_scale, extrapolation_scale, record_path, device
 
 def puppet_view(path, extrapolation_scale=None, record_path=None, device="auto", controls_path=None,
                 take_options=None):
-    """The puppet page's :class:`~skinsynth.cli.web_view.PuppetView` of the puppet at ``path``
+    """The puppet page's :class:`~skinsynth.pipeline.view.pages.PuppetView` of the puppet at ``path``
     and its summary details (with ``lines``, a take's text, said before the URL); controls_path:
     a trajectory it plays (any file play reads; a .c3d take read with ``take_options``,
     ``marker_take_options``'s values by name)."""
@@ -128,9 +135,8 @@ def puppet_view(path, extrapolation_scale=None, record_path=None, device="auto",
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.mesh.geometry import largest_side
     from skinsynth.pipeline.puppet import DevicePlayer, host_inputs, puppet_from_record
+    from skinsynth.pipeline.view import PuppetView
     from skinsynth.pipeline.view import extrapolation_scale as default_scale
-
-    from .web_view import PuppetView
 
     record, _, skin = read_puppet(path)
     puppet = puppet_from_record(record)
@@ -161,15 +167,14 @@ def puppet_view(path, extrapolation_scale=None, record_path=None, device="auto",
 
 
 def _trajectory(controls_path, path, record, puppet, skin, take_options, training_in_place, unit):
-    """(the :class:`~skinsynth.cli.web_view.TrajectoryView` of ``--controls``, summary details
+    """(the :class:`~skinsynth.pipeline.view.pages.TrajectoryView` of ``--controls``, summary details
     ``trajectory`` and the take's ``lines``): read as play reads it, every frame's extrapolation
     computed once; frames are predicted as shown."""
     from skinsynth.formats.trajectories import read_control_trajectories
     from skinsynth.pipeline.puppet import host_inputs
-    from skinsynth.pipeline.view import extrapolation_distances
+    from skinsynth.pipeline.view import TrajectoryView, extrapolation_distances
 
     from .marker_take import is_take, take_controls
-    from .web_view import TrajectoryView
 
     take = take_controls(controls_path, puppet, record, skin, take_options, path) if is_take(controls_path) else None
     if take is None:
@@ -208,8 +213,7 @@ def _skin(path, error_scale, contacts=False):
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
-
-    from .web_view import SkinView
+    from skinsynth.pipeline.view import SkinView
 
     model = read_model(path, groups=("mesh", "examples", "skin") + (("graph",) if contacts else ()))
     skin = read_skin(path, model)
@@ -250,9 +254,7 @@ def _synthesis(path, animation):
     from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.view import vertex_components
-
-    from .web_view import SynthesisView
+    from skinsynth.pipeline.view import SynthesisView, vertex_components
 
     skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
     count = synthesis_count(path)
@@ -290,8 +292,9 @@ def _synthesis(path, animation):
 
 def _sequence(path):
     """Any sequence preview reads (frame files, .npz/.h5, USD, play's .h5): the panels it shows."""
+    from skinsynth.pipeline.view import SequenceView
+
     from .preview import _panels
-    from .web_view import SequenceView
 
     panels, fps, up = _panels(path, [], None, False, False, 0.01)
     parts = [(panel.title, panel.vertices, panel.faces) for panel in panels]

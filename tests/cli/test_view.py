@@ -426,7 +426,7 @@ def test_a_trajectory_plays_play_s_frames_and_their_indicator(files, tmp_path):
     slider shows is play's prediction of that frame, the handles on its controls, its indicator
     the one ``extrapolation_distances`` gives every frame."""
     from skinsynth.cli.view import puppet_view
-    from skinsynth.cli.web_view import open_page
+    from skinsynth.pipeline.view import open_page
     from skinsynth.pipeline.mesh.geometry import largest_side
     from skinsynth.pipeline.puppet import host_inputs, puppet_from_record
     from skinsynth.pipeline.view import extrapolation_color, extrapolation_distances
@@ -444,7 +444,8 @@ def test_a_trajectory_plays_play_s_frames_and_their_indicator(files, tmp_path):
                                                  largest_side(skin.rest_vertices))
     assert np.array_equal(view.trajectory.distances, distances) and np.array_equal(view.trajectory.nearest, nearest)
     assert distances[7] > 2 * view.scale > distances.min()  # the indicator tells frames apart
-    with open_page(view) as (_, page):
+    warned = []  # the page's warnings (a failed prediction, the timeline stopped): none
+    with open_page(view, warn=warned.append) as (_, page):
         for frame in (0, 7, 11, 3):
             if frame:
                 page.timeline.slider.value = frame  # as the page's slider does
@@ -461,6 +462,7 @@ def test_a_trajectory_plays_play_s_frames_and_their_indicator(files, tmp_path):
         until(lambda: page.settled(), "the paused frame")
         frame = int(page.timeline.slider.value)
         assert page.shown_frame == frame and np.abs(page.mesh.vertices - expected[frame]).max() <= 1e-5 * diagonal
+    assert warned == []
 
 
 def test_a_take_plays_with_its_markers_beside_their_controls(files, browser, tmp_path):
