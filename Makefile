@@ -81,11 +81,16 @@ demo: setup
 docs: setup
 	$(BIN)/mkdocs build --strict --site-dir build/site
 
+# The suite on every core (pytest-xdist, -n auto: one worker per core; worksteal hands a finished
+# worker the tests another has not started), the 10 slowest tests listed at the end. Each test also
+# passes alone: python tests/run_each_file.py runs every test file in a process of its own.
+PYTEST := $(BIN)/python -m pytest -q -n auto --dist worksteal --durations=10
+
 test: setup docs
-	$(BIN)/python -m pytest -q
+	$(PYTEST)
 
 test-fast: setup
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(PYTEST) -m "not slow"
 
 # Benchmarks print JSON lines; py-dem-bones is compared side by side when installed (pip install -e ".[bench]").
 bench: setup

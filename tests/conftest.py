@@ -1,10 +1,18 @@
 """Shared test set-up: warp's kernel cache in a per-run folder, where the real data lives, and the
-stage files of small bending bars (``stage_files``), built once per session."""
+stage files of small bending bars (``stage_files``) and of the real captures, built once per run.
+
+``make test`` runs the suite on every core (pytest-xdist): each worker is a session of its own,
+so what is expensive to build (stage files, fits of the real captures) is built once per run by
+whichever worker asks first, under a file lock, in a folder every worker sees (:func:`built_once`),
+and read by the others. Known-slow tests are handed out first (``SLOW_FIRST``), so no worker is
+left with a long one at the end."""
 
 import os
 import pathlib
 
 import pytest
+
+from shared_builds import built_once, run_folder
 
 SHARED_DATA = pathlib.Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -64,12 +72,12 @@ class StageFiles:
     with ``fit-skin --bones --iterations``, and, for each of the other options given (a tuple of
     command-line options; ``()`` for the defaults), controls.h5 (``select-controls``), puppet.h5
     (``train-kcca``, from controls.h5), graph.h5 (``build-graph``) and bones.h5 (``synthesize``,
-    from graph.h5). Each recipe is built once per session; a file two recipes share (same file,
-    same options, same inputs) is made once and copied. The files must stay as they were built:
+    from graph.h5). Each recipe is built once per run (whatever the number of xdist workers); a
+    file two recipes share (same file, same options, same inputs) is made once and copied. The files must stay as they were built:
     the session ends with an error naming any that a test changed, removed or added."""
 
-    def __init__(self, root):
-        self.root, self.recipes, self.made, self.digests = root, {}, {}, {}
+    def __init__(self, tmp_path_factory):
+        self.factory, self.recipes, self.digests = tmp_path_factory, {}, {}
 
     def __call__(self, *, frames, bones, iterations, cycles=1, rings=10, segments=8, controls=None, puppet=None,
                  graph=None, synthesis=None):
@@ -83,30 +91,51 @@ class StageFiles:
                 keys[name] = (name, tuple(str(o) for o in options[name]), keys[source])
         recipe = tuple(keys.values())
         if recipe not in self.recipes:
-            self.recipes[recipe] = self._build(self.root / f"recipe_{len(self.recipes):02d}", keys, options)
+            self.recipes[recipe] = self._build(recipe, keys, options)
         return self.recipes[recipe]
 
-    def _build(self, folder, keys, options):
+    def _build(self, recipe, keys, options):
+        """The recipe's folder (named by its digest), built once per run, by this worker or read
+        from the one that built it; each file's digest is taken here, for :meth:`changed`."""
         import shutil
 
+        from skinsynth.pipeline.inputs.examples import bending_bar
+
+        def build(folder):
+            for name, key in keys.items():
+                shutil.copyfile(self._file(name, key, keys, options), folder / name)
+            return sorted(keys)
+
+        name = f"recipe_{_digest(recipe)}"
+        built_once(self.factory, name, build)
+        folder = run_folder(self.factory) / name
+        for file in keys:
+            self.digests[folder / file] = _sha256(folder / file)
+        _, frames, rings, segments, cycles = keys["bar.npz"]
+        vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
+        return Stages(folder, keys, vertices, faces)
+
+    def _file(self, name, key, keys, options):
+        """The path of one stage file, made once per run whatever the recipes that share it (same
+        file, same options, same inputs: the same ``key``), its source made first."""
         from cli_helpers import assert_ok, cli
         from skinsynth.formats.meshseq import write_array_sequence
         from skinsynth.pipeline.inputs.examples import bending_bar
 
-        folder.mkdir()
-        _, frames, rings, segments, cycles = keys["bar.npz"]
-        vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
-        for name, key in keys.items():
-            if key in self.made:  # the same file in another recipe's folder
-                shutil.copyfile(self.made[key], folder / name)
-            elif name == "bar.npz":
+        def make(folder):
+            if name == "bar.npz":
+                _, frames, rings, segments, cycles = key
+                vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
                 write_array_sequence(folder / name, vertices, faces, 24.0)
             else:
                 source, command = STAGES[name]
-                assert_ok(cli(command, folder / source, "-o", folder / name, *options[name], "-q"))
-            self.made.setdefault(key, folder / name)
-            self.digests[folder / name] = _sha256(folder / name)
-        return Stages(folder, keys, vertices, faces)
+                read = self._file(source, keys[source], keys, options)
+                assert_ok(cli(command, read, "-o", folder / name, *options[name], "-q"))
+            return name
+
+        stored = f"file_{_digest(key)}"
+        built_once(self.factory, stored, make)
+        return run_folder(self.factory) / stored / name
 
     def changed(self):
         """The stage files (and strays beside them) not as built, one line each."""
@@ -121,6 +150,13 @@ class StageFiles:
         return problems
 
 
+def _digest(key):
+    """A short name for a recipe or a file's key (its repr digested)."""
+    import hashlib
+
+    return hashlib.sha256(repr(key).encode()).hexdigest()[:16]
+
+
 def _sha256(path):
     import hashlib
 
@@ -130,7 +166,7 @@ def _sha256(path):
 @pytest.fixture(scope="session")
 def stage_files(tmp_path_factory):
     """The session's :class:`StageFiles` factory; at the end, an error if a test changed its files."""
-    factory = StageFiles(tmp_path_factory.mktemp("stages"))
+    factory = StageFiles(tmp_path_factory)
     yield factory
     problems = factory.changed()
     assert not problems, "tests changed shared stage files (give them stage_files(…).copy_to(tmp_path)):\n" + \
@@ -140,7 +176,7 @@ def stage_files(tmp_path_factory):
 @pytest.fixture(scope="session")
 def horse_clips(shared_data, tmp_path_factory):
     """The shared horse's gallop and collapse fitted together (22 bones, defaults), once per
-    session: (the clip folder, the skin file, fit-skin's --json summary). A copy may be changed;
+    run: (the clip folder, the skin file, fit-skin's --json summary). A copy may be changed;
     the file itself must not be. Skips when the clips are absent."""
     import json
 
@@ -149,29 +185,74 @@ def horse_clips(shared_data, tmp_path_factory):
     folder = shared_data / "horse_clips"
     if not (folder / "horse_gallop.npz").is_file() or not (folder / "horse_collapse.npz").is_file():
         pytest.skip(f"the shared horse clips (gallop, collapse) are not in {folder}")
-    skin = tmp_path_factory.mktemp("horse_clips") / "skin.h5"
-    summary = json.loads(assert_ok(cli("fit-skin", folder / "horse_gallop.npz", folder / "horse_collapse.npz", "-o",
-                                       skin, "--bones", 22, "--json")).stdout)
-    return folder, skin, summary
+
+    def fit(out):
+        return json.loads(assert_ok(cli("fit-skin", folder / "horse_gallop.npz", folder / "horse_collapse.npz", "-o",
+                                         out / "skin.h5", "--bones", 22, "--json")).stdout)
+
+    summary = built_once(tmp_path_factory, "horse_clips", fit)
+    return folder, run_folder(tmp_path_factory) / "horse_clips" / "skin.h5", summary
+
+
+@pytest.fixture(scope="session")
+def horse_skeleton(shared_data, tmp_path_factory):
+    """The shared horse gallop fitted with a skeleton (``fit-skin --bones 22 --skeleton``), once
+    per run: (its skin file, fit-skin's --json summary). Read it, never change it. Skips when the
+    gallop is absent."""
+    import json
+
+    from cli_helpers import assert_ok, cli
+
+    gallop = shared_data / "horse_gallop" / "horse_gallop.npz"
+    if not gallop.is_file():
+        pytest.skip(f"{gallop} is absent")
+
+    def fit(out):
+        return json.loads(assert_ok(cli("fit-skin", gallop, "-o", out / "horse.h5", "--bones", 22, "--skeleton",
+                                         "--json", "-q")).output)
+
+    summary = built_once(tmp_path_factory, "horse_skeleton", fit)
+    return run_folder(tmp_path_factory) / "horse_skeleton" / "horse.h5", summary
+
+
+@pytest.fixture(scope="session")
+def samba_skin(shared_data, tmp_path_factory):
+    """The shared samba fitted as a user fits it (``fit-skin --bones 22 --seed 0``), once per run:
+    its skin file. Read it, never change it. Skips when the capture is absent."""
+    from cli_helpers import assert_ok, cli
+
+    capture = shared_data / "vlasic_samba" / "vlasic_samba.npz"
+    if not capture.is_file():
+        pytest.skip(f"{capture} is absent")
+
+    def fit(out):
+        assert_ok(cli("fit-skin", capture, "-o", out / "skin.h5", "--bones", 22, "--seed", 0, "-q"))
+
+    built_once(tmp_path_factory, "samba_skin", fit)
+    return run_folder(tmp_path_factory) / "samba_skin" / "skin.h5"
 
 
 @pytest.fixture(scope="session")
 def jointed_skins(tmp_path_factory):
-    """Skins whose rig is a joint tree (fit-skin --skeleton), once per session, in one folder:
+    """Skins whose rig is a joint tree (fit-skin --skeleton), once per run, in one folder:
     walker.npz (the walker example, two gait cycles in 32 frames, 648 vertices), skin.h5 (10 bones,
     every bone jointed), free.h5 (the same with --max-joint-drift 0.0003: some bones hang free from
     the root) and zup.h5 (skin.h5's fit recorded Z up in centimetres). A test copies what it
     changes; it must not change these."""
     from cli_helpers import assert_ok, cli
 
-    folder = tmp_path_factory.mktemp("jointed")
-    assert_ok(cli("example", "walker", "-o", folder / "walker.npz", "--frames", 32, "--cycles", 2, "--rings", 12, "-q"))
-    fit = ("--bones", 10, "--skeleton", "--iterations", 20, "-q")
-    assert_ok(cli("fit-skin", folder / "walker.npz", "-o", folder / "skin.h5", *fit))
-    assert_ok(cli("fit-skin", folder / "walker.npz", "-o", folder / "free.h5", *fit, "--max-joint-drift", 0.0003))
-    assert_ok(cli("fit-skin", folder / "walker.npz", "-o", folder / "zup.h5", *fit, "--up-axis", "Z",
-                  "--meters-per-unit", 0.01))
-    return folder
+
+    def fit(folder):
+        assert_ok(cli("example", "walker", "-o", folder / "walker.npz", "--frames", 32, "--cycles", 2, "--rings", 12,
+                      "-q"))
+        fit = ("--bones", 10, "--skeleton", "--iterations", 20, "-q")
+        assert_ok(cli("fit-skin", folder / "walker.npz", "-o", folder / "skin.h5", *fit))
+        assert_ok(cli("fit-skin", folder / "walker.npz", "-o", folder / "free.h5", *fit, "--max-joint-drift", 0.0003))
+        assert_ok(cli("fit-skin", folder / "walker.npz", "-o", folder / "zup.h5", *fit, "--up-axis", "Z",
+                      "--meters-per-unit", 0.01))
+
+    built_once(tmp_path_factory, "jointed", fit)
+    return run_folder(tmp_path_factory) / "jointed"
 
 
 # The warp devices of the kernel tests: a test taking ``device`` runs once per device here.
@@ -198,19 +279,42 @@ def device(request):
 
 
 @pytest.fixture(scope="session")
-def samba_marker_puppet(shared_data, tmp_path_factory):
+def samba_marker_puppet(shared_data, samba_skin, tmp_path_factory):
     """The shared samba's puppet on the controls of the committed Plug-in-Gait layout
-    (docs/markers/vlasic_samba.layout.json), once per session: fit-skin --bones 22,
-    select-controls --markers, train-kcca --correctives off (its .glb plays in any engine). ->
-    (folder with skin.h5 and puppet.h5, the layout's path). Skips without the capture or the takes."""
+    (docs/markers/vlasic_samba.layout.json), once per run: the skin of ``samba_skin`` (fit-skin
+    --bones 22), select-controls --markers, train-kcca --correctives off (its .glb plays in any
+    engine). -> (folder with skin.h5 and puppet.h5, the layout's path). Skips without the capture
+    or the takes."""
+    import shutil
+
     from cli_helpers import assert_ok, cli
 
-    capture = shared_data / "vlasic_samba" / "vlasic_samba.npz"
-    if not capture.is_file() or not (shared_data / "mocap_c3d").is_dir():
-        pytest.skip(f"the samba capture and the mocap_c3d takes are needed in {shared_data}")
+    if not (shared_data / "mocap_c3d").is_dir():
+        pytest.skip(f"the mocap_c3d takes are needed in {shared_data}")
     layout = pathlib.Path(__file__).resolve().parents[1] / "docs" / "markers" / "vlasic_samba.layout.json"
-    folder = tmp_path_factory.mktemp("samba_markers")
-    assert_ok(cli("fit-skin", capture, "-o", folder / "skin.h5", "--bones", 22, "-q"))
-    assert_ok(cli("select-controls", folder / "skin.h5", "-o", folder / "controls.h5", "--markers", layout, "-q"))
-    assert_ok(cli("train-kcca", folder / "controls.h5", "-o", folder / "puppet.h5", "--correctives", "off", "-q"))
-    return folder, layout
+
+    def build(folder):
+        shutil.copyfile(samba_skin, folder / "skin.h5")
+        assert_ok(cli("select-controls", folder / "skin.h5", "-o", folder / "controls.h5", "--markers", layout, "-q"))
+        assert_ok(cli("train-kcca", folder / "controls.h5", "-o", folder / "puppet.h5", "--correctives", "off", "-q"))
+
+    built_once(tmp_path_factory, "samba_markers", build)
+    return run_folder(tmp_path_factory) / "samba_markers", layout
+
+
+#: Test files handed out first: the slowest of the suite (whole-tool contracts, the browser and
+#: precompile tests) and any file with a slow real-data test. With a worker per core, a long test
+#: started last would leave the other cores idle while it runs.
+SLOW_FIRST = ("tests/contracts/", "tests/cli/test_view.py", "tests/cli/test_precompile.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Orders the run: the files of ``SLOW_FIRST`` and those with a ``slow`` test first, each file's
+    tests kept together and in their order (so module fixtures are built once per worker)."""
+    slow_files = {item.nodeid.split("::")[0] for item in items if item.get_closest_marker("slow")}
+
+    def slow(item):
+        path = item.nodeid.split("::")[0]
+        return path in slow_files or any(path.startswith(prefix) for prefix in SLOW_FIRST)
+
+    items[:] = [item for item in items if slow(item)] + [item for item in items if not slow(item)]
