@@ -616,34 +616,6 @@ def test_a_request_larger_than_memory_is_refused_before_allocating(chain, tmp_pa
     assert_user_error(cli(*args), needle, "GiB of memory", "ask for fewer", folder=tmp_path)
 
 
-def test_the_memory_and_disk_checks_compare_the_estimate_with_what_there_is(tmp_path):
-    from skinsynth.cli.common import check_memory, check_space
-    from skinsynth.pipeline.errors import OptionError
-
-    check_memory(2 ** 30, "a request", available=2 ** 31)  # fits: nothing said
-    with pytest.raises(OptionError, match=r"a request needs about 2\.0 GiB of memory, and 1\.0 GiB is available"):
-        check_memory(2 ** 31, "a request", available=2 ** 30)
-    with pytest.raises(OptionError, match="GiB of disk in"):
-        check_space("a request", [(None, 2 ** 60, str(tmp_path))])
-    with pytest.raises(OptionError, match=r"needs about 5\.0 MiB of memory, and 1\.0 MiB is available"):
-        check_memory(5 * 2 ** 20, "a request", available=2 ** 20)  # not "0.0 GiB"
-
-
-def test_outputs_on_one_disk_add_up_and_the_line_names_each(tmp_path, monkeypatch):
-    from skinsynth.cli.common import check_space
-    from skinsynth.pipeline.errors import OptionError
-
-    _free_space(monkeypatch, 5 << 20)
-    later = tmp_path / "out.h5.shards"  # not there yet: the disk of the folder above it
-    check_space("a request", [("the output", 2 << 20, tmp_path), ("its shards", 3 << 20, later)])  # fits exactly
-    with pytest.raises(OptionError) as refused:
-        check_space("a request", [("the output", 2 << 20, tmp_path), ("its shards", 4 << 20, later)])
-    assert str(refused.value) == (f"not enough space: a request needs about 6.0 MiB of disk in {tmp_path} (the output "
-                                  f"2.0 MiB in {tmp_path}, its shards 4.0 MiB in {later}), and 5.0 MiB is free; "
-                                  "nothing written: ask for fewer, or write elsewhere")
-    assert not later.exists()
-
-
 def test_a_preview_larger_than_memory_and_endless_transform_steps_are_refused(chain, tmp_path):
     many = [a for _ in range(64) for a in ("--animation", 0)]
     assert_user_error(cli("preview", chain / "bones.h5", "-o", tmp_path / "p.gif", "--size", "8192x8192", *many),
