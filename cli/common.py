@@ -250,6 +250,12 @@ class Progress:
     def __enter__(self):
         return self
 
+    def restart(self, length, label):
+        """Finish the bar shown (if any); the next update shows another, of ``length`` steps: a
+        command's next phase."""
+        self.__exit__(None, None, None)
+        self.length, self.label, self.bar = length, label, None
+
     def update(self, steps, text=None):
         if self.quiet:
             return

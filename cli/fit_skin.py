@@ -6,7 +6,9 @@ from dataclasses import replace
 import click
 import numpy as np
 
-from .common import Progress, check_memory, check_output_path, command_line, report, summary_options, tool_version, user_errors
+from skinsynth.pipeline.errors import OptionError
+
+from .common import Progress, check_output_path, command_line, report, summary_options, tool_version, user_errors
 from .options import device_option, up_axis_option
 
 #: ``--skeleton`` without a file: find the skeleton.
@@ -84,14 +86,53 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
       skinsynth fit-skin horse_gallop.npz horse_collapse.npz -o horse.skin.h5 --bones 22
       skinsynth fit-skin horse_poses.npz --rig horse.skin.h5 -o poses.skin.h5
     """
-    from skinsynth.formats.clip_inputs import read_clips
-    from skinsynth.pipeline.inputs.clips import Clips
-    from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
-    from skinsynth.pipeline.skin import fit_memory_bytes, validate_fit_options
+    from skinsynth.formats.model import write_model
+    from skinsynth.formats.provenance import provenance_record
+    from skinsynth.formats.skin_file import skin_groups
+    from skinsynth.pipeline.skin import finish_fit, fit_rig, skin_summary
 
-    given_file = [skeleton] if skeleton not in (None, FOUND) else []
-    check_output_path(output, (".h5", ".hdf5"), inputs=list(input_specs) + ([rig] if rig else []) + given_file)
+    inputs = list(input_specs) + ([rig] if rig else []) + ([skeleton] if skeleton not in (None, FOUND) else [])
+    check_output_path(output, (".h5", ".hdf5"), inputs=inputs)
+    bones, tolerance, transform_steps, brought, device = _resolved_options(bones, rig, tolerance, transform_steps,
+                                                                           skeleton, root_bone, max_joint_drift, fps,
+                                                                           device)
+    sequence, clips = _read_clips(input_specs, prim, fps, meters_per_unit, up_axis, start_frame)
+    if brought is not None:
+        _check_skeleton_scene(skeleton, brought[1], sequence.scene)
+    rig_model = _read_rig(rig, sequence, bones) if rig else None
+    bones, rest_frame, diagonal = _rest_pose(input_specs[0], sequence, clips, rig_model, bones, rest_frame,
+                                             max_influences, iterations, root_bone, transform_steps)
+    with Progress(iterations, "", quiet) as bar:
+        phases = _Phases(bar, bones, rig, diagonal)
+        result, jointed = fit_rig(sequence.vertices, sequence.faces, bones, rig=rig_model,
+                                  given=None if brought is None else brought[0], find_joints=skeleton == FOUND,
+                                  root_bone=root_bone, max_joint_drift=max_joint_drift, max_influences=max_influences,
+                                  iterations=iterations, rest_frame=rest_frame, seed=seed, tolerance=tolerance,
+                                  patience=patience, joint_steps=transform_steps,
+                                  device=None if device == "cpu" else device, diagonal=diagonal, progress=phases)
+    seconds = time.perf_counter() - phases.started
+    frame_rmse, dq, rest_frames = finish_fit(result, sequence.vertices,
+                                              rest_frames=None if rig_model is None else rig_model.bone_rest_frames)
+    scene = sequence.scene
+    parameters = dict(bones=bones, rig=rig, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
+                      patience=patience, device=device,
+                      rest_frame=rest_frame, seed=seed, transform_steps=transform_steps, skeleton=skeleton,
+                      root_bone=root_bone, max_joint_drift=max_joint_drift, prim=prim, fps=sequence.fps,
+                      meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame)
+    record = provenance_record("skin", command_line(), parameters, inputs, tool_version(), seed)
+    write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal,
+                                            jointed), [record], tool_version())
+    report(*skin_summary(output, result, frame_rmse, clips, diagonal, sequence.fps, scene, seconds, device,
+                         phases.history, jointed, sequence.faces), as_json, quiet)
+    if result.bones_without_weight:
+        click.echo(f"warning: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
+                   "has fewer independently moving parts than --bones", err=True)
+
+
+def _resolved_options(bones, rig, tolerance, transform_steps, skeleton, root_bone, max_joint_drift, fps, device):
+    """Refuse, before reading the clips, options that do not combine or are out of range; read
+    ``--skeleton FILE``. Returns (bones, tolerance, transform steps, (Skeleton, the file's
+    UsdSkeleton record) of --skeleton FILE or None, the device resolved)."""
     if fps is not None and not 0 < fps < float("inf"):
         raise OptionError(f"--fps must be positive and finite (got {fps})")
     if (tolerance is not None and tolerance < 0) or (transform_steps is not None and transform_steps < 0):
@@ -110,7 +151,7 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
         raise OptionError("--root-bone and --max-joint-drift apply only with --skeleton")
     if skeleton and rig is not None:
         raise OptionError("--skeleton and --rig do not combine yet: --rig keeps a rig's weights, --skeleton refits them")
-    brought = None  # --skeleton FILE: (Skeleton, the file's UsdSkeleton record)
+    brought = None
     if skeleton not in (None, FOUND):
         if root_bone is not None or max_joint_drift is not None:
             raise OptionError("--root-bone and --max-joint-drift apply to a skeleton found, not to --skeleton FILE")
@@ -118,27 +159,39 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
         bones = brought[0].bones
     if rig is None and bones is None:
         raise OptionError("--bones is required (or --rig, a skin file whose bones and weights to keep)")
-    if tolerance is None:
-        tolerance = 0.001 if rig else 0.02
-    if transform_steps is None:
-        transform_steps = 1 if rig else 0
     if device != "cpu":  # "cpu" runs numba's loops and never imports warp (about 1 s)
         from skinsynth.gpu import resolve_device
 
         device = resolve_device(device)
-    warp_device = None if device == "cpu" else device
+    return (bones, (0.001 if rig else 0.02) if tolerance is None else tolerance,
+            (1 if rig else 0) if transform_steps is None else transform_steps, brought, device)
+
+
+def _read_clips(input_specs, prim, fps, meters_per_unit, up_axis, start_frame):
+    """The INPUT clips (a MeshSequence, its scene as the options override it) and their :class:`Clips`."""
+    from skinsynth.formats.clip_inputs import read_clips
+    from skinsynth.pipeline.inputs.clips import Clips
+
     sequence = read_clips(input_specs, prim=prim, fps=fps)
     try:
         sequence = replace(sequence, scene=sequence.scene.overridden(meters_per_unit, up_axis, start_frame))
     except ValueError as error:
         raise OptionError(str(error)) from None
-    clips = Clips(sequence.clip_names, sequence.clip_frames)
+    return sequence, Clips(sequence.clip_names, sequence.clip_frames)
+
+
+def _rest_pose(first_input, sequence, clips, rig, bones, rest_frame, max_influences, iterations, root_bone,
+               transform_steps):
+    """(bones, the rest frame, the rest pose's bounding-box diagonal), refused before the fit
+    starts: options no fit can honour, a fit larger than the memory available, a rest pose with
+    no extent. With ``rig`` (a SkinModel) its bones and rest pose."""
+    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.runtime.resources import check_memory
+    from skinsynth.pipeline.skin import fit_memory_bytes, validate_fit_options
+
     frames, count = sequence.vertices.shape[:2]
-    if brought is not None:
-        _check_skeleton_scene(skeleton, brought[1], sequence.scene)
-    rig_model = _read_rig(rig, sequence, bones) if rig else None
-    if rig_model is not None:
-        bones = rig_model.bones
+    if rig is not None:
+        bones = rig.bones
         rest_frame = 0  # the rest pose is the rig's, not one of these frames (docs/format.md: /mesh)
     else:
         rest_frame = clips.frame(rest_frame, "--rest-frame")
@@ -148,89 +201,31 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
         check_memory(fit_memory_bytes(frames, count, bones, transform_steps),
                      f"fit-skin --bones {bones} on {count} vertices × {frames} frames"
                      + (f" with --transform-steps {transform_steps}" if transform_steps else ""))
-    rest_vertices = rig_model.rest_vertices if rig_model is not None else sequence.vertices[rest_frame]
-    diagonal = bounding_box_diagonal(rest_vertices)
+    diagonal = bounding_box_diagonal(rig.rest_vertices if rig is not None else sequence.vertices[rest_frame])
     if not diagonal > 0.0:
-        raise OptionError(f"{input_specs[0]}: the rest frame has no extent (all vertices coincide)")
-
-    started = time.perf_counter()
-    history = []  # (seconds, RMSE over the diagonal) after each iteration
-
-    def progress(iteration, rmse):
-        history.append((round(time.perf_counter() - started, 3), rmse / diagonal))
-        bar.update(1, f"RMSE/diag {rmse / diagonal:.2e}")
-
-    jointed = None
-    if brought is not None:
-        result, jointed = _fit_under(sequence, rest_vertices, brought[0], max_influences, diagonal, quiet)
-    else:
-        with Progress(iterations, f"fit-skin {bones} bones" + (" on the rig" if rig else ""), quiet) as bar:
-            result = _fit(sequence.vertices, rig_model, bones, max_influences, iterations, rest_frame, seed,
-                          tolerance, patience, transform_steps, warp_device, progress)
-        if skeleton:
-            result, jointed = _fit_skeleton(sequence, result, root_bone, max_joint_drift, max_influences, diagonal,
-                                            quiet)
-    seconds = time.perf_counter() - started
-
-    from skinsynth.formats.model import write_model
-    from skinsynth.formats.provenance import provenance_record
-    from skinsynth.formats.skin_file import skin_groups
-    from skinsynth.pipeline.skin import finish_fit
-
-    frame_rmse, dq, rest_frames = finish_fit(result, sequence.vertices)
-    if rig_model is not None:
-        rest_frames = rig_model.bone_rest_frames  # the same skeleton, exactly
-    scene = sequence.scene
-    parameters = dict(bones=bones, rig=rig, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
-                      patience=patience, device=device,
-                      rest_frame=rest_frame, seed=seed, transform_steps=transform_steps, skeleton=skeleton,
-                      root_bone=root_bone, max_joint_drift=max_joint_drift, prim=prim, fps=sequence.fps,
-                      meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame)
-    record = provenance_record("skin", command_line(), parameters, list(input_specs) + ([rig] if rig else []) + given_file,
-                               tool_version(), seed)
-    write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal,
-                                            jointed), [record], tool_version())
-    summary, lines = _summary(output, sequence, bones, result, diagonal, seconds, device, history, clips, frame_rmse)
-    if jointed is not None:
-        summary["skeleton"], line = _skeleton_summary(jointed, result, sequence, diagonal)
-        lines.append(line)
-    report(summary, lines, as_json, quiet)
-    if result.bones_without_weight:
-        click.echo(f"warning: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
-                   "has fewer independently moving parts than --bones", err=True)
+        raise OptionError(f"{first_input}: the rest frame has no extent (all vertices coincide)")
+    return bones, rest_frame, diagonal
 
 
-def _fit(vertices, rig, bones, max_influences, iterations, rest_frame, seed, tolerance, patience, transform_steps,
-         device, progress):
-    """A full fit, or with ``rig`` (a SkinModel) only the bone transforms on its rig."""
-    from skinsynth.pipeline.skin import fit_bones_to_rig, fit_skin
+class _Phases:
+    """``progress`` of :func:`~skinsynth.pipeline.skin.fit_rig`: a bar for each phase of the fit,
+    and ``history``, the (seconds, RMSE over the diagonal) after each iteration of the main fit."""
 
-    if rig is not None:
-        return fit_bones_to_rig(vertices, rig.rest_vertices, rig.bone_indices, rig.bone_weights, rig.bones,
-                                iterations=iterations, tolerance=tolerance, patience=patience,
-                                joint_steps=transform_steps, progress=progress, device=device)
-    return fit_skin(vertices, bones, max_influences=max_influences, iterations=iterations, rest_frame=rest_frame,
-                    seed=seed, tolerance=tolerance, patience=patience, joint_steps=transform_steps, device=device,
-                    progress=progress)
+    def __init__(self, bar, bones, rig, diagonal):
+        self.bar, self.diagonal, self.history = bar, diagonal, []
+        self.labels = {"fit": f"fit-skin {bones} bones" + (" on the rig" if rig else ""),
+                       "joints": "fit-skin --skeleton: the rig refitted on its joints",
+                       "given": f"fit-skin under the given skeleton ({bones} bones)"}
+        self.started = time.perf_counter()
 
+    def __call__(self, phase, length):
+        self.bar.restart(length, self.labels[phase])
 
-def _fit_skeleton(sequence, free, root_bone, max_joint_drift, max_influences, diagonal, quiet):
-    """The free fit's joints and tree, then the rig refitted so that they hold: (SkinFit, the
-    /skin/skeleton record)."""
-    from skinsynth.pipeline.skin import MAX_JOINT_DRIFT, find_skeleton, fit_jointed
-
-    max_drift = MAX_JOINT_DRIFT if max_joint_drift is None else max_joint_drift
-    found = find_skeleton(free.rest_vertices, sequence.faces, free.bone_indices, free.bone_weights, free.rotations,
-                          free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal)
-    iterations = 40  # per phase: joints moving, then fixed inside the body (pipeline/skin/jointed_fit.py)
-    with Progress(2 * iterations, "fit-skin --skeleton: the rig refitted on its joints", quiet) as bar:
-        fitted, skeleton = fit_jointed(sequence.vertices, free.rest_vertices, free.bone_indices, free.bone_weights,
-                                       free.rotations, found, faces=sequence.faces, max_influences=max_influences,
-                                       iterations=iterations,
-                                       progress=lambda i, rmse: bar.update(1, f"RMSE/diag {rmse / diagonal:.2e}"))
-    record = {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints,
-              "drift": found.drift, "root": skeleton.root, "free_rmse": free.rmse, "max_drift": max_drift}
-    return fitted, record
+        def progress(iteration, rmse):
+            if phase == "fit":
+                self.history.append((round(time.perf_counter() - self.started, 3), rmse / self.diagonal))
+            self.bar.update(1, f"RMSE/diag {rmse / self.diagonal:.2e}")
+        return progress
 
 
 def _read_given_skeleton(path, bones):
@@ -238,7 +233,6 @@ def _read_given_skeleton(path, bones):
     it is a USD file with a UsdSkel Skeleton of one tree, and (--bones given) that many bones."""
     from skinsynth.formats.errors import FormatError
     from skinsynth.formats.usd import read_skeleton
-    from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.skin import given_skeleton
 
     if not str(path).lower().endswith((".usd", ".usda", ".usdc", ".usdz")):
@@ -266,49 +260,11 @@ def _check_skeleton_scene(path, record, scene):
                                 "--up-axis of the skeleton's scene, or a skeleton exported from this character's fit")
 
 
-def _fit_under(sequence, rest, skeleton, max_influences, diagonal, quiet):
-    """The rig fitted under ``--skeleton FILE``'s joints: (SkinFit, the /skin/skeleton record)."""
-    from skinsynth.pipeline.skin import fit_given_skeleton
-
-    iterations = 40
-    with Progress(4 * iterations, f"fit-skin under the given skeleton ({skeleton.bones} bones)", quiet) as bar:
-        fitted, skeleton = fit_given_skeleton(sequence.vertices, rest, sequence.faces, skeleton,
-                                              max_influences=max_influences,
-                                              iterations=iterations,
-                                              progress=lambda i, rmse: bar.update(1, f"RMSE/diag {rmse / diagonal:.2e}"))
-    record = {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints,
-              "drift": skeleton.drift, "root": skeleton.root, "free_rmse": float("nan"), "max_drift": float("nan")}
-    return fitted, record
-
-
-def _skeleton_summary(record, fit, sequence, diagonal):
-    """--json's "skeleton" and its text line."""
-    from skinsynth.pipeline.mesh.geometry import points_inside
-
-    jointed = np.asarray(record["jointed"])
-    inside = points_inside(np.asarray(record["joints"])[jointed], fit.rest_vertices, sequence.faces)
-    free = int((~jointed).sum()) - 1
-    summary = {"root": int(record["root"]), "joints": int(jointed.sum()), "free_bones": free,
-               "parents": [int(p) for p in record["parents"]],
-               "joints_inside": int(inside.sum()), "largest_drift": float(np.max(record["drift"], initial=0.0)),
-               "free_rmse": float(record["free_rmse"]), "rmse": float(fit.rmse),
-               "rmse_over_free": float(fit.rmse / record["free_rmse"]) if record["free_rmse"] > 0 else None}
-    # --skeleton FILE has no free fit to compare with (NaN stored; null here)
-    summary["free_rmse"] = summary["free_rmse"] if np.isfinite(summary["free_rmse"]) else None
-    ratio = f"{summary['rmse_over_free']:.2f}×" if summary["rmse_over_free"] is not None else "—"
-    free_error = f" ({record['free_rmse'] / diagonal:.2e} of the diagonal)" if summary["free_rmse"] else ""
-    line = (f"skeleton: root bone {summary['root']}, {summary['joints']} joints ({summary['joints_inside']} inside the "
-            f"mesh, largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
-            + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else "given (--skeleton FILE)"))
-    return summary, line
-
-
 def _read_rig(path, sequence, bones):
     """The rig of ``--rig`` (a SkinModel), refused unless it is the clips' mesh and has ``bones``."""
     from skinsynth.formats.clip_inputs import mesh_difference
     from skinsynth.formats.errors import FormatError
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.errors import OptionError
 
     rig = read_skin(path)
     difference = mesh_difference(len(rig.rest_vertices), rig.faces, sequence.vertices.shape[1], sequence.faces,
@@ -319,29 +275,3 @@ def _read_rig(path, sequence, bones):
     if bones is not None and bones != rig.bones:
         raise OptionError(f"--bones {bones} differs from the rig's {rig.bones} bones (leave --bones out with --rig)")
     return rig
-
-
-def _summary(output, sequence, bones, result, diagonal, seconds, device, history, clips, frame_rmse):
-    """The command's summary (--json) and its text lines."""
-    frames, count = sequence.vertices.shape[:2]
-    scene = sequence.scene
-    state = result.stopped
-    summary = {"output": output, "bones": bones, "vertices": int(count), "frames": int(frames), "fps": sequence.fps,
-               "rmse": result.rmse, "rmse_over_diagonal": result.rmse / diagonal, "iterations": int(result.iterations),
-               "converged": bool(result.converged), "stopped": result.stopped, "seconds": round(seconds, 3),
-               "device": device,
-               "bones_without_weight": int(result.bones_without_weight), "meters_per_unit": scene.meters_per_unit,
-               "up_axis": scene.up_axis, "start_frame": scene.start_frame, "prim_path": scene.prim_path,
-               "history": [[t, float(f"{e:.6g}")] for t, e in history]}
-    clip_rmse = [float(np.sqrt(np.mean(frame_rmse[a:b] ** 2))) for a, b in zip(clips.starts[:-1], clips.starts[1:])]
-    summary["clips"] = [{"name": name, "frames": int(n), "rmse": rmse, "rmse_over_diagonal": rmse / diagonal}
-                        for name, n, rmse in zip(clips.names, clips.frames, clip_rmse)]
-    lines = [f"wrote {output}: {bones} bones, {count} vertices, {frames} frames; "
-             f"RMSE {result.rmse:.4g} = {result.rmse / diagonal:.2e} of the bounding-box diagonal "
-             f"({result.iterations} iterations, {state}, {seconds:.1f} s)",
-             f"scene: {scene.describe(frames)} at {sequence.fps:g} fps (stated again by every USD written "
-             "from it; --meters-per-unit, --up-axis, --start-frame override)"]
-    if len(clips) > 1:
-        lines.append("clips: " + ", ".join(f"{c['name']} ({c['frames']} frames, RMSE/diag {c['rmse_over_diagonal']:.2e})"
-                                           for c in summary["clips"]))
-    return summary, lines

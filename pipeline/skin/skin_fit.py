@@ -184,11 +184,13 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
         bones_without_weight=int((totals <= 0.0).sum()))
 
 
-def finish_fit(fit, vertices):
+def finish_fit(fit, vertices, rest_frames=None):
     """What the skin file keeps beyond the fit itself, for the fit of vertices (F, V, 3): the
     error measured on a direct reconstruction, not the fit's running sum (sets ``fit.rmse``);
     returns (per-frame RMSE (F,), the bones as dual quaternions (F, B, 8) on one hemisphere per
-    bone over the frames (Feng §4.3), the bones' rest frames (B, 4, 4))."""
+    bone over the frames (Feng §4.3), the bones' rest frames (B, 4, 4): ``rest_frames`` where
+    given (a rig's, so that new clips on it drive exactly the same skeleton), else
+    :func:`bone_rest_frames`)."""
     from skinsynth.gpu import lbs_reference
 
     from ..rig.rotations import align_hemispheres, rigid_to_dual_quaternion
@@ -198,7 +200,8 @@ def finish_fit(fit, vertices):
     squared = np.sum((reconstruction - vertices) ** 2, axis=2)
     fit.rmse = float(np.sqrt(squared.mean()))
     dual_quaternions = align_hemispheres(rigid_to_dual_quaternion(fit.rotations, fit.translations), axis=0)
-    rest_frames = bone_rest_frames(fit.rest_vertices, fit.bone_indices, fit.bone_weights, fit.rotations.shape[1])
+    if rest_frames is None:
+        rest_frames = bone_rest_frames(fit.rest_vertices, fit.bone_indices, fit.bone_weights, fit.rotations.shape[1])
     return np.sqrt(squared.mean(axis=1)), dual_quaternions, rest_frames
 
 

@@ -1,0 +1,118 @@
+"""The rig a ``fit-skin`` request asks for, in one call: a free fit (:func:`.skin_fit.fit_skin`),
+new clips' bone transforms on a given rig (:func:`.skin_fit.fit_bones_to_rig`, ``--rig``), a
+free fit whose joints and tree are found and then held (:func:`.joints.find_skeleton`,
+:func:`.jointed_fit.fit_jointed`, ``--skeleton``; Le & Deng 2014), or a rig fitted under a
+skeleton the user brings (:func:`.jointed_fit.fit_given_skeleton`, ``--skeleton FILE``)."""
+
+import numpy as np
+
+#: Iterations of each phase of a jointed fit: joints moving, then fixed inside the body (:mod:`.jointed_fit`).
+JOINTED_ITERATIONS = 40
+
+
+def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, root_bone=None, max_joint_drift=None,
+            max_influences=4, iterations=100, rest_frame=0, seed=0, tolerance=0.02, patience=5, joint_steps=0,
+            device=None, diagonal=1.0, progress=lambda phase, length: None):
+    """The rig of the examples ``vertices (F, V, 3)`` (faces (T, 3)), fitted as asked.
+
+    ``rig``: a skin (rest_vertices (V, 3), bone_indices (V, K), bone_weights (V, K), bones) whose
+    rig is kept, only the bone transforms solved; ``given``: a :class:`.joints.Skeleton` to fit
+    under (one bone per joint; the rest pose is frame ``rest_frame``); ``find_joints``: after the
+    free fit of ``bones`` bones, find its joints (``root_bone``, ``max_joint_drift`` over the rest
+    ``diagonal``) and refit so that they hold. The other options are :func:`.skin_fit.fit_skin`'s
+    (``joint_steps``: its ``--transform-steps``). ``progress(phase, length)`` is called as each
+    phase starts, ``"fit"`` (the free fit or the rig's, ``iterations`` long), ``"joints"`` (the
+    refit on found joints) or ``"given"`` (the fit under ``given``), and returns the phase's
+    ``progress(iteration, rmse)`` (or None).
+
+    Returns (a :class:`.skin_fit.SkinFit`, the /skin/skeleton record or None: parents (B,),
+    jointed (B,), joints (B, 3), drift (B,), root, free_rmse (NaN under ``given``, which has no
+    free fit), max_drift)."""
+    from .jointed_fit import fit_given_skeleton, fit_jointed
+    from .joints import MAX_JOINT_DRIFT, find_skeleton
+    from .skin_fit import fit_bones_to_rig, fit_skin
+
+    if given is not None:
+        fitted, skeleton = fit_given_skeleton(vertices, vertices[rest_frame], faces, given,
+                                              max_influences=max_influences, iterations=JOINTED_ITERATIONS,
+                                              progress=progress("given", 4 * JOINTED_ITERATIONS))
+        return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), float("nan"))
+    if rig is not None:
+        return fit_bones_to_rig(vertices, rig.rest_vertices, rig.bone_indices, rig.bone_weights, rig.bones,
+                                iterations=iterations, tolerance=tolerance, patience=patience,
+                                joint_steps=joint_steps, progress=progress("fit", iterations), device=device), None
+    free = fit_skin(vertices, bones, max_influences=max_influences, iterations=iterations, rest_frame=rest_frame,
+                    seed=seed, tolerance=tolerance, patience=patience, joint_steps=joint_steps, device=device,
+                    progress=progress("fit", iterations))
+    if not find_joints:
+        return free, None
+    max_drift = MAX_JOINT_DRIFT if max_joint_drift is None else max_joint_drift
+    found = find_skeleton(free.rest_vertices, faces, free.bone_indices, free.bone_weights, free.rotations,
+                          free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal)
+    fitted, skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights, free.rotations,
+                                   found, faces=faces, max_influences=max_influences, iterations=JOINTED_ITERATIONS,
+                                   progress=progress("joints", 2 * JOINTED_ITERATIONS))
+    return fitted, _skeleton_record(skeleton, found.drift, free.rmse, max_drift)
+
+
+def _skeleton_record(skeleton, drift, free_rmse, max_drift):
+    """What /skin/skeleton stores of a fitted :class:`.joints.Skeleton` (docs/format.md)."""
+    return {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints, "drift": drift,
+            "root": skeleton.root, "free_rmse": free_rmse, "max_drift": max_drift}
+
+
+def skin_summary(output, fit, frame_rmse, clips, diagonal, fps, scene, seconds, device, history, skeleton=None,
+                 faces=None):
+    """``fit-skin``'s summary (--json) and its text lines, from a fit (:func:`fit_rig`) and its
+    per-frame RMSE (F,) (:func:`.skin_fit.finish_fit`): the error over the rest bounding-box
+    ``diagonal``, overall and per clip (``clips``: a :class:`~skinsynth.pipeline.inputs.clips.Clips`),
+    the input's ``scene`` (units, up axis, start frame, prim path, as the USD written from it
+    states them), the fit's ``history`` [(seconds, RMSE over the diagonal)]; with the
+    ``skeleton`` record (and the mesh's ``faces`` (T, 3)), its joints (:func:`_skeleton_summary`)."""
+    frames, bones = fit.rotations.shape[:2]
+    count = fit.rest_vertices.shape[0]
+    summary = {"output": output, "bones": bones, "vertices": int(count), "frames": int(frames), "fps": fps,
+               "rmse": fit.rmse, "rmse_over_diagonal": fit.rmse / diagonal, "iterations": int(fit.iterations),
+               "converged": bool(fit.converged), "stopped": fit.stopped, "seconds": round(seconds, 3),
+               "device": device,
+               "bones_without_weight": int(fit.bones_without_weight), "meters_per_unit": scene.meters_per_unit,
+               "up_axis": scene.up_axis, "start_frame": scene.start_frame, "prim_path": scene.prim_path,
+               "history": [[t, float(f"{e:.6g}")] for t, e in history]}
+    clip_rmse = [float(np.sqrt(np.mean(frame_rmse[a:b] ** 2))) for a, b in zip(clips.starts[:-1], clips.starts[1:])]
+    summary["clips"] = [{"name": name, "frames": int(n), "rmse": rmse, "rmse_over_diagonal": rmse / diagonal}
+                        for name, n, rmse in zip(clips.names, clips.frames, clip_rmse)]
+    lines = [f"wrote {output}: {bones} bones, {count} vertices, {frames} frames; "
+             f"RMSE {fit.rmse:.4g} = {fit.rmse / diagonal:.2e} of the bounding-box diagonal "
+             f"({fit.iterations} iterations, {fit.stopped}, {seconds:.1f} s)",
+             f"scene: {scene.describe(frames)} at {fps:g} fps (stated again by every USD written "
+             "from it; --meters-per-unit, --up-axis, --start-frame override)"]
+    if len(clips) > 1:
+        lines.append("clips: " + ", ".join(f"{c['name']} ({c['frames']} frames, RMSE/diag {c['rmse_over_diagonal']:.2e})"
+                                           for c in summary["clips"]))
+    if skeleton is not None:
+        summary["skeleton"], line = _skeleton_summary(skeleton, fit, faces, diagonal)
+        lines.append(line)
+    return summary, lines
+
+
+def _skeleton_summary(record, fit, faces, diagonal):
+    """--json's "skeleton" and its text line: the joints (how many inside the mesh), the free
+    bones, the largest drift, the error against the free fit's."""
+    from ..mesh.geometry import points_inside
+
+    jointed = np.asarray(record["jointed"])
+    inside = points_inside(np.asarray(record["joints"])[jointed], fit.rest_vertices, faces)
+    free = int((~jointed).sum()) - 1
+    summary = {"root": int(record["root"]), "joints": int(jointed.sum()), "free_bones": free,
+               "parents": [int(p) for p in record["parents"]],
+               "joints_inside": int(inside.sum()), "largest_drift": float(np.max(record["drift"], initial=0.0)),
+               "free_rmse": float(record["free_rmse"]), "rmse": float(fit.rmse),
+               "rmse_over_free": float(fit.rmse / record["free_rmse"]) if record["free_rmse"] > 0 else None}
+    # --skeleton FILE has no free fit to compare with (NaN stored; null here)
+    summary["free_rmse"] = summary["free_rmse"] if np.isfinite(summary["free_rmse"]) else None
+    ratio = f"{summary['rmse_over_free']:.2f}×" if summary["rmse_over_free"] is not None else "—"
+    free_error = f" ({record['free_rmse'] / diagonal:.2e} of the diagonal)" if summary["free_rmse"] else ""
+    line = (f"skeleton: root bone {summary['root']}, {summary['joints']} joints ({summary['joints_inside']} inside the "
+            f"mesh, largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
+            + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else "given (--skeleton FILE)"))
+    return summary, line
