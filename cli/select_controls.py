@@ -3,6 +3,8 @@
 import click
 import numpy as np
 
+from skinsynth.pipeline.errors import OptionError
+
 from .common import report, summary_options, check_output_path, command_line, tool_version, user_errors
 
 
@@ -61,25 +63,13 @@ def select_controls(input_path, output, count, vertex_list, marker_layout, compo
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.inputs.clips import Clips
-    from skinsynth.pipeline.puppet import select_controls as select
-    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.puppet import select_controls as select, selection_summary
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[input_path])
-    user = None
-    if vertex_list is not None:
-        try:
-            user = [int(item) for item in vertex_list.replace(" ", "").split(",") if item != ""]
-        except ValueError:
-            raise OptionError(f"--vertices takes comma-separated integer vertex ids (got {vertex_list!r})") from None
-        if not user:
-            raise OptionError("--vertices needs at least one vertex id")
+    user = None if vertex_list is None else _vertex_ids(vertex_list)
     model = read_model(input_path, stages=("skin",))
     skin = read_skin(input_path, model)
-    markers = None
-    if marker_layout is not None:
-        if user is not None:
-            raise OptionError("--markers and --vertices both choose the controls: give one")
-        user, markers = _layout_controls(marker_layout, skin)
+    user, markers = (user, None) if marker_layout is None else _layout_controls(marker_layout, skin, user)
     clips = Clips(skin.clip_names, skin.clip_frames)
     frames = clips.select(clip_list, "--clips")
     used = tuple(clips.names[c] for c in np.unique(clips.clip_of(frames)))
@@ -99,28 +89,30 @@ def select_controls(input_path, output, count, vertex_list, marker_layout, compo
                 tool_version())
     for warning in selection.warnings:
         click.echo(f"warning: {warning}", err=True)
-    lines = [f"control {number}: vertex {vertex}, basis {basis} ({100.0 * selection.basis_variance[basis]:.1f}% of "
-             f"variance): {reason}"
-             for number, (vertex, basis, reason) in enumerate(zip(selection.indices, selection.control_basis,
-                                                                  selection.reasons))]
-    lines.append(f"wrote {output}: {len(selection.indices)} control points ({selection.method}) from "
-                 f"{len(set(selection.candidates.tolist()))} candidates of {selection.components} rotated PCA "
-                 f"bases explaining {100.0 * selection.explained:.1f}% of the in-place variance"
-                 + (f", from {len(frames)} frames of clips {', '.join(used)}" if len(clips) > 1 else ""))
-    summary = {"output": output, "vertex_indices": selection.indices, "reasons": list(selection.reasons),
-               "bases": selection.control_basis, "method": selection.method, "components": int(selection.components),
-               "explained": float(selection.explained), "warnings": list(selection.warnings),
-               "clips": list(used), "frames": int(len(frames))}
-    report(summary, lines, as_json, quiet)
+    report(*selection_summary(output, selection, frames, clips, used), as_json, quiet)
 
 
-def _layout_controls(path, skin):
+def _vertex_ids(vertex_list):
+    """The vertex ids of ``--vertices I,J,...``; OptionError for anything but integers, or none."""
+    try:
+        user = [int(item) for item in vertex_list.replace(" ", "").split(",") if item != ""]
+    except ValueError:
+        raise OptionError(f"--vertices takes comma-separated integer vertex ids (got {vertex_list!r})") from None
+    if not user:
+        raise OptionError("--vertices needs at least one vertex id")
+    return user
+
+
+def _layout_controls(path, skin, user=None):
     """A marker layout's vertices as the user's controls: (vertex ids, (labels, offsets)), in the
-    layout's order; a marker given by a rest position takes the nearest vertex."""
+    layout's order; a marker given by a rest position takes the nearest vertex. Refused with
+    ``--vertices`` (``user``), which chooses them too."""
     from skinsynth.formats.errors import FormatError
     from skinsynth.formats.marker_layout import read_marker_layout
     from skinsynth.pipeline.puppet.markers import layout_vertex_ids
 
+    if user is not None:
+        raise OptionError("--markers and --vertices both choose the controls: give one")
     layout = read_marker_layout(path, vertex_count=skin.rest_vertices.shape[0])
     vertices = layout_vertex_ids(layout.vertices, layout.positions, skin.rest_vertices)
     if len(set(vertices.tolist())) != len(vertices):

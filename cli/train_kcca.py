@@ -5,6 +5,8 @@ import time
 import click
 import numpy as np
 
+from skinsynth.pipeline.errors import OptionError
+
 from .common import report, summary_options, check_output_path, command_line, tool_version, user_errors
 
 
@@ -72,19 +74,11 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     from skinsynth.formats.puppet_file import puppet_groups
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.inputs.clips import Clips
-    from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.puppet import KERNELS
-    from skinsynth.pipeline.puppet import clip_training_frames, train_puppet
+    from skinsynth.pipeline.puppet import clip_training_frames, train_puppet, training_summary
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
-    if kernel not in KERNELS:
-        raise OptionError(f"--kernel {kernel!r} does not exist; choose one of {', '.join(KERNELS)}")
-    regularization = _number_or_auto("--regularization", regularization, "a positive finite number", low_open=True)
-    kernel_width = _number_or_auto("--kernel-width", kernel_width, "a positive finite number", low_open=True)
-    translation_prior = _number_or_auto("--translation-prior", translation_prior, "a finite number ≥ 0")
-    if correctives != "off":
-        correctives = _number_or_auto("--correctives", correctives, "a positive finite ridge, 'auto' or 'off'",
-                                      low_open=True)
+    regularization, kernel_width, translation_prior, correctives = _numbers(kernel, regularization, kernel_width,
+                                                                            translation_prior, correctives)
     model = read_model(path, stages=("controls",))
     skin = read_skin(path, model)
     controls = read_controls(path, model)
@@ -107,45 +101,27 @@ def train_kcca(path, output, kernel, kernel_width, bases, regularization, transl
     write_model(output, "puppet", puppet_groups(model, puppet, test, "auto" if regularization == "auto" else "fixed",
                                                clips=used),
                 model["provenance"] + [record], tool_version())
-    summary, lines = _summary(output, skin, controls, train, test, kernel, translation_solver, puppet, seconds)
-    summary["clips"] = list(used)
-    if len(clips) > 1:
-        lines.insert(1, f"clips: {', '.join(used)} ({len(train)} training / {len(test)} held-out frames of "
-                        f"{clips.total} in {len(clips)} clips)")
-    report(summary, lines, as_json, quiet)
+    report(*training_summary(output, puppet, skin.bones, train, test, clips, used, seconds), as_json, quiet)
 
 
-def _summary(output, skin, controls, train, test, kernel, translation_solver, puppet, seconds):
-    """The command's summary (--json) and its text lines."""
-    corr = puppet.regression.correlations
-    lines = [f"wrote {output}: {skin.bones} bones, {len(controls.vertex_indices)} controls, "
-             f"{len(train)} training / {len(test)} held-out frames, {kernel} kernel, "
-             f"{corr.shape[1]} bases (mean first correlation {corr[:, 0].mean():.3f}), "
-             f"translation solver {'on' if translation_solver else 'off'}, {puppet.skinning} skinning; "
-             f"{seconds:.1f} s",
-             f"global motion: {puppet.global_motion} ({puppet.global_motion_reason})"]
-    if puppet.kernel_width_reason:
-        lines.append(f"kernel width: {puppet.kernel_width_reason}")
-    if translation_solver:
-        lines.append(f"translation prior: {puppet.translation_prior:g} ({puppet.translation_prior_reason})")
-    lines.append(f"correctives: {puppet.correctives_reason}")
-    summary = {"output": output, "bones": skin.bones, "controls": len(controls.vertex_indices),
-               "train_frames": len(train), "test_frames": len(test), "kernel": kernel, "bases": int(corr.shape[1]),
-               "kernel_scale": float(puppet.kernel.scale), "kernel_width_reason": puppet.kernel_width_reason,
-               "regularization": puppet.regression.regularization, "global_motion": puppet.global_motion,
-               "global_motion_reason": puppet.global_motion_reason, "translation_solver": bool(translation_solver),
-               "translation_prior": puppet.translation_prior if translation_solver else None,
-               "translation_prior_reason": puppet.translation_prior_reason,
-               "correctives": puppet.correctives is not None, "correctives_reason": puppet.correctives_reason,
-               "skinning": puppet.skinning,
-               "seconds": round(seconds, 3)}
-    return summary, lines
+def _numbers(kernel, regularization, kernel_width, translation_prior, correctives):
+    """--regularization, --kernel-width, --translation-prior and --correctives as numbers, or
+    'auto' (and 'off', --correctives); OptionError for a value out of range, or an unknown --kernel."""
+    from skinsynth.pipeline.puppet import KERNELS
+
+    if kernel not in KERNELS:
+        raise OptionError(f"--kernel {kernel!r} does not exist; choose one of {', '.join(KERNELS)}")
+    regularization = _number_or_auto("--regularization", regularization, "a positive finite number", low_open=True)
+    kernel_width = _number_or_auto("--kernel-width", kernel_width, "a positive finite number", low_open=True)
+    translation_prior = _number_or_auto("--translation-prior", translation_prior, "a finite number ≥ 0")
+    if correctives != "off":
+        correctives = _number_or_auto("--correctives", correctives, "a positive finite ridge, 'auto' or 'off'",
+                                      low_open=True)
+    return regularization, kernel_width, translation_prior, correctives
 
 
 def _number_or_auto(option, value, what, low_open=False):
     """'auto', or the option's value as a finite number ≥ 0 (> 0 when ``low_open``); OptionError otherwise."""
-    from skinsynth.pipeline.errors import OptionError
-
     if value == "auto":
         return value
     try:

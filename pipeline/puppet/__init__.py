@@ -5,20 +5,22 @@ prediction (:mod:`.puppet`, §6), control frames (:mod:`.alignment`), Feng's bas
 held-out evaluation (:mod:`.baselines`, :mod:`.evaluation`), and many characters at once
 (:mod:`.playback`).
 
-Public: select_controls, train_puppet, predict_vertices, parse_frame_spec, clip_training_frames, Puppet, puppet_from_record, KccaRegression,
+Public: select_controls, selection_summary, train_puppet, training_summary, predict_vertices, parse_frame_spec, clip_training_frames, Puppet, puppet_from_record, KccaRegression,
 ControlKernel, KERNELS, TranslationOperator, Correctives, evaluate_puppet, evaluate_extrapolation,
-extrapolation_split, clip_hold_out_split, evaluate_clip_hold_out, instance_trajectories, host_inputs, world_bones, play_characters, DevicePlayer,
+extrapolation_split, clip_hold_out_split, evaluate_clip_hold_out, evaluate_hold_outs, evaluation_report, instance_trajectories, host_inputs, world_bones, play_characters, DevicePlayer,
 drive_from_markers, MarkerDrive (a motion-capture take as the controls, :mod:`.markers`).
 """
 
 from .._lazy import lazy_exports
 
-_EXPORTS = {"select_controls": "controls", "train_puppet": "puppet", "predict_vertices": "puppet",
+_EXPORTS = {"select_controls": "controls", "selection_summary": "controls", "train_puppet": "puppet",
+            "training_summary": "puppet", "predict_vertices": "puppet",
             "parse_frame_spec": "puppet", "clip_training_frames": "puppet", "Puppet": "puppet", "puppet_from_record": "puppet", "KccaRegression": "kcca", "ControlKernel": "kcca",
             "KERNELS": "kcca", "TranslationOperator": "poisson", "Correctives": "correctives",
             "evaluate_puppet": "evaluation", "evaluate_extrapolation": "evaluation",
             "extrapolation_split": "evaluation", "clip_hold_out_split": "evaluation",
-            "evaluate_clip_hold_out": "evaluation", "instance_trajectories": "playback", "host_inputs": "playback", "play_characters": "playback", "DevicePlayer": "playback",
+            "evaluate_clip_hold_out": "evaluation", "evaluate_hold_outs": "evaluation",
+            "evaluation_report": "evaluation", "instance_trajectories": "playback", "host_inputs": "playback", "play_characters": "playback", "DevicePlayer": "playback",
             "world_bones": "playback", "drive_from_markers": "markers", "MarkerDrive": "markers"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

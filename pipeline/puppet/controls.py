@@ -408,3 +408,23 @@ def select_controls(vertices, rest, count=None, components=None, user_vertices=N
                             candidate_basis=basis_of.astype(np.int32), candidate_loading=loading,
                             basis_variance=rotated_share, explained=explained, components=k,
                             method=method, min_spacing=spacing, warnings=warnings)
+
+
+def selection_summary(output, selection, frames, clips, used):
+    """``select-controls``' summary (--json) and its text lines: one line per control (its vertex,
+    basis, that basis's variance share, why it was chosen), then the selection from ``frames``
+    (n,) of the clips ``used`` (names) of the skin's ``clips`` (a
+    :class:`~skinsynth.pipeline.inputs.clips.Clips`)."""
+    lines = [f"control {number}: vertex {vertex}, basis {basis} ({100.0 * selection.basis_variance[basis]:.1f}% of "
+             f"variance): {reason}"
+             for number, (vertex, basis, reason) in enumerate(zip(selection.indices, selection.control_basis,
+                                                                  selection.reasons))]
+    lines.append(f"wrote {output}: {len(selection.indices)} control points ({selection.method}) from "
+                 f"{len(set(selection.candidates.tolist()))} candidates of {selection.components} rotated PCA "
+                 f"bases explaining {100.0 * selection.explained:.1f}% of the in-place variance"
+                 + (f", from {len(frames)} frames of clips {', '.join(used)}" if len(clips) > 1 else ""))
+    summary = {"output": output, "vertex_indices": selection.indices, "reasons": list(selection.reasons),
+               "bases": selection.control_basis, "method": selection.method, "components": int(selection.components),
+               "explained": float(selection.explained), "warnings": list(selection.warnings),
+               "clips": list(used), "frames": int(len(frames))}
+    return summary, lines

@@ -168,3 +168,100 @@ def evaluate_clip_hold_out(skin, control_indices, options, clips, held_out, trai
     result.notes.update(train_clips=list(train_names), test_clips=list(test_names),
                         train_frames=np.asarray(train, dtype=np.int64))
     return result
+
+
+def evaluate_hold_outs(puppet, skin, test_frames, options, clips, training_clips=None, skinning=None,
+                       pca_components=None, extrapolate=None, hold_out_clips=()):
+    """``evaluate``'s tests: the puppet on its held-out frames ``test_frames`` (T,)
+    (:func:`evaluate_puppet`, with a jointed skin's ``kcca_on_joints``) and, where asked, two
+    harder ones with a puppet retrained on ``options`` (train_puppet's keywords): the last
+    frames after the first ``extrapolate`` fraction (:func:`evaluate_extrapolation`) and the
+    clips ``hold_out_clips`` (:func:`evaluate_clip_hold_out`; ``clips``: the skin's
+    :class:`~skinsynth.pipeline.inputs.clips.Clips`, ``training_clips``: the puppet's). A bad
+    fraction or clip name is an OptionError before any work. ``skinning`` None: the puppet's own.
+    Returns (:class:`Evaluation`, the extrapolation's or None, the clip hold-out's or None)."""
+    split = None if extrapolate is None else extrapolation_split(skin.examples.shape[0], extrapolate)
+    if hold_out_clips:  # a bad name fails before any work
+        clip_hold_out_split(clips, hold_out_clips, training_clips)
+    skeleton = None if skin.skeleton is None else tuple(skin.skeleton[k] for k in ("parents", "jointed", "joints"))
+    result = evaluate_puppet(puppet, skin.examples, test_frames, skinning=skinning, pca_components=pca_components,
+                             skeleton=skeleton)
+    skinning = result.notes["skinning"]
+    beyond = None
+    if split is not None:
+        beyond = evaluate_extrapolation(skin, puppet.control_indices, options, *split, skinning, pca_components)
+    unseen = None
+    if hold_out_clips:
+        unseen = evaluate_clip_hold_out(skin, puppet.control_indices, options, clips, hold_out_clips,
+                                        training_clips, skinning, pca_components)
+    return result, beyond, unseen
+
+
+#: The methods :func:`evaluate_puppet` compares, as ``evaluate`` names them.
+METHODS = {
+    "kcca": "kernel CCA + Poisson translation solver",
+    "kcca_no_translation_solver": "kernel CCA, predicted translations",
+    "pca_blendshape": "PCA blendshapes, weights by least squares",
+    "rbf": "direct RBF regression",
+    "kcca_on_joints": "kernel CCA, bones put back on the skeleton's joints (play's rig of a jointed skin)",
+}
+
+
+def evaluation_report(path, result, train_frames, clips, training_clips=None, beyond=None, unseen=None, plot=None):
+    """``evaluate``'s summary (--json) and its text lines, from :func:`evaluate_hold_outs`'s
+    evaluations of the puppet file ``path`` (trained on ``train_frames``; ``clips``: the skin's
+    :class:`~skinsynth.pipeline.inputs.clips.Clips`, ``training_clips``: the puppet's, None for
+    every clip); ``plot``: the error curves' file, where written."""
+    notes = result.notes
+    payload = dict(result.overall)
+    payload.update(test_frames=[int(f) for f in result.test_frames], train_frames=[int(f) for f in train_frames],
+                   per_frame={k: [float(e) for e in v] for k, v in result.per_frame.items()},
+                   clips=list(training_clips or clips.names), **notes)
+    if beyond is not None:
+        payload["extrapolation"] = dict(beyond.overall, train_frames=beyond.notes["train_frames"],
+                                        test_frames=[int(f) for f in beyond.test_frames])
+    if unseen is not None:
+        payload["clip_hold_out"] = dict(unseen.overall, train_clips=unseen.notes["train_clips"],
+                                        test_clips=unseen.notes["test_clips"],
+                                        train_frames=[int(f) for f in unseen.notes["train_frames"]],
+                                        test_frames=[int(f) for f in unseen.test_frames],
+                                        pca_components=unseen.notes["pca_components"],
+                                        global_motion=unseen.notes["global_motion"])
+    lines = [f"{path}: {len(result.test_frames)} held-out frames, {len(train_frames)} training; "
+             f"global motion: {notes['global_motion']} ({notes['global_motion_reason']}); "
+             f"{notes['skinning']} skinning; "
+             f"kernel {notes['kernel']}; PCA baseline with {notes['pca_components']} blendshapes"
+             + (f"; translation prior {notes['translation_prior']:g}" if notes["translation_prior"] is not None else "")
+             + f"; correctives: {notes['correctives'] or 'off'}"
+             + (f"; clips {', '.join(training_clips or clips.names)}" if len(clips) > 1 else ""),
+             *_table(result)]
+    if "joint_projection_cost" in notes:
+        lines.append(f"  the skeleton's joints: play's rig puts the predicted bones back on them, which moves the "
+                     f"prediction by {notes['joint_projection_cost']:.5f} (RMS, same scale)")
+    if beyond is not None:
+        lines.append(f"extrapolation: trained on frames 0..{beyond.notes['train_frames'] - 1}, tested on the "
+                     f"{len(beyond.test_frames)} after")
+        lines += _table(beyond)
+    if unseen is not None:
+        lines.append(f"clip hold-out: trained on {', '.join(unseen.notes['train_clips'])} "
+                     f"({len(unseen.notes['train_frames'])} frames), tested on {', '.join(unseen.notes['test_clips'])} "
+                     f"({len(unseen.test_frames)} frames); global motion {unseen.notes['global_motion']}, "
+                     f"PCA baseline with {unseen.notes['pca_components']} blendshapes")
+        lines += _table(unseen)
+    if plot is not None:
+        lines.append(f"wrote {plot}")
+    return payload, lines
+
+
+def _table(result):
+    """One line per method: its error, its label, the lowest marked."""
+    best = min(result.overall, key=result.overall.get)
+    lines = []
+    for name, label in METHODS.items():
+        if name not in result.overall:  # kcca_on_joints: only for a skin with a skeleton
+            continue
+        if name == "kcca" and not result.notes["translation_solver"]:
+            label += " (trained without the solver: same as below)"
+        mark = "  <- lowest" if name == best else ""
+        lines.append(f"  {name:<28} {result.overall[name]:.5f}  {label}{mark}")
+    return lines

@@ -308,6 +308,41 @@ def train_puppet(examples, rest, faces, bone_indices, bone_weights, rotations, t
     return puppet
 
 
+def training_summary(output, puppet, bones, train, test, clips, used, seconds):
+    """``train-kcca``'s summary (--json) and its text lines: the puppet (:func:`train_puppet`) of
+    a skin of ``bones`` bones, trained on the frames ``train`` (n_p,) with ``test`` (T,) held out,
+    in ``seconds``; ``clips``: the skin's :class:`~skinsynth.pipeline.inputs.clips.Clips`,
+    ``used``: the names of those trained on."""
+    corr = puppet.regression.correlations
+    solver = puppet.translations is not None
+    lines = [f"wrote {output}: {bones} bones, {len(puppet.control_indices)} controls, "
+             f"{len(train)} training / {len(test)} held-out frames, {puppet.kernel.kind} kernel, "
+             f"{corr.shape[1]} bases (mean first correlation {corr[:, 0].mean():.3f}), "
+             f"translation solver {'on' if solver else 'off'}, {puppet.skinning} skinning; "
+             f"{seconds:.1f} s"]
+    if len(clips) > 1:
+        lines.append(f"clips: {', '.join(used)} ({len(train)} training / {len(test)} held-out frames of "
+                     f"{clips.total} in {len(clips)} clips)")
+    lines.append(f"global motion: {puppet.global_motion} ({puppet.global_motion_reason})")
+    if puppet.kernel_width_reason:
+        lines.append(f"kernel width: {puppet.kernel_width_reason}")
+    if solver:
+        lines.append(f"translation prior: {puppet.translation_prior:g} ({puppet.translation_prior_reason})")
+    lines.append(f"correctives: {puppet.correctives_reason}")
+    summary = {"output": output, "bones": bones, "controls": len(puppet.control_indices),
+               "train_frames": len(train), "test_frames": len(test), "kernel": puppet.kernel.kind,
+               "bases": int(corr.shape[1]),
+               "kernel_scale": float(puppet.kernel.scale), "kernel_width_reason": puppet.kernel_width_reason,
+               "regularization": puppet.regression.regularization, "global_motion": puppet.global_motion,
+               "global_motion_reason": puppet.global_motion_reason, "translation_solver": solver,
+               "translation_prior": puppet.translation_prior if solver else None,
+               "translation_prior_reason": puppet.translation_prior_reason,
+               "correctives": puppet.correctives is not None, "correctives_reason": puppet.correctives_reason,
+               "skinning": puppet.skinning,
+               "seconds": round(seconds, 3), "clips": list(used)}
+    return summary, lines
+
+
 @dataclass
 class _Scores:
     """Cross-validated RMS vertex errors at one kernel width: priors {prior: error} (no
