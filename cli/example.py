@@ -2,7 +2,7 @@
 
 import click
 
-from .common import check_memory, report, summary_options, check_output_path, fail, user_errors
+from .common import report, summary_options, check_output_path, fail, user_errors
 
 EXAMPLES = ("bending-bar", "walker")
 
@@ -52,7 +52,8 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, quiet, 
       skinsynth fit-skin walker.npz -o walker.skin.h5 --bones 12
     """
     from skinsynth.formats.meshseq import write_array_sequence
-    from skinsynth.pipeline.inputs.examples import bending_bar, walker
+    from skinsynth.pipeline.inputs.examples import bending_bar, example_memory, walker
+    from skinsynth.pipeline.runtime.resources import check_memory
 
     defaults = DEFAULTS[name]
     frames = defaults["frames"] if frames is None else frames
@@ -64,14 +65,10 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, quiet, 
         fail("--frames and --rings must be at least 2, --segments at least 3, --cycles at least 1, --fps positive")
     if planted and name != "walker":
         fail("--planted is the walker's: the bending bar has no feet")
+    check_memory(*example_memory(name, frames, rings, segments))
     if name == "walker":
-        # Nine tubes: the legs have ``rings`` rings each, the other seven together about 3.1 × as
-        # many (at least 4 each), two cap centres each; per-part temporaries come on top.
-        vertex_count = (6 * rings + 32) * segments + 18
-        check_memory(frames * vertex_count * 3 * 8 * 4, f"{frames} frames of up to {vertex_count} vertices")
         vertices, faces = walker(frames=frames, cycles=cycles, rings=rings, segments=segments, planted=planted)
     else:
-        check_memory(frames * (rings * segments + 2) * 3 * 8 * 3, f"{frames} frames of {rings} × {segments} vertices")
         vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
     write_array_sequence(output, vertices, faces, fps)
     summary = {"output": output, "name": name, "frames": frames, "vertices": int(vertices.shape[1]), "fps": fps}

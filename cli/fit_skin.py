@@ -4,7 +4,6 @@ import time
 from dataclasses import replace
 
 import click
-import numpy as np
 
 from skinsynth.pipeline.errors import OptionError
 
@@ -96,10 +95,8 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     bones, tolerance, transform_steps, brought, device = _resolved_options(bones, rig, tolerance, transform_steps,
                                                                            skeleton, root_bone, max_joint_drift, fps,
                                                                            device)
-    sequence, clips = _read_clips(input_specs, prim, fps, meters_per_unit, up_axis, start_frame)
-    if brought is not None:
-        _check_skeleton_scene(skeleton, brought[1], sequence.scene)
-    rig_model = _read_rig(rig, sequence, bones) if rig else None
+    sequence, clips, rig_model = _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig,
+                                              skeleton, brought)
     bones, rest_frame, diagonal = _rest_pose(input_specs[0], sequence, clips, rig_model, bones, rest_frame,
                                              max_influences, iterations, root_bone, transform_steps)
     with Progress(iterations, "", quiet) as bar:
@@ -167,9 +164,12 @@ def _resolved_options(bones, rig, tolerance, transform_steps, skeleton, root_bon
             (1 if rig else 0) if transform_steps is None else transform_steps, brought, device)
 
 
-def _read_clips(input_specs, prim, fps, meters_per_unit, up_axis, start_frame):
-    """The INPUT clips (a MeshSequence, its scene as the options override it) and their :class:`Clips`."""
-    from skinsynth.formats.clip_inputs import read_clips
+def _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig, skeleton, brought):
+    """The INPUT clips (a MeshSequence, its scene as the options override it), their
+    :class:`Clips`, and the skin of ``--rig`` (None without); refused unless ``--rig`` is the
+    clips' mesh, and ``--skeleton FILE`` (``brought``) in their units and up axis."""
+    from skinsynth.formats.clip_inputs import read_clips, read_rig
+    from skinsynth.formats.usd import check_skeleton_scene
     from skinsynth.pipeline.inputs.clips import Clips
 
     sequence = read_clips(input_specs, prim=prim, fps=fps)
@@ -177,7 +177,9 @@ def _read_clips(input_specs, prim, fps, meters_per_unit, up_axis, start_frame):
         sequence = replace(sequence, scene=sequence.scene.overridden(meters_per_unit, up_axis, start_frame))
     except ValueError as error:
         raise OptionError(str(error)) from None
-    return sequence, Clips(sequence.clip_names, sequence.clip_frames)
+    if brought is not None:
+        check_skeleton_scene(skeleton, brought[1], sequence.scene)
+    return sequence, Clips(sequence.clip_names, sequence.clip_frames), read_rig(rig, sequence) if rig else None
 
 
 def _rest_pose(first_input, sequence, clips, rig, bones, rest_frame, max_influences, iterations, root_bone,
@@ -191,6 +193,8 @@ def _rest_pose(first_input, sequence, clips, rig, bones, rest_frame, max_influen
 
     frames, count = sequence.vertices.shape[:2]
     if rig is not None:
+        if bones is not None and bones != rig.bones:
+            raise OptionError(f"--bones {bones} differs from the rig's {rig.bones} bones (leave --bones out with --rig)")
         bones = rig.bones
         rest_frame = 0  # the rest pose is the rig's, not one of these frames (docs/format.md: /mesh)
     else:
@@ -247,31 +251,3 @@ def _read_given_skeleton(path, bones):
         raise OptionError(f"--bones {bones} differs from the {found.bones} bones of --skeleton {path} (leave --bones "
                           "out: the skeleton gives one bone per joint)")
     return found, record
-
-
-def _check_skeleton_scene(path, record, scene):
-    """Refuse ``--skeleton FILE`` whose stage's units or up axis are not the input's: its bind pose
-    would then sit at another scale, or lie on its side."""
-    from skinsynth.formats.errors import FormatError
-
-    if not np.isclose(record.meters_per_unit, scene.meters_per_unit, rtol=1e-9) or record.up_axis != scene.up_axis:
-        raise FormatError(path, f"its skeleton is in {record.meters_per_unit:g} m per unit, {record.up_axis} up, the "
-                                f"input in {scene.meters_per_unit:g}, {scene.up_axis} up: give --meters-per-unit and "
-                                "--up-axis of the skeleton's scene, or a skeleton exported from this character's fit")
-
-
-def _read_rig(path, sequence, bones):
-    """The rig of ``--rig`` (a SkinModel), refused unless it is the clips' mesh and has ``bones``."""
-    from skinsynth.formats.clip_inputs import mesh_difference
-    from skinsynth.formats.errors import FormatError
-    from skinsynth.formats.skin_file import read_skin
-
-    rig = read_skin(path)
-    difference = mesh_difference(len(rig.rest_vertices), rig.faces, sequence.vertices.shape[1], sequence.faces,
-                                 sequence.source)
-    if difference:
-        raise FormatError(path, f"the rig {difference}: --rig needs the clips' own mesh, its vertices in the same "
-                                "order")
-    if bones is not None and bones != rig.bones:
-        raise OptionError(f"--bones {bones} differs from the rig's {rig.bones} bones (leave --bones out with --rig)")
-    return rig

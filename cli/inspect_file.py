@@ -28,7 +28,7 @@ def inspect_file(path, as_json, quiet, digests):
       skinsynth inspect horse.skin.h5 --json | jq .rmse_over_diagonal
     """
     from skinsynth.formats.hdf5_storage import BLOCK_BYTES
-    from skinsynth.formats.inspection import describe_model
+    from skinsynth.formats.inspection import describe_model, description_lines
     from skinsynth.formats.model import content_digests, read_model
 
     # a dataset larger than a block is checked block by block: a file of any size in bounded memory
@@ -40,23 +40,5 @@ def inspect_file(path, as_json, quiet, digests):
     if as_json:
         click.echo(json.dumps(summary, sort_keys=True, default=str))
         return
-    for key, value in summary.items():
-        if key == "digests":  # as sha256sum prints them: diff two files' lists
-            for name, digest in value.items():
-                click.echo(f"{digest}  {name}")
-        elif key == "provenance":
-            for record in value:
-                click.echo(f"provenance: {record['stage']} by skinsynth {record['tool_version']} on {record['date']}"
-                           f" (seed {record['seed']}): {record['command']}")
-        elif key == "clips":  # one line each: name, frames, global first–last
-            click.echo(f"clips: {len(value)}")
-            for clip in value:
-                click.echo(f"  {clip['name']}: {clip['frames']} frames ({clip['first']}–{clip['last']})")
-        elif key == "skeleton":  # one line: the joint tree (fit-skin --skeleton)
-            free = ", ".join(str(b) for b in value["free_bones"]) or "none"
-            click.echo(f"skeleton: root bone {value['root']}, {value['joints']} joints, free bones: {free}; "
-                       f"tree {value['tree']} (~ free); parents {value['parents']}")
-        elif isinstance(value, float):
-            click.echo(f"{key}: {value:.6g}")
-        else:
-            click.echo(f"{key}: {value}")
+    for line in description_lines(summary):
+        click.echo(line)

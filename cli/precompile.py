@@ -43,6 +43,7 @@ def precompile(influences, quiet, as_json):
     """
     from skinsynth.gpu import compile_cpu_kernels
     from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.runtime.compiled import compiled_line, compiled_summary
     from skinsynth.pipeline.skin import compile_loops as skin_loops
     from skinsynth.pipeline.synthesis import compile_loops as synthesis_loops
     from skinsynth.pipeline.view import compile_loops as view_loops
@@ -56,27 +57,10 @@ def precompile(influences, quiet, as_json):
     def done(item):
         items.append(item)
         if talk:
-            click.echo(_line(item))
+            click.echo(compiled_line(item))
 
     done(skin_loops())
     done(view_loops())
     done(synthesis_loops())
     compile_cpu_kernels(tuple(dict.fromkeys(influences)), done=done)
-    seconds = time.perf_counter() - start
-    compiled, loaded = sum(i["compiled"] for i in items), sum(i["loaded"] for i in items)
-    caches = {kind: sorted({path for i in items if i["kind"] == kind for path in i["cache"]}) for kind in ("numba", "warp")}
-    summary = {"items": items, "compiled": compiled, "loaded": loaded, "seconds": seconds,
-               "numba_cache": caches["numba"], "warp_cache": caches["warp"]}
-    report(summary, [f"precompiled in {seconds:.1f} s: {compiled} compiled, {loaded} loaded from the caches",
-                     f"numba cache: {', '.join(caches['numba']) or '(none)'}",
-                     f"warp cache: {', '.join(caches['warp'])}"], as_json=as_json, quiet=quiet)
-
-
-def _line(item):
-    what = f"{item['kind']} {item['name']}"
-    if item["kind"] == "numba":
-        what += f" ({', '.join(item['functions'])})"
-    done = f"compiled {item['compiled']}" if item["compiled"] else "loaded from the cache"
-    if item["compiled"] and item["loaded"]:
-        done += f", loaded {item['loaded']}"
-    return f"{what}: {done} in {item['seconds']:.1f} s"
+    report(*compiled_summary(items, time.perf_counter() - start), as_json=as_json, quiet=quiet)

@@ -100,6 +100,20 @@ def mesh_difference(count, faces, reference_count, reference_faces, reference):
     return None
 
 
+def read_rig(path, sequence):
+    """The skin file ``path`` whose rig new clips are fitted on (``fit-skin --rig``), read as a
+    SkinModel; FormatError unless its mesh is the clips' (``sequence``), vertices in the same order."""
+    from .skin_file import read_skin
+
+    rig = read_skin(path)
+    difference = mesh_difference(len(rig.rest_vertices), rig.faces, sequence.vertices.shape[1], sequence.faces,
+                                 sequence.source)
+    if difference:
+        raise FormatError(path, f"the rig {difference}: --rig needs the clips' own mesh, its vertices in the same "
+                                "order")
+    return rig
+
+
 def _require_same_mesh(first, other):
     """FormatError naming ``other``'s first difference from ``first``: vertices, faces, fps, scene."""
     where = f"(clip {first.source} has"

@@ -138,3 +138,28 @@ def describe_model(path, model):
                                                  "inputs")}
                          for r in model["provenance"]]
     return out
+
+
+def description_lines(description):
+    """``inspect``'s text of :func:`describe_model`'s dict: one ``key: value`` line each (floats to
+    six digits), the digests as sha256sum prints them (diff two files' lists), a line per
+    provenance record and per clip, and the skeleton's tree on one line."""
+    lines = []
+    for key, value in description.items():
+        if key == "digests":  # as sha256sum prints them: diff two files' lists
+            lines += [f"{digest}  {name}" for name, digest in value.items()]
+        elif key == "provenance":
+            lines += [f"provenance: {record['stage']} by skinsynth {record['tool_version']} on {record['date']}"
+                      f" (seed {record['seed']}): {record['command']}" for record in value]
+        elif key == "clips":  # one line each: name, frames, global first–last
+            lines.append(f"clips: {len(value)}")
+            lines += [f"  {clip['name']}: {clip['frames']} frames ({clip['first']}–{clip['last']})" for clip in value]
+        elif key == "skeleton":  # one line: the joint tree (fit-skin --skeleton)
+            free = ", ".join(str(b) for b in value["free_bones"]) or "none"
+            lines.append(f"skeleton: root bone {value['root']}, {value['joints']} joints, free bones: {free}; "
+                         f"tree {value['tree']} (~ free); parents {value['parents']}")
+        elif isinstance(value, float):
+            lines.append(f"{key}: {value:.6g}")
+        else:
+            lines.append(f"{key}: {value}")
+    return lines

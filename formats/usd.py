@@ -677,6 +677,17 @@ def read_skeleton(path) -> UsdSkeleton:
     raise FormatError(path, "holds no UsdSkel Skeleton (--skeleton FILE needs one: joints, topology, bind transforms)")
 
 
+def check_skeleton_scene(path, skeleton, scene):
+    """Refuse (FormatError naming ``path``) a :class:`UsdSkeleton` whose stage's units or up axis
+    are not those of ``scene`` (the input's :class:`~.scene.Scene`): its bind pose would then sit
+    at another scale, or lie on its side."""
+    if not np.isclose(skeleton.meters_per_unit, scene.meters_per_unit, rtol=1e-9) or skeleton.up_axis != scene.up_axis:
+        raise FormatError(path, f"its skeleton is in {skeleton.meters_per_unit:g} m per unit, {skeleton.up_axis} up, "
+                                f"the input in {scene.meters_per_unit:g}, {scene.up_axis} up: give --meters-per-unit "
+                                "and --up-axis of the skeleton's scene, or a skeleton exported from this character's "
+                                "fit")
+
+
 @_reader
 def read_skel_points(path) -> np.ndarray:
     """Vertices (F, V, 3) as UsdSkel itself skins the first skinned mesh, at time codes start..end.

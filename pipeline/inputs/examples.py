@@ -11,6 +11,8 @@
   case where components' independent walks combine leg poses that never occur together. With
   ``planted=True`` it walks forward instead, its feet truly planted (two-link legs by analytic
   inverse kinematics); :func:`walker_contacts` gives that gait's contact truth in closed form.
+
+:func:`example_memory` estimates what building one holds, which ``skinsynth example`` checks first.
 """
 
 from typing import NamedTuple
@@ -20,6 +22,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..rig.rotations import rotation_exp
+
+
+def example_memory(name, frames, rings, segments):
+    """(bytes, what): an upper estimate of the memory building the example ``name``
+    ("bending-bar": :func:`bending_bar`, "walker": :func:`walker`) holds at its peak, from its
+    sizes, and those sizes in words (for a refusal)."""
+    if name == "walker":
+        # Nine tubes: the legs have ``rings`` rings each, the other seven together about 3.1 × as
+        # many (at least 4 each), two cap centres each; per-part temporaries come on top.
+        vertex_count = (6 * rings + 32) * segments + 18
+        return frames * vertex_count * 3 * 8 * 4, f"{frames} frames of up to {vertex_count} vertices"
+    return frames * (rings * segments + 2) * 3 * 8 * 3, f"{frames} frames of {rings} × {segments} vertices"
 
 
 def cylinder_mesh(rings=40, segments=16, length=4.0, radius=0.5):
