@@ -11,7 +11,9 @@ import click
 
 from skinsynth.formats.errors import FormatError
 from skinsynth.pipeline.errors import OptionError
-# the memory and disk refusals live on the runtime floor; kept here for the commands that import them from here
+# the output-file rule lives in formats, the memory and disk refusals on the runtime floor; importable
+# from here too, for the commands that import them from here
+from skinsynth.formats.output_file import check_output_path  # noqa: F401
 from skinsynth.pipeline.runtime.resources import check_memory, check_space  # noqa: F401
 
 EXIT_USER_ERROR = 2
@@ -143,21 +145,6 @@ def quiet_interruptions(unraisable, default=sys.__unraisablehook__):
         default(unraisable)
 
 
-def check_output_path(path, suffixes, inputs=()):
-    """Refuse, before any work, an output path whose extension this command cannot write, whose
-    folder is missing or not writable, or that is one of ``inputs`` (the same file by device and
-    inode, so another name, a hard link or a symbolic link to an input is caught too)."""
-    lower = str(path).lower()
-    if not any(lower.endswith(s) for s in suffixes):
-        fail(f"{path}: output must end in {', '.join(suffixes)}")
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        fail(f"{path}: cannot write here: the folder {folder} does not exist")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        fail(f"{path}: cannot write here: the folder {folder} is not writable")
-    check_not_an_input(path, inputs)
-
-
 class FolderOutputs:
     """A command's folder outputs, each refused before any work when it could cost the user a
     file: one that holds anything skinsynth did not write, the working folder, or a folder that
@@ -183,21 +170,6 @@ class FolderOutputs:
         """``inputs`` and ``outputs`` (the others) for ``folder``'s writer."""
         index = self.outputs.index(str(folder))
         return {"inputs": self.inputs, "outputs": self.outputs[:index] + self.outputs[index + 1:]}
-
-
-def check_not_an_input(path, inputs):
-    """Refuse an output that is one of the input files (same device and inode)."""
-    try:
-        target = os.stat(path)
-    except OSError:
-        return  # not there yet: it cannot be an input
-    for source in inputs:
-        try:
-            found = os.stat(source)
-        except OSError:
-            continue
-        if (found.st_dev, found.st_ino) == (target.st_dev, target.st_ino):
-            fail(f"{path}: the output is the input {source}; write the result to another file")
 
 
 def summary_options(command):

@@ -2,7 +2,9 @@
 
 import click
 
-from .common import check_output_path, fail, report, summary_options, user_errors
+from skinsynth.formats.output_file import check_output_path
+
+from .common import fail, report, summary_options, user_errors
 
 
 @click.command("evaluate")

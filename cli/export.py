@@ -95,48 +95,56 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
     with _animations(path, device, clip) as source:
         chosen = _chosen(source, selections)
         kind = kind or ("skel" if source.has_skeleton else "points")
-        _check_request(path, output, output_kind, kind, source, chosen, root_motion)
-        to_exr = output_kind in TEXTURES
-        if kind == "bones":
-            check_bone_texture_output(output, source.skin.rotations.shape[1], source.frames * len(chosen), max_width)
-        else:  # a folder holds one texture per animation
-            check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames, max_width)
-        if kind == "bones":
-            bytes_per_animation = write_bone_textures(output, source.skin, (part for a in chosen
-                                                                            for part in source.parts(a)), half,
-                                                      max_width, folders.guard(output),
-                                                      label=source.path) // len(chosen)
-        elif output_kind == "gltf":
-            write_gltf(output, source.skin, (part for a in chosen for part in source.parts(a)),
-                       up_axis or source.scene.up_axis, None if quantize is None else int(quantize), root_motion,
-                       label=source.path, skeleton=source.skin.skeleton)
-        elif to_exr:
-            frames = (part for a in chosen for part in source.vertex_parts(a)) if output_kind == "folder" else \
-                ((source.names[a], source.vertices(a)) for a in chosen)  # a folder: a texture per clip
-            write_textures(output, output_kind, source.rest_vertices, source.faces, frames, source.fps,
-                           source.scene, half, max_width, folders.guard(output))
-        elif kind == "skel":
-            from skinsynth.formats.usd import write_skel_cache
+        _check_request(path, output, output_kind, kind, source, chosen, root_motion, max_width)
+        written = _write(output, output_kind, kind, source, chosen, half, max_width, quantize, root_motion, up_axis,
+                         folders)
+    report(*_summary(output, output_kind, kind, source, chosen, clip, half, written), as_json, quiet)
 
-            skin = source.skin
-            rotations, translations = source.motions(chosen[0])
-            root = None
-            if root_motion:
-                from skinsynth.pipeline.rig.skeleton import ground_motion
 
-                up = np.eye(3)["XYZ".index(up_axis or skin.scene.up_axis)]
-                root = ground_motion(np.asarray(rotations, np.float64), np.asarray(translations, np.float64),
-                                     skin.rest_vertices, skin.bone_indices, skin.bone_weights, up)
-            tree = None if skin.skeleton is None else usd_joint_tree(skin.skeleton, rotations, translations, root)
-            write_skel_cache(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, rotations,
-                             translations, skin.bone_rest_frames[:, :3, 3] if tree is None else skin.skeleton["joints"],
-                             skin.fps, up_axis=up_axis, scene=skin.scene, root_motion=root, clips=source.clips,
-                             joint_tree=tree)
-        else:
-            from skinsynth.formats.usd import write_points_cache
+def _write(output, output_kind, kind, source, chosen, half, max_width, quantize, root_motion, up_axis, folders):
+    """Write the ``chosen`` animations of ``source`` to ``output`` as ``kind`` (--as); returns the
+    bytes of bones.exr per animation (--as bones), else None."""
+    if kind == "bones":
+        return write_bone_textures(output, source.skin, (part for a in chosen for part in source.parts(a)), half,
+                                   max_width, folders.guard(output), label=source.path) // len(chosen)
+    if output_kind == "gltf":
+        write_gltf(output, source.skin, (part for a in chosen for part in source.parts(a)),
+                   up_axis or source.scene.up_axis, None if quantize is None else int(quantize), root_motion,
+                   label=source.path, skeleton=source.skin.skeleton)
+    elif output_kind in TEXTURES:
+        frames = (part for a in chosen for part in source.vertex_parts(a)) if output_kind == "folder" else \
+            ((source.names[a], source.vertices(a)) for a in chosen)  # a folder: a texture per clip
+        write_textures(output, output_kind, source.rest_vertices, source.faces, frames, source.fps,
+                       source.scene, half, max_width, folders.guard(output))
+    elif kind == "skel":
+        from skinsynth.formats.usd import write_skel_cache
 
-            write_points_cache(output, source.vertices(chosen[0]), source.faces, source.fps, up_axis=up_axis,
-                               scene=source.scene, clips=source.clips)
+        skin = source.skin
+        rotations, translations = source.motions(chosen[0])
+        root = None
+        if root_motion:
+            from skinsynth.pipeline.rig.skeleton import ground_motion
+
+            up = np.eye(3)["XYZ".index(up_axis or skin.scene.up_axis)]
+            root = ground_motion(np.asarray(rotations, np.float64), np.asarray(translations, np.float64),
+                                 skin.rest_vertices, skin.bone_indices, skin.bone_weights, up)
+        tree = None if skin.skeleton is None else usd_joint_tree(skin.skeleton, rotations, translations, root)
+        write_skel_cache(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, rotations,
+                         translations, skin.bone_rest_frames[:, :3, 3] if tree is None else skin.skeleton["joints"],
+                         skin.fps, up_axis=up_axis, scene=skin.scene, root_motion=root, clips=source.clips,
+                         joint_tree=tree)
+    else:
+        from skinsynth.formats.usd import write_points_cache
+
+        write_points_cache(output, source.vertices(chosen[0]), source.faces, source.fps, up_axis=up_axis,
+                           scene=source.scene, clips=source.clips)
+    return None
+
+
+def _summary(output, output_kind, kind, source, chosen, clip, half, bytes_per_animation):
+    """The command's summary (--json) and its text lines: what was written, of which animations
+    or clips; with --as bones, the texels per animation against a vertex-animation folder's."""
+    to_exr = output_kind in TEXTURES
     what = "bone-animation texture" if kind == "bones" else "vertex-animation texture" if to_exr else \
         "glTF" if output_kind == "gltf" else ("UsdSkel" if kind == "skel" else "point cache")
     joints = int(source.skin.rotations.shape[1]) + 1 if what in ("UsdSkel", "glTF") else None  # bones and the root
@@ -159,11 +167,12 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
                        vat_texel_bytes_per_animation=vat)
         lines.append(f"bone textures: {raw / 1e6:.3f} MB of texels per animation ({bytes_per_animation / 1e6:.3f} MB "
                      f"compressed on disk); a vertex-animation folder: {vat / 1e6:.1f} MB of texels per animation")
-    report(summary, lines, as_json, quiet)
+    return summary, lines
 
 
-def _check_request(path, output, output_kind, kind, source, chosen, root_motion):
-    """Refuse, before any work, what the chosen animations cannot become in ``output``."""
+def _check_request(path, output, output_kind, kind, source, chosen, root_motion, max_width):
+    """Refuse, before any work, what the chosen animations cannot become in ``output``, and a
+    texture too large at ``max_width``."""
     from skinsynth.pipeline.errors import OptionError
 
     if output_kind not in ("folder", "gltf") and len(chosen) != 1:
@@ -178,6 +187,10 @@ def _check_request(path, output, output_kind, kind, source, chosen, root_motion)
     if root_motion and not (output_kind == "gltf" or (output_kind == "usd" and kind == "skel")):
         raise OptionError(f"--root-motion moves a skeleton's root: it is for .glb and UsdSkel outputs (got {output}"
                           + (" --as points)" if output_kind == "usd" else ")"))
+    if kind == "bones":
+        check_bone_texture_output(output, source.skin.rotations.shape[1], source.frames * len(chosen), max_width)
+    else:  # a folder holds one texture per animation
+        check_texture_output(output, output_kind, source.rest_vertices.shape[0], source.frames, max_width)
 
 
 def _stem(path):

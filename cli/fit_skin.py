@@ -5,9 +5,10 @@ from dataclasses import replace
 
 import click
 
+from skinsynth.formats.output_file import check_output_path
 from skinsynth.pipeline.errors import OptionError
 
-from .common import Progress, check_output_path, command_line, report, summary_options, tool_version, user_errors
+from .common import Progress, command_line, report, summary_options, tool_version, user_errors
 from .options import device_option, up_axis_option
 
 #: ``--skeleton`` without a file: find the skeleton.

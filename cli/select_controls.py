@@ -3,9 +3,10 @@
 import click
 import numpy as np
 
+from skinsynth.formats.output_file import check_output_path
 from skinsynth.pipeline.errors import OptionError
 
-from .common import report, summary_options, check_output_path, command_line, tool_version, user_errors
+from .common import command_line, report, summary_options, tool_version, user_errors
 
 
 @click.command("select-controls")

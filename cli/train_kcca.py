@@ -5,9 +5,10 @@ import time
 import click
 import numpy as np
 
+from skinsynth.formats.output_file import check_output_path
 from skinsynth.pipeline.errors import OptionError
 
-from .common import report, summary_options, check_output_path, command_line, tool_version, user_errors
+from .common import command_line, report, summary_options, tool_version, user_errors
 
 
 @click.command("train-kcca")
