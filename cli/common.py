@@ -11,9 +11,10 @@ import click
 
 from skinsynth.formats.errors import FormatError
 from skinsynth.pipeline.errors import OptionError
-# the output-file rule lives in formats, the memory and disk refusals on the runtime floor; importable
-# from here too, for the commands that import them from here
+# the output-file and output-folder rules live in formats, the memory and disk refusals on the runtime
+# floor; importable from here too, for the commands that import them from here
 from skinsynth.formats.output_file import check_output_path  # noqa: F401
+from skinsynth.formats.output_folder import FolderOutputs  # noqa: F401
 from skinsynth.pipeline.runtime.resources import check_memory, check_space  # noqa: F401
 
 EXIT_USER_ERROR = 2
@@ -143,33 +144,6 @@ def quiet_interruptions(unraisable, default=sys.__unraisablehook__):
 
     if not isinstance(unraisable.exc_value, Interrupted):
         default(unraisable)
-
-
-class FolderOutputs:
-    """A command's folder outputs, each refused before any work when it could cost the user a
-    file: one that holds anything skinsynth did not write, the working folder, or a folder that
-    holds an input or another output of the command
-    (:func:`~skinsynth.formats.output_folder.check_folder_output`).
-
-    ``inputs``: the input files; ``outputs``: every output (files and folders, None where not
-    asked for). :meth:`guard` gives the writer of one folder what it must check again at its swap."""
-
-    def __init__(self, inputs, outputs):
-        self.inputs = [str(p) for p in inputs if p is not None]
-        self.outputs = [str(p) for p in outputs if p is not None]
-
-    def check(self, folder):
-        """Check ``folder`` (one of the outputs) now; returns it."""
-        from skinsynth.formats.output_folder import check_folder_output
-
-        if folder is not None:
-            check_folder_output(folder, **self.guard(folder))
-        return folder
-
-    def guard(self, folder):
-        """``inputs`` and ``outputs`` (the others) for ``folder``'s writer."""
-        index = self.outputs.index(str(folder))
-        return {"inputs": self.inputs, "outputs": self.outputs[:index] + self.outputs[index + 1:]}
 
 
 def summary_options(command):

@@ -5,8 +5,10 @@ import contextlib
 import click
 import numpy as np
 
+from skinsynth.formats.output_folder import FolderOutputs
+
 from .options import check_max_width, device_option, texture_options, up_axis_option
-from .common import FolderOutputs, report, summary_options, user_errors
+from .common import report, summary_options, user_errors
 from .outputs import (TEXTURES, check_animation_output, check_bone_texture_output, check_texture_output,
                       usd_joint_tree, write_bone_textures, write_gltf, write_textures)
 

@@ -112,6 +112,31 @@ def check_folder_output(path, inputs=(), outputs=()):
     return target
 
 
+class FolderOutputs:
+    """A command's folder outputs, each refused before any work when it could cost the user a
+    file: one that holds anything skinsynth did not write, the working folder, or a folder that
+    holds an input or another output of the command (:func:`check_folder_output`).
+
+    ``inputs``: the input files; ``outputs``: every output (files and folders, None where not
+    asked for). :meth:`guard` gives the writer of one folder (:func:`atomic_folder`) what it must
+    check again at its swap."""
+
+    def __init__(self, inputs, outputs):
+        self.inputs = [str(p) for p in inputs if p is not None]
+        self.outputs = [str(p) for p in outputs if p is not None]
+
+    def check(self, folder):
+        """Check ``folder`` (one of the outputs) now; returns it."""
+        if folder is not None:
+            check_folder_output(folder, **self.guard(folder))
+        return folder
+
+    def guard(self, folder):
+        """``inputs`` and ``outputs`` (the others) for ``folder``'s writer."""
+        index = self.outputs.index(str(folder))
+        return {"inputs": self.inputs, "outputs": self.outputs[:index] + self.outputs[index + 1:]}
+
+
 def _unowned_message(unowned):
     name, why = unowned[0]
     more = f" (and {len(unowned) - 1} more)" if len(unowned) > 1 else ""

@@ -5,7 +5,6 @@ import glob
 import hashlib
 import os
 
-from .meshseq import natural_key
 
 
 def file_sha256(path, block=1 << 20):
@@ -22,6 +21,8 @@ def input_records(paths):
     records = []
     for path in paths:
         if not os.path.exists(path):
+            from .meshseq import natural_key  # numpy: imported by a glob input only, not by every command's start
+
             records.extend(input_records(sorted(glob.glob(path), key=natural_key)))
         elif os.path.isdir(path):
             records.extend(input_records(sorted(os.path.join(path, n) for n in os.listdir(path))))
