@@ -127,25 +127,6 @@ def guard_standard_streams():
                 sys.stderr = open(fd, "w", closefd=False)
 
 
-def raise_interrupted(signum, frame):
-    """Signal handler: SIGINT, SIGTERM and SIGHUP end the command alike (outputs cleaned up), each
-    recorded (formats.atomic.RECEIVED) in case a library swallows the exception."""
-    from skinsynth.formats.atomic import Interrupted
-
-    raise Interrupted(signum)
-
-
-def quiet_interruptions(unraisable, default=sys.__unraisablehook__):
-    """``sys.unraisablehook``: a signal's :class:`~skinsynth.formats.atomic.Interrupted` raised where
-    Python cannot raise it (a weakref callback, a ``__del__``) is recorded and stops the command
-    at its next check (``stop_if_received``), so Python's "Exception ignored in …" traceback would
-    only be noise on stderr; anything else goes to the default hook."""
-    from skinsynth.formats.atomic import Interrupted
-
-    if not isinstance(unraisable.exc_value, Interrupted):
-        default(unraisable)
-
-
 def summary_options(command):
     """``--json`` and ``--quiet``, meaning the same on every command."""
     command = click.option("--quiet", "-q", is_flag=True,

@@ -63,7 +63,7 @@ class SkinsynthGroup(click.Group):
         args = list(sys.argv[1:] if args is None else args)
         common.guard_standard_streams()
         common.INVOCATION[:] = ["skinsynth"] + [str(a) for a in args]
-        from skinsynth.formats.atomic import RECEIVED, WRITTEN
+        from skinsynth.formats.atomic import RECEIVED, WRITTEN, quiet_interruptions, raise_interrupted
 
         WRITTEN.clear()  # what this command writes (several run in one process under tests)
         RECEIVED.clear()
@@ -72,9 +72,9 @@ class SkinsynthGroup(click.Group):
             # when a library swallows it; ours records the signal (formats.atomic.RECEIVED)
             for name in ("SIGINT", "SIGTERM", "SIGHUP"):
                 if hasattr(signal, name) and signal.getsignal(getattr(signal, name)) is not signal.SIG_IGN:
-                    signal.signal(getattr(signal, name), common.raise_interrupted)
+                    signal.signal(getattr(signal, name), raise_interrupted)
             if not getattr(sys.unraisablehook, "quiet_interruptions", False):  # once, over whatever hook was set
-                sys.unraisablehook = functools.partial(common.quiet_interruptions, default=sys.unraisablehook)
+                sys.unraisablehook = functools.partial(quiet_interruptions, default=sys.unraisablehook)
                 sys.unraisablehook.quiet_interruptions = True
         try:
             return super().main(args, prog_name=prog_name or "skinsynth", standalone_mode=False, **extra)

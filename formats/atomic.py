@@ -8,12 +8,15 @@ back rather than raised wherever the interpreter happens to be (inside HDF5's C 
 KeyboardInterrupt was reported as "Exception ignored" and lost, so an interrupted command
 finished with status 0). Once the writer is done, a held-back signal abandons the file: the
 temporary is removed, the old file stays, and :class:`Interrupted` is raised. So a file is either
-complete and in place or not touched, and :data:`WRITTEN` lists the ones that were.
+complete and in place or not touched, and :data:`WRITTEN` lists the ones that were. Outside a
+write the command's handler, :func:`raise_interrupted`, raises :class:`Interrupted` at once, and
+:func:`quiet_interruptions` records one Python cannot raise (in a finaliser) instead of printing it.
 """
 
 import contextlib
 import os
 import signal
+import sys
 import tempfile
 import threading
 
@@ -44,6 +47,21 @@ def stop_if_received():
     it raised then was swallowed on its way out."""
     if RECEIVED:
         raise Interrupted(RECEIVED[0])
+
+
+def raise_interrupted(signum, frame):
+    """Signal handler: SIGINT, SIGTERM and SIGHUP end the command alike (outputs cleaned up), each
+    recorded (:data:`RECEIVED`) in case a library swallows the exception."""
+    raise Interrupted(signum)
+
+
+def quiet_interruptions(unraisable, default=sys.__unraisablehook__):
+    """``sys.unraisablehook``: a signal's :class:`Interrupted` raised where Python cannot raise it
+    (a weakref callback, a ``__del__``) is recorded and stops the command at its next check
+    (:func:`stop_if_received`), so Python's "Exception ignored in …" traceback would only be noise
+    on stderr; anything else goes to the default hook."""
+    if not isinstance(unraisable.exc_value, Interrupted):
+        default(unraisable)
 
 
 @contextlib.contextmanager
