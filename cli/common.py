@@ -61,8 +61,6 @@ def user_errors(command):
 
 def os_error_message(error):
     """One line for an operating-system error: the file (or stdout) and what the system said."""
-    import errno
-
     if isinstance(error, BrokenPipeError) or error.errno == errno.EPIPE:
         return "stdout: the reading end of the pipe closed before the output was written"
     # a rename names the destination (the user's path) second, the temporary first
