@@ -32,7 +32,7 @@ def serve(view, host, port, label, on_listening, *, check_stop, warn, open_brows
         if open_browser:
             webbrowser.open(url)
         while True:
-            time.sleep(0.2)  # a signal's handler raises here (cli.common.raise_interrupted)
+            time.sleep(0.2)  # a signal's handler raises here (formats.atomic.raise_interrupted)
             check_stop()
 
 
