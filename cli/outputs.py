@@ -5,11 +5,13 @@ folder (a path ending in a separator).
 
 Each command says which kinds it writes; the registry checks an output before any work (its
 suffix, that it is no input, the folder rules of :mod:`skinsynth.formats.output_folder`, the
-texture's size) and writes the textures, the one kind every command shares whole. USD writes
-stay in the commands: a skin's single rig, a crowd of characters and one cache per synthesized
-animation are different stages."""
+texture's size) and writes the textures, the one kind every command shares whole, and
+synthesize's outputs beside its bone motions (:func:`write_synthesis_outputs`). Other USD writes
+stay in the commands: a skin's single rig and a crowd of played characters are different stages."""
 
+import contextlib
 import os
+from dataclasses import dataclass
 
 from .common import check_output_path
 from .options import check_max_width
@@ -173,3 +175,103 @@ def usd_joint_tree(skeleton, rotations, translations, root_motion=None):
     return JointTree(parents=parents, names=joint_names(parents, skeleton["jointed"]),
                      rest=rest_locals(joints, parents), rotations=local_r, translations=local_t,
                      free=~np.asarray(skeleton["jointed"], dtype=bool) & (np.asarray(parents) >= 0))
+
+
+@dataclass
+class SynthesisOutputs:
+    """What synthesize writes beside its bone motions, each None where not asked for: ``usd`` a
+    folder of one USD point cache per animation, ``crowd`` one USD stage with every animation on a
+    grid, ``gltf`` one .glb of the rig with every animation a clip (``root_motion``: its root joint
+    carries the ground motion), ``exr`` an engine-ready VAT folder (``half``, ``max_width``),
+    ``plots`` a folder of PNGs of the first ``plot_count`` animations."""
+
+    usd: str | None
+    crowd: str | None
+    gltf: str | None
+    root_motion: bool
+    exr: str | None
+    plots: str | None
+    plot_count: int
+    half: bool
+    max_width: int
+
+    @property
+    def skinned(self):
+        """Whether any of them needs the animations' vertices."""
+        return bool(self.usd or self.crowd or self.exr or self.plots)
+
+
+def write_synthesis_outputs(outputs, skin, motions, up_axis, device, folders, threads, label, clips=None):
+    """Write ``outputs`` (:class:`SynthesisOutputs`) of ``motions`` (F (A, M, B, 3, 3), t (A, M, B, 3),
+    sources (C, A, M) of ``skin``'s bones): the vertex caches, skinned on ``device`` (``threads``
+    on the CPU), the .glb (``label`` names the input in a refusal), the plots (``clips``: the
+    input's several clips, None for one). ``folders``: the command's
+    :class:`~skinsynth.cli.common.FolderOutputs`. Returns the paths written, in that order."""
+    from skinsynth.formats.plots import write_synthesis_plots
+    from skinsynth.pipeline.synthesis import acceleration_plots
+
+    count, written = motions.F.shape[0], []
+    if outputs.usd or outputs.crowd or outputs.exr:
+        written += _write_vertex_caches(outputs, skin, motions, up_axis, device, folders, threads)
+    if outputs.gltf is not None:
+        write_gltf(outputs.gltf, skin, ((f"animation_{a:04d}", motions.F[a], motions.t[a]) for a in range(count)),
+                   up_axis, root_motion=outputs.root_motion, label=label, skeleton=skin.skeleton)
+        written.append(outputs.gltf)
+    if outputs.plots is not None:
+        plots = acceleration_plots(skin, motions.F, motions.t, motions.sources, min(outputs.plot_count, count), device,
+                                   clips)
+        written += write_synthesis_plots(outputs.plots, plots, None if clips is None else clips.starts,
+                                         **folders.guard(outputs.plots))
+    return written
+
+
+def _write_vertex_caches(outputs, skin, motions, up_axis, device, folders, threads):
+    """synthesize's vertex caches: one USD point cache per animation and the VAT folder, each
+    animation skinned once for both, then the crowd (skinned again, each animation in its cell
+    of a grid). Returns the paths written."""
+    import numpy as np
+
+    from skinsynth.formats.output_folder import atomic_folder
+    from skinsynth.pipeline.mesh.geometry import grid_offsets, largest_side
+    from skinsynth.pipeline.synthesis import SkinnedAnimations
+
+    count, written = motions.F.shape[0], []
+    names = [f"animation_{a:04d}" for a in range(count)]
+    if outputs.usd or outputs.exr:
+        frames = SkinnedAnimations(skin, motions.F, motions.t, np.zeros((count, 3)), device, threads)
+
+        def each(usd_tmp):  # every animation skinned once, for both outputs
+            from skinsynth.formats.usd import write_points_cache
+
+            for a, name in enumerate(names):
+                vertices = frames[a]
+                if outputs.usd:
+                    write_points_cache(os.path.join(usd_tmp, f"{name}.usdc"), vertices, skin.faces, skin.fps,
+                                       up_axis=up_axis, scene=skin.scene)
+                    written.append(os.path.join(outputs.usd, f"{name}.usdc"))
+                yield name, vertices
+
+        try:
+            with (atomic_folder(outputs.usd, **folders.guard(outputs.usd)) if outputs.usd
+                  else contextlib.nullcontext()) as usd_tmp:
+                if outputs.exr:
+                    write_textures(outputs.exr, "folder", skin.rest_vertices, skin.faces, each(usd_tmp), skin.fps,
+                                   skin.scene, outputs.half, outputs.max_width, folders.guard(outputs.exr))
+                    written.append(outputs.exr)
+                else:
+                    for _ in each(usd_tmp):
+                        pass
+        finally:
+            frames.close()
+    if outputs.crowd:
+        from skinsynth.formats.usd import write_points_characters
+
+        offsets = grid_offsets(count, 1.5 * largest_side(skin.rest_vertices), up_axis)
+        characters = SkinnedAnimations(skin, motions.F, motions.t, offsets, device, threads)
+        try:
+            write_points_characters(outputs.crowd, characters, skin.faces, skin.fps, names=names, up_axis=up_axis,
+                                    scene=skin.scene)
+        finally:
+            characters.close()
+        written.append(outputs.crowd)
+    return written

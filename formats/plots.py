@@ -219,3 +219,21 @@ def write_synthesis_plot(path, sources, accel_ratio, title, limit=1.5, seams=Non
     bottom.grid(True, alpha=0.3)
     bottom.legend(loc="best", fontsize=8)
     _save(figure, path)
+
+
+def write_synthesis_plots(folder, plots, clip_starts=None, inputs=(), outputs=()):
+    """Write ``plots`` (one per animation, in order: each with sources (C, M), accel_ratio (M,),
+    title and seams (C, M) bool or None, as :func:`write_synthesis_plot` takes them) as
+    ``animation_NNNN.png`` in the folder ``folder``, atomically
+    (:func:`~.output_folder.atomic_folder`, refused where it could cost the user a file: ``inputs``,
+    ``outputs``); ``clip_starts`` as :func:`write_synthesis_plot`'s. Returns the paths written."""
+    from .output_folder import atomic_folder
+
+    written = []
+    with atomic_folder(folder, inputs=inputs, outputs=outputs) as tmp:
+        for a, plot in enumerate(plots):
+            name = f"animation_{a:04d}.png"
+            write_synthesis_plot(os.path.join(tmp, name), plot.sources, plot.accel_ratio, plot.title, seams=plot.seams,
+                                 clip_starts=clip_starts)
+            written.append(os.path.join(folder, name))
+    return written

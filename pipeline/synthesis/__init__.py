@@ -7,10 +7,11 @@ with Poisson blending (:mod:`.splicing`, eq. 7–10), the multi-component merge
 (:mod:`.collisions`, §3.4).
 
 Public: build_graph, GraphOptions, validate_graph_options, bone_layout, default_min_segment, walk_statistics,
-synthesize, batch_sizes, BATCH_REVISION, Request, validate_request, component_from_file, synthesis_components, avoid_obstacles,
+synthesize, batch_sizes, BATCH_REVISION, Request, validate_request, synthesis_request, prepare_synthesis, component_from_file, synthesis_components, avoid_obstacles,
 keep_input_support, keep_input_plants, mark_contact_jumps, compile_loops (the plants' compiled loops built
-ahead of use: ``skinsynth precompile``), SkinnedAnimations, measure_feet, build_obstacles, colliding, vertex_subset, find_contacts,
-validate_contact_options.
+ahead of use: ``skinsynth precompile``), SkinnedAnimations, measure_feet, report_feet, acceleration_plots, build_obstacles,
+colliding, vertex_subset, find_contacts, validate_contact_options, synthesis_summary, cluster_summary (what synthesize
+reports: :mod:`.summaries`).
 """
 
 from .._lazy import lazy_exports
@@ -18,9 +19,11 @@ from .._lazy import lazy_exports
 _EXPORTS = {"build_graph": "graph", "GraphOptions": "graph_options", "validate_graph_options": "graph", "bone_layout": "graph",
             "default_min_segment": "motion_graph", "walk_statistics": "motion_graph", "synthesize": "synthesis",
             "batch_sizes": "synthesis", "BATCH_REVISION": "synthesis", "Request": "synthesis", "validate_request": "synthesis", "component_from_file": "synthesis",
-            "synthesis_components": "synthesis", "avoid_obstacles": "synthesis", "keep_input_support": "synthesis",
+            "synthesis_components": "synthesis", "prepare_synthesis": "synthesis",
+            "synthesis_request": "synthesis", "avoid_obstacles": "synthesis", "keep_input_support": "synthesis",
             "keep_input_plants": "synthesis", "mark_contact_jumps": "contact.planting", "compile_loops": "precompile",
             "SkinnedAnimations": "skinned", "find_contacts": "contact.patches",
-            "validate_contact_options": "contact.patches", "measure_feet": "skinned", "build_obstacles": "collisions", "colliding": "collisions", "vertex_subset": "collisions"}
+            "validate_contact_options": "contact.patches", "measure_feet": "skinned", "report_feet": "skinned", "acceleration_plots": "skinned",
+            "synthesis_summary": "summaries", "cluster_summary": "summaries", "build_obstacles": "collisions", "colliding": "collisions", "vertex_subset": "collisions"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -1,4 +1,10 @@
-"""Synthesized animations as vertices, skinned on demand for the caches synthesize writes."""
+"""Synthesized animations as vertices, skinned on demand for the caches synthesize writes, the
+pictures it draws of them and the feet it measures."""
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
 
 from skinsynth.gpu import lbs
 
@@ -49,14 +55,12 @@ class SkinnedAnimations:
 
 
 def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", block=64):
-    """The feet figures (:mod:`.contact_measures`, docs/contact.md) of the input and of the first
+    """The feet figures (:mod:`.contact.measures`, docs/contact.md) of the input and of the first
     ``count`` synthesized animations, their vertices skinned in blocks of ``block`` frames:
     ``skin`` has examples (Fi, V, 3), rest_vertices, bone_indices, bone_weights; F (A, M, B, 3, 3),
     t (A, M, B, 3), sources (C, A, M); ``starts`` the input's clip starts (C + 1,). An output frame
     is measured against the ground of the clip its first component plays. Returns a dict: height,
-    ground (per clip), input, output (:func:`~.contact_measures.summary`), ratios."""
-    import numpy as np
-
+    ground (per clip), input, output (:func:`~.contact.measures.summary`), ratios."""
     from .contact.measures import Steps, character_height, measure_frames, measure_input, ratios, summary
 
     height = character_height(skin.rest_vertices, up_axis)
@@ -74,3 +78,56 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
     figures_in, figures_out = summary(measured_in), summary(Steps.join(parts))
     return {"height": height, "ground": [float(g) for g in grounds], "input": figures_in, "output": figures_out,
             "ratios": ratios(figures_out, figures_in)}
+
+
+def report_feet(skin, F, t, sources, count, up_axis=1, device="cpu"):
+    """``synthesize --measure-feet``: :func:`measure_feet` (the same arguments; the input's clips
+    are the skin's clip_names and clip_frames) timed and reported, (the --json "contact" object,
+    one text line) (:func:`~.contact.measures.feet_report`)."""
+    from ..inputs.clips import Clips
+    from .contact.measures import feet_report
+
+    starts = Clips(skin.clip_names, skin.clip_frames).starts
+    started = time.perf_counter()
+    figures = measure_feet(skin, F, t, sources, starts, count, up_axis, device)
+    figures["seconds"] = time.perf_counter() - started
+    return feet_report(figures, count)
+
+
+@dataclass
+class AccelerationPlot:
+    """What ``synthesize --plot`` draws of one animation (``formats.plots.write_synthesis_plot``):
+    sources (C, M) the input frame each component plays at each output frame; accel_ratio (M,)
+    each frame's largest vertex acceleration over the input's largest; title; seams (C, M) bool,
+    or None for the one-clip rule (a frame that does not play on from the one before)."""
+
+    sources: np.ndarray
+    accel_ratio: np.ndarray
+    title: str
+    seams: np.ndarray | None
+
+
+def acceleration_plots(skin, F, t, sources, count, device, clips=None):
+    """The :class:`AccelerationPlot` of each of the first ``count`` animations, one at a time, its
+    vertices baked with the skin's own weights: ``skin`` has examples (Fi, V, 3), rest_vertices,
+    bone_indices, bone_weights; F (A, M, B, 3, 3), t (A, M, B, 3), sources (C, A, M). ``clips``:
+    the input's several clips (None: one): seams by the clip-aware rule, and the input's largest
+    acceleration measured inside each clip (never across the step from one clip's last frame to
+    the next one's first)."""
+    from ..mesh.geometry import frame_accelerations
+
+    if clips is None:
+        largest = np.nanmax(frame_accelerations(skin.examples))
+    else:
+        starts = clips.starts
+        largest = max((np.nanmax(frame_accelerations(skin.examples[a:b])) for a, b in zip(starts[:-1], starts[1:])
+                       if b - a >= 3), default=np.nan)
+    for a in range(count):
+        vertices = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, F[a], t[a], device=device)
+        ratio = frame_accelerations(vertices) / largest
+        mask = None if clips is None else clips.seams(sources[:, a])  # (C, M)
+        seams = int(np.sum(sources[:, a, 1:] != sources[:, a, :-1] + 1)) if mask is None else int(mask.sum())
+        # no acceleration in an animation under 3 frames
+        peak = f"{np.max(ratio[1:-1]):.2f}× the input's" if len(ratio) > 2 else "none (under 3 frames)"
+        yield AccelerationPlot(sources[:, a], ratio, f"animation {a}: {seams} seams, largest acceleration {peak}",
+                               mask)

@@ -173,6 +173,59 @@ def keep_input_plants(request, skin, contacts, components):
         request.support_beyond_plants = support_without(request.support, sampled[sampled >= 0])
 
 
+def prepare_synthesis(request, graph, meshes=(), ground_plane=False, single_component=False):
+    """The components a synthesis of ``graph`` walks (a graph file as read,
+    ``formats.graph_file.GraphFile``: its skin, component records, recorded options, the clips
+    /graph lets walks play and the input's ground contacts; :func:`synthesis_components`), and
+    ``request`` made ready for them: with ``request.contact`` the input's support kept
+    (:func:`keep_input_support`) and its ground contacts, if any, kept (:func:`keep_input_plants`);
+    the obstacle ``meshes`` and with ``ground_plane`` the input's lowest plane avoided
+    (:func:`avoid_obstacles`)."""
+    from .graph_options import GraphOptions
+
+    skin = graph.skin
+    contacts = graph.contacts if graph.contacts is not None and graph.contacts.count else None
+    if request.contact:
+        keep_input_support(request, skin)
+    if meshes or ground_plane:
+        avoid_obstacles(request, skin, meshes, ground_plane)
+    walk_clips = graph.graph.get("@clips")
+    components = synthesis_components(skin, graph.components, single_component, GraphOptions.recorded(graph.options),
+                                      request.clips, None if walk_clips is None else [str(n) for n in walk_clips],
+                                      contacts=contacts if request.contact else None)
+    if request.contact and contacts is not None:
+        keep_input_plants(request, skin, contacts, components)
+    return components
+
+
+def synthesis_request(graph, start=None, end=None, targets=(), min_segment=None, up_axis=None, **options):
+    """The :class:`Request` of ``options`` (count, frames, seed, … as its fields) on the input of
+    ``graph`` (a graph file as read, ``formats.graph_file.GraphFile``), validated
+    (:func:`validate_request`): ``start``, ``end`` and ``targets`` [(frame, time)] read against its
+    clips (CLIP:FRAME or a global frame, :meth:`~skinsynth.pipeline.inputs.clips.Clips.frame`: an
+    OptionError names the option), the shortest segment and the up axis ("Y" or "Z") the file
+    recorded unless given, the skin's skeleton."""
+    from ..inputs.clips import Clips
+    from .motion_graph import default_min_segment
+
+    skin = graph.skin
+    if up_axis is None:
+        up_axis = str(graph.options.get("up_axis", "Y"))
+    if min_segment is None:
+        min_segment = int(graph.options.get("min_segment", default_min_segment(skin.fps)))
+    clips = Clips(skin.clip_names, skin.clip_frames)
+    start = None if start is None else clips.frame(start, "--start")
+    end = None if end is None else clips.frame(end, "--end")
+    targets = [(clips.frame(frame, "--target"), time) for frame, time in targets]
+    # one clip: today's path exactly (no clip table handed down)
+    request = Request(**options, targets=targets, start=start, end=end, min_segment=min_segment,
+                      up_axis=1 if up_axis == "Y" else 2, clips=clips if len(clips) > 1 else None,
+                      skeleton=None if skin.skeleton is None else tuple(skin.skeleton[k] for k in
+                                                                        ("parents", "jointed", "joints")))
+    validate_request(request, skin.rotations.shape[0])
+    return request
+
+
 @dataclass
 class Request:
     """What to make: count animations of ``frames`` frames; targets [(input frame, output time)],

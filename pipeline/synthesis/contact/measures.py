@@ -166,3 +166,37 @@ def measure_input(vertices, starts, height, up_axis=1, block=64):
     parts = [measure_frames(lambda s, e, a=a: vertices[a + s:a + e], b - a, g, height, up_axis, block=block)
              for a, b, g in zip(starts[:-1], starts[1:], grounds)]
     return Steps.join(parts), grounds
+
+
+def significant(value, digits=6):
+    """``value`` (a figure, or a dict or list of them) for a report: floats to ``digits``
+    significant digits, a non-finite one as None."""
+    if isinstance(value, dict):
+        return {k: significant(v, digits) for k, v in value.items()}
+    if isinstance(value, list):
+        return [significant(v, digits) for v in value]
+    if isinstance(value, float):
+        return float(f"{value:.{digits}g}") if np.isfinite(value) else None
+    return value
+
+
+def feet_report(figures, count):
+    """The report of the feet figures of the input and the first ``count`` animations
+    (:func:`~skinsynth.pipeline.synthesis.skinned.measure_feet`'s, with the ``seconds`` they took):
+    (the --json "contact" object, one text line; definitions in docs/contact.md)."""
+    figures = significant(figures)
+    figures["seconds"] = round(figures["seconds"], 3)
+    contact = {"animations": count, "definitions": "docs/contact.md", **figures}
+    i, o, r = figures["input"], figures["output"], figures["ratios"]
+
+    def share(side, key):
+        return f"{side[key]:.2%}" if side.get(key) is not None else "n/a"
+
+    accel = f"{r['largest_accel']:.2f}×" if r.get("largest_accel") is not None else "n/a"
+    line = (f"feet (first {count} animations against the input, shares of the height; docs/contact.md): slide "
+            f"median {share(o, 'slide_median')} (input {share(i, 'slide_median')}), 95th percentile "
+            f"{share(o, 'slide_p95')} ({share(i, 'slide_p95')}), steps sliding over 0.5 % {share(o, 'sliding_share')} "
+            f"({share(i, 'sliding_share')}); float p95 {share(o, 'float_p95')} ({share(i, 'float_p95')}), "
+            f"penetration p95 {share(o, 'penetration_p95')} ({share(i, 'penetration_p95')}); "
+            f"worst acceleration {accel} the input's")
+    return contact, line
