@@ -67,9 +67,7 @@ DEFAULTS = GraphOptions()
               help="Write PNGs here: the cost matrix of each component with its transitions, and the bone graph.")
 @summary_options
 @user_errors
-def build_graph(path, output, threshold_scale, threshold_reference, edge_threshold, single_component, svd_threshold,
-                min_gap, min_segment, coverage, up_axis, posture_weight, walk_clips, no_contacts, contact_height,
-                contact_speed, contact_release, contact_min_duration, contact_min_support, plot_dir, quiet, as_json):
+def build_graph(path, output, min_segment, up_axis, walk_clips, no_contacts, plot_dir, quiet, as_json, **options):
     """Analyse a skin fit for synthesis (Zheng 2013 §3.2, §3.3, §4.1).
 
     Finds, per weakly coupled bone component, its reference bone, reduced coordinates and the
@@ -101,59 +99,33 @@ def build_graph(path, output, threshold_scale, threshold_reference, edge_thresho
     from skinsynth.formats.model import read_model, write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.inputs.clips import Clips
-    from skinsynth.pipeline.synthesis import build_graph as analyse, validate_graph_options
-    from skinsynth.pipeline.synthesis import (default_min_segment, find_contacts, mark_contact_jumps,
-                                              validate_contact_options)
+    from skinsynth.pipeline.synthesis import analyse_fit, default_min_segment, graph_summary
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
     folders = FolderOutputs([path], [output, plot_dir])
     folders.check(plot_dir)
     model = read_model(path)
     skin = read_skin(path, model)
-    if min_segment is None:
-        min_segment = default_min_segment(skin.fps)
-    up_axis = up_axis or skin.scene.up_axis
-    validate_graph_options(skin.rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap,
-                           min_segment, coverage, posture_weight)
-    validate_contact_options(contact_height, contact_speed, contact_release, contact_min_duration,
-                             contact_min_support)
-    clips = Clips(skin.clip_names, skin.clip_frames)
-    if walk_clips is not None:
-        walk_clips = clips.subset([n.strip() for n in walk_clips.split(",") if n.strip()] or [""]).names
+    # the other options are GraphOptions' own, by name
+    options = GraphOptions(**options, min_segment=default_min_segment(skin.fps) if min_segment is None else min_segment,
+                           up_axis="XYZ".index(up_axis or skin.scene.up_axis), contacts=not no_contacts)
     started = time.perf_counter()
-    analysis = analyse(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
-                       skin.translations, threshold_scale=threshold_scale, threshold_reference=threshold_reference,
-                       edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
-                       min_gap=min_gap, min_segment=min_segment, coverage=coverage, up_axis="XYZ".index(up_axis),
-                       posture_weight=posture_weight, clips=clips, walk_clips=walk_clips)
-    if not no_contacts:
-        analysis.contacts = find_contacts(skin.examples, skin.faces, skin.fps, "XYZ".index(up_axis), clips,
-                                          height=contact_height, speed=contact_speed, release=contact_release,
-                                          min_duration=contact_min_duration, min_support=contact_min_support)
-    refused = None
-    if analysis.contacts is not None and analysis.contacts.count:  # a planted foot never jumps to a swinging one
-        refused = mark_contact_jumps(analysis.components, analysis.contacts, skin.bone_indices, skin.bone_weights,
-                                       clips)
+    analysis = analyse_fit(skin, options, None if walk_clips is None else
+                           [n.strip() for n in walk_clips.split(",") if n.strip()] or [""])
     seconds = time.perf_counter() - started
-    parameters = dict(threshold_scale=threshold_scale, threshold_reference=threshold_reference,
-                      edge_threshold=edge_threshold, single_component=single_component, svd_threshold=svd_threshold,
-                      min_gap=min_gap, min_segment=min_segment, coverage=coverage, up_axis=up_axis,
-                      posture_weight=posture_weight, clips=list(walk_clips or clips.names), contacts=not no_contacts,
-                      contact_height=contact_height, contact_speed=contact_speed, contact_release=contact_release,
-                      contact_min_duration=contact_min_duration, contact_min_support=contact_min_support)
-    record = provenance_record("graph", command_line(), parameters, [path], tool_version())
+    record = provenance_record("graph", command_line(), options.parameters(analysis.options["walk_clips"]), [path],
+                               tool_version())
     write_model(output, "graph", graph_groups(model, analysis), model["provenance"] + [record], tool_version())
     if plot_dir is not None:
-        _write_plots(plot_dir, skin, analysis, folders, clips)
-    summary, lines = _summary(output, analysis, min_segment, up_axis, seconds, clips, refused)
+        _write_plots(plot_dir, skin, analysis, folders)
+    summary, lines = graph_summary(output, analysis, seconds)
     report(summary, lines, as_json, quiet)
     if analysis.transition_count == 0:
         click.echo("warning: no candidate transitions: the clip has no repeated states at this threshold; "
                    "try a larger --threshold-scale", err=True)
 
 
-def _write_plots(plot_dir, skin, analysis, folders, clips):
+def _write_plots(plot_dir, skin, analysis, folders):
     """The folder of PNGs: each component's transition-cost matrix, the bone graph and, when
     the input has ground contacts, their timeline (contacts.png: patches × frames). With
     several clips a transition into clip c's start (j = −(c+1)) is marked at the column of the
@@ -162,6 +134,7 @@ def _write_plots(plot_dir, skin, analysis, folders, clips):
     from skinsynth.formats.plots import write_bone_graph_plot, write_contact_timeline_plot, write_cost_matrix_plot
     from skinsynth.pipeline.synthesis import bone_layout
 
+    clips = analysis.clips
     with atomic_folder(plot_dir, **folders.guard(plot_dir)) as tmp:
         for number, component in enumerate(analysis.components):
             t = component.transitions
@@ -181,58 +154,3 @@ def _write_plots(plot_dir, skin, analysis, folders, clips):
                                         f"ground contacts: {contacts.count} patch(es), "
                                         f"{contacts.planted.any(axis=1).mean():.0%} of the frames in contact",
                                         clip_starts=clips.starts, clip_names=clips.names)
-
-
-def _summary(output, analysis, min_segment, up_axis, seconds, clips, refused=None):
-    """The command's summary (--json) and its text lines. ``transitions_between`` ({"a->b": count},
-    a component's, and over all components at the top) counts transitions by the clip they leave
-    and the clip they enter; the text names them only when there are several clips."""
-    lines = [f"wrote {output}: {len(analysis.components)} component(s), cut nodes {analysis.cut_nodes}, "
-             f"{analysis.transition_count} transitions, segments ≥ {min_segment} frames; {seconds:.1f} s"]
-    components = []
-    between = analysis.transitions_between()
-    for number, component in enumerate(analysis.components):
-        t = component.transitions
-        extra = f", {t.admitted} above T_c for coverage" if t.admitted else ""
-        lines.append(f"  component {number}: bones {component.bones} (reference {t.reference}), "
-                     f"{len(t.pairs)} transitions{extra}, {t.share:.0%} of the frames on one strongly connected "
-                     f"part, {len(component.key)} key vertices, {t.q.shape[1]} reduced coordinates")
-        if len(clips) > 1:
-            lines.append("    " + _by_direction(between[number], clips))
-        components.append({"bones": list(component.bones), "reference": int(t.reference),
-                           "transitions": len(t.pairs), "admitted": int(t.admitted), "share": float(t.share),
-                           "key_vertices": len(component.key), "reduced_coordinates": int(t.q.shape[1]),
-                           "transitions_between": between[number]})
-    total = {key: sum(counts[key] for counts in between) for key in between[0]} if between else {}
-    if len(clips) > 1:
-        every = f"; all components: {_by_direction(total, clips)}" if len(between) > 1 else ""
-        lines.insert(1, f"  clips {', '.join(f'{n} ({f} frames)' for n, f in zip(clips.names, clips.frames))}{every}")
-    summary = {"output": output, "components": components, "cut_nodes": list(analysis.cut_nodes),
-               "transitions": int(analysis.transition_count), "min_segment": int(min_segment), "up_axis": up_axis,
-               "seconds": round(seconds, 3), "clips": list(clips.names), "transitions_between": total,
-               "walk_clips": list(analysis.options.get("walk_clips") or clips.names)}
-    contacts = analysis.contacts
-    if contacts is not None:
-        share = float(contacts.planted.any(axis=1).mean()) if contacts.count else 0.0
-        summary["contacts"] = {"patches": contacts.count, "plants": len(contacts.plants(clips)),
-                               "share_of_frames": round(share, 4)}
-        lines.append(f"  ground contacts: {contacts.count} patch(es), {summary['contacts']['plants']} plant(s), "
-                     f"{share:.0%} of the frames" if contacts.count else "  ground contacts: none (no ground found)")
-        if refused is not None:
-            summary["contacts"]["refused_transitions"] = [n for n, _ in refused]
-            summary["contacts"]["kept_for_walks"] = [bool(k) for _, k in refused]
-            kept = [str(c) for c, (_, k) in enumerate(refused) if k]
-            lines.append(f"  transitions refused for a contact jump (a planted patch to a swinging one): "
-                         f"{sum(n for n, _ in refused)}" + (f"; component(s) {', '.join(kept)} kept theirs (refusing "
-                                                              f"them left too few frames to walk)" if kept else ""))
-    left_out = [n for n in clips.names if n not in summary["walk_clips"]]
-    if left_out:
-        lines.insert(2, f"  walks play {', '.join(summary['walk_clips'])}; left out (--clips): {', '.join(left_out)}")
-    return summary, lines
-
-
-def _by_direction(counts, clips):
-    """'within gallop 15, collapse 0; between gallop→collapse 3, collapse→gallop 1' from {"a->b": n}."""
-    within = ", ".join(f"{a} {counts[f'{a}->{a}']}" for a in clips.names)
-    across = ", ".join(f"{a}→{b} {counts[f'{a}->{b}']}" for a in clips.names for b in clips.names if a != b)
-    return f"transitions within {within}; between {across}"

@@ -6,7 +6,7 @@ with Poisson blending (:mod:`.splicing`, eq. 7–10), the multi-component merge
 (:mod:`.assembly`, Alg. 1, eq. 12–14), ground contact (:mod:`.contact`: the input's plants kept, the support kept after the merge, the feet measures) and obstacles
 (:mod:`.collisions`, §3.4).
 
-Public: build_graph, GraphOptions, validate_graph_options, bone_layout, default_min_segment, walk_statistics,
+Public: build_graph, analyse_fit, graph_summary, GraphOptions, validate_graph_options, bone_layout, default_min_segment, walk_statistics,
 synthesize, batch_sizes, BATCH_REVISION, Request, validate_request, synthesis_request, prepare_synthesis, component_from_file, synthesis_components, avoid_obstacles,
 keep_input_support, keep_input_plants, mark_contact_jumps, compile_loops (the plants' compiled loops built
 ahead of use: ``skinsynth precompile``), SkinnedAnimations, measure_feet, report_feet, acceleration_plots, build_obstacles,
@@ -16,7 +16,7 @@ reports: :mod:`.summaries`).
 
 from .._lazy import lazy_exports
 
-_EXPORTS = {"build_graph": "graph", "GraphOptions": "graph_options", "validate_graph_options": "graph", "bone_layout": "graph",
+_EXPORTS = {"build_graph": "graph", "analyse_fit": "graph", "graph_summary": "summaries", "GraphOptions": "graph_options", "validate_graph_options": "graph", "bone_layout": "graph",
             "default_min_segment": "motion_graph", "walk_statistics": "motion_graph", "synthesize": "synthesis",
             "batch_sizes": "synthesis", "BATCH_REVISION": "synthesis", "Request": "synthesis", "validate_request": "synthesis", "component_from_file": "synthesis",
             "synthesis_components": "synthesis", "prepare_synthesis": "synthesis",

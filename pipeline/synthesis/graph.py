@@ -51,8 +51,9 @@ class GraphAnalysis:
     """d (B, B) bone-graph weights (eq. 11); kept_edges (E, 2); cut_nodes: the bones shared by two
     or more components; articulation_points: every cut node of the pruned graph (some end up
     inside a merged component); components; options; clips: the :class:`.clips.Clips` of the
-    frames (None: one clip); contacts: the input's :class:`.contact_patches.ContactPatches`
-    (None: not looked for)."""
+    frames (None: one clip); contacts: the input's :class:`.contact.patches.ContactPatches`
+    (None: not looked for); refused: per component, the transitions refused for a contact jump and
+    whether it kept them all (:func:`.contact.planting.mark_contact_jumps`), or None (no contacts)."""
 
     weights: np.ndarray
     kept_edges: np.ndarray
@@ -62,6 +63,7 @@ class GraphAnalysis:
     options: dict = field(default_factory=dict)
     clips: object = None
     contacts: object = None
+    refused: list | None = None
 
     @property
     def transition_count(self):
@@ -170,6 +172,39 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
     return GraphAnalysis(weights=weights, kept_edges=edges, cut_nodes=joining,
                          articulation_points=[int(b) for b in decomposition.cut_nodes], components=components,
                          options=options, clips=clips)
+
+
+def analyse_fit(skin, options, walk_clips=None):
+    """build-graph's analysis of a skin fit (``formats.skin_file.SkinModel``: rest_vertices (V, 3),
+    faces, bone_indices and bone_weights (V, K), rotations (F, B, 3, 3), translations (F, B, 3),
+    examples (F, V, 3), fps, clip_names and clip_frames) with ``options`` (a
+    :class:`.graph_options.GraphOptions`), validated first: :func:`build_graph` over its clips
+    (``walk_clips``: the names of those walks may play, None for all; an unknown one is an
+    OptionError), then with ``options.contacts`` the input's ground contacts
+    (:func:`.contact.patches.find_contacts`) and the transitions that would make a planted patch
+    jump to a swinging one (:func:`.contact.planting.mark_contact_jumps`). Returns GraphAnalysis."""
+    from ..inputs.clips import Clips
+    from .contact.patches import find_contacts, validate_contact_options
+    from .contact.planting import mark_contact_jumps
+
+    o = options
+    validate_graph_options(skin.rotations.shape[0], o.threshold_scale, o.edge_threshold, o.svd_threshold, o.min_gap,
+                           o.min_segment, o.coverage, o.posture_weight)
+    validate_contact_options(o.contact_height, o.contact_speed, o.contact_release, o.contact_min_duration,
+                             o.contact_min_support)
+    clips = Clips(skin.clip_names, skin.clip_frames)
+    if walk_clips is not None:
+        walk_clips = clips.subset(walk_clips).names
+    analysis = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
+                           skin.translations, **o.analysis_options(), clips=clips, walk_clips=walk_clips)
+    if o.contacts:
+        analysis.contacts = find_contacts(skin.examples, skin.faces, skin.fps, o.up_axis, clips, height=o.contact_height,
+                                          speed=o.contact_speed, release=o.contact_release,
+                                          min_duration=o.contact_min_duration, min_support=o.contact_min_support)
+    if analysis.contacts is not None and analysis.contacts.count:  # a planted foot never jumps to a swinging one
+        analysis.refused = mark_contact_jumps(analysis.components, analysis.contacts, skin.bone_indices,
+                                              skin.bone_weights, clips)
+    return analysis
 
 
 def bone_layout(rest, bone_indices, bone_weights, bones):

@@ -41,6 +41,17 @@ class GraphOptions:
         (found apart from the analysis, by :func:`.contact_patches.find_contacts`)."""
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if not f.name.startswith("contact")}
 
+    def parameters(self, walk_clips):
+        """{name: value} of the options as build-graph's provenance records them: ``up_axis`` as
+        "X", "Y" or "Z", ``clips`` the names of the clips walks may play (``walk_clips``)."""
+        return dict(threshold_scale=self.threshold_scale, threshold_reference=self.threshold_reference,
+                    edge_threshold=self.edge_threshold, single_component=self.single_component,
+                    svd_threshold=self.svd_threshold, min_gap=self.min_gap, min_segment=self.min_segment,
+                    coverage=self.coverage, up_axis="XYZ"[self.up_axis], posture_weight=self.posture_weight,
+                    clips=list(walk_clips), contacts=self.contacts, contact_height=self.contact_height,
+                    contact_speed=self.contact_speed, contact_release=self.contact_release,
+                    contact_min_duration=self.contact_min_duration, contact_min_support=self.contact_min_support)
+
     @classmethod
     def recorded(cls, values):
         """The options a graph file records ({name: value}, ``up_axis`` as "X", "Y" or "Z"), with

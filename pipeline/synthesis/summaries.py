@@ -61,3 +61,61 @@ def cluster_summary(address, workers, dashboard, remote, folder, old_shards_kept
     lines.append(f"cluster {address}: {workers} workers, {remote.tasks} tasks, {remote.retries} re-run after a "
                  f"lost worker, {remote.reused} batches reused; shards in {folder}")
     return summary, lines
+
+
+def graph_summary(output, analysis, seconds):
+    """build-graph's summary of ``analysis`` (a :class:`~.graph.GraphAnalysis`, made in ``seconds``),
+    written to ``output``: (summary, lines). ``transitions_between`` ({"a->b": count}, a
+    component's, and over all components at the top) counts transitions by the clip they leave and
+    the clip they enter; the text names them only when there are several clips."""
+    clips, refused = analysis.clips, analysis.refused
+    min_segment, up_axis = analysis.options["min_segment"], "XYZ"[analysis.options["up_axis"]]
+    lines = [f"wrote {output}: {len(analysis.components)} component(s), cut nodes {analysis.cut_nodes}, "
+             f"{analysis.transition_count} transitions, segments ≥ {min_segment} frames; {seconds:.1f} s"]
+    components = []
+    between = analysis.transitions_between()
+    for number, component in enumerate(analysis.components):
+        t = component.transitions
+        extra = f", {t.admitted} above T_c for coverage" if t.admitted else ""
+        lines.append(f"  component {number}: bones {component.bones} (reference {t.reference}), "
+                     f"{len(t.pairs)} transitions{extra}, {t.share:.0%} of the frames on one strongly connected "
+                     f"part, {len(component.key)} key vertices, {t.q.shape[1]} reduced coordinates")
+        if len(clips) > 1:
+            lines.append("    " + _transitions_by_direction(between[number], clips))
+        components.append({"bones": list(component.bones), "reference": int(t.reference),
+                           "transitions": len(t.pairs), "admitted": int(t.admitted), "share": float(t.share),
+                           "key_vertices": len(component.key), "reduced_coordinates": int(t.q.shape[1]),
+                           "transitions_between": between[number]})
+    total = {key: sum(counts[key] for counts in between) for key in between[0]} if between else {}
+    if len(clips) > 1:
+        every = f"; all components: {_transitions_by_direction(total, clips)}" if len(between) > 1 else ""
+        lines.insert(1, f"  clips {', '.join(f'{n} ({f} frames)' for n, f in zip(clips.names, clips.frames))}{every}")
+    summary = {"output": output, "components": components, "cut_nodes": list(analysis.cut_nodes),
+               "transitions": int(analysis.transition_count), "min_segment": int(min_segment), "up_axis": up_axis,
+               "seconds": round(seconds, 3), "clips": list(clips.names), "transitions_between": total,
+               "walk_clips": list(analysis.options.get("walk_clips") or clips.names)}
+    contacts = analysis.contacts
+    if contacts is not None:
+        share = float(contacts.planted.any(axis=1).mean()) if contacts.count else 0.0
+        summary["contacts"] = {"patches": contacts.count, "plants": len(contacts.plants(clips)),
+                               "share_of_frames": round(share, 4)}
+        lines.append(f"  ground contacts: {contacts.count} patch(es), {summary['contacts']['plants']} plant(s), "
+                     f"{share:.0%} of the frames" if contacts.count else "  ground contacts: none (no ground found)")
+        if refused is not None:
+            summary["contacts"]["refused_transitions"] = [n for n, _ in refused]
+            summary["contacts"]["kept_for_walks"] = [bool(k) for _, k in refused]
+            kept = [str(c) for c, (_, k) in enumerate(refused) if k]
+            lines.append(f"  transitions refused for a contact jump (a planted patch to a swinging one): "
+                         f"{sum(n for n, _ in refused)}" + (f"; component(s) {', '.join(kept)} kept theirs (refusing "
+                                                              f"them left too few frames to walk)" if kept else ""))
+    left_out = [n for n in clips.names if n not in summary["walk_clips"]]
+    if left_out:
+        lines.insert(2, f"  walks play {', '.join(summary['walk_clips'])}; left out (--clips): {', '.join(left_out)}")
+    return summary, lines
+
+
+def _transitions_by_direction(counts, clips):
+    """'within gallop 15, collapse 0; between gallop→collapse 3, collapse→gallop 1' from {"a->b": n}."""
+    within = ", ".join(f"{a} {counts[f'{a}->{a}']}" for a in clips.names)
+    across = ", ".join(f"{a}→{b} {counts[f'{a}->{b}']}" for a in clips.names for b in clips.names if a != b)
+    return f"transitions within {within}; between {across}"
