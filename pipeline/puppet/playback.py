@@ -48,6 +48,25 @@ def world_bones(puppet, controls, translation_solver=True):
             np.einsum("nac,nbc->nba", inv_r, translations) + inv_t[:, None, :], weights)
 
 
+def character_bones(puppet, controls, translation_solver=True, skeleton=None):
+    """Each character's world bones for a rig output: controls (C, F, n_c, 3) -> (rotations
+    (C, F, B, 3, 3), translations (C, F, B, 3), corrective blend weights (C·F, n_p) or None)
+    (:func:`world_bones`). ``skeleton``: a jointed skin's (parents (B,), jointed (B,), joints
+    (B, 3)), or None: the bones play's path predicts do not hold its joints (about 1.5 % of the
+    diagonal on the walker), so every jointed bone is put back on its joint
+    (:func:`~skinsynth.pipeline.rig.skeleton.hold_joints`; ``evaluate`` reports what that costs,
+    kcca_on_joints); vertex outputs play the prediction itself."""
+    from ..rig.skeleton import hold_joints
+
+    characters, frames = controls.shape[:2]
+    rotations, translations, shape_weights = world_bones(puppet, controls.reshape(-1, *controls.shape[2:]),
+                                                         translation_solver)
+    if skeleton is not None:
+        hold_joints(rotations, translations, *skeleton)
+    return (rotations.reshape(characters, frames, *rotations.shape[1:]),
+            translations.reshape(characters, frames, *translations.shape[1:]), shape_weights)
+
+
 def host_inputs(puppet, controls):
     """Host side of the run time for a ``pipeline.puppet.Puppet``: world controls (N, n_c, 3) ->
     (standardised_controls (N, d), controls_in_place (N, n_c, 3), world_frames (N, 4, 4)).
@@ -100,3 +119,28 @@ def play_characters(puppet, controls, device, skinning=None, translation_solver=
     started = time.perf_counter()
     vertices = player.play(controls, threads or os.cpu_count() or 1)
     return vertices, time.perf_counter() - started
+
+
+def play_summary(characters, frames, seconds, device, skinning, translation_solver, written, extrapolation,
+                 takes=(), morph=None, shapes=0):
+    """play's summary (the --json object) and text lines: ``characters`` × ``frames`` played on
+    ``device`` in ``seconds`` of compute, ``written`` the outputs; extrapolation: (entries, lines)
+    (``pipeline.view.extrapolation_report``); takes: each motion-capture take's (summary, lines);
+    morph: the glTF morph targets of the ``shapes`` correctives
+    (``pipeline.rig.morph_targets.played_morph_targets``), or None."""
+    summary = {"frames": int(frames), "characters": int(characters), "seconds": round(seconds, 4),
+               "frames_per_second": round(frames / seconds, 1),
+               "character_frames_per_second": round(characters * frames / seconds, 1),
+               "device": device, "translation_solver": bool(translation_solver), "skinning": skinning,
+               "outputs": written, "extrapolation": extrapolation[0]}
+    if takes:
+        summary["takes"] = [take_summary for take_summary, _ in takes]
+    lines = [line for _, take_lines in takes for line in take_lines]
+    lines.append(f"played {characters} character(s) × {frames} frames on {device} in {seconds:.3f} s: "
+                 f"{summary['frames_per_second']:.0f} frames/s, {summary['character_frames_per_second']:.0f} "
+                 f"character-frames/s (compute only); wrote {', '.join(written)}")
+    if morph is not None:
+        summary.update(morph_targets=len(morph[0]), morph_target_error=morph[2])
+        lines.append(f"correctives: {shapes} shapes as {len(morph[0])} morph target(s), "
+                     f"{morph[2]:.2g} of the diagonal away at most")
+    return summary, lines + extrapolation[1]

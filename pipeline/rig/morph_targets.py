@@ -70,6 +70,24 @@ def corrective_morph_targets(offsets, weights, diagonal, tolerance=MORPH_TOLERAN
     return targets, weights @ basis[:, :count], float(errors[count] / diagonal) if diagonal > 0 else 0.0
 
 
+def played_morph_targets(offsets, shape_weights, diagonal, characters, label):
+    """A puppet's correctives ``offsets`` (n_p, V, 3), played by ``characters`` characters with
+    blend weights shape_weights (C·F, n_p) or None, as morph targets
+    (:func:`corrective_morph_targets`): (targets (k, V, 3), [weights (F, k) per character], the
+    largest vertex error relative to ``diagonal``, the rest bounding-box diagonal; k = 0 when no
+    played blend needs one), or None without correctives (``shape_weights`` None); an OptionError
+    naming ``label`` (one line) when more than :data:`MAX_MORPH_TARGETS` would be needed."""
+    from ..errors import OptionError
+
+    if shape_weights is None:
+        return None
+    try:
+        targets, weights, error = corrective_morph_targets(offsets, shape_weights, diagonal)
+    except ValueError as problem:
+        raise OptionError(f"{label}: {problem}") from None
+    return targets, list(weights.reshape(characters, -1, len(targets))), error
+
+
 def unit_range_pairs(shapes, weights):
     """The same blend with every weight in [0, 1]: shape j becomes ``+k_j O_j`` and ``−k_j O_j``
     weighted ``max(±w_j, 0) / k_j``, with k_j the largest |w_j| over every leading axis.

@@ -6,7 +6,7 @@ shows it (:mod:`.pages`: a viser server, one page per kind of file, each from a 
 Public: render, frame_bounds, ground_layer, Panel, Preview, error_colors, frame_captions, walk_captions,
 compile_loops (the rasteriser built ahead of use: ``skinsynth precompile``),
 split_by_key, error_levels, level_colors, vertex_errors, vertex_components, face_components, component_colors,
-seam_frames, extrapolation, extrapolation_distances, extrapolation_scale, extrapolation_color, resample_session, side_by_side,
+seam_frames, extrapolation, extrapolation_distances, extrapolation_scale, extrapolation_report, extrapolation_color, resample_session, side_by_side,
 planted_vertices, skeleton_lines,
 serve, open_page, TrajectoryView, PuppetView, SkinView, SynthesisView, SequenceView (:mod:`.pages`).
 """
@@ -18,6 +18,7 @@ _EXPORTS = {"render": "rasteriser", "frame_bounds": "rasteriser", "ground_layer"
             "walk_captions": "preview", "compile_loops": "precompile", **{name: "scenes" for name in (
                 "split_by_key", "error_levels", "level_colors", "vertex_errors", "vertex_components",
                 "face_components", "component_colors", "seam_frames", "extrapolation", "extrapolation_distances", "extrapolation_scale",
+                "extrapolation_report",
                 "extrapolation_color", "resample_session", "side_by_side", "planted_vertices", "skeleton_lines")},
             **{name: "pages" for name in ("serve", "open_page", "TrajectoryView", "PuppetView", "SkinView",
                                           "SynthesisView", "SequenceView")}}

@@ -152,6 +152,26 @@ def extrapolation_scale(training, unit, same=1e-6):
     return float(nearest.max()) if len(nearest) else 0.05
 
 
+def extrapolation_report(names, trajectories, training, unit):
+    """How far each trajectory (named by ``names``) goes from what a puppet was trained on, per
+    frame (``play``'s report of the ``view`` page's indicator): trajectories [(F, n_c, 3)] and
+    training (n_p, n_c, 3) controls in place, distances as :func:`extrapolation_distances`'s, against
+    :func:`extrapolation_scale` -> (summary entries, text lines)."""
+    scale = extrapolation_scale(training, unit)
+    entries, lines = [], []
+    for name, trajectory in zip(names, trajectories):
+        distances, _ = extrapolation_distances(trajectory, training, unit)
+        worst = int(np.argmax(distances))
+        entries.append({"controls": str(name), "per_frame": [round(float(d), 6) for d in distances],
+                        "mean": float(distances.mean()), "worst": float(distances[worst]), "worst_frame": worst,
+                        "scale": scale, "frames_beyond_scale": int(np.sum(distances > scale))})
+        lines.append(f"extrapolation of {name}: mean {distances.mean():.3g}, worst {distances[worst]:.3g} at frame "
+                     f"{worst}; {int(np.sum(distances > scale))} of {len(distances)} frames beyond {scale:.3g}, the "
+                     "largest gap between training poses (distance to the nearest training pose, RMS over the "
+                     "controls, the rest box's largest side = 1)")
+    return entries, lines
+
+
 def extrapolation_color(distance, scale):
     """The indicator's colour (3,) uint8: green at 0, amber at ``scale``, red at twice it or more,
     linear in between."""
