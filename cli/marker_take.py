@@ -5,7 +5,6 @@ vertices, and hands the arrays to ``pipeline.puppet.drive_from_markers``; return
 trajectory with a summary for ``--json`` and the lines a person reads.
 """
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,37 +48,6 @@ def check_take_options(control_files, options):
         raise OptionError(f"{flag} applies to a motion-capture take: give --controls a .c3d file")
 
 
-def _ranges(frames):
-    """Sorted frame ids -> "a–b, c" text."""
-    frames = np.asarray(frames)
-    if len(frames) == 0:
-        return ""
-    breaks = np.flatnonzero(np.diff(frames) > 1)
-    starts, ends = frames[np.r_[0, breaks + 1]], frames[np.r_[breaks, len(frames) - 1]]
-    return ", ".join(f"{a}" if a == b else f"{a}–{b}" for a, b in zip(starts, ends))
-
-
-def _layout_on_controls(layout, puppet, skin):
-    """The layout's markers in the puppet's control order: (order (n_c,) layout entry of each
-    control, offsets (n_c,)); FormatError when its vertices are not the puppet's controls."""
-    from skinsynth.formats.errors import FormatError
-    from skinsynth.pipeline.puppet.markers import layout_vertex_ids
-
-    vertices = layout_vertex_ids(layout.vertices, layout.positions, skin.rest_vertices)
-    controls = np.asarray(puppet.control_indices)
-    where = {int(v): i for i, v in enumerate(vertices)}
-    if len(where) != len(vertices):
-        raise FormatError(layout.path, "two markers sit on one vertex")
-    if set(where) != set(controls.tolist()):
-        extra = sorted(set(where) - set(controls.tolist()))
-        lacking = sorted(set(controls.tolist()) - set(where))
-        raise FormatError(layout.path, f"its markers differ from the puppet's controls: vertices {extra[:6]} are not "
-                                       f"controls, controls {lacking[:6]} have no marker (select-controls --markers "
-                                       "this layout, then train-kcca, makes a puppet it drives)")
-    order = np.array([where[int(v)] for v in controls])
-    return order, layout.offsets[order]
-
-
 def take_controls(path, puppet, record, skin, options, puppet_path):
     """The take at ``path`` as the puppet's controls (:class:`TakeControls`). puppet: the
     ``pipeline.puppet.Puppet``; record: its ``PuppetRecord`` (``marker_labels``: the layout
@@ -90,7 +58,7 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
     from skinsynth.formats.marker_layout import MarkerLayout, match_markers, read_marker_layout
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.mesh.geometry import vertex_normals
-    from skinsynth.pipeline.puppet import drive_from_markers, host_inputs
+    from skinsynth.pipeline.puppet import drive_from_markers, host_inputs, layout_order, take_report
 
     options = {**TAKE_DEFAULTS, **options}
     if options["marker_layout"] is not None:
@@ -103,7 +71,11 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
     else:
         raise OptionError(f"{path}: a motion-capture take needs a marker layout: give --markers LAYOUT.json, or "
                           "train the puppet on controls chosen by select-controls --markers")
-    order, offsets = _layout_on_controls(layout, puppet, skin)
+    try:
+        order = layout_order(layout.vertices, layout.positions, skin.rest_vertices, puppet.control_indices)
+    except ValueError as problem:
+        raise FormatError(layout.path, str(problem)) from None
+    offsets = layout.offsets[order]
     take = read_c3d(path, units=options["marker_units"])
     matched = match_markers(take, layout, allow_missing=options["allow_missing"])
     labels = tuple(layout.labels[i] for i in order)
@@ -127,33 +99,6 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
                                stabilize=stabilize, max_gap=options["max_gap"], min_markers=options["min_markers"])
     if not np.isfinite(drive.controls).all():
         raise FormatError(path, "the take gives no finite control positions")
-    filled = {labels[m]: {"interpolated": _ranges(drive.interpolated.get(m, [])),
-                          "from_other_markers": _ranges(drive.subspace.get(m, [])),
-                          "frames": int(len(drive.interpolated.get(m, [])) + len(drive.subspace.get(m, [])))}
-              for m in sorted(set(drive.interpolated) | set(drive.subspace))}
-    name = os.path.basename(str(path))
-    summary = {"take": str(path), "take_frames": int(take.points.shape[0]), "take_rate": float(take.rate),
-               "units": take.units, "units_from": take.units_source, "start_time": float(take.first_time),
-               "fps": fps, "frames": int(len(drive.controls)), "neutral_frame": drive.neutral_frame,
-               "retarget": options["retarget"], "markers": list(labels),
-               "missing_markers": list(matched.missing), "unmatched_labels": list(matched.unmatched),
-               "transform": {"scale": drive.scale, "rotation": drive.rotation.tolist(),
-                             "translation": drive.translation.tolist()},
-               "filled": filled, "held_frames": _ranges(drive.held), "min_markers": drive.min_markers}
-    lines = [f"{name}: {take.points.shape[0]} frames at {take.rate:g} Hz ({take.units}, from {take.units_source}) -> "
-             f"{len(drive.controls)} frames at {fps:g} fps from {take.first_time:g} s; {len(labels)} markers, aligned "
-             f"at take frame {drive.neutral_frame} (scale {drive.scale:.4g}), {options['retarget']} retargeting"]
-    if matched.unmatched:
-        lines.append(f"{name}: labels not in the layout, ignored: {', '.join(matched.unmatched)}")
-    if matched.missing:
-        lines.append(f"{name}: the layout's {', '.join(matched.missing)} missing from the take: filled from the "
-                     "other markers every frame (--allow-missing)")
-    for label, what in filled.items():
-        ways = [f"interpolated {what['interpolated']}" if what["interpolated"] else "",
-                f"from the other markers {what['from_other_markers']}" if what["from_other_markers"] else ""]
-        lines.append(f"{name}: {label} filled in {what['frames']} take frames ({'; '.join(w for w in ways if w)})")
-    if len(drive.held):
-        lines.append(f"{name}: take frames {_ranges(drive.held)} see fewer than {drive.min_markers} markers: held "
-                     "from the last good frame")
+    summary, lines = take_report(path, take, matched, labels, drive, fps, options["retarget"])
     return TakeControls(controls=drive.controls, markers=drive.markers, fps=fps, start_time=float(take.first_time),
                         labels=labels, summary=summary, lines=lines)

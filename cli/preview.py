@@ -103,15 +103,7 @@ def preview(path, output, animations, clip, examples, compare, error_scale, size
         frames = frames[sheet_indices(len(frames), sheet_frames)]
     elif fps is None and not low <= file_fps <= high:
         raise OptionError(f"{path}: its frame rate {file_fps:g} lies outside [{low:g}, {high:g}]: give --fps")
-    # an RGB image per frame of the panel grid, all held for a .gif or a contact sheet (twice:
-    # quantised, or the sheet, which PIL copies again at 4 bytes a pixel to save it), and the
-    # rasteriser's float buffers per pixel: before any is made, against the memory the process
-    # may have (its ulimit and cgroup included)
-    pixels = len(panels) * size[0] * size[1]
-    lower = output.lower()
-    per_frame = 3 + 3 + 4 if lower.endswith(".png") else 3 + 3 if lower.endswith(".gif") else 0
-    check_memory(pixels * (per_frame * len(frames) + 3 + 48),
-                 f"{len(frames)} frame(s) of {len(panels)} panel(s) at {size[0]}×{size[1]}")
+    _check_memory(output, len(panels), size, len(frames))
     movie = Preview(panels, size=size, frames=frames, preset=camera, smooth=not flat, up_axis=up)
     started = time.perf_counter()
     with Progress(len(movie), "preview", quiet or as_json) as bar:
@@ -127,6 +119,19 @@ def preview(path, output, animations, clip, examples, compare, error_scale, size
                "fps": float(fps or file_fps)}
     report(summary, [f"wrote {output}: {len(movie)} frames of {len(panels)} panel(s) at {size[0]}×{size[1]}, "
                      f"{summary['frames_per_second']} frames/s"], as_json, quiet)
+
+
+def _check_memory(output, panels, size, frames):
+    """Refuse, before any is made, what ``frames`` frames of ``panels`` panels of ``size`` need: an
+    RGB image per frame of the panel grid, all held for a .gif or a contact sheet (twice:
+    quantised, or the sheet, which PIL copies again at 4 bytes a pixel to save it), and the
+    rasteriser's float buffers per pixel, against the memory the process may have (its ulimit and
+    cgroup included)."""
+    pixels = panels * size[0] * size[1]
+    lower = output.lower()
+    per_frame = 3 + 3 + 4 if lower.endswith(".png") else 3 + 3 if lower.endswith(".gif") else 0
+    check_memory(pixels * (per_frame * frames + 3 + 48),
+                 f"{frames} frame(s) of {panels} panel(s) at {size[0]}×{size[1]}")
 
 
 def _panels(path, animations, clip, examples, compare, error_scale):
@@ -187,11 +192,10 @@ def _clips_of(skin):
 
 
 def _model_panels(path, stage, animations, clip, examples, compare, error_scale):
+    from skinsynth.formats.model import read_model
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.view import Panel, error_colors, frame_captions
-    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.view import skin_panels
 
     if animations and stage != "synthesis":
         raise OptionError("--animation applies to synthesis files")
@@ -201,40 +205,20 @@ def _model_panels(path, stage, animations, clip, examples, compare, error_scale)
         _no_clips(path, clip, "is a synthesis file, whose animations --animation chooses")
     if stage == "puppet":
         return _puppet_panels(path, clip, error_scale)
-    from skinsynth.formats.model import read_model
-
     # only the skin: a synthesis's motions are read one animation at a time below
     skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
-    up = skin.scene.up_axis
-    if stage == "synthesis":
-        return _synthesis_panels(path, skin, animations or [0]), skin.fps, up
-    clips = _clips_of(skin)
-    frames = clips.select(None if clip is None else [clip], "--clip")  # (M,) global frame ids
-    captions = frame_captions(clips, frames)
-    shown = skin.examples[frames] if clip is not None else skin.examples
-    if examples:
-        return [Panel(shown, skin.faces, "input", captions=captions)], skin.fps, up
-    rotations, translations = (skin.rotations, skin.translations) if clip is None else \
-        (skin.rotations[frames], skin.translations[frames])
-    fitted = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations, translations)
-    if not compare:
-        return [Panel(fitted, skin.faces, "fit-skin reconstruction", captions=captions)], skin.fps, up
-    scale = error_scale * bounding_box_diagonal(skin.rest_vertices)
-    return [Panel(shown, skin.faces, "input", captions=captions),
-            Panel(fitted, skin.faces, f"reconstruction (red: error >= {error_scale:g} of the diagonal)",
-                  colors=error_colors(fitted, shown, scale), captions=captions)], skin.fps, up
+    panels = _synthesis_panels(path, skin, animations or [0]) if stage == "synthesis" else \
+        skin_panels(skin, clip, examples, compare, error_scale)
+    return panels, skin.fps, skin.scene.up_axis
 
 
 def _puppet_panels(path, clip, error_scale):
     from skinsynth.formats.puppet_file import read_puppet
-    from skinsynth.pipeline.puppet import puppet_from_record
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.view import Panel, error_colors, frame_captions
-    from skinsynth.pipeline.puppet import predict_vertices
-    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.puppet import predict_vertices, puppet_from_record
+    from skinsynth.pipeline.view import compared_panels, frame_captions
 
     record, test_frames, skin = read_puppet(path)
-
     puppet = puppet_from_record(record)
     if len(test_frames) == 0:
         raise OptionError(f"{path}: the puppet has no held-out frames to show (train with --train-frames)")
@@ -246,11 +230,8 @@ def _puppet_panels(path, clip, error_scale):
             raise OptionError(f"--clip {clip}: none of the puppet's held-out frames is in clip {clip!r}")
     truth = skin.examples[test_frames]
     predicted = predict_vertices(puppet, truth[:, puppet.control_indices])
-    scale = error_scale * bounding_box_diagonal(skin.rest_vertices)
-    captions = frame_captions(clips, test_frames, "held-out frame")
-    return [Panel(truth, skin.faces, "truth", captions=captions),
-            Panel(predicted, skin.faces, f"puppet (red: error >= {error_scale:g} of the diagonal)",
-                  colors=error_colors(predicted, truth, scale), captions=captions)], skin.fps, skin.scene.up_axis
+    return compared_panels(truth, predicted, skin.faces, "truth", "puppet", error_scale, skin.rest_vertices,
+                           frame_captions(clips, test_frames, "held-out frame")), skin.fps, skin.scene.up_axis
 
 
 def _synthesis_panels(path, skin, animations):

@@ -29,6 +29,7 @@ order :func:`drive_from_markers` runs them (each an option of ``play``):
    (:func:`resample_uniform`).
 """
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -253,6 +254,25 @@ def layout_vertex_ids(vertices, positions, rest_vertices):
     return vertices
 
 
+def layout_order(vertices, positions, rest_vertices, control_indices):
+    """Each control's marker of a layout (its markers' vertices (M,), −1 where given by a rest
+    position, positions (M, 3); :func:`layout_vertex_ids` on rest_vertices (V, 3)): (n_c,) the
+    layout entry on each of ``control_indices`` (n_c,). ValueError when two markers sit on one
+    vertex, or the markers' vertices are not the controls."""
+    vertices = layout_vertex_ids(vertices, positions, rest_vertices)
+    controls = np.asarray(control_indices)
+    where = {int(v): i for i, v in enumerate(vertices)}
+    if len(where) != len(vertices):
+        raise ValueError("two markers sit on one vertex")
+    if set(where) != set(controls.tolist()):
+        extra = sorted(set(where) - set(controls.tolist()))
+        lacking = sorted(set(controls.tolist()) - set(where))
+        raise ValueError(f"its markers differ from the puppet's controls: vertices {extra[:6]} are not controls, "
+                         f"controls {lacking[:6]} have no marker (select-controls --markers this layout, then "
+                         "train-kcca, makes a puppet it drives)")
+    return np.array([where[int(v)] for v in controls])
+
+
 def first_complete_frame(points):
     """The first frame (T, M, 3) with every marker seen, or None."""
     complete = np.flatnonzero(~np.isnan(points).any(axis=(1, 2)))
@@ -327,3 +347,49 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
                                      if interpolated[:, m].any()},
                        subspace={m: np.flatnonzero(by_subspace[:, m]) for m in range(count) if by_subspace[:, m].any()},
                        held=held, min_markers=min_markers)
+
+
+def frame_ranges(frames):
+    """Sorted frame ids -> "a–b, c" text."""
+    frames = np.asarray(frames)
+    if len(frames) == 0:
+        return ""
+    breaks = np.flatnonzero(np.diff(frames) > 1)
+    starts, ends = frames[np.r_[0, breaks + 1]], frames[np.r_[breaks, len(frames) - 1]]
+    return ", ".join(f"{a}" if a == b else f"{a}–{b}" for a, b in zip(starts, ends))
+
+
+def take_report(path, take, matched, labels, drive, fps, retarget):
+    """A take's report: (summary, lines). ``path``: the take's; take: the C3D as read (points
+    (T, M, 3), rate, units and where they came from, first_time: ``formats.c3d``'s record);
+    matched: its labels matched to the layout (missing, unmatched); labels (n_c,) the marker on
+    each control; drive: the :class:`MarkerDrive` it gave at ``fps`` with ``retarget``."""
+    filled = {labels[m]: {"interpolated": frame_ranges(drive.interpolated.get(m, [])),
+                          "from_other_markers": frame_ranges(drive.subspace.get(m, [])),
+                          "frames": int(len(drive.interpolated.get(m, [])) + len(drive.subspace.get(m, [])))}
+              for m in sorted(set(drive.interpolated) | set(drive.subspace))}
+    summary = {"take": str(path), "take_frames": int(take.points.shape[0]), "take_rate": float(take.rate),
+               "units": take.units, "units_from": take.units_source, "start_time": float(take.first_time),
+               "fps": fps, "frames": int(len(drive.controls)), "neutral_frame": drive.neutral_frame,
+               "retarget": retarget, "markers": list(labels),
+               "missing_markers": list(matched.missing), "unmatched_labels": list(matched.unmatched),
+               "transform": {"scale": drive.scale, "rotation": drive.rotation.tolist(),
+                             "translation": drive.translation.tolist()},
+               "filled": filled, "held_frames": frame_ranges(drive.held), "min_markers": drive.min_markers}
+    name = os.path.basename(str(path))
+    lines = [f"{name}: {take.points.shape[0]} frames at {take.rate:g} Hz ({take.units}, from {take.units_source}) -> "
+             f"{len(drive.controls)} frames at {fps:g} fps from {take.first_time:g} s; {len(labels)} markers, aligned "
+             f"at take frame {drive.neutral_frame} (scale {drive.scale:.4g}), {retarget} retargeting"]
+    if matched.unmatched:
+        lines.append(f"{name}: labels not in the layout, ignored: {', '.join(matched.unmatched)}")
+    if matched.missing:
+        lines.append(f"{name}: the layout's {', '.join(matched.missing)} missing from the take: filled from the "
+                     "other markers every frame (--allow-missing)")
+    for label, what in filled.items():
+        ways = [f"interpolated {what['interpolated']}" if what["interpolated"] else "",
+                f"from the other markers {what['from_other_markers']}" if what["from_other_markers"] else ""]
+        lines.append(f"{name}: {label} filled in {what['frames']} take frames ({'; '.join(w for w in ways if w)})")
+    if len(drive.held):
+        lines.append(f"{name}: take frames {frame_ranges(drive.held)} see fewer than {drive.min_markers} markers: "
+                     "held from the last good frame")
+    return summary, lines

@@ -52,6 +52,43 @@ def error_colors(predicted, truth, scale):
     return ERROR_LOW + amount * (ERROR_HIGH - ERROR_LOW)
 
 
+def compared_panels(truth, approximation, faces, truth_title, title, error_scale, rest, captions=()):
+    """Two panels side by side: ``truth`` (M, V, 3), and ``approximation`` (M, V, 3) coloured by
+    each vertex's error (:func:`error_colors`, red at ``error_scale`` of the bounding-box diagonal
+    of the rest pose ``rest`` (V, 3))."""
+    from ..mesh.geometry import bounding_box_diagonal
+
+    scale = error_scale * bounding_box_diagonal(rest)
+    return [Panel(truth, faces, truth_title, captions=list(captions)),
+            Panel(approximation, faces, f"{title} (red: error >= {error_scale:g} of the diagonal)",
+                  colors=error_colors(approximation, truth, scale), captions=list(captions))]
+
+
+def skin_panels(skin, clip=None, examples=False, compare=False, error_scale=0.01):
+    """The panels of a skin fit (``formats.skin_file.SkinModel``: examples (F, V, 3), rest pose,
+    weights, bones, clips): fit-skin's reconstruction of its examples, the examples themselves
+    (``examples``), or both with the reconstruction coloured by its error (``compare``,
+    :func:`compared_panels`); ``clip``: one clip's frames only (None: every frame; an unknown
+    clip is an OptionError). Each frame's caption names its input frame."""
+    from skinsynth.gpu import lbs_reference
+
+    from ..inputs.clips import Clips
+
+    clips = Clips(skin.clip_names, skin.clip_frames)
+    frames = clips.select(None if clip is None else [clip], "--clip")  # (M,) global frame ids
+    captions = frame_captions(clips, frames)
+    shown = skin.examples[frames] if clip is not None else skin.examples
+    if examples:
+        return [Panel(shown, skin.faces, "input", captions=captions)]
+    rotations, translations = (skin.rotations, skin.translations) if clip is None else \
+        (skin.rotations[frames], skin.translations[frames])
+    fitted = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations, translations)
+    if not compare:
+        return [Panel(fitted, skin.faces, "fit-skin reconstruction", captions=captions)]
+    return compared_panels(shown, fitted, skin.faces, "input", "reconstruction", error_scale, skin.rest_vertices,
+                           captions)
+
+
 class Preview:
     """Frames of ``panels`` side by side (``columns`` per row), each ``size`` = (W, H) pixels,
     seen by one camera framing every panel's whole animation, the ground under the lowest point.
