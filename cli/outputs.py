@@ -115,66 +115,29 @@ def write_textures(path, kind, rest_vertices, faces, animations, fps, scene, hal
 
 def write_gltf(path, skin, clips, up_axis, quantize=None, root_motion=False, label=None, morph=None, skeleton=None):
     """Write a skin's rig and ``clips`` ((name, rotations (F, B, 3, 3), translations (F, B, 3)),
-    consumed in order) as one .glb, in glTF's Y up and metres from ``up_axis`` and the skin's
-    metersPerUnit; ``quantize`` 8 or 16 bit weights; ``root_motion`` the ground motion on the
-    root (``pipeline.skeleton``). ``label`` names the input in a refusal (a skin too wide).
-    ``morph``: (targets (k, V, 3), weights [(F, k) per clip, in the clips' order]), rest-pose
-    displacements in the skin's axes and units played before skinning (a puppet's correctives,
-    ``pipeline.morph_targets``), written as 2k glTF morph targets "corrective_Np" and
-    "corrective_Nn", ± pairs weighted in [0, 1] (``pipeline.morph_targets.unit_range_pairs``:
-    Blender's importer clamps weights to a range it takes from the first key); None for none.
-    ``skeleton``: the skin's /skin/skeleton (``skin.skeleton``) to write the joints as its tree,
-    at its joints (``pipeline.skeleton.tree_locals``); None: every bone under the root, at its
-    rest centre."""
+    consumed in order) as one .glb: the arrays of ``pipeline.rig.skeleton.gltf_scene`` (its
+    ``quantize``, ``root_motion``, ``morph`` and ``skeleton``), laid out by ``formats.gltf``.
+    ``label`` names the input in a refusal (a skin too wide)."""
     from skinsynth.formats.gltf import Clip, SkinnedScene, write_skinned_glb
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.rig.skeleton import gltf_clip, gltf_rig
+    from skinsynth.pipeline.rig.skeleton import gltf_scene
 
-    if morph is not None:  # one scale per target over every clip: the targets are shared
-        import numpy as np
-
-        from skinsynth.pipeline.rig.morph_targets import unit_range_pairs
-
-        lengths = [len(w) for w in morph[1]]
-        targets, weights = unit_range_pairs(morph[0], np.concatenate(morph[1]))
-        morph = targets, np.split(weights, np.cumsum(lengths)[:-1])
-
-    centres = skin.bone_rest_frames[:, :3, 3] if skeleton is None else skeleton["joints"]
-    parents, jointed = (None, None) if skeleton is None else (skeleton["parents"], skeleton["jointed"])
-    axes = dict(up_axis=up_axis, meters_per_unit=skin.scene.meters_per_unit)
     try:
-        rig = gltf_rig(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, centres, **axes,
-                       quantize=quantize, face_uvs=skin.face_uvs,  # UVs split at seams (pipeline.uv_seams)
-                       morph_targets=None if morph is None else morph[0], parents=parents, jointed=jointed)
+        rig, clips, names = gltf_scene(skin, clips, up_axis, quantize, root_motion, morph, skeleton)
     except ValueError as error:
         raise OptionError(f"{label or path}: {error}") from None
-    ground = (skin.rest_vertices, skin.bone_indices, skin.bone_weights) if root_motion else None
-    morph_weights = iter(() if morph is None else morph[1])
-    clips = [Clip(**gltf_clip(name, rotations, translations, centres, skin.fps, **axes, ground=ground, parents=parents),
-                  morph_weights=None if morph is None else next(morph_weights))
-             for name, rotations, translations in clips]
-    names = None if morph is None else [f"corrective_{i}{s}" for i in range(len(morph[0]) // 2) for s in "pn"]
-    write_skinned_glb(path, SkinnedScene(**rig, clips=clips, target_names=names,
+    write_skinned_glb(path, SkinnedScene(**rig, clips=[Clip(**clip) for clip in clips], target_names=names,
                                          mesh_name=skin.scene.prim_path.rsplit("/", 1)[-1] or "mesh"))
 
 
 def usd_joint_tree(skeleton, rotations, translations, root_motion=None):
     """The :class:`~skinsynth.formats.usd.JointTree` of a skin's /skin/skeleton (``skin.skeleton``)
-    for one animation, rotations (F, B, 3, 3) and translations (F, B, 3), under a root joint
-    moving by ``root_motion`` ((rotations (F, 3, 3), translations (F, 3)), or None: fixed):
-    ``pipeline.skeleton``'s names, rest and parent-local transforms (the USD writer lays them
-    out; its ``bind_centers`` are then ``skeleton["joints"]``)."""
-    import numpy as np
-
+    for rotations (..., B, 3, 3) and translations (..., B, 3) under a root joint moving by
+    ``root_motion`` (or None: fixed): ``pipeline.rig.skeleton.joint_tree_arrays``."""
     from skinsynth.formats.usd import JointTree
-    from skinsynth.pipeline.rig.skeleton import joint_names, rest_locals, tree_local_transforms
+    from skinsynth.pipeline.rig.skeleton import joint_tree_arrays
 
-    parents, joints = skeleton["parents"], skeleton["joints"]
-    local_r, local_t = tree_local_transforms(np.asarray(rotations, np.float64), np.asarray(translations, np.float64),
-                                             joints, parents, *(root_motion or (None, None)))
-    return JointTree(parents=parents, names=joint_names(parents, skeleton["jointed"]),
-                     rest=rest_locals(joints, parents), rotations=local_r, translations=local_t,
-                     free=~np.asarray(skeleton["jointed"], dtype=bool) & (np.asarray(parents) >= 0))
+    return JointTree(**joint_tree_arrays(skeleton, rotations, translations, root_motion))
 
 
 @dataclass

@@ -8,7 +8,7 @@ import numpy as np
 from .options import device_option, marker_take_options, texture_options, up_axis_option
 from .common import check_memory, report, summary_options, FolderOutputs, user_errors
 from .outputs import (TEXTURES, check_animation_output, check_bone_texture_output, check_texture_output,
-                      write_bone_textures, write_gltf, write_textures)
+                      usd_joint_tree, write_bone_textures, write_gltf, write_textures)
 
 
 @click.command("play")
@@ -239,15 +239,7 @@ def _write_rig(output, skin, puppet, rotations, translations, shape_weights, nam
         shapes = (pairs, weights, [f"shape_{j:03d}{s}" for j in range(len(pairs) // 2) for s in "pn"])
     tree, centres = None, skin.bone_rest_frames[:, :3, 3]
     if skin.skeleton is not None:  # the joint tree, every character's frames at once (locals are per frame)
-        from dataclasses import replace
-
-        from .outputs import usd_joint_tree
-
-        tree = usd_joint_tree(skin.skeleton, rotations.reshape(-1, *rotations.shape[2:]),
-                              translations.reshape(-1, *translations.shape[2:]))
-        tree = replace(tree, rotations=tree.rotations.reshape(rotations.shape),
-                       translations=tree.translations.reshape(translations.shape))
-        centres = skin.skeleton["joints"]
+        tree, centres = usd_joint_tree(skin.skeleton, rotations, translations), skin.skeleton["joints"]
     write_skel_characters(output, skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights,
                           rotations, translations, centres, skin.fps, names=names,
                           up_axis=up_axis, skinning=skinning, blend_shapes=shapes, scene=skin.scene, joint_tree=tree)

@@ -216,6 +216,24 @@ def tree_locals(rotations, translations, centres, parents, root_rotations=None, 
     return _xyzw(local_r), local_t
 
 
+def joint_tree_arrays(skeleton, rotations, translations, root_motion=None):
+    """A skin's /skin/skeleton (``skin.skeleton``: parents, jointed, joints) as a joint tree for one
+    or several animations, rotations (..., B, 3, 3) and translations (..., B, 3), under a root joint
+    moving by ``root_motion`` ((rotations (F, 3, 3), translations (F, 3)), or None: fixed):
+    {parents, names (:func:`joint_names`), rest (:func:`rest_locals`), rotations and translations
+    local to each parent joint (:func:`tree_local_transforms`, the inputs' shapes), free (B,) the
+    unjointed bones below the root bone}, as ``formats.usd.JointTree`` holds them (its
+    ``bind_centers`` are then ``skeleton["joints"]``)."""
+    parents, joints = skeleton["parents"], skeleton["joints"]
+    rotations, translations = np.asarray(rotations, np.float64), np.asarray(translations, np.float64)
+    local_r, local_t = tree_local_transforms(rotations.reshape(-1, *rotations.shape[-3:]),
+                                             translations.reshape(-1, *translations.shape[-2:]), joints, parents,
+                                             *(root_motion or (None, None)))
+    return dict(parents=parents, names=joint_names(parents, skeleton["jointed"]), rest=rest_locals(joints, parents),
+                rotations=local_r.reshape(rotations.shape), translations=local_t.reshape(translations.shape),
+                free=~np.asarray(skeleton["jointed"], dtype=bool) & (np.asarray(parents) >= 0))
+
+
 def joint_parents(parents=None, bones=None):
     """The parent joint of each joint of an exported rig, (B + 1,) int64: −1 for joint 0, the
     root; bone j is joint j + 1, under joint parents[j] + 1, the root bone under the root. None
@@ -377,6 +395,42 @@ def gltf_clip(name, rotations, translations, centres, fps, up_axis="Y", meters_p
     if ground is not None:
         clip.update(root_rotations=_xyzw(root_r), root_translations=root_t)
     return clip
+
+
+def gltf_scene(skin, clips, up_axis, quantize=None, root_motion=False, morph=None, skeleton=None):
+    """A skin's rig and ``clips`` ((name, rotations (F, B, 3, 3), translations (F, B, 3)), consumed
+    in order) as a glTF skinned scene's arrays, in glTF's Y up and metres from ``up_axis`` and the
+    skin's metersPerUnit: (rig, clips, morph target names or None). ``skin``: rest_vertices,
+    faces, bone_indices, bone_weights, bone_rest_frames, face_uvs, fps, scene. rig:
+    :func:`gltf_rig`'s (UVs split at seams; ``quantize`` 8 or 16 bit weights); clips: a generator
+    of :func:`gltf_clip`'s, each with its ``morph_weights`` ((F, 2k) or None); ``root_motion``: the
+    ground motion on the root. ``morph``: (targets (k, V, 3), weights [(F, k) per clip, in the
+    clips' order]), rest-pose displacements in the skin's axes and units played before skinning (a
+    puppet's correctives, :mod:`.morph_targets`), as 2k targets "corrective_Np" and
+    "corrective_Nn", ± pairs weighted in [0, 1] (:func:`.morph_targets.unit_range_pairs`:
+    Blender's importer clamps weights to a range it takes from the first key); None for none.
+    ``skeleton``: the skin's /skin/skeleton (``skin.skeleton``), the joints as its tree at its
+    joints (:func:`tree_locals`); None: every bone under the root, at its rest centre. ValueError
+    (:func:`gltf_rig`) for a rig glTF cannot hold."""
+    if morph is not None:  # one scale per target over every clip: the targets are shared
+        from .morph_targets import unit_range_pairs
+
+        lengths = [len(w) for w in morph[1]]
+        targets, weights = unit_range_pairs(morph[0], np.concatenate(morph[1]))
+        morph = targets, np.split(weights, np.cumsum(lengths)[:-1])
+    centres = skin.bone_rest_frames[:, :3, 3] if skeleton is None else skeleton["joints"]
+    parents, jointed = (None, None) if skeleton is None else (skeleton["parents"], skeleton["jointed"])
+    axes = dict(up_axis=up_axis, meters_per_unit=skin.scene.meters_per_unit)
+    rig = gltf_rig(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, centres, **axes,
+                   quantize=quantize, face_uvs=skin.face_uvs,  # UVs split at seams (pipeline.uv_seams)
+                   morph_targets=None if morph is None else morph[0], parents=parents, jointed=jointed)
+    ground = (skin.rest_vertices, skin.bone_indices, skin.bone_weights) if root_motion else None
+    morph_weights = iter(() if morph is None else morph[1])
+    animations = ({**gltf_clip(name, rotations, translations, centres, skin.fps, **axes, ground=ground, parents=parents),
+                   "morph_weights": None if morph is None else next(morph_weights)}
+                  for name, rotations, translations in clips)
+    names = None if morph is None else [f"corrective_{i}{s}" for i in range(len(morph[0]) // 2) for s in "pn"]
+    return rig, animations, names
 
 
 def bone_texels(rotations, translations):
