@@ -1,11 +1,9 @@
 """``skinsynth build-graph``: transitions, bone graph and splicing operators from one clip, or from
 several clips of one character (transitions within and between them)."""
 
-import os
 import time
 
 import click
-import numpy as np
 
 from skinsynth.pipeline.synthesis.graph_options import GraphOptions
 
@@ -97,9 +95,10 @@ def build_graph(path, output, min_segment, up_axis, walk_clips, no_contacts, plo
     """
     from skinsynth.formats.graph_file import graph_groups
     from skinsynth.formats.model import read_model, write_model
+    from skinsynth.formats.plots import write_graph_plots
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.synthesis import analyse_fit, default_min_segment, graph_summary
+    from skinsynth.pipeline.synthesis import analyse_fit, bone_layout, default_min_segment, graph_summary
 
     check_output_path(output, (".h5", ".hdf5"), inputs=[path])
     folders = FolderOutputs([path], [output, plot_dir])
@@ -116,41 +115,12 @@ def build_graph(path, output, min_segment, up_axis, walk_clips, no_contacts, plo
     record = provenance_record("graph", command_line(), options.parameters(analysis.options["walk_clips"]), [path],
                                tool_version())
     write_model(output, "graph", graph_groups(model, analysis), model["provenance"] + [record], tool_version())
-    if plot_dir is not None:
-        _write_plots(plot_dir, skin, analysis, folders)
+    if plot_dir is not None:  # a transition into clip c's start drawn at c's virtual column
+        write_graph_plots(plot_dir, analysis, bone_layout(skin.rest_vertices, skin.bone_indices, skin.bone_weights,
+                                                          skin.bones), analysis.drawn_transitions(),
+                          **folders.guard(plot_dir))
     summary, lines = graph_summary(output, analysis, seconds)
     report(summary, lines, as_json, quiet)
     if analysis.transition_count == 0:
         click.echo("warning: no candidate transitions: the clip has no repeated states at this threshold; "
                    "try a larger --threshold-scale", err=True)
-
-
-def _write_plots(plot_dir, skin, analysis, folders):
-    """The folder of PNGs: each component's transition-cost matrix, the bone graph and, when
-    the input has ground contacts, their timeline (contacts.png: patches × frames). With
-    several clips a transition into clip c's start (j = −(c+1)) is marked at the column of the
-    frame before that start, c's virtual frame; the virtual column drawn is clip 0's."""
-    from skinsynth.formats.output_folder import atomic_folder
-    from skinsynth.formats.plots import write_bone_graph_plot, write_contact_timeline_plot, write_cost_matrix_plot
-    from skinsynth.pipeline.synthesis import bone_layout
-
-    clips = analysis.clips
-    with atomic_folder(plot_dir, **folders.guard(plot_dir)) as tmp:
-        for number, component in enumerate(analysis.components):
-            t = component.transitions
-            shown = t.pairs.copy()
-            shown[:, 1] = clips.targets(shown[:, 1]) - 1  # one clip: unchanged (j = −1 stays −1)
-            write_cost_matrix_plot(os.path.join(tmp, f"costs_component_{number:03d}.png"), t.D, shown,
-                                   t.threshold, f"component {number}: {len(component.bones)} bones, "
-                                   f"{len(t.pairs)} transitions (T_c = {t.threshold:.3g})", start=t.start)
-        positions = bone_layout(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
-        write_bone_graph_plot(os.path.join(tmp, "bone_graph.png"), positions, analysis.weights,
-                              analysis.kept_edges, [c.bones for c in analysis.components], analysis.cut_nodes,
-                              f"bone graph: {len(analysis.components)} component(s), "
-                              f"{len(analysis.cut_nodes)} cut node(s)")
-        contacts = analysis.contacts
-        if contacts is not None and contacts.count:
-            write_contact_timeline_plot(os.path.join(tmp, "contacts.png"), contacts.planted, np.diff(contacts.offsets),
-                                        f"ground contacts: {contacts.count} patch(es), "
-                                        f"{contacts.planted.any(axis=1).mean():.0%} of the frames in contact",
-                                        clip_starts=clips.starts, clip_names=clips.names)

@@ -201,9 +201,7 @@ def _write_vertex_caches(outputs, skin, motions, up_axis, device, folders, threa
     count, written = motions.F.shape[0], []
     names = [f"animation_{a:04d}" for a in range(count)]
     if outputs.usd or outputs.exr:
-        frames = SkinnedAnimations(skin, motions.F, motions.t, np.zeros((count, 3)), device, threads)
-
-        def each(usd_tmp):  # every animation skinned once, for both outputs
+        def each(frames, usd_tmp):  # every animation skinned once, for both outputs
             from skinsynth.formats.usd import write_points_cache
 
             for a, name in enumerate(names):
@@ -214,27 +212,22 @@ def _write_vertex_caches(outputs, skin, motions, up_axis, device, folders, threa
                     written.append(os.path.join(outputs.usd, f"{name}.usdc"))
                 yield name, vertices
 
-        try:
-            with (atomic_folder(outputs.usd, **folders.guard(outputs.usd)) if outputs.usd
-                  else contextlib.nullcontext()) as usd_tmp:
-                if outputs.exr:
-                    write_textures(outputs.exr, "folder", skin.rest_vertices, skin.faces, each(usd_tmp), skin.fps,
-                                   skin.scene, outputs.half, outputs.max_width, folders.guard(outputs.exr))
-                    written.append(outputs.exr)
-                else:
-                    for _ in each(usd_tmp):
-                        pass
-        finally:
-            frames.close()
+        with SkinnedAnimations(skin, motions.F, motions.t, np.zeros((count, 3)), device, threads) as frames, \
+                (atomic_folder(outputs.usd, **folders.guard(outputs.usd)) if outputs.usd
+                 else contextlib.nullcontext()) as usd_tmp:
+            if outputs.exr:
+                write_textures(outputs.exr, "folder", skin.rest_vertices, skin.faces, each(frames, usd_tmp), skin.fps,
+                               skin.scene, outputs.half, outputs.max_width, folders.guard(outputs.exr))
+                written.append(outputs.exr)
+            else:
+                for _ in each(frames, usd_tmp):
+                    pass
     if outputs.crowd:
         from skinsynth.formats.usd import write_points_characters
 
         offsets = grid_offsets(count, 1.5 * largest_side(skin.rest_vertices), up_axis)
-        characters = SkinnedAnimations(skin, motions.F, motions.t, offsets, device, threads)
-        try:
+        with SkinnedAnimations(skin, motions.F, motions.t, offsets, device, threads) as characters:
             write_points_characters(outputs.crowd, characters, skin.faces, skin.fps, names=names, up_axis=up_axis,
                                     scene=skin.scene)
-        finally:
-            characters.close()
         written.append(outputs.crowd)
     return written

@@ -127,14 +127,14 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.formats.graph_file import read_graph
     from skinsynth.formats.model import write_model
     from skinsynth.formats.obstacles import read_obstacle
+    from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.synthesis_file import synthesis_groups
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.synthesis import prepare_synthesis, report_feet, synthesis_request, synthesis_summary
 
     sides = SynthesisOutputs(usd_dir, crowd, gltf, root_motion, exr_dir, plot_dir, plot_count, half, max_width)
     folders, jobs = _check_options(path, output, obstacles, sides, cluster, jobs)
-    asked_device = device  # the feet are measured on it too (resolved then)
-    device = resolve_device(device) if sides.skinned else None
+    skinning_device = resolve_device(device) if sides.skinned else None  # the feet resolve it when measured
     # a cluster starts (local:N) or is reached in the background while the graph is read
     with (_cluster_starting(cluster) if cluster else contextlib.nullcontext()) as joined:
         graph_file = read_graph(path)
@@ -146,7 +146,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         what = _check_resources(path, output, graph_file, request, sides, cluster)
         components = prepare_synthesis(request, graph_file, [read_obstacle(o) for o in obstacles], ground_plane,
                                        single_component)
-        record = _provenance(path, request, obstacles, ground_plane, single_component)
+        record = provenance_record("synthesis", command_line(), request.parameters(obstacles, ground_plane,
+                                   single_component), [path, *obstacles], tool_version(), request.seed)
         shards = _shards(path, output, request, record, components, skin, what) if cluster else None
         result, remote, ran, seconds = _make(components, skin, request, jobs, joined if cluster else None, shards,
                                              quiet or as_json)
@@ -155,12 +156,12 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                                  shards=os.path.basename(shards["folder"]) if shards else None),
                 graph_file.provenance + [record], tool_version())
     with _motions(output, result, remote) as motions:  # a cluster's motions are read back from the shards
-        written = [output] + write_synthesis_outputs(sides, skin, motions, "XYZ"[request.up_axis], device, folders,
-                                                     jobs, path, request.clips)
+        written = [output] + write_synthesis_outputs(sides, skin, motions, "XYZ"[request.up_axis], skinning_device,
+                                                     folders, jobs, path, request.clips)
         feet = None
         if measure_feet and count:
             feet = report_feet(skin, motions.F, motions.t, motions.sources, min(measure_feet, count), request.up_axis,
-                               resolve_device(device or asked_device))
+                               resolve_device(device))
     summary, lines = synthesis_summary(output, result, components, frames, request.min_segment, jobs, seconds, written,
                                        feet, _cluster_report(cluster, ran, remote, result, shards))
     report(summary, lines, as_json, quiet)
@@ -212,19 +213,6 @@ def _check_resources(path, output, graph_file, request, sides, cluster):
     if not cluster:
         _check_space(path, output, request, graph_file.components, skin, what)
     return what
-
-
-def _provenance(path, request, obstacles, ground_plane, single_component):
-    """The output's provenance record: the command line and its parameters as the request read them."""
-    from skinsynth.formats.provenance import provenance_record
-
-    r = request
-    parameters = dict(count=r.count, frames=r.frames, seed=r.seed, start_frame=r.start, end_frame=r.end,
-                      targets=[list(t) for t in r.targets], obstacles=list(obstacles), ground_plane=ground_plane,
-                      min_difference=r.min_difference, single_component=single_component, window=r.window,
-                      spread_velocity=r.spread_velocity, cut_damping=r.cut_damping, min_segment=r.min_segment,
-                      blend=r.blend, alignment=r.alignment, up_axis="XYZ"[r.up_axis], contact=r.contact)
-    return provenance_record("synthesis", command_line(), parameters, [path] + list(obstacles), tool_version(), r.seed)
 
 
 def _shards(path, output, request, record, components, skin, what):

@@ -237,3 +237,32 @@ def write_synthesis_plots(folder, plots, clip_starts=None, inputs=(), outputs=()
                                  clip_starts=clip_starts)
             written.append(os.path.join(folder, name))
     return written
+
+
+def write_graph_plots(folder, analysis, positions, drawn, inputs=(), outputs=()):
+    """build-graph's folder of PNGs, written atomically (:func:`~.output_folder.atomic_folder`,
+    refused where it could cost the user a file: ``inputs``, ``outputs``): each component's
+    transition-cost matrix with its transitions ``drawn`` [(n, 2) per component, where the matrix
+    shows them: a transition into a clip's start at its virtual column], the bone graph at
+    ``positions`` (B, 2) and, when the input has ground contacts, their timeline (contacts.png:
+    patches × frames). ``analysis``: the graph as build-graph found it (``pipeline.synthesis``'s
+    GraphAnalysis: components with their bones and transitions, weights, kept_edges, cut_nodes,
+    contacts, clips)."""
+    from .output_folder import atomic_folder
+
+    with atomic_folder(folder, inputs=inputs, outputs=outputs) as tmp:
+        for number, (component, shown) in enumerate(zip(analysis.components, drawn)):
+            t = component.transitions
+            write_cost_matrix_plot(os.path.join(tmp, f"costs_component_{number:03d}.png"), t.D, shown,
+                                   t.threshold, f"component {number}: {len(component.bones)} bones, "
+                                   f"{len(t.pairs)} transitions (T_c = {t.threshold:.3g})", start=t.start)
+        write_bone_graph_plot(os.path.join(tmp, "bone_graph.png"), positions, analysis.weights,
+                              analysis.kept_edges, [c.bones for c in analysis.components], analysis.cut_nodes,
+                              f"bone graph: {len(analysis.components)} component(s), "
+                              f"{len(analysis.cut_nodes)} cut node(s)")
+        contacts, clips = analysis.contacts, analysis.clips
+        if contacts is not None and contacts.count:
+            write_contact_timeline_plot(os.path.join(tmp, "contacts.png"), contacts.planted, np.diff(contacts.offsets),
+                                        f"ground contacts: {contacts.count} patch(es), "
+                                        f"{contacts.planted.any(axis=1).mean():.0%} of the frames in contact",
+                                        clip_starts=clips.starts, clip_names=clips.names)

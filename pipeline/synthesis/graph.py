@@ -69,6 +69,18 @@ class GraphAnalysis:
     def transition_count(self):
         return int(sum(len(c.transitions.pairs) for c in self.components))
 
+    def drawn_transitions(self):
+        """Per component, its transitions (n, 2) where a cost matrix draws them: a transition into
+        clip c's start (j = −(c+1)) at the column of the frame before that start, c's virtual frame
+        (one clip: unchanged, j = −1 stays −1)."""
+        drawn = []
+        for component in self.components:
+            pairs = component.transitions.pairs.copy()
+            if self.clips is not None:
+                pairs[:, 1] = self.clips.targets(pairs[:, 1]) - 1
+            drawn.append(pairs)
+        return drawn
+
     def transitions_between(self):
         """Per component, its transitions by clip left and clip entered: {"a->b": count}
         (:func:`.motion_graph.transitions_between`; one clip: {"clip->clip": all of them})."""

@@ -17,7 +17,8 @@ class SkinnedAnimations:
 
     Asked in order (as the writers do), it skins the next ``threads`` animations in worker
     threads while the current one is written (CPU only: a CPU kernel launch runs in its calling
-    thread, outside the GIL, so two threads skin about twice as fast on two cores)."""
+    thread, outside the GIL, so two threads skin about twice as fast on two cores); as a context
+    manager it closes those threads on leaving."""
 
     def __init__(self, skin, F, t, offsets, device, threads=1):
         self.skin, self.F, self.t, self.offsets, self.device = skin, F, t, offsets, device
@@ -45,6 +46,12 @@ class SkinnedAnimations:
             if b not in self._pending:
                 self._pending[b] = self._pool.submit(self._skin, b)
         return self._pending.pop(a).result()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
     def close(self):
         if self._pool is not None:

@@ -290,6 +290,16 @@ class Request:
     clips: object = None
     skeleton: object = None
 
+    def parameters(self, obstacles, ground_plane, single_component):
+        """{name: value} of the request as synthesize's provenance records it, with its
+        ``obstacles`` (their paths), ``ground_plane`` and ``single_component``: frames global,
+        ``up_axis`` as "X", "Y" or "Z"."""
+        return dict(count=self.count, frames=self.frames, seed=self.seed, start_frame=self.start, end_frame=self.end,
+                    targets=[list(t) for t in self.targets], obstacles=list(obstacles), ground_plane=ground_plane,
+                    min_difference=self.min_difference, single_component=single_component, window=self.window,
+                    spread_velocity=self.spread_velocity, cut_damping=self.cut_damping, min_segment=self.min_segment,
+                    blend=self.blend, alignment=self.alignment, up_axis="XYZ"[self.up_axis], contact=self.contact)
+
 
 @dataclass
 class Synthesis:
