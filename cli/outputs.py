@@ -201,27 +201,22 @@ def _write_vertex_caches(outputs, skin, motions, up_axis, device, folders, threa
     count, written = motions.F.shape[0], []
     names = [f"animation_{a:04d}" for a in range(count)]
     if outputs.usd or outputs.exr:
-        def each(frames, usd_tmp):  # every animation skinned once, for both outputs
-            from skinsynth.formats.usd import write_points_cache
-
-            for a, name in enumerate(names):
-                vertices = frames[a]
-                if outputs.usd:
-                    write_points_cache(os.path.join(usd_tmp, f"{name}.usdc"), vertices, skin.faces, skin.fps,
-                                       up_axis=up_axis, scene=skin.scene)
-                    written.append(os.path.join(outputs.usd, f"{name}.usdc"))
-                yield name, vertices
-
         with SkinnedAnimations(skin, motions.F, motions.t, np.zeros((count, 3)), device, threads) as frames, \
                 (atomic_folder(outputs.usd, **folders.guard(outputs.usd)) if outputs.usd
                  else contextlib.nullcontext()) as usd_tmp:
+            animations = ((name, frames[a]) for a, name in enumerate(names))  # each skinned once, for both outputs
+            if outputs.usd:
+                from skinsynth.formats.usd import write_points_caches
+
+                animations = write_points_caches(usd_tmp, animations, skin.faces, skin.fps, up_axis, skin.scene)
             if outputs.exr:
-                write_textures(outputs.exr, "folder", skin.rest_vertices, skin.faces, each(frames, usd_tmp), skin.fps,
+                write_textures(outputs.exr, "folder", skin.rest_vertices, skin.faces, animations, skin.fps,
                                skin.scene, outputs.half, outputs.max_width, folders.guard(outputs.exr))
-                written.append(outputs.exr)
             else:
-                for _ in each(frames, usd_tmp):
+                for _ in animations:
                     pass
+        written += [os.path.join(outputs.usd, f"{name}.usdc") for name in names] if outputs.usd else []
+        written += [outputs.exr] if outputs.exr else []
     if outputs.crowd:
         from skinsynth.formats.usd import write_points_characters
 

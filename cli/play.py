@@ -68,7 +68,7 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.puppet import play_characters, play_summary, puppet_from_record
+    from skinsynth.pipeline.puppet import character_offsets, play_characters, play_summary, puppet_from_record
 
     from .marker_take import check_take_options
 
@@ -87,7 +87,7 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     controls = _characters(output, output_kind, kind, skin, trajectories, instances, max_width)  # (C, F, n_c, 3)
     characters, frames = controls.shape[:2]
     up_axis = up_axis or skin.scene.up_axis
-    offsets = _grid(characters, spacing, skin, up_axis)
+    offsets = character_offsets(characters, spacing, skin.rest_vertices, up_axis)
     # before any output is written: writing is the last step (a signal after it would say "interrupted"
     # of a complete file)
     extrapolation = _extrapolation(puppet, skin, control_files, trajectories)
@@ -157,17 +157,6 @@ def _characters(output, output_kind, kind, skin, trajectories, instances, max_wi
     else:
         check_texture_output(output, output_kind, skin.rest_vertices.shape[0], frames, max_width, characters)
     return controls
-
-
-def _grid(characters, spacing, skin, up_axis):
-    """Each character's place (C, 3) on a grid of ``spacing`` (None: 1.5 × the rest pose's largest side)."""
-    from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.mesh.geometry import grid_offsets, largest_side
-
-    spacing = 1.5 * largest_side(skin.rest_vertices) if spacing is None else spacing
-    if not np.isfinite(spacing) or spacing < 0.0:
-        raise OptionError(f"--spacing must be a finite distance ≥ 0 (got {spacing})")
-    return grid_offsets(characters, spacing, up_axis) if characters > 1 else np.zeros((1, 3))
 
 
 def _extrapolation(puppet, skin, control_files, trajectories):

@@ -229,19 +229,13 @@ def _shards(path, output, request, record, components, skin, what):
 def _check_space(path, output, request, components, skin, what, shards=None):
     """Refuse, before any work, an output larger than the free space of its folder, and on a
     cluster (``shards``: :func:`~skinsynth.formats.synthesis_shards.run_shards`'s) the shards
-    still to write (those an earlier run finished are reused) against their folder's: the
-    estimates the writers check at the end (``planned_bytes``), made from the request's shapes."""
-    from skinsynth.formats.synthesis_file import planned_bytes
+    still to write against their folder's: the estimates the writers check at the end, made from
+    the request's shapes (:func:`~skinsynth.formats.synthesis_file.space_needs`)."""
+    from skinsynth.formats.synthesis_file import space_needs
     from skinsynth.pipeline.synthesis import batch_sizes
 
-    batches = None
-    if shards is not None:  # the first round's batches, as synthesize makes them
-        batches = [(b, n, (b, n) in shards["stored"]) for b, n in batch_sizes(request.count)]
-    file_bytes, shard_bytes = planned_bytes(path, request, components, skin.rotations.shape[1], skin.fps, batches)
-    needs = [("the output", file_bytes, os.path.dirname(os.path.abspath(output)))]
-    if shards is not None:
-        needs.append(("its shards", shard_bytes, shards["folder"]))
-    check_space(what, needs)
+    check_space(what, space_needs(path, output, request, components, skin.rotations.shape[1], skin.fps, shards,
+                                  batch_sizes(request.count)))
 
 
 def _make(components, skin, request, jobs, joined, shards, quiet):

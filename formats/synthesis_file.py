@@ -24,6 +24,7 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` (the weights skin the new 
 
 import contextlib
 import json
+import os
 import types
 
 import h5py
@@ -111,6 +112,19 @@ def planned_bytes(source, request, components, bones, fps, batches=None):
     shards = sum(shard_bytes(n, frames, bones, parts) for _, n, reused in (batches or ()) if not reused)
     return output, shards
 
+
+
+def space_needs(source, output, request, components, bones, fps, shards=None, batches=None):
+    """What a synthesis written to ``output`` needs on disk, [(what, bytes, folder)]: the output
+    file (:func:`planned_bytes`) in its folder and, for a cluster run (``shards``:
+    :func:`~.synthesis_shards.run_shards`'s; ``batches`` [(batch id, count)] the first round's),
+    the shards still to write (those an earlier run finished are reused) in theirs."""
+    marked = None if shards is None else [(b, n, (b, n) in shards["stored"]) for b, n in batches]
+    file_bytes, shard_bytes = planned_bytes(source, request, components, bones, fps, marked)
+    needs = [("the output", file_bytes, os.path.dirname(os.path.abspath(output)))]
+    if shards is not None:
+        needs.append(("its shards", shard_bytes, shards["folder"]))
+    return needs
 
 
 @contextlib.contextmanager

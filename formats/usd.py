@@ -66,6 +66,16 @@ def write_points_cache(path, vertices, faces, fps, prim_name=None, up_axis=None,
                             clips=clips)
 
 
+def write_points_caches(folder, animations, faces, fps, up_axis=None, scene=None):
+    """Write each (name, vertices (F, V, 3)) of ``animations`` as ``folder``/name.usdc
+    (:func:`write_points_cache`) as it passes, and pass it on: one pass over animations made on
+    demand (skinned, say) also feeds another writer. A generator; nothing is written until it
+    is consumed."""
+    for name, vertices in animations:
+        write_points_cache(os.path.join(folder, f"{name}.usdc"), vertices, faces, fps, up_axis=up_axis, scene=scene)
+        yield name, vertices
+
+
 def write_points_characters(path, vertices, faces, fps, names=None, up_axis=None, group="characters",
                             scene=None, clips=None) -> None:
     """Several baked characters as Meshes ``/<group>/<name>`` (group None: the one mesh at the

@@ -37,6 +37,19 @@ def instance_trajectories(trajectories, instances=1):
     return base[order]
 
 
+def character_offsets(characters, spacing, rest_vertices, up_axis="Y"):
+    """Each character's place (C, 3) on a near-square grid of the ground plane
+    (:func:`~skinsynth.pipeline.mesh.geometry.grid_offsets`), ``spacing`` apart (None: 1.5 × the
+    largest side of the rest pose rest_vertices (V, 3)); one character stays at the origin.
+    OptionError for a spacing that is not a finite distance ≥ 0."""
+    from ..mesh.geometry import grid_offsets, largest_side
+
+    spacing = 1.5 * largest_side(rest_vertices) if spacing is None else spacing
+    if not np.isfinite(spacing) or spacing < 0.0:
+        raise OptionError(f"--spacing must be a finite distance ≥ 0 (got {spacing})")
+    return grid_offsets(characters, spacing, up_axis) if characters > 1 else np.zeros((1, 3))
+
+
 def world_bones(puppet, controls, translation_solver=True):
     """Bone transforms in the world: controls (N, n_c, 3) -> (rotations (N, B, 3, 3), translations
     (N, B, 3), blend-shape weights (N, n_p) of the puppet's correctives or None)."""
