@@ -128,7 +128,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.formats.model import write_model
     from skinsynth.formats.obstacles import read_obstacle
     from skinsynth.formats.provenance import provenance_record
-    from skinsynth.formats.synthesis_file import synthesis_groups
+    from skinsynth.formats.synthesis_file import synthesis_groups, written_motions
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.synthesis import prepare_synthesis, report_feet, synthesis_request, synthesis_summary
 
@@ -146,8 +146,9 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         what = _check_resources(path, output, graph_file, request, sides, cluster)
         components = prepare_synthesis(request, graph_file, [read_obstacle(o) for o in obstacles], ground_plane,
                                        single_component)
-        record = provenance_record("synthesis", command_line(), request.parameters(obstacles, ground_plane,
-                                   single_component), [path, *obstacles], tool_version(), request.seed)
+        parameters = request.parameters(obstacles, ground_plane, single_component)
+        record = provenance_record("synthesis", command_line(), parameters, [path, *obstacles], tool_version(),
+                                   request.seed)
         shards = _shards(path, output, request, record, components, skin, what) if cluster else None
         result, remote, ran, seconds = _make(components, skin, request, jobs, joined if cluster else None, shards,
                                              quiet or as_json)
@@ -155,13 +156,12 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                 synthesis_groups(path, result, components, request, skin.fps,
                                  shards=os.path.basename(shards["folder"]) if shards else None),
                 graph_file.provenance + [record], tool_version())
-    with _motions(output, result, remote) as motions:  # a cluster's motions are read back from the shards
+    # a cluster's motions are read back from the shards
+    with written_motions(output, result) if remote else contextlib.nullcontext(result) as motions:
         written = [output] + write_synthesis_outputs(sides, skin, motions, "XYZ"[request.up_axis], skinning_device,
                                                      folders, jobs, path, request.clips)
-        feet = None
-        if measure_feet and count:
-            feet = report_feet(skin, motions.F, motions.t, motions.sources, min(measure_feet, count), request.up_axis,
-                               resolve_device(device))
+        feet = report_feet(skin, motions.F, motions.t, motions.sources, min(measure_feet, count), request.up_axis,
+                           resolve_device(device)) if measure_feet and count else None
     summary, lines = synthesis_summary(output, result, components, frames, request.min_segment, jobs, seconds, written,
                                        feet, _cluster_report(cluster, ran, remote, result, shards))
     report(summary, lines, as_json, quiet)
@@ -285,19 +285,3 @@ def _cluster_starting(address):
     from skinsynth.pipeline.runtime.execution import Cluster
 
     return Cluster.starting(address, preload=("skinsynth.pipeline.synthesis.synthesis",))
-
-
-@contextlib.contextmanager
-def _motions(output, result, remote):
-    """``result``, with its bone motions readable by animation: as they are, or (a cluster run)
-    the datasets of the written ``output``, read one animation at a time."""
-    if remote is None:
-        yield result
-        return
-    import dataclasses
-
-    from skinsynth.formats.synthesis_file import open_motions
-
-    with open_motions(output) as (F, t):
-        yield dataclasses.replace(result, F=F, t=t)
-

@@ -143,6 +143,17 @@ def open_motions(path):
         yield motions
 
 
+@contextlib.contextmanager
+def written_motions(path, result):
+    """``result`` (a synthesis: a dataclass with bone motions F and t), its motions those of the
+    file written at ``path``, read one animation at a time (:func:`open_motions`: a cluster run's,
+    mapped from its shards)."""
+    import dataclasses
+
+    with open_motions(path) as (F, t):
+        yield dataclasses.replace(result, F=F, t=t)
+
+
 def read_sources(path, animations=None):
     """sources (C, N, M) int64 of a synthesis file: the input frame each component plays; with
     ``animations`` (indices below N) only theirs, (C, len(animations), M), read one animation at

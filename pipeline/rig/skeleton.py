@@ -426,8 +426,8 @@ def gltf_scene(skin, clips, up_axis, quantize=None, root_motion=False, morph=Non
                    morph_targets=None if morph is None else morph[0], parents=parents, jointed=jointed)
     ground = (skin.rest_vertices, skin.bone_indices, skin.bone_weights) if root_motion else None
     morph_weights = iter(() if morph is None else morph[1])
-    animations = ({**gltf_clip(name, rotations, translations, centres, skin.fps, **axes, ground=ground, parents=parents),
-                   "morph_weights": None if morph is None else next(morph_weights)}
+    animations = ({**gltf_clip(name, rotations, translations, centres, skin.fps, **axes, ground=ground,
+                             parents=parents), "morph_weights": None if morph is None else next(morph_weights)}
                   for name, rotations, translations in clips)
     names = None if morph is None else [f"corrective_{i}{s}" for i in range(len(morph[0]) // 2) for s in "pn"]
     return rig, animations, names

@@ -210,8 +210,8 @@ def analyse_fit(skin, options, walk_clips=None):
     analysis = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
                            skin.translations, **o.analysis_options(), clips=clips, walk_clips=walk_clips)
     if o.contacts:
-        analysis.contacts = find_contacts(skin.examples, skin.faces, skin.fps, o.up_axis, clips, height=o.contact_height,
-                                          speed=o.contact_speed, release=o.contact_release,
+        analysis.contacts = find_contacts(skin.examples, skin.faces, skin.fps, o.up_axis, clips,
+                                          height=o.contact_height, speed=o.contact_speed, release=o.contact_release,
                                           min_duration=o.contact_min_duration, min_support=o.contact_min_support)
     if analysis.contacts is not None and analysis.contacts.count:  # a planted foot never jumps to a swinging one
         analysis.refused = mark_contact_jumps(analysis.components, analysis.contacts, skin.bone_indices,
