@@ -64,10 +64,8 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
     if options["marker_layout"] is not None:
         layout = read_marker_layout(options["marker_layout"], vertex_count=skin.rest_vertices.shape[0])
     elif record.marker_labels:
-        count = len(puppet.control_indices)
-        layout = MarkerLayout(path=puppet_path, labels=tuple(record.marker_labels),
-                              vertices=np.asarray(puppet.control_indices, dtype=np.int64),
-                              positions=np.full((count, 3), np.nan), offsets=np.asarray(record.marker_offsets))
+        layout = MarkerLayout.on_vertices(puppet_path, record.marker_labels, puppet.control_indices,
+                                          record.marker_offsets)
     else:
         raise OptionError(f"{path}: a motion-capture take needs a marker layout: give --markers LAYOUT.json, or "
                           "train the puppet on controls chosen by select-controls --markers")

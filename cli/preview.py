@@ -84,7 +84,7 @@ def preview(path, output, animations, clip, examples, compare, error_scale, size
     """
     from skinsynth.formats.video import SUFFIXES, sheet_indices, write_frames
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.view import Preview
+    from skinsynth.pipeline.view import Preview, preview_summary
 
     check_output_path(output, SUFFIXES, inputs=[path])
     low, high = PLAYABLE_FPS
@@ -113,12 +113,9 @@ def preview(path, output, animations, clip, examples, compare, error_scale, size
                 yield image
 
         write_frames(output, rendered(), len(movie), fps or file_fps, sheet_columns=max(1, 4 // len(panels)))
-    seconds = time.perf_counter() - started
-    summary = {"output": output, "frames": int(len(movie)), "panels": len(panels), "size": list(size),
-               "seconds": round(seconds, 3), "frames_per_second": round(len(movie) / max(seconds, 1e-9), 1),
-               "fps": float(fps or file_fps)}
-    report(summary, [f"wrote {output}: {len(movie)} frames of {len(panels)} panel(s) at {size[0]}×{size[1]}, "
-                     f"{summary['frames_per_second']} frames/s"], as_json, quiet)
+    summary, lines = preview_summary(output, len(movie), len(panels), size, time.perf_counter() - started,
+                                     fps or file_fps)
+    report(summary, lines, as_json, quiet)
 
 
 def _check_memory(output, panels, size, frames):

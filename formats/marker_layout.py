@@ -37,6 +37,13 @@ class MarkerLayout:
     positions: np.ndarray
     offsets: np.ndarray
 
+    @classmethod
+    def on_vertices(cls, path, labels, vertices, offsets):
+        """A layout whose every marker sits on a vertex, ``vertices`` (M,) (the one select-controls
+        --markers stores with the controls, read from the file at ``path``)."""
+        return cls(path=path, labels=tuple(labels), vertices=np.asarray(vertices, dtype=np.int64),
+                   positions=np.full((len(vertices), 3), np.nan), offsets=np.asarray(offsets))
+
 
 @dataclass
 class MatchedMarkers:

@@ -3,7 +3,7 @@ a ground plane (:mod:`.rasteriser`), previews laid out as panels with captions (
 what ``skinsynth view`` shows, as pure functions on arrays (:mod:`.scenes`), and the web page that
 shows it (:mod:`.pages`: a viser server, one page per kind of file, each from a plain record).
 
-Public: render, frame_bounds, ground_layer, Panel, Preview, error_colors, compared_panels, skin_panels, frame_captions, walk_captions,
+Public: render, frame_bounds, ground_layer, Panel, Preview, error_colors, compared_panels, skin_panels, preview_summary, frame_captions, walk_captions,
 compile_loops (the rasteriser built ahead of use: ``skinsynth precompile``),
 split_by_key, error_levels, level_colors, vertex_errors, vertex_components, face_components, component_colors,
 seam_frames, extrapolation, extrapolation_distances, extrapolation_scale, extrapolation_report, extrapolation_color, resample_session, side_by_side,
@@ -14,7 +14,8 @@ serve, open_page, TrajectoryView, PuppetView, SkinView, SynthesisView, SequenceV
 from .._lazy import lazy_exports
 
 _EXPORTS = {"render": "rasteriser", "frame_bounds": "rasteriser", "ground_layer": "rasteriser", "Panel": "preview",
-            "Preview": "preview", "error_colors": "preview", "compared_panels": "preview", "skin_panels": "preview", "frame_captions": "preview",
+            "Preview": "preview", "error_colors": "preview", "compared_panels": "preview", "skin_panels": "preview",
+            "preview_summary": "preview", "frame_captions": "preview",
             "walk_captions": "preview", "compile_loops": "precompile", **{name: "scenes" for name in (
                 "split_by_key", "error_levels", "level_colors", "vertex_errors", "vertex_components",
                 "face_components", "component_colors", "seam_frames", "extrapolation", "extrapolation_distances", "extrapolation_scale",

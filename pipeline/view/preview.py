@@ -131,6 +131,16 @@ class Preview:
         return (self[n] for n in range(len(self)))
 
 
+def preview_summary(output, frames, panels, size, seconds, fps):
+    """preview's summary (the --json object) and text lines: ``frames`` frames of ``panels``
+    panels of ``size`` (width, height) rendered into ``output`` in ``seconds``, to play at ``fps``."""
+    summary = {"output": output, "frames": int(frames), "panels": panels, "size": list(size),
+               "seconds": round(seconds, 3), "frames_per_second": round(frames / max(seconds, 1e-9), 1),
+               "fps": float(fps)}
+    return summary, [f"wrote {output}: {frames} frames of {panels} panel(s) at {size[0]}×{size[1]}, "
+                     f"{summary['frames_per_second']} frames/s"]
+
+
 def _caption(image, text, marked=False):
     """``text`` in the top-left corner (dark, or red when ``marked``), on a light box."""
     from PIL import Image, ImageDraw, ImageFont
