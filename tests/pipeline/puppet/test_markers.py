@@ -173,3 +173,25 @@ def test_drive_refuses_what_the_take_cannot_give():
         drive_from_markers(holed, 20.0, 20.0, rest, shapes, neutral_frame=3)
     with pytest.raises(OptionError, match="stabilize"):
         drive_from_markers(take, 20.0, 20.0, rest, shapes, stabilize=[0, 1])
+
+
+def test_frame_ranges_name_runs_of_consecutive_frames():
+    from skinsynth.pipeline.puppet.markers import frame_ranges
+
+    assert frame_ranges([]) == ""
+    assert frame_ranges([3]) == "3"
+    assert frame_ranges([0, 1, 2, 7, 9, 10]) == "0–2, 7, 9–10"
+
+
+def test_a_layouts_markers_are_ordered_by_the_controls_and_a_mismatch_is_refused():
+    from skinsynth.pipeline.puppet.markers import layout_order
+
+    rest = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    positions = np.full((3, 3), np.nan)
+    positions[1] = [0.1, 0.9, 0.0]  # given by its rest position: the nearest vertex, 2
+    order = layout_order([3, -1, 0], positions, rest, [0, 2, 3])
+    assert order.tolist() == [2, 1, 0]
+    with pytest.raises(ValueError, match="two markers sit on one vertex"):
+        layout_order([0, 0, 2], np.full((3, 3), np.nan), rest, [0, 2, 3])
+    with pytest.raises(ValueError, match=r"vertices \[1\] are not controls, controls \[3\] have no marker"):
+        layout_order([0, 1, 2], np.full((3, 3), np.nan), rest, [0, 2, 3])

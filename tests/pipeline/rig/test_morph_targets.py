@@ -116,3 +116,17 @@ def test_unit_range_pairs_blend_the_same_with_weights_in_unit_range():
     assert split.min() >= 0.0 and split.max() <= 1.0 + 1e-15
     assert np.all(np.minimum(split[..., 0::2], split[..., 1::2]) == 0.0)
     assert np.abs(np.einsum("cfs,svx->cfvx", split, pairs) - np.einsum("cfs,svx->cfvx", weights, shapes)).max() < 1e-12
+
+
+def test_played_morph_targets_split_the_weights_per_character_and_name_the_puppet_in_a_refusal():
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.rig.morph_targets import played_morph_targets
+
+    rng = np.random.default_rng(8)
+    offsets, _ = low_rank(rng, 6, 2, 40)
+    assert played_morph_targets(offsets, None, 1.0, 2, "p.h5") is None  # no correctives
+    targets, weights, error = played_morph_targets(offsets, rng.normal(size=(2 * 15, 6)), 1.0, 2, "p.h5")
+    assert len(targets) == 2 and [w.shape for w in weights] == [(15, 2), (15, 2)] and error <= 1e-6
+    offsets, _ = low_rank(rng, 12, 11, 40)
+    with pytest.raises(OptionError, match=r"^p\.h5: .*need 11 morph targets"):
+        played_morph_targets(offsets, rng.normal(size=(30, 12)), 1.0, 1, "p.h5")

@@ -187,3 +187,15 @@ def test_skeleton_lines_join_each_jointed_bone_to_its_parent_where_the_bones_car
     assert segments.shape == (len(lined), 2, 3) == (8, 2, 3)
     np.testing.assert_allclose(segments[:, 0], points[rig.parents[lined]])
     np.testing.assert_allclose(segments[:, 1], points[lined])
+
+
+def test_the_extrapolation_report_gives_each_trajectory_its_distances_and_one_line():
+    rng = np.random.default_rng(3)
+    training = rng.normal(size=(6, 4, 3))
+    far = training[:3] + 10.0
+    entries, lines = scenes.extrapolation_report(["near.npy", "far.npy"], [training[:3], far], training, 1.0)
+    scale = scenes.extrapolation_scale(training, 1.0)
+    assert [e["controls"] for e in entries] == ["near.npy", "far.npy"] and len(lines) == 2
+    assert entries[0]["per_frame"] == [0.0, 0.0, 0.0] and entries[0]["frames_beyond_scale"] == 0
+    assert entries[1]["frames_beyond_scale"] == 3 and entries[1]["scale"] == scale
+    assert lines[1].startswith("extrapolation of far.npy: mean ") and "3 of 3 frames beyond" in lines[1]

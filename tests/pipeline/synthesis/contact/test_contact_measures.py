@@ -100,3 +100,19 @@ def test_summary_and_ratios():
     assert ratios({"slide_median": 1.0}, {"slide_median": 0.0})["slide_median"] is None
     # an input still up to rounding (the planted walker's p95: 6e-17 of its height) gives no ratio
     assert ratios({"slide_p95": 0.17}, {"slide_p95": 5.6e-17})["slide_p95"] is None
+
+
+def test_the_feet_report_rounds_its_figures_and_says_n_a_where_a_figure_is_missing():
+    from skinsynth.pipeline.synthesis.contact.measures import feet_report
+
+    side = {"steps": 10, "contact_steps": 0, "largest_accel": 0.123456789}
+    figures = {"height": 2.0, "ground": [0.0], "input": dict(side), "seconds": 1.23456,
+               "output": {**side, "slide_median": 0.0123456789, "float_p95": float("nan")},
+               "ratios": {"slide_median": None, "largest_accel": 1.0}}
+    contact, line = feet_report(figures, 3)
+    assert contact["animations"] == 3 and contact["definitions"] == "docs/contact.md"
+    assert contact["seconds"] == 1.235 and contact["output"]["slide_median"] == 0.0123457
+    assert contact["output"]["float_p95"] is None and contact["input"]["largest_accel"] == 0.123457
+    assert line.startswith("feet (first 3 animations against the input")
+    assert "slide median 1.23% (input n/a)" in line and "worst acceleration 1.00× the input's" in line
+    assert "float p95 n/a (n/a)" in line and "\n" not in line
