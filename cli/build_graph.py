@@ -7,7 +7,10 @@ import click
 
 from skinsynth.pipeline.synthesis.graph_options import GraphOptions
 
-from .common import FolderOutputs, report, summary_options, check_output_path, command_line, tool_version, user_errors
+from skinsynth.formats.output_file import check_output_path
+from skinsynth.formats.output_folder import FolderOutputs
+
+from .common import report, summary_options, command_line, tool_version, user_errors
 from .options import up_axis_option
 
 DEFAULTS = GraphOptions()

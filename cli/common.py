@@ -11,11 +11,6 @@ import click
 
 from skinsynth.formats.errors import FormatError
 from skinsynth.pipeline.errors import OptionError
-# the output-file and output-folder rules live in formats, the memory and disk refusals on the runtime
-# floor; importable from here too, for the commands that import them from here
-from skinsynth.formats.output_file import check_output_path  # noqa: F401
-from skinsynth.formats.output_folder import FolderOutputs  # noqa: F401
-from skinsynth.pipeline.runtime.resources import check_memory, check_space  # noqa: F401
 
 EXIT_USER_ERROR = 2
 #: The command line as the user typed it (set by the group's main), for provenance records.

@@ -5,6 +5,7 @@ import contextlib
 import click
 import numpy as np
 
+from skinsynth.formats.animation_source import AnimationSource
 from skinsynth.formats.output_folder import FolderOutputs
 
 from .options import check_max_width, device_option, texture_options, up_axis_option
@@ -239,52 +240,9 @@ def _ranges(indices):
     return ", ".join(parts)
 
 
-class _Source:
-    """What a file holds to export: ``count`` animations of ``frames`` frames named ``names``,
-    ``vertices(a)`` (frames, V, 3) of one, and where there is a skeleton (``skin``)
-    ``motions(a)``: its bone rotations (frames, B, 3, 3) and translations (frames, B, 3).
-    ``clips``: a skin's example frames, (names (C,), frame counts (C,)) of the clips they hold
-    end to end, or None (a synthesis, a played file)."""
-
-    def __init__(self, path, what, names, frames, rest_vertices, faces, fps, scene, vertices, motions=None,
-                 skin=None, clips=None):
-        self.path, self.what, self.names, self.frames = path, what, names, frames
-        self.rest_vertices, self.faces, self.fps, self.scene = rest_vertices, faces, fps, scene
-        self.vertices, self.motions, self.skin, self.clips = vertices, motions, skin, clips
-
-    def part_names(self, a):
-        """The names of the glTF animations animation ``a`` becomes (:meth:`parts`)."""
-        return [self.names[a]] if self.clips is None or len(self.clips[0]) < 2 else list(self.clips[0])
-
-    def parts(self, a):
-        """(name, rotations, translations) of each glTF animation (or bone-texture clip) animation
-        ``a`` becomes: one per clip, named after it, when it holds several; else the one named
-        ``names[a]``."""
-        return self._split(a, *self.motions(a))
-
-    def vertex_parts(self, a):
-        """(name, vertices) of each texture of a folder animation ``a`` becomes, split as :meth:`parts`."""
-        return self._split(a, self.vertices(a))
-
-    def _split(self, a, *arrays):
-        """[(name, *arrays' frames)] per clip of animation ``a`` (one entry when it holds one clip)."""
-        if self.clips is None or len(self.clips[0]) < 2:
-            return [(self.names[a], *arrays)]
-        ends = np.cumsum(self.clips[1])
-        return [(name, *(x[end - count:end] for x in arrays)) for name, count, end in zip(*self.clips, ends)]
-
-    @property
-    def count(self):
-        return len(self.names)
-
-    @property
-    def has_skeleton(self):
-        return self.skin is not None
-
-
 @contextlib.contextmanager
 def _animations(path, device, clip=None):
-    """The :class:`_Source` of any file that holds animation (a synthesis's motions stay in the
+    """The :class:`AnimationSource` of any file that holds animation (a synthesis's motions stay in the
     file, read one animation at a time); ``clip`` names the one clip of a skin's examples to
     take (OptionError for an unknown one, or a file that is no skin's)."""
     from skinsynth.formats.errors import FormatError
@@ -311,7 +269,7 @@ def _animations(path, device, clip=None):
         from skinsynth.formats.scene import Scene
 
         _no_clips(path, clip, "a played file, whose characters --animation chooses")
-        yield _Source(path, "character", list(names), vertices.shape[1], vertices[0, 0], faces, fps, Scene(),
+        yield AnimationSource(path, "character", list(names), vertices.shape[1], vertices[0, 0], faces, fps, Scene(),
                       vertices=lambda a: vertices[a])
         return
     skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
@@ -324,7 +282,7 @@ def _animations(path, device, clip=None):
             frames = clips.select([clip], "--clip")
             rotations, translations, name = rotations[frames], translations[frames], clip
             clips = clips.subset([clip])
-        yield _Source(path, "animation", [name], rotations.shape[0], skin.rest_vertices, skin.faces,
+        yield AnimationSource(path, "animation", [name], rotations.shape[0], skin.rest_vertices, skin.faces,
                       skin.fps, skin.scene, skin=skin, motions=lambda a: (rotations, translations),
                       vertices=lambda a: lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations,
                                              translations, device=device),
@@ -338,7 +296,7 @@ def _animations(path, device, clip=None):
         count, frames = F.shape[:2]
         skinned = SkinnedAnimations(skin, F, t, np.zeros((count, 3)), device)  # as synthesize --usd skins them
         try:
-            yield _Source(path, "animation", [f"animation_{a:04d}" for a in range(count)], frames, skin.rest_vertices,
+            yield AnimationSource(path, "animation", [f"animation_{a:04d}" for a in range(count)], frames, skin.rest_vertices,
                           skin.faces, skin.fps, skin.scene, skin=skin, motions=lambda a: (F[a], t[a]),
                           vertices=lambda a: skinned[a])
         finally:

@@ -13,7 +13,8 @@ import contextlib
 import os
 from dataclasses import dataclass
 
-from .common import check_output_path
+from skinsynth.formats.output_file import check_output_path
+
 from .options import check_max_width
 
 #: kind: the suffixes it is written to ("folder": a path ending in a separator).

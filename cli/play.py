@@ -5,8 +5,11 @@ import os
 import click
 import numpy as np
 
+from skinsynth.formats.output_folder import FolderOutputs
+from skinsynth.pipeline.runtime.resources import check_memory
+
 from .options import device_option, marker_take_options, texture_options, up_axis_option
-from .common import check_memory, report, summary_options, FolderOutputs, user_errors
+from .common import report, summary_options, user_errors
 from .outputs import (TEXTURES, check_animation_output, check_bone_texture_output, check_texture_output,
                       usd_joint_tree, write_bone_textures, write_gltf, write_textures)
 

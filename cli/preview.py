@@ -6,7 +6,10 @@ import time
 import click
 import numpy as np
 
-from .common import Progress, check_memory, check_output_path, report, summary_options, user_errors
+from skinsynth.formats.output_file import check_output_path
+from skinsynth.pipeline.runtime.resources import check_memory
+
+from .common import Progress, report, summary_options, user_errors
 from .options import up_axis_option
 
 MESH_SUFFIXES = (".npz", ".usd", ".usda", ".usdc")

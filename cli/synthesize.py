@@ -12,9 +12,13 @@ import time
 
 import click
 
+from skinsynth.formats.output_file import check_output_path
+from skinsynth.formats.output_folder import FolderOutputs
+from skinsynth.pipeline.runtime.resources import check_memory, check_space
+
 from .options import check_max_width, device_option, texture_options, up_axis_option
 from .outputs import SynthesisOutputs, check_texture_output, write_synthesis_outputs
-from .common import check_memory, check_space, report, summary_options, Progress, check_output_path, FolderOutputs, command_line, tool_version, user_errors
+from .common import report, summary_options, Progress, command_line, tool_version, user_errors
 
 
 def _target(text):

@@ -211,36 +211,14 @@ def _skin(path, error_scale, contacts=False):
     from skinsynth.formats.graph_file import read_graph_contacts
     from skinsynth.formats.model import read_model
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.gpu import lbs_reference
-    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
-    from skinsynth.pipeline.view import SkinView
+    from skinsynth.pipeline.view import skin_view
 
     model = read_model(path, groups=("mesh", "examples", "skin") + (("graph",) if contacts else ()))
     skin = read_skin(path, model)
     found = read_graph_contacts(path, model, skin) if contacts else None
-
-    def fit(frame):
-        return lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights,
-                             skin.rotations[frame:frame + 1], skin.translations[frame:frame + 1])[0]
-
-    skeleton = None if skin.skeleton is None else _skeleton_lines(skin)  # fit-skin --skeleton: drawn over the fit
-    scale = error_scale * bounding_box_diagonal(skin.rest_vertices)
-    return (SkinView(faces=skin.faces, examples=skin.examples, fit=fit, error_scale=scale, error_fraction=error_scale,
-                     fps=skin.fps, up_axis=skin.scene.up_axis,
-                     contacts=None if found is None else (found.vertices, found.offsets, found.planted),
-                     skeleton=skeleton),
+    return (skin_view(skin, error_scale, found),
             {"frames": int(skin.examples.shape[0]), "error_scale": error_scale,
              **({"contact_patches": int(found.offsets.size - 1)} if found is not None else {})})
-
-
-def _skeleton_lines(skin):
-    """frame -> (joints (B, 3), bones (S, 2, 3)) of a skin's skeleton as its fit carries it."""
-    from skinsynth.pipeline.view import skeleton_lines
-
-    def at(frame):
-        return skeleton_lines(skin.rotations[frame], skin.translations[frame], skin.skeleton["joints"],
-                              skin.skeleton["parents"], skin.skeleton["jointed"])
-    return at
 
 
 def _synthesis(path, animation):
@@ -251,10 +229,9 @@ def _synthesis(path, animation):
     from skinsynth.formats.model import read_model
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.formats.synthesis_file import component_bones, open_motions, read_sources, synthesis_count
-    from skinsynth.gpu import lbs_reference
     from skinsynth.pipeline.inputs.clips import Clips
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.view import SynthesisView, vertex_components
+    from skinsynth.pipeline.view import synthesis_view, vertex_components
 
     skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
     count = synthesis_count(path)
@@ -270,23 +247,9 @@ def _synthesis(path, animation):
     except BaseException:
         stack.close()
         raise
-
     clips = Clips(skin.clip_names, skin.clip_frames) if len(skin.clip_frames) > 1 else None
-
-    def load(a):
-        rotations, translations = F[a], t[a]
-        require_finite(path, f"/synthesis animation {a}'s bone motions", rotations)
-        require_finite(path, f"/synthesis animation {a}'s bone motions", translations)
-        sources = read_sources(path, [a])[:, 0]  # (C, M)
-
-        def frame(m):
-            return lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, rotations[m:m + 1],
-                                 translations[m:m + 1])[0]
-        return frame, sources
-
-    scene = SynthesisView(faces=skin.faces, rest=skin.rest_vertices, count=count, frames=int(F.shape[1]), load=load,
-                          vertex_components=owner, components=len(components), animation=animation,
-                          fps=skin.fps, up_axis=skin.scene.up_axis, clips=clips)
+    scene = synthesis_view(skin, (F, t), lambda a: read_sources(path, [a])[:, 0], owner, len(components), animation,
+                           clips, lambda what, values: require_finite(path, what, values))
     return scene, {"animations": count, "frames": int(F.shape[1]), "components": len(components)}, stack
 
 

@@ -8,7 +8,8 @@ compile_loops (the rasteriser built ahead of use: ``skinsynth precompile``),
 split_by_key, error_levels, level_colors, vertex_errors, vertex_components, face_components, component_colors,
 seam_frames, extrapolation, extrapolation_distances, extrapolation_scale, extrapolation_report, extrapolation_color, resample_session, side_by_side,
 planted_vertices, skeleton_lines,
-serve, open_page, TrajectoryView, PuppetView, SkinView, SynthesisView, SequenceView (:mod:`.pages`).
+serve, open_page, TrajectoryView, PuppetView, SkinView, SynthesisView, SequenceView, skin_view,
+synthesis_view (:mod:`.pages`).
 """
 
 from .._lazy import lazy_exports
@@ -22,6 +23,6 @@ _EXPORTS = {"render": "rasteriser", "frame_bounds": "rasteriser", "ground_layer"
                 "extrapolation_report",
                 "extrapolation_color", "resample_session", "side_by_side", "planted_vertices", "skeleton_lines")},
             **{name: "pages" for name in ("serve", "open_page", "TrajectoryView", "PuppetView", "SkinView",
-                                          "SynthesisView", "SequenceView")}}
+                                          "SynthesisView", "SequenceView", "skin_view", "synthesis_view")}}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

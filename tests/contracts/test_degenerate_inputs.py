@@ -259,6 +259,12 @@ def test_ctrl_c_to_previews_process_group_is_one_line(stages, tmp_path, delay):
     stderr = process.communicate(timeout=120)[1]
     if process.returncode == 0:  # finished before the signal
         return
+    if process.returncode == -signal.SIGINT:
+        # the signal came while Python was ending, after the command (as test_faults' signals at
+        # any moment allow; under a loaded machine the last delay lands there): the whole video
+        # or none, never a temporary
+        assert os.listdir(tmp_path) in ([], ["p.mp4"]), os.listdir(tmp_path)
+        return
     lines = stderr.strip().splitlines()
     assert process.returncode == 130 and lines == ["skinsynth: interrupted (SIGINT); no output written"], stderr
     assert_folder_holds(tmp_path)

@@ -79,7 +79,13 @@ def test_a_signal_while_play_writes_a_usd_stage_is_one_line_every_time(puppet, t
             assert not _temporary(tmp_path), os.listdir(tmp_path)
             out.unlink()
             continue
-        _one_line(process.returncode, stderr, 128 + number, f"interrupted ({signal.Signals(number).name})")
+        line = _one_line(process.returncode, stderr, 128 + number, f"interrupted ({signal.Signals(number).name})")
+        if line.endswith(f"wrote only {out}"):
+            # landed just after the rename, as the command ended: the whole file, and it says so
+            # (formats.atomic.WRITTEN; test_faults' signals at any moment allow the same)
+            assert out.exists() and not _temporary(tmp_path), (moment, delay, os.listdir(tmp_path))
+            out.unlink()
+            continue
         assert not out.exists() and not _temporary(tmp_path), (moment, delay, os.listdir(tmp_path))
         stopped.append((moment, delay))
     # pxr's loading takes a few tenths of a second: the first moments land inside it on any machine

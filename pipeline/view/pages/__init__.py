@@ -10,14 +10,16 @@ One page per kind of file, each from its record (:mod:`.records`):
 - a synthesis (:class:`SynthesisView`): :mod:`.synthesis_page`;
 - any animated meshes (:class:`SequenceView`): :mod:`.sequence_page`;
 
-with the frame slider they share (:mod:`.timeline`), the first view's framing (:mod:`.framing`)
+the skin's and the synthesis's records built from a fit's arrays (:mod:`.views`), the frame
+slider they share (:mod:`.timeline`), the first view's framing (:mod:`.framing`)
 and the server (:mod:`.server`: :func:`serve`, :func:`open_page`, :func:`check_port`). Meshes
 are one colour each in viser, so a coloured mesh is sent as one part per colour
 (``scenes.split_by_key``). viser is imported when a server starts: importing this package, or any
 of its modules, does not import it.
 
 Public: serve, open_page, check_port, PAGES, TrajectoryView, PuppetView, SkinView, SynthesisView,
-SequenceView, Timeline, PuppetPage, SkinPage, SynthesisPage, SequencePage.
+SequenceView, Timeline, PuppetPage, SkinPage, SynthesisPage, SequencePage, skin_view, synthesis_view,
+skeleton_at.
 """
 
 from ..._lazy import lazy_exports
@@ -25,6 +27,7 @@ from ..._lazy import lazy_exports
 _EXPORTS = {"serve": "server", "open_page": "server", "check_port": "server", "PAGES": "server",
             "TrajectoryView": "records", "PuppetView": "records", "SkinView": "records", "SynthesisView": "records",
             "SequenceView": "records", "Timeline": "timeline", "PuppetPage": "puppet_page", "SkinPage": "skin_page",
-            "SynthesisPage": "synthesis_page", "SequencePage": "sequence_page"}
+            "SynthesisPage": "synthesis_page", "SequencePage": "sequence_page", "skin_view": "views",
+            "synthesis_view": "views", "skeleton_at": "views"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
