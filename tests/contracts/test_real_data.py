@@ -67,9 +67,9 @@ FIT_ARRAYS = ("rest_vertices", "bone_indices", "bone_weights", "rotations", "tra
 @pytest.mark.parametrize("single", [False, True])
 def test_samba_synthesis_has_no_visible_seams_and_plays_the_whole_clip(samba_fit, single):
     """The capture where the issue measured 16.9× the input's acceleration at seams (multi-component):
-    200 walks of 600 frames play at least 90 % of the clip, and the first 20, skinned (about 1,000
+    200 walks of 600 frames play at least 90 % of the clip, and the first 10, skinned (about 500
     seams), accelerate at most 1.5× the input's largest (measured 0.69× in both modes, on the
-    first 50 as on the first 20)."""
+    first 50 as on the first 10 and 20)."""
     from skinsynth.gpu import lbs
     from skinsynth.pipeline.mesh.geometry import frame_accelerations
     from skinsynth.pipeline.synthesis.graph import build_graph
@@ -83,7 +83,7 @@ def test_samba_synthesis_has_no_visible_seams_and_plays_the_whole_clip(samba_fit
     assert min(result.statistics["coverage"]) >= 0.9
     assert min(result.statistics["shortest_segment"]) >= 12
     largest = np.nanmax(frame_accelerations(seq.vertices))
-    worst = max(np.nanmax(frame_accelerations(lbs(rest, idx, w, result.F[a], result.t[a]))) for a in range(20))
+    worst = max(np.nanmax(frame_accelerations(lbs(rest, idx, w, result.F[a], result.t[a]))) for a in range(10))
     assert worst <= 1.5 * largest, f"worst acceleration {worst / largest:.2f}× the input's"
 
 
