@@ -80,8 +80,9 @@ class StageFiles:
     command-line options; ``()`` for the defaults), controls.h5 (``select-controls``), puppet.h5
     (``train-kcca``, from controls.h5), graph.h5 (``build-graph``) and bones.h5 (``synthesize``,
     from graph.h5). Each recipe is built once per run (whatever the number of xdist workers); a
-    file two recipes share (same file, same options, same inputs) is made once and copied. The files must stay as they were built:
-    the session ends with an error naming any that a test changed, removed or added."""
+    file two recipes share (same file, same options, same inputs) is made once and copied. The
+    files must stay as they were built: the session ends with an error naming any that a test
+    changed, removed or added."""
 
     def __init__(self, tmp_path_factory):
         self.factory, self.recipes, self.digests = tmp_path_factory, {}, {}

@@ -28,7 +28,8 @@ def map_problems(root):
     """One line per disagreement between ``root``/docs/architecture.md and the tree at ``root``."""
     text = (root / "docs" / "architecture.md").read_text()
     names = named_paths(text)
-    files = sorted(str(p.relative_to(root)) for top in (*PACKAGES, "tests", "benchmarks") for p in (root / top).rglob("*.py"))
+    files = sorted(str(p.relative_to(root)) for top in (*PACKAGES, "tests", "benchmarks")
+                   for p in (root / top).rglob("*.py"))
     problems = [f"docs/architecture.md names {name}, which is not in the tree" for name in sorted(names)
                 if not any(f == name or f.endswith("/" + name) for f in files)]
     problems += [f"{module} is not named in docs/architecture.md" for module in modules(root)
