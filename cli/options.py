@@ -7,6 +7,18 @@ import click
 from skinsynth.pipeline.errors import OptionError
 
 
+class FiniteFloatRange(click.FloatRange):
+    """click's FloatRange that also refuses nan and ±inf (nan passes every comparison of a range)."""
+
+    def convert(self, value, param, ctx):
+        import math
+
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        return number
+
+
 def up_axis_option(help):
     """``--up-axis Y|Z`` (default None: the input's, as each command says)."""
     return click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None, help=help)

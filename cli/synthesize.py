@@ -14,9 +14,10 @@ import click
 
 from skinsynth.formats.output_file import check_output_path
 from skinsynth.formats.output_folder import FolderOutputs
+from skinsynth.pipeline.runtime.execution import Cluster
 from skinsynth.pipeline.runtime.resources import check_memory, check_space
 
-from .options import check_max_width, device_option, texture_options, up_axis_option
+from .options import FiniteFloatRange, check_max_width, device_option, texture_options, up_axis_option
 from .outputs import SynthesisOutputs, check_texture_output, write_synthesis_outputs
 from .common import report, summary_options, Progress, command_line, tool_version, user_errors
 
@@ -108,12 +109,16 @@ def _target(text):
                    "worker to OUT's shard folder (<OUT>.shards/, on a file system every worker sees at "
                    "the same path), which OUT then maps (HDF5 virtual datasets): keep the two together. A rerun "
                    "reuses the finished shards. Same datasets as without it (docs/cluster.md).")
+@click.option("--cluster-timeout", default=Cluster.ANSWER_TIMEOUT, show_default=True, metavar="SECONDS",
+              type=FiniteFloatRange(min=0.0, min_open=True, max=600.0),
+              help="--cluster tcp://: give up when the scheduler has not answered within this many seconds (a "
+                   "line says the command is waiting after 3 s); one that answers then has 60 s to get a worker.")
 @summary_options
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
                min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, contact,
                measure_feet, usd_dir, crowd, gltf, root_motion, exr_dir, half,
-               max_width, up_axis, plot_dir, plot_count, device, jobs, cluster, as_json, quiet):
+               max_width, up_axis, plot_dir, plot_count, device, jobs, cluster, cluster_timeout, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
     Random walks over the motion graph (or walks through targeted frames), splicing at the
@@ -140,7 +145,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     folders, jobs = _check_options(path, output, obstacles, sides, cluster, jobs)
     skinning_device = resolve_device(device) if sides.skinned else None  # the feet resolve it when measured
     # a cluster starts (local:N) or is reached in the background while the graph is read
-    with (_cluster_starting(cluster) if cluster else contextlib.nullcontext()) as joined:
+    with (_cluster_starting(cluster, cluster_timeout) if cluster else contextlib.nullcontext()) as joined:
         graph_file = read_graph(path)
         skin = graph_file.skin
         request = synthesis_request(graph_file, start_frame, end_frame, targets, min_segment, up_axis, count=count,
@@ -285,7 +290,6 @@ def _cluster_report(address, ran, remote, result, shards):
     return cluster_summary(address, *ran, remote, shards["folder"], kept)
 
 
-def _cluster_starting(address):
-    from skinsynth.pipeline.runtime.execution import Cluster
-
-    return Cluster.starting(address, preload=("skinsynth.pipeline.synthesis.synthesis",))
+def _cluster_starting(address, answer_timeout):
+    return Cluster.starting(address, preload=("skinsynth.pipeline.synthesis.synthesis",),
+                            answer_timeout=answer_timeout)

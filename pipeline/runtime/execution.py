@@ -319,8 +319,9 @@ class Cluster:
         together, and 10 s more) and a signal ends it: the thread is a daemon, so a scheduler
         that accepts a connection and never answers can neither hang the command nor keep it
         from exiting (an executor's thread would be joined at exit). A scheduler (tcp://) must
-        answer within ``answer_timeout`` (:attr:`ANSWER_TIMEOUT`) of the start; then its first
-        worker may take the rest. ``waiting(text)``, when given, is called once, with a line
+        answer within ``answer_timeout`` (:attr:`ANSWER_TIMEOUT` by default; ``synthesize
+        --cluster-timeout``) of the start, and Dask's client is given as long to connect; then its
+        first worker may take the rest. ``waiting(text)``, when given, is called once, with a line
         saying what the command waits for, when a scheduler has not answered
         :attr:`WAITING_NOTICE` seconds after the start (a local cluster starts silently)."""
         import threading
@@ -328,16 +329,17 @@ class Cluster:
 
         from ..errors import OptionError
 
-        timeout = timeout if timeout is not None else cls.CONNECT_TIMEOUT + cls.WORKER_TIMEOUT + 10.0
+        answer_timeout = cls.ANSWER_TIMEOUT if answer_timeout is None else answer_timeout
+        connect_timeout = max(cls.CONNECT_TIMEOUT, answer_timeout)  # Dask's client may wait as long
+        timeout = timeout if timeout is not None else connect_timeout + cls.WORKER_TIMEOUT + 10.0
         remote = not address.startswith("local:")
-        answer_timeout = min(timeout, cls.ANSWER_TIMEOUT if answer_timeout is None else answer_timeout) \
-            if remote else timeout
+        answer_timeout = min(timeout, answer_timeout) if remote else timeout
         started, done, answered = {}, threading.Event(), threading.Event()
         began = time.monotonic()
 
         def start():
             try:
-                started["cluster"] = cls(address, preload, answered=answered.set)
+                started["cluster"] = cls(address, preload, connect_timeout=connect_timeout, answered=answered.set)
             except BaseException as error:  # handed to the caller's thread
                 started["error"] = error
             finally:

@@ -242,20 +242,35 @@ class Page:
         self.wait(updated, f"a new {name} mesh")
         return self.vertices(name)
 
+    def press(self, name):
+        """Click the panel's button ``name``: a click event dispatched to the button itself, once it
+        is visible and enabled. (A mouse click first waits for the button to hold still over two
+        animation frames: the page draws every frame, which under software GL (swiftshader) makes
+        that wait cost seconds; one forced past it can land while the panel still moves.)"""
+        button = self.page.get_by_role("button", name=name, exact=True)
+        button.wait_for(state="visible", timeout=WAIT * 1000)
+        self.wait(button.is_enabled, f"the {name!r} button enabled")
+        button.dispatch_event("click")
+
     def close(self):
         self.page.close()
 
 
-def non_blank(png):
-    """Share of a screenshot's pixels that differ from its most common colour (the background)."""
+def non_blank(png, box=None):
+    """Share of a screenshot's pixels that differ from its most common colour (the background);
+    ``box``: only those in this rectangle ({x, y, width, height} in CSS pixels, as Playwright's
+    bounding_box gives it; the screenshot's scale is one device pixel to one CSS pixel)."""
     import io
 
     from PIL import Image
 
-    pixels = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).reshape(-1, 3)
-    colors, counts = np.unique(pixels, axis=0, return_counts=True)
-    background = colors[np.argmax(counts)]
-    return float(np.mean(np.any(pixels != background, axis=1)))
+    image = Image.open(io.BytesIO(png)).convert("RGB")
+    if box is not None:
+        image = image.crop((round(box["x"]), round(box["y"]), round(box["x"] + box["width"]),
+                            round(box["y"] + box["height"])))
+    pixels = np.asarray(image).reshape(-1, 3).astype(np.int64)
+    colors = (pixels[:, 0] << 16) | (pixels[:, 1] << 8) | pixels[:, 2]  # one integer a colour
+    return float(np.mean(colors != np.argmax(np.bincount(colors))))
 
 
 def played(files, tmp_path, puppet, controls, name="t"):
@@ -296,8 +311,9 @@ def test_a_moved_control_gives_the_mesh_play_writes(files, browser, tmp_path):
             assert np.abs(shown - first).max() > 1e-3 * diagonal  # the move moved the mesh
             assert np.abs(shown - expected).max() <= 1e-5 * diagonal
             page.page.wait_for_timeout(500)  # let the canvas draw it
-            assert non_blank(page.page.locator("canvas").first.screenshot()) > 0.02
-            assert non_blank(page.page.screenshot()) > 0.05
+            shot = page.page.screenshot()  # one capture (each costs seconds under software GL)
+            assert non_blank(shot, page.page.locator("canvas").first.bounding_box()) > 0.02
+            assert non_blank(shot) > 0.05
             assert page.external == []  # nothing from the network: the client is served by the command
         finally:
             page.close()
@@ -312,7 +328,7 @@ def test_a_real_mouse_drag_moves_the_mesh_to_plays(files, browser, tmp_path):
         try:
             page.wait(lambda: "/puppet/mesh" in page.scene(), "the puppet's mesh")
             page.page.wait_for_timeout(1500)  # the first frames drawn
-            moved = _drag_some_gizmo(page)
+            moved = _drag_some_gizmo(page, training[0])
             if moved is None:
                 pytest.skip("no gizmo arrow under the probed screen points at this camera (drag by message is "
                             "tested above)")
@@ -327,11 +343,29 @@ def test_a_real_mouse_drag_moves_the_mesh_to_plays(files, browser, tmp_path):
             page.close()
 
 
-def _drag_some_gizmo(page):
-    """Press the mouse at points around each handle's screen position until a drag makes the page
-    send a TransformControlsUpdateMessage; (handle name, its last position sent) or None."""
+def _on_canvas(page, positions):
+    """Where the scene points positions (n, 3) are on the canvas, as fractions (n, 2) of its width
+    and height: projected by the last camera the page sent (viser's ViewerCameraMessage: the
+    camera's pose in the world, OpenCV axes, +Z forward; its vertical field of view in radians)."""
+    camera = [m for m in map(msgspec.msgpack.decode, page.sent) if m.get("type") == "ViewerCameraMessage"][-1]
+    w, x, y, z = camera["wxyz"]
+    rotation = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    seen = (np.asarray(positions, dtype=np.float64) - camera["position"]) @ rotation  # in the camera's axes
+    focal = 0.5 / np.tan(0.5 * camera["fov"])  # in canvas heights
+    aspect = camera["image_width"] / camera["image_height"]
+    return np.stack([0.5 + focal * seen[:, 0] / seen[:, 2] / aspect, 0.5 + focal * seen[:, 1] / seen[:, 2]], axis=1)
+
+
+def _drag_some_gizmo(page, handles):
+    """Press the mouse at points around the handles' screen positions (handles (n, 3)), nearest
+    first, until a drag makes the page send a TransformControlsUpdateMessage; (handle name, its
+    last position sent) or None."""
     canvas = page.page.locator("canvas").first.bounding_box()
-    for fx, fy in [(x, y) for y in np.linspace(0.3, 0.7, 9) for x in np.linspace(0.3, 0.7, 9)]:
+    grid = np.array([(x, y) for y in np.linspace(0.3, 0.7, 9) for x in np.linspace(0.3, 0.7, 9)])
+    near = np.linalg.norm(grid[:, None] - _on_canvas(page, handles)[None], axis=2).min(axis=1)
+    for order, (fx, fy) in enumerate(grid[np.argsort(near, kind="stable")]):
         x, y = canvas["x"] + fx * canvas["width"], canvas["y"] + fy * canvas["height"]
         before = len(page.sent)
         page.page.mouse.move(x, y)
@@ -365,7 +399,7 @@ def test_extrapolation_indicator_and_reset_to_a_training_frame(files, browser, t
             distance = float(page.html("skinsynth-extrapolation").split('data-distance="')[1].split('"')[0])
             assert distance > 2 * summary["extrapolation_scale"]
             start = len(page.frames)
-            page.page.get_by_role("button", name="reset to the training frame").click()
+            page.press("reset to the training frame")
             shown = page.next_mesh("/puppet/mesh", start)
             page.wait(lambda: 'data-distance="0"' in page.html("skinsynth-extrapolation"), "the indicator at 0")
             expected = played(files, tmp_path, files / "puppet.h5", training[:1])[0]
@@ -383,7 +417,7 @@ def test_a_recorded_session_played_by_play_is_what_the_page_showed(files, browse
         try:
             page.wait(lambda: "/puppet/mesh" in page.scene(), "the puppet's mesh")
             shown = [page.vertices("/puppet/mesh")]
-            page.page.get_by_role("button", name="record", exact=True).click()
+            page.press("record")
             page.wait(lambda: any(p.get("label") == "stop and save" for p in page.panel().values()),
                       "the record button")
             rng = np.random.default_rng(0)
@@ -393,7 +427,7 @@ def test_a_recorded_session_played_by_play_is_what_the_page_showed(files, browse
                 page.drag(f"/puppet/control_{i}", training[0][i] + rng.normal(scale=0.05 * diagonal, size=3))
                 shown.append(page.next_mesh("/puppet/mesh", start))
                 page.page.wait_for_timeout(150)  # each pose stays on the page for several frames at 24 fps
-            page.page.get_by_role("button", name="stop and save", exact=True).click()
+            page.press("stop and save")
             page.wait(session.exists, "the saved session")
         finally:
             page.close()
@@ -665,9 +699,9 @@ def test_a_sequence_plays(files, browser, name, tmp_path):
             for n, vertices in enumerate(sequences):
                 assert np.abs(page.vertices(f"/sequence/part_{n:03d}") - vertices[0]).max() < 1e-5
             start = len(page.frames)
-            page.page.get_by_role("button", name="play", exact=True).click()
+            page.press("play")
             page.wait(lambda: len(page.updates("/sequence/part_000", start)) >= 5, "five frames played")
-            page.page.get_by_role("button", name="pause", exact=True).click()
+            page.press("pause")
             page.page.wait_for_timeout(300)
             # every mesh received is a frame of the sequence, exactly (the bar repeats its cycle: the
             # frames it equals), and the frames go forward, a few at most at a time

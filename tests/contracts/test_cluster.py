@@ -85,8 +85,11 @@ class KillFirstTask(WorkerPlugin):
         self.marker = marker
 
     def transition(self, key, start, finish, **kwargs):
-        if finish == "executing" and "skinsynth-batch" in str(key) and not os.path.exists(self.marker):
-            open(self.marker, "w").close()
+        if finish == "executing" and "skinsynth-batch" in str(key):
+            try:  # created or not in one step: of two workers starting batches at once, one dies
+                os.close(os.open(self.marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            except FileExistsError:
+                return
             os._exit(1)
 
 

@@ -15,6 +15,7 @@ import pytest
 import trimesh
 
 from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
+from forked_commands import run_forked
 
 SKINSYNTH = [sys.executable, "-c", "import sys; from skinsynth.cli.main import main; sys.argv[0] = 'skinsynth'; "
                                    "sys.exit(main())"]
@@ -140,20 +141,22 @@ def test_a_usdc_with_a_damaged_table_of_contents_is_one_line(stages, tmp_path):
     toc = struct.unpack_from("<Q", data, 16)[0]
     sections = struct.unpack_from("<Q", data, toc)[0]
     assert sections >= 5
-    for section in range(sections):
-        for field, value in ((16, 1 << 50), (16, -(1 << 50)), (24, 1 << 50)):  # start past the end, before it; size
-            damaged = bytearray(data)
-            struct.pack_into("<q", damaged, toc + 8 + 32 * section + field, value)
-            (tmp_path / "damaged.usdc").write_bytes(damaged)
-            done = _run(["fit-skin", tmp_path / "damaged.usdc", "-o", tmp_path / "x.h5", "--bones", 3,
-                         "--iterations", 2, "-q"])
-            if field == 16:
-                _one_line(done, "damaged.usdc", "cannot open as USD")
-            else:  # the size is only a hint to the kernel: the stage reads, or fails in one line
-                assert done.returncode in (0, 2) and len(done.stderr.strip().splitlines()) == done.returncode // 2, \
-                    done.stderr
-            if os.path.exists(tmp_path / "x.h5"):
-                os.remove(tmp_path / "x.h5")
+    damages = ((16, 1 << 50), (16, -(1 << 50)), (24, 1 << 50))  # start past the end, before it; size
+    cases = [(section, field, value) for section in range(sections) for field, value in damages]
+    for n, (section, field, value) in enumerate(cases):
+        damaged = bytearray(data)
+        struct.pack_into("<q", damaged, toc + 8 + 32 * section + field, value)
+        (tmp_path / f"damaged{n}.usdc").write_bytes(damaged)
+    # each command a child of one interpreter (tests/forked_commands.py): fd 2 is the child's own
+    ended = run_forked([["fit-skin", tmp_path / f"damaged{n}.usdc", "-o", tmp_path / f"x{n}.h5", "--bones", 3,
+                         "--iterations", 2, "-q"] for n in range(len(cases))],
+                       preload=["skinsynth.formats.usd", "skinsynth.formats.skin_file", "skinsynth.pipeline.skin"])
+    for n, ((section, field, value), done) in enumerate(zip(cases, ended)):
+        if field == 16:
+            _one_line(done, f"damaged{n}.usdc", "cannot open as USD")
+        else:  # the size is only a hint to the kernel: the stage reads, or fails in one line
+            assert done.returncode in (0, 2) and len(done.stderr.strip().splitlines()) == done.returncode // 2, \
+                done.stderr
 
 
 # -- preview frame rates --------------------------------------------------------------------------
