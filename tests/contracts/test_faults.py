@@ -346,7 +346,7 @@ def test_a_csv_cannot_ask_for_more_memory_than_its_rows(chain, tmp_path):
 @pytest.mark.parametrize("blend", ["bones", "key-vertices"])
 def test_jobs_and_blas_threads_give_byte_identical_datasets(chain, tmp_path, blend):
     outputs = []
-    for jobs, blas in ((1, 1), (1, 2), (2, 1), (2, 2)):
+    for jobs, blas in ((1, 1), (1, 2), (2, 1)):  # each changed from the first on its own
         out = tmp_path / f"j{jobs}b{blas}.h5"
         done = run(["synthesize", chain / "graph.h5", "-n", 260, "-m", 60, "--seed", 9, "--jobs", jobs, "-o", out,
                     "--blend", blend, "-q"], env={"OPENBLAS_NUM_THREADS": str(blas), "OMP_NUM_THREADS": str(blas),
