@@ -11,7 +11,7 @@ from skinsynth.formats.output_file import check_output_path
 from skinsynth.formats.output_folder import FolderOutputs
 
 from .common import report, summary_options, command_line, tool_version, user_errors
-from .options import up_axis_option
+from .options import FINITE_FLOAT, up_axis_option
 
 DEFAULTS = GraphOptions()
 
@@ -19,30 +19,30 @@ DEFAULTS = GraphOptions()
 @click.command("build-graph")
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Graph file to write (.h5).")
-@click.option("--threshold-scale", default=DEFAULTS.threshold_scale, show_default=True, type=float,
+@click.option("--threshold-scale", default=DEFAULTS.threshold_scale, show_default=True, type=FINITE_FLOAT,
               help="Transition threshold T_c as a multiple of the playback step cost D(i, i−1) (see --threshold-reference).")
 @click.option("--threshold-reference", type=click.Choice(["median-step", "max-step"]),
               default=DEFAULTS.threshold_reference,
               show_default=True,
               help="Step the scale multiplies: the median, or the maximum as in Zheng (whose 40 × max admits "
                    "almost every pair on real clips).")
-@click.option("--edge-threshold", default=DEFAULTS.edge_threshold, show_default=True, type=float,
+@click.option("--edge-threshold", default=DEFAULTS.edge_threshold, show_default=True, type=FINITE_FLOAT,
               help="Drop bone-graph edges weaker than this fraction of the strongest (never disconnecting the graph).")
 @click.option("--single-component", is_flag=True, help="Treat the whole mesh as one component (no cut-node split).")
-@click.option("--svd-threshold", default=DEFAULTS.svd_threshold, show_default=True, type=float,
+@click.option("--svd-threshold", default=DEFAULTS.svd_threshold, show_default=True, type=FINITE_FLOAT,
               help="Keep reduced coordinates whose singular value is at least this fraction of the largest.")
 @click.option("--min-gap", default=DEFAULTS.min_gap, show_default=True, type=int, help="Smallest |i − j| of a transition.")
 @click.option("--min-segment", type=int, default=None,
               help="Shortest stretch (frames) walks play between two seams; transitions closer than half of it "
                    "to a cheaper one are dropped. Stored as synthesize's default.  [default: half a second at the "
                    "clip's frame rate]")
-@click.option("--coverage", default=DEFAULTS.coverage, show_default=True, type=float,
+@click.option("--coverage", default=DEFAULTS.coverage, show_default=True, type=FINITE_FLOAT,
               help="Admit transitions above the threshold (cheapest first, only those that help) until this share "
                    "of the frames lies on one strongly connected part of the motion graph, so walks can reach "
                    "the whole clip.")
 @up_axis_option("The clip's up axis: synthesize places segments by a turn about it and a shift on the ground "
                 "(default: the input's, as fit-skin recorded it; Y for files from before).")
-@click.option("--posture-weight", default=DEFAULTS.posture_weight, show_default=True, type=float,
+@click.option("--posture-weight", default=DEFAULTS.posture_weight, show_default=True, type=FINITE_FLOAT,
               help="Weight of the reference bone's tilt and height in the transition cost (balanced like "
                    "Zheng's α, β; 0: his eq. 5 alone, for synthesize --alignment full).")
 @click.option("--clips", "walk_clips", default=None, metavar="A,B",
@@ -51,17 +51,17 @@ DEFAULTS = GraphOptions()
                    "that shares the rig (and trains the puppet) but is no motion to walk through.")
 @click.option("--no-contacts", "no_contacts", is_flag=True,
               help="Do not look for the input's ground contacts (the graph file then holds none).")
-@click.option("--contact-height", default=DEFAULTS.contact_height, show_default=True, type=float,
+@click.option("--contact-height", default=DEFAULTS.contact_height, show_default=True, type=FINITE_FLOAT,
               help="A vertex enters contact within this share of the character's height above its clip's ground "
                    "(a low percentile of the clip's lowest points).")
-@click.option("--contact-speed", default=DEFAULTS.contact_speed, show_default=True, type=float,
+@click.option("--contact-speed", default=DEFAULTS.contact_speed, show_default=True, type=FINITE_FLOAT,
               help="... and slower than this share of the height per second, sideways, relative to the ground "
                    "(a treadmill's belt is the ground's own travel).")
-@click.option("--contact-release", default=DEFAULTS.contact_release, show_default=True, type=float,
+@click.option("--contact-release", default=DEFAULTS.contact_release, show_default=True, type=FINITE_FLOAT,
               help="A vertex leaves contact beyond this multiple (≥ 1) of both thresholds (hysteresis).")
-@click.option("--contact-min-duration", default=DEFAULTS.contact_min_duration, show_default=True, type=float,
+@click.option("--contact-min-duration", default=DEFAULTS.contact_min_duration, show_default=True, type=FINITE_FLOAT,
               help="Shortest plant kept, in seconds (shorter ones are dropped).")
-@click.option("--contact-min-support", default=DEFAULTS.contact_min_support, show_default=True, type=float,
+@click.option("--contact-min-support", default=DEFAULTS.contact_min_support, show_default=True, type=FINITE_FLOAT,
               help="A ground bears the body often: a clip keeps no plant unless some patch is planted in at least "
                    "this share of its frames (a part that only pauses at its lowest is no contact).")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None,

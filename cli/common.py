@@ -31,17 +31,21 @@ def fail(message):
 
 
 def user_errors(command):
-    """Turn the errors a user can cause into one stderr line and exit 2 (never a traceback)."""
+    """Turn the errors a user can cause into one stderr line and exit 2 (never a traceback). What
+    the input clip cannot give (``ClipError``) is said of the command's input, its ``path``."""
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
         from skinsynth.formats.atomic import stop_if_received
         from skinsynth.gpu import DeviceError
+        from skinsynth.pipeline.errors import ClipError
 
         try:
             result = command(*args, **kwargs)
             stop_if_received()  # a signal whose exception a library swallowed still ends the command
             sys.stdout.flush()  # a full disk or a closed pipe on stdout shows here, not at exit
             return result
+        except ClipError as error:
+            fail(f"{kwargs['path']}: {error}" if kwargs.get("path") else str(error))
         except (FormatError, OptionError, DeviceError) as error:
             fail(str(error))
         except MemoryError:

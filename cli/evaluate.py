@@ -4,6 +4,7 @@ import click
 
 from skinsynth.formats.output_file import check_output_path
 
+from .options import FINITE_FLOAT
 from .common import fail, report, summary_options, user_errors
 
 
@@ -15,7 +16,7 @@ from .common import fail, report, summary_options, user_errors
                    "[default: the one the puppet was trained for (train-kcca --skinning)]")
 @click.option("--pca-components", type=int, default=None,
               help="Blendshape count of the PCA baseline (default: leave-one-out cross-validation on the training frames).")
-@click.option("--extrapolate", type=float, default=None, metavar="FRACTION",
+@click.option("--extrapolate", type=FINITE_FLOAT, default=None, metavar="FRACTION",
               help="Also retrain the puppet (train-kcca's own options) on the first FRACTION of the frames, e.g. "
                    "0.6, and report every method on the rest: poses never seen, not between examples.")
 @click.option("--hold-out-clip", "hold_out_clips", multiple=True, metavar="NAME",

@@ -4,6 +4,7 @@ import click
 
 from skinsynth.formats.output_file import check_output_path
 
+from .options import FiniteFloatRange
 from .common import fail, report, summary_options, user_errors
 
 EXAMPLES = ("bending-bar", "walker")
@@ -22,7 +23,7 @@ DEFAULTS = {"bending-bar": {"frames": 60, "rings": 40, "segments": 16, "cycles":
 @click.option("--segments", type=int, show_default="bending-bar 16, walker 10", help="Vertices around each ring.")
 @click.option("--cycles", type=int, show_default="bending-bar 1, walker 2",
               help="Bend-and-twist cycles (walker: gait cycles) over the frames.")
-@click.option("--fps", default=24.0, show_default=True, type=click.FloatRange(min=0.0, min_open=True, max=1e6), help="Frame rate stored with the sequence.")
+@click.option("--fps", default=24.0, show_default=True, type=FiniteFloatRange(min=0.0, min_open=True, max=1e6), help="Frame rate stored with the sequence.")
 @click.option("--planted", is_flag=True,
               help="walker: walk forward with truly planted feet (legs by inverse kinematics) instead of in place.")
 @summary_options

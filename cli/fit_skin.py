@@ -9,7 +9,7 @@ from skinsynth.formats.output_file import check_output_path
 from skinsynth.pipeline.errors import OptionError
 
 from .common import Progress, command_line, report, summary_options, tool_version, user_errors
-from .options import device_option, up_axis_option
+from .options import FINITE_FLOAT, FiniteFloatRange, device_option, up_axis_option
 
 #: ``--skeleton`` without a file: find the skeleton.
 FOUND = "found"
@@ -28,7 +28,7 @@ MAX_TRANSFORM_STEPS = 100
                    "the same skeleton. The clips must be the rig's mesh.")
 @click.option("--max-influences", default=4, show_default=True, type=int, help="Most bones per vertex (K).")
 @click.option("--iterations", default=100, show_default=True, type=int, help="Most alternations of bone and weight updates.")
-@click.option("--tolerance", default=None, type=float,
+@click.option("--tolerance", default=None, type=FINITE_FLOAT,
               help="Stop once the last --patience iterations together improved the RMSE by less than this "
                    "(relative): more iterations stop paying. The summary says which rule stopped the fit. "
                    "Default 0.02 (0.001 with --rig, whose iterations cost milliseconds).")
@@ -53,17 +53,17 @@ MAX_TRANSFORM_STEPS = 100
                    "or before another option. docs/skeleton.md.")
 @click.option("--root-bone", default=None, type=click.IntRange(min=0),
               help="--skeleton: the root bone. Default: the bone that carries the most weight (the body).")
-@click.option("--max-joint-drift", default=None, type=click.FloatRange(min=0.0),
+@click.option("--max-joint-drift", default=None, type=FiniteFloatRange(min=0.0),
               help="--skeleton: the largest drift of a joint (RMS distance its two bones carry it apart, over the "
                    "rest diagonal) the hierarchy uses; bones with no such joint to the rest hang free from the "
                    "root. Default 0.02.")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
-@click.option("--fps", default=None, type=float, help="Frame rate, when the input does not carry one (default 24).")
-@click.option("--meters-per-unit", default=None, type=float,
+@click.option("--fps", default=None, type=FINITE_FLOAT, help="Frame rate, when the input does not carry one (default 24).")
+@click.option("--meters-per-unit", default=None, type=FINITE_FLOAT,
               help="Units of the input's coordinates (USD metersPerUnit; 0.01 for centimetres). Default: what a "
                    "USD input states, else 1. Every USD written downstream states it again.")
 @up_axis_option("The input's up axis. Default: what a USD input states, else Y.")
-@click.option("--start-frame", default=None, type=float,
+@click.option("--start-frame", default=None, type=FINITE_FLOAT,
               help="Time code of the input's first frame. Default: a USD input's first sample, else 0.")
 @summary_options
 @user_errors
@@ -168,9 +168,10 @@ def _resolved_options(bones, rig, tolerance, transform_steps, skeleton, root_bon
 def _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig, skeleton, brought):
     """The INPUT clips (a MeshSequence, its scene as the options override it), their
     :class:`Clips`, and the skin of ``--rig`` (None without); refused unless ``--rig`` is the
-    clips' mesh, and ``--skeleton FILE`` (``brought``) in their units and up axis."""
+    clips' mesh, and ``--skeleton FILE`` (``brought``) in their units and up axis, its joints on
+    their mesh."""
     from skinsynth.formats.clip_inputs import read_clips, read_rig
-    from skinsynth.formats.usd import check_skeleton_scene
+    from skinsynth.formats.usd import check_skeleton_placement, check_skeleton_scene
     from skinsynth.pipeline.inputs.clips import Clips
 
     sequence = read_clips(input_specs, prim=prim, fps=fps)
@@ -180,6 +181,7 @@ def _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, 
         raise OptionError(str(error)) from None
     if brought is not None:
         check_skeleton_scene(skeleton, brought[1], sequence.scene)
+        check_skeleton_placement(skeleton, brought[1], sequence.vertices)
     return sequence, Clips(sequence.clip_names, sequence.clip_frames), read_rig(rig, sequence) if rig else None
 
 

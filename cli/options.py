@@ -7,16 +7,31 @@ import click
 from skinsynth.pipeline.errors import OptionError
 
 
+def _finite(kind, number, value, param, ctx):
+    import math
+
+    if not math.isfinite(number):
+        kind.fail(f"{value!r} is not a finite number.", param, ctx)
+    return number
+
+
+class FiniteFloat(click.types.FloatParamType):
+    """A number option: click's float, with nan and ±inf refused (the type of every number
+    option of the commands; a test checks that none takes click's plain float)."""
+
+    def convert(self, value, param, ctx):
+        return _finite(self, super().convert(value, param, ctx), value, param, ctx)
+
+
 class FiniteFloatRange(click.FloatRange):
     """click's FloatRange that also refuses nan and ±inf (nan passes every comparison of a range)."""
 
     def convert(self, value, param, ctx):
-        import math
+        return _finite(self, super().convert(value, param, ctx), value, param, ctx)
 
-        number = super().convert(value, param, ctx)
-        if not math.isfinite(number):
-            self.fail(f"{value!r} is not a finite number.", param, ctx)
-        return number
+
+#: The type of a number option without a range.
+FINITE_FLOAT = FiniteFloat()
 
 
 def up_axis_option(help):
@@ -58,7 +73,7 @@ def marker_take_options(command):
                      help="C3D: the take's length unit instead of its POINT:UNITS."),
         click.option("--take-up-axis", default="Z", show_default=True, type=click.Choice(["X", "Y", "Z"]),
                      help="C3D: the take's up axis (Vicon, Qualisys: Z; OptiTrack exports: Y)."),
-        click.option("--fps", default=None, type=float,
+        click.option("--fps", default=None, type=FINITE_FLOAT,
                      help="C3D: frames per second the take is resampled to and the output plays at  "
                           "[default: the puppet's]"),
         click.option("--neutral-frame", default=None, type=int,

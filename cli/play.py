@@ -8,7 +8,7 @@ import numpy as np
 from skinsynth.formats.output_folder import FolderOutputs
 from skinsynth.pipeline.runtime.resources import check_memory
 
-from .options import device_option, marker_take_options, texture_options, up_axis_option
+from .options import FINITE_FLOAT, device_option, marker_take_options, texture_options, up_axis_option
 from .common import report, summary_options, user_errors
 from .outputs import (TEXTURES, check_animation_output, check_bone_texture_output, check_texture_output,
                       usd_joint_tree, write_bone_textures, write_gltf, write_textures)
@@ -41,7 +41,7 @@ from .outputs import (TEXTURES, check_animation_output, check_bone_texture_outpu
                    "one the puppet was trained for (train-kcca --skinning, linear unless asked otherwise)]")
 @texture_options("Textures (-o DIR/ or .exr): 16-bit half floats instead of 32-bit.",
                  "Textures: width limit; vertices wrap to more rows.")
-@click.option("--spacing", default=None, type=float,
+@click.option("--spacing", default=None, type=FINITE_FLOAT,
               help="Grid spacing between characters on the ground plane (default 1.5 × the largest rest bounding-box side).")
 @click.option("--translation-solver/--no-translation-solver", default=True, show_default=True,
               help="Recompute bone translations with the Poisson solve (needs a puppet trained with it).")

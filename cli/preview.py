@@ -10,7 +10,7 @@ from skinsynth.formats.output_file import check_output_path
 from skinsynth.pipeline.runtime.resources import check_memory
 
 from .common import Progress, report, summary_options, user_errors
-from .options import up_axis_option
+from .options import FINITE_FLOAT, up_axis_option
 
 MESH_SUFFIXES = (".npz", ".usd", ".usda", ".usdc")
 #: Frame rates a video may play at: a GIF holds at most 655 s per frame, players show at most 240.
@@ -51,10 +51,10 @@ def _frame_range(text):
 @click.option("--compare", is_flag=True,
               help="Skin file: the input and the reconstruction side by side, the reconstruction coloured by each "
                    "vertex's error (red at --error-scale).")
-@click.option("--error-scale", default=0.01, show_default=True, type=float,
+@click.option("--error-scale", default=0.01, show_default=True, type=FINITE_FLOAT,
               help="Error shown full red, as a fraction of the rest pose's bounding-box diagonal (--compare, puppets).")
 @click.option("--size", default="640x480", show_default=True, type=_size, metavar="WxH", help="Size of each panel.")
-@click.option("--fps", default=None, type=float,
+@click.option("--fps", default=None, type=FINITE_FLOAT,
               help="Frames per second of the video, 0.1 to 240.  [default: the file's]")
 @click.option("--frames", "frame_range", default=None, type=_frame_range, metavar="A:B",
               help="Only frames A to B−1 (Python slice; either end may be left out).")

@@ -6,6 +6,7 @@ import numpy as np
 from skinsynth.formats.output_file import check_output_path
 from skinsynth.pipeline.errors import OptionError
 
+from .options import FINITE_FLOAT
 from .common import command_line, report, summary_options, tool_version, user_errors
 
 
@@ -23,10 +24,10 @@ from .common import command_line, report, summary_options, tool_version, user_er
 @click.option("--components", "-k", default=None, type=int,
               help="Number of PCA bases K  [default: smallest explaining 99% of the in-place variance, "
                    "at least ceil(n_c/2), at most min(frames-1, 3 x vertices)].")
-@click.option("--min-spacing", default=0.1, show_default=True, type=float,
+@click.option("--min-spacing", default=0.1, show_default=True, type=FINITE_FLOAT,
               help="Automatic rule: skip candidates closer than this fraction of the rest bounding-box "
                    "diagonal to a chosen control that moves with them (see --rigid-tolerance).")
-@click.option("--rigid-tolerance", default=0.1, show_default=True, type=float,
+@click.option("--rigid-tolerance", default=0.1, show_default=True, type=FINITE_FLOAT,
               help="Two near points whose distance changes less than this (relative) in every example "
                    "move as one piece: the second is skipped. Near points that move apart (lips) are both kept.")
 @click.option("--clips", "clip_list", default=None, metavar="A,B,...",

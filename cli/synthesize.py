@@ -17,7 +17,8 @@ from skinsynth.formats.output_folder import FolderOutputs
 from skinsynth.pipeline.runtime.execution import Cluster
 from skinsynth.pipeline.runtime.resources import check_memory, check_space
 
-from .options import FiniteFloatRange, check_max_width, device_option, texture_options, up_axis_option
+from .options import (FINITE_FLOAT, FiniteFloatRange, check_max_width, device_option, texture_options,
+                      up_axis_option)
 from .outputs import SynthesisOutputs, check_texture_output, write_synthesis_outputs
 from .common import report, summary_options, Progress, command_line, tool_version, user_errors
 
@@ -49,7 +50,7 @@ def _target(text):
 @click.option("--obstacle", "obstacles", multiple=True, type=click.Path(dir_okay=False),
               help="A mesh (OBJ/PLY/OFF/STL…) no frame may penetrate (repeatable).")
 @click.option("--ground-plane", is_flag=True, help="No vertex may go below the input clip's lowest point.")
-@click.option("--min-difference", default=0.0, show_default=True, type=float,
+@click.option("--min-difference", default=0.0, show_default=True, type=FINITE_FLOAT,
               help="Drop an animation that shares more than 1 − X of its frames (same input frame at the same time) with an earlier one.")
 @click.option("--single-component", is_flag=True, help="Synthesise the whole rig as one component, ignoring cut nodes.")
 @click.option("--min-segment", type=int, default=None,
@@ -64,7 +65,7 @@ def _target(text):
               help="How a segment is placed after a transition: turned about the up axis and shifted on the ground "
                    "(motion-graph practice: no drift off the ground, however long), or by Zheng's full rigid "
                    "transform (eq. 7), for clips that truly turn over (a swimmer, a cloth in the wind).")
-@click.option("--cut-damping", default=1e-3, show_default=True, type=float,
+@click.option("--cut-damping", default=1e-3, show_default=True, type=FINITE_FLOAT,
               help="Pull of the cut nodes' eq. 9 solve towards their source positions (relative; 0: none). "
                    "A cut node is seen by one side's key vertices only; undamped it stretches in blends.")
 @click.option("--spread-velocity/--no-spread-velocity", default=True, show_default=True,

@@ -8,6 +8,7 @@ import numpy as np
 from skinsynth.formats.output_file import check_output_path
 from skinsynth.pipeline.errors import OptionError
 
+from .options import FINITE_FLOAT
 from .common import command_line, report, summary_options, tool_version, user_errors
 
 
@@ -24,7 +25,7 @@ from .common import command_line, report, summary_options, tool_version, user_er
               help="κ relative to the mean kernel eigenvalue, or 'auto' (per bone, by cross-validation on the training frames).")
 @click.option("--translation-solver/--no-translation-solver", default=True, show_default=True,
               help="Recompute bone translations by the Poisson solve of Feng §5.")
-@click.option("--beta", default=100.0, show_default=True, type=float, help="Weight of the control-point constraints in the Poisson solve.")
+@click.option("--beta", default=100.0, show_default=True, type=FINITE_FLOAT, help="Weight of the control-point constraints in the Poisson solve.")
 @click.option("--translation-prior", default="auto", show_default=True,
               help="Pull of the Poisson solve towards the regression's own translations, relative to its mean "
                    "diagonal: 1e-6 is Feng's plain solve, 100 about the regression's translations; 'auto' "

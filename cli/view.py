@@ -10,7 +10,7 @@ import click
 import numpy as np
 
 from .common import report, summary_options, user_errors
-from .options import device_option, marker_take_options
+from .options import FINITE_FLOAT, device_option, marker_take_options
 
 #: Hosts only this machine can reach; any other makes the command warn.
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
@@ -24,9 +24,9 @@ LOOPBACK = ("127.0.0.1", "localhost", "::1")
               help="Address to listen on; 0.0.0.0 lets anyone on the network open the page (a warning says so).")
 @click.option("--no-open", is_flag=True, help="Do not open the page in a browser.")
 @click.option("--animation", default=0, show_default=True, type=int, help="Synthesis file: the animation shown first.")
-@click.option("--error-scale", default=0.01, show_default=True, type=float,
+@click.option("--error-scale", default=0.01, show_default=True, type=FINITE_FLOAT,
               help="Skin file: the error shown full red, as a fraction of the rest pose's bounding-box diagonal.")
-@click.option("--extrapolation-scale", default=None, type=float,
+@click.option("--extrapolation-scale", default=None, type=FINITE_FLOAT,
               help="Puppet: the extrapolation indicator turns amber at this distance from the nearest training "
                    "example and red at twice it (RMS over the controls, the rest box's largest side = 1, as "
                    "evaluate measures).  [default: the largest gap between a training example and its nearest "

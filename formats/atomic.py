@@ -167,15 +167,20 @@ def atomic_output(path, expected_bytes=0, interruptible=False):
         if free < expected_bytes:
             raise FormatError(path, f"not enough space: about {_megabytes(expected_bytes)} needed, "
                                     f"{_megabytes(free)} free in {folder}; nothing written")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=".tmp" + suffix, dir=folder)
-    except OSError as error:
-        raise FormatError(path, f"cannot write here: {error.strerror}") from None
-    os.close(fd)
-    # mkstemp makes the file private (0600); give it the permissions a plain open() would.
-    os.chmod(tmp, 0o666 & ~_umask())
+    tmp = None
     with (contextlib.nullcontext([]) if interruptible else held_signals()) as pending:
         try:
+            with held_signals() as creating:  # a signal as the temporary is made must not leave it behind
+                try:
+                    fd, tmp = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=".tmp" + suffix,
+                                               dir=folder)
+                except OSError as error:
+                    raise FormatError(path, f"cannot write here: {error.strerror}") from None
+                os.close(fd)
+                # mkstemp makes the file private (0600); give it the permissions a plain open() would.
+                os.chmod(tmp, 0o666 & ~_umask())
+            if creating:  # nothing written yet: stop now
+                raise Interrupted(creating[0])
             yield tmp
             if pending:  # stopped while writing: abandon the file, keep the old one
                 raise Interrupted(pending[0])
@@ -187,8 +192,9 @@ def atomic_output(path, expected_bytes=0, interruptible=False):
                 WRITTEN.append(path)
             pending += renaming
         except BaseException as error:
-            with contextlib.suppress(FileNotFoundError):
-                os.remove(tmp)
+            if tmp is not None:
+                with contextlib.suppress(FileNotFoundError):
+                    os.remove(tmp)
             if _out_of_space(error):
                 raise FormatError(path, f"no space left on the device of {folder}; nothing written") from None
             raise

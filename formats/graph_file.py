@@ -48,7 +48,7 @@ import numpy as np
 from .errors import FormatError
 from .model import read_model, require
 from .skin_file import read_skin
-from .validation import check_graph
+from .validation import CONTACT_THRESHOLDS, check_graph
 
 _COMPONENT_DATASETS = ("bones", "local_bones", "reduced_coordinates", "costs", "transitions", "transition_costs",
                        "key_vertices", "key_bones", "key_weights", "weight_gradients", "rotation_strain")
@@ -120,7 +120,7 @@ class ContactsRecord:
 
 
 #: The thresholds /graph/contacts records (attribute names without "@").
-CONTACT_OPTIONS = ("height", "speed", "release", "min_duration", "min_support")
+CONTACT_OPTIONS = CONTACT_THRESHOLDS
 
 
 def read_contacts(graph):

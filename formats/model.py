@@ -192,7 +192,12 @@ def read_header(path):
             raise FormatError(path, f"invalid format_version {np.asarray(raw).tolist()!r}: an integer is needed")
         version = int(raw)
         stage = f.attrs.get("stage", "")
-        stage = stage.decode() if isinstance(stage, bytes) else str(stage)
+        stage = stage.decode() if isinstance(stage, bytes) else stage
+        if stage not in STAGES:
+            raise FormatError(path, f"its stage is {stage!r}, not one of {', '.join(STAGES)}")
+        tool = f.attrs.get("tool_version", "")
+        if not isinstance(tool, (str, bytes)):
+            raise FormatError(path, f"its tool_version is {tool!r}, not a version text")
     if version > FORMAT_VERSION:
         raise FormatError(path, f"format_version {version} is newer than this skinsynth reads "
                                 f"({FORMAT_VERSION}); upgrade skinsynth")

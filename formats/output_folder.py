@@ -284,16 +284,16 @@ def atomic_folder(path, inputs=(), outputs=()):
     parent, base = os.path.dirname(target), os.path.basename(target)
     prefix = f".{base}."
     _sweep_stale(parent, prefix, ".tmp")
+    tmp, mark = None, len(WRITTEN)
     try:
-        tmp = tempfile.mkdtemp(prefix=f"{prefix}{os.getpid()}.", suffix=".tmp", dir=parent)
-    except OSError as error:
-        for folder in made:
-            with contextlib.suppress(OSError):
-                os.rmdir(folder)
-        raise FormatError(path, f"cannot write here: {error.strerror}") from None
-    os.chmod(tmp, 0o777 & ~_umask())
-    mark = len(WRITTEN)
-    try:
+        with held_signals() as creating:  # a signal as the folder is made must not leave it behind
+            try:
+                tmp = tempfile.mkdtemp(prefix=f"{prefix}{os.getpid()}.", suffix=".tmp", dir=parent)
+            except OSError as error:
+                raise FormatError(path, f"cannot write here: {error.strerror}") from None
+            os.chmod(tmp, 0o777 & ~_umask())
+        if creating:  # nothing written yet: stop now
+            raise Interrupted(creating[0])
         yield tmp
         stop_if_received()
         write_manifest(tmp)
@@ -305,7 +305,8 @@ def atomic_folder(path, inputs=(), outputs=()):
             if old is not None:
                 shutil.rmtree(old, ignore_errors=True)
     except BaseException as error:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
         for folder in made:
             with contextlib.suppress(OSError):
                 os.rmdir(folder)

@@ -674,10 +674,13 @@ def read_skeleton(path) -> UsdSkeleton:
             if binds is None or len(binds) != len(joints):
                 raise FormatError(path, f"the Skeleton {prim.GetPath()} has {0 if binds is None else len(binds)} bind "
                                         f"transforms for its {len(joints)} joints")
-            parents = np.asarray(UsdSkel.Topology(Vt.TokenArray(joints)).GetParentIndices(), dtype=np.int64)
-            positions = np.array([[m[3][0], m[3][1], m[3][2]] for m in binds], dtype=np.float64)  # row-vector form
-            if not np.isfinite(positions).all():
-                raise FormatError(path, f"the Skeleton {prim.GetPath()}'s bind transforms hold NaN or inf values")
+            _check_joint_list(path, prim.GetPath(), joints)
+            topology = UsdSkel.Topology(Vt.TokenArray(joints))
+            valid, why = topology.Validate()
+            if not valid:
+                raise FormatError(path, f"the Skeleton {prim.GetPath()}'s joints are no tree UsdSkel reads: {why}")
+            parents = np.asarray(topology.GetParentIndices(), dtype=np.int64)
+            positions = _bind_positions(path, prim.GetPath(), joints, binds)
             listed = prim.GetAttribute(FREE_JOINTS)
             free_names = set(str(n) for n in (listed.Get() or [])) if listed and listed.IsValid() else set()
             return UsdSkeleton(names=joints, parents=parents, positions=positions,
@@ -685,6 +688,65 @@ def read_skeleton(path) -> UsdSkeleton:
                                meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)),
                                up_axis=str(UsdGeom.GetStageUpAxis(stage)))
     raise FormatError(path, "holds no UsdSkel Skeleton (--skeleton FILE needs one: joints, topology, bind transforms)")
+
+
+def _check_joint_list(path, where, joints):
+    """FormatError naming the first joint a Skeleton lists twice (UsdSkel would give both the
+    same parent: the tree would change without a word)."""
+    seen = set()
+    for joint in joints:
+        if joint in seen:
+            raise FormatError(path, f"the Skeleton {where} lists the joint {joint!r} twice")
+        seen.add(joint)
+
+
+#: The smallest ratio of a bind transform's smallest to largest singular value (of its 3 × 3
+#: part) that counts as invertible: a joint frame squashed flatter than this cannot be inverted
+#: to bind a vertex (double precision keeps 1e-16; 1e-9 leaves margin for the file's rounding).
+BIND_CONDITION = 1e-9
+
+
+def _bind_positions(path, where, joints, binds):
+    """Each joint's origin (J, 3) of its bind transform (world, row-vector form: the translation
+    is the last row), once every transform is finite, affine (last column 0, 0, 0, 1) and
+    invertible (:data:`BIND_CONDITION`); FormatError naming the first joint that is not."""
+    matrices = np.array([[[m[i][j] for j in range(4)] for i in range(4)] for m in binds], dtype=np.float64)
+    for index, matrix in enumerate(matrices):
+        problem = None
+        if not np.isfinite(matrix).all():
+            problem = "holds NaN or inf values"
+        elif not np.allclose(matrix[:, 3], [0.0, 0.0, 0.0, 1.0], atol=1e-9):
+            problem = f"is not affine (its last column is {matrix[:, 3].tolist()}, not [0, 0, 0, 1])"
+        else:
+            singular = np.linalg.svd(matrix[:3, :3], compute_uv=False)
+            if not singular[-1] > BIND_CONDITION * singular[0]:
+                problem = "is singular (no inverse: its axes are flat or zero)"
+        if problem:
+            raise FormatError(path, f"the Skeleton {where}'s bind transform of joint {joints[index]!r} {problem}")
+    return matrices[:, 3, :3].copy()
+
+
+#: How far outside its mesh a given skeleton's joint may lie, in the mesh's bounding-box
+#: diagonals beyond the box (every frame's vertices): a character's joints sit inside its body,
+#: so one diagonal out means the skeleton belongs elsewhere (other units, another placement).
+JOINT_REACH = 1.0
+
+
+def check_skeleton_placement(path, skeleton, vertices):
+    """FormatError naming the first joint of ``skeleton`` (:class:`UsdSkeleton`) that lies more
+    than :data:`JOINT_REACH` diagonals outside the bounding box of vertices (F, V, 3) (the clips'
+    every frame): fitted there, bones would keep no vertex."""
+    points = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    low, high = points.min(axis=0), points.max(axis=0)
+    diagonal = float(np.linalg.norm(high - low))
+    outside = np.linalg.norm(np.maximum(low - skeleton.positions, 0.0) + np.maximum(skeleton.positions - high, 0.0),
+                             axis=1)
+    far = np.flatnonzero(~(outside <= JOINT_REACH * diagonal))
+    if far.size:
+        joint = int(far[0])
+        raise FormatError(path, f"the joint {skeleton.names[joint]!r} lies {outside[joint] / diagonal:.3g} diagonals "
+                                f"outside the mesh (its bind position {skeleton.positions[joint].tolist()}): this "
+                                "skeleton is not placed on this character (other units, or moved)")
 
 
 def check_skeleton_scene(path, skeleton, scene):

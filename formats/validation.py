@@ -83,14 +83,23 @@ def _all_finite(value):
 
 
 def check_attribute(path, group, data, name, kind, low=None, high=None, choices=None, optional=True):
-    """An attribute ``@name`` of a group: a finite number of ``kind`` ("float", "int") within
-    [low, high], or one of ``choices`` (strings). Returns its value (None when optional and absent)."""
+    """An attribute ``@name`` of a group: a finite number of ``kind`` ("float", "int", "bool")
+    within [low, high], text (``kind`` "text"), or one of ``choices`` (strings). Returns its value
+    (None when optional and absent)."""
     where = f"/{group}/@{name}"
     if f"@{name}" not in data:
         if optional:
             return None
         raise FormatError(path, f"{where} is missing: the file is incomplete")
     value = data[f"@{name}"]
+    if kind == "text":
+        if not isinstance(value, str):
+            raise FormatError(path, f"{where} must be text, not {value!r}")
+        return value
+    if kind == "bool":
+        if not (np.ndim(value) == 0 and np.asarray(value).dtype.kind in "biu" and value in (0, 1)):
+            raise FormatError(path, f"{where} must be true or false, not {value!r}")
+        return bool(value)
     if choices is not None:
         if str(value) not in choices:
             raise FormatError(path, f"{where} is {value!r}; it must be one of {', '.join(choices)}")
@@ -107,6 +116,56 @@ def check_attribute(path, group, data, name, kind, low=None, high=None, choices=
 
 def _shape_text(shape):
     return "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
+
+
+@dataclass(frozen=True)
+class Attribute:
+    """An attribute's kind ("float", "int", "bool", "text", "names": a list of clip names, or
+    "choice" of ``choices``), its inclusive bounds (numbers, or symbols of ``dims``) and whether
+    it must be there."""
+
+    kind: str
+    low: object = None
+    high: object = None
+    choices: tuple = ()
+    optional: bool = True
+
+
+def check_attributes(path, group, data, attributes, dims, clip_names=None):
+    """Every attribute of ``attributes`` {name: Attribute} that ``data`` (a read group) holds,
+    checked (:func:`check_attribute`); a "names" attribute must name clips of ``clip_names``.
+    Returns {name: value} of those present."""
+    found = {}
+    for name, spec in attributes.items():
+        where = f"/{group}/@{name}"
+        if spec.kind == "names":
+            if f"@{name}" not in data:
+                continue
+            value = data[f"@{name}"]
+            names = [value] if isinstance(value, str) else list(np.atleast_1d(value)) if np.ndim(value) == 1 else None
+            if names is None or not names or not all(isinstance(n, str) for n in names) or (
+                    clip_names is not None and not set(names) <= set(clip_names)):
+                raise FormatError(path, f"{where} must name clips of the file ({', '.join(clip_names or [])}), "
+                                        f"not {value!r}")
+            found[name] = names
+            continue
+        low, high = (dims[b] if isinstance(b, str) else b for b in (spec.low, spec.high))
+        value = check_attribute(path, group, data, name, None if spec.kind == "choice" else spec.kind, low=low,
+                                high=high, choices=spec.choices or None, optional=spec.optional)
+        if value is not None:
+            found[name] = value
+    return found
+
+
+#: The attributes of the groups a skin fit carries (docs/format.md); their bounds bind to the
+#: sizes :func:`check_skin` found (B bones, K influences, F frames).
+EXAMPLES_ATTRIBUTES = {"fps": Attribute("float", low=1e-9), "meters_per_unit": Attribute("float", low=1e-300),
+                       "up_axis": Attribute("choice", choices=("Y", "Z")), "start_frame": Attribute("float"),
+                       "source": Attribute("text")}
+SKIN_ATTRIBUTES = {"rmse": Attribute("float", low=0.0), "rmse_over_diagonal": Attribute("float", low=0.0),
+                   "diagonal": Attribute("float", low=1e-300), "bones": Attribute("int", low="B", high="B"),
+                   "max_influences": Attribute("int", low="K", high="K"), "iterations": Attribute("int", low=0),
+                   "converged": Attribute("bool"), "bones_without_weight": Attribute("int", low=0, high="B")}
 
 
 MESH = {"rest_vertices": Field("float", ("V", 3)), "faces": Field("int", ("T", 3), low=0, high="V"),
@@ -164,6 +223,11 @@ def check_skeleton(path, skeleton, dims):
     if (depths < 0).any():
         raise FormatError(path, f"/skin/skeleton/parents is not a tree: bone {int(np.flatnonzero(depths < 0)[0])} "
                                 "never reaches the root (a cycle)")
+    root = check_attribute(path, "skin/skeleton", skeleton, "root", "int", low=0, high=parents.size - 1)
+    if root is not None and root != roots[0]:
+        raise FormatError(path, f"/skin/skeleton/@root is {root}, but the root bone (parent -1) is {roots[0]}")
+    check_attribute(path, "skin/skeleton", skeleton, "free_rmse", "float", low=0.0)
+    check_attribute(path, "skin/skeleton", skeleton, "max_drift", "float", low=0.0)
 
 
 def check_skin(path, model):
@@ -178,10 +242,8 @@ def check_skin(path, model):
         row = int(np.argmax(np.abs(weights.sum(axis=1) - 1.0)))
         raise FormatError(path, f"/skin/bone_weights rows must sum to 1 (vertex {row} sums to "
                                 f"{weights[row].sum():.6g})")
-    check_attribute(path, "examples", model["examples"], "fps", "float", low=1e-9)
-    check_attribute(path, "examples", model["examples"], "meters_per_unit", "float", low=1e-300)
-    check_attribute(path, "examples", model["examples"], "up_axis", None, choices=("Y", "Z"))
-    check_attribute(path, "examples", model["examples"], "start_frame", "float")
+    check_attributes(path, "examples", model["examples"], EXAMPLES_ATTRIBUTES, dims)
+    check_attributes(path, "skin", model["skin"], SKIN_ATTRIBUTES, dims)
     prim_path = model["examples"].get("@prim_path")
     if prim_path is not None and not (isinstance(prim_path, str) and prim_path.startswith("/") and len(prim_path) > 1):
         raise FormatError(path, f"/examples/@prim_path is {prim_path!r}, not an absolute USD prim path")
@@ -199,8 +261,9 @@ def check_clips(path, examples, frames):
     counts = np.atleast_1d(examples["clip_frames"])
     if int(counts.sum()) != frames:
         raise FormatError(path, f"/examples/clip_frames sums to {int(counts.sum())}, not the {frames} frames")
-    names = examples.get("@clip_names")
-    names = [] if names is None else [n.decode() if isinstance(n, bytes) else n for n in np.atleast_1d(names)]
+    stored = examples.get("@clip_names")
+    names = [] if stored is None or np.ndim(stored) != 1 else \
+        [n.decode() if isinstance(n, bytes) else n for n in stored]  # a list, even of one clip
     if len(names) != len(counts) or len(set(names)) != len(names) \
             or not all(isinstance(n, str) and CLIP_NAME.match(n) for n in names):
         raise FormatError(path, f"/examples/@clip_names must name each of the {len(counts)} clips once, in "
@@ -242,14 +305,30 @@ GRAPH_COMPONENT = {
 }
 
 
+GRAPH_ATTRIBUTES = {  # build-graph's options (formats.graph_file.GRAPH_OPTIONS) and what it found
+    "components": Attribute("int", low="C", high="C"), "transitions": Attribute("int", low=0),
+    "threshold_scale": Attribute("float", low=1e-300), "edge_threshold": Attribute("float", low=1e-300),
+    "svd_threshold": Attribute("float", low=1e-300), "min_gap": Attribute("int", low=1),
+    "min_bones": Attribute("int", low=1), "min_segment": Attribute("int", low=1),
+    "single_component": Attribute("bool"), "coverage": Attribute("float", low=0.0, high=1.0),
+    "posture_weight": Attribute("float", low=0.0), "up_axis": Attribute("choice", choices=("Y", "Z")),
+    "threshold_reference": Attribute("choice", choices=("median-step", "max-step")), "clips": Attribute("names")}
+COMPONENT_ATTRIBUTES = {  # each component's cost balance and threshold (Zheng eqs. 4–6), its walks' share
+    "threshold": Attribute("float", low=0.0), "alpha": Attribute("float", low=0.0), "beta": Attribute("float", low=0.0),
+    "lambda": Attribute("float", low=0.0), "ridge": Attribute("float", low=0.0),
+    "recurrent_share": Attribute("float", low=0.0, high=1.0), "admitted": Attribute("int", low=0)}
+
+
 def check_graph(path, model, dims):
     """/graph of a graph file and each of its components (``dims`` from :func:`check_skin`)."""
     graph = model["graph"]
     check_group(path, "graph", graph, GRAPH, dims)
-    check_attribute(path, "graph", graph, "min_segment", "int", low=1)
-    check_attribute(path, "graph", graph, "coverage", "float", low=0.0, high=1.0)
-    check_attribute(path, "graph", graph, "up_axis", None, choices=("Y", "Z"))
-    check_attribute(path, "graph", graph, "threshold_reference", None, choices=("median-step", "max-step"))
+    components = sorted(k for k in graph if k.startswith("component_"))
+    stated = check_attributes(path, "graph", graph, GRAPH_ATTRIBUTES, dict(dims, C=len(components)),
+                              _clip_names(model))
+    total = sum(int(np.shape(graph[name]["transitions"])[0]) for name in components if "transitions" in graph[name])
+    if stated.get("transitions", total) != total:
+        raise FormatError(path, f"/graph/@transitions is {stated['transitions']}, but the components hold {total}")
     if "contacts" in graph:
         _check_contacts(path, graph["contacts"], dims,
                         len(np.atleast_1d(model["examples"].get("clip_frames", [0]))))
@@ -260,12 +339,17 @@ def check_graph(path, model, dims):
                                 len(np.atleast_1d(model["examples"].get("clip_frames", [0]))))
         reference = check_attribute(path, f"graph/{name}", component, "reference", "int", low=0, high=dims["B"] - 1,
                                     optional=False)
-        check_attribute(path, f"graph/{name}", component, "ridge", "float", low=0.0)
+        check_attributes(path, f"graph/{name}", component, COMPONENT_ATTRIBUTES, dims)
         bones = np.asarray(component["bones"])
         if np.unique(bones).size != bones.size or reference not in bones or not np.array_equal(
                 np.sort(np.asarray(component["local_bones"])), np.setdiff1d(bones, [reference])):
             raise FormatError(path, f"/graph/{name}: bones, local_bones and @reference disagree (the local bones are "
                                     "the component's bones other than its reference)")
+
+
+#: The thresholds /graph/contacts records (build-graph's --contact-* options), attribute names
+#: without "@" (formats.graph_file.CONTACT_OPTIONS reads them).
+CONTACT_THRESHOLDS = ("height", "speed", "release", "min_duration", "min_support")
 
 
 def _check_contacts(path, contacts, dims, clips):
@@ -278,6 +362,14 @@ def _check_contacts(path, contacts, dims, clips):
             or np.shape(contacts["planted"])[1] != patches or np.size(contacts["ground"]) != clips):
         raise FormatError(path, f"/graph/contacts is inconsistent: offsets (P + 1,) must rise from 0 to the {count} "
                                 f"vertices, planted be (F, P) and ground hold one height per clip ({clips})")
+    stated = check_attribute(path, "graph/contacts", contacts, "patches", "int", low=1, optional=False)
+    if stated != patches:
+        raise FormatError(path, f"/graph/contacts/@patches is {stated}, but offsets hold {patches} patches")
+    height = check_attribute(path, "graph/contacts", contacts, "character_height", "float", low=0.0, optional=False)
+    if not height > 0.0:
+        raise FormatError(path, f"/graph/contacts/@character_height is {height}; it must be a positive length")
+    for name in CONTACT_THRESHOLDS:  # what find_contacts was run with (synthesize's feet reuse them)
+        check_attribute(path, "graph/contacts", contacts, name, "float", low=0.0)
 
 
 def _check_transition_pairs(path, where, pairs, clips=1):
@@ -314,32 +406,49 @@ POISSON = {"rotation_operator": Field("float", ("B", "B", 3)), "control_operator
            "prior_operator": Field("float", ("B", "B"))}
 CORRECTIVES = {"weights": Field("float", ("P", "P")), "offsets": Field("float", ("P", "V", 3)),
                "tail": Field("float", ("P", "R1"), optional=True), "axes": Field("float", ("R", "N3"), optional=True)}
-KERNELS = ("gaussian", "polynomial", "linear")
+
+
+CONTROLS_ATTRIBUTES = {"count": Attribute("int", low="N", high="N"), "components": Attribute("int", low=1, high="Kb"),
+                       "explained": Attribute("float", low=0.0, high=1.0 + 1e-9), "method": Attribute("text"),
+                       "min_spacing": Attribute("float", low=0.0), "clips": Attribute("names")}
+TRAINING_ATTRIBUTES = {"global_motion": Attribute("choice", choices=("control-frame", "world")),
+                       "global_motion_reason": Attribute("text"), "correctives_reason": Attribute("text"),
+                       "skinning": Attribute("choice", choices=("linear", "dual-quaternion")),
+                       "clips": Attribute("names")}
+KCCA_ATTRIBUTES = {"kernel": Attribute("choice", choices=("gaussian", "polynomial", "linear"), optional=False),
+                   "scale": Attribute("float", low=1e-300, optional=False), "offset": Attribute("float"),
+                   "degree": Attribute("int", low=1, high=64), "bases": Attribute("int", low=1, high=8),
+                   "regularization_mode": Attribute("choice", choices=("auto", "fixed")),
+                   "width_reason": Attribute("text")}
+POISSON_ATTRIBUTES = {"prior": Attribute("float", low=0.0), "beta": Attribute("float", low=0.0),
+                      "prior_reason": Attribute("text")}
+CORRECTIVES_ATTRIBUTES = {"ridge": Attribute("float", low=1e-300, optional=False),
+                          "power": Attribute("float", low=1e-300, high=1e3), "reason": Attribute("text")}
+
+
+def _clip_names(model):
+    return [str(n) for n in np.atleast_1d(model.get("examples", {}).get("@clip_names", []))] or None
 
 
 def check_controls(path, model, dims):
     """/controls (``dims`` from :func:`check_skin`, updated with N)."""
     check_group(path, "controls", model["controls"], CONTROLS, dims)
+    check_attributes(path, "controls", model["controls"], CONTROLS_ATTRIBUTES, dims, _clip_names(model))
 
 
 def check_puppet(path, model, dims):
     """/training, /kcca, /poisson and /correctives of a puppet file (``dims`` after :func:`check_controls`)."""
     dims.update(B8=8 * dims["B"], N3=3 * dims["N"])
     check_group(path, "training", model["training"], TRAINING, dims)
-    check_attribute(path, "training", model["training"], "global_motion", None, choices=("control-frame", "world"))
+    check_attributes(path, "training", model["training"], TRAINING_ATTRIBUTES, dims, _clip_names(model))
     check_group(path, "kcca", model["kcca"], KCCA, dims)
-    kcca = model["kcca"]
-    check_attribute(path, "kcca", kcca, "kernel", None, choices=KERNELS, optional=False)
-    check_attribute(path, "kcca", kcca, "scale", "float", low=1e-300, optional=False)
-    check_attribute(path, "kcca", kcca, "offset", "float")
-    check_attribute(path, "kcca", kcca, "degree", "int", low=1, high=64)
+    check_attributes(path, "kcca", model["kcca"], KCCA_ATTRIBUTES, dims)
     if "poisson" in model:
         check_group(path, "poisson", model["poisson"], POISSON, dims)
-        check_attribute(path, "poisson", model["poisson"], "prior", "float", low=0.0)
+        check_attributes(path, "poisson", model["poisson"], POISSON_ATTRIBUTES, dims)
     if "correctives" in model:
         check_group(path, "correctives", model["correctives"], CORRECTIVES, dims)
-        check_attribute(path, "correctives", model["correctives"], "ridge", "float", low=1e-300, optional=False)
-        check_attribute(path, "correctives", model["correctives"], "power", "float", low=1e-300, high=1e3)
+        check_attributes(path, "correctives", model["correctives"], CORRECTIVES_ATTRIBUTES, dims)
         group = model["correctives"]
         if "tail" in group and "axes" in group and group["tail"].shape[1:] != (group["axes"].shape[0] + 1,):
             raise FormatError(path, f"/correctives/tail has {group['tail'].shape[1:]} columns, expected "

@@ -228,12 +228,18 @@ def fill_from_training(controls, training, min_markers, ridge=SUBSPACE_RIDGE):
     return controls, filled, held
 
 
+def resampled_count(samples, rate, fps):
+    """How many frames :func:`resample_uniform` makes of ``samples`` at ``rate`` Hz (a float: a
+    count too large for memory is still a number to report)."""
+    return float(np.floor((samples - 1) * fps / rate + 1e-9) + 1)
+
+
 def resample_uniform(values, rate, fps):
     """values (T, ...) sampled at ``rate`` Hz -> (F, ...) at ``fps`` by linear interpolation, frame
     k at k / fps seconds after the first sample (so the first sample's time is kept), up to the
     last sample. A sample time within 1e-9 of a frame's counts as on it (no interpolation)."""
     values = np.asarray(values, dtype=np.float64)
-    count = int(np.floor((len(values) - 1) * fps / rate + 1e-9)) + 1
+    count = int(resampled_count(len(values), rate, fps))
     position = np.arange(count) * (rate / fps)
     lower = np.minimum(np.floor(position + 1e-9).astype(np.int64), len(values) - 1)
     upper = np.minimum(lower + 1, len(values) - 1)
@@ -281,7 +287,7 @@ def first_complete_frame(points):
 
 def drive_from_markers(points, rate, fps, reference, training, *, meters_per_unit=1.0, take_up="Z", puppet_up="Y",
                        offsets=None, normals=None, neutral_frame=None, retarget="delta", stabilize=(),
-                       max_gap=MAX_GAP, min_markers=None):
+                       max_gap=MAX_GAP, min_markers=None, labels=None):
     """A take's markers as the puppet's controls (the module's steps 1–7).
 
     points (T, n, 3) metres, the markers in the puppet's control order, NaN where missing; rate
@@ -290,8 +296,8 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     (n, 3): markers sitting ``offset`` along the rest normal from their control (mesh units);
     neutral_frame: take frame of the neutral pose (default the first complete one after the short
     fill); stabilize: marker indices; min_markers: a frame seeing fewer is held (default half the
-    markers, at least 3). -> :class:`MarkerDrive`; OptionError (one line) for an option the take
-    cannot satisfy."""
+    markers, at least 3); labels (n,): the markers' names in messages (default their numbers).
+    -> :class:`MarkerDrive`; OptionError (one line) for an option the take cannot satisfy."""
     points = np.asarray(points, dtype=np.float64)
     frames, count = points.shape[:2]
     if retarget not in RETARGETS:
@@ -317,7 +323,8 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
         raise OptionError(f"--neutral-frame {neutral_frame} is outside the take's frames 0..{frames - 1}")
     elif np.isnan(local[neutral_frame]).any():
         lost = np.flatnonzero(np.isnan(local[neutral_frame]).any(axis=1))
-        raise OptionError(f"--neutral-frame {neutral_frame} lacks markers {', '.join(map(str, lost))}: the neutral "
+        names = [str(labels[m]) if labels is not None else str(m) for m in lost]
+        raise OptionError(f"--neutral-frame {neutral_frame} lacks markers {', '.join(names)}: the neutral "
                           "frame needs every marker")
     if len(stabilize):
         if len(set(stabilize)) < 3:

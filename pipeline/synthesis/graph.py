@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .deformation_gradients import deformation_gradients, gradient_operator, rotation_strain
-from ..errors import OptionError
+from ..errors import ClipError, OptionError
 from .key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
 from .graph_options import GraphOptions
 from .motion_graph import transitions_between
@@ -96,7 +96,7 @@ class GraphAnalysis:
 def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment=2,
                            coverage=0.95, posture_weight=1.0):
     if frames < 3:
-        raise OptionError(f"the clip has {frames} frames; transitions need at least 3")
+        raise ClipError(f"the clip has {frames} frames; transitions need at least 3")
     for name, value in (("--threshold-scale", threshold_scale), ("--edge-threshold", edge_threshold),
                         ("--svd-threshold", svd_threshold)):
         if not value > 0.0:

@@ -72,10 +72,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..inputs.clips import Clips
-from ..errors import OptionError
+from ..errors import ClipError, OptionError
 
 NO_CYCLE_MESSAGE = ("the clip has no repeated states at this threshold: no transition leads back; "
-                    "try a larger --threshold-scale")
+                    "run build-graph again with a larger --threshold-scale")
 
 
 @dataclass
@@ -167,7 +167,7 @@ class MotionGraph:
             detail = f" ({frames} frames, {len(pairs)} transitions"
             if forbidden.any():
                 detail += f", {int(forbidden.sum())} forbidden frames"
-            raise OptionError(NO_CYCLE_MESSAGE + detail + ")")
+            raise ClipError(NO_CYCLE_MESSAGE + detail + ")")
         src, dst = self._edges(self.usable)
         self.indptr, self.indices = _csr(frames, src, dst)
         self._state_cache = {}

@@ -73,8 +73,8 @@ def test_bad_options(files, tmp_path, args, needles):
 
 
 def test_bad_inputs(files, tmp_path):
-    assert_user_error(cli("build-graph", files / "two.h5", "-o", tmp_path / "g.h5"), "2 frames", "at least 3",
-                      folder=tmp_path)
+    assert_user_error(cli("build-graph", files / "two.h5", "-o", tmp_path / "g.h5"),
+                      f"{files / 'two.h5'}: the clip has 2 frames", "at least 3", folder=tmp_path)  # names the file
     assert_user_error(cli("build-graph", files / "loop.npz", "-o", tmp_path / "g.h5"), "loop.npz", folder=tmp_path)
     (tmp_path / "not.h5").write_bytes(b"nothing")
     assert_user_error(cli("build-graph", tmp_path / "not.h5", "-o", tmp_path / "g.h5"), "not.h5")

@@ -160,3 +160,34 @@ def test_stabilize_removes_the_named_markers_rigid_motion(puppet, tmp_path):
     assert report["takes"][0]["neutral_frame"] == 0
     result = cli("play", folder / "puppet.h5", "-c", take, "--stabilize", "M0,M1,NOSE", "-o", tmp_path / "x.h5")
     assert_user_error(result, "--stabilize names markers the layout lacks: NOSE")
+
+
+def test_takes_no_play_can_honour_are_refused_before_the_work_with_advice_that_fits(puppet, tmp_path, monkeypatch):
+    """Issue 46: a take whose rate is 1e-9 Hz, or play --fps 1e9, ran until memory failed ("out of
+    memory", naming neither the file nor the option); a take with no sample at all was told to
+    give --neutral-frame a frame that sees every marker. Now each is refused before the take is
+    turned into controls, naming the file, the option and the frames it would make; and a neutral
+    frame lacking markers names them by label."""
+    from c3d_writing import write_c3d
+
+    folder, labels, picks = puppet
+    take, _ = _take(folder, labels, picks, "ok.c3d")
+
+    def never(*args, **kwargs):
+        raise AssertionError("the take was turned into controls before the refusal")
+
+    with monkeypatch.context() as patch:
+        patch.setattr("skinsynth.pipeline.puppet.drive_from_markers", never)
+        slow = tmp_path / "slow.c3d"
+        write_c3d(slow, [f"Actor:{label}" for label in labels], np.full((20, 8, 3), 100.0), 1e-9)
+        assert_user_error(cli("play", folder / "puppet.h5", "-c", slow, "-o", tmp_path / "o.h5"), str(slow),
+                          "1e-09 per second", "frames", "of memory", folder=tmp_path, keep=["slow.c3d"])
+        assert_user_error(cli("play", folder / "puppet.h5", "-c", take, "--fps", "1e9", "-o", tmp_path / "o.h5"),
+                          str(take), "--fps", "frames", "of memory", folder=tmp_path, keep=["slow.c3d"])
+        empty = tmp_path / "empty.c3d"
+        write_c3d(empty, [f"Actor:{label}" for label in labels], np.full((20, 8, 3), np.nan), 120.0)
+        assert_user_error(cli("play", folder / "puppet.h5", "-c", empty, "-o", tmp_path / "o.h5"), str(empty),
+                          "no marker sample", folder=tmp_path, keep=["slow.c3d", "empty.c3d"])
+    gaps, _ = _take(folder, labels, picks, "gaps.c3d", holes=[(5, 40, 140)])
+    assert_user_error(cli("play", folder / "puppet.h5", "-c", gaps, "--neutral-frame", 50, "-o", tmp_path / "o.h5"),
+                      "--neutral-frame 50 lacks markers M5", folder=tmp_path, keep=["slow.c3d", "empty.c3d"])

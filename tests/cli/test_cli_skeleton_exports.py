@@ -270,3 +270,70 @@ def test_a_jointed_walkers_synthesized_feet_stay_planted_by_inverse_kinematics(t
                                       "--measure-feet", 8, "--json", "-q")).output)
     output = report["contact"]["output"]
     assert output["sliding_share"] < 0.2 and output["penetration_p95"] < 0.005
+
+
+def _edited_rig(source, target, edit):
+    """A copy of the UsdSkel rig ``source`` whose Skeleton's joints and bind transforms ``edit``
+    changes: edit(joints (list of str), binds (list of 4x4 lists, row-vector form)) -> (joints, binds)."""
+    from pxr import Gf, Usd, UsdSkel, Vt
+
+    stage = Usd.Stage.Open(str(source))
+    skeleton = next(UsdSkel.Skeleton(p) for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton))
+    joints = [str(j) for j in skeleton.GetJointsAttr().Get()]
+    binds = [[[m[i][j] for j in range(4)] for i in range(4)] for m in skeleton.GetBindTransformsAttr().Get()]
+    joints, binds = edit(joints, binds)
+    skeleton.GetJointsAttr().Set(Vt.TokenArray(joints))
+    skeleton.GetBindTransformsAttr().Set(Vt.Matrix4dArray([Gf.Matrix4d(b) for b in binds]))
+    stage.GetRootLayer().Export(str(target))
+    return target
+
+
+def test_a_given_skeleton_that_lies_is_refused_in_one_line_naming_the_joint(jointed_skins, tmp_path):
+    """Issue 46: a UsdSkel skeleton listing a joint twice was fitted with a changed tree and no
+    word; one with a singular bind transform, or moved by 1e30, was fitted (the last left 6 of 10
+    bones without a vertex, said only as a warning). Each is now refused before the fit, naming
+    the file and the joint; so are a child listed before its parent and a bind that is not affine."""
+    walker = jointed_skins / "walker.npz"
+    rig = tmp_path / "rig.usda"
+    assert_ok(cli("export", jointed_skins / "skin.h5", "-o", rig, "-q"))
+
+    def twice(joints, binds):
+        return joints + [joints[3]], binds + [binds[3]]
+
+    def child_first(joints, binds):
+        return [joints[1], joints[0]] + joints[2:], [binds[1], binds[0]] + binds[2:]
+
+    def flat(joints, binds):
+        binds[4] = [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], binds[4][3]]
+        return joints, binds
+
+    def projective(joints, binds):
+        binds[2][0][3] = 0.5
+        return joints, binds
+
+    def far(joints, binds):
+        binds[5][3][0] += 1e30
+        return joints, binds
+
+    cases = [(twice, "lists the joint", "twice"), (child_first, "mis-ordered parent"),
+             (flat, "is singular"), (projective, "is not affine"), (far, "diagonals outside the mesh")]
+    for n, (edit, *needles) in enumerate(cases):
+        damaged = _edited_rig(rig, tmp_path / f"damaged{n}.usda", edit)
+        assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--skeleton", damaged), str(damaged),
+                          *needles)
+    assert not (tmp_path / "a.h5").exists()
+    assert_ok(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--skeleton", rig, "--iterations", 2, "-q"))
+
+
+def test_a_skin_whose_skeleton_root_points_past_the_bones_is_refused_by_inspect_and_export(jointed_skins, tmp_path):
+    """Issue 46: /skin/skeleton@root past the bones was printed by inspect and exported to a .glb
+    without complaint. Now both refuse it in one line naming the file and the attribute."""
+    import shutil
+
+    broken = tmp_path / "broken.h5"
+    shutil.copyfile(jointed_skins / "skin.h5", broken)
+    with h5py.File(broken, "r+") as f:
+        f["skin/skeleton"].attrs["root"] = f["skin/skeleton/parents"].shape[0] + 5
+    for command in (["inspect", broken], ["export", broken, "-o", tmp_path / "rig.glb"]):
+        assert_user_error(cli(*command), str(broken), "/skin/skeleton/@root")
+    assert not (tmp_path / "rig.glb").exists()

@@ -130,8 +130,10 @@ def test_ground_plane_and_obstacle_are_respected(files, tmp_path):
 
 
 def test_bad_inputs(files, tmp_path):
+    # the line names the graph file whose clip has no repeated state (issue 46), and what to run again
     assert_user_error(cli("synthesize", files / "once_graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 30),
-                      "no repeated states", "--threshold-scale", folder=tmp_path)
+                      f"{files / 'once_graph.h5'}: the clip has no repeated states",
+                      "run build-graph again with a larger --threshold-scale", folder=tmp_path)
     assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 30,
                           "--start-frame", 0, "--target", "0@1"), "cannot be reached", folder=tmp_path)
     (tmp_path / "bad.obj").write_text("this is not a mesh\n")
