@@ -29,6 +29,7 @@ import numpy as np
 import pytest
 
 from cli_helpers import cli
+from damage_cases import corrupt_dataset, damage_kinds
 
 DAMAGES = ("nan", "type", "negative")
 
@@ -201,6 +202,43 @@ def test_every_damaged_attribute_is_refused_in_one_line_or_read_as_if_whole(file
     unexplained = sorted({(g, k) for g, k in {(_generic(g), k) for g, k in read_as_whole} if (g, k) not in UNUSED})
     problems += [f"{name} /{g}/@{k}: read as if whole, not listed in UNUSED (why is it stored?)" for g, k in unexplained]
     assert not problems, f"{len(problems)} problems:\n" + "\n".join(problems)
+
+
+#: The groups whose datasets test_faults.py's corrupted-file test does not reach (its chain has no
+#: skeleton and no contacts): {file: group}.
+DATASET_GROUPS = {"jointed.h5": "skin/skeleton", "contacts.h5": "graph/contacts"}
+
+
+@pytest.mark.parametrize("name", list(DATASET_GROUPS))
+def test_every_damaged_skeleton_and_contacts_dataset_is_refused_in_one_line(files, tmp_path, name):
+    """Issue 46 (damaged /skin/skeleton, /graph/contacts): each dataset of the group, damaged as
+    test_faults.py damages the others (NaN, a value short, strings, an index out of range), is
+    refused in one line naming the file by its reader and by every command that reads the file."""
+    from skinsynth.formats.errors import FormatError
+
+    kind, _, commands, _ = FILES[name]
+    with h5py.File(files / name) as f:
+        datasets = {key: item.dtype for key, item in f[DATASET_GROUPS[name]].items()}
+    damaged, out, problems = tmp_path / name, tmp_path / "out", []
+    for key, dtype in datasets.items():
+        for damage in damage_kinds(dtype):
+            shutil.copyfile(files / name, damaged)
+            corrupt_dataset(damaged, f"{DATASET_GROUPS[name]}/{key}", damage)
+            where = f"{name} /{DATASET_GROUPS[name]}/{key} {damage}"
+            try:
+                _reader(kind)(damaged)
+                problems.append(f"{where}: read without an error")
+            except FormatError as error:
+                if str(damaged) not in str(error):
+                    problems.append(f"{where}: the reader's error does not name the file: {error}")
+            for command in [["inspect", "{f}"]] + commands:
+                result = _run(command, damaged, files, out)
+                lines = result.stderr.splitlines()
+                if not (result.exit_code == 2 and len(lines) == 1 and str(damaged) in lines[0]):
+                    problems.append(f"{where}: {command[0]} exit {result.exit_code}: {result.stderr.strip()!r}")
+            for leftover in tmp_path.glob("out*"):
+                leftover.unlink()
+    assert len(datasets) >= 4 and not problems, f"{len(problems)} problems:\n" + "\n".join(problems)
 
 
 @pytest.mark.parametrize("key, value, needle", [("character_height", 0.0, "must be a positive length"),

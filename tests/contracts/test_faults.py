@@ -18,6 +18,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from cli_helpers import assert_folder_holds, assert_ok, assert_user_error, cli
+from damage_cases import corrupt_dataset, damage_kinds
 from forked_commands import ForkedCommands
 
 SKINSYNTH = [sys.executable, "-c", "import sys; from skinsynth.cli.main import main; sys.argv[0] = 'skinsynth'; "
@@ -407,23 +408,6 @@ CONSUMERS = {"skin.h5": [["build-graph", "{f}", "-o", "{out}.h5", "-q"], ["expor
              "bones.h5": []}  # synthesize's output: only inspect reads it
 
 
-def _corrupt(path, name, kind):
-    with h5py.File(path, "r+") as f:
-        value = f[name][()]
-        del f[name]
-        if kind == "nan":
-            value = np.asarray(value, dtype=np.float64).copy()
-            value.flat[value.size // 2] = np.nan
-        elif kind == "shape":
-            value = np.asarray(value).reshape(-1)[:-1] if np.size(value) > 1 else np.zeros((2, 2))
-        elif kind == "dtype":
-            value = np.array([b"x"] * max(1, min(np.size(value), 3)))
-        else:  # an index far out of range
-            value = np.asarray(value).copy()
-            value.flat[0] = min(10 ** 6, np.iinfo(value.dtype).max)  # uint8 flags: 255
-        f[name] = value
-
-
 def test_every_corrupted_dataset_is_refused_in_one_line_or_harmless(chain, tmp_path):
     counts, harmless = {"refused": 0, "harmless": 0}, []
     for stage, commands in CONSUMERS.items():
@@ -431,13 +415,12 @@ def test_every_corrupted_dataset_is_refused_in_one_line_or_harmless(chain, tmp_p
             names = []
             f.visititems(lambda n, o: names.append(n) if isinstance(o, h5py.Dataset) and not n.startswith("provenance")
                          else None)
-            kinds = {n: f[n].dtype.kind for n in names}
+            dtypes = {n: f[n].dtype for n in names}
         for name in names:
-            for kind in (("nan", "shape", "dtype") + (("range",) if kinds[name] in "iu" else ())
-                         if kinds[name] in "fiub" else ("shape",)):
+            for kind in damage_kinds(dtypes[name]):
                 broken = tmp_path / stage
                 broken.write_bytes((chain / stage).read_bytes())
-                _corrupt(broken, name, kind)
+                corrupt_dataset(broken, name, kind)
                 for command in [["inspect", "{f}"]] + commands:
                     args = [a.replace("{f}", str(broken)).replace("{out}", str(tmp_path / "out"))
                             .replace("{chain}", str(chain)) for a in command]
