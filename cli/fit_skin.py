@@ -89,7 +89,7 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     from skinsynth.formats.model import write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import skin_groups
-    from skinsynth.pipeline.skin import finish_fit, fit_rig, skin_summary
+    from skinsynth.pipeline.skin import finish_fit, fit_rest_pose, fit_rig, skin_summary
 
     inputs = list(input_specs) + ([rig] if rig else []) + ([skeleton] if skeleton not in (None, FOUND) else [])
     check_output_path(output, (".h5", ".hdf5"), inputs=inputs)
@@ -98,8 +98,8 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
                                                                            device)
     sequence, clips, rig_model = _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig,
                                               skeleton, brought)
-    bones, rest_frame, diagonal = _rest_pose(input_specs[0], sequence, clips, rig_model, bones, rest_frame,
-                                             max_influences, iterations, root_bone, transform_steps)
+    bones, rest_frame, diagonal = fit_rest_pose(input_specs[0], sequence.vertices, clips, rig_model, bones, rest_frame,
+                                                max_influences, iterations, root_bone, transform_steps)
     with Progress(iterations, "", quiet) as bar:
         phases = _Phases(bar, bones, rig, diagonal)
         result, jointed = fit_rig(sequence.vertices, sequence.faces, bones, rig=rig_model,
@@ -183,35 +183,6 @@ def _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, 
         check_skeleton_scene(skeleton, brought[1], sequence.scene)
         check_skeleton_placement(skeleton, brought[1], sequence.vertices)
     return sequence, Clips(sequence.clip_names, sequence.clip_frames), read_rig(rig, sequence) if rig else None
-
-
-def _rest_pose(first_input, sequence, clips, rig, bones, rest_frame, max_influences, iterations, root_bone,
-               transform_steps):
-    """(bones, the rest frame, the rest pose's bounding-box diagonal), refused before the fit
-    starts: options no fit can honour, a fit larger than the memory available, a rest pose with
-    no extent. With ``rig`` (a SkinModel) its bones and rest pose."""
-    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
-    from skinsynth.pipeline.runtime.resources import check_memory
-    from skinsynth.pipeline.skin import fit_memory_bytes, validate_fit_options
-
-    frames, count = sequence.vertices.shape[:2]
-    if rig is not None:
-        if bones is not None and bones != rig.bones:
-            raise OptionError(f"--bones {bones} differs from the rig's {rig.bones} bones (leave --bones out with --rig)")
-        bones = rig.bones
-        rest_frame = 0  # the rest pose is the rig's, not one of these frames (docs/format.md: /mesh)
-    else:
-        rest_frame = clips.frame(rest_frame, "--rest-frame")
-        validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
-        if root_bone is not None and root_bone >= bones:
-            raise OptionError(f"--root-bone {root_bone} is not one of the {bones} bones (0..{bones - 1})")
-        check_memory(fit_memory_bytes(frames, count, bones, transform_steps),
-                     f"fit-skin --bones {bones} on {count} vertices × {frames} frames"
-                     + (f" with --transform-steps {transform_steps}" if transform_steps else ""))
-    diagonal = bounding_box_diagonal(rig.rest_vertices if rig is not None else sequence.vertices[rest_frame])
-    if not diagonal > 0.0:
-        raise OptionError(f"{first_input}: the rest frame has no extent (all vertices coincide)")
-    return bones, rest_frame, diagonal
 
 
 class _Phases:

@@ -59,6 +59,7 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.mesh.geometry import vertex_normals
     from skinsynth.pipeline.puppet import drive_from_markers, host_inputs, layout_order, take_report
+    from skinsynth.pipeline.puppet.markers import check_take_size
 
     options = {**TAKE_DEFAULTS, **options}
     if options["marker_layout"] is not None:
@@ -88,7 +89,8 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
             raise OptionError(f"--stabilize names markers the layout lacks: {', '.join(unknown)}")
         stabilize = [keys.index(marker_key(name)) for name in names]
     fps = float(skin.fps if options["fps"] is None else options["fps"])
-    _check_take_size(path, matched.points, take.rate, fps, skin.rest_vertices.shape[0], options["fps"] is not None)
+    check_take_size(path, matched.points.shape[:2], take.rate, fps, "--fps" if options["fps"] else "the puppet's",
+                    skin.rest_vertices.shape[0])
     training = host_inputs(puppet, skin.examples[puppet.train_frames][:, puppet.control_indices])[1]
     normals = vertex_normals(skin.rest_vertices[None], skin.faces)[0][puppet.control_indices]
     drive = drive_from_markers(matched.points[:, order], take.rate, fps, puppet.reference_controls, training,
@@ -103,20 +105,3 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
     return TakeControls(controls=drive.controls, markers=drive.markers, fps=fps, start_time=float(take.first_time),
                         labels=labels, summary=summary, lines=lines)
 
-
-def _check_take_size(path, points, rate, fps, vertices, fps_given):
-    """Refuse, before any work, a take without one marker sample (points (T, M, 3) all NaN), and
-    one whose samples at ``rate`` Hz, resampled to ``fps``, make more frames than the memory
-    holds: the controls and markers (F, M, 3) and the posed vertices of each frame (F, V, 3), in
-    float64 (:func:`~skinsynth.pipeline.runtime.resources.check_memory`)."""
-    from skinsynth.formats.errors import FormatError
-    from skinsynth.pipeline.puppet.markers import resampled_count
-    from skinsynth.pipeline.runtime.resources import check_memory
-
-    if np.isnan(points).all():
-        raise FormatError(path, "holds no marker sample: every marker is missing in every frame")
-    frames = resampled_count(len(points), rate, fps)
-    where = "--fps" if fps_given else "the puppet's"
-    check_memory(frames * (2 * points.shape[1] + vertices) * 3 * 8,
-                 f"{path}: {len(points):,} samples at {rate:g} per second, resampled to {fps:g} fps ({where}), make "
-                 f"{frames:,.0f} frames of {vertices:,} vertices, which")

@@ -2,32 +2,29 @@
 here, with its type, default and check; a command passes only its own help text, which says what
 the option means for that command."""
 
+import math
+
 import click
 
 from skinsynth.pipeline.errors import OptionError
 
 
-def _finite(kind, number, value, param, ctx):
-    import math
-
-    if not math.isfinite(number):
-        kind.fail(f"{value!r} is not a finite number.", param, ctx)
-    return number
-
-
-class FiniteFloat(click.types.FloatParamType):
-    """A number option: click's float, with nan and ±inf refused (the type of every number
-    option of the commands; a test checks that none takes click's plain float)."""
+class _Finite:
+    """A click number type that also refuses nan and ±inf (nan passes every comparison of a range)."""
 
     def convert(self, value, param, ctx):
-        return _finite(self, super().convert(value, param, ctx), value, param, ctx)
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        return number
 
 
-class FiniteFloatRange(click.FloatRange):
-    """click's FloatRange that also refuses nan and ±inf (nan passes every comparison of a range)."""
+class FiniteFloat(_Finite, click.types.FloatParamType):
+    """The type of every number option of the commands (a test checks none takes click's float)."""
 
-    def convert(self, value, param, ctx):
-        return _finite(self, super().convert(value, param, ctx), value, param, ctx)
+
+class FiniteFloatRange(_Finite, click.FloatRange):
+    """click's FloatRange, finite."""
 
 
 #: The type of a number option without a range.

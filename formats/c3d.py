@@ -61,7 +61,8 @@ def read_c3d(path, units=None):
     """The :class:`MarkerTake` of the C3D file ``path``; ``units`` (a key of :data:`MARKER_UNITS`,
     the user's ``--marker-units``) overrides the file's ``POINT:UNITS``. FormatError naming the
     file for a file that is missing, not a C3D, corrupt or truncated, holds no markers or no
-    frames, declares no known unit (and none is given), has a rate that is not a positive number,
+    frames or no sample (every marker missing in every frame), declares no known unit (and none is
+    given), has a rate that is not a positive number,
     a coordinate that is infinite or too large, or two labels that are one marker under
     :func:`marker_key`, and for a ``units`` not in :data:`MARKER_UNITS` (the user's option, named
     with the take it was given for)."""
@@ -109,6 +110,8 @@ def read_c3d(path, units=None):
         # them (0, 0, 0)); ezc3d already gives NaN there, this keeps the rule whatever it does.
         missing |= residuals[0].T < 0
     points[missing] = np.nan
+    if missing.all():
+        raise FormatError(path, "holds no marker sample: every marker is missing in every frame")
     _require_coordinates(path, points, labels)
     first_time = c3d["header"]["points"]["first_frame"] / rate
     return MarkerTake(path, labels, points, rate, float(first_time), units, units_source)

@@ -234,6 +234,19 @@ def resampled_count(samples, rate, fps):
     return float(np.floor((samples - 1) * fps / rate + 1e-9) + 1)
 
 
+def check_take_size(take, shape, rate, fps, fps_from, vertices):
+    """OptionError, before any work, when a take's samples (``shape``: samples T, markers M) at
+    ``rate`` Hz, resampled to ``fps`` (``fps_from`` says whose: "--fps", "the puppet's"), make
+    more frames than the memory holds: the controls and markers (F, M, 3) and the posed vertices
+    (F, V, 3) of each frame, float64 (:func:`~..runtime.resources.check_memory`); ``take`` names it."""
+    from ..runtime.resources import check_memory
+
+    frames = resampled_count(shape[0], rate, fps)
+    check_memory(frames * (2 * shape[1] + vertices) * 3 * 8,
+                 f"{take}: {shape[0]:,} samples at {rate:g} per second, resampled to {fps:g} fps ({fps_from}), make "
+                 f"{frames:,.0f} frames of {vertices:,} vertices, which")
+
+
 def resample_uniform(values, rate, fps):
     """values (T, ...) sampled at ``rate`` Hz -> (F, ...) at ``fps`` by linear interpolation, frame
     k at k / fps seconds after the first sample (so the first sample's time is kept), up to the

@@ -10,6 +10,38 @@ import numpy as np
 JOINTED_ITERATIONS = 40
 
 
+def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_influences, iterations, root_bone,
+                  transform_steps):
+    """(bones, the rest frame, the rest pose's bounding-box diagonal) of a fit-skin request on the
+    examples vertices (F, V, 3) of ``clips`` (a :class:`~..inputs.clips.Clips`), refused
+    (OptionError) before the fit starts: options no fit can honour, a fit larger than the memory
+    available, a rest pose with no extent (``first_input`` names the input). With ``rig`` (a
+    skin record: ``bones``, ``rest_vertices``) its bones and rest pose."""
+    from ..errors import OptionError
+    from ..mesh.geometry import bounding_box_diagonal
+    from ..runtime.resources import check_memory
+    from .skin_fit import fit_memory_bytes, validate_fit_options
+
+    frames, count = vertices.shape[:2]
+    if rig is not None:
+        if bones is not None and bones != rig.bones:
+            raise OptionError(f"--bones {bones} differs from the rig's {rig.bones} bones (leave --bones out with --rig)")
+        bones = rig.bones
+        rest_frame = 0  # the rest pose is the rig's, not one of these frames (docs/format.md: /mesh)
+    else:
+        rest_frame = clips.frame(rest_frame, "--rest-frame")
+        validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
+        if root_bone is not None and root_bone >= bones:
+            raise OptionError(f"--root-bone {root_bone} is not one of the {bones} bones (0..{bones - 1})")
+        check_memory(fit_memory_bytes(frames, count, bones, transform_steps),
+                     f"fit-skin --bones {bones} on {count} vertices × {frames} frames"
+                     + (f" with --transform-steps {transform_steps}" if transform_steps else ""))
+    diagonal = bounding_box_diagonal(rig.rest_vertices if rig is not None else vertices[rest_frame])
+    if not diagonal > 0.0:
+        raise OptionError(f"{first_input}: the rest frame has no extent (all vertices coincide)")
+    return bones, rest_frame, diagonal
+
+
 def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, root_bone=None, max_joint_drift=None,
             max_influences=4, iterations=100, rest_frame=0, seed=0, tolerance=0.02, patience=5, joint_steps=0,
             device=None, diagonal=1.0, progress=lambda phase, length: None):
