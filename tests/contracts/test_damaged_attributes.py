@@ -152,6 +152,20 @@ def _run(command, damaged, root, out):
                  for a in command])
 
 
+def _refusals(where, commands, damaged, root, out):
+    """What is wrong with each command's refusal of ``damaged`` (exit 2, one line naming it), as
+    lines; the outputs beside ``out`` any command left are removed."""
+    problems = []
+    for command in commands:
+        result = _run(command, damaged, root, out)
+        lines = result.stderr.splitlines()
+        if not (result.exit_code == 2 and len(lines) == 1 and str(damaged) in lines[0]):
+            problems.append(f"{where}: {command[0]} exit {result.exit_code}: {result.stderr.strip()!r}")
+    for leftover in out.parent.glob(out.name + "*"):
+        leftover.unlink()
+    return problems
+
+
 @pytest.mark.parametrize("name", list(FILES))
 def test_every_damaged_attribute_is_refused_in_one_line_or_read_as_if_whole(files, tmp_path, name):
     from skinsynth.formats.errors import FormatError
@@ -177,13 +191,8 @@ def test_every_damaged_attribute_is_refused_in_one_line_or_read_as_if_whole(file
                 if str(damaged) not in str(error):
                     problems.append(f"{where}: the reader's error does not name the file: {error}")
                 # every command that reads the file, for the first damage; inspect for each
-                for command in [["inspect", "{f}"]] + (commands if damage == DAMAGES[0] else []):
-                    result = _run(command, damaged, files, out)
-                    lines = result.stderr.splitlines()
-                    if not (result.exit_code == 2 and len(lines) == 1 and str(damaged) in lines[0]):
-                        problems.append(f"{where}: {command[0]} exit {result.exit_code}: {result.stderr.strip()!r}")
-                for leftover in tmp_path.glob("out*"):
-                    leftover.unlink()
+                problems += _refusals(where, [["inspect", "{f}"]] + (commands if damage == DAMAGES[0] else []),
+                                      damaged, files, out)
                 continue
             except Exception as error:  # noqa: BLE001 (the verdict is the error's kind)
                 problems.append(f"{where}: the reader raised {type(error).__name__}: {error}")
@@ -231,13 +240,7 @@ def test_every_damaged_skeleton_and_contacts_dataset_is_refused_in_one_line(file
             except FormatError as error:
                 if str(damaged) not in str(error):
                     problems.append(f"{where}: the reader's error does not name the file: {error}")
-            for command in [["inspect", "{f}"]] + commands:
-                result = _run(command, damaged, files, out)
-                lines = result.stderr.splitlines()
-                if not (result.exit_code == 2 and len(lines) == 1 and str(damaged) in lines[0]):
-                    problems.append(f"{where}: {command[0]} exit {result.exit_code}: {result.stderr.strip()!r}")
-            for leftover in tmp_path.glob("out*"):
-                leftover.unlink()
+            problems += _refusals(where, [["inspect", "{f}"]] + commands, damaged, files, out)
     assert len(datasets) >= 4 and not problems, f"{len(problems)} problems:\n" + "\n".join(problems)
 
 
