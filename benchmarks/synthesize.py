@@ -31,7 +31,8 @@ runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``,
   between its image of the up axis and the up axis) against the input's largest tilt, in
   degrees.
 
-Which shared captures have a ground (``GROUNDED``): vlasic_samba (a dancer on a floor),
+Which shared captures have a ground (``GROUNDED``): vlasic_samba (a dancer on a floor), vlasic_crane
+(the same performer's slow crane form, both feet on the floor most of the time),
 horse_gallop, elephant_clips (its first file, the elephant's gallop) and horse_clips (its first
 file, the horse's collapse onto the floor): each rests on a floor in most frames. Not
 dembones_bone (a bending limb whose lowest point wanders over 128 % of its height) nor
@@ -63,7 +64,7 @@ from datasets import BONES, captures, run
 
 UP = 1  # every capture in shared/data is Y up
 #: Captures that rest on a ground (module notes): their feet are measured.
-GROUNDED = {"vlasic_samba", "horse_gallop", "elephant_clips", "horse_clips", "walker", "walker_planted"}
+GROUNDED = {"vlasic_samba", "vlasic_crane", "horse_gallop", "elephant_clips", "horse_clips", "walker", "walker_planted"}
 
 
 def bake(skin, F, t):
