@@ -89,8 +89,8 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
             raise OptionError(f"--stabilize names markers the layout lacks: {', '.join(unknown)}")
         stabilize = [keys.index(marker_key(name)) for name in names]
     fps = float(skin.fps if options["fps"] is None else options["fps"])
-    check_take_size(path, matched.points.shape[:2], take.rate, fps, "--fps" if options["fps"] else "the puppet's",
-                    skin.rest_vertices.shape[0])
+    fps_from = "--fps" if options["fps"] is not None else "the puppet's"
+    check_take_size(path, matched.points.shape[:2], take.rate, fps, fps_from, skin.rest_vertices.shape[0])
     training = host_inputs(puppet, skin.examples[puppet.train_frames][:, puppet.control_indices])[1]
     normals = vertex_normals(skin.rest_vertices[None], skin.faces)[0][puppet.control_indices]
     drive = drive_from_markers(matched.points[:, order], take.rate, fps, puppet.reference_controls, training,

@@ -119,10 +119,6 @@ class ContactsRecord:
         return int(self.offsets.size - 1)
 
 
-#: The thresholds /graph/contacts records (attribute names without "@").
-CONTACT_OPTIONS = CONTACT_THRESHOLDS
-
-
 def read_contacts(graph):
     """The :class:`ContactsRecord` of a read /graph (checked by :func:`.validation.check_graph`),
     or None when it has none (no contact found, or a file from before)."""
@@ -132,7 +128,7 @@ def read_contacts(graph):
     return ContactsRecord(vertices=np.asarray(data["vertices"]), offsets=np.asarray(data["offsets"]),
                           planted=np.asarray(data["planted"]).astype(bool), ground=np.asarray(data["ground"]),
                           height=float(data.get("@character_height", 1.0)),
-                          options={name: float(data[f"@{name}"]) for name in CONTACT_OPTIONS if f"@{name}" in data})
+                          options={name: float(data[f"@{name}"]) for name in CONTACT_THRESHOLDS if f"@{name}" in data})
 
 
 def read_graph_contacts(path, model, skin):

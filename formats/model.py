@@ -221,8 +221,7 @@ def read_model(path, stages=None, groups=None, summarise_above=None):
     stage, version = read_header(path)
     if stages is not None and stage not in stages:
         wanted = " or ".join(f"a '{s}' file (from {STAGES[s]})" for s in stages)
-        made = STAGES.get(stage, "an unknown command")
-        raise FormatError(path, f"is a '{stage}' file (from {made}); this command needs {wanted}")
+        raise FormatError(path, f"is a '{stage}' file (from {STAGES[stage]}); this command needs {wanted}")
     model = {"stage": stage, "format_version": version, "provenance": []}
     try:
         with reading_output(path), h5py.File(path, "r") as f:

@@ -142,7 +142,7 @@ def check_attributes(path, group, data, attributes, dims, clip_names=None):
             if f"@{name}" not in data:
                 continue
             value = data[f"@{name}"]
-            names = [value] if isinstance(value, str) else list(np.atleast_1d(value)) if np.ndim(value) == 1 else None
+            names = list(value) if np.ndim(value) == 1 else None  # a list, even of one clip (as check_clips)
             if names is None or not names or not all(isinstance(n, str) for n in names) or (
                     clip_names is not None and not set(names) <= set(clip_names)):
                 raise FormatError(path, f"{where} must name clips of the file ({', '.join(clip_names or [])}), "
@@ -208,9 +208,14 @@ def tree_depths(parents):
     return depths
 
 
+SKELETON_ATTRIBUTES = {"root": Attribute("int", low=0, high="last"), "free_rmse": Attribute("float", low=0.0),
+                       "max_drift": Attribute("float", low=0.0)}
+
+
 def check_skeleton(path, skeleton, dims):
     """/skin/skeleton: the arrays (:data:`SKELETON`), one root (parent −1, not jointed), every
-    bone reaching it through its parents (a tree, no cycle)."""
+    bone reaching it through its parents (a tree, no cycle), its attributes
+    (:data:`SKELETON_ATTRIBUTES`), ``@root`` that root."""
     check_group(path, "skin/skeleton", skeleton, SKELETON, dims)
     parents = np.asarray(skeleton["parents"], dtype=np.int64)
     jointed = np.asarray(skeleton["jointed"]).astype(bool)
@@ -223,11 +228,10 @@ def check_skeleton(path, skeleton, dims):
     if (depths < 0).any():
         raise FormatError(path, f"/skin/skeleton/parents is not a tree: bone {int(np.flatnonzero(depths < 0)[0])} "
                                 "never reaches the root (a cycle)")
-    root = check_attribute(path, "skin/skeleton", skeleton, "root", "int", low=0, high=parents.size - 1)
-    if root is not None and root != roots[0]:
-        raise FormatError(path, f"/skin/skeleton/@root is {root}, but the root bone (parent -1) is {roots[0]}")
-    check_attribute(path, "skin/skeleton", skeleton, "free_rmse", "float", low=0.0)
-    check_attribute(path, "skin/skeleton", skeleton, "max_drift", "float", low=0.0)
+    stated = check_attributes(path, "skin/skeleton", skeleton, SKELETON_ATTRIBUTES, dict(dims, last=parents.size - 1))
+    if stated.get("root", roots[0]) != roots[0]:
+        raise FormatError(path, f"/skin/skeleton/@root is {stated['root']}, but the root bone (parent -1) is "
+                                f"{roots[0]}")
 
 
 def check_skin(path, model):
@@ -347,9 +351,10 @@ def check_graph(path, model, dims):
                                     "the component's bones other than its reference)")
 
 
-#: The thresholds /graph/contacts records (build-graph's --contact-* options), attribute names
-#: without "@" (formats.graph_file.CONTACT_OPTIONS reads them).
+#: The thresholds /graph/contacts records (build-graph's --contact-* options, which synthesize's
+#: feet reuse), attribute names without "@" (formats.graph_file.read_contacts reads them).
 CONTACT_THRESHOLDS = ("height", "speed", "release", "min_duration", "min_support")
+CONTACTS_ATTRIBUTES = {name: Attribute("float", low=0.0) for name in CONTACT_THRESHOLDS}
 
 
 def _check_contacts(path, contacts, dims, clips):
@@ -368,8 +373,7 @@ def _check_contacts(path, contacts, dims, clips):
     height = check_attribute(path, "graph/contacts", contacts, "character_height", "float", low=0.0, optional=False)
     if not height > 0.0:
         raise FormatError(path, f"/graph/contacts/@character_height is {height}; it must be a positive length")
-    for name in CONTACT_THRESHOLDS:  # what find_contacts was run with (synthesize's feet reuse them)
-        check_attribute(path, "graph/contacts", contacts, name, "float", low=0.0)
+    check_attributes(path, "graph/contacts", contacts, CONTACTS_ATTRIBUTES, dims)
 
 
 def _check_transition_pairs(path, where, pairs, clips=1):
