@@ -41,7 +41,9 @@ vellum_sheet (a falling cloth). ``--feet-only`` skips the smoothness bake and th
 Besides the captures, ``walker`` (``skinsynth example walker``: an articulated figure whose legs
 are components of their own) is measured too, and ``walker_planted`` (``example walker --planted``:
 the same figure walking forward on feet that truly plant, its input's slide 0), the one whose feet
-a synthesis must keep planted (the default walker's own feet slide 3.5 % of its height a frame). ``--synthesize-args`` adds options to every
+a synthesis must keep planted (the default walker's own feet slide 3.5 % of its height a frame), and
+``walker_tempo`` (``--planted --frames 400 --cycles 4 --tempo 0.6``: a walk that gets going, from 0.4
+to 1.6 times its mean speed, so that no two strides are alike, as in a captured walk). ``--synthesize-args`` adds options to every
 ``synthesize`` (e.g. ``--no-contact`` for a before/after table).
 
 Built-in procedural stand-ins run only when ../shared/data is absent.
@@ -64,7 +66,11 @@ from datasets import BONES, captures, run
 
 UP = 1  # every capture in shared/data is Y up
 #: Captures that rest on a ground (module notes): their feet are measured.
-GROUNDED = {"vlasic_samba", "vlasic_crane", "horse_gallop", "elephant_clips", "horse_clips", "walker", "walker_planted"}
+GROUNDED = {"vlasic_samba", "vlasic_crane", "horse_gallop", "elephant_clips", "horse_clips", "walker", "walker_planted",
+            "walker_tempo"}
+#: The generated walkers: name -> ``skinsynth example walker`` options.
+WALKERS = {"walker": [], "walker_planted": ["--planted"],
+           "walker_tempo": ["--planted", "--frames", "400", "--cycles", "4", "--tempo", "0.6"]}
 
 
 def bake(skin, F, t):
@@ -124,6 +130,36 @@ def feet(skin, path, count):
     return {"animations": count, **{k: rounded(figures[k]) for k in ("input", "output", "ratios")}}
 
 
+def walks(sources, graph_path, count):
+    """Issue 48's walk figures over the first ``count`` animations, per component: the median and
+    least number of distinct input frames an animation plays, over the frames on the largest
+    strongly connected part of the graph (``distinct_over_recurrent``), and how many animations
+    are stuck in a loop (:mod:`skinsynth.pipeline.synthesis.walk_measures`)."""
+    from skinsynth.pipeline.synthesis.motion_graph import recurrent_frames
+    from skinsynth.pipeline.synthesis.walk_measures import distinct_frames, stuck_walks
+
+    with h5py.File(graph_path, "r") as f:
+        fps = float(f["examples"].attrs.get("fps", 24.0))
+        names = sorted(k for k in f["graph"] if k.startswith("component_"))
+        frames = f["examples/vertices"].shape[0]
+        clip_frames = f["examples/clip_frames"][()] if "clip_frames" in f["examples"] else None
+        pairs = [f[f"graph/{k}/transitions"][()] for k in names]
+    clips = None
+    if clip_frames is not None and len(clip_frames) > 1:
+        from skinsynth.pipeline.inputs.clips import Clips
+
+        clips = Clips([str(c) for c in range(len(clip_frames))], [int(c) for c in clip_frames])
+    out = {"distinct_median": [], "distinct_least": [], "distinct_over_recurrent": [], "stuck": [], "fps": fps}
+    for c, p in enumerate(pairs):
+        d = distinct_frames(sources[c, :count])
+        recurrent = int(recurrent_frames(frames, p, clips).sum())
+        out["distinct_median"].append(float(np.median(d)))
+        out["distinct_least"].append(int(d.min()))
+        out["distinct_over_recurrent"].append(round(float(np.median(d)) / recurrent, 3))
+        out["stuck"].append(int(stuck_walks(sources[c, :count], fps).sum()))
+    return out
+
+
 def measure(name, spec, single, work, args):
     from skinsynth.pipeline.synthesis import walk_statistics
     from skinsynth.pipeline.synthesis.contact.ground import ground_excess, lowest_heights
@@ -153,6 +189,7 @@ def measure(name, spec, single, work, args):
         line["mean_segment_frames"] = [round(m, 1) for m in stats["mean_segment_frames"]]
         line["shortest_segment"] = stats["shortest_segment"]
         line["coverage"] = round(min(stats["coverage"]), 3)
+        line["walks"] = walks(sources, graph_path, args.feet or 20)
     if name in GROUNDED and args.feet:
         line["contact"] = feet(skin, out, args.feet)
     with h5py.File(out, "r") as f:
@@ -208,7 +245,7 @@ def main():
     os.makedirs(work, exist_ok=True)
     work = str(pathlib.Path(work).resolve())
     walkers = []
-    for name, options in (("walker", []), ("walker_planted", ["--planted"])):
+    for name, options in WALKERS.items():
         walkers.append((name, os.path.join(work, f"{name}.npz")))
         if not os.path.exists(walkers[-1][1]) and (not args.only or args.only == name):
             run(["example", "walker", *options, "-o", walkers[-1][1], "-q"], work)

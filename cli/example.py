@@ -26,9 +26,11 @@ DEFAULTS = {"bending-bar": {"frames": 60, "rings": 40, "segments": 16, "cycles":
 @click.option("--fps", default=24.0, show_default=True, type=FiniteFloatRange(min=0.0, min_open=True, max=1e6), help="Frame rate stored with the sequence.")
 @click.option("--planted", is_flag=True,
               help="walker: walk forward with truly planted feet (legs by inverse kinematics) instead of in place.")
+@click.option("--tempo", default=0.0, show_default=True, type=FiniteFloatRange(min=0.0, max=1.0, max_open=True),
+              help="walker: speed up over the clip, from 1 − TEMPO to 1 + TEMPO times the mean: no two strides alike.")
 @summary_options
 @user_errors
-def example(name, output, frames, rings, segments, cycles, fps, planted, quiet, as_json):
+def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, quiet, as_json):
     """Write a built-in example mesh sequence (no download needed).
 
     bending-bar: a capped cylinder that bends into an arc and twists over one cycle, the kind of
@@ -66,11 +68,12 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, quiet, 
     check_output_path(output, (".npz",))
     if frames < 2 or rings < 2 or segments < 3 or cycles < 1 or not fps > 0:
         fail("--frames and --rings must be at least 2, --segments at least 3, --cycles at least 1, --fps positive")
-    if planted and name != "walker":
-        fail("--planted is the walker's: the bending bar has no feet")
+    if (planted or tempo) and name != "walker":
+        fail("--planted and --tempo are the walker's: the bending bar has no feet")
     check_memory(*example_memory(name, frames, rings, segments))
     if name == "walker":
-        vertices, faces = walker(frames=frames, cycles=cycles, rings=rings, segments=segments, planted=planted)
+        vertices, faces = walker(frames=frames, cycles=cycles, rings=rings, segments=segments, planted=planted,
+                                  tempo=tempo)
     else:
         vertices, faces = bending_bar(frames=frames, rings=rings, segments=segments, cycles=cycles)
     write_array_sequence(output, vertices, faces, fps)

@@ -59,15 +59,18 @@ def _frame_range(text):
 @click.option("--frames", "frame_range", default=None, type=_frame_range, metavar="A:B",
               help="Only frames A to B−1 (Python slice; either end may be left out).")
 @click.option("--camera", type=click.Choice(["three-quarter", "front", "side"]), default="three-quarter",
-              show_default=True, help="Where the camera stands; it frames the whole animation.")
+              show_default=True, help="Where the camera stands, looking at the character.")
+@click.option("--framing", type=click.Choice(["auto", "follow", "fixed"]), default="auto", show_default=True,
+              help="fixed: one camera frames the whole animation; follow: it tracks each character's ground position, "
+                   "smoothed; auto: follow a character that travels more than its own size.")
 @click.option("--flat", is_flag=True, help="Flat shading (one normal per face) instead of smooth.")
 @up_axis_option("Up axis.  [default: the file's (USD, skinsynth files), else Y]")
 @click.option("--sheet-frames", default=12, show_default=True, type=click.IntRange(min=1),
               help=".png: frames on the contact sheet (4 per row).")
 @summary_options
 @user_errors
-def preview(path, output, animations, clip, examples, compare, error_scale, size, fps, frame_range, camera, flat,
-            up_axis, sheet_frames, as_json, quiet):
+def preview(path, output, animations, clip, examples, compare, error_scale, size, fps, frame_range, camera, framing,
+            flat, up_axis, sheet_frames, as_json, quiet):
     """Render the animation a file holds, headless (no display, no OpenGL).
 
     PATH: an input sequence (a folder or glob of OBJ/PLY/OFF frames, .npz, .h5, USD); a skin file
@@ -107,7 +110,8 @@ def preview(path, output, animations, clip, examples, compare, error_scale, size
     elif fps is None and not low <= file_fps <= high:
         raise OptionError(f"{path}: its frame rate {file_fps:g} lies outside [{low:g}, {high:g}]: give --fps")
     _check_memory(output, len(panels), size, len(frames))
-    movie = Preview(panels, size=size, frames=frames, preset=camera, smooth=not flat, up_axis=up)
+    movie = Preview(panels, size=size, frames=frames, preset=camera, smooth=not flat, up_axis=up, framing=framing,
+                    fps=fps or file_fps)
     started = time.perf_counter()
     with Progress(len(movie), "preview", quiet or as_json) as bar:
         def rendered():
@@ -117,7 +121,7 @@ def preview(path, output, animations, clip, examples, compare, error_scale, size
 
         write_frames(output, rendered(), len(movie), fps or file_fps, sheet_columns=max(1, 4 // len(panels)))
     summary, lines = preview_summary(output, len(movie), len(panels), size, time.perf_counter() - started,
-                                     fps or file_fps)
+                                     fps or file_fps, movie.follow)
     report(summary, lines, as_json, quiet)
 
 

@@ -214,12 +214,18 @@ class WalkerContacts(NamedTuple):
     reach: float
 
 
-def _cycle_time(frames, cycles, start):
-    """Each frame's time in gait cycles (frame 0 at ``start``)."""
-    return start + cycles * np.arange(frames) / frames
+def _cycle_time(frames, cycles, start, tempo=0.0):
+    """Each frame's time in gait cycles (frame 0 at ``start``). ``tempo`` (in [0, 1)): the gait
+    speeds up over the clip, from 1 − tempo to 1 + tempo times its mean speed
+    (``1 − tempo cos(π f / frames)``), so no two strides are sampled alike, as in a walk that gets
+    going (a captured walk's strides differ); frame ``frames`` still falls on ``start + cycles``."""
+    if not 0.0 <= tempo < 1.0:
+        raise ValueError(f"tempo {tempo} must lie in [0, 1)")
+    f = np.arange(frames, dtype=np.float64)
+    return start + cycles * (f - tempo * frames / np.pi * np.sin(np.pi * f / frames)) / frames
 
 
-def walker_contacts(frames=48, cycles=2, stride=0.4, stance=0.6, start=0.0):
+def walker_contacts(frames=48, cycles=2, stride=0.4, stance=0.6, start=0.0, tempo=0.0):
     """The contact truth of ``walker(planted=True)`` with the same arguments: which foot is planted
     in each frame and where (:class:`WalkerContacts`).
 
@@ -234,7 +240,7 @@ def walker_contacts(frames=48, cycles=2, stride=0.4, stance=0.6, start=0.0):
     """
     if not 0.0 < stance < 1.0:
         raise ValueError(f"stance {stance} must lie strictly between 0 and 1")
-    time = _cycle_time(frames, cycles, start)
+    time = _cycle_time(frames, cycles, start, tempo)
     leg = WALKER_HIP_Y - WALKER_ANKLE_Y
     reach = 0.97 * leg * np.sin(stride)
     travel = 2.0 * reach / stance
@@ -309,7 +315,7 @@ class WalkerRig:
 
 
 def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, stance=0.6, arm_swing=0.4,
-           blend=0.05, coupling=0.1, start=0.0, planted=False, rig=False):
+           blend=0.05, coupling=0.1, start=0.0, planted=False, rig=False, tempo=0.0):
     """An articulated figure walking in place (as on a treadmill): ``cycles`` gait cycles over ``frames``.
 
     Returns (vertices (F, V, 3) float64, faces (T, 3) int64): metres, Y up, facing +z, about 1.75
@@ -354,6 +360,10 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     pelvis bobs over the straighter stance leg as before, sways and turns; ``stride`` is then the
     angle of the leg at heel strike and ``knee`` is unused (the knees bend as the legs need).
     Frame ``f + frames / cycles`` is frame ``f`` moved ``walker_contacts(...).travel`` along z.
+
+    ``tempo`` > 0 varies the gait's speed over the clip (:func:`_cycle_time`): the strides are no
+    longer copies of each other (then frame ``f + frames / cycles`` only resembles frame ``f``), as
+    in a captured walk, whose transitions must be found between strides that differ.
 
     ``rig=True`` also returns the true rig, a :class:`WalkerRig`: (vertices, faces, rig).
     """
@@ -412,7 +422,7 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     faces = np.concatenate([f + o for (_, f, _), o in zip(tubes, offsets)]).astype(np.int64)
 
     # The gait: each part's rotation relative to its parent, per frame (F, 3, 3).
-    time = _cycle_time(frames, cycles, start)  # in cycles
+    time = _cycle_time(frames, cycles, start, tempo)  # in cycles
     phi = 2.0 * np.pi * time
     turn = np.cos(phi)  # +1 with the left leg forward
     over = np.sin(phi - np.pi * (stance - 0.5))  # +1 over the left foot (mid left stance), −1 over the right
@@ -440,7 +450,7 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     # and highest at mid-stance, below the legs' reach; each leg is posed by inverse kinematics.
     rot, pos = {}, {}
     if planted:
-        contacts = walker_contacts(frames, cycles, stride, stance, start)
+        contacts = walker_contacts(frames, cycles, stride, stance, start, tempo)
         leg = hip_y - ankle_y
         high = 0.97 * leg
         low = np.sqrt(high ** 2 - contacts.reach ** 2) - 0.01

@@ -462,7 +462,7 @@ def transitions_between(pairs, clips):
             for y, b in enumerate(clips.names)}
 
 
-def walk_statistics(sources, frames, clips=None):
+def walk_statistics(sources, frames, clips=None, fps=None):
     """What walks of C components make of the clip: sources (C, N, M) -> dict of (C,) lists:
     ``transitions`` (seams in all N walks), ``mean_segment_frames`` (output frames per segment,
     the partial first and last segments included), ``shortest_segment`` (frames of the shortest
@@ -471,10 +471,18 @@ def walk_statistics(sources, frames, clips=None):
     of the ``frames`` frames) seams are :meth:`.clips.Clips.seams`, and two more lists:
     ``coverage_per_clip`` ({clip name: the share of its frames some walk plays}) and
     ``transitions_between`` ({"a->b": seams from a frame of clip a onto a frame of clip b},
-    every ordered pair, within a clip "a->a"; they sum to ``transitions``)."""
+    every ordered pair, within a clip "a->a"; they sum to ``transitions``). Per animation, also
+    ``distinct_frames`` ((N,) lists: the distinct input frames each walk plays) and, with ``fps``,
+    ``stuck`` (how many walks repeat a loop shorter than 2 s more than 3 times in a row):
+    :mod:`.walk_measures`."""
+    from .walk_measures import distinct_frames, stuck_walks
+
     sources = np.asarray(sources)
     count, length = sources.shape[1:]
-    out = {"transitions": [], "mean_segment_frames": [], "shortest_segment": [], "coverage": []}
+    out = {"transitions": [], "mean_segment_frames": [], "shortest_segment": [], "coverage": [],
+           "distinct_frames": []}
+    if fps is not None:
+        out["stuck"] = []
     if clips is not None:
         out.update(coverage_per_clip=[], transitions_between=[])
     for walks in sources:
@@ -487,6 +495,9 @@ def walk_statistics(sources, frames, clips=None):
         out["shortest_segment"].append(int(gaps.min()) if gaps.size else int(length))
         played = np.unique(walks)
         out["coverage"].append(float(played.size / frames))
+        out["distinct_frames"].append(distinct_frames(walks).tolist())
+        if fps is not None:
+            out["stuck"].append(int(stuck_walks(walks, fps).sum()))
         if clips is not None:
             shown = np.bincount(clips.clip_of(played), minlength=len(clips))
             out["coverage_per_clip"].append({name: float(shown[c] / clips.frames[c])

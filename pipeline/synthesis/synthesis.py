@@ -218,7 +218,7 @@ def synthesis_request(graph, start=None, end=None, targets=(), min_segment=None,
     end = None if end is None else clips.frame(end, "--end")
     targets = [(clips.frame(frame, "--target"), time) for frame, time in targets]
     # one clip: today's path exactly (no clip table handed down)
-    request = Request(**options, targets=targets, start=start, end=end, min_segment=min_segment,
+    request = Request(**options, targets=targets, start=start, end=end, min_segment=min_segment, fps=float(skin.fps),
                       up_axis=1 if up_axis == "Y" else 2, clips=clips if len(clips) > 1 else None,
                       skeleton=None if skin.skeleton is None else tuple(skin.skeleton[k] for k in
                                                                         ("parents", "jointed", "joints")))
@@ -244,6 +244,8 @@ class Request:
     3 → 0.91–1.00 / 1.27–1.28, 4 → 1.07 / 1.34, 8 → 1.29 / 1.34. Without the spread, window 4
     gave 1.18 and window 8 1.75 single-component; without the cut-node damping, multi-component
     gave 1.61–1.81 at window 2 and 2.7–4.6 at windows 4–8. Default 3.
+
+    fps: the input's frame rate (what a stuck walk's two seconds are: :mod:`.walk_measures`).
 
     contact: keep the merged rig's lowest point within the input's range (:mod:`.contact`);
     ``support`` (a :class:`.contact.Support`, from :func:`keep_input_support`: the input frames'
@@ -289,6 +291,7 @@ class Request:
     support_beyond_plants: object = None
     clips: object = None
     skeleton: object = None
+    fps: float = 24.0
 
     def parameters(self, obstacles, ground_plane, single_component):
         """{name: value} of the request as synthesize's provenance records it, with its
@@ -585,10 +588,10 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     clips = request.clips
     if clips is None:
         seams_used = np.sum(sources[..., 1:] != sources[..., :-1] + 1, axis=(0, 2))
-        statistics = walk_statistics(sources, rotations.shape[0])
+        statistics = walk_statistics(sources, rotations.shape[0], fps=request.fps)
     else:
         seams_used = np.sum(clips.seams(sources), axis=(0, 2))
-        statistics = walk_statistics(sources, rotations.shape[0], clips=clips)
+        statistics = walk_statistics(sources, rotations.shape[0], clips=clips, fps=request.fps)
     joint = sources.transpose(1, 0, 2).reshape(sources.shape[1], -1)
     distinct = int(np.unique(joint, axis=0).shape[0])
     return Synthesis(F=F, t=t, sources=sources, choice=choice, seams_used=seams_used, distinct=distinct,

@@ -57,6 +57,15 @@ Steps, each a function here:
   walks seaming every ~6 frames) where Zheng's Table 1 has tens, and none at all on a Vellum
   cloth (its cheapest local minimum costs 5.5 median steps), while walks on the samba played
   only 57 % of the frames of a component.
+- The spread (``spread`` frames, build-graph: ``--min-segment``; :func:`_spread`): last, every
+  candidate below ``admit_scale`` × T_c with no transition yet within ``spread`` frames of it in
+  both i and j is admitted, cheapest first. T_c is counted in playback steps, and a step shrinks
+  with the frame rate and the motion's speed while two strides of a real walk differ by what they
+  differ by: on a walk that gets going (``example walker --planted --tempo 0.6``, 4 strides from
+  0.4 to 1.6 times the mean speed) every transition below T_c or admitted for coverage lay in the
+  fast last strides, and walks that reached the clip's end stayed there (issue 48: a held-out
+  walking bird, 8 transitions, none in its first 270 of 400 frames). With the spread every pair of
+  strides gets its cheapest way across.
 
 Several clips (issue 26; ``clips``: a :class:`.clips.Clips` of the F frames, whose conventions
 bind here: playback f → f + 1 only inside a clip, a transition (i, j) plays j + 1 after i, j =
@@ -467,7 +476,7 @@ def clip_blocks(D, start=None, clips=None):
 
 
 def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_scale=10.0, start=None, clips=None,
-                       walkable=None):
+                       walkable=None, spread=0):
     """Transitions of one clip: cheap, spread out, and enough to reach the whole clip.
 
     D (F, F) costs; threshold T_c; start (F,): D(i, −1) (:func:`start_costs`), or None for no
@@ -549,9 +558,35 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
         for n in _clip_links(chosen, over, clip_left, clip_entered, len(clips)):
             chosen.append(n)
             admitted += 1
+    if spread > 0 and len(over):
+        for n in _spread(chosen, over, key, i, before, spread):
+            chosen.append(n)
+            admitted += 1
+    if admitted:
         share = float(recurrent_frames(frames, every[chosen], clips).mean())
     chosen = np.asarray(sorted(chosen), dtype=np.int64)  # every[] is sorted by cost already
     return every[chosen].reshape(-1, 2), costs[chosen], admitted, share
+
+
+def _spread(chosen, over, key, i, before, radius):
+    """Candidates to add (of ``over``, in its order: by cost) so that transitions lie all along the
+    clip: each one with no transition yet within ``radius`` frames of it in both the frame left
+    and the frame entered (within its pair of clips, ``key``). A greedy disk cover by cost, like
+    the spacing rule but wider and applied to the candidates above T_c: where a motion repeats
+    (one stride into the next), each pair of repeats gets its cheapest way across, even where the
+    repeats differ by more than T_c (module notes: the spread)."""
+    added = []
+    taken = np.asarray(chosen, np.int64)
+    picked = set(int(n) for n in chosen)
+    for n in over:
+        if int(n) in picked:
+            continue
+        near = (key[taken] == key[n]) & (np.abs(i[taken] - i[n]) <= radius) & (np.abs(before[taken] - before[n]) <= radius)
+        if not near.any():
+            added.append(int(n))
+            picked.add(int(n))
+            taken = np.append(taken, n)
+    return added
 
 
 def _clip_links(chosen, over, clip_left, clip_entered, count):
@@ -642,7 +677,7 @@ def posture_costs(D, q, posture, weight=1.0):
 
 def find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=None, svd_threshold=0.005,
                      threshold_scale=3.0, threshold_reference="median-step", min_gap=2, spacing=0, coverage=0.95,
-                     up=None, pivots=None, scale=1.0, posture_weight=1.0, clips=None, walkable=None):
+                     up=None, pivots=None, scale=1.0, posture_weight=1.0, clips=None, walkable=None, spread=0):
     """Zheng §3.2 end to end: reference bone, eq. 2–6, threshold, candidate transitions.
 
     rotations (F, B, 3, 3), translations (F, B, 3), bone_indices (V, K), bone_weights (V, K);
@@ -681,9 +716,10 @@ def find_transitions(rotations, translations, bone_indices, bone_weights, bones_
         clip_thresholds(D, threshold_scale, threshold_reference, clips)
     pairs, costs, admitted, share = select_transitions(D, threshold if thresholds is None else thresholds, min_gap,
                                                        spacing, coverage, start=virtual, clips=clips,
-                                                       walkable=walkable)
+                                                       walkable=walkable, spread=spread)
     options = dict(svd_threshold=svd_threshold, threshold_scale=threshold_scale,
-                   threshold_reference=threshold_reference, min_gap=min_gap, spacing=spacing, coverage=coverage,
+                   threshold_reference=threshold_reference, min_gap=min_gap, spacing=spacing, spread=spread,
+                   coverage=coverage,
                    posture_weight=posture_weight if up is not None else 0.0)
     return Transitions(reference=reference, bones=subset.tolist(), local_bones=local_bones, q=q, basis=basis,
                        singular=singular, r=r, alpha=alpha, beta=beta, D=D, threshold=threshold, pairs=pairs,

@@ -1,4 +1,5 @@
-"""What ``skinsynth preview`` shows: panels of meshes in a grid, one camera framing them all,
+"""What ``skinsynth preview`` shows: panels of meshes in a grid, one camera framing them all (or one
+per panel following a travelling character),
 captions in a corner, rendered frame by frame (:mod:`.render`).
 
 A panel is one animated mesh: ``vertices (M, V, 3)``, ``faces (T, 3)``, a title, optional
@@ -89,23 +90,86 @@ def skin_panels(skin, clip=None, examples=False, compare=False, error_scale=0.01
                            captions)
 
 
+#: Framings of a preview: ``fixed`` one camera frames every panel's whole animation; ``follow``
+#: each panel's camera tracks its character's ground position; ``auto`` follows when a character
+#: travels more than its own size (:func:`travels`), else stays fixed.
+FRAMINGS = ("auto", "follow", "fixed")
+#: σ (seconds) of the Gaussian that smooths a followed character's ground track: a walk's sway
+#: and bob stay on screen as motion (a camera locked to the centroid would shake with every
+#: step), while a camera half a second behind still keeps a runner in frame.
+FOLLOW_SMOOTHING = 0.5
+
+
+def travels(vertices):
+    """Whether a character travels more than its own size: the ground-plane path of its centroid
+    (the extent of its positions) against the largest extent of its mesh in one frame.
+    vertices (M, V, 3); the up axis counts too (a fall is no travel to follow, but it is a small
+    share of a fall's extent)."""
+    centroids = vertices.mean(axis=1)
+    size = float(np.ptp(vertices, axis=1).max())
+    return float(np.linalg.norm(np.ptp(centroids, axis=0))) > size
+
+
+def ground_track(vertices, up_axis, sigma):
+    """(M, 3) the character's smoothed ground position: its centroid per frame, Gaussian-smoothed
+    over ``sigma`` frames, its up coordinate 0. vertices (M, V, 3). The ends are padded by point
+    reflection (2 x_0 − x_k), so a character moving at constant velocity is tracked exactly to the
+    last frame (holding the ends would leave the camera behind a runner)."""
+    from scipy.ndimage import gaussian_filter1d
+
+    track = vertices.mean(axis=1)
+    count = track.shape[0]
+    if sigma > 0 and count > 1:
+        pad = min(count - 1, int(4.0 * sigma + 0.5))
+        padded = np.concatenate([2.0 * track[:1] - track[pad:0:-1], track,
+                                 2.0 * track[-1:] - track[-2:-pad - 2:-1]])
+        track = gaussian_filter1d(padded, sigma, axis=0, mode="nearest")[pad:pad + count]
+    track[:, up_axis] = 0.0
+    return track
+
+
 class Preview:
-    """Frames of ``panels`` side by side (``columns`` per row), each ``size`` = (W, H) pixels,
-    seen by one camera framing every panel's whole animation, the ground under the lowest point.
-    ``frames`` (M,) which frames to show; ``preset``, ``smooth``, ``up_axis`` (1 Y, 2 Z)."""
+    """Frames of ``panels`` side by side (``columns`` per row), each ``size`` = (W, H) pixels, the
+    ground under the lowest point. ``frames`` (M,) which frames to show; ``preset``, ``smooth``,
+    ``up_axis`` (1 Y, 2 Z). ``framing`` (:data:`FRAMINGS`): one camera framing every panel's
+    whole animation, or a camera per panel that follows its character's ground track
+    (:func:`ground_track`, smoothed over :data:`FOLLOW_SMOOTHING` s at ``fps``), framing the
+    character's own extent about that track (the ground's checks then the character's size,
+    so the travel shows)."""
 
     def __init__(self, panels, size=(640, 480), frames=None, preset="three-quarter", smooth=True, up_axis=1,
-                 columns=None):
+                 columns=None, framing="auto", fps=24.0):
         self.panels, self.size, self.smooth, self.up_axis = panels, size, smooth, up_axis
         count = min(p.vertices.shape[0] for p in panels)
         self.frames = np.arange(count) if frames is None else np.asarray(frames)
         self.columns = columns or min(len(panels), 4)
-        every = np.concatenate([p.vertices[self.frames].reshape(-1, 3) for p in panels])
+        self.preset = preset
+        shown = [p.vertices[:count] for p in panels]
+        self.follow = framing == "follow" or (framing == "auto" and any(travels(v[self.frames]) for v in shown))
+        every = np.concatenate([v[self.frames].reshape(-1, 3) for v in shown])
         lower, upper = every.min(axis=0), every.max(axis=0)
+        self.level = float(lower[up_axis])
         width, height = size
-        self.camera = frame_bounds(lower, upper, preset, up_axis=up_axis, aspect=width / height)
-        self.ground = ground_layer(self.camera, width, height, float(lower[up_axis]), up_axis,
-                                   float(np.max(upper - lower)))
+        if self.follow:
+            self.tracks = [ground_track(v, up_axis, FOLLOW_SMOOTHING * fps) for v in shown]
+            about = np.concatenate([(v[self.frames] - track[self.frames, None]).reshape(-1, 3)
+                                    for v, track in zip(shown, self.tracks)])
+            self.extent = about.min(axis=0), about.max(axis=0)  # the characters about their tracks
+            self.cell = max(float(np.ptp(v[self.frames], axis=1).max()) for v in shown)  # a character's size
+            self.camera = None
+        else:
+            self.camera = frame_bounds(lower, upper, preset, up_axis=up_axis, aspect=width / height)
+            self.ground = ground_layer(self.camera, width, height, self.level, up_axis, float(np.max(upper - lower)))
+
+    def view(self, panel, m):
+        """(camera, ground layer) that show ``panel`` (its index) at frame m."""
+        if not self.follow:
+            return self.camera, self.ground
+        width, height = self.size
+        centre = self.tracks[panel][m]
+        camera = frame_bounds(centre + self.extent[0], centre + self.extent[1], self.preset, up_axis=self.up_axis,
+                              aspect=width / height)
+        return camera, ground_layer(camera, width, height, self.level, self.up_axis, self.cell)
 
     def __len__(self):
         return len(self.frames)
@@ -118,8 +182,9 @@ class Preview:
         m = int(self.frames[n])
         for k, panel in enumerate(self.panels):
             colors = None if panel.colors is None else panel.colors[m]
-            image = render(panel.vertices[m], panel.faces, self.camera, width, height, smooth=self.smooth,
-                           ground=self.ground, up_axis=self.up_axis, vertex_colors=colors)
+            camera, ground = self.view(k, m)
+            image = render(panel.vertices[m], panel.faces, camera, width, height, smooth=self.smooth,
+                           ground=ground, up_axis=self.up_axis, vertex_colors=colors)
             caption = panel.captions[m] if panel.captions else f"frame {m}"
             marked = panel.marked is not None and bool(panel.marked[m])
             image = _caption(image, f"{panel.title}\n{caption}" if panel.title else caption, marked)
@@ -131,14 +196,15 @@ class Preview:
         return (self[n] for n in range(len(self)))
 
 
-def preview_summary(output, frames, panels, size, seconds, fps):
+def preview_summary(output, frames, panels, size, seconds, fps, follow=False):
     """preview's summary (the --json object) and text lines: ``frames`` frames of ``panels``
-    panels of ``size`` (width, height) rendered into ``output`` in ``seconds``, to play at ``fps``."""
+    panels of ``size`` (width, height) rendered into ``output`` in ``seconds``, to play at ``fps``;
+    ``follow``: the cameras followed the characters (:class:`Preview`)."""
     summary = {"output": output, "frames": int(frames), "panels": panels, "size": list(size),
                "seconds": round(seconds, 3), "frames_per_second": round(frames / max(seconds, 1e-9), 1),
-               "fps": float(fps)}
+               "fps": float(fps), "framing": "follow" if follow else "fixed"}
     return summary, [f"wrote {output}: {frames} frames of {panels} panel(s) at {size[0]}×{size[1]}, "
-                     f"{summary['frames_per_second']} frames/s"]
+                     f"{summary['frames_per_second']} frames/s" + (", the camera following" if follow else "")]
 
 
 def _caption(image, text, marked=False):

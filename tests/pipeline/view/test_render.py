@@ -59,3 +59,35 @@ def test_a_framed_camera_sees_the_whole_animation_upright(preset, up_axis):
     assert (screen[:, 0] > 0).all() and (screen[:, 0] < W).all() and (screen[:, 1] > 0).all() and (screen[:, 1] < H).all()
     top = project(np.array([(lower + upper) / 2 + np.eye(3)[up_axis]]), camera, W, H)[0]
     assert top[1] < H / 2  # the up axis points up on screen
+
+
+@pytest.mark.parametrize("up_axis", [1, 2])
+def test_a_travelling_character_stays_in_frame_and_large_when_followed(up_axis):
+    from skinsynth.pipeline.view.preview import Panel, Preview
+
+    box = trimesh.creation.box(extents=(0.4, 0.4, 0.4))
+    box.vertices[:, up_axis] += 0.2  # standing on the ground
+    frames = 48
+    ahead = 0 if up_axis == 2 else 2  # travels 20 of its sizes along a ground axis, bobbing
+    path = np.zeros((frames, 3))
+    path[:, ahead] = np.linspace(0.0, 8.0, frames)
+    path[:, up_axis] = 0.05 * np.abs(np.sin(np.linspace(0.0, 6 * np.pi, frames)))
+    vertices = box.vertices[None] + path[:, None]
+    shown = {}
+    for framing in ("auto", "fixed"):
+        movie = Preview([Panel(vertices, box.faces, "")], size=(W, H), up_axis=up_axis, framing=framing, fps=24.0)
+        assert movie.follow == (framing == "auto")
+        spans = []
+        for m in range(frames):
+            camera, _ = movie.view(0, m)
+            screen = project(vertices[m], camera, W, H)
+            assert (screen[:, 0] >= 0).all() and (screen[:, 0] <= W).all()
+            assert (screen[:, 1] >= 0).all() and (screen[:, 1] <= H).all()
+            spans.append(np.ptp(screen[:, :2], axis=0).max())
+        shown[framing] = np.array(spans)
+    # followed, the box fills a good share of the frame every frame; fixed, it is a speck
+    assert shown["auto"].min() > 0.3 * H > 3 * shown["fixed"].max(), (shown["auto"].min(), shown["fixed"].max())
+    still = vertices[:1].repeat(frames, axis=0)  # a character that does not travel: one fixed camera
+    assert not Preview([Panel(still, box.faces, "")], size=(W, H), up_axis=up_axis).follow
+    image = movie[0]
+    assert image.shape == (H, W, 3)
