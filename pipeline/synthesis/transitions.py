@@ -57,19 +57,22 @@ Steps, each a function here:
   walks seaming every ~6 frames) where Zheng's Table 1 has tens, and none at all on a Vellum
   cloth (its cheapest local minimum costs 5.5 median steps), while walks on the samba played
   only 57 % of the frames of a component.
-- The spread (``spread`` frames, build-graph: twice ``--min-segment``, a second at the default;
-  :func:`_spread`): last, every
-  candidate below ``admit_scale`` × T_c with no transition yet within ``spread`` frames of it in
-  both i and j is admitted, cheapest first. T_c is counted in playback steps, and a step shrinks
-  with the frame rate and the motion's speed while two strides of a real walk differ by what they
-  differ by: on a walk that gets going (``example walker --planted --tempo 0.6``, 4 strides from
-  0.4 to 1.6 times the mean speed) every transition below T_c or admitted for coverage lay in the
-  fast last strides, and walks that reached the clip's end stayed there (issue 48: a held-out
-  walking bird, 8 transitions, none in its first 270 of 400 frames). With the spread every pair of
-  strides gets its cheapest way across. The radius is a middle: at half a second the slow crane
-form (vlasic_crane) got 75 transitions where it had 11, and its feet's largest acceleration rose
-from 1.10× to 1.27× the input's; at a second, 31 and 1.10×, and the walk that gets going still
-gets a way out of every stride (walks play a median 262 of its 400 frames, 196 without the spread).
+- The spread (``spread`` frames, build-graph: 4 × ``--min-segment``, two seconds at the default;
+  :func:`_spread`): last, every candidate below ``admit_scale`` × T_c with no transition yet
+  within ``spread`` frames of it in both i and j is admitted, cheapest first: each pair of
+  two-second stretches that resemble each other gets its cheapest way across. T_c is counted in
+  playback steps, and a step shrinks with the frame rate and the motion's speed while two strides
+  of a real walk differ by what they differ by: on a walk that gets going (``example walker
+  --planted --tempo 0.6``, 4 strides from 0.4 to 1.6 times the mean speed) every transition below
+  T_c or admitted for coverage lay in the fast last strides, and walks that reached the clip's
+  end stayed there (issue 48: a held-out walking bird, 8 transitions, none in its first 270 of
+  400 frames). Two seconds is the horizon of a stuck walk (:mod:`.walk_measures`) and a middle
+  measured on the captures: at half a second the slow crane form (vlasic_crane) got 75
+  transitions where it had 11, its feet's largest acceleration rose from 1.10 to 1.27 times the
+  input's, and the samba's feet slid 1.6 times the input's median (0.8 before); at two seconds
+  the crane gets 13, the samba's feet pass their test, and walks on the walk that gets going play
+  a median 268 of its 400 frames (196 without the spread; ``benchmarks/synthesize.py --only
+  walker_tempo``).
 
 Several clips (issue 26; ``clips``: a :class:`.clips.Clips` of the F frames, whose conventions
 bind here: playback f → f + 1 only inside a clip, a transition (i, j) plays j + 1 after i, j =

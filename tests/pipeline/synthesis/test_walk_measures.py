@@ -78,7 +78,7 @@ def test_every_repeat_of_a_cyclic_motion_gets_a_way_across_where_repeats_differ(
 
     before, per_cycle_before = departures(0)
     assert (per_cycle_before == 0).any()  # the fault this rule fixes
-    pairs, per_cycle = departures(24)  # build-graph's: twice --min-segment (12 at 24 fps)
+    pairs, per_cycle = departures(48)  # build-graph's: 4 × --min-segment (12 at 24 fps)
     assert (per_cycle >= 1).all()
     assert set(map(tuple, before.tolist())) <= set(map(tuple, pairs.tolist()))  # only additions
     # the transitions join like phases: a repeat into another, not across the cycle
