@@ -54,8 +54,8 @@ def _target(text):
               help="Drop an animation that shares more than 1 − X of its frames (same input frame at the same time) with an earlier one.")
 @click.option("--single-component", is_flag=True, help="Synthesise the whole rig as one component, ignoring cut nodes.")
 @click.option("--min-segment", type=int, default=None,
-              help="Shortest stretch (frames) a walk plays between two seams.  [default: the graph's, set by "
-                   "build-graph: half a second]")
+              help="Shortest stretch (frames) a walk plays between two seams (half of it to leave a loop it would "
+                   "replay).  [default: the graph's, set by build-graph: half a second]")
 @click.option("--window", default=4, show_default=True, type=int,
               help="Frames blended on each side of a transition.")
 @click.option("--blend", type=click.Choice(["bones", "key-vertices"]), default="bones", show_default=True,

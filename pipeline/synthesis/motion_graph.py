@@ -42,6 +42,20 @@ Choices the paper leaves open, made here:
   last seam (the first output frame starts a segment) takes a transition with probability
   ``transition_probability`` if one is allowed, uniformly among the allowed ones; otherwise it
   plays on, unless playing on is not allowed, in which case it must take a transition.
+- Loops avoided (``fresh`` output frames, synthesize: the 2 s of a stuck walk,
+  :mod:`.walk_measures`; 0: off): a walk taking a transition chooses, uniformly, among the
+  allowed ones that enter a frame it has not played in the last ``fresh`` frames, or, where it has
+  played all of them, among those whose frame it played longest ago; and a walk that replays a
+  loop shorter than ``fresh`` a second time in a row (every frame played again ``period`` frames
+  after it was last, for two periods) takes the first transition out of it (into a frame older
+  than the loop) instead of waiting for the ``transition_probability`` draw, once its segment
+  has played half of ``min_segment`` (the spacing build-graph keeps between transitions): a
+  trap's only exits can lie just after its entry (the samba's leg component looped frames
+  140–172, entered at 140 and 150, its exits at 141 and 150), so such a segment may be as short
+  as half of ``min_segment``, where a stuck walk would otherwise replay one loop to its end. So a
+  loop is replayed at most a third time, and that only where no transition leads out of it. Without this, on the 48-frame horse gallop 15 of 16
+  walks repeated a loop under 2 s more than three times in a row: the clip's last frame has one
+  way back, a cycle earlier, and walks left that cycle by a 10 % draw at three frames of it.
 - "Allowed" moves come from exact-length reachability: a move is allowed only if the walk can
   still be completed from the new state within the remaining output frames (and, for a
   constrained interval, end on its target at its time). The search runs on states
@@ -294,7 +308,7 @@ def recurrent_frames(frames, transitions, clips=None):
     return labels == np.flatnonzero(sizes == sizes.max())[0]
 
 
-def random_walks(graph, count, frames, rng, start=None, transition_probability=0.5, min_segment=4):
+def random_walks(graph, count, frames, rng, start=None, transition_probability=0.5, min_segment=4, fresh=0):
     """``count`` random walks of ``frames`` output frames -> sources (count, frames) int64.
 
     Walks start inside ``graph.usable`` and stay there, except that one may end in a dead-end
@@ -302,7 +316,7 @@ def random_walks(graph, count, frames, rng, start=None, transition_probability=0
     transition were otherwise never played: 86 % of the clip). start: a usable frame where every walk starts, or None
     for starts drawn uniformly over the usable frames. rng: a numpy Generator (same state, same
     walks). See the module docstring for the policy (``transition_probability``,
-    ``min_segment``). Vectorised over walks: one numpy step per output frame.
+    ``min_segment``, ``fresh``). Vectorised over walks: one numpy step per output frame.
     """
     count, frames = _check_sizes(count, frames)
     segment = max(1, int(min_segment))
@@ -314,12 +328,12 @@ def random_walks(graph, count, frames, rng, start=None, transition_probability=0
     # usable_only=False: a walk may run into a dead end (the clip's last frames past its last
     # transition) when its remaining length fits, so those frames are played too, as endings.
     path, _ = _walk_interval(graph, False, first, np.zeros(count, np.int64), None, frames - 1, rng,
-                             transition_probability, segment, None, None)
+                             transition_probability, segment, None, None, fresh)
     return path
 
 
 def constrained_walks(graph, count, frames, targets, rng, start=None, end=None, transition_probability=0.5,
-                      min_segment=4, usable_only=False):
+                      min_segment=4, usable_only=False, fresh=0):
     """``count`` walks of ``frames`` output frames through targeted frames (Zheng §3.4).
 
     targets: iterable of ``(input_frame, output_time)``: input frame f must be shown at output
@@ -353,23 +367,23 @@ def constrained_walks(graph, count, frames, targets, rng, start=None, end=None, 
     since = np.zeros(count, np.int64)
     if not fixed:  # no targets: free start and free end
         path, _ = _walk_interval(graph, usable_only, None, since, None, frames - 1, rng, transition_probability,
-                                 segment, None, None)
+                                 segment, None, None, fresh)
         return path
     t0, f0 = fixed[0]
     if t0 > 0:  # free start, fixed end
         path, since = _walk_interval(graph, usable_only, None, since, f0, t0, rng, transition_probability,
-                                     segment, None, (f0, t0))
+                                     segment, None, (f0, t0), fresh)
         sources[:, :t0 + 1] = path
     else:
         sources[:, 0] = f0
     for (ta, fa), (tb, fb) in zip(fixed[:-1], fixed[1:]):
         path, since = _walk_interval(graph, usable_only, sources[:, ta], since, fb, tb - ta, rng,
-                                     transition_probability, segment, (fa, ta), (fb, tb))
+                                     transition_probability, segment, (fa, ta), (fb, tb), fresh)
         sources[:, ta:tb + 1] = path
     tl, fl = fixed[-1]
     if tl < frames - 1:  # fixed start, free end
         path, since = _walk_interval(graph, usable_only, sources[:, tl], since, None, frames - 1 - tl, rng,
-                                     transition_probability, segment, (fl, tl), None)
+                                     transition_probability, segment, (fl, tl), None, fresh)
         sources[:, tl:] = path
     return sources
 
@@ -606,7 +620,7 @@ def _unreachable_message(graph, usable_only, begin, finish, length):
             f"{' ' + where if where else ''} ({length} frames later); {hint}")
 
 
-def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, segment, begin, finish):
+def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, segment, begin, finish, fresh=0):
     """Walks over one interval of ``length`` steps -> (path (count, length+1), since (count,)).
 
     first: start frames (count,) or None (free start, drawn here); since: per walk, the segment
@@ -633,6 +647,14 @@ def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, 
             raise OptionError(_unreachable_message(graph, usable_only, begin, finish, length))
     count = first.size
     cur = first.copy()
+    if fresh > 0:  # per walk, the output time each frame was last played (never: far in the past)
+        walk_ids = np.arange(count)
+        played = np.full((count, F), -(fresh + 1) * 4, np.int64)
+        played[walk_ids, cur] = 0
+        degree = max(1, int(np.diff(moves.t_indptr).max()))
+        half = (segment + 1) // 2 - 1  # s at which a segment has played half of min_segment
+        period = np.full(count, fresh + 1, np.int64)  # the loop a walk is replaying (none: > fresh)
+        run = np.zeros(count, np.int64)  # ... and for how many frames in a row
     s = np.minimum(since, segment - 1)
     path = np.empty((count, length + 1), np.int64)
     path[:, 0] = cur
@@ -665,17 +687,61 @@ def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, 
             cnt[relaxed] = np.where(back > 0, back, cs_p[hi[relaxed]] - cs_p[lo[relaxed]])
         u = uniforms[t]
         take = ((cnt > 0) & (s == last) & (u[0] < p)) | ~can_play
+        if fresh > 0:  # a walk replaying one loop a second time leaves it at its first way out
+            looping = np.flatnonzero((period < fresh) & (run >= 2 * period) & (s >= half) & ~take)
+            if looping.size:  # an edge into a frame older than the loop, where a full segment fits
+                _, valid, age = _edge_ages(looping, lo, hi, t_target, strict_next[:, 0], plain_next, loose, played,
+                                           t + 1, degree)
+                out = looping[(valid & (age > period[looping, None])).any(axis=1)]
+                take[out], cnt[out] = True, 1
         movers = np.flatnonzero(take)
         if movers.size:
             if (cnt[movers] == 0).any():  # cannot happen: every state in the sets has a valid move
                 raise RuntimeError("internal error: a walk has no valid move")
-            rank = np.minimum((u[1, movers] * cnt[movers]).astype(np.int64), cnt[movers] - 1)
-            edge = np.searchsorted(cs_s, cs_s[lo[movers]] + rank + 1) - 1  # the rank-th valid edge
-            if loose[movers].any():
-                plain_movers = loose[movers]
-                edge[plain_movers] = np.searchsorted(cs_p, cs_p[lo[movers[plain_movers]]] + rank[plain_movers] + 1) - 1
+            if fresh > 0:
+                edge = _fresh_edges(movers, lo, hi, t_target, strict_next[:, 0], plain_next, loose, played, t + 1,
+                                    fresh, u[1, movers], degree)
+            else:
+                rank = np.minimum((u[1, movers] * cnt[movers]).astype(np.int64), cnt[movers] - 1)
+                edge = np.searchsorted(cs_s, cs_s[lo[movers]] + rank + 1) - 1  # the rank-th valid edge
+                if loose[movers].any():
+                    plain_movers = loose[movers]
+                    edge[plain_movers] = np.searchsorted(cs_p, cs_p[lo[movers[plain_movers]]] + rank[plain_movers] + 1) - 1
             nxt_play[movers] = t_target[edge]
             s_play[movers] = 0
         cur, s = nxt_play, s_play
         path[:, t + 1] = cur
+        if fresh > 0:
+            age = t + 1 - played[walk_ids, cur]  # a loop's period, when the walk replays one
+            again = age == period
+            run = np.where(again, run + 1, 1)
+            period = np.where(again, period, age)
+            played[walk_ids, cur] = t + 1
     return path, s
+
+
+def _edge_ages(movers, lo, hi, target, strict_ok, plain_ok, loose, played, now, degree):
+    """Each mover's transition edges ``(edges (n, degree)`` indices into ``target`` (padding: its
+    first), ``valid (n, degree)`` (strict ones, or the plain graph's for a ``loose`` walk, as the
+    uniform choice counts them), ``age (n, degree)``: output frames since the walk last played the
+    frame each enters (−1 where not valid))."""
+    edges = lo[movers, None] + np.arange(degree)
+    inside = edges < hi[movers, None]
+    edges = np.where(inside, edges, lo[movers, None])
+    frames = target[edges]
+    valid = inside & np.where(loose[movers, None], plain_ok[frames], strict_ok[frames])
+    return edges, valid, np.where(valid, now - played[movers[:, None], frames], -1)
+
+
+def _fresh_edges(movers, lo, hi, target, strict_ok, plain_ok, loose, played, now, fresh, u, degree):
+    """The transition each mover takes when walks avoid loops (``fresh`` > 0 output frames): among
+    its valid edges (:func:`_edge_ages`), those entering a frame it has not played in the last
+    ``fresh`` output frames, or, where every one has been, those whose frame it played longest
+    ago; the u-th of them (u (n,) uniform). Edges as indices into ``target``."""
+    edges, valid, age = _edge_ages(movers, lo, hi, target, strict_ok, plain_ok, loose, played, now, degree)
+    oldest = age.max(axis=1, keepdims=True)
+    preferred = valid & ((age > fresh) | (age == oldest))
+    count = preferred.sum(axis=1)
+    rank = np.minimum((u * count).astype(np.int64), count - 1)
+    slot = np.argmax(np.cumsum(preferred, axis=1) > rank[:, None], axis=1)
+    return edges[np.arange(movers.size), slot]

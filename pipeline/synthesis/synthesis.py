@@ -58,7 +58,8 @@ REPLACEMENT_CAP = 8
 #: 6: with contacts, swinging feet kept no lower than the input's, short gaps between plants bridged,
 #: long plants' limb corrections leaking, reaching 2 hops, and the band's floor at the contacts'
 #: ground (its lowest points from the plants).
-BATCH_REVISION = 6
+#: 7: walks avoid transitions into frames they played in the last 2 s (:mod:`.motion_graph`, ``fresh``).
+BATCH_REVISION = 7
 
 
 def component_from_file(data, rest, contacts=False):
@@ -355,12 +356,15 @@ def validate_request(request, input_frames):
 
 
 def _walks(graph, request, count, rng):
+    from .walk_measures import STUCK_SECONDS
+
+    fresh = int(round(STUCK_SECONDS * request.fps))  # walks avoid replaying what they played in 2 s
     if request.targets or request.start is not None or request.end is not None:
         return constrained_walks(graph, count, request.frames, request.targets, rng, start=request.start,
                                  end=request.end, transition_probability=request.transition_probability,
-                                 min_segment=request.min_segment)
+                                 min_segment=request.min_segment, fresh=fresh)
     return random_walks(graph, count, request.frames, rng, transition_probability=request.transition_probability,
-                        min_segment=request.min_segment)
+                        min_segment=request.min_segment, fresh=fresh)
 
 
 def make_batch(components, graphs, rotations, translations, rest, bone_indices, bone_weights, request, batch, count):
