@@ -59,7 +59,8 @@ REPLACEMENT_CAP = 8
 #: long plants' limb corrections leaking, reaching 2 hops, and the band's floor at the contacts'
 #: ground (its lowest points from the plants).
 #: 7: walks avoid transitions into frames they played in the last 2 s (:mod:`.motion_graph`, ``fresh``).
-BATCH_REVISION = 7
+#: 8: a plant holds its foot's orientation from frame to frame, turned up to 35° (:mod:`.planting`).
+BATCH_REVISION = 8
 
 
 def component_from_file(data, rest, contacts=False):

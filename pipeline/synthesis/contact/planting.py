@@ -20,9 +20,15 @@ in :mod:`.planting_loops`, one animation at a time):
 0. **Plants**: a patch's states at its owner's source frames, a gap of at most :data:`BRIDGE`
    between two plants bridged (the patch follows the input's steps and heights through it).
 1. **The feet's turn.** Each patch on bones of its own (:data:`CARRIES`) has them turned about
-   its centroid to the orientation the input's patch had at the source frame (the fit's error at
-   the patch undone by a Kabsch fit E per input frame, then under the output's heading), at most
-   :data:`MAX_TURN`; a seam's jump in that orientation is spread over σ = ``half_life``.
+   its centroid, at most :data:`MAX_TURN`: at a plant's first frame to the orientation the input's
+   patch had at the source frame (the fit's error at the patch undone by a Kabsch fit E per input
+   frame, then under the output's heading); at every later frame of the plant to the orientation
+   it had one frame before, turned by the input patch's own step into the source frame (under the
+   output's heading), as the centroid is moved by its own steps (2.). So a planted foot turns only
+   as the input's did: neither a seam's jump in the source frame nor a splice's blend, which
+   turns the legs over its window, turns it (on the crane, the planted feet slid 0.56 % of the
+   height a frame within 6 frames of a seam, 9 times the input's, when each frame's orientation
+   was the input's under the blended heading, a seam's jump spread over σ = ``half_life``).
 2. **The patch's error.** Its centroid c(m) is linear in the bones (Σ_b F_b ā_pb + ω_pb t_b, ā
    and ω the patch's weighted rest positions and weights). Its step c(m) − c(m−1) should be the
    input's own horizontal step into the source frame, carried by the patch bone's map
@@ -87,7 +93,12 @@ HALF_LIFE = 0.1
 REACH = 2
 #: Largest turn (degrees) given a planted patch's own bones: a foot that a merge tilted further than
 #: this (a shin from another frame) is turned this far only, for turning it all the way tears the ankle.
-MAX_TURN = 20.0
+#: Since a plant holds its foot's orientation from frame to frame (module notes, 1.), the turn also
+#: undoes what a splice's blend turns the leg by over its window: on the crane that reached 20° at
+#: seams between frames whose feet differ, and the foot then turned with the leg (sliding steps 2.4×
+#: the input's share, slide p95 1.57×); at 35°, none and 1.23×, the largest acceleration unchanged
+#: (1.13× the input's) and the samba's below 0.9×.
+MAX_TURN = 35.0
 #: A bone carries a patch (and is turned with it) when its mean weight on the patch is at least this
 #: share of the patch's heaviest bone's (a foot bone, not the shin's few percent at the ankle).
 CARRIES = 0.25
@@ -128,7 +139,8 @@ class PlantRig:
     weight 0); ground (Fi,) the ground of each frame's clip; influence (P, B) α; own: per patch the
     bones that carry it and turn with it (:data:`CARRIES`; none where another patch shares one);
     orientation_in (Fi, P, 3, 3) the orientation the anchor bone should have to carry the patch as
-    the input's (E R_in); solve (P, P) (ω αᵀ)⁺; decay y per frame; sigma (frames) of the root's
+    the input's (E R_in); turn_steps_in (Fi, P, 3, 3) its step into each frame, O(f) O(f − 1)ᵀ (the
+    identity at a clip's first frame); solve (P, P) (ω αᵀ)⁺; decay y per frame; sigma (frames) of the root's
     smoothing and of a seam's turn; bridge (frames) the longest gap between plants bridged
     (:data:`BRIDGE`); hold and memory (frames): how long a plant is held exactly, and the time
     constant of the leak past it (:data:`HOLD`, :data:`LIMB_MEMORY`); max_turn (radians); up_axis."""
@@ -149,6 +161,7 @@ class PlantRig:
     influence: np.ndarray
     own: list
     orientation_in: np.ndarray
+    turn_steps_in: np.ndarray
     solve: np.ndarray
     decay: float
     sigma: float
@@ -268,12 +281,16 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     influence = limb_influence(weight_terms, hops, reach)
     coupling = weight_terms @ influence.T  # (P, P): patch p's centroid moves by Σ_q coupling[p, q] g_q
     inverse_in = np.linalg.inv(anchor_in)
+    orientation = turns @ anchor_in
+    turn_steps = np.broadcast_to(np.eye(3), orientation.shape).copy()  # identity at a clip's first frame
+    turn_steps[1:] = orientation[1:] @ np.swapaxes(orientation[:-1], -1, -2)
+    turn_steps[first] = np.eye(3)
     return PlantRig(planted=np.asarray(planted, bool), owner=owner, bones=bones, rest_terms=rest_terms[:, bones],
                     weight_terms=weight_terms[:, bones], anchor_bone=anchor, inverse_in=inverse_in,
                     steps_in=(inverse_in @ steps[..., None])[..., 0], heights_in=heights, sample_rest=rest[at],
                     sample_bones=np.asarray(bone_indices)[at], sample_weights=sample_weights, ground=ground,
                     influence=influence, own=own,
-                    orientation_in=turns @ anchor_in, solve=_regularised_inverse(coupling),
+                    orientation_in=orientation, turn_steps_in=turn_steps, solve=_regularised_inverse(coupling),
                     decay=2.0 * np.log(2.0) / (half_life * fps), sigma=half_life * fps,
                     bridge=int(round(bridge * fps)), hold=int(round(hold * fps)), memory=limb_memory * fps,
                     max_turn=np.radians(max_turn), up_axis=int(up_axis))
@@ -303,7 +320,7 @@ def plant_feet(F, t, sources, rig, lowest=None):
                             centre_operator(rig.rest_terms, rig.weight_terms), lowest_operator(rig),
                             c((rig.sample_weights.sum(axis=2) > 0.0).sum(axis=1), np.int64),
                             c(rig.anchor_bone, np.int64), c(rig.inverse_in), c(rig.steps_in), c(rig.heights_in),
-                            c(rig.ground), c(rig.orientation_in), own, c(rig.influence), c(rig.solve),
+                            c(rig.ground), c(rig.orientation_in), c(rig.turn_steps_in), own, c(rig.influence), c(rig.solve),
                             float(rig.decay), gaussian_weights(rig.sigma), raised_cosine(rig.lift_radius),
                             float(rig.max_turn), int(rig.up_axis), int(rig.bridge),
                             int(rig.hold), float(np.exp(-1.0 / rig.memory)), states, lowest is not None,

@@ -8,8 +8,7 @@ numpy version is kept as the reference in the tests (``tests/pipeline/synthesis/
 planting_reference.py``), which this must match to rounding.
 
 Smoothing is scipy's ``gaussian_filter1d`` written out (truncated at 4 σ, weights normalised;
-zeros beyond the ends for the root, the end values repeated for a turn's seams), so the two
-agree.
+zeros beyond the ends for the root), so the two agree.
 """
 
 import numba
@@ -89,29 +88,6 @@ def bridge_gaps(state, longest):
                     state[f] = True
             last = m
     return state
-
-
-@numba.njit(cache=True, nogil=True)
-def _spread_seams(turn, held, seams, kernel):
-    """turn (M, 3) += held smoothed by kernel (ends repeated) − held, at the frames within the
-    kernel's radius of a seam (elsewhere held is constant over the kernel: the change is 0)."""
-    M = turn.shape[0]
-    radius = kernel.shape[0] // 2
-    near = 0  # frames left to do since the latest seam seen ahead
-    for m in range(-radius, M):
-        ahead = m + radius
-        if ahead < M and seams[ahead]:
-            near = 2 * radius + 1
-        if near > 0:
-            near -= 1
-            if m < 0:
-                continue
-            for d in range(3):
-                total = 0.0
-                for k in range(-radius, radius + 1):
-                    i = min(max(m + k, 0), M - 1)
-                    total += kernel[k + radius] * held[i, d]
-                turn[m, d] += total - held[m, d]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -289,7 +265,7 @@ def _lowest(rows, lowest_operator, samples, out):
 
 @numba.njit(cache=True, nogil=True)
 def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, lowest_operator, samples, anchor_slot,
-                     inverse_in, steps_in, heights_in, ground, orientation_in, own,
+                     inverse_in, steps_in, heights_in, ground, orientation_in, turn_steps_in, own,
                      influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, hold, keep, states, want_lowest, lowest):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
@@ -297,7 +273,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     padded with −1), the operators of the patches'
     centroids and of their sample vertices' heights (:func:`.planting.centre_operator`,
     :func:`.planting.lowest_operator`; samples (P,) each patch's count); kernel the Gaussian weights of
-    the root's smoothing and of a seam's turn; lift_kernel the raised cosine (2r + 1,) of a
+    the root's smoothing; lift_kernel the raised cosine (2r + 1,) of a
     swinging patch's lift (r its dilation); bridge: the longest gap between two plants that is
     bridged (:func:`bridge_gaps`); hold: the frames a plant holds its patch exactly; keep: past
     them, the share of a limb's summed slide kept from one frame to the next
@@ -311,8 +287,6 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     turn = np.zeros((M, 3))
     correction = np.zeros((P, M, 3))
     rows = np.zeros((M, centre_operator.shape[0]))
-    held = np.zeros((M, 3))
-    seams = np.zeros(M, dtype=np.bool_)
     turned = np.empty((3, 3))
     step = np.empty(3)
     now = np.empty((3, 3))
@@ -321,6 +295,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     wanted = np.empty((3, 3))
     product = np.empty((3, 3))
     rotation = np.empty((3, 3))
+    final = np.empty((3, 3))
     change = np.empty(3)
     for a in range(A):
         anything = False
@@ -355,28 +330,21 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                         now[i, j] = F[a, m, anchor, i, j]
                 _mul(now, inverse_in[f, p], mapped)
                 _heading(mapped, up, head)
-                _mul(head, orientation_in[f, p], wanted)
+                if m > 0 and state[p, m - 1]:  # inside a plant: the last frame's, by the input's own step
+                    _mul(head, turn_steps_in[f, p], product)
+                    _mul_t(product, head, rotation)
+                    _mul(rotation, final, wanted)
+                else:  # a plant's first frame: the input's orientation under the output's heading
+                    _mul(head, orientation_in[f, p], wanted)
                 _mul_t(wanted, now, product)
                 _near_log(product, change)
                 angle = np.sqrt(change[0] ** 2 + change[1] ** 2 + change[2] ** 2)
                 scale = min(1.0, max_turn / max(angle, 1e-12))
                 for d in range(3):
                     turn[m, d] = change[d] * scale
+                _rotation_exp(turn[m, 0], turn[m, 1], turn[m, 2], rotation)
+                _mul(rotation, now, final)  # the anchor's orientation as turned: the next frame's start
             blend_edges_row(turn, state[p], decay)
-            # a seam's jump in the wanted orientation, spread over the frames about it (a Gaussian
-            # of the held jumps; it changes only the frames within its radius of a seam)
-            any_seam = False
-            for m in range(M):
-                seams[m] = False
-                for d in range(3):
-                    held[m, d] = 0.0 if m == 0 else held[m - 1, d]
-                if m > 0 and state[p, m] and state[p, m - 1] and src[a, p, m] != src[a, p, m - 1] + 1:
-                    seams[m] = True
-                    any_seam = True
-                    for d in range(3):
-                        held[m, d] += turn[m, d] - turn[m - 1, d]
-            if any_seam:
-                _spread_seams(turn, held, seams, kernel)
             # the turn, about the patch's centroid; every patch centroid moves with each bone turned
             nb = bones.shape[0]
             for m in range(M):

@@ -183,12 +183,12 @@ def _heading(matrices, up_axis):
 
 
 def _turn_feet(F, t, src, state, centre, rig):
-    """Turn each planted patch's own bones about its centroid so that the patch's anchor bone has
-    the input's orientation at the source frame (the fit's error at the patch undone, E), under
-    the output's heading (module notes), blended in and out like the translations; F, t and the
+    """Turn each planted patch's own bones about its centroid so that the patch's anchor bone has,
+    at a plant's first frame, the input's orientation at the source frame (the fit's error at the
+    patch undone, E) under the output's heading, and later in the plant the orientation it was
+    turned to one frame before, turned by the input's own step (module notes), blended in and
+    out like the translations; F, t and the
     centroids centre (A, P, M, 3) (the patches that share a turned bone move with it) in place."""
-    from scipy.ndimage import gaussian_filter1d
-
     from skinsynth.pipeline.rig.rotations import rotation_exp
 
     turning = np.flatnonzero([bones.size > 0 for bones in rig.own])
@@ -199,20 +199,21 @@ def _turn_feet(F, t, src, state, centre, rig):
     slots = rig.anchor_bone[turning]
     now = np.moveaxis(F[:, :, rig.bones[slots]], 2, 1).astype(np.float64)  # (A, p, M, 3, 3)
     patches = turning[None, :, None]
-    mapped = now @ rig.inverse_in[src, patches]
-    wanted = _heading(mapped, rig.up_axis) @ rig.orientation_in[src, patches]
-    change = _near_log(wanted @ np.swapaxes(now, -1, -2))
-    angle = np.linalg.norm(change, axis=-1, keepdims=True)
-    turn = np.where(state[..., None], change * np.minimum(1.0, rig.max_turn / np.maximum(angle, 1e-12)), 0.0)
+    heading = _heading(now @ rig.inverse_in[src, patches], rig.up_axis)  # (A, p, M, 3, 3)
+    first = heading @ rig.orientation_in[src, patches]  # a plant's first frame: the input's, under the heading
+    step = heading @ rig.turn_steps_in[src, patches] @ np.swapaxes(heading, -1, -2)  # the input's own step
     stepping = state & _shifted(state, 1, False)
+    turn = np.zeros(now.shape[:-1])
+    final = now[:, :, 0].copy()
+    for m in range(now.shape[2]):  # inside a plant each frame starts from the last one's turned orientation
+        wanted = np.where(stepping[:, :, m, None, None], step[:, :, m] @ final, first[:, :, m])
+        change = _near_log(wanted @ np.swapaxes(now[:, :, m], -1, -2))
+        angle = np.linalg.norm(change, axis=-1, keepdims=True)
+        turn[:, :, m] = np.where(state[:, :, m, None], change * np.minimum(1.0, rig.max_turn / np.maximum(angle, 1e-12)),
+                                 0.0)
+        final = rotation_exp(turn[:, :, m]) @ now[:, :, m]
     _blend_edges(turn, state, stepping, state & ~_shifted(state, 1, False), state & ~_shifted(state, -1, False),
                  rig.decay)
-    # the wanted orientation jumps where a seam changes the source frame: each jump is spread over
-    # the frames about its seam (the step it makes, smoothed), the turn elsewhere left exact
-    seam = stepping & (src != _shifted(src, 1, -1) + 1)
-    jumps = np.where(seam[..., None], turn - _shifted_frames(turn, 1), 0.0)
-    held = np.cumsum(jumps, axis=2)
-    turn += gaussian_filter1d(held, rig.sigma, axis=2, mode="nearest") - held
     slot_of = {int(b): k for k, b in enumerate(rig.bones)}
     for k, p in enumerate(turning):  # few patches: each turns its own bones about its centroid
         rotation = rotation_exp(turn[:, k])  # (A, M, 3, 3)
