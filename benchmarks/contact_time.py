@@ -1,6 +1,6 @@
 """What keeping the feet planted costs: ``synthesize -n 1000 -m 600`` with contacts against
 ``--no-contact``, side by side (issue 35: at most 1.1× on the samba, the elephant gallop and the
-walker).
+walker; issue 48: at most 1.15× and 10 s on every shared capture with a ground, the walkers too).
 
 One JSON line per capture. Each capture is fitted and analysed with the defaults (cached in
 --work, the same files as benchmarks/synthesize.py's), then ``synthesize GRAPH -n 1000 -m 600
@@ -12,6 +12,8 @@ several is the closest to the work itself) and of the medians (``ratio_median``)
 machine's two cores varies by ±10 %: two pairs cannot tell 1.1× from 1.2×.
 
     python benchmarks/contact_time.py [--only NAME] [--pairs 5] [--work DIR]
+
+(issue 48's figures: ``--pairs 3``, the median.)
 """
 
 import argparse
@@ -23,8 +25,10 @@ import tempfile
 
 from datasets import BONES, captures, run
 
-#: The captures issue 35 times (the walker is ``skinsynth example walker``).
-TIMED = ("vlasic_samba", "elephant_clips", "walker")
+#: The captures timed: every shared capture with a ground (benchmarks/synthesize.py's GROUNDED) and the
+#: walkers (``skinsynth example walker``, and ``--planted``).
+TIMED = ("vlasic_samba", "vlasic_crane", "horse_gallop", "elephant_clips", "horse_clips", "walker", "walker_planted")
+WALKERS = {"walker": [], "walker_planted": ["--planted"]}
 
 
 def timed_pairs(graph, work, pairs, count, frames):
@@ -51,10 +55,10 @@ def main():
     work = str(pathlib.Path(args.work or tempfile.mkdtemp(prefix="skinsynth_bench_")).resolve())
     os.makedirs(work, exist_ok=True)
     specs = dict(captures(work))
-    walker = os.path.join(work, "walker.npz")
-    if "walker" in TIMED and not os.path.exists(walker) and args.only in (None, "walker"):
-        run(["example", "walker", "-o", walker, "-q"], work)
-    specs["walker"] = walker
+    for name, options in WALKERS.items():
+        specs[name] = os.path.join(work, f"{name}.npz")
+        if not os.path.exists(specs[name]) and args.only in (None, name):
+            run(["example", "walker", *options, "-o", specs[name], "-q"], work)
     for name in TIMED:
         if (args.only and args.only != name) or name not in specs:
             continue
