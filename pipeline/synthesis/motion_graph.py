@@ -53,9 +53,10 @@ Choices the paper leaves open, made here:
   trap's only exits can lie just after its entry (the samba's leg component looped frames
   140–172, entered at 140 and 150, its exits at 141 and 150), so such a segment may be as short
   as half of ``min_segment``, where a stuck walk would otherwise replay one loop to its end. So a
-  loop is replayed at most a third time, and that only where no transition leads out of it. Without this, on the 48-frame horse gallop 15 of 16
-  walks repeated a loop under 2 s more than three times in a row: the clip's last frame has one
-  way back, a cycle earlier, and walks left that cycle by a 10 % draw at three frames of it.
+  loop is replayed at most a third time, and that only where no transition leads out of it.
+  Without this, on the 48-frame horse gallop 15 of 16 walks repeated a loop under 2 s more than
+  three times in a row: the clip's last frame has one way back, a cycle earlier, and walks left
+  that cycle by a 10 % draw at three frames of it.
 - "Allowed" moves come from exact-length reachability: a move is allowed only if the walk can
   still be completed from the new state within the remaining output frames (and, for a
   constrained interval, end on its target at its time). The search runs on states
