@@ -50,7 +50,7 @@ Choices the paper leaves open, made here:
   after it was last, for two periods) takes the first transition out of it (into a frame older
   than the loop) instead of waiting for the ``transition_probability`` draw, once its segment
   has played half of ``min_segment`` (the spacing build-graph keeps between transitions): a
-  trap's only exits can lie just after its entry (the samba's leg component looped frames
+  trap's only exits can lie just after its entry (the samba's arm component looped frames
   140–172, entered at 140 and 150, its exits at 141 and 150), so such a segment may be as short
   as half of ``min_segment``, where a stuck walk would otherwise replay one loop to its end. So a
   loop is replayed at most a third time, and that only where no transition leads out of it.
