@@ -23,12 +23,11 @@ import pathlib
 import statistics
 import tempfile
 
-from datasets import BONES, captures, run
+from datasets import BONES, captures, run, walker_inputs
 
 #: The captures timed: every shared capture with a ground (benchmarks/synthesize.py's GROUNDED) and the
 #: walkers (``skinsynth example walker``, and ``--planted``).
 TIMED = ("vlasic_samba", "vlasic_crane", "horse_gallop", "elephant_clips", "horse_clips", "walker", "walker_planted")
-WALKERS = {"walker": [], "walker_planted": ["--planted"]}
 
 
 def timed_pairs(graph, work, pairs, count, frames):
@@ -55,10 +54,7 @@ def main():
     work = str(pathlib.Path(args.work or tempfile.mkdtemp(prefix="skinsynth_bench_")).resolve())
     os.makedirs(work, exist_ok=True)
     specs = dict(captures(work))
-    for name, options in WALKERS.items():
-        specs[name] = os.path.join(work, f"{name}.npz")
-        if not os.path.exists(specs[name]) and args.only in (None, name):
-            run(["example", "walker", *options, "-o", specs[name], "-q"], work)
+    specs.update(walker_inputs(work, ("walker", "walker_planted"), args.only))
     for name in TIMED:
         if (args.only and args.only != name) or name not in specs:
             continue

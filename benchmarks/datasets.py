@@ -96,6 +96,24 @@ def run(args, work):
     return seconds, (ordered[0] if ordered else 0.0), (ordered[1] if len(ordered) > 1 else 0.0), stdout
 
 
+#: The generated walkers the benchmarks measure beside the captures: name -> ``skinsynth example
+#: walker`` options (``walker_tempo``: a walk that gets going, no two strides alike).
+WALKERS = {"walker": [], "walker_planted": ["--planted"],
+           "walker_tempo": ["--planted", "--frames", "400", "--cycles", "4", "--tempo", "0.6"]}
+
+
+def walker_inputs(work, names=WALKERS, only=None):
+    """[(name, input path)] of the generated walkers ``names``, written into ``work`` unless there
+    already (only the one named ``only``, when given)."""
+    out = []
+    for name in names:
+        path = os.path.join(work, f"{name}.npz")
+        if not os.path.exists(path) and only in (None, name):
+            run(["example", "walker", *WALKERS[name], "-o", path, "-q"], work)
+        out.append((name, path))
+    return out
+
+
 def captures(work):
     """(name, input path) of every capture, or the built-in stand-ins without real data."""
     if SHARED_DATA.is_dir():

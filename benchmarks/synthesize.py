@@ -62,15 +62,12 @@ import tempfile
 
 import h5py
 import numpy as np
-from datasets import BONES, captures, run
+from datasets import BONES, captures, run, walker_inputs
 
 UP = 1  # every capture in shared/data is Y up
 #: Captures that rest on a ground (module notes): their feet are measured.
 GROUNDED = {"vlasic_samba", "vlasic_crane", "horse_gallop", "elephant_clips", "horse_clips", "walker", "walker_planted",
             "walker_tempo"}
-#: The generated walkers: name -> ``skinsynth example walker`` options.
-WALKERS = {"walker": [], "walker_planted": ["--planted"],
-           "walker_tempo": ["--planted", "--frames", "400", "--cycles", "4", "--tempo", "0.6"]}
 
 
 def bake(skin, F, t):
@@ -244,12 +241,7 @@ def main():
     work = args.work or tempfile.mkdtemp(prefix="skinsynth_bench_")
     os.makedirs(work, exist_ok=True)
     work = str(pathlib.Path(work).resolve())
-    walkers = []
-    for name, options in WALKERS.items():
-        walkers.append((name, os.path.join(work, f"{name}.npz")))
-        if not os.path.exists(walkers[-1][1]) and (not args.only or args.only == name):
-            run(["example", "walker", *options, "-o", walkers[-1][1], "-q"], work)
-    for name, spec in list(captures(work)) + walkers:
+    for name, spec in list(captures(work)) + walker_inputs(work, only=args.only):
         if args.only and args.only != name:
             continue
         for single in (False, True):

@@ -22,7 +22,7 @@ def synthesis_summary(output, result, components, frames, min_segment, jobs, sec
                "mean_segment_frames": [round(m, 2) for m in stats["mean_segment_frames"]],
                "shortest_segment": stats["shortest_segment"],
                "coverage": [round(c, 4) for c in stats["coverage"]],
-               "distinct_frames": stats["distinct_frames"], "stuck": stats.get("stuck"),
+               "distinct_frames": stats["distinct_frames"], "stuck": stats["stuck"],
                "rejected": result.rejected, "outputs": written}
     lines = [f"wrote {output}: {summary['animations']} animations × {frames} frames from {len(components)} "
              f"component(s), {result.distinct} distinct, {summary['transitions_used']} transitions used; "
@@ -32,7 +32,7 @@ def synthesis_summary(output, result, components, frames, min_segment, jobs, sec
              f"{', '.join(f'{c:.0%}' for c in stats['coverage'])} (per component)",
              "distinct input frames per animation: " + ", ".join(
                  f"median {np.median(d):.0f} (least {min(d)})" for d in stats["distinct_frames"] if d)
-             + " (per component); stuck in a loop: " + ", ".join(map(str, stats.get("stuck") or ["?"]))]
+             + " (per component); stuck in a loop: " + ", ".join(map(str, stats["stuck"]))]
     if "coverage_per_clip" in stats:  # several clips: what each clip gave, and the way between them
         summary["coverage_per_clip"] = [{name: round(share, 4) for name, share in shares.items()}
                                         for shares in stats["coverage_per_clip"]]
