@@ -22,7 +22,9 @@ runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``,
   by ``measure_feet``, the function behind ``synthesize --json``'s ``"contact"``: for the input and
   the output the slide of the contact vertices (median and 95th percentile per frame, over the
   height), the share of contact steps sliding over 0.5 % of the height, float and penetration
-  during contact, the largest acceleration, and the output/input ratios (``contact``);
+  during contact, the largest acceleration, and the output/input ratios (``contact``), and the
+  same against the input frames replayed along the measured walks (``played``, ``ratios_played``:
+  what synthesis adds at the frames it plays; docs/contact.md);
 - ground drift: ``synthesize -n 3 -m 3000``; the lowest vertex of every frame against
   the input's range of lowest vertices, how far it goes below the input's lowest and above the
   input's highest lowest point, each as a share of the character's height (goal ≤ 0.01 each:
@@ -124,7 +126,7 @@ def feet(skin, path, count):
             return {k: rounded(v) for k, v in value.items()}
         return float(f"{value:.4g}") if isinstance(value, float) and np.isfinite(value) else value
 
-    return {"animations": count, **{k: rounded(figures[k]) for k in ("input", "output", "ratios")}}
+    return {"animations": count, **{k: rounded(figures[k]) for k in ("input", "output", "ratios", "played", "ratios_played")}}
 
 
 def walks(sources, graph_path, count):

@@ -67,8 +67,11 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
     ``skin`` has examples (Fi, V, 3), rest_vertices, bone_indices, bone_weights; F (A, M, B, 3, 3),
     t (A, M, B, 3), sources (C, A, M); ``starts`` the input's clip starts (C + 1,). An output frame
     is measured against the ground of the clip its first component plays. Returns a dict: height,
-    ground (per clip), input, output (:func:`~.contact.measures.summary`), ratios."""
-    from .contact.measures import Steps, character_height, measure_frames, measure_input, ratios, summary
+    ground (per clip), input, output (:func:`~.contact.measures.summary`), ratios, and ``played``
+    with ``ratios_played``: the input frames themselves replayed along the first component's walks
+    (steps across a seam left out), the reference for what synthesis adds where a walk dwells on
+    part of a clip (:func:`~.contact.measures.played_input`)."""
+    from .contact.measures import Steps, character_height, measure_frames, measure_input, played_input, ratios, summary
 
     height = character_height(skin.rest_vertices, up_axis)
     measured_in, grounds = measure_input(skin.examples, starts, height, up_axis, block=block)
@@ -83,8 +86,9 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
 
         parts.append(measure_frames(frames, Fa.shape[0], grounds[clip_of[a]], height, up_axis, block=block))
     figures_in, figures_out = summary(measured_in), summary(Steps.join(parts))
+    played = summary(played_input(skin.examples, sources[0, :count], starts, grounds[clip_of], height, up_axis, block))
     return {"height": height, "ground": [float(g) for g in grounds], "input": figures_in, "output": figures_out,
-            "ratios": ratios(figures_out, figures_in)}
+            "ratios": ratios(figures_out, figures_in), "played": played, "ratios_played": ratios(figures_out, played)}
 
 
 def report_feet(skin, F, t, sources, count, up_axis=1, device="cpu"):

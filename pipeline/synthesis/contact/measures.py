@@ -168,6 +168,28 @@ def measure_input(vertices, starts, height, up_axis=1, block=64):
     return Steps.join(parts), grounds
 
 
+def played_input(examples, sources, starts, grounds, height, up_axis=1, block=64):
+    """The :class:`Steps` of the input frames themselves played along walks: examples (Fi, V, 3),
+    sources (A, M) the input frame of each output frame, starts the clips' starts (C + 1,), grounds
+    (A, M) each output frame's ground. A step counts only where the walk plays on (source m + 1 =
+    source m + 1 within a clip), not across a seam. Why: a capture's feet slide more in some of its
+    frames than in others (the samba's 0.17 % of the height a step in frames 25–125, 0.03 % in
+    frames 125–175), so the whole clip's figure is a fair reference only for walks that play every
+    frame equally; this one is, for any walk, what the input did at the frames it plays."""
+    starts = np.asarray(starts, dtype=np.int64)
+    examples = np.asarray(examples)
+    last = np.zeros(examples.shape[0], bool)
+    last[starts[1:] - 1] = True
+    parts = []
+    for a in range(sources.shape[0]):
+        src = np.asarray(sources[a], dtype=np.int64)
+        plays = np.zeros(src.size, bool)
+        plays[:-1] = (src[1:] == src[:-1] + 1) & ~last[src[:-1]]
+        parts.append(measure_frames(lambda s, e, src=src: examples[src[s:e]], src.size, grounds[a], height, up_axis,
+                                    plays_on=plays, block=block))
+    return Steps.join(parts)
+
+
 def significant(value, digits=6):
     """``value`` (a figure, or a dict or list of them) for a report: floats to ``digits``
     significant digits, a non-finite one as None."""

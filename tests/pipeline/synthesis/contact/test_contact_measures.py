@@ -5,7 +5,8 @@ import pytest
 
 from skinsynth.pipeline.inputs.clips import Clips
 from skinsynth.pipeline.synthesis.contact.measures import (BAND, Steps, character_height, clip_ground, contact_steps,
-                                                           measure_frames, measure_input, ratios, summary)
+                                                           measure_frames, measure_input, played_input, ratios,
+                                                           summary)
 
 
 def block(frames=30, velocity=(0.0, 0.0, 0.0), lift=0.0):
@@ -82,6 +83,24 @@ def test_the_step_from_one_clip_to_the_next_is_not_motion():
     assert np.allclose(measured.slide, 0.01) and measured.accel == pytest.approx(0.0, abs=1e-12)
     same = contact_steps(both, 0.0, 2.0, plays_on=clips.plays_on())
     assert np.allclose(same.slide, 0.01)
+
+
+def test_the_input_played_along_walks_is_the_input_at_the_frames_played():
+    """A clip that rests for 10 frames and then slides 0.04 a frame (H = 2): a walk that loops on
+    the resting frames plays no slide, one that loops on the sliding frames plays 0.02 of the
+    height at every step, and the steps across its seams (a jump of 0.36) are not counted; the
+    whole clip played in order is the input's own measure."""
+    rest_then_slide = np.concatenate([block(frames=10), block(frames=10, velocity=(0.04, 0.0, 0.0))])
+    starts = np.array([0, 20])
+    still = np.tile(np.arange(0, 8), 5)[None]  # frames 0–7 again and again
+    sliding = np.tile(np.arange(10, 20), 4)[None]
+    grounds = np.zeros((1, 40))
+    assert played_input(rest_then_slide, still, starts, grounds, 2.0).slide.max() == 0.0
+    moving = played_input(rest_then_slide, sliding, starts, grounds, 2.0)
+    assert moving.slide.size == 36 and np.allclose(moving.slide, 0.02)  # 9 steps a loop, the 3 seams not
+    whole = played_input(rest_then_slide, np.arange(20)[None], starts, np.zeros((1, 20)), 2.0)
+    own, _ = measure_input(rest_then_slide, starts, 2.0)
+    assert np.array_equal(whole.slide, own.slide) and whole.steps == own.steps
 
 
 def test_each_clip_has_its_own_ground():
