@@ -60,7 +60,9 @@ REPLACEMENT_CAP = 8
 #: ground (its lowest points from the plants).
 #: 7: walks avoid transitions into frames they played in the last 2 s (:mod:`.motion_graph`, ``fresh``).
 #: 8: a plant holds its foot's orientation from frame to frame, turned up to 35° (:mod:`.planting`).
-BATCH_REVISION = 8
+#: 9: a plant's limb correction is let go where the input's foot lifts inside a bridged gap, and past
+#: its hold only what exceeds 0.1 of the height leaks (:mod:`.planting`).
+BATCH_REVISION = 9
 
 
 def component_from_file(data, rest, contacts=False):

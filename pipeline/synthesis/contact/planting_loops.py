@@ -146,6 +146,19 @@ def blend_edges_row(values, state, decay):
 
 
 @numba.njit(cache=True, nogil=True)
+def release_share(k, span):
+    """The share of a limb's summed slide left k frames into a release of ``span`` frames: a
+    raised cosine from 1 (k = 0) to 0 (k = span)."""
+    return 0.5 * (1.0 + np.cos(np.pi * min(k, span) / span))
+
+
+@numba.njit(cache=True, nogil=True)
+def _release_step(k, span):
+    """The share kept from frame k − 1 to frame k of a release (:func:`release_share`)."""
+    return release_share(k, span) / release_share(k - 1, span)
+
+
+@numba.njit(cache=True, nogil=True)
 def _mul(a, b, out):
     """out = a @ b for 3×3 matrices (written out: no allocation, no BLAS call for a matrix this small)."""
     for i in range(3):
@@ -266,7 +279,8 @@ def _lowest(rows, lowest_operator, samples, out):
 @numba.njit(cache=True, nogil=True)
 def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, lowest_operator, samples, anchor_slot,
                      inverse_in, steps_in, heights_in, ground, orientation_in, turn_steps_in, own,
-                     influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, hold, keep, states, want_lowest, lowest):
+                     influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, hold, keep, bound, release, states,
+                     want_lowest, lowest):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
     :class:`.planting.PlantRig` tables (own (P, K) the slots in ``bones`` of each patch's own bones,
@@ -276,8 +290,9 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     the root's smoothing; lift_kernel the raised cosine (2r + 1,) of a
     swinging patch's lift (r its dilation); bridge: the longest gap between two plants that is
     bridged (:func:`bridge_gaps`); hold: the frames a plant holds its patch exactly; keep: past
-    them, the share of a limb's summed slide kept from one frame to the next
-    (:data:`.planting.HOLD`, :data:`.planting.LIMB_MEMORY`); states (A, P, M) written; with want_lowest, lowest (A, M) too:
+    them, the share of a limb's summed slide beyond ``bound`` (its length) kept from one frame to
+    the next (:data:`.planting.HOLD`, :data:`.planting.LIMB_MEMORY`, :data:`.planting.LIMB_BOUND`); release: the fewest frames over which
+    a bridged gap lets the sum go (:data:`.planting.RELEASE`); states (A, P, M) written; with want_lowest, lowest (A, M) too:
     the lowest of the patches' sample vertices once planted (the band's, :mod:`.contact`)."""
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
@@ -417,10 +432,13 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
         weight = _smooth(weight, kernel, False)
         for m in range(M):
             root[m, up] = level[m] / max(weight[m], 1.0)
-        # 3. each limb: the residual slide summed over its plant (leaking), the residual height; blended
+        # 3. each limb: the residual slide summed over its plant (leaking; released where the input's
+        # foot is off the ground inside a bridged gap), the residual height; blended
         for p in range(P):
             acc = np.zeros(3)
-            age = 0  # frames since the plant's first
+            age = 0  # frames since the plant's first, or since its last bridged gap
+            lifted = 0  # frames into the current bridged gap
+            span = 1  # frames its release takes
             for m in range(M):
                 for d in range(3):
                     correction[p, m, d] = 0.0
@@ -428,10 +446,27 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                     continue
                 if m > 0 and state[p, m - 1]:
                     age += 1
-                    kept = 1.0 if age <= hold else keep
+                    kept = 1.0
+                    if not planted[src[a, p, m], p]:  # the input's foot is lifted: let the sum go
+                        if lifted == 0:
+                            gap = 0
+                            while m + gap < M and state[p, m + gap] and not planted[src[a, p, m + gap], p]:
+                                gap += 1
+                            span = max(gap, release)
+                        lifted += 1
+                        kept *= _release_step(lifted, span)
+                        age = 0
+                    else:
+                        lifted = 0
+                    size = 0.0
                     for d in range(3):
                         if d != up:
                             acc[d] = kept * acc[d] - slide[p, m, d] - push[m, d]
+                            size += acc[d] * acc[d]
+                    size = np.sqrt(size)
+                    if age > hold and size > bound:  # past the hold, what exceeds the bound leaks
+                        for d in range(3):
+                            acc[d] *= (bound + (size - bound) * keep) / size
                 else:
                     acc[:] = 0.0
                     age = 0

@@ -63,13 +63,29 @@ def _plant_block(F, t, sources, rig):
     residual = np.where(stepping[..., None], -slide - push[:, None], 0.0)
     first = state & ~_shifted(state, 1, False)
     last = state & ~_shifted(state, -1, False)
-    keep = np.exp(-1.0 / rig.memory)  # past rig.hold frames the sum leaks (planting.HOLD, LIMB_MEMORY)
+    keep = np.exp(-1.0 / rig.memory)  # past rig.hold frames what exceeds rig.bound leaks (planting.HOLD, …)
+    # inside a bridged gap (the input's foot lifted) the sum is let go along a raised cosine
+    lifted = stepping & ~rig.planted[src, patches]
+    into, left = np.zeros(lifted.shape, np.int64), np.zeros(lifted.shape, np.int64)
+    for m in range(1, M):
+        into[..., m] = np.where(lifted[..., m], into[..., m - 1] + 1, 0)
+    for m in range(M - 1, -1, -1):
+        left[..., m] = np.where(lifted[..., m], (left[..., m + 1] if m + 1 < M else 0) + 1, 0)
+    span = np.maximum(into + left - 1, rig.release)
+
+    def share(k):
+        return 0.5 * (1.0 + np.cos(np.pi * np.minimum(k, span) / span))
+
+    released = np.where(lifted, share(into) / np.where(lifted, share(into - 1), 1.0), 1.0)
     correction = np.zeros_like(residual)
-    age = np.zeros(state.shape[:2], np.int64)  # frames since each plant's first
+    age = np.zeros(state.shape[:2], np.int64)  # frames since each plant's first, or its last gap
     for m in range(1, M):  # frame by frame, every animation and patch at once
-        age = np.where(stepping[:, :, m], age + 1, 0)
-        kept = np.where(age <= rig.hold, 1.0, keep)[..., None]
-        correction[:, :, m] = np.where(stepping[:, :, m, None], kept * correction[:, :, m - 1] + residual[:, :, m], 0.0)
+        age = np.where(stepping[:, :, m] & ~lifted[:, :, m], age + 1, 0)
+        summed = released[:, :, m, None] * correction[:, :, m - 1] + residual[:, :, m]
+        size = np.linalg.norm(summed, axis=-1, keepdims=True)
+        leaking = (age[..., None] > rig.hold) & (size > rig.bound)
+        summed = np.where(leaking, summed * (rig.bound + (size - rig.bound) * keep) / np.maximum(size, 1e-300), summed)
+        correction[:, :, m] = np.where(stepping[:, :, m, None], summed, 0.0)
     correction = np.where(state[..., None], correction, 0.0)
     correction[..., up] = np.where(state, error - root[:, None, :, up], 0.0)
     _blend_edges(correction, state, stepping, first, last, rig.decay)

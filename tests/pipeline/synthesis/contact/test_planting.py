@@ -486,14 +486,15 @@ def test_output_states_by_hand():
 def test_compiled_loops_match_the_numpy_reference(walker_graph, single, hold):
     """plant_feet (numba, one animation at a time) against the numpy reference of the same steps
     on whole arrays, on uncorrected walker syntheses: bones and states. ``hold``: frames a plant
-    is held exactly before its limb correction leaks (the walker's stances are shorter than the
-    default's 2 s: 4 frames makes them leak)."""
+    is held exactly before what its limb correction sums beyond a bound leaks (the walker's stances
+    are shorter than the default's 2 s: 4 frames, a bound of 0.2 % of the height, and gaps of up
+    to 12 frames bridged, each let go over at least 5, make them leak and release)."""
     import dataclasses
 
     w = walker_graph
     r, rig = _synthesize(w, single, 5, plants=False, count=6, frames=300)
     if hold is not None:
-        rig = dataclasses.replace(rig, hold=hold)
+        rig = dataclasses.replace(rig, hold=hold, bound=0.002 * w.H, bridge=12, release=5)
     F, t = r.F.copy(), r.t.copy()
     states = plant_feet(F, t, r.sources, rig)
     F_ref, t_ref = r.F.copy(), r.t.copy()
@@ -503,6 +504,12 @@ def test_compiled_loops_match_the_numpy_reference(walker_graph, single, hold):
     assert np.abs(F.astype(np.float64) - F_ref).max() <= 1e-5
     if not single:  # the merged walker's feet slide: it did correct something
         assert np.abs(t.astype(np.float64) - r.t).max() > 1e-3 * w.H
+    if hold is not None:  # bridged gaps were released, and the bound made a difference
+        raw = rig.planted[np.moveaxis(r.sources[rig.owner], 0, 1), np.arange(rig.owner.size)[None, :, None]]
+        assert (states & ~raw).any()
+        F_free, t_free = r.F.copy(), r.t.copy()
+        plant_feet(F_free, t_free, r.sources, dataclasses.replace(rig, bound=np.inf))
+        assert np.abs(t_free.astype(np.float64) - t).max() > 1e-4 * w.H
 
 
 def test_compiled_blend_matches_the_numpy_reference():
