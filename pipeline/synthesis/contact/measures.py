@@ -176,15 +176,16 @@ def played_input(examples, sources, starts, grounds, height, up_axis=1, block=64
     frames than in others (the samba's 0.17 % of the height a step in frames 25–125, 0.03 % in
     frames 125–175), so the whole clip's figure is a fair reference only for walks that play every
     frame equally; this one is, for any walk, what the input did at the frames it plays."""
-    starts = np.asarray(starts, dtype=np.int64)
+    from ...inputs.clips import Clips
+
     examples = np.asarray(examples)
-    last = np.zeros(examples.shape[0], bool)
-    last[starts[1:] - 1] = True
+    counts = np.diff(np.asarray(starts, dtype=np.int64))
+    clips = Clips(tuple(range(counts.size)), tuple(counts))  # the names play no part
     parts = []
     for a in range(sources.shape[0]):
         src = np.asarray(sources[a], dtype=np.int64)
         plays = np.zeros(src.size, bool)
-        plays[:-1] = (src[1:] == src[:-1] + 1) & ~last[src[:-1]]
+        plays[:-1] = clips.continues(src)
         parts.append(measure_frames(lambda s, e, src=src: examples[src[s:e]], src.size, grounds[a], height, up_axis,
                                     plays_on=plays, block=block))
     return Steps.join(parts)

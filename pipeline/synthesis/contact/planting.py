@@ -79,6 +79,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .ground import raised_cosine
+from .measures import character_height
 from ...rig.influence import dense_weights
 from .patches import patch_vertices
 
@@ -316,7 +317,7 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
                     orientation_in=orientation, turn_steps_in=turn_steps, solve=_regularised_inverse(coupling),
                     decay=2.0 * np.log(2.0) / (half_life * fps), sigma=half_life * fps,
                     bridge=int(round(bridge * fps)), hold=int(round(hold * fps)), memory=limb_memory * fps,
-                    bound=limb_bound * float(np.ptp(rest[:, up_axis])), release=max(1, int(round(release * fps))),
+                    bound=limb_bound * character_height(rest, up_axis), release=max(1, int(round(release * fps))),
                     max_turn=np.radians(max_turn), up_axis=int(up_axis))
 
 

@@ -454,7 +454,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                                 gap += 1
                             span = max(gap, release)
                         lifted += 1
-                        kept *= _release_step(lifted, span)
+                        kept = _release_step(lifted, span)
                         age = 0
                     else:
                         lifted = 0
