@@ -98,7 +98,11 @@ def _end_workers(pool):
     pipe; the pool's manager thread then waits in ``recv`` for the rest, and the interpreter
     waits for that thread at exit: the command hung (1 run in about 45 with a signal near the
     end of the work). The parent holds the pipe's writing end too, so once the workers are gone
-    it closes its own: the read ends (EOF), the manager sees a broken pool and ends."""
+    it closes its own: the read ends (EOF), the manager sees a broken pool and ends. It is then
+    waited for: a manager still ending when the interpreter exits races Python 3.11's exit hook,
+    which wakes every manager through a pipe the manager is closing ("Exception ignored …
+    OSError: Bad file descriptor" on stderr after the interrupted line; CPython fixed it in 3.12
+    with a lock)."""
     writer = getattr(getattr(pool, "_result_queue", None), "_writer", None)
     processes = list((getattr(pool, "_processes", None) or {}).values())
     for process in processes:
@@ -108,6 +112,9 @@ def _end_workers(pool):
         process.join(5.0)
     if writer is not None:
         writer.close()
+    manager = getattr(pool, "_executor_manager_thread", None)
+    if manager is not None and manager.is_alive():
+        manager.join(5.0)
 
 
 def _batch_for_parent(make, count_outputs, token, offset, args, batch, count):
