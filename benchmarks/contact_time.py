@@ -23,7 +23,7 @@ import pathlib
 import statistics
 import tempfile
 
-from datasets import BONES, captures, run, walker_inputs
+from datasets import BONES, clip_sets, run, walker_inputs
 
 #: The captures timed: every shared capture with a ground (benchmarks/synthesize.py's GROUNDED) and the
 #: walkers (``skinsynth example walker``, and ``--planted``).
@@ -53,14 +53,14 @@ def main():
     args = parser.parse_args()
     work = str(pathlib.Path(args.work or tempfile.mkdtemp(prefix="skinsynth_bench_")).resolve())
     os.makedirs(work, exist_ok=True)
-    specs = dict(captures(work))
-    specs.update(walker_inputs(work, ("walker", "walker_planted"), args.only))
+    specs = dict(clip_sets(work))
+    specs.update((n, [p]) for n, p in walker_inputs(work, ("walker", "walker_planted"), args.only))
     for name in TIMED:
         if (args.only and args.only != name) or name not in specs:
             continue
         skin = os.path.join(work, f"{name}.skin.h5")
         if not os.path.exists(skin):
-            run(["fit-skin", specs[name], "-o", skin, "--bones", str(BONES.get(name, 20)), "--seed", "0", "-q"], work)
+            run(["fit-skin", *specs[name], "-o", skin, "--bones", str(BONES.get(name, 20)), "--seed", "0", "-q"], work)
         graph = os.path.join(work, f"{name}.multi_component.graph.h5")
         run(["build-graph", skin, "-o", graph, "-q"], work)
         contact, plain = timed_pairs(graph, work, args.pairs, args.count, args.frames)

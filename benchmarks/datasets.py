@@ -96,6 +96,19 @@ def run(args, work):
     return seconds, (ordered[0] if ordered else 0.0), (ordered[1] if len(ordered) > 1 else 0.0), stdout
 
 
+def clip_sets(work):
+    """(name, [input paths]) of every capture as synthesis reads it: a folder of several clips of
+    one mesh (``horse_clips``: gallop and collapse) gives all of them, fitted as one rig and walked
+    together, as a user synthesizing from that folder would; a clip of separate key poses
+    (``*_poses``: "not a continuous animation", SOURCE.md) is left out, as it has no motion to
+    walk. Any other capture: its one input, as :func:`captures`."""
+    for name, path in captures(work):
+        folder = pathlib.Path(path).parent
+        clips = sorted(p for p in folder.glob("*.npz") if not p.stem.endswith("_poses")) \
+            if name.endswith("_clips") else []
+        yield name, [str(p) for p in clips] if len(clips) > 1 else [path]
+
+
 #: The generated walkers the benchmarks measure beside the captures: name -> ``skinsynth example
 #: walker`` options (``walker_tempo``: a walk that gets going, no two strides alike).
 WALKERS = {"walker": [], "walker_planted": ["--planted"],

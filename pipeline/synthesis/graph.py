@@ -122,7 +122,8 @@ def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotat
                                    spacing=max(1, options["min_segment"] // 2), coverage=options["coverage"],
                                    up=np.eye(3)[options["up_axis"]], pivots=bone_centroids(rest, bone_indices, bone_weights, total),
                                    scale=float(np.ptp(rest, axis=0).max()), posture_weight=options["posture_weight"],
-                                   clips=clips, walkable=walkable, spread=4 * options["min_segment"])
+                                   clips=clips, walkable=walkable, spread=4 * options["min_segment"],
+                                   segment=options["min_segment"])
     # The component is synthesised as if it were the whole mesh: its key vertices see only its
     # own bones, weights renormalised over them, so eq. 8 needs no bone from another component
     # and the unit-sum and eq. 15 properties still hold.

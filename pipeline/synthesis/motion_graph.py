@@ -57,6 +57,18 @@ Choices the paper leaves open, made here:
   Without this, on the 48-frame horse gallop 15 of 16 walks repeated a loop under 2 s more than
   three times in a row: the clip's last frame has one way back, a cycle earlier, and walks left
   that cycle by a 10 % draw at three frames of it.
+- Traps as endings (with ``fresh`` > 0, free-ended walks): a state from which endless walks exist
+  but none comes back to the largest strongly connected part of the (frame, segment position)
+  graph (:meth:`MotionGraph.trapped`) is entered only within a walk's last ``fresh`` steps, and
+  walks start where they can reach that part (:meth:`MotionGraph.start_frames`); the exact-length
+  sets enforce it like any other constraint (:func:`_backward_sets`' ``early``). Motion graphs
+  keep walks on their largest strongly connected part (Kovar et al. 2002 prune the rest); a trap's
+  frames are kept here as endings, as dead-end tails are. On the samba's arm component frames
+  127–172 are poses no earlier frame comes within 10 T_c of (the cheapest way back costs 10.5
+  T_c), and the one way back the frame graph showed (141 → 113, then 115 → 70) needs a two-frame
+  segment: walks past frame 105 never came back, and long walks played a median 55 of the
+  component's 173 frames (115 with this rule). Tie-breaks and sizes as
+  :func:`recurrent_frames`; with no trap, walks are bit for bit what they were.
 - "Allowed" moves come from exact-length reachability: a move is allowed only if the walk can
   still be completed from the new state within the remaining output frames (and, for a
   constrained interval, end on its target at its time). The search runs on states
@@ -209,6 +221,21 @@ class MotionGraph:
         """The usable frame ids, increasing."""
         return np.flatnonzero(self.usable)
 
+    def start_frames(self, segment=1, fresh=0):
+        """Where :func:`random_walks` start: the usable frames; when ``fresh`` > 0 (walks avoid loops
+        and play traps as endings only) and the graph has a trap (:meth:`trapped`) for strict walks
+        (``segment`` = min_segment) or in the frame graph, only those from which a strict walk
+        starting there reaches the largest part, unless that leaves none."""
+        frames = self.usable_frames
+        if fresh > 0:
+            strict_returning, strict_trapped = self._parts(False, segment)
+            plain_returning, plain_trapped = self._parts(False, 1)
+            if strict_trapped.any() or plain_trapped.any():
+                keep = strict_returning.reshape(self.frames, segment)[frames, 0] & plain_returning[frames]
+                if keep.any():
+                    frames = frames[keep]
+        return frames
+
     def describe(self):
         """One line for logs: frames, transitions, usable frames and why the others are not."""
         text = f"{self.frames} frames, {len(self.transitions)} transition(s): {self.usable_count} usable"
@@ -259,53 +286,106 @@ class MotionGraph:
             mask = self.usable if usable_only else ~self.forbidden
             m, F = self._moves, self.frames
             play = np.flatnonzero(m.play_ok & mask & np.roll(mask, -1))
-            s = np.arange(segment)
-            p_src = (play[:, None] * segment + s).ravel()
-            p_dst = ((play[:, None] + 1) * segment + np.minimum(s + 1, segment - 1)).ravel()
             use = mask[m.t_pairs[:, 0]] & mask[m.t_target]
-            t_src = m.t_pairs[use, 0] * segment + segment - 1
-            t_dst = m.t_target[use] * segment
-            n = F * segment
-            matrix = sp.csr_matrix((np.ones(p_src.size + t_src.size, np.float32),
-                                    (np.concatenate([p_src, t_src]), np.concatenate([p_dst, t_dst]))),
-                                   shape=(n, n))
+            matrix = _state_graph(F, play, m.t_pairs[use, 0], m.t_target[use], segment, np.float32)
             self._state_cache[key] = (matrix, np.repeat(mask, segment))
         return self._state_cache[key]
 
-    def _backward(self, usable_only, segment, end_frame, length):
+    def trapped(self, usable_only, segment):
+        """States (F · segment,) bool, (frame, segment position) as :meth:`_state_matrix`, that lie
+        on endless walks none of which comes back to the largest strongly connected part of the
+        state graph: a trap (a part a walk enters and never leaves), not a dead end (those end)."""
+        return self._parts(usable_only, segment)[1]
+
+    def _parts(self, usable_only, segment):
+        """(returning, trapped), each (F · segment,) bool: the states from which the largest
+        strongly connected part of the state graph can be reached, and :meth:`trapped`. Cached."""
+        from scipy.sparse.csgraph import breadth_first_order
+
+        key = ("parts", bool(usable_only), int(segment))
+        if key not in self._state_cache:
+            matrix, allowed = self._state_matrix(usable_only, segment)
+            n = matrix.shape[0]
+            inside = sp.diags(allowed.astype(np.float32))
+            matrix = (inside @ matrix @ inside).tocsr()
+            matrix.eliminate_zeros()
+            main = _largest_part(matrix, segment) & allowed
+            # every state that reaches the main part: a search backwards from all of it at once
+            # (node n, a source joined to each main state, on the reversed edges)
+            reverse = sp.bmat([[matrix.T, sp.csr_matrix((n, 1), dtype=np.float32)],
+                               [sp.csr_matrix(main.astype(np.float32)[None, :]), sp.csr_matrix((1, 1))]],
+                              format="csr")
+            reached = np.zeros(n + 1, bool)
+            reached[breadth_first_order(reverse, n, directed=True, return_predecessors=False)] = True
+            returning = reached[:n] & allowed
+            src, dst = matrix.nonzero()
+            self._state_cache[key] = (returning, _infinite_walk_nodes(n, src, dst) & allowed & ~returning)
+        return self._state_cache[key]
+
+    def _backward(self, usable_only, segment, end_frame, length, late=None):
         """:func:`_backward_sets` of the (frame, segment-position) states, (length+1, F, segment)
         bool, for walks of ``length`` steps ending at ``end_frame`` (None: anywhere allowed);
-        cached, since every batch of walks asks for the same ones."""
-        key = (bool(usable_only), int(segment), None if end_frame is None else int(end_frame), int(length))
+        ``late`` (steps; None: no limit): the :meth:`trapped` states only within the last ``late``
+        steps. Cached, since every batch of walks asks for the same ones."""
+        key = (bool(usable_only), int(segment), None if end_frame is None else int(end_frame), int(length),
+               None if late is None else int(late))
         if key not in self._backward_cache:
             _, allowed1 = self._state_matrix(usable_only, 1)
             end1 = allowed1.copy() if end_frame is None else np.arange(self.frames) == end_frame
             matrix, allowed = self._state_matrix(usable_only, segment)
-            sets = _backward_sets(matrix, allowed, np.repeat(end1, segment), length)
+            early = None if late is None else allowed & ~self.trapped(usable_only, segment)
+            sets = _backward_sets(matrix, allowed, np.repeat(end1, segment), length, early, late)
             self._backward_cache[key] = sets.reshape(length + 1, self.frames, segment)
         return self._backward_cache[key]
 
 
-def recurrent_frames(frames, transitions, clips=None):
+def recurrent_frames(frames, transitions, clips=None, segment=1):
     """Frames (F,) bool in the largest strongly connected part of the frame graph (playback
     i → i+1 and i → j+1 per transition (i, j), j + 1 < F, j = −1 included): the frames a long walk can keep
     coming back to (of equally large parts, the first scipy labels). ``clips`` (None: one clip):
     playback only inside a clip, (i, −(c+1)) enters clip c's first frame, pairs whose j does not
-    play on in its clip are left out (:meth:`.clips.Clips.valid_j`)."""
-    from scipy.sparse.csgraph import connected_components
+    play on in its clip are left out (:meth:`.clips.Clips.valid_j`).
 
-    frames = int(frames)
+    ``segment`` (frames, 1: the frame graph): the walks' ``min_segment``. A walk may take a
+    transition only after playing ``segment`` frames since its last seam, so the part counted is
+    that of the (frame, frames played in the segment) states (:meth:`MotionGraph._state_matrix`),
+    projected onto frames: a transition whose frame i lies fewer than ``segment`` frames after
+    every way in cannot be taken by a strict walk. On the samba's arm component every way back from
+    its late frames to its early ones left from frame 115, two frames after the only way in, so the
+    late part was a trap the frame graph did not show (walks played a median 32 % of its frames)."""
+    frames, segment = int(frames), max(1, int(segment))
     if frames == 0:
         return np.zeros(0, bool)
     layout = Clips.single(frames) if clips is None else clips
     pairs = np.asarray(transitions, dtype=np.int64).reshape(-1, 2)
     pairs = pairs[layout.valid_j(pairs[:, 1])]
     play = np.flatnonzero(layout.plays_on()[:-1])
-    src = np.concatenate([play, pairs[:, 0]])
-    dst = np.concatenate([play + 1, layout.targets(pairs[:, 1])])
-    matrix = sp.csr_matrix((np.ones(src.size, np.int8), (src, dst)), shape=(frames, frames))
-    _, labels = connected_components(matrix, directed=True, connection="strong")
-    sizes = np.bincount(labels)
+    matrix = _state_graph(frames, play, pairs[:, 0], layout.targets(pairs[:, 1]), segment, np.int8)
+    return _largest_part(matrix, segment).reshape(frames, segment).any(axis=1)
+
+
+def _state_graph(frames, play, leave, enter, segment, dtype):
+    """Sparse adjacency (n, n), n = frames · segment, of the (frame, segment position) states:
+    state (v, s), s = min(frames played in the current segment, segment) − 1; playback from each
+    frame in ``play``: (v, s) → (v+1, min(s+1, segment−1)); transitions ``leave`` → ``enter``
+    (frames) only from s = segment − 1, to (w, 0)."""
+    s = np.arange(segment)
+    src = np.concatenate([(play[:, None] * segment + s).ravel(), leave * segment + segment - 1])
+    dst = np.concatenate([((play[:, None] + 1) * segment + np.minimum(s + 1, segment - 1)).ravel(), enter * segment])
+    n = frames * segment
+    return sp.csr_matrix((np.ones(src.size, dtype), (src, dst)), shape=(n, n))
+
+
+def _largest_part(matrix, segment):
+    """States (n,) bool of the largest strongly connected part of a (frame, segment-position)
+    state graph (n = F · segment), by the frames it holds (a frame's states may lie in several
+    parts); of equally large parts, the first scipy labels."""
+    from scipy.sparse.csgraph import connected_components
+
+    count, labels = connected_components(matrix, directed=True, connection="strong")
+    frames = matrix.shape[0] // segment
+    held = np.unique(labels.reshape(frames, segment) + count * np.arange(frames)[:, None]) % count
+    sizes = np.bincount(held, minlength=count)
     return labels == np.flatnonzero(sizes == sizes.max())[0]
 
 
@@ -325,7 +405,7 @@ def random_walks(graph, count, frames, rng, start=None, transition_probability=0
         start = _check_frame(graph, start, "start frame", usable_only=True)
         first = np.full(count, start, np.int64)
     else:
-        first = rng.choice(graph.usable_frames, size=count)
+        first = rng.choice(graph.start_frames(segment, fresh), size=count)
     # usable_only=False: a walk may run into a dead end (the clip's last frames past its last
     # transition) when its remaining length fits, so those frames are played too, as endings.
     path, _ = _walk_interval(graph, False, first, np.zeros(count, np.int64), None, frames - 1, rng,
@@ -568,13 +648,14 @@ def _infinite_walk_nodes(n, src, dst):
     return alive
 
 
-def _backward_sets(matrix, allowed, end_states, length):
+def _backward_sets(matrix, allowed, end_states, length, early=None, late=0):
     """B (length+1, n) bool: B[t] = states from which ``end_states`` is reached in exactly
-    length − t steps through allowed states."""
+    length − t steps through allowed states; with ``early`` (n,) bool, through those while more
+    than ``late`` steps remain."""
     b = np.empty((length + 1, matrix.shape[0]), bool)
     b[length] = end_states & allowed
     for t in range(length - 1, -1, -1):
-        b[t] = (matrix @ b[t + 1].astype(np.float32) > 0) & allowed
+        b[t] = (matrix @ b[t + 1].astype(np.float32) > 0) & (allowed if early is None or length - t <= late else early)
     return b
 
 
@@ -630,8 +711,9 @@ def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, 
     the targets, for error messages."""
     F = graph.frames
     moves = graph._moves
-    plain = graph._backward(usable_only, 1, end_frame, length)[:, :, 0]  # (L+1, F)
-    strict = graph._backward(usable_only, segment, end_frame, length)  # (L+1, F, segment)
+    late = fresh if fresh > 0 and end_frame is None else None  # traps only as endings (module notes)
+    plain = graph._backward(usable_only, 1, end_frame, length, late)[:, :, 0]  # (L+1, F)
+    strict = graph._backward(usable_only, segment, end_frame, length, late)  # (L+1, F, segment)
 
     if first is None:
         count = since.size

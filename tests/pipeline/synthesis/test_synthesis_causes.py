@@ -150,3 +150,36 @@ def test_recurrent_frames_and_walk_statistics_on_a_known_graph():
     stats = walk_statistics(sources, 10)
     assert stats["transitions"] == [1] and stats["coverage"] == [1.0]
     assert stats["mean_segment_frames"] == [20 / 3] and stats["shortest_segment"] == [10]
+
+
+def trap_graph():
+    """40 frames: an early loop 5..15 (15 → 5), playback on into a late loop 25..35 (35 → 25), and
+    a way back 27 → 3 that leaves two frames after the late loop's only way in."""
+    return 40, [(15, 4), (35, 24), (27, 2)]
+
+
+def test_a_way_back_a_strict_walk_cannot_take_is_not_recurrent():
+    # Cause: on the samba's arm the way back from the late frames left two frames after the only
+    # way in; the frame graph counted the whole clip as one part, walks of min_segment frames
+    # stayed in the late part (a median 32 % of the frames played).
+    frames, pairs = trap_graph()
+    assert np.flatnonzero(recurrent_frames(frames, pairs)).tolist() == list(range(3, 36))
+    assert np.flatnonzero(recurrent_frames(frames, pairs, segment=4)).tolist() == list(range(3, 28))
+    assert np.flatnonzero(recurrent_frames(frames, pairs, segment=3)).tolist() == list(range(3, 36))
+
+
+def test_walks_enter_a_trap_only_as_their_ending():
+    frames, pairs = trap_graph()
+    graph = MotionGraph(frames, pairs)
+    trapped = graph.trapped(False, 4).reshape(frames, 4)
+    assert np.flatnonzero(trapped.any(axis=1)).tolist() == list(range(25, 36))
+    assert not trapped[3:25].any() and trapped[28:36, -1].all()
+    ending = 12
+    sources = random_walks(graph, 300, 200, np.random.default_rng(3), min_segment=4, fresh=ending)
+    late = sources >= 28  # the trap's own frames and the dead end after it
+    assert not late[:, :-(ending + 1)].any()  # entered with at most ``ending`` steps left
+    assert late[:, -(ending + 1):].any(axis=1).mean() > 0.2  # its frames are still played, as endings
+    assert set(np.unique(sources[:, 0])) <= set(range(0, 28))
+    # Without loop avoidance (fresh = 0) the walks are as they were: most end up in the trap.
+    legacy = random_walks(graph, 300, 200, np.random.default_rng(3), min_segment=4)
+    assert (legacy[:, 100] >= 25).mean() > 0.5
