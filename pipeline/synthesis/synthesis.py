@@ -62,7 +62,9 @@ REPLACEMENT_CAP = 8
 #: 8: a plant holds its foot's orientation from frame to frame, turned up to 35° (:mod:`.planting`).
 #: 9: a plant's limb correction is let go where the input's foot lifts inside a bridged gap, and past
 #: its hold only what exceeds 0.1 of the height leaks (:mod:`.planting`).
-BATCH_REVISION = 9
+#: 10: walks enter a trap of the motion graph only in their last 2 s, and start outside it
+#: (:meth:`.motion_graph.MotionGraph.trapped`).
+BATCH_REVISION = 10
 
 
 def component_from_file(data, rest, contacts=False):
