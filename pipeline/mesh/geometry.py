@@ -59,6 +59,15 @@ def frame_accelerations(vertices):
     return out
 
 
+def largest_acceleration(vertices, starts=None):
+    """The largest vertex acceleration (:func:`frame_accelerations`) of vertices (F, V, 3), inside
+    each clip (``starts`` (C + 1,) the clips' first frames and F; None: one clip), never across the
+    step from one clip's last frame to the next one's first; NaN with no clip of 3 frames."""
+    starts = [0, vertices.shape[0]] if starts is None else np.asarray(starts, np.int64)
+    return max((np.nanmax(frame_accelerations(vertices[a:b])) for a, b in zip(starts[:-1], starts[1:]) if b - a >= 3),
+               default=np.nan)
+
+
 def mesh_edges(faces):
     """Unique undirected edges (E, 2), lower index first, of triangles faces (T, 3)."""
     pairs = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])

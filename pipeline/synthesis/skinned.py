@@ -125,14 +125,9 @@ def acceleration_plots(skin, F, t, sources, count, device, clips=None):
     the input's several clips (None: one): seams by the clip-aware rule, and the input's largest
     acceleration measured inside each clip (never across the step from one clip's last frame to
     the next one's first)."""
-    from ..mesh.geometry import frame_accelerations
+    from ..mesh.geometry import frame_accelerations, largest_acceleration
 
-    if clips is None:
-        largest = np.nanmax(frame_accelerations(skin.examples))
-    else:
-        starts = clips.starts
-        largest = max((np.nanmax(frame_accelerations(skin.examples[a:b])) for a, b in zip(starts[:-1], starts[1:])
-                       if b - a >= 3), default=np.nan)
+    largest = largest_acceleration(skin.examples, None if clips is None else clips.starts)
     for a in range(count):
         vertices = lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, F[a], t[a], device=device)
         ratio = frame_accelerations(vertices) / largest

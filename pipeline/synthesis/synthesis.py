@@ -64,7 +64,9 @@ REPLACEMENT_CAP = 8
 #: its hold only what exceeds 0.1 of the height leaks (:mod:`.planting`).
 #: 10: walks enter a trap of the motion graph only in their last 2 s, and start outside it
 #: (:meth:`.motion_graph.MotionGraph.trapped`).
-BATCH_REVISION = 10
+#: 11: a large limb correction's spring out of a plant is slowed (:data:`.planting.EDGE_ACCEL`), and
+#: both edges of a gap between plants keep their steps (:func:`.planting_loops.blend_edges_row`).
+BATCH_REVISION = 11
 
 
 def component_from_file(data, rest, contacts=False):

@@ -57,8 +57,11 @@ in :mod:`.planting_loops`, one animation at a time):
    the limb corrections): outside plants each is the decay x(k) = (x₀ + c k) e^(−y k) of its
    value at the nearest plant edge, y = 2 ln 2 / half-life a frame, c chosen so that the first
    step out equals the last step in (frame for frame, not only in continuous time); in a gap
-   between two plants the backward spring starts from what the forward one leaves. So a plant's
-   start and end carry no velocity jump.
+   between two plants the backward spring starts from what the forward one leaves, and the
+   forward one's first step gives up what the backward one still holds at the gap's start (both
+   are linear in their starts: solved at once, where that is well posed). So a plant's start and
+   end carry no velocity jump. A large limb correction's spring out of a plant is slowed so its
+   start adds at most :data:`EDGE_ACCEL` of the input's largest acceleration.
 
 Why translations and a foot's turn, not IK: the fitted rig has no joints (one root, every bone
 free: :mod:`~skinsynth.pipeline.rig.skeleton`), so there is no chain to bend; a bone's translation is
@@ -126,6 +129,16 @@ LIMB_MEMORY = 1.0
 #: plant's :data:`HOLD` starts again: the foot is in the air, so moving it slides nothing. The
 #: samba's feet lift for 2–3 frames every 1.6–3.7 s.
 RELEASE = 0.125
+#: Share of the input's largest vertex acceleration a limb correction's spring at a plant's edge may
+#: add (module notes, 5.): the spring x(k) = (x₀ + c k) e^(−y k) accelerates by y² ‖x₀‖ as it starts,
+#: so a large correction let go at :data:`HALF_LIFE` (past :data:`HOLD` it may hold 0.1 of the
+#: height, :data:`LIMB_BOUND`) kicked the foot as it lifted: on the crane, 50 × 600, the largest
+#: acceleration was 1.57× the input's (1.13× in most animations, at the lift of frame 64) where
+#: the same walks without contacts stay at 0.91×. There y is slowed to √(limit / ‖x₀‖): 1.14× at
+#: a quarter (1.05× at a tenth). A quarter leaves the limb's own motion as it lifts most of the
+#: room under the input's largest, and keeps :data:`HALF_LIFE` for any correction under three
+#: quarters of the input's largest acceleration (in mesh units): the usual, small ones.
+EDGE_ACCEL = 0.25
 #: Share of the character's height a limb's summed slide may reach past :data:`HOLD` before the part
 #: beyond it leaks (:data:`LIMB_MEMORY`). Why a bound, not a leak of the whole sum (as before): a
 #: leak moves the planted foot by its share of the sum every frame, a creep on the ground; on the
@@ -163,7 +176,9 @@ class PlantRig:
     (:data:`BRIDGE`); hold and memory (frames): how long a plant is held exactly, and the time
     constant of the leak past it (:data:`HOLD`, :data:`LIMB_MEMORY`); bound (mesh units) what a
     limb's sum may hold past the hold (:data:`LIMB_BOUND`); release (frames) the shortest
-    release of a bridged gap (:data:`RELEASE`); max_turn (radians); up_axis."""
+    release of a bridged gap (:data:`RELEASE`); edge_limit (mesh units a frame²) what a limb
+    correction's spring at a plant's edge may accelerate (:data:`EDGE_ACCEL`); max_turn (radians);
+    up_axis."""
 
     planted: np.ndarray
     owner: np.ndarray
@@ -190,6 +205,7 @@ class PlantRig:
     memory: float
     bound: float
     release: int
+    edge_limit: float
     max_turn: float
     up_axis: int
 
@@ -242,7 +258,7 @@ def limb_influence(weight_terms, hops, reach=REACH):
 def plant_rig(rest, bone_indices, bone_weights, rotations, translations, examples, patches, planted, grounds,
               clip_starts, fps, components, up_axis=1, half_life=HALF_LIFE, reach=REACH, max_turn=MAX_TURN,
               bridge=BRIDGE, hold=HOLD, limb_memory=LIMB_MEMORY, limb_bound=LIMB_BOUND, release=RELEASE,
-              samples=None):
+              edge_accel=EDGE_ACCEL, samples=None):
     """The :class:`PlantRig` of an input: rest (V, 3), weights (V, K), its fit rotations
     (Fi, B, 3, 3) and translations (Fi, B, 3), and the input frames themselves, examples
     (Fi, V, 3): the plants follow the input, not the fit's playback of it (a 20-bone fit of the
@@ -251,9 +267,11 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     clip's ground (:class:`.contact_patches.ContactPatches`); clip_starts (C + 1,); fps;
     components (sorted bone-id lists: the synthesis's, which own the patches); bridge (seconds,
     :data:`BRIDGE`); hold and limb_memory (seconds, :data:`HOLD`, :data:`LIMB_MEMORY`); limb_bound (a
-    share of the height, :data:`LIMB_BOUND`); release (seconds, :data:`RELEASE`); samples:
+    share of the height, :data:`LIMB_BOUND`); release (seconds, :data:`RELEASE`); edge_accel (a
+    share of the input's largest vertex acceleration, :data:`EDGE_ACCEL`); samples:
     the sample vertex ids (P, S) of :func:`lowest_samples` when the caller has them already
     (None: found here)."""
+    from ...mesh.geometry import largest_acceleration
     from ...rig.rotations import polar_rotation
 
     rest = np.asarray(rest, dtype=np.float64)
@@ -318,6 +336,7 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
                     decay=2.0 * np.log(2.0) / (half_life * fps), sigma=half_life * fps,
                     bridge=int(round(bridge * fps)), hold=int(round(hold * fps)), memory=limb_memory * fps,
                     bound=limb_bound * character_height(rest, up_axis), release=max(1, int(round(release * fps))),
+                    edge_limit=edge_accel * largest_acceleration(examples, starts),
                     max_turn=np.radians(max_turn), up_axis=int(up_axis))
 
 
@@ -348,7 +367,8 @@ def plant_feet(F, t, sources, rig, lowest=None):
                             c(rig.ground), c(rig.orientation_in), c(rig.turn_steps_in), own, c(rig.influence), c(rig.solve),
                             float(rig.decay), gaussian_weights(rig.sigma), raised_cosine(rig.lift_radius),
                             float(rig.max_turn), int(rig.up_axis), int(rig.bridge),
-                            int(rig.hold), float(np.exp(-1.0 / rig.memory)), float(rig.bound), int(rig.release), states, lowest is not None,
+                            int(rig.hold), float(np.exp(-1.0 / rig.memory)), float(rig.bound), int(rig.release),
+                            float(rig.edge_limit), states, lowest is not None,
                             np.zeros((0, 0)) if lowest is None else lowest)
 
 

@@ -98,11 +98,59 @@ def _spring(x0, step, k, decay, growth):
 
 
 @numba.njit(cache=True, nogil=True)
-def blend_edges_row(values, state, decay):
+def edge_decay(value, decay, limit):
+    """The rate y of a spring from ``value`` (3,): ``decay``, slowed where the decay of a large
+    value would accelerate it beyond ``limit`` (y² ‖x₀‖ ≤ limit: :data:`.planting.EDGE_ACCEL`)."""
+    size = np.sqrt(value[0] ** 2 + value[1] ** 2 + value[2] ** 2)
+    if size * decay * decay <= limit:
+        return decay
+    return np.sqrt(limit / size)
+
+
+@numba.njit(cache=True, nogil=True)
+def _step_term(k, y):
+    """The weight of a spring's first step at k frames (:func:`_spring` = x₀ (1 + (g − 1) k) e^(−y k)
+    + step g k e^(−y k), g = e^y)."""
+    return np.exp(y) * k * np.exp(-y * k)
+
+
+@numba.njit(cache=True, nogil=True)
+def _coupling(G, y_end, y_start):
+    """κ: how much of a change δ of the forward spring's first step comes back, through the
+    backward spring's start, at the first of a gap of G frames (the backward spring's value there
+    changes by κ δ)."""
+    b_there, b_before = _step_term(G + 1.0, y_end), _step_term(G, y_end)
+    return b_there * (1.0 + (np.exp(y_start) - 1.0) * G) * np.exp(-y_start * G) + (b_before - b_there) * _step_term(G, y_start)
+
+
+@numba.njit(cache=True, nogil=True)
+def _backward_start(x_end, v_end, there, ahead, until, y_end, has_end):
+    """(x_start, v_start) (3,) each: the backward spring's start at the next plant's first frame,
+    ``until`` frames after the last plant's last: that plant's value ``there`` and step ``ahead``
+    (reversed) less what the forward spring (x_end, v_end, rate y_end) leaves there."""
+    x_start = there.copy()
+    v_start = ahead.copy()
+    if has_end:
+        g = np.exp(y_end)
+        for d in range(3):
+            left_there = _spring(x_end[d], v_end[d], float(until), y_end, g)
+            left_before = _spring(x_end[d], v_end[d], float(until - 1), y_end, g)
+            x_start[d] -= left_there
+            v_start[d] -= left_before - left_there
+    return x_start, v_start
+
+
+@numba.njit(cache=True, nogil=True)
+def blend_edges_row(values, state, decay, limit=np.inf):
     """One row of :func:`.planting._blend_edges`: values (M, 3) (zero outside the plants on entry),
-    state (M,) bool; the frames outside become the springs from the plants' edges, in place."""
+    state (M,) bool; the frames outside become the springs from the plants' edges, in place; the
+    rate of each spring :func:`edge_decay` of its start (``limit``: inf for ``decay``). The backward
+    spring starts from what the forward one leaves at the next plant (value and step), and the
+    forward one's first step is lessened by what the backward one still holds at the gap's first
+    frame (the two linear in their starts, solved at once), so both edges keep their steps exactly
+    where that is well posed (:func:`_coupling` κ < 0.5; a one-frame gap cannot keep both: κ = 1).
+    A gap too short for slowed springs (κ ≥ 0.5) gets the default rate."""
     M = state.shape[0]
-    growth = np.exp(decay)
     last_end = -1
     m = 0
     while m < M:
@@ -114,33 +162,46 @@ def blend_edges_row(values, state, decay):
         while m < M and not state[m]:
             m += 1
         coming = m  # the next plant's first frame (M: none)
+        x_end = np.zeros(3)
+        v_end = np.zeros(3)
+        there = np.zeros(3)  # the next plant's first value, and its first step reversed
+        ahead = np.zeros(3)
         for d in range(3):
-            x_end = 0.0
-            v_end = 0.0
             if last_end >= 0:
-                x_end = values[last_end, d]
+                x_end[d] = values[last_end, d]
                 if last_end >= 1 and state[last_end - 1]:
-                    v_end = values[last_end, d] - values[last_end - 1, d]
-            x_start = 0.0
-            v_start = 0.0
+                    v_end[d] = values[last_end, d] - values[last_end - 1, d]
             if coming < M:
-                until0 = coming - last_end
-                left_there = 0.0
-                left_before = 0.0
-                if last_end >= 0:
-                    left_there = _spring(x_end, v_end, float(until0), decay, growth)
-                    left_before = _spring(x_end, v_end, float(until0 - 1), decay, growth)
-                ahead = 0.0
+                there[d] = values[coming, d]
                 if coming + 1 < M and state[coming + 1]:
-                    ahead = values[coming, d] - values[coming + 1, d]
-                x_start = values[coming, d] - left_there
-                v_start = ahead - (left_before - left_there)
+                    ahead[d] = values[coming, d] - values[coming + 1, d]
+        y_end = decay if last_end < 0 else edge_decay(x_end, decay, limit)
+        x_start, v_start = _backward_start(x_end, v_end, there, ahead, coming - last_end, y_end, last_end >= 0)
+        y_start = edge_decay(x_start, decay, limit)
+        kappa = 1.0
+        if last_end >= 0 and coming < M:
+            kappa = _coupling(float(coming - last_end - 1), y_end, y_start)
+            if kappa >= 0.5 and (y_end != decay or y_start != decay):  # a gap too short for slowed springs
+                y_end = y_start = decay
+                x_start, v_start = _backward_start(x_end, v_end, there, ahead, coming - last_end, decay, True)
+                kappa = _coupling(float(coming - last_end - 1), decay, decay)
+        g_end, g_start = np.exp(y_end), np.exp(y_start)
+        if kappa < 0.5:  # the backward spring's reach to the gap's first frame, taken off the forward
+            # one's first step (both linear in their starts: solved at once)
+            G = float(coming - last_end - 1)
+            b_there, b_before = _step_term(G + 1.0, y_end), _step_term(G, y_end)
+            for d in range(3):
+                delta = _spring(x_start[d], v_start[d], G, y_start, g_start) / (1.0 - kappa)
+                v_end[d] -= delta
+                x_start[d] += delta * b_there
+                v_start[d] += delta * (b_before - b_there)
+        for d in range(3):
             for f in range(gap_start, coming):
                 total = 0.0
                 if last_end >= 0:
-                    total += _spring(x_end, v_end, float(f - last_end), decay, growth)
+                    total += _spring(x_end[d], v_end[d], float(f - last_end), y_end, g_end)
                 if coming < M:
-                    total += _spring(x_start, v_start, float(coming - f), decay, growth)
+                    total += _spring(x_start[d], v_start[d], float(coming - f), y_start, g_start)
                 values[f, d] = total
     return values
 
@@ -279,8 +340,8 @@ def _lowest(rows, lowest_operator, samples, out):
 @numba.njit(cache=True, nogil=True)
 def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, lowest_operator, samples, anchor_slot,
                      inverse_in, steps_in, heights_in, ground, orientation_in, turn_steps_in, own,
-                     influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, hold, keep, bound, release, states,
-                     want_lowest, lowest):
+                     influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, hold, keep, bound, release,
+                     edge_limit, states, want_lowest, lowest):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
     :class:`.planting.PlantRig` tables (own (P, K) the slots in ``bones`` of each patch's own bones,
@@ -292,7 +353,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     bridged (:func:`bridge_gaps`); hold: the frames a plant holds its patch exactly; keep: past
     them, the share of a limb's summed slide beyond ``bound`` (its length) kept from one frame to
     the next (:data:`.planting.HOLD`, :data:`.planting.LIMB_MEMORY`, :data:`.planting.LIMB_BOUND`); release: the fewest frames over which
-    a bridged gap lets the sum go (:data:`.planting.RELEASE`); states (A, P, M) written; with want_lowest, lowest (A, M) too:
+    a bridged gap lets the sum go (:data:`.planting.RELEASE`); edge_limit: the acceleration a limb
+    correction's spring out of a plant may add (:func:`edge_decay`); states (A, P, M) written; with want_lowest, lowest (A, M) too:
     the lowest of the patches' sample vertices once planted (the band's, :mod:`.contact`)."""
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
@@ -474,7 +536,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                     correction[p, m, d] = acc[d]
                 target = heights_in[src[a, p, m], p] + ground[ground_src[a, m]]
                 correction[p, m, up] = target - low[p, m] - root[m, up]
-            blend_edges_row(correction[p], state[p], decay)
+            blend_edges_row(correction[p], state[p], decay, edge_limit)
         # 3b. the floor: a swinging patch no lower than the input's at its source frame, lifted
         # smoothly (dilated, raised-cosine), the lift tapered to 0 at the plants
         radius = lift_kernel.shape[0] // 2

@@ -88,7 +88,7 @@ def _plant_block(F, t, sources, rig):
         correction[:, :, m] = np.where(stepping[:, :, m, None], summed, 0.0)
     correction = np.where(state[..., None], correction, 0.0)
     correction[..., up] = np.where(state, error - root[:, None, :, up], 0.0)
-    _blend_edges(correction, state, stepping, first, last, rig.decay)
+    _blend_edges(correction, state, stepping, first, last, rig.decay, rig.edge_limit)
     # the floor: a swinging patch no lower than the input's at its source frame, lifted smoothly and
     # tapered off at the plants
     need = np.where(state, 0.0, np.maximum(0.0, target - (lowest + root[:, None, :, up] + correction[..., up])))
@@ -130,22 +130,30 @@ def _taper(state, radius):
     return x * x * (3.0 - 2.0 * x)
 
 
-def _blend_edges(correction, state, stepping, first, last, decay):
+def _blend_edges(correction, state, stepping, first, last, decay, limit=np.inf):
     """Outside the plants, ``correction`` (A, P, M, 3) (zero there on entry) becomes the decay of
     the correction at the nearest plant edges: forward from a plant's last frame and backward into
     the next plant's first, each a critically damped spring (Holden's inertialization) whose first
     step across the edge equals the last step inside (matched per frame, not only in continuous
     time: y = 0.58 a frame at 24 fps). In a gap between two plants the backward spring starts from
     what the forward one leaves at the next plant (value and step), so the two add up to the
-    next plant's correction there."""
+    next plant's correction there. Each spring's rate y is ``decay``, slowed to √(limit / ‖x₀‖)
+    where y² ‖x₀‖ would exceed ``limit`` (the acceleration its start adds), and both edges keep
+    their steps (the forward spring's first step less what the backward one holds there).""" 
     M = state.shape[-1]
     frames = np.arange(M)
     outside = ~state
-    growth = np.exp(decay)
 
-    def spring(x0, step, k):  # x(0) = x0, x(1) − x(0) = step, then decays: (x0 + c k) e^(−y k)
-        c = (x0 + step) * growth - x0
-        return (x0 + c * k) * np.exp(-decay * k)
+    def rate(x0):  # (..., 3) -> (..., 1)
+        size = np.linalg.norm(x0, axis=-1, keepdims=True)
+        return np.where(size * decay * decay <= limit, decay, np.sqrt(limit / np.maximum(size, 1e-300)))
+
+    def spring(x0, step, k, y):  # x(0) = x0, x(1) − x(0) = step, then (x0 + c k) e^(−y k)
+        c = (x0 + step) * np.exp(y) - x0
+        return (x0 + c * k) * np.exp(-y * k)
+
+    def step_term(k, y):  # spring = x0 (1 + (g − 1) k) e^(−y k) + step · step_term(k, y)
+        return np.exp(y) * k * np.exp(-y * k)
 
     def gather(values, at):
         return np.take_along_axis(values, np.clip(at, 0, M - 1)[..., None], axis=2)
@@ -158,14 +166,39 @@ def _blend_edges(correction, state, stepping, first, last, decay):
     after_ok = (ended >= 0)[..., None]
     x_end, v_end = gather(correction, ended), gather(stepped, ended)
     since = np.maximum(frames - ended, 0)[..., None].astype(np.float64)
-    after = np.where(after_ok, spring(x_end, v_end, since), 0.0)
-    # the backward spring takes what is left at the next plant's first frame once the forward one is counted
     until = np.maximum(coming - frames, 0)[..., None].astype(np.float64)
-    left_there = np.where(after_ok, spring(x_end, v_end, since + until), 0.0)
-    left_before = np.where(after_ok, spring(x_end, v_end, since + until - 1.0), 0.0)
-    x_start = gather(correction, coming) - left_there
-    v_start = gather(ahead, coming) - (left_before - left_there)
-    before = np.where((coming < M)[..., None], spring(x_start, v_start, until), 0.0)
+    gap = (coming - ended - 1)[..., None].astype(np.float64)
+
+    def backward_start(y_end):  # the next plant's value and step less what the forward spring leaves there
+        left_there = np.where(after_ok, spring(x_end, v_end, since + until, y_end), 0.0)
+        left_before = np.where(after_ok, spring(x_end, v_end, since + until - 1.0, y_end), 0.0)
+        return gather(correction, coming) - left_there, gather(ahead, coming) - (left_before - left_there)
+
+    def coupling(y_end, y_start):  # κ (blend_edges_row's _coupling)
+        b_there, b_before = step_term(gap + 1.0, y_end), step_term(gap, y_end)
+        return b_there * (1.0 + (np.exp(y_start) - 1.0) * gap) * np.exp(-y_start * gap) + \
+            (b_before - b_there) * step_term(gap, y_start)
+
+    # each spring's rate slowed for a large start (y² ‖x₀‖ ≤ limit), unless the gap is too short for
+    # that (κ ≥ 0.5): then both at ``decay``
+    inner = after_ok & (coming < M)[..., None] & outside[..., None]
+    y_end = rate(x_end)
+    x_start, v_start = backward_start(y_end)
+    y_start = rate(x_start)
+    kappa = np.where(inner, coupling(y_end, y_start), 1.0)
+    fall = inner & (kappa >= 0.5) & ((y_end != decay) | (y_start != decay))
+    y_end, y_start = np.where(fall, decay, y_end), np.where(fall, decay, y_start)
+    x_default, v_default = backward_start(np.full_like(y_end, decay))
+    x_start, v_start = np.where(fall, x_default, x_start), np.where(fall, v_default, v_start)
+    kappa = np.where(fall, coupling(y_end, y_start), kappa)
+    # what the backward spring holds at the gap's first frame comes off the forward one's first step
+    # (both linear in their starts), where that is well posed (κ < 0.5: a one-frame gap cannot keep both)
+    solve = np.broadcast_to(inner & (kappa < 0.5), x_start.shape)
+    delta = np.divide(spring(x_start, v_start, gap, y_start), 1.0 - kappa, out=np.zeros_like(x_start), where=solve)
+    b_there, b_before = step_term(gap + 1.0, y_end), step_term(gap, y_end)
+    after = np.where(after_ok, spring(x_end, v_end - delta, since, y_end), 0.0)
+    x_start, v_start = x_start + delta * b_there, v_start + delta * (b_before - b_there)
+    before = np.where((coming < M)[..., None], spring(x_start, v_start, until, y_start), 0.0)
     correction += np.where(outside[..., None], after + before, 0.0)
 
 

@@ -594,3 +594,35 @@ def test_a_planted_foot_turns_only_as_the_inputs_did(walker_graph):
         held = np.abs(steps(F, anchor) - own)[inside] < np.radians(0.2)
         assert np.median(steps(r.F, anchor)[inside]) > np.radians(2.0)  # the walks and merges do turn them
         assert held.mean() > 0.6, held.mean()
+
+
+def test_a_large_correction_is_let_go_no_faster_than_its_limit_and_both_edges_keep_their_steps():
+    # a plant holding a large correction (1.0, at rest) until frame 19, then a gap, then a plant whose
+    # small correction moves; the spring out starts with y² ‖x₀‖ = 0.334 at y = 0.578 a frame
+    decay = 0.578
+    limit = decay ** 2 / 8
+
+    def blended(gap, limit):
+        M = 20 + gap + 20
+        state = np.zeros(M, bool)
+        state[:20] = True
+        state[20 + gap:] = True
+        values = np.zeros((M, 3))
+        values[:20] = [1.0, 0.0, 0.0]
+        values[20 + gap:, 1] = 0.03 + 0.001 * np.arange(20)
+        out = blend_edges_row(values.copy(), state, decay, limit)
+        expected = values[None, None].copy()
+        _blend_edges(expected, *_edge_masks(state), decay, limit)
+        np.testing.assert_allclose(out, expected[0, 0], rtol=1e-12, atol=1e-12)  # compiled = reference
+        if gap > 3:  # leaving: the last step inside (well posed: κ < 0.5)
+            np.testing.assert_allclose(out[20] - out[19], out[19] - out[18], atol=1e-12)
+        np.testing.assert_allclose(out[20 + gap] - out[19 + gap], out[21 + gap] - out[20 + gap], atol=1e-12)
+        return np.linalg.norm(np.diff(out, 2, axis=0), axis=1).max()
+
+    for gap in (12, 40):
+        assert blended(gap, limit) < 0.75 * blended(gap, np.inf)
+    # over a long gap each spring starts within its limit (a discrete second difference averages the
+    # spring's own, at most y² ‖x₀‖); the default one kicks twice as hard or more
+    assert blended(40, limit) <= 1.05 * limit < 0.5 * blended(40, np.inf)
+    # a gap too short for slowed springs (κ ≥ 0.5) keeps the default rate, entering as the next plant does
+    assert blended(3, limit) == blended(3, np.inf)
