@@ -57,7 +57,8 @@ Choices the paper leaves open, made here:
   Without this, on the 48-frame horse gallop 15 of 16 walks repeated a loop under 2 s more than
   three times in a row: the clip's last frame has one way back, a cycle earlier, and walks left
   that cycle by a 10 % draw at three frames of it.
-- Traps as endings (with ``fresh`` > 0, free-ended walks): a state from which endless walks exist
+- Traps as endings (with ``fresh`` > 0, free-ended walks not already in one, e.g. after a target
+  inside one): a state from which endless walks exist
   but none comes back to the largest strongly connected part of the (frame, segment position)
   graph (:meth:`MotionGraph.trapped`) is entered only within a walk's last ``fresh`` steps, and
   walks start where they can reach that part (:meth:`MotionGraph.start_frames`); the exact-length
@@ -711,7 +712,12 @@ def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, 
     the targets, for error messages."""
     F = graph.frames
     moves = graph._moves
-    late = fresh if fresh > 0 and end_frame is None else None  # traps only as endings (module notes)
+    late = fresh if fresh > 0 and end_frame is None else None  # traps only as endings (module notes) ...
+    if late is not None and first is not None:  # ... unless the walks start in one (a target there)
+        s0 = np.minimum(np.asarray(since, np.int64), segment - 1)
+        first_states = np.asarray(first, np.int64) * segment + s0
+        if graph.trapped(usable_only, 1)[first].any() or graph.trapped(usable_only, segment)[first_states].any():
+            late = None
     plain = graph._backward(usable_only, 1, end_frame, length, late)[:, :, 0]  # (L+1, F)
     strict = graph._backward(usable_only, segment, end_frame, length, late)  # (L+1, F, segment)
 

@@ -4,7 +4,8 @@ each on a small case that reproduced it."""
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.synthesis.motion_graph import MotionGraph, random_walks, recurrent_frames, walk_statistics
+from skinsynth.pipeline.synthesis.motion_graph import (MotionGraph, constrained_walks, random_walks, recurrent_frames,
+                                                       walk_statistics)
 from skinsynth.pipeline.rig.rotations import heading_and_posture, rotation_exp, rotation_log
 from skinsynth.pipeline.synthesis.splicing import blend_series, reference_alignment, seam_windows
 from skinsynth.pipeline.synthesis.transitions import select_transitions
@@ -183,3 +184,8 @@ def test_walks_enter_a_trap_only_as_their_ending():
     # Without loop avoidance (fresh = 0) the walks are as they were: most end up in the trap.
     legacy = random_walks(graph, 300, 200, np.random.default_rng(3), min_segment=4)
     assert (legacy[:, 100] >= 25).mean() > 0.5
+    # A target inside a trap (of the frame graph too, here) is still reached, and the walk goes on from it.
+    sealed = MotionGraph(frames, [(15, 2), (35, 24)])
+    assert sealed.trapped(False, 1)[25:36].all()
+    targeted = constrained_walks(sealed, 4, 200, [(30, 10)], np.random.default_rng(0), min_segment=4, fresh=ending)
+    assert (targeted[:, 10] == 30).all() and (targeted[:, 11:] >= 25).all()
