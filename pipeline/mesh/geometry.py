@@ -59,13 +59,14 @@ def frame_accelerations(vertices):
     return out
 
 
-def largest_acceleration(vertices, starts=None):
+def largest_acceleration(vertices, starts=None, block=32):
     """The largest vertex acceleration (:func:`frame_accelerations`) of vertices (F, V, 3), inside
     each clip (``starts`` (C + 1,) the clips' first frames and F; None: one clip), never across the
-    step from one clip's last frame to the next one's first; NaN with no clip of 3 frames."""
+    step from one clip's last frame to the next one's first; NaN with no clip of 3 frames. In
+    blocks of ``block`` second differences, so a long capture's differences are never all in memory."""
     starts = [0, vertices.shape[0]] if starts is None else np.asarray(starts, np.int64)
-    return max((np.nanmax(frame_accelerations(vertices[a:b])) for a, b in zip(starts[:-1], starts[1:]) if b - a >= 3),
-               default=np.nan)
+    return max((np.nanmax(frame_accelerations(vertices[m:min(m + block + 2, b)]))
+                for a, b in zip(starts[:-1], starts[1:]) for m in range(a, b - 2, block)), default=np.nan)
 
 
 def mesh_edges(faces):

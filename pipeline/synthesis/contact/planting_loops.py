@@ -354,7 +354,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     them, the share of a limb's summed slide beyond ``bound`` (its length) kept from one frame to
     the next (:data:`.planting.HOLD`, :data:`.planting.LIMB_MEMORY`, :data:`.planting.LIMB_BOUND`); release: the fewest frames over which
     a bridged gap lets the sum go (:data:`.planting.RELEASE`); edge_limit: the acceleration a limb
-    correction's spring out of a plant may add (:func:`edge_decay`); states (A, P, M) written; with want_lowest, lowest (A, M) too:
+    correction's springs at a plant's edges may add (:func:`edge_decay`); states (A, P, M) written; with want_lowest, lowest (A, M) too:
     the lowest of the patches' sample vertices once planted (the band's, :mod:`.contact`)."""
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
