@@ -306,10 +306,7 @@ class MotionGraph:
         key = ("parts", bool(usable_only), int(segment))
         if key not in self._state_cache:
             matrix, allowed = self._state_matrix(usable_only, segment)
-            n = matrix.shape[0]
-            inside = sp.diags(allowed.astype(np.float32))
-            matrix = (inside @ matrix @ inside).tocsr()
-            matrix.eliminate_zeros()
+            n = matrix.shape[0]  # its edges join allowed states only (:meth:`_state_matrix`)
             main = _largest_part(matrix, segment) & allowed
             # every state that reaches the main part: a search backwards from all of it at once
             # (node n, a source joined to each main state, on the reversed edges)
