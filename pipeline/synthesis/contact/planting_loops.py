@@ -100,9 +100,11 @@ def _spring(x0, step, k, decay, growth):
 @numba.njit(cache=True, nogil=True)
 def edge_decay(value, decay, limit):
     """The rate y of a spring from ``value`` (3,): ``decay``, slowed where the decay of a large
-    value would accelerate it beyond ``limit`` (y² ‖x₀‖ ≤ limit: :data:`.planting.EDGE_ACCEL`)."""
+    value would accelerate it beyond ``limit`` (y² ‖x₀‖ ≤ limit: :data:`.planting.EDGE_ACCEL`). A
+    limit that is not positive (an input that never accelerates, or too short to say: 0 or NaN)
+    slows nothing: y = 0 would carry the value on for ever."""
     size = np.sqrt(value[0] ** 2 + value[1] ** 2 + value[2] ** 2)
-    if size * decay * decay <= limit:
+    if not limit > 0.0 or size * decay * decay <= limit:
         return decay
     return np.sqrt(limit / size)
 

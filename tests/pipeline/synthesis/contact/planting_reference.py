@@ -146,6 +146,8 @@ def _blend_edges(correction, state, stepping, first, last, decay, limit=np.inf):
 
     def rate(x0):  # (..., 3) -> (..., 1)
         size = np.linalg.norm(x0, axis=-1, keepdims=True)
+        if not limit > 0.0:  # nothing to bound by (blend_edges_row's edge_decay)
+            return np.full_like(size, decay)
         return np.where(size * decay * decay <= limit, decay, np.sqrt(limit / np.maximum(size, 1e-300)))
 
     def spring(x0, step, k, y):  # x(0) = x0, x(1) − x(0) = step, then (x0 + c k) e^(−y k)

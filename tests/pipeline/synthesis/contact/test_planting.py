@@ -626,3 +626,5 @@ def test_a_large_correction_is_let_go_no_faster_than_its_limit_and_both_edges_ke
     assert blended(40, limit) <= 1.05 * limit < 0.5 * blended(40, np.inf)
     # a gap too short for slowed springs (κ ≥ 0.5) keeps the default rate, entering as the next plant does
     assert blended(3, limit) == blended(3, np.inf)
+    # an input that never accelerates (limit 0) or is too short to say (NaN) bounds nothing
+    assert blended(40, 0.0) == blended(40, np.nan) == blended(40, np.inf)
