@@ -71,10 +71,12 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
     with ``ratios_played``: the input frames themselves replayed along the first component's walks
     (steps across a seam left out), the reference for what synthesis adds where a walk dwells on
     part of a clip (:func:`~.contact.measures.played_input`)."""
-    from .contact.measures import Steps, character_height, measure_frames, measure_input, played_input, ratios, summary
+    from .contact.measures import (Steps, character_height, input_steps, measure_frames, played_input, ratios,
+                                   steps_of_input, summary)
 
     height = character_height(skin.rest_vertices, up_axis)
-    measured_in, grounds = measure_input(skin.examples, starts, height, up_axis, block=block)
+    table = input_steps(skin.examples, starts, height, up_axis, block=block)  # the input's, step by step
+    measured_in, grounds = steps_of_input(table, starts), table.grounds
     clip_of = np.clip(np.searchsorted(np.asarray(starts), np.asarray(sources[0, :count]), side="right") - 1,
                       0, len(grounds) - 1)
     parts = []
@@ -86,7 +88,7 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
 
         parts.append(measure_frames(frames, Fa.shape[0], grounds[clip_of[a]], height, up_axis, block=block))
     figures_in, figures_out = summary(measured_in), summary(Steps.join(parts))
-    played = summary(played_input(skin.examples, sources[0, :count], starts, grounds[clip_of], height, up_axis, block))
+    played = summary(played_input(table, sources[0, :count], starts))
     return {"height": height, "ground": [float(g) for g in grounds], "input": figures_in, "output": figures_out,
             "ratios": ratios(figures_out, figures_in), "played": played, "ratios_played": ratios(figures_out, played)}
 

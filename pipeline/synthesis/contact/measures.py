@@ -77,6 +77,15 @@ def contact_steps(vertices, ground, height, up_axis=1, band=BAND, plays_on=None,
     ``plays_on`` (M,) bool (frame m is followed by m+1; None: every frame but the last).
     ``steps``: count only the steps m → m+1 and the second differences centred on m+1 for
     m < steps (None: all; :func:`measure_frames`' blocks)."""
+    rows, slide, offset, counted, accel = _step_table(vertices, ground, height, up_axis, band, plays_on, steps)
+    finite = accel[np.isfinite(accel)]
+    return Steps(slide, offset, int(counted[:-1].sum()), float(finite.max()) if finite.size else float("nan"))
+
+
+def _step_table(vertices, ground, height, up_axis=1, band=BAND, plays_on=None, steps=None):
+    """:func:`contact_steps`' figures step by step: (rows (n,) the contact steps m → m+1, their
+    slide (n,) and offset (n,) over the height, counted (M,) the steps counted, accel (M,) the
+    largest second difference centred on each frame, NaN where none is counted)."""
     x = np.asarray(vertices, dtype=np.float64)
     M = x.shape[0]
     plays = np.ones(M, bool) if plays_on is None else np.asarray(plays_on, dtype=bool).copy()
@@ -93,21 +102,21 @@ def contact_steps(vertices, ground, height, up_axis=1, band=BAND, plays_on=None,
     step = x[r + 1, v] - x[r, v]
     step[:, up_axis] = 0.0
     moved = np.sqrt(np.einsum("ij,ij->i", step, step))
-    slide, offset = np.zeros(0), np.zeros(0)
+    rows, slide, offset = np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
     if r.size:
-        _, starts, counts = np.unique(r, return_index=True, return_counts=True)
+        rows, starts, counts = np.unique(r, return_index=True, return_counts=True)
         ordered = moved[np.lexsort((moved, r))]  # by step, then by distance
         slide = 0.5 * (ordered[starts + (counts - 1) // 2] + ordered[starts + counts // 2]) / height
         offset = np.minimum.reduceat(above[r, v], starts) / height
     # second differences whose three frames play on one into the next
-    accel = float("nan")
+    accel = np.full(M, np.nan)
     centred = np.flatnonzero(plays[:-2] & plays[1:-1] & counted[:-2]) if M >= 3 else np.zeros(0, np.int64)
     if centred.size:
         second = np.subtract(x[2:], x[1:-1])
         second -= x[1:-1]
         second += x[:-2]
-        accel = float(np.sqrt(np.einsum("mvi,mvi->mv", second, second).max(axis=1)[centred].max()))
-    return Steps(slide, offset, int(counted[:-1].sum()), accel)
+        accel[centred + 1] = np.sqrt(np.einsum("mvi,mvi->mv", second, second).max(axis=1)[centred])
+    return rows, slide, offset, counted, accel
 
 
 def measure_frames(frames, count, ground, height, up_axis=1, band=BAND, plays_on=None, block=64):
@@ -157,38 +166,83 @@ def ratios(output, input_):
     return out
 
 
+@dataclass
+class InputSteps:
+    """An input's figures step by step (:func:`input_steps`): per input frame f, the slide and
+    offset of the step f → f+1 (NaN where it is no contact step, or crosses into the next clip) and
+    the largest second difference centred on f (NaN at a clip's ends); ``grounds`` (C,) each clip's."""
+
+    slide: np.ndarray
+    offset: np.ndarray
+    accel: np.ndarray
+    grounds: np.ndarray
+
+
+def input_steps(vertices, starts, height, up_axis=1, block=64):
+    """The :class:`InputSteps` of an input of one or more clips, vertices (F, V, 3), clip c being
+    frames starts[c] … starts[c+1] − 1; no step or second difference crosses from one clip into the
+    next; measured in blocks of ``block`` frames."""
+    vertices = np.asarray(vertices)
+    starts = np.asarray(starts, dtype=np.int64)
+    F = vertices.shape[0]
+    slide, offset, accel = np.full(F, np.nan), np.full(F, np.nan), np.full(F, np.nan)
+    grounds = np.array([clip_ground(vertices[a:b], up_axis) for a, b in zip(starts[:-1], starts[1:])])
+    for a, b, g in zip(starts[:-1], starts[1:], grounds):
+        for start in range(a, max(b - 1, a + 1), block):
+            stop = min(start + block + 2, b)
+            rows, s, o, _, acc = _step_table(vertices[start:stop], g, height, up_axis, BAND, None, block)
+            slide[start + rows], offset[start + rows] = s, o
+            inside = np.isfinite(acc)
+            accel[start + np.flatnonzero(inside)] = acc[inside]
+    return InputSteps(slide, offset, accel, grounds)
+
+
 def measure_input(vertices, starts, height, up_axis=1, block=64):
     """An input of one or more clips, vertices (F, V, 3), clip c being frames starts[c] …
     starts[c+1] − 1 (:attr:`~skinsynth.pipeline.inputs.clips.Clips.starts`): (its :class:`Steps`, each
     clip's ground (C,)). No step or second difference crosses from one clip into the next."""
-    starts = np.asarray(starts, dtype=np.int64)
-    grounds = np.array([clip_ground(vertices[a:b], up_axis) for a, b in zip(starts[:-1], starts[1:])])
-    parts = [measure_frames(lambda s, e, a=a: vertices[a + s:a + e], b - a, g, height, up_axis, block=block)
-             for a, b, g in zip(starts[:-1], starts[1:], grounds)]
-    return Steps.join(parts), grounds
+    table = input_steps(vertices, starts, height, up_axis, block)
+    return steps_of_input(table, starts), table.grounds
 
 
-def played_input(examples, sources, starts, grounds, height, up_axis=1, block=64):
-    """The :class:`Steps` of the input frames themselves played along walks: examples (Fi, V, 3),
-    sources (A, M) the input frame of each output frame, starts the clips' starts (C + 1,), grounds
-    (A, M) each output frame's ground. A step counts only where the walk plays on (source m + 1 =
-    source m + 1 within a clip), not across a seam. Why: a capture's feet slide more in some of its
-    frames than in others (the samba's 0.17 % of the height a step in frames 25–125, 0.03 % in
-    frames 125–175), so the whole clip's figure is a fair reference only for walks that play every
-    frame equally; this one is, for any walk, what the input did at the frames it plays."""
+def steps_of_input(table, starts):
+    """The :class:`Steps` of the whole input from its :class:`InputSteps` (every step inside a clip)."""
+    counts = np.diff(np.asarray(starts, dtype=np.int64))
+    at = np.flatnonzero(np.isfinite(table.slide))
+    finite = table.accel[np.isfinite(table.accel)]
+    return Steps(table.slide[at], table.offset[at], int(np.maximum(counts - 1, 0).sum()),
+                 float(finite.max()) if finite.size else float("nan"))
+
+
+def played_input(table, sources, starts):
+    """The :class:`Steps` of the input frames themselves played along walks: ``table`` the input's
+    :class:`InputSteps`, sources (A, M) the input frame of each output frame, starts the clips'
+    starts (C + 1,). A step counts only where the walk plays on (source m + 1 = source m + 1 within a
+    clip), not across a seam; so each counted step is the input's own step at its source frame,
+    gathered (the same figures as measuring the played frames again). Why: a capture's feet slide
+    more in some of its frames than in others (the samba's 0.17 % of the height a step in frames
+    25–125, 0.03 % in frames 125–175), so the whole clip's figure is a fair reference only for walks
+    that play every frame equally; this one is, for any walk, what the input did at the frames it
+    plays."""
     from ...inputs.clips import Clips
 
-    examples = np.asarray(examples)
     counts = np.diff(np.asarray(starts, dtype=np.int64))
     clips = Clips(tuple(range(counts.size)), tuple(counts))  # the names play no part
-    parts = []
-    for a in range(sources.shape[0]):
-        src = np.asarray(sources[a], dtype=np.int64)
+    sources = np.asarray(sources, dtype=np.int64)
+    slides, offsets, steps, accel = [], [], 0, []
+    for src in sources:
         plays = np.zeros(src.size, bool)
         plays[:-1] = clips.continues(src)
-        parts.append(measure_frames(lambda s, e, src=src: examples[src[s:e]], src.size, grounds[a], height, up_axis,
-                                    plays_on=plays, block=block))
-    return Steps.join(parts)
+        stepping = src[:-1][plays[:-1]]
+        steps += stepping.size
+        contact = stepping[np.isfinite(table.slide[stepping])]
+        slides.append(table.slide[contact])
+        offsets.append(table.offset[contact])
+        centred = src[1:-1][plays[:-2] & plays[1:-1]] if src.size >= 3 else np.zeros(0, np.int64)
+        accel.append(table.accel[centred])
+    accel = np.concatenate(accel + [np.zeros(0)])
+    return Steps(np.concatenate(slides + [np.zeros(0)]), np.concatenate(offsets + [np.zeros(0)]), steps,
+                 float(accel.max()) if accel.size else float("nan"))
 
 
 def significant(value, digits=6):

@@ -5,8 +5,8 @@ import pytest
 
 from skinsynth.pipeline.inputs.clips import Clips
 from skinsynth.pipeline.synthesis.contact.measures import (BAND, Steps, character_height, clip_ground, contact_steps,
-                                                           measure_frames, measure_input, played_input, ratios,
-                                                           summary)
+                                                           input_steps, measure_frames, measure_input, played_input,
+                                                           ratios, summary)
 
 
 def block(frames=30, velocity=(0.0, 0.0, 0.0), lift=0.0):
@@ -94,13 +94,40 @@ def test_the_input_played_along_walks_is_the_input_at_the_frames_played():
     starts = np.array([0, 20])
     still = np.tile(np.arange(0, 8), 5)[None]  # frames 0–7 again and again
     sliding = np.tile(np.arange(10, 20), 4)[None]
-    grounds = np.zeros((1, 40))
-    assert played_input(rest_then_slide, still, starts, grounds, 2.0).slide.max() == 0.0
-    moving = played_input(rest_then_slide, sliding, starts, grounds, 2.0)
+    table = input_steps(rest_then_slide, starts, 2.0)
+    assert played_input(table, still, starts).slide.max() == 0.0
+    moving = played_input(table, sliding, starts)
     assert moving.slide.size == 36 and np.allclose(moving.slide, 0.02)  # 9 steps a loop, the 3 seams not
-    whole = played_input(rest_then_slide, np.arange(20)[None], starts, np.zeros((1, 20)), 2.0)
+    whole = played_input(table, np.arange(20)[None], starts)
     own, _ = measure_input(rest_then_slide, starts, 2.0)
-    assert np.array_equal(whole.slide, own.slide) and whole.steps == own.steps
+    assert np.array_equal(whole.slide, own.slide) and whole.steps == own.steps and whole.accel == own.accel
+
+
+def test_the_played_input_gathered_is_the_played_frames_measured_again():
+    """Brute force: the played frames themselves stacked and measured (steps across seams and
+    clips left out) give the same figures as the input's steps gathered, on two clips of a wobbling
+    block and random walks with seams."""
+    rng = np.random.default_rng(4)
+    clip_a = block(frames=30, velocity=(0.01, 0.0, 0.0)) + rng.normal(0.0, 0.003, (30, 1, 3)) * [1.0, 0.0, 1.0]
+    clip_b = block(frames=25, lift=0.2)
+    clip_b = clip_b + rng.normal(0.0, 0.004, clip_b.shape)
+    examples = np.concatenate([clip_a, clip_b])
+    clips = Clips(("a", "b"), (30, 25))
+    table = input_steps(examples, clips.starts, 2.0, block=7)
+    walks = np.stack([np.concatenate([np.arange(s, s + 20) for s in rng.integers(0, 35, 4)]) for _ in range(3)])
+    gathered = played_input(table, walks, clips.starts)
+    again = []
+    for src in walks:
+        plays = np.zeros(src.size, bool)
+        plays[:-1] = clips.continues(src)
+        ground = table.grounds[np.searchsorted(clips.starts, src, side="right") - 1]
+        again.append(measure_frames(lambda s, e, src=src: examples[src[s:e]], src.size, ground, 2.0, plays_on=plays,
+                                    block=9))
+    again = Steps.join(again)
+    assert gathered.steps == again.steps and gathered.slide.size == again.slide.size > 20
+    np.testing.assert_array_equal(np.sort(gathered.slide), np.sort(again.slide))
+    np.testing.assert_array_equal(np.sort(gathered.offset), np.sort(again.offset))
+    assert gathered.accel == again.accel
 
 
 def test_each_clip_has_its_own_ground():
