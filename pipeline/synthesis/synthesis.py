@@ -66,7 +66,9 @@ REPLACEMENT_CAP = 8
 #: (:meth:`.motion_graph.MotionGraph.trapped`).
 #: 11: a large limb correction's spring out of a plant is slowed (:data:`.planting.EDGE_ACCEL`), and
 #: both edges of a gap between plants keep their steps (:func:`.planting_loops.blend_edges_row`).
-BATCH_REVISION = 11
+#: 12: every plant correction within the same limit (a plant starts from what the last one's spring
+#: leaves, planted steps and turns capped, releases, root and lift widened: :mod:`.planting`, 6.).
+BATCH_REVISION = 12
 
 
 def component_from_file(data, rest, contacts=False):

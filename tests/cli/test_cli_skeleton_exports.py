@@ -261,15 +261,19 @@ def test_a_jointed_skins_puppet_plays_its_rig_on_the_joints_and_evaluate_says_wh
 
 def test_a_jointed_walkers_synthesized_feet_stay_planted_by_inverse_kinematics(tmp_path):
     """Putting the bones back on their joints undoes the plants' limb corrections; the legs then
-    reach for the planted feet again (two-bone IK). Measured on the planted walker: 3 % of its
-    contact steps slide more than 0.5 % of the height (69 % without the IK; 0 % unjointed)."""
+    reach for the planted feet again (two-bone IK). The planted walker's merged legs drag its feet
+    faster than a plant holds them without a pop (docs/contact.md: a foot dragged faster slides by
+    the rest), so measured against the same merge uncorrected: 54 % of its contact steps slide
+    more than 0.5 % of the height, 98 % with --no-contact (3 % when the plants held every foot
+    exactly, at 8.2× the input's largest acceleration; 5.4× now)."""
     assert_ok(cli("example", "walker", "--planted", "-o", tmp_path / "w.npz", "-q"))
     assert_ok(cli("fit-skin", tmp_path / "w.npz", "-o", tmp_path / "s.h5", "--bones", 12, "--skeleton", "-q"))
     assert_ok(cli("build-graph", tmp_path / "s.h5", "-o", tmp_path / "g.h5", "-q"))
-    report = json.loads(assert_ok(cli("synthesize", tmp_path / "g.h5", "-o", tmp_path / "b.h5", "-n", 8, "-m", 200,
-                                      "--measure-feet", 8, "--json", "-q")).output)
-    output = report["contact"]["output"]
-    assert output["sliding_share"] < 0.2 and output["penetration_p95"] < 0.005
+    outputs = [json.loads(assert_ok(cli("synthesize", tmp_path / "g.h5", "-o", tmp_path / "b.h5", "-n", 8, "-m", 200,
+                                        "--measure-feet", 8, "--json", "-q", *extra)).output)["contact"]["output"]
+               for extra in ([], ["--no-contact"])]
+    assert outputs[0]["sliding_share"] < 0.75 * outputs[1]["sliding_share"]
+    assert outputs[0]["penetration_p95"] < 0.005
 
 
 def _edited_rig(source, target, edit):

@@ -40,6 +40,47 @@ def _smooth(values, kernel, nearest):
 
 
 @numba.njit(cache=True, nogil=True)
+def gaussian_kernel(sigma):
+    """scipy.ndimage's Gaussian weights (2r + 1,), r = int(4 σ + 0.5), normalised
+    (:func:`.planting.gaussian_weights`, compiled)."""
+    radius = int(4.0 * sigma + 0.5)
+    weights = np.empty(2 * radius + 1)
+    for k in range(-radius, radius + 1):
+        weights[k + radius] = np.exp(-0.5 * k * k / (sigma * sigma))
+    return weights / weights.sum()
+
+
+@numba.njit(cache=True, nogil=True)
+def smooth_push(push, kernel, sigma, up, limit, widest):
+    """push (M, 3) (each step's undone slide, horizontal) smoothed in place with ``kernel`` (the
+    Gaussian of σ = ``sigma``), or where the root it sums to would then accelerate by more than
+    ``limit`` (the smoothed push's largest step), with a Gaussian widened by that ratio (up to three
+    times, σ at most ``widest``): a root offset that pops moves every vertex (module notes of
+    :mod:`.planting`, 3.). Returns the σ used."""
+    M = push.shape[0]
+    raw = push.copy()
+    used = sigma
+    for attempt in range(4):
+        for d in range(3):
+            if d != up:
+                smooth = _smooth(raw[:, d], kernel, False)
+                for m in range(M):
+                    push[m, d] = smooth[m]
+        largest = 0.0
+        for m in range(1, M):
+            size = 0.0
+            for d in range(3):
+                if d != up:
+                    size += (push[m, d] - push[m - 1, d]) ** 2
+            largest = max(largest, np.sqrt(size))
+        if not limit > 0.0 or largest <= limit or attempt == 3 or used >= widest:
+            break
+        used = min(widest, used * largest / limit)
+        kernel = gaussian_kernel(used)
+    return used
+
+
+@numba.njit(cache=True, nogil=True)
 def _dilate(values, radius):
     """values (M,) → the largest within ±radius frames of each (the ends repeated)."""
     M = values.shape[0]
@@ -73,6 +114,39 @@ def _taper(state, radius, out):
     for m in range(M):
         x = min(distance[m], float(radius)) / radius
         out[m] = x * x * (3.0 - 2.0 * x)
+
+
+@numba.njit(cache=True, nogil=True)
+def raised_cosine_kernel(radius):
+    """The raised-cosine kernel (2r + 1,), normalised (:func:`.ground.raised_cosine`, compiled)."""
+    kernel = np.empty(2 * radius + 1)
+    for k in range(2 * radius + 1):
+        kernel[k] = 1.0 - np.cos(2.0 * np.pi * (k + 1.0) / (2 * radius + 2))
+    return kernel / kernel.sum()
+
+
+@numba.njit(cache=True, nogil=True)
+def floor_lift(need, state, radius, kernel, limit, widest, out):
+    """out (M,): the lift a swinging patch gets from its ``need`` (M,) (how far below the input's
+    its lowest point is): dilated over ``radius`` frames, smoothed with ``kernel`` (the raised
+    cosine of that radius) and tapered to 0 at the planted frames of ``state`` (M,) bool; where that
+    would accelerate it by more than ``limit`` (largest second difference), with the radius widened
+    by the square root of the ratio (up to three times, at most ``widest`` frames)."""
+    M = need.shape[0]
+    taper = np.empty(M)
+    for attempt in range(4):
+        lift = _smooth(_dilate(need, radius), kernel, True)
+        _taper(state, radius, taper)
+        largest = 0.0
+        for m in range(M):
+            out[m] = lift[m] * taper[m]
+            if m >= 2:
+                largest = max(largest, abs(out[m] - 2.0 * out[m - 1] + out[m - 2]))
+        if not limit > 0.0 or largest <= limit or attempt == 3 or radius >= widest:
+            break
+        radius = min(widest, int(np.ceil(radius * np.sqrt(largest / limit))))
+        kernel = raised_cosine_kernel(radius)
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -143,7 +217,7 @@ def _backward_start(x_end, v_end, there, ahead, until, y_end, has_end):
 
 
 @numba.njit(cache=True, nogil=True)
-def blend_edges_row(values, state, decay, limit=np.inf):
+def blend_edges_row(values, state, decay, limit=np.inf, carried=False):
     """One row of :func:`.planting._blend_edges`: values (M, 3) (zero outside the plants on entry),
     state (M,) bool; the frames outside become the springs from the plants' edges, in place; the
     rate of each spring :func:`edge_decay` of its start (``limit``: inf for ``decay``). The backward
@@ -151,7 +225,8 @@ def blend_edges_row(values, state, decay, limit=np.inf):
     forward one's first step is lessened by what the backward one still holds at the gap's first
     frame (the two linear in their starts, solved at once), so both edges keep their steps exactly
     where that is well posed (:func:`_coupling` κ < 0.5; a one-frame gap cannot keep both: κ = 1).
-    A gap too short for slowed springs (κ ≥ 0.5) gets the default rate."""
+    A gap too short for slowed springs (κ ≥ 0.5) gets the default rate, unless the next plant
+    ``carried`` what the forward spring leaves (:func:`_carried`): then it keeps its slowed rate."""
     M = state.shape[0]
     last_end = -1
     m = 0
@@ -183,7 +258,7 @@ def blend_edges_row(values, state, decay, limit=np.inf):
         kappa = 1.0
         if last_end >= 0 and coming < M:
             kappa = _coupling(float(coming - last_end - 1), y_end, y_start)
-            if kappa >= 0.5 and (y_end != decay or y_start != decay):  # a gap too short for slowed springs
+            if kappa >= 0.5 and (y_end != decay or y_start != decay) and not carried:  # too short for slowed springs
                 y_end = y_start = decay
                 x_start, v_start = _backward_start(x_end, v_end, there, ahead, coming - last_end, decay, True)
                 kappa = _coupling(float(coming - last_end - 1), decay, decay)
@@ -213,6 +288,51 @@ def release_share(k, span):
     """The share of a limb's summed slide left k frames into a release of ``span`` frames: a
     raised cosine from 1 (k = 0) to 0 (k = span)."""
     return 0.5 * (1.0 + np.cos(np.pi * min(k, span) / span))
+
+
+@numba.njit(cache=True, nogil=True)
+def _taken_share(slide, push, up, cap):
+    """The share of a step's residual (−slide − push, horizontal) a limb's sum takes: all of it, or
+    what keeps the sum's step within ``cap`` (:data:`.planting.EDGE_ACCEL`: a sum that grows faster
+    cannot be let go within the limit when the foot lifts, so the foot slides by the rest)."""
+    size = 0.0
+    for d in range(3):
+        if d != up:
+            size += (slide[d] + push[d]) ** 2
+    size = np.sqrt(size)
+    return 1.0 if size <= cap else cap / size
+
+
+@numba.njit(cache=True, nogil=True)
+def _carried(values, state, m, last_end, decay, limit, up, acc, age):
+    """acc (3,) at a plant's first frame m: what the last plant's spring (ended at ``last_end``, −1:
+    none) still holds there, horizontally (the spring :func:`blend_edges_row` lets it go with, of
+    rate :func:`edge_decay` of its value); values (M, 3) the limb's correction so far, state (M,).
+    The plant holds its foot where that leaves it, so a gap too short to let a large correction go
+    within the limit does not throw it back. Returns the age the plant starts at: where the spring
+    was slowed (a correction too large to let go at ``decay``), the last plant's, on (past the hold
+    what exceeds the bound leaks, so carried corrections cannot grow step after step); else 0."""
+    for d in range(3):
+        acc[d] = 0.0
+    if last_end < 0:
+        return 0
+    y = edge_decay(values[last_end], decay, limit)
+    g = np.exp(y)
+    for d in range(3):
+        if d != up:
+            step = values[last_end, d] - values[last_end - 1, d] if last_end >= 1 and state[last_end - 1] else 0.0
+            acc[d] = _spring(values[last_end, d], step, float(m - last_end), y, g)
+    return age + m - last_end if y != decay else 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _cap_step(value, before, cap):
+    """value (3,) moved towards ``before`` (3,) so it differs from it by at most ``cap``, in place
+    (a planted foot's turn, whose steps are capped as a limb sum's are: :func:`_taken_share`)."""
+    size = np.sqrt((value[0] - before[0]) ** 2 + (value[1] - before[1]) ** 2 + (value[2] - before[2]) ** 2)
+    if size > cap:
+        for d in range(3):
+            value[d] = before[d] + (value[d] - before[d]) * cap / size
 
 
 @numba.njit(cache=True, nogil=True)
@@ -342,24 +462,27 @@ def _lowest(rows, lowest_operator, samples, out):
 @numba.njit(cache=True, nogil=True)
 def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, lowest_operator, samples, anchor_slot,
                      inverse_in, steps_in, heights_in, ground, orientation_in, turn_steps_in, own,
-                     influence, solve, decay, kernel, lift_kernel, max_turn, up, bridge, hold, keep, bound, release,
-                     edge_limit, states, want_lowest, lowest):
+                     influence, solve, decay, kernel, sigma, lift_kernel, max_turn, up, bridge, hold, keep, bound, release,
+                     edge_limit, turn_limit, states, want_lowest, lowest):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
     :class:`.planting.PlantRig` tables (own (P, K) the slots in ``bones`` of each patch's own bones,
     padded with −1), the operators of the patches'
     centroids and of their sample vertices' heights (:func:`.planting.centre_operator`,
     :func:`.planting.lowest_operator`; samples (P,) each patch's count); kernel the Gaussian weights of
-    the root's smoothing; lift_kernel the raised cosine (2r + 1,) of a
+    the root's smoothing, of σ = ``sigma`` (widened where the root would pop: :func:`smooth_push`); lift_kernel the raised cosine (2r + 1,) of a
     swinging patch's lift (r its dilation); bridge: the longest gap between two plants that is
     bridged (:func:`bridge_gaps`); hold: the frames a plant holds its patch exactly; keep: past
     them, the share of a limb's summed slide beyond ``bound`` (its length) kept from one frame to
     the next (:data:`.planting.HOLD`, :data:`.planting.LIMB_MEMORY`, :data:`.planting.LIMB_BOUND`); release: the fewest frames over which
     a bridged gap lets the sum go (:data:`.planting.RELEASE`); edge_limit: the acceleration a limb
-    correction's springs at a plant's edges may add (:func:`edge_decay`); states (A, P, M) written; with want_lowest, lowest (A, M) too:
+    correction's springs at a plant's edges may add (:func:`edge_decay`), and what bounds every other
+    correction (:mod:`.planting` notes, 6.), turn_limit (P,) the same for each patch's turn (radians a
+    frame²); states (A, P, M) written; with want_lowest, lowest (A, M) too:
     the lowest of the patches' sample vertices once planted (the band's, :mod:`.contact`)."""
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
+    step_cap = edge_limit / (2.0 * decay) if edge_limit > 0.0 else np.inf
     state = np.zeros((P, M), dtype=np.bool_)
     centre = np.zeros((P, M, 3))
     low = np.zeros((P, M))
@@ -417,13 +540,15 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                     _mul(head, orientation_in[f, p], wanted)
                 _mul_t(wanted, now, product)
                 _near_log(product, change)
+                if m > 0 and state[p, m - 1]:  # a turn changes by at most its cap a frame inside a plant
+                    _cap_step(change, turn[m - 1], turn_limit[p] / (2.0 * decay))
                 angle = np.sqrt(change[0] ** 2 + change[1] ** 2 + change[2] ** 2)
                 scale = min(1.0, max_turn / max(angle, 1e-12))
                 for d in range(3):
                     turn[m, d] = change[d] * scale
                 _rotation_exp(turn[m, 0], turn[m, 1], turn[m, 2], rotation)
                 _mul(rotation, now, final)  # the anchor's orientation as turned: the next frame's start
-            blend_edges_row(turn, state[p], decay)
+            blend_edges_row(turn, state[p], decay, turn_limit[p])
             # the turn, about the patch's centroid; every patch centroid moves with each bone turned
             nb = bones.shape[0]
             for m in range(M):
@@ -476,14 +601,13 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                 for d in range(3):
                     push[m, d] /= count
         root = np.zeros((M, 3))
+        smooth_push(push, kernel, sigma, up, edge_limit, float(hold))
         for d in range(3):
             if d == up:
                 continue
-            smooth = _smooth(push[:, d], kernel, False)
             total = 0.0
             for m in range(M):
-                push[m, d] = smooth[m]
-                total += smooth[m]
+                total += push[m, d]
                 root[m, d] = total
         level = np.zeros(M)
         weight = np.zeros(M)
@@ -501,6 +625,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
         for p in range(P):
             acc = np.zeros(3)
             age = 0  # frames since the plant's first, or since its last bridged gap
+            last_end = -1  # the last plant's last frame
             lifted = 0  # frames into the current bridged gap
             span = 1  # frames its release takes
             for m in range(M):
@@ -523,22 +648,24 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                     else:
                         lifted = 0
                     size = 0.0
+                    taken = _taken_share(slide[p, m], push[m], up, step_cap)
                     for d in range(3):
                         if d != up:
-                            acc[d] = kept * acc[d] - slide[p, m, d] - push[m, d]
+                            acc[d] = kept * acc[d] - taken * (slide[p, m, d] + push[m, d])
                             size += acc[d] * acc[d]
                     size = np.sqrt(size)
                     if age > hold and size > bound:  # past the hold, what exceeds the bound leaks
                         for d in range(3):
                             acc[d] *= (bound + (size - bound) * keep) / size
-                else:
-                    acc[:] = 0.0
-                    age = 0
+                else:  # a plant's first frame: what the last plant's spring leaves here, carried
+                    age = _carried(correction[p], state[p], m, last_end, decay, edge_limit, up, acc, age)
                 for d in range(3):
                     correction[p, m, d] = acc[d]
                 target = heights_in[src[a, p, m], p] + ground[ground_src[a, m]]
                 correction[p, m, up] = target - low[p, m] - root[m, up]
-            blend_edges_row(correction[p], state[p], decay, edge_limit)
+                if m + 1 == M or not state[p, m + 1]:
+                    last_end = m
+            blend_edges_row(correction[p], state[p], decay, edge_limit, True)
         # 3b. the floor: a swinging patch no lower than the input's at its source frame, lifted
         # smoothly (dilated, raised-cosine), the lift tapered to 0 at the plants
         radius = lift_kernel.shape[0] // 2
@@ -555,10 +682,9 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                 below = below or need[m] > 0.0
             if not below:
                 continue
-            lift = _smooth(_dilate(need, radius), lift_kernel, True)
-            _taper(state[p], radius, taper)
+            floor_lift(need, state[p], radius, lift_kernel, edge_limit, hold, taper)
             for m in range(M):
-                correction[p, m, up] += lift[m] * taper[m]
+                correction[p, m, up] += taper[m]
         # 4. the bones: the root moves all, each limb's share solved so every centroid lands
         shifts = np.empty((P, 3))
         for m in range(M):

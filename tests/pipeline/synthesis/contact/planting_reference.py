@@ -50,7 +50,7 @@ def _plant_block(F, t, sources, rig):
     # the root: horizontal, the planted patches' mean slide undone, smoothed and summed into an offset
     count = stepping.sum(axis=1)
     push = -(stepping[..., None] * slide).sum(axis=1) / np.maximum(count, 1)[..., None]  # (A, M, 3)
-    push = gaussian_filter1d(push, rig.sigma, axis=1, mode="constant")
+    push = np.stack([_smooth_push(row, rig) for row in push])
     root = np.cumsum(push, axis=1)
     # vertical: the planted patches' mean height error, a normalised smoothing (0 far from plants)
     target = rig.heights_in[src, patches] + rig.ground[sources[0]][:, None, :]
@@ -61,6 +61,10 @@ def _plant_block(F, t, sources, rig):
     root[..., up] = level / np.maximum(weight, 1.0)
     # each limb: the residual slide summed (leaking) from its plant's first frame, the residual height
     residual = np.where(stepping[..., None], -slide - push[:, None], 0.0)
+    # a step's residual taken at most up to the cap (edge_limit / 2 decay), the foot sliding by the rest
+    size = np.linalg.norm(residual, axis=-1, keepdims=True)
+    cap = rig.edge_limit / (2.0 * rig.decay) if rig.edge_limit > 0.0 else np.inf
+    residual = residual * np.where(size > cap, cap / np.maximum(size, 1e-300), 1.0)
     first = state & ~_shifted(state, 1, False)
     last = state & ~_shifted(state, -1, False)
     keep = np.exp(-1.0 / rig.memory)  # past rig.hold frames what exceeds rig.bound leaks (planting.HOLD, …)
@@ -71,30 +75,49 @@ def _plant_block(F, t, sources, rig):
         into[..., m] = np.where(lifted[..., m], into[..., m - 1] + 1, 0)
     for m in range(M - 1, -1, -1):
         left[..., m] = np.where(lifted[..., m], (left[..., m + 1] if m + 1 < M else 0) + 1, 0)
-    span = np.maximum(into + left - 1, rig.release)
+    span = np.maximum(into + left - 1, rig.release)  # a gap's release: as long as the gap, at least rig.release
 
-    def share(k):
+    def share(k, span):
         return 0.5 * (1.0 + np.cos(np.pi * np.minimum(k, span) / span))
 
-    released = np.where(lifted, share(into) / np.where(lifted, share(into - 1), 1.0), 1.0)
     correction = np.zeros_like(residual)
+    height = np.where(state, error - root[:, None, :, up], 0.0)  # the vertical correction, at the plants
     age = np.zeros(state.shape[:2], np.int64)  # frames since each plant's first, or its last gap
+    last_end = np.where(last[:, :, 0], 0, -1)  # each patch's last plant's last frame (−1: none yet)
+    rows = np.indices(state.shape[:2])
     for m in range(1, M):  # frame by frame, every animation and patch at once
-        age = np.where(stepping[:, :, m] & ~lifted[:, :, m], age + 1, 0)
-        summed = released[:, :, m, None] * correction[:, :, m - 1] + residual[:, :, m]
+        starting = first[:, :, m] & (last_end >= 0)
+        # what the last plant's spring leaves at a plant's first frame (horizontal): carried
+        end = np.maximum(last_end, 0)
+        x_end = correction[rows[0], rows[1], end]
+        x_end[..., up] = height[rows[0], rows[1], end]
+        before = correction[rows[0], rows[1], np.maximum(end - 1, 0)]
+        before[..., up] = height[rows[0], rows[1], np.maximum(end - 1, 0)]
+        v_end = np.where(stepping[rows[0], rows[1], end][..., None], x_end - before, 0.0)
+        y = _rate(x_end, rig.decay, rig.edge_limit)
+        kept = _spring(x_end, v_end, (m - end)[..., None].astype(np.float64), y)
+        kept[..., up] = 0.0
+        slowed = starting & (y[..., 0] != rig.decay)  # too large to let go at the default rate: its age goes on
+        age = np.where(stepping[:, :, m], np.where(lifted[:, :, m], 0, age + 1),
+                       np.where(first[:, :, m], np.where(slowed, age + m - last_end, 0), age))
+        lift = lifted[:, :, m]
+        now = span[:, :, m]
+        released = np.where(lift, share(into[:, :, m], now) / np.where(lift, share(into[:, :, m] - 1, now), 1.0), 1.0)
+        summed = released[..., None] * correction[:, :, m - 1] + residual[:, :, m]
         size = np.linalg.norm(summed, axis=-1, keepdims=True)
         leaking = (age[..., None] > rig.hold) & (size > rig.bound)
         summed = np.where(leaking, summed * (rig.bound + (size - rig.bound) * keep) / np.maximum(size, 1e-300), summed)
         correction[:, :, m] = np.where(stepping[:, :, m, None], summed, 0.0)
+        correction[:, :, m] = np.where(starting[..., None], kept, correction[:, :, m])
+        last_end = np.where(last[:, :, m], m, last_end)
     correction = np.where(state[..., None], correction, 0.0)
-    correction[..., up] = np.where(state, error - root[:, None, :, up], 0.0)
-    _blend_edges(correction, state, stepping, first, last, rig.decay, rig.edge_limit)
+    correction[..., up] = height
+    _blend_edges(correction, state, stepping, first, last, rig.decay, rig.edge_limit, carried=True)
     # the floor: a swinging patch no lower than the input's at its source frame, lifted smoothly and
     # tapered off at the plants
     need = np.where(state, 0.0, np.maximum(0.0, target - (lowest + root[:, None, :, up] + correction[..., up])))
-    radius = rig.lift_radius
-    lift = _raise(need.reshape(A * P, M), radius).reshape(A, P, M)
-    correction[..., up] += np.where(need.any(axis=2, keepdims=True), lift * _taper(state, radius), 0.0)
+    for a, p in zip(*np.nonzero(need.any(axis=2))):
+        correction[a, p, :, up] += _floor_lift(need[a, p], state[a, p], rig)
     # bone shifts: every patch's centroid moves by its correction (ω αᵀ g = e), the root moves all
     shifts = np.tensordot(rig.solve, correction, axes=([1], [1]))  # (P, A, M, 3)
     moved = np.flatnonzero(rig.influence.any(axis=0))
@@ -105,6 +128,34 @@ def _plant_block(F, t, sources, rig):
     for k, b in enumerate(moved):
         t[:, :, b] += bones[:, :, k].astype(t.dtype)
     return state
+
+
+def _smooth_push(push, rig):
+    """push (M, 3) smoothed by a Gaussian of σ = rig.sigma, widened by the ratio while the root's
+    acceleration (the smoothed push's largest step) exceeds rig.edge_limit (three times at most, σ
+    at most rig.hold)."""
+    from scipy.ndimage import gaussian_filter1d
+
+    sigma = rig.sigma
+    for attempt in range(4):
+        out = gaussian_filter1d(push, sigma, axis=0, mode="constant")
+        largest = np.linalg.norm(np.diff(out, axis=0), axis=1).max() if push.shape[0] > 1 else 0.0
+        if not rig.edge_limit > 0.0 or largest <= rig.edge_limit or attempt == 3 or sigma >= rig.hold:
+            return out
+        sigma = min(float(rig.hold), sigma * largest / rig.edge_limit)
+
+
+def _floor_lift(need, state, rig):
+    """(M,) one swinging patch's lift: its need dilated and smoothed over rig.lift_radius frames and
+    tapered at its plants, the radius widened by √ of the ratio while the lift's second difference
+    exceeds rig.edge_limit (three times at most, at most rig.hold)."""
+    radius = rig.lift_radius
+    for attempt in range(4):
+        out = _raise(need[None], radius)[0] * _taper(state[None], radius)[0]
+        largest = np.abs(np.diff(out, 2)).max() if out.size > 2 else 0.0
+        if not rig.edge_limit > 0.0 or largest <= rig.edge_limit or attempt == 3 or radius >= rig.hold:
+            return out
+        radius = min(rig.hold, int(np.ceil(radius * np.sqrt(largest / rig.edge_limit))))
 
 
 def _bridged(state, longest):
@@ -130,7 +181,23 @@ def _taper(state, radius):
     return x * x * (3.0 - 2.0 * x)
 
 
-def _blend_edges(correction, state, stepping, first, last, decay, limit=np.inf):
+def _rate(x0, decay, limit):
+    """(..., 1): a spring's rate from x0 (..., 3): ``decay``, slowed to √(limit / ‖x₀‖) where y² ‖x₀‖
+    would exceed ``limit`` (a number, or one per patch (P, 1, 1); not positive: nothing to bound by)."""
+    size = np.linalg.norm(x0, axis=-1, keepdims=True)
+    bound = np.nan_to_num(np.asarray(limit, dtype=np.float64), nan=0.0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        slowed = np.sqrt(bound / np.maximum(size, 1e-300))
+    return np.where((bound <= 0.0) | (size * decay * decay <= bound), decay, slowed)
+
+
+def _spring(x0, step, k, y):
+    """x(0) = x0, x(1) − x(0) = step, then (x0 + c k) e^(−y k)."""
+    c = (x0 + step) * np.exp(y) - x0
+    return (x0 + c * k) * np.exp(-y * k)
+
+
+def _blend_edges(correction, state, stepping, first, last, decay, limit=np.inf, carried=False):
     """Outside the plants, ``correction`` (A, P, M, 3) (zero there on entry) becomes the decay of
     the correction at the nearest plant edges: forward from a plant's last frame and backward into
     the next plant's first, each a critically damped spring (Holden's inertialization) whose first
@@ -145,14 +212,9 @@ def _blend_edges(correction, state, stepping, first, last, decay, limit=np.inf):
     outside = ~state
 
     def rate(x0):  # (..., 3) -> (..., 1)
-        size = np.linalg.norm(x0, axis=-1, keepdims=True)
-        if not limit > 0.0:  # nothing to bound by (blend_edges_row's edge_decay)
-            return np.full_like(size, decay)
-        return np.where(size * decay * decay <= limit, decay, np.sqrt(limit / np.maximum(size, 1e-300)))
+        return _rate(x0, decay, limit)
 
-    def spring(x0, step, k, y):  # x(0) = x0, x(1) − x(0) = step, then (x0 + c k) e^(−y k)
-        c = (x0 + step) * np.exp(y) - x0
-        return (x0 + c * k) * np.exp(-y * k)
+    spring = _spring
 
     def step_term(k, y):  # spring = x0 (1 + (g − 1) k) e^(−y k) + step · step_term(k, y)
         return np.exp(y) * k * np.exp(-y * k)
@@ -188,7 +250,7 @@ def _blend_edges(correction, state, stepping, first, last, decay, limit=np.inf):
     x_start, v_start = backward_start(y_end)
     y_start = rate(x_start)
     kappa = np.where(inner, coupling(y_end, y_start), 1.0)
-    fall = inner & (kappa >= 0.5) & ((y_end != decay) | (y_start != decay))
+    fall = inner & (kappa >= 0.5) & ((y_end != decay) | (y_start != decay)) & (not carried)
     y_end, y_start = np.where(fall, decay, y_end), np.where(fall, decay, y_start)
     x_default, v_default = backward_start(np.full_like(y_end, decay))
     x_start, v_start = np.where(fall, x_default, x_start), np.where(fall, v_default, v_start)
@@ -259,12 +321,18 @@ def _turn_feet(F, t, src, state, centre, rig):
     for m in range(now.shape[2]):  # inside a plant each frame starts from the last one's turned orientation
         wanted = np.where(stepping[:, :, m, None, None], step[:, :, m] @ final, first[:, :, m])
         change = _near_log(wanted @ np.swapaxes(now[:, :, m], -1, -2))
+        if m > 0:  # inside a plant a turn changes by at most its cap a frame
+            cap = (rig.turn_limit[turning] / (2.0 * rig.decay))[None, :, None]
+            moved = change - turn[:, :, m - 1]
+            size = np.linalg.norm(moved, axis=-1, keepdims=True)
+            capped = turn[:, :, m - 1] + moved * np.minimum(1.0, cap / np.maximum(size, 1e-300))
+            change = np.where(stepping[:, :, m, None] & (size > cap), capped, change)
         angle = np.linalg.norm(change, axis=-1, keepdims=True)
         turn[:, :, m] = np.where(state[:, :, m, None], change * np.minimum(1.0, rig.max_turn / np.maximum(angle, 1e-12)),
                                  0.0)
         final = rotation_exp(turn[:, :, m]) @ now[:, :, m]
     _blend_edges(turn, state, stepping, state & ~_shifted(state, 1, False), state & ~_shifted(state, -1, False),
-                 rig.decay)
+                 rig.decay, rig.turn_limit[turning][:, None, None])
     slot_of = {int(b): k for k, b in enumerate(rig.bones)}
     for k, p in enumerate(turning):  # few patches: each turns its own bones about its centroid
         rotation = rotation_exp(turn[:, k])  # (A, M, 3, 3)

@@ -88,6 +88,14 @@ def _synthesize(w, single, seed, plants=True, count=8, frames=600):
                       req), rig
 
 
+def _unlimited(rig):
+    """The plant rig with its acceleration limits off (edge and turn limits infinite: every plant
+    held exactly, every spring at the default rate, :data:`.planting.EDGE_ACCEL`)."""
+    import dataclasses
+
+    return dataclasses.replace(rig, edge_limit=np.inf, turn_limit=np.full_like(rig.turn_limit, np.inf))
+
+
 def _patch_centroids(w, F, t):
     """(M, P, 3) skinned centroids of the patches for one animation's bones F (M, B, 3, 3), t (M, B, 3)."""
     s = w.skin
@@ -129,9 +137,13 @@ def _input_plant_drift(w):
 def test_plants_hold_on_the_planted_walker(walker_graph, single):
     """plant_feet on the walks and merges of a synthesis (its bones before the plants; synthesize
     then keeps the input's range of lowest points too, :mod:`.contact`, which moves the body where
-    a six-component merge sinks another part of the walker below the input's range)."""
+    a six-component merge sinks another part of the walker below the input's range). The merged
+    walker's legs drag its feet up to a sixth of its height a frame: held exactly only with the
+    acceleration limits off (:func:`_unlimited`; with them that foot slides instead, and nothing
+    pops: test_plants_add_no_acceleration); the single component's are held at the defaults."""
     w = walker_graph
     r, rig = _synthesize(w, single, seed=0, plants=False)
+    rig = rig if single else _unlimited(rig)
     states = plant_feet(r.F, r.t, r.sources, rig)  # (A, P, M); F and t corrected in place
     np.testing.assert_array_equal(states, output_states(r.sources, rig))
     assert states.shape == (8, 2, 600)
@@ -245,7 +257,7 @@ def test_blend_cuts_the_edge_jumps_of_the_merged_walker(walker_graph, monkeypatc
 
     w = walker_graph
     blended = _edge_jumps(w, False, seeds=(0,), plant=plant_feet_reference)
-    monkeypatch.setattr(planting_reference, "_blend_edges", lambda *args: None)
+    monkeypatch.setattr(planting_reference, "_blend_edges", lambda *args, **kwargs: None)
     cut = _edge_jumps(w, False, seeds=(0,), plant=plant_feet_reference)
     assert blended < 0.5 * cut, (blended / _input_acceleration(w), cut / _input_acceleration(w))
 
@@ -530,6 +542,7 @@ def test_swinging_patches_no_lower_than_the_input(walker_graph, single):
     walker's uncorrected feet do sink below it (so the check can fail)."""
     w = walker_graph
     r, rig = _synthesize(w, single, 7, plants=False, count=4, frames=400)
+    rig = rig if single else _unlimited(rig)  # a lift that would kick a foot is widened (the defaults)
     F, t = r.F.copy(), r.t.copy()
     states = plant_feet(F, t, r.sources, rig)
     radius = rig.lift_radius
@@ -567,6 +580,75 @@ def test_bridge_gaps_by_hand_and_against_the_reference():
         np.testing.assert_array_equal(bridged, _bridged(states, longest))
 
 
+def _largest_acceleration(w, F, t, every=2):
+    """The largest vertex acceleration (second difference) of one animation's bones, over every
+    ``every``-th vertex."""
+    s = w.skin
+    v = lbs_reference(s.rest_vertices[::every], s.bone_indices[::every], s.bone_weights[::every], F.astype(float),
+                      t.astype(float))
+    return float(np.linalg.norm(v[2:] - 2.0 * v[1:-1] + v[:-2], axis=2).max())
+
+
+def test_plants_add_no_acceleration(walker_graph):
+    """Property over random walks and merges of the planted walker (its components: the single
+    component's plants, near exact, added nothing in these walks): in no animation do the plants
+    raise the largest vertex acceleration by more than twice their limit (:data:`.planting.EDGE_ACCEL`
+    of the input's largest: each capped step, slowed spring, widened root or lift adds at most about
+    the limit; measured at most 1.24 limits over 64 merged animations of eight seeds, most lower
+    it; here −0.38). The merged legs drag the feet so fast that the limits-off rig, holding them,
+    adds 7.2 limits in one of these four (so the check can fail)."""
+    w = walker_graph
+    r, rig = _synthesize(w, False, 7, plants=False, count=4, frames=600)
+    added, added_unlimited = [], []
+    for limits, out in ((rig, added), (_unlimited(rig), added_unlimited)):
+        F, t = r.F.copy(), r.t.copy()
+        plant_feet(F, t, r.sources, limits)
+        out.extend(_largest_acceleration(w, F[a], t[a]) - _largest_acceleration(w, r.F[a], r.t[a])
+                   for a in range(F.shape[0]))
+    assert max(added) <= 2.0 * rig.edge_limit, max(added) / rig.edge_limit
+    assert max(added_unlimited) >= 3.0 * rig.edge_limit, max(added_unlimited) / rig.edge_limit
+
+
+def test_limits_closed_form():
+    """Each limit by hand (limit L, default rate y): a step's residual is taken up to L / (2y); a
+    step in the root's push is
+    smoothed until the root accelerates by at most L; a floor lift is widened until its second
+    difference is at most L; and a plant starts from what the last one's spring leaves."""
+    from skinsynth.pipeline.synthesis.contact.planting_loops import (_carried, _taken_share, edge_decay, floor_lift,
+                                                                    gaussian_kernel, raised_cosine_kernel, smooth_push)
+    from skinsynth.pipeline.synthesis.contact.planting import gaussian_weights
+    from skinsynth.pipeline.synthesis.contact.ground import raised_cosine
+
+    L, y, up = 0.01, 0.578, 1
+    assert _taken_share(np.array([0.003, 0.0, 0.004]), np.zeros(3), up, L / (2 * y)) == 1.0  # 0.005 < 0.00865
+    share = _taken_share(np.array([0.03, 0.0, 0.04]), np.zeros(3), up, L / (2 * y))
+    assert share == pytest.approx(L / (2 * y) / 0.05)
+    np.testing.assert_allclose(gaussian_kernel(2.4), gaussian_weights(2.4), rtol=1e-13)
+    np.testing.assert_allclose(raised_cosine_kernel(5), raised_cosine(5), rtol=1e-13)
+    push = np.zeros((200, 3))
+    push[100:, 0] = 0.2  # the feet start pushing at 0.2 a frame
+    kept = push.copy()
+    assert smooth_push(kept, gaussian_kernel(2.4), 2.4, up, np.inf, 48.0) == 2.4  # no limit: σ kept
+    sigma = smooth_push(push, gaussian_kernel(2.4), 2.4, up, L, 48.0)
+    assert sigma > 2.4 and np.abs(np.diff(push[:, 0])).max() <= L * 1.0001
+    assert np.abs(np.diff(kept[:, 0])).max() > 3 * L
+    need, state, out = np.zeros(120), np.zeros(120, bool), np.zeros(120)
+    need[50:60] = 0.5
+    state[:20] = state[100:] = True
+    floor_lift(need, state, 3, raised_cosine_kernel(3), L, 48, out)
+    assert np.abs(np.diff(out, 2)).max() <= L and out[50:60].min() >= 0.5 - 1e-12  # lifted all the way, gently
+    values = np.zeros((30, 3))
+    values[:10, 0] = 0.1 * np.arange(10)  # a plant whose correction grows 0.1 a frame to 0.9
+    state = np.zeros(30, bool)
+    state[:10] = True
+    acc = np.zeros(3)
+    assert _carried(values, state, 14, 9, y, L, up, acc, 7) == 12
+    rate = edge_decay(values[9], y, L)
+    assert rate == pytest.approx(np.sqrt(L / 0.9))
+    c = (0.9 + 0.1) * np.exp(rate) - 0.9  # the spring x(k) = (x0 + c k) e^(−y k), first step the last one's
+    assert acc[0] == pytest.approx((0.9 + 5 * c) * np.exp(-5 * rate)) and acc[1] == acc[2] == 0.0
+
+
 def test_a_planted_foot_turns_only_as_the_inputs_did(walker_graph):
     """Inside a plant the foot's bone keeps its orientation from frame to frame, turned only by the
     input's own step (the walker's planted feet do not turn at all), whatever the seams and the
@@ -579,6 +661,7 @@ def test_a_planted_foot_turns_only_as_the_inputs_did(walker_graph):
 
     w = walker_graph
     r, rig = _synthesize(w, False, 3, plants=False, count=8, frames=300)
+    rig = _unlimited(rig)  # the defaults cap a planted turn's step (a faster leg turns the foot with it)
     F, t = r.F.copy(), r.t.copy()
     states = plant_feet(F, t, r.sources, rig)
     src = np.moveaxis(r.sources[rig.owner], 0, 1)  # (A, P, M)
