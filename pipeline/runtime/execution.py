@@ -283,8 +283,10 @@ class Cluster:
                                   f"(local:N takes at most {4 * cores} here); for more, start a scheduler and "
                                   "workers on other machines (docs/cluster.md)")
             try:
+                # the command reports every failure itself, in one line; a worker's own ERROR logs
+                # (a heartbeat that found the scheduler closing, on a loaded machine) would add a traceback
                 self._local = LocalCluster(n_workers=int(count), threads_per_worker=1, processes=True,
-                                           silence_logs=logging.ERROR,
+                                           silence_logs=logging.CRITICAL,
                                            preload=list(dask.config.get("distributed.worker.preload", [])) + [__name__],
                                            dashboard_address=":0")  # a free port: 8787 may be another's
             except (RuntimeError, OSError, TimeoutError) as error:  # e.g. a worker process that cannot start
