@@ -66,10 +66,23 @@ class Steps:
     @staticmethod
     def join(parts):
         parts = list(parts)
-        accel = [p.accel for p in parts if np.isfinite(p.accel)]
         return Steps(np.concatenate([p.slide for p in parts] + [np.zeros(0)]),
                      np.concatenate([p.offset for p in parts] + [np.zeros(0)]),
-                     int(sum(p.steps for p in parts)), max(accel) if accel else float("nan"))
+                     int(sum(p.steps for p in parts)), _largest([p.accel for p in parts]))
+
+
+def _largest(values):
+    """The largest finite of ``values`` (any shape) as a float; NaN where none is."""
+    values = np.asarray(values, dtype=np.float64).ravel()
+    finite = values[np.isfinite(values)]
+    return float(finite.max()) if finite.size else float("nan")
+
+
+def _blocks(first, end, block):
+    """(start, stop) of the blocks measuring frames first … end − 1: ``block`` steps each, two
+    frames of overlap, so every step and every second difference is counted once."""
+    for start in range(first, max(end - 1, first + 1), block):
+        yield start, min(start + block + 2, end)
 
 
 def contact_steps(vertices, ground, height, up_axis=1, band=BAND, plays_on=None, steps=None):
@@ -78,8 +91,7 @@ def contact_steps(vertices, ground, height, up_axis=1, band=BAND, plays_on=None,
     ``steps``: count only the steps m → m+1 and the second differences centred on m+1 for
     m < steps (None: all; :func:`measure_frames`' blocks)."""
     rows, slide, offset, counted, accel = _step_table(vertices, ground, height, up_axis, band, plays_on, steps)
-    finite = accel[np.isfinite(accel)]
-    return Steps(slide, offset, int(counted[:-1].sum()), float(finite.max()) if finite.size else float("nan"))
+    return Steps(slide, offset, int(counted[:-1].sum()), _largest(accel))
 
 
 def _step_table(vertices, ground, height, up_axis=1, band=BAND, plays_on=None, steps=None):
@@ -127,8 +139,7 @@ def measure_frames(frames, count, ground, height, up_axis=1, band=BAND, plays_on
     ground = np.broadcast_to(np.asarray(ground, dtype=np.float64), (count,))
     plays = np.ones(count, bool) if plays_on is None else np.asarray(plays_on, dtype=bool)
     parts = []
-    for start in range(0, max(count - 1, 1), block):
-        stop = min(start + block + 2, count)
+    for start, stop in _blocks(0, count, block):
         # steps start .. start+block−1, second differences centred on start+1 .. start+block
         parts.append(contact_steps(frames(start, stop), ground[start:stop], height, up_axis, band,
                                    plays[start:stop], steps=block))
@@ -188,8 +199,7 @@ def input_steps(vertices, starts, height, up_axis=1, block=64):
     slide, offset, accel = np.full(F, np.nan), np.full(F, np.nan), np.full(F, np.nan)
     grounds = np.array([clip_ground(vertices[a:b], up_axis) for a, b in zip(starts[:-1], starts[1:])])
     for a, b, g in zip(starts[:-1], starts[1:], grounds):
-        for start in range(a, max(b - 1, a + 1), block):
-            stop = min(start + block + 2, b)
+        for start, stop in _blocks(a, b, block):
             rows, s, o, _, acc = _step_table(vertices[start:stop], g, height, up_axis, BAND, None, block)
             slide[start + rows], offset[start + rows] = s, o
             inside = np.isfinite(acc)
@@ -209,9 +219,7 @@ def steps_of_input(table, starts):
     """The :class:`Steps` of the whole input from its :class:`InputSteps` (every step inside a clip)."""
     counts = np.diff(np.asarray(starts, dtype=np.int64))
     at = np.flatnonzero(np.isfinite(table.slide))
-    finite = table.accel[np.isfinite(table.accel)]
-    return Steps(table.slide[at], table.offset[at], int(np.maximum(counts - 1, 0).sum()),
-                 float(finite.max()) if finite.size else float("nan"))
+    return Steps(table.slide[at], table.offset[at], int(np.maximum(counts - 1, 0).sum()), _largest(table.accel))
 
 
 def played_input(table, sources, starts):
@@ -240,9 +248,8 @@ def played_input(table, sources, starts):
         offsets.append(table.offset[contact])
         centred = src[1:-1][plays[:-2] & plays[1:-1]] if src.size >= 3 else np.zeros(0, np.int64)
         accel.append(table.accel[centred])
-    accel = np.concatenate(accel + [np.zeros(0)])
     return Steps(np.concatenate(slides + [np.zeros(0)]), np.concatenate(offsets + [np.zeros(0)]), steps,
-                 float(accel.max()) if accel.size else float("nan"))
+                 _largest(np.concatenate(accel + [np.zeros(0)])))
 
 
 def significant(value, digits=6):
