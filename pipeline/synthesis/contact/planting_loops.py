@@ -41,8 +41,10 @@ def _smooth(values, kernel, nearest):
 
 @numba.njit(cache=True, nogil=True)
 def gaussian_kernel(sigma):
-    """scipy.ndimage's Gaussian weights (2r + 1,), r = int(4 σ + 0.5), normalised
-    (:func:`.planting.gaussian_weights`, compiled)."""
+    """scipy.ndimage's Gaussian weights (2r + 1,), r = int(4 σ + 0.5), normalised (what
+    ``gaussian_filter1d`` convolves with at its default truncation), for a widened σ only: the
+    default σ's come from numpy (:func:`.planting.gaussian_weights`), whose vectorised exp differs
+    from this one's in the last bit, so outputs that need no widening keep their bytes."""
     radius = int(4.0 * sigma + 0.5)
     weights = np.empty(2 * radius + 1)
     for k in range(-radius, radius + 1):
@@ -483,6 +485,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
     step_cap = edge_limit / (2.0 * decay) if edge_limit > 0.0 else np.inf
+    lift_radius = lift_kernel.shape[0] // 2
     state = np.zeros((P, M), dtype=np.bool_)
     centre = np.zeros((P, M, 3))
     low = np.zeros((P, M))
@@ -668,9 +671,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
             blend_edges_row(correction[p], state[p], decay, edge_limit, True)
         # 3b. the floor: a swinging patch no lower than the input's at its source frame, lifted
         # smoothly (dilated, raised-cosine), the lift tapered to 0 at the plants
-        radius = lift_kernel.shape[0] // 2
         need = np.zeros(M)
-        taper = np.zeros(M)
+        lift = np.zeros(M)
         for p in range(P):
             below = False
             for m in range(M):
@@ -682,9 +684,9 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                 below = below or need[m] > 0.0
             if not below:
                 continue
-            floor_lift(need, state[p], radius, lift_kernel, edge_limit, hold, taper)
+            floor_lift(need, state[p], lift_radius, lift_kernel, edge_limit, hold, lift)
             for m in range(M):
-                correction[p, m, up] += taper[m]
+                correction[p, m, up] += lift[m]
         # 4. the bones: the root moves all, each limb's share solved so every centroid lands
         shifts = np.empty((P, 3))
         for m in range(M):

@@ -616,14 +616,16 @@ def test_limits_closed_form():
     difference is at most L; and a plant starts from what the last one's spring leaves."""
     from skinsynth.pipeline.synthesis.contact.planting_loops import (_carried, _taken_share, edge_decay, floor_lift,
                                                                     gaussian_kernel, raised_cosine_kernel, smooth_push)
-    from skinsynth.pipeline.synthesis.contact.planting import gaussian_weights
+    from scipy.ndimage import gaussian_filter1d
     from skinsynth.pipeline.synthesis.contact.ground import raised_cosine
 
     L, y, up = 0.01, 0.578, 1
     assert _taken_share(np.array([0.003, 0.0, 0.004]), np.zeros(3), up, L / (2 * y)) == 1.0  # 0.005 < 0.00865
     share = _taken_share(np.array([0.03, 0.0, 0.04]), np.zeros(3), up, L / (2 * y))
     assert share == pytest.approx(L / (2 * y) / 0.05)
-    np.testing.assert_allclose(gaussian_kernel(2.4), gaussian_weights(2.4), rtol=1e-13)
+    impulse = np.zeros(41)
+    impulse[20] = 1.0  # scipy's own weights: its filter's response to an impulse
+    np.testing.assert_allclose(gaussian_kernel(2.4), gaussian_filter1d(impulse, 2.4, mode="constant")[10:31], rtol=1e-12)
     np.testing.assert_allclose(raised_cosine_kernel(5), raised_cosine(5), rtol=1e-13)
     push = np.zeros((200, 3))
     push[100:, 0] = 0.2  # the feet start pushing at 0.2 a frame
