@@ -171,7 +171,6 @@ def write_synthesis_outputs(outputs, skin, motions, up_axis, device, folders, th
     on the CPU), the .glb (``label`` names the input in a refusal), the plots (``clips``: the
     input's several clips, None for one). ``folders``: the command's
     :class:`~skinsynth.cli.common.FolderOutputs`. Returns the paths written, in that order."""
-    from skinsynth.formats.plots import write_synthesis_plots
     from skinsynth.pipeline.synthesis import acceleration_plots
 
     count, written = motions.F.shape[0], []
@@ -181,7 +180,8 @@ def write_synthesis_outputs(outputs, skin, motions, up_axis, device, folders, th
         write_gltf(outputs.gltf, skin, ((f"animation_{a:04d}", motions.F[a], motions.t[a]) for a in range(count)),
                    up_axis, root_motion=outputs.root_motion, label=label, skeleton=skin.skeleton)
         written.append(outputs.gltf)
-    if outputs.plots is not None:
+    if outputs.plots is not None:  # matplotlib (0.5 s to import) only when asked
+        from skinsynth.formats.plots import write_synthesis_plots
         plots = acceleration_plots(skin, motions.F, motions.t, motions.sources, min(outputs.plot_count, count), device,
                                    clips)
         written += write_synthesis_plots(outputs.plots, plots, None if clips is None else clips.starts,
