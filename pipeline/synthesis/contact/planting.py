@@ -410,7 +410,7 @@ def plant_feet(F, t, sources, rig, lowest=None):
         return np.ascontiguousarray(array, dtype=dtype)
 
     return plant_animations(F, t, src, c(sources[0], np.int64), c(rig.planted, np.bool_), c(rig.bones, np.int64),
-                            centre_operator(rig.rest_terms, rig.weight_terms), lowest_operator(rig),
+                            centre_operator(rig.rest_terms, rig.weight_terms), *lowest_operator(rig),
                             c((rig.sample_weights.sum(axis=2) > 0.0).sum(axis=1), np.int64),
                             c(rig.anchor_bone, np.int64), c(rig.inverse_in), c(rig.steps_in), c(rig.heights_in),
                             c(rig.ground), c(rig.orientation_in), c(rig.turn_steps_in), own, c(rig.influence), c(rig.solve),
@@ -436,20 +436,25 @@ def centre_operator(rest_terms, weight_terms):
 
 
 def lowest_operator(rig):
-    """Q (12b, P·S): the heights of the patches' sample vertices (linear blend skinning, along up)
-    are [F (9b), t (3b)] Q (:func:`centre_operator`'s layout; patch p's in columns p·S to p·S + S,
-    the padding's 0)."""
+    """(up_columns (4b,), Q (4b, P·S)): the heights of the patches' sample vertices (linear blend
+    skinning, along up) are rows[:, up_columns] Q for a frame's row of :func:`centre_operator`'s
+    layout (12b: each F_b row-major, then each t_b); up_columns picks what a height reads, each
+    bone's F_b[up, :] (3b, bone after bone) then its t_b[up] (b); patch p's in columns p·S to
+    p·S + S, the padding's 0."""
     P, S, K = rig.sample_bones.shape
     b = rig.bones.size
+    up = rig.up_axis
     slot = np.zeros(int(max(rig.bones.max(), rig.sample_bones.max())) + 1, np.int64)
     slot[rig.bones] = np.arange(b)
-    Q = np.zeros((12 * b, P * S))
+    Q = np.zeros((4 * b, P * S))
     column = np.broadcast_to(np.arange(P * S).reshape(P, S, 1), (P, S, K))
     slots = slot[rig.sample_bones]
     for j in range(3):  # F_b[up, j] x_j, weighted
-        np.add.at(Q, (9 * slots + 3 * rig.up_axis + j, column), rig.sample_weights * rig.sample_rest[:, :, None, j])
-    np.add.at(Q, (9 * b + 3 * slots + rig.up_axis, column), rig.sample_weights)  # t_b[up], weighted
-    return Q
+        np.add.at(Q, (3 * slots + j, column), rig.sample_weights * rig.sample_rest[:, :, None, j])
+    np.add.at(Q, (3 * b + slots, column), rig.sample_weights)  # t_b[up], weighted
+    bones = np.arange(b)
+    up_columns = np.concatenate([(9 * bones[:, None] + 3 * up + np.arange(3)).ravel(), 9 * b + 3 * bones + up])
+    return up_columns.astype(np.int64), Q
 
 
 #: Most vertices per patch that find its lowest point (:func:`lowest_samples`).

@@ -446,11 +446,14 @@ def _centres(rows, centre_operator, out):
 
 
 @numba.njit(cache=True, nogil=True)
-def _lowest(rows, lowest_operator, samples, out):
+def _lowest(rows, up_columns, lowest_operator, samples, out):
     """The patches' lowest points out (P, M): the lowest of each patch's sample vertices (LBS: one
-    product of the bones' rows (M, 12b) by the samples' heights (12b, P·S); patch p's first
-    samples[p] columns of its S)."""
-    heights = np.dot(rows, lowest_operator)
+    product of the bones' up rows by the samples' heights (4b, P·S); patch p's first samples[p]
+    columns of its S). rows (M, 12b) (:func:`_bone_rows`); up_columns (4b,) its columns that a
+    height reads (each bone's F[up, :], then t[up]): the other 8b would multiply zeros, two thirds of
+    the product (on the horse's two clips, 13 patches of 39 samples: their plant loop 1.23 → 0.89 s
+    a batch of 250 animations, the same numbers)."""
+    heights = np.dot(rows[:, up_columns], lowest_operator)
     P, M = out.shape
     S = lowest_operator.shape[1] // P
     for p in range(P):
@@ -462,8 +465,8 @@ def _lowest(rows, lowest_operator, samples, out):
 
 
 @numba.njit(cache=True, nogil=True)
-def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, lowest_operator, samples, anchor_slot,
-                     inverse_in, steps_in, heights_in, ground, orientation_in, turn_steps_in, own,
+def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_columns, lowest_operator, samples,
+                     anchor_slot, inverse_in, steps_in, heights_in, ground, orientation_in, turn_steps_in, own,
                      influence, solve, decay, kernel, sigma, lift_kernel, max_turn, up, bridge, hold, keep, bound, release,
                      edge_limit, turn_limit, states, want_lowest, lowest):
     """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
@@ -471,7 +474,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
     :class:`.planting.PlantRig` tables (own (P, K) the slots in ``bones`` of each patch's own bones,
     padded with −1), the operators of the patches'
     centroids and of their sample vertices' heights (:func:`.planting.centre_operator`,
-    :func:`.planting.lowest_operator`; samples (P,) each patch's count); kernel the Gaussian weights of
+    :func:`.planting.lowest_operator` and its ``up_columns``; samples (P,) each patch's count); kernel
+    the Gaussian weights of
     the root's smoothing, of σ = ``sigma`` (widened where the root would pop: :func:`smooth_push`); lift_kernel the raised cosine (2r + 1,) of a
     swinging patch's lift (r its dilation); bridge: the longest gap between two plants that is
     bridged (:func:`bridge_gaps`); hold: the frames a plant holds its patch exactly; keep: past
@@ -513,7 +517,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                 anything = anything or state[p, m]
         if not anything:
             if want_lowest:
-                _lowest_after(F, t, a, bones, rows, lowest_operator, samples, low, lowest)
+                _lowest_after(F, t, a, bones, rows, up_columns, lowest_operator, samples, low, lowest)
             continue
         # 1. the feet's turn: the input's orientation under the output's heading, about each centroid
         if own[:, 0].max() >= 0:
@@ -584,7 +588,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
         # 2. the centroids and lowest points after the turn; the input's steps, carried; the slide
         _bone_rows(F, t, a, bones, rows)
         _centres(rows, centre_operator, centre)
-        _lowest(rows, lowest_operator, samples, low)
+        _lowest(rows, up_columns, lowest_operator, samples, low)
         slide = np.zeros((P, M, 3))  # each step's horizontal slide beyond the input's own, inside a plant
         push = np.zeros((M, 3))
         for m in range(1, M):
@@ -703,16 +707,16 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, low
                         delta += influence[q, b] * shifts[q, i]
                     t[a, m, b, i] += delta
         if want_lowest:
-            _lowest_after(F, t, a, bones, rows, lowest_operator, samples, low, lowest)
+            _lowest_after(F, t, a, bones, rows, up_columns, lowest_operator, samples, low, lowest)
     return states
 
 
 @numba.njit(cache=True, nogil=True)
-def _lowest_after(F, t, a, bones, rows, lowest_operator, samples, low, lowest):
+def _lowest_after(F, t, a, bones, rows, up_columns, lowest_operator, samples, low, lowest):
     """lowest[a] (M,): the lowest of every patch's sample vertices at each frame of animation a, as
     its bones are now (``rows`` and ``low`` are work space)."""
     _bone_rows(F, t, a, bones, rows)
-    _lowest(rows, lowest_operator, samples, low)
+    _lowest(rows, up_columns, lowest_operator, samples, low)
     for m in range(low.shape[1]):
         lowest[a, m] = np.inf
         for p in range(low.shape[0]):
