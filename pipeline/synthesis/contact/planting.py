@@ -330,7 +330,9 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     turns = []
     for p, ids in enumerate(patches):
         ids = np.asarray(ids)
-        fitted = np.einsum("vb,fbij,vj->fvi", dense[ids], R, rest[ids]) + np.einsum("vb,fbi->fvi", dense[ids], T)
+        on = np.flatnonzero(dense[ids].any(axis=0))  # the patch's bones (the others add exact zeros)
+        fitted = np.einsum("vb,fbij,vj->fvi", dense[ids][:, on], R[:, on], rest[ids]) \
+            + np.einsum("vb,fbi->fvi", dense[ids][:, on], T[:, on])
         fitted -= fitted.mean(axis=1, keepdims=True)
         turn = polar_rotation(np.einsum("fvi,fvj->fij", examples[:, ids] - centroids[:, None, p], fitted)) \
             if own[p].size else np.broadcast_to(np.eye(3), (frames, 3, 3))
