@@ -3,9 +3,11 @@
 For each capture in ../shared/data (and the built-in walker) it runs, as a user would,
 ``skinsynth fit-skin INPUT --bones B --skeleton --json`` and prints one JSON line: the jointed
 rig's RMSE over the free fit's at the same bones (``rmse_over_free``), the joints (how many, how
-many inside the mesh by winding number, the largest drift over the rest diagonal), the free
-bones hanging from the root, the feet (leaf bones whose rest centroid lies in the lowest 15 % of
-the height) with the joints on each one's path to the root, the seconds and the peak memory.
+many inside the mesh by winding number, the largest drift over the rest diagonal), the sliding
+bones (each with its parent and its travel over the diagonal), the free bones hanging from the
+root, the share of non-root bones on fixed joints, the feet (leaf bones whose rest centroid lies
+in the lowest 15 % of the height) with the fixed and sliding joints on each one's path to the
+root, the seconds and the peak memory.
 
     python benchmarks/skeleton.py [--only NAME] [--work DIR]
 """
@@ -21,24 +23,25 @@ from datasets import BONES, captures, run
 
 
 def feet_paths(path, summary):
-    """[(bone, joints on its path to the root)] for the leaf bones low in the rest pose."""
+    """[(bone, fixed joints, sliding joints on its path to the root)] for the leaf bones low in the rest pose."""
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.rig.influence import bone_centroids
 
     skin = read_skin(path)
     parents = np.asarray(summary["parents"])
     jointed = np.asarray(skin.skeleton["jointed"])
+    sliding = np.asarray(skin.skeleton.get("sliding", np.zeros_like(jointed)))
     up = 1 if skin.scene.up_axis == "Y" else 2
     centres = bone_centroids(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
     low = skin.rest_vertices[:, up].min() + 0.15 * np.ptp(skin.rest_vertices[:, up])
     leaves = [b for b in range(skin.bones) if b not in parents and centres[b, up] < low]
     paths = []
     for bone in leaves:
-        count, node = 0, bone
+        fixed, slid, node = 0, 0, bone
         while parents[node] >= 0:
-            count += int(jointed[node])
+            fixed, slid = fixed + int(jointed[node]), slid + int(sliding[node])
             node = parents[node]
-        paths.append((int(bone), count))
+        paths.append((int(bone), fixed, slid))
     return paths
 
 
@@ -65,7 +68,9 @@ def main():
                 "free_rmse_over_diagonal": skeleton["free_rmse"] / summary["rmse"] * summary["rmse_over_diagonal"],
                 "rmse_over_diagonal": summary["rmse_over_diagonal"], "joints": skeleton["joints"],
                 "joints_inside": skeleton["joints_inside"], "largest_drift": round(skeleton["largest_drift"], 4),
+                "sliding": [[s["bone"], s["parent"], round(s["travel_over_diagonal"], 4)] for s in skeleton["sliding"]],
                 "free_bones": skeleton["free_bones"], "root": skeleton["root"],
+                "fixed_share": round(skeleton["joints"] / max(1, bones - 1), 3),
                 "feet_joints_to_root": feet_paths(out, skeleton), "seconds": round(seconds, 1),
                 "peak_mib": round(peak)}
         print(json.dumps(line), flush=True)

@@ -183,9 +183,8 @@ def _write(output, output_kind, kind, label, skin, puppet, controls, vertices, o
     from skinsynth.pipeline.puppet import character_bones
 
     names = [f"character_{c:03d}" for c in range(len(controls))]
-    skeleton = None if skin.skeleton is None else tuple(skin.skeleton[k] for k in ("parents", "jointed", "joints"))
     if output_kind == "gltf" or kind == "bones" or (output_kind == "usd" and kind == "skel"):
-        rotations, translations, shape_weights = character_bones(puppet, controls, translation_solver, skeleton)
+        rotations, translations, shape_weights = character_bones(puppet, controls, translation_solver, skin.skeleton)
         clips = ((name, rotations[c], translations[c]) for c, name in enumerate(names))  # each character in place
         if kind == "bones":  # one rig, each character a clip (no grid: clips alternate)
             write_bone_textures(output, skin, clips, half, max_width, folders.guard(output), label=label)

@@ -39,19 +39,21 @@ def clip_table(examples, frames):
 
 def describe_skeleton(skeleton):
     """What ``inspect`` says of a read /skin/skeleton: {root, joints (bones jointed to their parent),
-    free_bones (ids), parents, tree}: the tree nested as ``root(child(...) child ...)``, children in
-    ascending id, a free bone marked ``~``."""
+    sliding (ids: bones sliding on their joint), free_bones (ids), parents, tree}: the tree nested
+    as ``root(child(...) child ...)``, children in ascending id, a sliding bone marked ``=``, a free
+    one ``~``."""
     parents = [int(p) for p in np.asarray(skeleton["parents"])]
     jointed = np.asarray(skeleton["jointed"]).astype(bool)
+    sliding = np.asarray(skeleton.get("sliding", np.zeros_like(jointed))).astype(bool)
     root = parents.index(-1)
     children = {bone: [c for c, p in enumerate(parents) if p == bone] for bone in range(len(parents))}
 
     def nested(bone):
-        name = ("~" if not jointed[bone] and bone != root else "") + str(bone)
-        return name + (f"({' '.join(nested(c) for c in children[bone])})" if children[bone] else "")
+        mark = "=" if sliding[bone] else "~" if not jointed[bone] and bone != root else ""
+        return mark + str(bone) + (f"({' '.join(nested(c) for c in children[bone])})" if children[bone] else "")
 
-    return {"root": root, "joints": int(jointed.sum()),
-            "free_bones": [b for b in range(len(parents)) if b != root and not jointed[b]],
+    return {"root": root, "joints": int(jointed.sum()), "sliding": [int(b) for b in np.flatnonzero(sliding)],
+            "free_bones": [b for b in range(len(parents)) if b != root and not jointed[b] and not sliding[b]],
             "parents": parents, "tree": nested(root)}
 
 
@@ -156,8 +158,9 @@ def description_lines(description):
             lines += [f"  {clip['name']}: {clip['frames']} frames ({clip['first']}–{clip['last']})" for clip in value]
         elif key == "skeleton":  # one line: the joint tree (fit-skin --skeleton)
             free = ", ".join(str(b) for b in value["free_bones"]) or "none"
-            lines.append(f"skeleton: root bone {value['root']}, {value['joints']} joints, free bones: {free}; "
-                         f"tree {value['tree']} (~ free); parents {value['parents']}")
+            sliding = ", ".join(str(b) for b in value["sliding"]) or "none"
+            lines.append(f"skeleton: root bone {value['root']}, {value['joints']} joints, sliding bones: {sliding}, "
+                         f"free bones: {free}; tree {value['tree']} (= sliding, ~ free); parents {value['parents']}")
         elif isinstance(value, float):
             lines.append(f"{key}: {value:.6g}")
         else:

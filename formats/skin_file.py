@@ -100,11 +100,16 @@ def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, f
     }
 
 
-def skeleton_group(parents, jointed, joints, drift, root, free_rmse, max_drift):
-    """/skin/skeleton (module notes) from plain arrays and numbers."""
+def skeleton_group(parents, jointed, joints, drift, root, free_rmse, max_drift, sliding=None, slide_low=None,
+                   slide_high=None):
+    """/skin/skeleton (module notes) from plain arrays and numbers (the sliding bones' three
+    datasets only where some bone slides)."""
     group = {"parents": np.asarray(parents, dtype=np.int64), "jointed": np.asarray(jointed, dtype=bool),
              "joints": np.asarray(joints, dtype=np.float64), "drift": np.asarray(drift, dtype=np.float64),
              "@root": int(root)}
+    if sliding is not None and np.any(sliding):
+        group.update(sliding=np.asarray(sliding, dtype=bool), slide_low=np.asarray(slide_low, dtype=np.float64),
+                     slide_high=np.asarray(slide_high, dtype=np.float64))
     # A skeleton the user brought (--skeleton FILE) has no free fit and no threshold: left out.
     group.update({f"@{name}": float(value) for name, value in (("free_rmse", free_rmse), ("max_drift", max_drift))
                   if np.isfinite(value)})
@@ -166,4 +171,8 @@ def _read_skeleton(group):
     return {"parents": np.asarray(group["parents"], dtype=np.int64), "jointed": np.asarray(group["jointed"]).astype(bool),
             "joints": np.asarray(group["joints"], dtype=np.float64), "drift": np.asarray(group["drift"], dtype=np.float64),
             "root": int(group.get("@root", int(np.flatnonzero(np.asarray(group["parents"]) < 0)[0]))),
-            "free_rmse": float(group.get("@free_rmse", np.nan)), "max_drift": float(group.get("@max_drift", np.nan))}
+            "free_rmse": float(group.get("@free_rmse", np.nan)), "max_drift": float(group.get("@max_drift", np.nan)),
+            **({} if "sliding" not in group else {
+                "sliding": np.asarray(group["sliding"]).astype(bool),
+                "slide_low": np.asarray(group["slide_low"], dtype=np.float64),
+                "slide_high": np.asarray(group["slide_high"], dtype=np.float64)})}

@@ -191,6 +191,9 @@ SKELETON = {
     "jointed": Field("bool", ("B",), low=0, high=2),
     "joints": Field("float", ("B", 3)),
     "drift": Field("float", ("B",), low=0.0),
+    "sliding": Field("bool", ("B",), low=0, high=2, optional=True),
+    "slide_low": Field("float", ("B", 3), optional=True),
+    "slide_high": Field("float", ("B", 3), optional=True),
 }
 
 
@@ -224,6 +227,7 @@ def check_skeleton(path, skeleton, dims):
         raise FormatError(path, f"/skin/skeleton/parents must have exactly one root (parent -1), not {roots.size}")
     if jointed[roots[0]]:
         raise FormatError(path, f"/skin/skeleton/jointed marks the root bone {roots[0]}, which has no parent to turn about")
+    _check_slides(path, skeleton, jointed, roots[0])
     depths = tree_depths(parents)
     if (depths < 0).any():
         raise FormatError(path, f"/skin/skeleton/parents is not a tree: bone {int(np.flatnonzero(depths < 0)[0])} "
@@ -232,6 +236,24 @@ def check_skeleton(path, skeleton, dims):
     if stated.get("root", roots[0]) != roots[0]:
         raise FormatError(path, f"/skin/skeleton/@root is {stated['root']}, but the root bone (parent -1) is "
                                 f"{roots[0]}")
+
+
+def _check_slides(path, skeleton, jointed, root):
+    """The sliding bones: all three datasets or none; not jointed, not the root; low ≤ high."""
+    present = [name for name in ("sliding", "slide_low", "slide_high") if name in skeleton]
+    if not present:
+        return
+    if len(present) < 3:
+        raise FormatError(path, f"/skin/skeleton has {', '.join(present)} without "
+                                f"{', '.join(n for n in ('sliding', 'slide_low', 'slide_high') if n not in present)}")
+    sliding = np.asarray(skeleton["sliding"]).astype(bool)
+    both = np.flatnonzero(sliding & jointed)
+    if both.size or sliding[root]:
+        bone, what = (int(both[0]), "is jointed") if both.size else (int(root), "is the root")
+        raise FormatError(path, f"/skin/skeleton/sliding marks bone {bone}, which {what}: a sliding bone has a parent "
+                                "and no fixed joint")
+    if (np.asarray(skeleton["slide_low"]) > np.asarray(skeleton["slide_high"])).any():
+        raise FormatError(path, "/skin/skeleton/slide_low exceeds slide_high")
 
 
 def check_skin(path, model):

@@ -244,8 +244,8 @@ def samba_skin(shared_data, tmp_path_factory):
 def jointed_skins(tmp_path_factory):
     """Skins whose rig is a joint tree (fit-skin --skeleton), once per run, in one folder:
     walker.npz (the walker example, two gait cycles in 32 frames, 648 vertices), skin.h5 (10 bones,
-    every bone jointed), free.h5 (the same with --max-joint-drift 0.0003: some bones hang free from
-    the root) and zup.h5 (skin.h5's fit recorded Z up in centimetres). A test copies what it
+    every bone jointed), free.h5 (the same with --max-joint-drift 0.0003: some bones have no fixed
+    joint and slide on a neighbour) and zup.h5 (skin.h5's fit recorded Z up in centimetres). A test copies what it
     changes; it must not change these."""
     from cli_helpers import assert_ok, cli
 

@@ -42,8 +42,8 @@ def vertices_on_joints(puppet, controls, skeleton, translation_solver=True):
     """What ``play``'s rig outputs of a jointed skin show: the puppet's predicted world bones with
     every jointed bone put back on its joint (:func:`~skinsynth.pipeline.rig.skeleton.hold_joints`),
     skinned linearly (the rig's model) with the correctives' offsets. controls (F, n_c, 3);
-    skeleton (parents (B,), jointed (B,), joints (B, 3)) -> (vertices (F, V, 3), the same
-    without the projection (F, V, 3))."""
+    skeleton (parents (B,), jointed (B,), joints (B, 3), slides) (:func:`~skinsynth.pipeline.rig.skeleton.held_rig`)
+    -> (vertices (F, V, 3), the same without the projection (F, V, 3))."""
     from skinsynth.gpu import lbs_reference
 
     from ..rig.skeleton import hold_joints
@@ -64,7 +64,8 @@ def evaluate_puppet(puppet, examples, test_frames, skinning=None, pca_components
     examples (F, V, 3) the example frames the puppet was trained from; test_frames (T,) the
     held-out ones; skinning None for the puppet's own. Returns :class:`Evaluation` with methods
     ``kcca``, ``kcca_no_translation_solver``, ``pca_blendshape``, ``rbf``. ``skeleton``: a jointed
-    skin's (parents, jointed, joints) adds ``kcca_on_joints``, the rig ``play`` writes for it
+    skin's (parents, jointed, joints[, slides]) (:func:`~skinsynth.pipeline.rig.skeleton.held_rig`)
+    adds ``kcca_on_joints``, the rig ``play`` writes for it
     (:func:`vertices_on_joints`), and notes ``joint_projection_cost``: how far that projection
     moves the linearly skinned prediction (RMS, same scale).
     """
@@ -183,7 +184,9 @@ def evaluate_hold_outs(puppet, skin, test_frames, options, clips, training_clips
     split = None if extrapolate is None else extrapolation_split(skin.examples.shape[0], extrapolate)
     if hold_out_clips:  # a bad name fails before any work
         clip_hold_out_split(clips, hold_out_clips, training_clips)
-    skeleton = None if skin.skeleton is None else tuple(skin.skeleton[k] for k in ("parents", "jointed", "joints"))
+    from ..rig.skeleton import held_rig
+
+    skeleton = None if skin.skeleton is None else held_rig(skin.skeleton)
     result = evaluate_puppet(puppet, skin.examples, test_frames, skinning=skinning, pca_components=pca_components,
                              skeleton=skeleton)
     skinning = result.notes["skinning"]

@@ -64,18 +64,19 @@ def world_bones(puppet, controls, translation_solver=True):
 def character_bones(puppet, controls, translation_solver=True, skeleton=None):
     """Each character's world bones for a rig output: controls (C, F, n_c, 3) -> (rotations
     (C, F, B, 3, 3), translations (C, F, B, 3), corrective blend weights (C·F, n_p) or None)
-    (:func:`world_bones`). ``skeleton``: a jointed skin's (parents (B,), jointed (B,), joints
-    (B, 3)), or None: the bones play's path predicts do not hold its joints (about 1.5 % of the
-    diagonal on the walker), so every jointed bone is put back on its joint
-    (:func:`~skinsynth.pipeline.rig.skeleton.hold_joints`; ``evaluate`` reports what that costs,
-    kcca_on_joints); vertex outputs play the prediction itself."""
-    from ..rig.skeleton import hold_joints
+    (:func:`world_bones`). ``skeleton``: a jointed skin's /skin/skeleton as read
+    (``skin.skeleton``), or None: the bones play's path predicts do not hold its joints (about
+    1.5 % of the diagonal on the walker), so every jointed bone is put back on its joint and every
+    sliding one within its travel (:func:`~skinsynth.pipeline.rig.skeleton.hold_joints`;
+    ``evaluate`` reports what that costs, kcca_on_joints); vertex outputs play the prediction
+    itself."""
+    from ..rig.skeleton import held_rig, hold_joints
 
     characters, frames = controls.shape[:2]
     rotations, translations, shape_weights = world_bones(puppet, controls.reshape(-1, *controls.shape[2:]),
                                                          translation_solver)
     if skeleton is not None:
-        hold_joints(rotations, translations, *skeleton)
+        hold_joints(rotations, translations, *held_rig(skeleton))
     return (rotations.reshape(characters, frames, *rotations.shape[1:]),
             translations.reshape(characters, frames, *translations.shape[1:]), shape_weights)
 

@@ -109,19 +109,54 @@ def joint_names(parents, jointed=None):
     return [f"chain_{chain:02d}_joint_{joint:02d}" for chain, joint in names]
 
 
-def hold_joints(rotations, translations, parents, jointed, joints):
+def hold_joints(rotations, translations, parents, jointed, joints, slides=None):
     """Put every jointed bone back on its joint, in place: t_j = t_p + (R_p − R_j) q_j, parents
     first, so each joint goes where its parent takes it and its bone keeps its turn (R_j, any
     3×3). rotations (..., B, 3, 3), translations (..., B, 3) (any leading axes: frames,
     animations); parents (B,), jointed (B,), joints (B, 3) as ``fit-skin --skeleton`` stores them.
-    The root and the free bones keep their translations."""
+    slides: None, or (sliding (B,) bool, low (B, 3), high (B, 3)): each sliding bone's slide
+    (:func:`slide_offsets`) is kept within [low, high] (per axis of its parent's frame): where it
+    is beyond, t_j = t_p + R_p (q_j + s) − R_j q_j with s clipped; where it is within, the bone is
+    left as it is, bit for bit. The root and the free bones keep their translations."""
     joints = np.asarray(joints, dtype=np.float64)
+    sliding = np.zeros(len(parents), bool) if slides is None else np.asarray(slides[0], dtype=bool)
     for bone in depth_first(parents):
+        parent = parents[bone]
         if jointed[bone]:
-            parent = parents[bone]
             translations[..., bone, :] = translations[..., parent, :] + np.einsum(
                 "...xy,y->...x", rotations[..., parent, :, :] - rotations[..., bone, :, :], joints[bone])
+        elif sliding[bone]:
+            slide = slide_offsets(rotations, translations, parents, joints, [bone])[..., 0, :]
+            held = np.clip(slide, slides[1][bone], slides[2][bone])
+            beyond = np.any(held != slide, axis=-1)
+            if beyond.any():
+                R_p, R_j = rotations[..., parent, :, :][beyond], rotations[..., bone, :, :][beyond]
+                translations[..., bone, :][beyond] = translations[..., parent, :][beyond] + np.einsum(
+                    "nxy,ny->nx", R_p, joints[bone] + held[beyond]) - np.einsum("nxy,y->nx", R_j, joints[bone])
     return translations
+
+
+def slide_offsets(rotations, translations, parents, joints, bones):
+    """(..., k, 3): how far each of ``bones`` (k,) slides on its joint q_j with its parent p: where
+    the bone carries the joint less where the parent does, in the parent's frame,
+    s_j = R_p⁻¹ ((R_j − R_p) q_j + t_j − t_p) (R_p any invertible 3×3: a spliced bone inside a
+    blend window is affine). 0 for a joint that holds. rotations (..., B, 3, 3), translations
+    (..., B, 3); parents (B,); joints (B, 3)."""
+    bones = np.asarray(bones, dtype=np.int64)
+    up = np.asarray(parents, dtype=np.int64)[bones]
+    q = np.asarray(joints, dtype=np.float64)[bones]
+    R_j, R_p = rotations[..., bones, :, :].astype(np.float64), rotations[..., up, :, :].astype(np.float64)
+    gap = np.einsum("...kxy,ky->...kx", R_j - R_p, q) + translations[..., bones, :] - translations[..., up, :]
+    return np.linalg.solve(R_p, gap[..., None])[..., 0]
+
+
+def held_rig(skeleton):
+    """(parents, jointed, joints, slides) of a skin's /skin/skeleton as read (``skin.skeleton``):
+    the arguments :func:`hold_joints` takes after the bones; slides None when no bone slides."""
+    sliding = skeleton.get("sliding")
+    slides = None if sliding is None or not np.any(sliding) else (np.asarray(sliding, bool), skeleton["slide_low"],
+                                                                   skeleton["slide_high"])
+    return skeleton["parents"], skeleton["jointed"], skeleton["joints"], slides
 
 
 def _turn_between(a, b):
@@ -139,14 +174,14 @@ def _turn_between(a, b):
     return rotation_exp(axis * np.arctan2(sine, cosine)[..., None])
 
 
-def reach_with_legs(rotations, translations, parents, jointed, joints, feet, targets):
+def reach_with_legs(rotations, translations, parents, jointed, joints, feet, targets, slides=None):
     """Two-bone inverse kinematics, in place: each of ``feet`` (bone ids) has its joint brought to
     ``targets`` (..., len(feet), 3) by turning its parent (the shin) and grandparent (the thigh)
     about their joints, the leg bending in the plane it bends in already; the foot keeps its world
     rotation, and everything below follows (:func:`hold_joints` after). Out of reach, the leg
     straightens (or folds) towards the target. A foot whose shin or thigh is not jointed is left
     alone. rotations (..., B, 3, 3), translations (..., B, 3): a jointed rig's bones (joints
-    holding). Returns the translations."""
+    holding); slides: :func:`hold_joints`'. Returns the translations."""
     joints = np.asarray(joints, dtype=np.float64)
     for n, foot in enumerate(feet):
         shin = parents[foot]
@@ -175,7 +210,7 @@ def reach_with_legs(rotations, translations, parents, jointed, joints, feet, tar
         ankle = wanted_knee + np.einsum("...xy,y->...x", R_s, lower)
         R_s = _turn_between(ankle - wanted_knee, hip + distance[..., None] * u - wanted_knee) @ R_s
         rotations[..., thigh, :, :], rotations[..., shin, :, :] = R_t, R_s
-    return hold_joints(rotations, translations, parents, jointed, joints)
+    return hold_joints(rotations, translations, parents, jointed, joints, slides)
 
 
 def rest_locals(centres, parents):

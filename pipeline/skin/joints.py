@@ -38,9 +38,15 @@ The joint's **drift** (:func:`joint_positions`) is its RMS distance apart over t
 ‖(R_j − R_k) p + t_j − t_k‖: zero for bones that truly hinge there. The hierarchy
 (:func:`skeleton_tree`) is the minimum spanning forest of the neighbour graph weighted by
 drift, keeping only pairs whose drift is at most ``max_drift`` (rigid neighbours), rooted at
-the bone that carries the most weight (the body). A bone or group of bones with no rigid
-neighbour path to the root (cloth, a prop) hangs from the root *free*: it keeps its own
-translation, no joint holds it.
+the bone that carries the most weight (the body). A group of bones with no rigid neighbour
+path to the root joins the tree at its neighbour all the same: through the least-drifting pair
+between it and the tree, by a **sliding joint** (a horse's shoulder has no bony joint; a skirt
+panel slides on the hip). A sliding bone keeps a translation of its own, so the fit is as free as
+before, but it hangs from the bone it moves with best, not from the root, and its travel relative
+to that parent at the joint is measured and bounded (:func:`~skinsynth.pipeline.rig.skeleton.slide_offsets`,
+``fit-skin``'s ``slide_low``/``slide_high``): a pose or a synthesis keeps it within what the data
+showed. Only a group with no neighbour in the tree at all (a prop, cloth apart from the body)
+hangs from the root *free*: its own translation, unbounded.
 """
 
 from dataclasses import dataclass
@@ -69,16 +75,19 @@ class Skeleton:
     """A tree over the B bones of a skin.
 
     parents (B,) int64: each bone's parent, −1 for the root (exactly one); jointed (B,) bool: the
-    bone rotates about its joint with its parent (False for the root and for free bones, which
-    keep their own translation); joints (B, 3): each bone's joint in the rest pose (its own
-    weighted rest centroid where it has none); drift (B,): each joint's drift over the rest
-    diagonal on the fit it was found from (0 where there is no joint); root: the root bone.
+    bone rotates about its joint with its parent (False for the root, the sliding bones and the
+    free ones, which keep their own translation); joints (B, 3): each bone's joint in the rest
+    pose (its own weighted rest centroid where it has none); drift (B,): each joint's drift over
+    the rest diagonal on the fit it was found from (0 where there is no joint); sliding (B,) bool
+    or None (none): the bone slides on its joint with its parent (module notes); root: the root
+    bone.
     """
 
     parents: np.ndarray
     jointed: np.ndarray
     joints: np.ndarray
     drift: np.ndarray
+    sliding: np.ndarray = None
 
     @property
     def root(self):
@@ -194,41 +203,64 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
 
 
 def skeleton_tree(bones, pairs, drift, weight_totals, root=None, max_drift=np.inf):
-    """The hierarchy: (parents (B,) int64, jointed (B,) bool, joint_pair (B,) int64).
+    """The hierarchy: (parents (B,) int64, jointed (B,) bool, joint_pair (B,) int64, sliding (B,) bool).
 
     pairs (P, 2), drift (P,): the neighbour pairs and their joints' drift; weight_totals (B,):
-    each bone's Σ weights (the root, unless ``root`` is given, is the largest; a detached group's
-    own top bone is its largest too). Pairs with drift above ``max_drift`` are not joints. Ties
-    between equal drifts go to the lower pair index (scipy's spanning tree is deterministic).
-    joint_pair[b]: the pair whose joint holds bone b to its parent, −1 where none."""
+    each bone's Σ weights (the root, unless ``root`` is given, is the largest). Pairs with drift
+    above ``max_drift`` are not fixed joints: the minimum spanning forest of the others makes
+    groups of bones held by fixed joints (ties between equal drifts go to the lower pair index;
+    scipy's spanning tree is deterministic). The root's group is the tree's trunk; every other
+    group joins the tree through its least-drifting pair with a bone already in it, that pair's
+    bone in the group becoming the group's top, *sliding* on its joint with its neighbour (module
+    notes: a scapula, a skirt panel); a group with no neighbour in the tree at all (a prop, or
+    cloth apart from the body) hangs from the root *free* (its largest bone on top), and groups
+    may join it in turn. joint_pair[b]: the pair whose joint holds bone b to its parent, fixed or
+    sliding, −1 where none."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, connected_components, minimum_spanning_tree
 
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     drift = np.asarray(drift, dtype=np.float64)
+    totals = np.asarray(weight_totals, dtype=np.float64)
     rigid = np.flatnonzero(drift <= max_drift)
     # +1 keeps zero-drift joints as edges (scipy reads a 0 as no edge); the order is unchanged.
     graph = coo_matrix((drift[rigid] / max(float(drift.max(initial=0.0)), 1e-300) + 1.0,
                         (pairs[rigid, 0], pairs[rigid, 1])), shape=(bones, bones)).tocsr()
     forest = minimum_spanning_tree(graph)
     forest = forest + forest.T
-    root = int(np.argmax(weight_totals)) if root is None else int(root)
+    root = int(np.argmax(totals)) if root is None else int(root)
     parents = np.full(bones, -1, dtype=np.int64)
     jointed = np.zeros(bones, dtype=bool)
+    sliding = np.zeros(bones, dtype=bool)
+    joint_pair = np.full(bones, -1, dtype=np.int64)
     _, labels = connected_components(forest, directed=False)
-    for group in np.unique(labels):
-        members = np.flatnonzero(labels == group)
-        top = root if group == labels[root] else int(members[np.argmax(np.asarray(weight_totals)[members])])
+    placed = np.zeros(bones, dtype=bool)
+
+    def hang(top):
+        """Place top's group below top (already given its parent), through its fixed joints."""
         order, predecessors = breadth_first_order(forest, top, directed=False, return_predecessors=True)
         below = order[1:]
         parents[below] = predecessors[below]
         jointed[below] = True
-        if top != root:
-            parents[top] = root  # a free child of the root: no rigid neighbour path to it
+        placed[order] = True
+
+    hang(root)
     key = {(int(a), int(b)): p for p, (a, b) in enumerate(pairs)}
-    joint_pair = np.array([key[(min(b, parents[b]), max(b, parents[b]))] if jointed[b] else -1 for b in range(bones)],
-                          dtype=np.int64)
-    return parents, jointed, joint_pair
+    while not placed.all():
+        crossing = np.flatnonzero(placed[pairs[:, 0]] != placed[pairs[:, 1]])
+        if crossing.size:  # the least-drifting pair into the tree (the lower index on a tie)
+            pair = int(crossing[np.argmin(drift[crossing])])
+            a, b = pairs[pair]
+            inside, top = (int(a), int(b)) if placed[a] else (int(b), int(a))
+            parents[top], sliding[top] = inside, True
+        else:  # no neighbour in the tree: free from the root
+            members = np.flatnonzero(~placed)
+            top = int(members[np.argmax(totals[members])])
+            parents[top] = root
+        hang(top)
+    for b in np.flatnonzero(jointed | sliding):
+        joint_pair[b] = key[(min(b, int(parents[b])), max(b, int(parents[b])))]
+    return parents, jointed, joint_pair, sliding
 
 
 def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translations, root=None,
@@ -253,10 +285,11 @@ def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translatio
     joints, _ = inside_mesh(joints, np.concatenate([centres[:, None], ends.mean(axis=1, keepdims=True), ends], axis=1),
                             rest, faces)
     drift = joint_drift(rotations, translations, pairs, joints) / diagonal
-    parents, jointed, joint_pair = skeleton_tree(bones, pairs, drift, totals, root, max_drift)
-    points[jointed] = joints[joint_pair[jointed]]
-    bone_drift = np.where(jointed, drift[joint_pair], 0.0)
-    return Skeleton(parents=parents, jointed=jointed, joints=points, drift=bone_drift)
+    parents, jointed, joint_pair, sliding = skeleton_tree(bones, pairs, drift, totals, root, max_drift)
+    held = jointed | sliding
+    points[held] = joints[joint_pair[held]]
+    bone_drift = np.where(held, drift[np.maximum(joint_pair, 0)], 0.0)
+    return Skeleton(parents=parents, jointed=jointed, joints=points, drift=bone_drift, sliding=sliding)
 
 
 def given_skeleton(names, parents, positions, free):

@@ -84,13 +84,25 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     fitted, skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights, free.rotations,
                                    found, faces=faces, max_influences=max_influences, iterations=JOINTED_ITERATIONS,
                                    progress=progress("joints", 2 * JOINTED_ITERATIONS))
-    return fitted, _skeleton_record(skeleton, found.drift, free.rmse, max_drift)
+    return fitted, _skeleton_record(skeleton, found.drift, free.rmse, max_drift, fitted)
 
 
-def _skeleton_record(skeleton, drift, free_rmse, max_drift):
-    """What /skin/skeleton stores of a fitted :class:`.joints.Skeleton` (docs/format.md)."""
-    return {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints, "drift": drift,
-            "root": skeleton.root, "free_rmse": free_rmse, "max_drift": max_drift}
+def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted=None):
+    """What /skin/skeleton stores of a fitted :class:`.joints.Skeleton` (docs/format.md); with
+    sliding bones, each one's travel over the ``fitted`` frames (its slide's least and largest
+    value per axis of its parent's frame, :func:`~skinsynth.pipeline.rig.skeleton.slide_offsets`):
+    the bounds every later pose keeps it within."""
+    record = {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints, "drift": drift,
+              "root": skeleton.root, "free_rmse": free_rmse, "max_drift": max_drift}
+    if skeleton.sliding is not None and skeleton.sliding.any():
+        from ..rig.skeleton import slide_offsets
+
+        bones = np.flatnonzero(skeleton.sliding)
+        slides = slide_offsets(fitted.rotations, fitted.translations, skeleton.parents, skeleton.joints, bones)
+        low, high = np.zeros((skeleton.bones, 3)), np.zeros((skeleton.bones, 3))
+        low[bones], high[bones] = slides.min(axis=0), slides.max(axis=0)
+        record.update(sliding=np.asarray(skeleton.sliding, bool), slide_low=low, slide_high=high)
+    return record
 
 
 def skin_summary(output, fit, frame_rmse, clips, diagonal, fps, scene, seconds, device, history, skeleton=None,
@@ -128,14 +140,19 @@ def skin_summary(output, fit, frame_rmse, clips, diagonal, fps, scene, seconds, 
 
 
 def _skeleton_summary(record, fit, faces, diagonal):
-    """--json's "skeleton" and its text line: the joints (how many inside the mesh), the free
-    bones, the largest drift, the error against the free fit's."""
+    """--json's "skeleton" and its text line: the joints (how many inside the mesh), the sliding
+    bones with their travel, the free bones, the largest drift, the error against the free fit's."""
     from ..mesh.geometry import points_inside
 
     jointed = np.asarray(record["jointed"])
-    inside = points_inside(np.asarray(record["joints"])[jointed], fit.rest_vertices, faces)
-    free = int((~jointed).sum()) - 1
+    sliding = np.asarray(record.get("sliding", np.zeros_like(jointed)), bool)
+    inside = points_inside(np.asarray(record["joints"])[jointed | sliding], fit.rest_vertices, faces)
+    free = int((~jointed & ~sliding).sum()) - 1
+    travel = np.asarray(record.get("slide_high", 0.0)) - np.asarray(record.get("slide_low", 0.0))
     summary = {"root": int(record["root"]), "joints": int(jointed.sum()), "free_bones": free,
+               "sliding": [{"bone": int(b), "parent": int(record["parents"][b]),
+                            "travel_over_diagonal": float(np.linalg.norm(travel[b]) / diagonal)}
+                           for b in np.flatnonzero(sliding)],
                "parents": [int(p) for p in record["parents"]],
                "joints_inside": int(inside.sum()), "largest_drift": float(np.max(record["drift"], initial=0.0)),
                "free_rmse": float(record["free_rmse"]), "rmse": float(fit.rmse),
@@ -144,7 +161,9 @@ def _skeleton_summary(record, fit, faces, diagonal):
     summary["free_rmse"] = summary["free_rmse"] if np.isfinite(summary["free_rmse"]) else None
     ratio = f"{summary['rmse_over_free']:.2f}×" if summary["rmse_over_free"] is not None else "—"
     free_error = f" ({record['free_rmse'] / diagonal:.2e} of the diagonal)" if summary["free_rmse"] else ""
-    line = (f"skeleton: root bone {summary['root']}, {summary['joints']} joints ({summary['joints_inside']} inside the "
-            f"mesh, largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
+    slid = ", ".join(f"{s['bone']} on {s['parent']} ({s['travel_over_diagonal']:.1%})" for s in summary["sliding"])
+    line = (f"skeleton: root bone {summary['root']}, {summary['joints']} fixed joints and {len(summary['sliding'])} "
+            f"sliding{f' ({slid} of the diagonal)' if slid else ''} ({summary['joints_inside']} inside the mesh, "
+            f"largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
             + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else "given (--skeleton FILE)"))
     return summary, line

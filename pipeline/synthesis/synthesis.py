@@ -34,7 +34,7 @@ from .deformation_gradients import gradient_operator
 from ..errors import OptionError
 from ..runtime.execution import concatenate_rows, run_batches
 from .graph import ComponentAnalysis
-from ..rig.skeleton import hold_joints, reach_with_legs
+from ..rig.skeleton import held_rig, hold_joints, reach_with_legs
 from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks, walk_statistics
 from .splicing import splice_local
 from .transitions import Transitions, bone_centroids
@@ -230,8 +230,7 @@ def synthesis_request(graph, start=None, end=None, targets=(), min_segment=None,
     # one clip: today's path exactly (no clip table handed down)
     request = Request(**options, targets=targets, start=start, end=end, min_segment=min_segment, fps=float(skin.fps),
                       up_axis=1 if up_axis == "Y" else 2, clips=clips if len(clips) > 1 else None,
-                      skeleton=None if skin.skeleton is None else tuple(skin.skeleton[k] for k in
-                                                                        ("parents", "jointed", "joints")))
+                      skeleton=None if skin.skeleton is None else held_rig(skin.skeleton))
     validate_request(request, skin.rotations.shape[0])
     return request
 
@@ -268,11 +267,12 @@ class Request:
     clips: the :class:`~skinsynth.pipeline.inputs.clips.Clips` of the input frames when they are several
     clips (frames, targets, start and end are global frame numbers), None for one clip.
 
-    skeleton: a jointed skin's (parents (B,), jointed (B,), joints (B, 3)) (``fit-skin
-    --skeleton``), or None. Splices, merges and plants move bones apart at their joints (on the
-    walker, by 2–9 cm); the last step of each batch puts every jointed bone back on its joint
-    (:func:`~skinsynth.pipeline.rig.skeleton.hold_joints`: its turn kept, its translation from its
-    parent's), so bone lengths stay constant. That undoes the plants' limb corrections
+    skeleton: a jointed skin's (parents (B,), jointed (B,), joints (B, 3), slides) (``fit-skin
+    --skeleton``; :func:`~skinsynth.pipeline.rig.skeleton.held_rig`), or None. Splices, merges and
+    plants move bones apart at their joints (on the walker, by 2–9 cm); the last step of each batch
+    puts every jointed bone back on its joint (:func:`~skinsynth.pipeline.rig.skeleton.hold_joints`:
+    its turn kept, its translation from its parent's), so bone lengths stay constant, and every
+    sliding bone within the travel its joint showed in the input. That undoes the plants' limb corrections
     (translations; their root offset stays), so then each planted patch's bone has its joint
     brought back where the plants put it by two-bone inverse kinematics of its shin and thigh
     (:func:`~skinsynth.pipeline.rig.skeleton.reach_with_legs`): on the planted walker the sliding
@@ -432,7 +432,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
                 targets = np.einsum("nmfxy,fy->nmfx", F[:, :, feet], request.skeleton[2][feet]) + t[:, :, feet]
             hold_joints(F, t, *request.skeleton)
             if feet is not None:  # and the legs reach for it again, by inverse kinematics
-                reach_with_legs(F, t, *request.skeleton, feet, targets)
+                reach_with_legs(F, t, *request.skeleton[:3], feet, targets, slides=request.skeleton[3])
         ok = np.ones(tries, dtype=bool)
         if request.obstacles:
             from skinsynth.gpu import lbs_reference

@@ -223,7 +223,8 @@ def skeleton_lines(rotations, translations, joints, parents, jointed):
     R_j q_j + t_j; segments (S, 2, 3), for each jointed bone a line from its parent's joint to its
     own: the parent bone between its two joints). rotations (B, 3, 3), translations (B, 3): the
     frame's LBS transforms; joints (B, 3) the rest joints q_j; parents (B,) (−1 for the root bone);
-    jointed (B,) bool (a free bone, hanging from the root without a joint, gets no line)."""
+    jointed (B,) bool: the bones drawn from their parent (a fixed or a sliding joint; a free bone,
+    hanging from the root with no neighbour, gets no line)."""
     points = np.einsum("bij,bj->bi", np.asarray(rotations, dtype=float), np.asarray(joints, dtype=float)) + translations
     parents = np.asarray(parents, dtype=np.int64)
     lined = np.flatnonzero(np.asarray(jointed, dtype=bool) & (parents >= 0))

@@ -767,13 +767,14 @@ def test_skin_view_draws_a_skeleton_inside_the_see_through_fit(jointed_skins, br
         try:
             page.wait(lambda: "/fit_joints" in page.scene(), "the skeleton's joints")
             scene = page.scene()
+            held = skeleton["jointed"] | skeleton["sliding"]  # fixed and sliding joints: every bone but the root
             joints, bones = skeleton_lines(skin.rotations[0], skin.translations[0], skeleton["joints"],
-                                           skeleton["parents"], skeleton["jointed"])
+                                           skeleton["parents"], held)
             shown = np.asarray(scene["/fit_joints"]["points"], dtype=np.float64).reshape(-1, 3)
             scale = np.ptp(skin.examples[0], axis=0).max()
             assert np.abs(shown - (joints + offset)).max() <= 2e-3 * scale  # points are sent as float16
             lines = np.asarray(scene["/fit_bones"]["points"], dtype=np.float64).reshape(-1, 2, 3)
-            assert len(lines) == int(skeleton["jointed"].sum()) and len(lines) < skin.bones - 1  # free bones: none
+            assert skeleton["sliding"].any() and len(lines) == int(held.sum()) == skin.bones - 1
             assert np.abs(lines - (bones + offset)).max() <= 1e-5 * scale
             assert all(node["opacity"] < 1 for name, node in scene.items() if name.startswith("/fit/"))
         finally:

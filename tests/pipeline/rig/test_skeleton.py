@@ -249,3 +249,34 @@ def test_two_bone_inverse_kinematics_brings_each_foot_to_its_target_and_keeps_th
                - t[:, parents[bone]])
         assert np.abs(gap).max() < 1e-12
     assert np.allclose(np.einsum("fbxy,fbzy->fbxz", R[:, 1:3], R[:, 1:3]), np.eye(3), atol=1e-12)
+
+
+def test_a_sliding_bone_is_kept_within_its_travel_and_left_alone_inside_it():
+    """hold_joints with slides against the closed form: a bone that slides by a known offset s (in its
+    parent's frame) on its joint; inside [low, high] nothing moves (bit for bit), beyond it the slide
+    is clipped per axis and the bone keeps its turn; slide_offsets gives s back."""
+    from skinsynth.pipeline.rig.skeleton import hold_joints, slide_offsets
+
+    rng = np.random.default_rng(8)
+    frames = 40
+    parents, jointed = np.array([-1, 0, 1]), np.array([False, False, True])  # body, a sliding shoulder, a leg
+    sliding = np.array([False, True, False])
+    joints = np.array([[0.0, 1.0, 0.0], [0.3, 0.9, 0.1], [0.3, 0.5, 0.1]])
+    R = random_rotations(rng, (frames, 3))
+    t = rng.normal(size=(frames, 3, 3))
+    s = rng.uniform(-0.1, 0.1, size=(frames, 3))
+    s[:10] *= 4.0  # the first ten beyond the travel on some axis
+    # the shoulder placed so that it slides by s: R_1 q + t_1 = R_0 (q + s) + t_0
+    t[:, 1] = np.einsum("fxy,fy->fx", R[:, 0], joints[1] + s) + t[:, 0] - np.einsum("fxy,y->fx", R[:, 1], joints[1])
+    hold_joints(R, t, parents, jointed, joints)  # the leg on its joint
+    np.testing.assert_allclose(slide_offsets(R, t, parents, joints, [1])[:, 0], s, atol=1e-12)
+    low, high = np.zeros((3, 3)), np.zeros((3, 3))
+    low[1], high[1] = -0.1, 0.1
+    before_R, before_t = R.copy(), t.copy()
+    hold_joints(R, t, parents, jointed, joints, (sliding, low, high))
+    inside = np.all(np.abs(s) <= 0.1, axis=1)
+    assert inside[10:].all() and not inside[:10].all()
+    assert np.array_equal(t[inside], before_t[inside]) and np.array_equal(R, before_R)
+    np.testing.assert_allclose(slide_offsets(R, t, parents, joints, [1])[:, 0], np.clip(s, -0.1, 0.1), atol=1e-12)
+    gap = np.einsum("fxy,y->fx", R[:, 2] - R[:, 1], joints[2]) + t[:, 2] - t[:, 1]  # the leg followed it
+    assert np.abs(gap).max() < 1e-12

@@ -121,19 +121,30 @@ def test_a_joint_outside_is_moved_inside_towards_its_first_inside_anchor():
     assert 0.7 < moved_points[0, 0] < 0.78 and np.allclose(moved_points[0, 1:], 0.0)
 
 
-def test_a_group_without_rigid_neighbours_hangs_free_from_the_root():
-    pairs = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
-    drift = np.array([0.001, 0.002, 0.5, 0.003])  # 2–3 is no joint
-    parents, jointed, joint_pair = skeleton_tree(5, pairs, drift, weight_totals=[1.0, 5.0, 1.0, 1.0, 2.0],
-                                                 max_drift=0.02)
-    assert parents.tolist() == [1, -1, 1, 4, 1] and jointed.tolist() == [True, False, True, True, False]
-    assert joint_pair.tolist() == [0, -1, 1, 3, -1]
+def test_a_group_without_rigid_neighbours_slides_on_its_neighbour_not_on_the_root():
+    pairs = np.array([[0, 1], [1, 2], [2, 3], [3, 4], [1, 4]])
+    drift = np.array([0.001, 0.002, 0.5, 0.003, 0.9])  # 2–3 and 1–4 are no fixed joints; 2–3 drifts less
+    parents, jointed, joint_pair, sliding = skeleton_tree(5, pairs, drift, weight_totals=[1.0, 5.0, 1.0, 1.0, 2.0],
+                                                          max_drift=0.02)
+    assert parents.tolist() == [1, -1, 1, 2, 3] and jointed.tolist() == [True, False, True, False, True]
+    assert sliding.tolist() == [False, False, False, True, False]  # 3 slides on 2, 4 is fixed to 3
+    assert joint_pair.tolist() == [0, -1, 1, 2, 3]
     assert depth_first(parents)[0] == 1
+
+
+def test_a_group_with_no_neighbour_in_the_tree_hangs_free_from_the_root_and_others_may_join_it():
+    pairs = np.array([[0, 1], [2, 3], [3, 4]])
+    drift = np.array([0.001, 0.002, 0.5])  # {0, 1} and {2, 3} share no pair; 4 slides on 3
+    parents, jointed, joint_pair, sliding = skeleton_tree(5, pairs, drift, weight_totals=[5.0, 1.0, 1.0, 2.0, 1.0],
+                                                          max_drift=0.02)
+    assert parents.tolist() == [-1, 0, 3, 0, 3]  # 3, the group's largest, free under the root
+    assert jointed.tolist() == [False, True, True, False, False] and sliding.tolist() == [False] * 4 + [True]
+    assert joint_pair.tolist() == [-1, 0, 1, -1, 2]
 
 
 def test_the_spanning_tree_keeps_the_least_drifting_joints():
     pairs = np.array([[0, 1], [0, 2], [1, 2]])
-    parents, _, _ = skeleton_tree(3, pairs, np.array([0.01, 0.002, 0.001]), [3.0, 1.0, 1.0], max_drift=1.0)
+    parents, _, _, _ = skeleton_tree(3, pairs, np.array([0.01, 0.002, 0.001]), [3.0, 1.0, 1.0], max_drift=1.0)
     assert parents.tolist() == [-1, 2, 0]
 
 
