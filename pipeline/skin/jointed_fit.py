@@ -124,9 +124,11 @@ def _solve_translations(sums, R):
 def _sweep_rotations(sums, R, T, order):
     """One pass of exact per-bone Procrustes updates (module notes, step 2), in ``order``."""
     R = R.copy()
-    for k in order:
-        target = (sums.cross[:, k] - np.einsum("fax,ay->fxy", T, sums.anchor_cross[:, k])
-                  - np.einsum("fmxy,myz->fxz", R, sums.gram[:, k]) + R[:, k] @ sums.gram[k, k])
+    frames, bones = R.shape[:2]
+    T_rows = np.swapaxes(T, 1, 2)  # (F, 3, A)
+    for k in order:  # Σ_m R_m G_mk as one product over (m, y): einsum's loops took most of a jointed fit
+        others = R.transpose(0, 2, 1, 3).reshape(frames, 3, 3 * bones) @ sums.gram[:, k].reshape(3 * bones, 3)
+        target = sums.cross[:, k] - T_rows @ sums.anchor_cross[:, k] - others + R[:, k] @ sums.gram[k, k]
         R[:, k] = polar_rotation(target)
     return R
 
@@ -176,12 +178,14 @@ def _solve_joints(vertices, rest, weights, R, parents, jointed, joints, found, s
 
 def _frame_energies(sums, squared, R, T):
     """Σ_i ‖v_i(f) − model_i(f)‖² per frame (F,), from the sums alone; ``squared`` (F,) is
-    Σ_i ‖v_i(f)‖²."""
+    Σ_i ‖v_i(f)‖². (Here and in :func:`_gauss_newton` the contractions over bones let einsum pick
+    BLAS products, ``optimize=True``: its own loops took half of a jointed fit's time; the samba's
+    22-bone fit 29.5 → 21 s, its RMSE the same to 1e-12.)"""
     cross = (np.einsum("fax,fax->f", T, sums.anchor_vertices) + np.einsum("fkxy,fkxy->f", R, sums.cross))
-    RG = np.einsum("fkxy,kmyz->fkmxz", R, sums.gram)  # R_k G_km
+    RG = np.einsum("fkxy,kmyz->fkmxz", R, sums.gram, optimize=True)  # R_k G_km
     model = (np.einsum("ab,fax,fbx->f", sums.anchor_gram, T, T)
-             + 2.0 * np.einsum("fax,fkxy,aky->f", T, R, sums.anchor_cross)
-             + np.einsum("fkmxz,fmxz->f", RG, R))
+             + 2.0 * np.einsum("fax,fkxy,aky->f", T, R, sums.anchor_cross, optimize=True)
+             + np.einsum("fkmxz,fmxz->f", RG, R, optimize=True))
     return squared - 2.0 * cross + model
 
 
@@ -204,20 +208,21 @@ def _gauss_newton(sums, squared, R, T, damping):
     is divided by 3 there, multiplied by 10 elsewhere. Returns (R, T, damping)."""
     frames, bones = R.shape[:2]
     anchors = T.shape[1]
-    Y = np.einsum("fkmxz,fmwz->fkmxw", np.einsum("fkxy,kmyz->fkmxz", R, sums.gram), R)  # M_km = R_k G_km R_mᵀ
+    RG = np.einsum("fkxy,kmyz->fkmxz", R, sums.gram, optimize=True)
+    Y = np.einsum("fkmxz,fmwz->fkmxw", RG, R, optimize=True)  # M_km = R_k G_km R_mᵀ
     n = 3 * (bones + anchors)
     H = np.zeros((frames, n, n))
     trace = np.einsum("fkmxx->fkm", Y)
     # ω–ω blocks: tr(M_km) I − M_mk
     rot = trace[..., None, None] * np.eye(3) - np.swapaxes(Y, 1, 2)
     H[:, :3 * bones, :3 * bones] = rot.transpose(0, 1, 3, 2, 4).reshape(frames, 3 * bones, 3 * bones)
-    RH = np.einsum("fkxy,aky->fkax", R, sums.anchor_cross)  # R_k H_ak
+    RH = np.einsum("fkxy,aky->fkax", R, sums.anchor_cross, optimize=True)  # R_k H_ak
     mixed = _skew(RH)  # (F, B, A, 3, 3): [R_k H_ak]×
     H[:, :3 * bones, 3 * bones:] = mixed.transpose(0, 1, 3, 2, 4).reshape(frames, 3 * bones, 3 * anchors)
     H[:, 3 * bones:, :3 * bones] = np.swapaxes(H[:, :3 * bones, 3 * bones:], 1, 2)
     H[:, 3 * bones:, 3 * bones:] = np.kron(sums.anchor_gram, np.eye(3))
     # Right-hand side: Σ_i y_ik × e_i and Σ_i s_ia e_i.
-    X = np.einsum("fkxy,fkzy->fkxz", sums.cross, R)  # Σ_i v_i y_ikᵀ = C_k R_kᵀ
+    X = np.einsum("fkxy,fkzy->fkxz", sums.cross, R, optimize=True)  # Σ_i v_i y_ikᵀ = C_k R_kᵀ
     model_rot = np.einsum("fmkxy->fkxy", Y)  # Σ_m M_mk: Σ_i (model part of bones) y_ikᵀ
     g_rot = _axial(X - model_rot) - np.cross(RH, T[:, None]).sum(axis=2)
     g_t = sums.anchor_vertices - np.einsum("ab,fbx->fax", sums.anchor_gram, T) - np.einsum("fkax->fax", RH)
