@@ -315,7 +315,7 @@ class WalkerRig:
 
 
 def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, stance=0.6, arm_swing=0.4,
-           blend=0.05, coupling=0.1, start=0.0, planted=False, rig=False, tempo=0.0):
+           blend=0.05, coupling=0.1, start=0.0, planted=False, rig=False, tempo=0.0, shoulder_slide=0.0):
     """An articulated figure walking in place (as on a treadmill): ``cycles`` gait cycles over ``frames``.
 
     Returns (vertices (F, V, 3) float64, faces (T, 3) int64): metres, Y up, facing +z, about 1.75
@@ -364,6 +364,11 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     ``tempo`` > 0 varies the gait's speed over the clip (:func:`_cycle_time`): the strides are no
     longer copies of each other (then frame ``f + frames / cycles`` only resembles frame ``f``), as
     in a captured walk, whose transitions must be found between strides that differ.
+
+    ``shoulder_slide`` > 0 (metres) gives each arm a shoulder that slides on the chest, as a
+    scapula does (no bony joint): the arm's joint, in the chest's frame, goes round a circle of that
+    radius in the chest's sagittal plane (up and forward) once a gait cycle, the right half a cycle
+    after the left; the other joints hold. The truth for a sliding joint (``fit-skin --skeleton``).
 
     ``rig=True`` also returns the true rig, a :class:`WalkerRig`: (vertices, faces, rig).
     """
@@ -470,7 +475,11 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
             local["shin" + part[5:]] = np.swapaxes(world[part], 1, 2) @ shin
             world["foot" + part[5:]] = np.broadcast_to(np.eye(3), (frames, 3, 3))  # level
         rot[part] = world[part] if part in world else rot[parent] @ local[part]
-        pos[part] = pos[parent] + np.einsum("fab,b->fa", rot[parent], np.subtract(at, joint[parent][1]))
+        offset = np.broadcast_to(np.subtract(at, joint[parent][1]), (frames, 3))
+        if part.startswith("arm") and shoulder_slide > 0.0:  # the shoulder slides on the chest
+            angle = phi + (0.0 if part.endswith("_l") else np.pi)
+            offset = offset + shoulder_slide * np.stack([np.zeros(frames), np.sin(angle), np.cos(angle)], axis=-1)
+        pos[part] = pos[parent] + np.einsum("fab,fb->fa", rot[parent], offset)
     vertices = np.zeros((frames, rest.shape[0], 3))
     for k, part in enumerate(WALKER_PARTS):  # linear blend skinning: Σ_k w_vk (R_k (v − j_k) + p_k)
         used = weights[:, k] > 0.0

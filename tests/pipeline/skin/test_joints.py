@@ -41,6 +41,58 @@ def test_the_walkers_true_bones_give_its_joints_and_its_tree(true_walker):
     assert found.drift.max() < 1e-9
 
 
+def test_a_walker_whose_shoulders_slide_gets_its_tree_its_fixed_joints_and_two_sliding_arms():
+    """Issue 44's truth: the walker's true bones with shoulders sliding 10 cm on the chest (a circle
+    in its sagittal plane): the tree is the walker's, every joint but the shoulders fixed and exact,
+    each arm sliding on the chest (the skin they share), its slide at the true shoulder the circle."""
+    from skinsynth.pipeline.inputs.examples import WALKER_PARTS
+    from skinsynth.pipeline.rig.skeleton import slide_offsets
+
+    vertices, faces, rig = walker(rig=True, shoulder_slide=0.1)
+    indices, weights = _top_four(rig.weights)
+    found = find_skeleton(rig.rest, faces, indices, weights, rig.rotations, rig.translations, root=0)
+    arms = [WALKER_PARTS.index("arm_l"), WALKER_PARTS.index("arm_r")]
+    height = np.ptp(vertices[..., 1])
+    assert found.parents.tolist() == rig.parents.tolist()
+    assert np.flatnonzero(found.sliding).tolist() == arms and (found.jointed == (rig.parents >= 0) & ~found.sliding).all()
+    fixed = np.flatnonzero(found.jointed)
+    assert np.abs(found.joints[fixed] - rig.joints[fixed]).max() < 1e-9 * height and found.drift[fixed].max() < 1e-9
+    assert found.drift[arms].min() > 0.02  # far past the fixed joints' 2 %
+    slides = slide_offsets(rig.rotations, rig.translations, rig.parents, rig.joints, arms)  # (F, 2, 3)
+    np.testing.assert_allclose(np.linalg.norm(slides[..., 1:], axis=-1), 0.1, atol=1e-12)  # the circle
+    np.testing.assert_allclose(slides[..., 0], 0.0, atol=1e-12)
+
+
+def test_a_fitted_walker_whose_shoulders_slide_hangs_its_arms_on_the_chest(tmp_path):
+    """fit-skin --skeleton on that walker (10 bones, one per part; fit seed 1): each fitted bone, named
+    by the part that dominates its vertices, sits in the walker's own tree (the chest, the heaviest,
+    its root); the arms slide on the chest with the circle's up-and-down travel (20 cm), every other
+    bone is on a fixed joint."""
+    from cli_helpers import assert_ok, cli
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.inputs.examples import WALKER_PARTS
+    from skinsynth.pipeline.rig.influence import dense_weights
+
+    vertices, faces, rig = walker(rig=True, shoulder_slide=0.1)
+    np.savez(tmp_path / "slide.npz", vertices=vertices, faces=faces, fps=24.0)
+    assert_ok(cli("fit-skin", tmp_path / "slide.npz", "-o", tmp_path / "skin.h5", "--bones", 10, "--skeleton",
+                  "--seed", 1, "-q"))
+    skin = read_skin(tmp_path / "skin.h5")
+    dominant = np.argmax(dense_weights(skin.bone_indices, skin.bone_weights, skin.bones), axis=1)
+    part = [WALKER_PARTS[np.bincount(np.argmax(rig.weights[dominant == b], axis=1), minlength=10).argmax()]
+            for b in range(skin.bones)]
+    assert sorted(part) == sorted(WALKER_PARTS)
+    skeleton = skin.skeleton
+    true_edges = {frozenset((WALKER_PARTS[c], WALKER_PARTS[p])) for c, p in enumerate(rig.parents) if p >= 0}
+    edges = {frozenset((part[c], part[p])) for c, p in enumerate(skeleton["parents"]) if p >= 0}
+    assert edges == true_edges and part[skeleton["root"]] == "chest"
+    sliding = [part[b] for b in np.flatnonzero(skeleton["sliding"])]
+    assert sorted(sliding) == ["arm_l", "arm_r"]
+    assert all(skeleton["jointed"][b] for b in range(skin.bones) if b != skeleton["root"] and not skeleton["sliding"][b])
+    travel = (skeleton["slide_high"] - skeleton["slide_low"])[skeleton["sliding"]]
+    assert np.all(np.abs(travel[:, 1] - 0.2) < 0.05), travel  # up and down: measured 0.195 and 0.207
+
+
 def test_the_root_defaults_to_the_heaviest_bone_and_the_tree_is_the_same(true_walker):
     vertices, faces, rig = true_walker
     indices, weights = _top_four(rig.weights)
