@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from skinsynth.pipeline.inputs.examples import walker
-from skinsynth.pipeline.mesh.geometry import points_inside, winding_numbers
+from skinsynth.pipeline.mesh.geometry import points_inside
+from skinsynth.pipeline.mesh.winding import winding_numbers
 from skinsynth.pipeline.rig.rotations import rotation_exp
 from skinsynth.pipeline.rig.skeleton import depth_first
 from skinsynth.pipeline.skin.joints import Skeleton, find_skeleton, inside_mesh, joint_positions, skeleton_tree
