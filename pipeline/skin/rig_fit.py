@@ -67,7 +67,7 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     if given is not None:
         fitted, skeleton = fit_given_skeleton(vertices, vertices[rest_frame], faces, given,
                                               max_influences=max_influences, iterations=JOINTED_ITERATIONS,
-                                              progress=progress("given", 4 * JOINTED_ITERATIONS))
+                                              progress=progress("given", 2 * JOINTED_ITERATIONS))
         return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), float("nan"))
     if rig is not None:
         return fit_bones_to_rig(vertices, rig.rest_vertices, rig.bone_indices, rig.bone_weights, rig.bones,
@@ -83,7 +83,7 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
                           free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal)
     fitted, skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights, free.rotations,
                                    found, faces=faces, max_influences=max_influences, iterations=JOINTED_ITERATIONS,
-                                   progress=progress("joints", 2 * JOINTED_ITERATIONS))
+                                   progress=progress("joints", JOINTED_ITERATIONS))
     return fitted, _skeleton_record(skeleton, found.drift, free.rmse, max_drift, fitted)
 
 
