@@ -235,9 +235,9 @@ def _gauss_newton(sums, squared, R, T, damping):
     g_rot = _axial(X - model_rot) - np.cross(RH, T[:, None]).sum(axis=2)
     g_t = sums.anchor_vertices - np.einsum("ab,fbx->fax", sums.anchor_gram, T) - np.einsum("fkax->fax", RH)
     g = np.concatenate([g_rot.reshape(frames, -1), g_t.reshape(frames, -1)], axis=1)
-    diagonal = np.einsum("fii->fi", H)
-    step = np.linalg.solve(H + (damping[:, None] * (diagonal + 1e-12 * diagonal.mean(axis=1, keepdims=True)))[..., None]
-                           * np.eye(n), g[..., None])[..., 0]
+    diagonal = np.einsum("fii->fi", H)  # a view: the damping goes onto it in place (no (F, n, n) copies)
+    diagonal += damping[:, None] * (diagonal + 1e-12 * diagonal.mean(axis=1, keepdims=True))
+    step = np.linalg.solve(H, g[..., None])[..., 0]
     omega = step[:, :3 * bones].reshape(frames, bones, 3)
     R_new = rotation_exp(omega) @ R
     T_new = T + step[:, 3 * bones:].reshape(frames, anchors, 3)
