@@ -30,7 +30,7 @@ def feet_paths(path, summary):
     skin = read_skin(path)
     parents = np.asarray(summary["parents"])
     jointed = np.asarray(skin.skeleton["jointed"])
-    sliding = np.asarray(skin.skeleton.get("sliding", np.zeros_like(jointed)))
+    sliding = skin.skeleton["sliding"]
     up = 1 if skin.scene.up_axis == "Y" else 2
     centres = bone_centroids(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
     low = skin.rest_vertices[:, up].min() + 0.15 * np.ptp(skin.rest_vertices[:, up])

@@ -165,14 +165,16 @@ def read_skin(path, model=None):
 
 
 def _read_skeleton(group):
-    """/skin/skeleton as read (validated by ``check_skin``), the arrays in their kinds, or None."""
+    """/skin/skeleton as read (validated by ``check_skin``), the arrays in their kinds, or None; a
+    file where no bone slides reads as ``sliding`` all False and zero bounds, so readers need no
+    default of their own (and :func:`skeleton_group` writes them again only where a bone slides)."""
     if group is None:
         return None
+    bones = len(group["parents"])
     return {"parents": np.asarray(group["parents"], dtype=np.int64), "jointed": np.asarray(group["jointed"]).astype(bool),
             "joints": np.asarray(group["joints"], dtype=np.float64), "drift": np.asarray(group["drift"], dtype=np.float64),
             "root": int(group.get("@root", int(np.flatnonzero(np.asarray(group["parents"]) < 0)[0]))),
             "free_rmse": float(group.get("@free_rmse", np.nan)), "max_drift": float(group.get("@max_drift", np.nan)),
-            **({} if "sliding" not in group else {
-                "sliding": np.asarray(group["sliding"]).astype(bool),
-                "slide_low": np.asarray(group["slide_low"], dtype=np.float64),
-                "slide_high": np.asarray(group["slide_high"], dtype=np.float64)})}
+            "sliding": np.asarray(group.get("sliding", np.zeros(bones))).astype(bool),
+            "slide_low": np.asarray(group.get("slide_low", np.zeros((bones, 3))), dtype=np.float64),
+            "slide_high": np.asarray(group.get("slide_high", np.zeros((bones, 3))), dtype=np.float64)}

@@ -153,9 +153,8 @@ def slide_offsets(rotations, translations, parents, joints, bones):
 def held_rig(skeleton):
     """(parents, jointed, joints, slides) of a skin's /skin/skeleton as read (``skin.skeleton``):
     the arguments :func:`hold_joints` takes after the bones; slides None when no bone slides."""
-    sliding = skeleton.get("sliding")
-    slides = None if sliding is None or not np.any(sliding) else (np.asarray(sliding, bool), skeleton["slide_low"],
-                                                                   skeleton["slide_high"])
+    sliding = skeleton["sliding"]
+    slides = (sliding, skeleton["slide_low"], skeleton["slide_high"]) if sliding.any() else None
     return skeleton["parents"], skeleton["jointed"], skeleton["joints"], slides
 
 

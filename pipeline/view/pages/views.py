@@ -28,7 +28,7 @@ def skeleton_at(skin):
     """frame -> (joints (B, 3), bones (S, 2, 3)) of a jointed skin's skeleton as its fit carries it."""
     from ..scenes import skeleton_lines
 
-    held = skin.skeleton["jointed"] | skin.skeleton.get("sliding", False)  # a sliding bone is in the tree too
+    held = skin.skeleton["jointed"] | skin.skeleton["sliding"]  # a sliding bone is in the tree too
 
     def at(frame):
         return skeleton_lines(skin.rotations[frame], skin.translations[frame], skin.skeleton["joints"],
