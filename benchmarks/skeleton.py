@@ -7,9 +7,11 @@ many inside the mesh by winding number, the largest drift over the rest diagonal
 bones (each with its parent and its travel over the diagonal), the free bones hanging from the
 root, the share of non-root bones on fixed joints, the feet (leaf bones whose rest centroid lies
 in the lowest 15 % of the height) with the fixed and sliding joints on each one's path to the
-root, the seconds and the peak memory.
+root, the seconds and the peak memory. With ``--surplus S`` the skeleton is grown from (1 + S)
+times the bones and pruned (``--surplus-bones``), and the free fit of the bones is run too, for
+the error ratio and ``seconds_over_free`` (the whole commands' seconds).
 
-    python benchmarks/skeleton.py [--only NAME] [--work DIR]
+    python benchmarks/skeleton.py [--only NAME] [--work DIR] [--surplus S]
 """
 
 import argparse
@@ -49,6 +51,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default=None)
     parser.add_argument("--work", default=None, help="folder kept between runs")
+    parser.add_argument("--surplus", type=float, default=0.0, help="fit-skin --surplus-bones")
     options = parser.parse_args()
     work = options.work or tempfile.mkdtemp(prefix="skeleton_bench_")
     os.makedirs(work, exist_ok=True)
@@ -59,10 +62,18 @@ def main():
             continue
         out = os.path.join(work, f"{name}.skeleton.h5")
         bones = BONES.get(name, 20)
+        grown = ["--surplus-bones", str(options.surplus)] if options.surplus else []
         seconds, peak, _, stdout = run(["fit-skin", source, "-o", out, "--bones", str(bones), "--skeleton", "--json",
-                                        "-q"], work)
+                                        "-q", *grown], work)
         summary = json.loads(stdout)
         skeleton = summary["skeleton"]
+        extra = {}
+        if options.surplus:  # no free fit of these bones inside the command: run one
+            free_seconds, _, _, free_out = run(["fit-skin", source, "-o", os.path.join(work, f"{name}.free.h5"),
+                                                "--bones", str(bones), "--json", "-q"], work)
+            skeleton["free_rmse"] = json.loads(free_out)["rmse"]
+            skeleton["rmse_over_free"] = summary["rmse"] / skeleton["free_rmse"]
+            extra = {"surplus": options.surplus, "seconds_over_free": round(seconds / free_seconds, 2)}
         line = {"capture": name, "input": pathlib.Path(source).name, "bones": bones,
                 "rmse_over_free": round(skeleton["rmse_over_free"], 3),
                 "free_rmse_over_diagonal": skeleton["free_rmse"] / summary["rmse"] * summary["rmse_over_diagonal"],
@@ -72,7 +83,7 @@ def main():
                 "free_bones": skeleton["free_bones"], "root": skeleton["root"],
                 "fixed_share": round(skeleton["joints"] / max(1, bones - 1), 3),
                 "feet_joints_to_root": feet_paths(out, skeleton), "seconds": round(seconds, 1),
-                "peak_mib": round(peak)}
+                "peak_mib": round(peak), **extra}
         print(json.dumps(line), flush=True)
 
 

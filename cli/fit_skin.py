@@ -45,18 +45,19 @@ MAX_TRANSFORM_STEPS = 100
               help="Where the weight solve and the bone sweep run: cpu (compiled, every core), cuda or cuda:N (warp "
                    "kernels on that GPU; the same fit to rounding), or auto (a GPU when there is one).")
 @click.option("--skeleton", "skeleton", is_flag=False, flag_value=FOUND, default=None, metavar="[FROM.usd]",
-              help="Also find joints and a bone hierarchy (Le & Deng 2014) and refit the rig so that every joint "
-                   "holds: each bone turns about its joint with its parent, only the root (and any free bone) "
-                   "translates. Exported as a real skeleton (glTF, UsdSkel). With a USD file, use its UsdSkel "
-                   "Skeleton instead (joints, topology, bind pose, which must be the rest frame's): one bone per "
-                   "joint, fitted under it (then --bones may be left out). Put a bare --skeleton after the INPUTs "
-                   "or before another option. docs/skeleton.md.")
+              help="Also find joints and a bone tree (Le & Deng 2014) and refit the rig so that they hold: each bone "
+                   "turns about its joint with its parent (a sliding joint also translates, within bounds). Exported "
+                   "as a real skeleton (glTF, UsdSkel). With a USD file, its UsdSkel Skeleton instead (bind pose: the "
+                   "rest frame's), one bone per joint (--bones may be left out). A bare --skeleton goes after the "
+                   "INPUTs or before another option. docs/skeleton.md.")
 @click.option("--root-bone", default=None, type=click.IntRange(min=0),
               help="--skeleton: the root bone. Default: the bone that carries the most weight (the body).")
 @click.option("--max-joint-drift", default=None, type=FiniteFloatRange(min=0.0),
               help="--skeleton: the largest drift of a joint (RMS distance its two bones carry it apart, over the "
-                   "rest diagonal) the hierarchy uses; bones with no such joint to the rest hang free from the "
-                   "root. Default 0.02.")
+                   "rest diagonal) that is fixed; a bone with no such joint slides on its neighbour. Default 0.02.")
+@click.option("--surplus-bones", default=0.0, type=FiniteFloatRange(min=0.0),
+              help="--skeleton: start from (1 + this) × --bones bones and merge the redundant ones into their parents "
+                   "as the joints are fitted (Le & Deng 2014): more fixed joints, 2-5x the time. Default 0 (off).")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
 @click.option("--fps", default=None, type=FINITE_FLOAT, help="Frame rate, when the input does not carry one (default 24).")
 @click.option("--meters-per-unit", default=None, type=FINITE_FLOAT,
@@ -68,8 +69,8 @@ MAX_TRANSFORM_STEPS = 100
 @summary_options
 @user_errors
 def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolerance, patience, device, rest_frame, seed,
-             transform_steps, skeleton, root_bone, max_joint_drift, prim, fps, meters_per_unit, up_axis, start_frame,
-             quiet, as_json):
+             transform_steps, skeleton, root_bone, max_joint_drift, surplus_bones, prim, fps, meters_per_unit, up_axis,
+             start_frame, quiet, as_json):
     """Fit a linear-blend-skinning model with rigid bones to one or more clips of a mesh.
 
     Each INPUT is a clip: a folder or glob of OBJ/PLY/OFF frames (natural frame order), a USD
@@ -107,15 +108,16 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
                                   root_bone=root_bone, max_joint_drift=max_joint_drift, max_influences=max_influences,
                                   iterations=iterations, rest_frame=rest_frame, seed=seed, tolerance=tolerance,
                                   patience=patience, joint_steps=transform_steps,
-                                  device=None if device == "cpu" else device, diagonal=diagonal, progress=phases)
+                                  device=None if device == "cpu" else device, diagonal=diagonal, surplus=surplus_bones,
+                                  progress=phases)
     seconds = time.perf_counter() - phases.started
     frame_rmse, dq, rest_frames = finish_fit(result, sequence.vertices,
                                               rest_frames=None if rig_model is None else rig_model.bone_rest_frames)
     scene = sequence.scene
     parameters = dict(bones=bones, rig=rig, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
-                      patience=patience, device=device,
-                      rest_frame=rest_frame, seed=seed, transform_steps=transform_steps, skeleton=skeleton,
-                      root_bone=root_bone, max_joint_drift=max_joint_drift, prim=prim, fps=sequence.fps,
+                      patience=patience, device=device, rest_frame=rest_frame, seed=seed,
+                      transform_steps=transform_steps, skeleton=skeleton, root_bone=root_bone,
+                      max_joint_drift=max_joint_drift, surplus_bones=surplus_bones, prim=prim, fps=sequence.fps,
                       meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame)
     record = provenance_record("skin", command_line(), parameters, inputs, tool_version(), seed)
     write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal,
@@ -145,14 +147,12 @@ def _resolved_options(bones, rig, tolerance, transform_steps, skeleton, root_bon
         if given:
             raise OptionError(f"{', '.join(given)} do(es) not apply with --rig: the rig's rest pose and weights are "
                               "kept, only the bone transforms are solved")
-    if not skeleton and (root_bone is not None or max_joint_drift is not None):
-        raise OptionError("--root-bone and --max-joint-drift apply only with --skeleton")
+    if skeleton != FOUND and (root_bone is not None or max_joint_drift is not None):
+        raise OptionError("--root-bone and --max-joint-drift apply only with a bare --skeleton (a skeleton found)")
     if skeleton and rig is not None:
         raise OptionError("--skeleton and --rig do not combine yet: --rig keeps a rig's weights, --skeleton refits them")
     brought = None
     if skeleton not in (None, FOUND):
-        if root_bone is not None or max_joint_drift is not None:
-            raise OptionError("--root-bone and --max-joint-drift apply to a skeleton found, not to --skeleton FILE")
         brought = _read_given_skeleton(skeleton, bones)
         bones = brought[0].bones
     if rig is None and bones is None:
@@ -192,6 +192,7 @@ class _Phases:
     def __init__(self, bar, bones, rig, diagonal):
         self.bar, self.diagonal, self.history = bar, diagonal, []
         self.labels = {"fit": f"fit-skin {bones} bones" + (" on the rig" if rig else ""),
+                       "grow": "fit-skin --surplus-bones: the larger free fit", "prune": "bones merged",
                        "joints": "fit-skin --skeleton: the rig refitted on its joints",
                        "given": f"fit-skin under the given skeleton ({bones} bones)"}
         self.started = time.perf_counter()
@@ -200,7 +201,7 @@ class _Phases:
         self.bar.restart(length, self.labels[phase])
 
         def progress(iteration, rmse):
-            if phase == "fit":
+            if phase in ("fit", "grow"):
                 self.history.append((round(time.perf_counter() - self.started, 3), rmse / self.diagonal))
             self.bar.update(1, f"RMSE/diag {rmse / self.diagonal:.2e}")
         return progress

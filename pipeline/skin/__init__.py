@@ -6,7 +6,8 @@ convergence (:mod:`.skin_fit`).
 
 Public: fit_skin, fit_bones_to_rig (a new take on a given rig), finish_fit, validate_fit_options, fit_memory_bytes, bone_rest_frames, SkinFit;
 find_skeleton, Skeleton, MAX_JOINT_DRIFT (joints and a hierarchy found from a free fit: :mod:`.joints`),
-fit_jointed (the rig refitted on its joints: :mod:`.jointed_fit`), fit_given_skeleton (under a skeleton the user brings);
+fit_jointed (the rig refitted on its joints: :mod:`.jointed_fit`), fit_given_skeleton (under a skeleton the user brings),
+fit_pruned_skeleton (grown from more bones, the redundant ones merged: :mod:`.bone_pruning`);
 fit_rig (the fit a fit-skin request asks for, one of those), fit_rest_pose (its bones and rest pose, refused
 before the fit when no fit can honour them) and skin_summary (its summary: :mod:`.rig_fit`);
 compile_loops (the compiled loops built ahead of use: ``skinsynth precompile``).
@@ -18,7 +19,7 @@ _EXPORTS = {"fit_skin": "skin_fit", "fit_bones_to_rig": "skin_fit", "finish_fit"
             "fit_memory_bytes": "skin_fit", "bone_rest_frames": "skin_fit",
             "SkinFit": "skin_fit", "compile_loops": "precompile",
             "find_skeleton": "joints", "Skeleton": "joints", "MAX_JOINT_DRIFT": "joints", "fit_jointed": "jointed_fit",
-            "fit_given_skeleton": "jointed_fit", "given_skeleton": "joints", "fit_rig": "rig_fit",
+            "fit_given_skeleton": "jointed_fit", "fit_pruned_skeleton": "bone_pruning", "given_skeleton": "joints", "fit_rig": "rig_fit",
             "fit_rest_pose": "rig_fit", "skin_summary": "rig_fit"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

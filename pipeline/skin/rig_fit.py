@@ -44,26 +44,33 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
 
 def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, root_bone=None, max_joint_drift=None,
             max_influences=4, iterations=100, rest_frame=0, seed=0, tolerance=0.02, patience=5, joint_steps=0,
-            device=None, diagonal=1.0, progress=lambda phase, length: None):
+            device=None, diagonal=1.0, surplus=0.0, progress=lambda phase, length: None):
     """The rig of the examples ``vertices (F, V, 3)`` (faces (T, 3)), fitted as asked.
 
     ``rig``: a skin (rest_vertices (V, 3), bone_indices (V, K), bone_weights (V, K), bones) whose
     rig is kept, only the bone transforms solved; ``given``: a :class:`.joints.Skeleton` to fit
     under (one bone per joint; the rest pose is frame ``rest_frame``); ``find_joints``: after the
     free fit of ``bones`` bones, find its joints (``root_bone``, ``max_joint_drift`` over the rest
-    ``diagonal``) and refit so that they hold. The other options are :func:`.skin_fit.fit_skin`'s
+    ``diagonal``) and refit so that they hold; with ``surplus`` > 0, grown from more bones and
+    pruned instead (:func:`.bone_pruning.fit_pruned_skeleton`; no free fit of ``bones`` then,
+    its RMSE NaN). The other options are :func:`.skin_fit.fit_skin`'s
     (``joint_steps``: its ``--transform-steps``). ``progress(phase, length)`` is called as each
     phase starts, ``"fit"`` (the free fit or the rig's, ``iterations`` long), ``"joints"`` (the
-    refit on found joints) or ``"given"`` (the fit under ``given``), and returns the phase's
+    refit on found joints), ``"grow"`` and ``"prune"`` (``surplus``) or ``"given"`` (the fit
+    under ``given``), and returns the phase's
     ``progress(iteration, rmse)`` (or None).
 
     Returns (a :class:`.skin_fit.SkinFit`, the /skin/skeleton record or None: parents (B,),
-    jointed (B,), joints (B, 3), drift (B,), root, free_rmse (NaN under ``given``, which has no
-    free fit), max_drift)."""
+    jointed (B,), joints (B, 3), drift (B,), root, free_rmse (NaN under ``given`` and with
+    ``surplus``: no free fit of ``bones``), max_drift)."""
+    from ..errors import OptionError
     from .jointed_fit import fit_given_skeleton, fit_jointed
     from .joints import MAX_JOINT_DRIFT, find_skeleton
     from .skin_fit import fit_bones_to_rig, fit_skin
 
+    if surplus and (not find_joints or root_bone is not None):
+        raise OptionError("--surplus-bones applies only with a bare --skeleton, and not with --root-bone (the bones "
+                          "are renumbered as they merge)")
     if given is not None:
         fitted, skeleton = fit_given_skeleton(vertices, vertices[rest_frame], faces, given,
                                               max_influences=max_influences, iterations=JOINTED_ITERATIONS,
@@ -73,12 +80,22 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
         return fit_bones_to_rig(vertices, rig.rest_vertices, rig.bone_indices, rig.bone_weights, rig.bones,
                                 iterations=iterations, tolerance=tolerance, patience=patience,
                                 joint_steps=joint_steps, progress=progress("fit", iterations), device=device), None
+    max_drift = MAX_JOINT_DRIFT if max_joint_drift is None else max_joint_drift
+    if surplus > 0.0:
+        from .bone_pruning import fit_pruned_skeleton
+
+        fitted, skeleton = fit_pruned_skeleton(vertices, faces, bones, surplus, max_influences=max_influences,
+                                               iterations=iterations, rest_frame=rest_frame, seed=seed,
+                                               tolerance=tolerance, patience=patience, joint_steps=joint_steps,
+                                               device=device, max_drift=max_drift,
+                                               jointed_iterations=JOINTED_ITERATIONS, diagonal=diagonal,
+                                               progress=progress)
+        return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), max_drift, fitted)
     free = fit_skin(vertices, bones, max_influences=max_influences, iterations=iterations, rest_frame=rest_frame,
                     seed=seed, tolerance=tolerance, patience=patience, joint_steps=joint_steps, device=device,
                     progress=progress("fit", iterations))
     if not find_joints:
         return free, None
-    max_drift = MAX_JOINT_DRIFT if max_joint_drift is None else max_joint_drift
     found = find_skeleton(free.rest_vertices, faces, free.bone_indices, free.bone_weights, free.rotations,
                           free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal)
     fitted, skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights, free.rotations,
@@ -161,9 +178,11 @@ def _skeleton_summary(record, fit, faces, diagonal):
     summary["free_rmse"] = summary["free_rmse"] if np.isfinite(summary["free_rmse"]) else None
     ratio = f"{summary['rmse_over_free']:.2f}×" if summary["rmse_over_free"] is not None else "—"
     free_error = f" ({record['free_rmse'] / diagonal:.2e} of the diagonal)" if summary["free_rmse"] else ""
+    given = np.isnan(record["max_drift"])  # --skeleton FILE; a found one without free fit: --surplus-bones
     slid = ", ".join(f"{s['bone']} on {s['parent']} ({s['travel_over_diagonal']:.1%})" for s in summary["sliding"])
     line = (f"skeleton: root bone {summary['root']}, {summary['joints']} fixed joints and {len(summary['sliding'])} "
             f"sliding{f' ({slid} of the diagonal)' if slid else ''} ({summary['joints_inside']} inside the mesh, "
             f"largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
-            + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else "given (--skeleton FILE)"))
+            + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else
+               "given (--skeleton FILE)" if given else "grown from more bones (--surplus-bones)"))
     return summary, line

@@ -171,10 +171,22 @@ def test_inspect_shows_the_skeleton(jointed_skins):
 def test_skeleton_options_are_refused_in_one_line(jointed_skins, tmp_path):
     walker = jointed_skins / "walker.npz"
     assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--root-bone", 1),
-                      "--root-bone and --max-joint-drift apply only with --skeleton")
+                      "--root-bone and --max-joint-drift apply only with a bare --skeleton")
     assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--skeleton", "--root-bone", 9),
                       "--root-bone 9 is not one of the 4 bones")
+    for extra in [(), ("--skeleton", "--root-bone", 0)]:
+        assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--surplus-bones", 0.5, *extra),
+                          "--surplus-bones applies only with a bare --skeleton")
     assert not (tmp_path / "a.h5").exists()
+
+
+def test_a_skeleton_grown_from_more_bones_says_so_and_has_no_free_fit_to_compare_with(jointed_skins, tmp_path):
+    out = tmp_path / "grown.h5"
+    text = assert_ok(cli("fit-skin", jointed_skins / "walker.npz", "-o", out, "--bones", 10, "--skeleton",
+                         "--surplus-bones", 0.5, "--iterations", 20)).stdout
+    assert "0 free bone(s) under the root; grown from more bones (--surplus-bones)" in text
+    skeleton = read_skin(out).skeleton
+    assert np.isnan(skeleton["free_rmse"]) and (skeleton["jointed"] | skeleton["sliding"]).sum() == 9
 
 
 def test_a_skeleton_that_is_not_a_tree_is_refused_naming_the_file(jointed_skins, tmp_path):
