@@ -83,7 +83,7 @@ def main():
                 "free_bones": skeleton["free_bones"], "root": skeleton["root"],
                 "fixed_share": round(skeleton["joints"] / max(1, bones - 1), 3),
                 "feet_joints_to_root": feet_paths(out, skeleton), "seconds": round(seconds, 1),
-                "peak_mib": round(peak), **extra}
+                "peak_mib": round(peak), "chains": skeleton.get("chains"), **extra}
         print(json.dumps(line), flush=True)
 
 

@@ -109,7 +109,7 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
                                   iterations=iterations, rest_frame=rest_frame, seed=seed, tolerance=tolerance,
                                   patience=patience, joint_steps=transform_steps,
                                   device=None if device == "cpu" else device, diagonal=diagonal, surplus=surplus_bones,
-                                  progress=phases)
+                                  up_axis=sequence.scene.up_axis, progress=phases)
     seconds = time.perf_counter() - phases.started
     frame_rmse, dq, rest_frames = finish_fit(result, sequence.vertices,
                                               rest_frames=None if rig_model is None else rig_model.bone_rest_frames)

@@ -41,11 +41,13 @@ def describe_skeleton(skeleton):
     """What ``inspect`` says of a read /skin/skeleton: {root, joints (bones jointed to their parent),
     sliding (ids: bones sliding on their joint), free_bones (ids), parents, tree}: the tree nested
     as ``root(child(...) child ...)``, children in ascending id, a sliding bone marked ``=``, a free
-    one ``~``."""
+    one ``~``; names: the bones' (``@names``: its chains named) or None."""
     parents = [int(p) for p in np.asarray(skeleton["parents"])]
     jointed = np.asarray(skeleton["jointed"]).astype(bool)
     sliding = np.asarray(skeleton.get("sliding", np.zeros_like(jointed))).astype(bool)
     root = parents.index(-1)
+    names = skeleton.get("names", skeleton.get("@names"))  # read_skin's, or the file's attribute
+    names = None if names is None else [n.decode() if isinstance(n, bytes) else str(n) for n in np.atleast_1d(names)]
     children = {bone: [c for c, p in enumerate(parents) if p == bone] for bone in range(len(parents))}
 
     def nested(bone):
@@ -54,7 +56,7 @@ def describe_skeleton(skeleton):
 
     return {"root": root, "joints": int(jointed.sum()), "sliding": [int(b) for b in np.flatnonzero(sliding)],
             "free_bones": [b for b in range(len(parents)) if b != root and not jointed[b] and not sliding[b]],
-            "parents": parents, "tree": nested(root)}
+            "parents": parents, "tree": nested(root), "names": names}
 
 
 def describe_model(path, model):
@@ -160,7 +162,8 @@ def description_lines(description):
             free = ", ".join(str(b) for b in value["free_bones"]) or "none"
             sliding = ", ".join(str(b) for b in value["sliding"]) or "none"
             lines.append(f"skeleton: root bone {value['root']}, {value['joints']} joints, sliding bones: {sliding}, "
-                         f"free bones: {free}; tree {value['tree']} (= sliding, ~ free); parents {value['parents']}")
+                         f"free bones: {free}; tree {value['tree']} (= sliding, ~ free); parents {value['parents']}"
+                         + (f"; names {value['names']}" if value.get("names") else "; no chains named"))
         elif isinstance(value, float):
             lines.append(f"{key}: {value:.6g}")
         else:

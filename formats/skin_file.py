@@ -24,7 +24,8 @@ Groups (all arrays float64 unless noted; conventions in docs/format.md):
   own), ``joints (B, 3)`` (each bone's joint in the rest pose; its weighted rest centroid where
   it has none), ``drift (B,)`` (each joint's drift on the free fit it was found from, over the
   diagonal; 0 without a joint); attributes ``@root``, ``@free_rmse`` (the free fit's RMSE at
-  the same bones), ``@max_drift`` (both absent for a skeleton given with ``--skeleton FILE``).
+  the same bones), ``@max_drift`` (both absent for a skeleton given with ``--skeleton FILE``),
+  ``@names`` (B,) the bones' names where the chains were named or a given skeleton named them.
 """
 
 from dataclasses import dataclass, field
@@ -101,15 +102,17 @@ def skin_groups(sequence, rest_frame, fit, dual_quaternions, bone_rest_frames, f
 
 
 def skeleton_group(parents, jointed, joints, drift, root, free_rmse, max_drift, sliding=None, slide_low=None,
-                   slide_high=None):
+                   slide_high=None, names=None):
     """/skin/skeleton (module notes) from plain arrays and numbers (the sliding bones' three
-    datasets only where some bone slides)."""
+    datasets only where some bone slides; ``@names`` only where given)."""
     group = {"parents": np.asarray(parents, dtype=np.int64), "jointed": np.asarray(jointed, dtype=bool),
              "joints": np.asarray(joints, dtype=np.float64), "drift": np.asarray(drift, dtype=np.float64),
              "@root": int(root)}
     if sliding is not None and np.any(sliding):
         group.update(sliding=np.asarray(sliding, dtype=bool), slide_low=np.asarray(slide_low, dtype=np.float64),
                      slide_high=np.asarray(slide_high, dtype=np.float64))
+    if names is not None:
+        group["@names"] = [str(n) for n in names]
     # A skeleton the user brought (--skeleton FILE) has no free fit and no threshold: left out.
     group.update({f"@{name}": float(value) for name, value in (("free_rmse", free_rmse), ("max_drift", max_drift))
                   if np.isfinite(value)})
@@ -177,4 +180,5 @@ def _read_skeleton(group):
             "free_rmse": float(group.get("@free_rmse", np.nan)), "max_drift": float(group.get("@max_drift", np.nan)),
             "sliding": np.asarray(group.get("sliding", np.zeros(bones))).astype(bool),
             "slide_low": np.asarray(group.get("slide_low", np.zeros((bones, 3))), dtype=np.float64),
-            "slide_high": np.asarray(group.get("slide_high", np.zeros((bones, 3))), dtype=np.float64)}
+            "slide_high": np.asarray(group.get("slide_high", np.zeros((bones, 3))), dtype=np.float64),
+            "names": [str(n) for n in np.atleast_1d(group["@names"])] if "@names" in group else None}

@@ -228,6 +228,7 @@ def check_skeleton(path, skeleton, dims):
     if jointed[roots[0]]:
         raise FormatError(path, f"/skin/skeleton/jointed marks the root bone {roots[0]}, which has no parent to turn about")
     _check_slides(path, skeleton, jointed, roots[0])
+    _check_bone_names(path, skeleton, parents.size)
     depths = tree_depths(parents)
     if (depths < 0).any():
         raise FormatError(path, f"/skin/skeleton/parents is not a tree: bone {int(np.flatnonzero(depths < 0)[0])} "
@@ -236,6 +237,21 @@ def check_skeleton(path, skeleton, dims):
     if stated.get("root", roots[0]) != roots[0]:
         raise FormatError(path, f"/skin/skeleton/@root is {stated['root']}, but the root bone (parent -1) is "
                                 f"{roots[0]}")
+
+
+def _check_bone_names(path, skeleton, bones):
+    """``@names``, where present: one per bone, distinct, each a name a USD prim and a glTF node
+    take as it is (a letter or _, then letters, digits and _)."""
+    import re
+
+    if "@names" not in skeleton:
+        return
+    names = [n.decode() if isinstance(n, bytes) else n for n in np.atleast_1d(skeleton["@names"])]
+    bad = [n for n in names if not isinstance(n, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", n)]
+    if len(names) != bones or bad or len(set(names)) != bones:
+        what = (f"holds {len(names)} names for {bones} bones" if len(names) != bones else
+                f"has {bad[0]!r}, not a name (a letter or _, then letters, digits, _)" if bad else "names a bone twice")
+        raise FormatError(path, f"/skin/skeleton/@names {what}")
 
 
 def _check_slides(path, skeleton, jointed, root):

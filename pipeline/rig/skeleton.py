@@ -109,6 +109,13 @@ def joint_names(parents, jointed=None):
     return [f"chain_{chain:02d}_joint_{joint:02d}" for chain, joint in names]
 
 
+def bone_names(skeleton):
+    """[str] (B,): a read /skin/skeleton's bone names, its chains' (``@names``,
+    :mod:`.chain_labels`) where it has them, else :func:`joint_names` of its tree."""
+    return list(skeleton["names"]) if skeleton.get("names") is not None else joint_names(skeleton["parents"],
+                                                                                          skeleton["jointed"])
+
+
 def hold_joints(rotations, translations, parents, jointed, joints, slides=None):
     """Put every jointed bone back on its joint, in place: t_j = t_p + (R_p − R_j) q_j, parents
     first, so each joint goes where its parent takes it and its bone keeps its turn (R_j, any
@@ -254,7 +261,7 @@ def joint_tree_arrays(skeleton, rotations, translations, root_motion=None):
     """A skin's /skin/skeleton (``skin.skeleton``: parents, jointed, joints) as a joint tree for one
     or several animations, rotations (..., B, 3, 3) and translations (..., B, 3), under a root joint
     moving by ``root_motion`` ((rotations (F, 3, 3), translations (F, 3)), or None: fixed):
-    {parents, names (:func:`joint_names`), rest (:func:`rest_locals`), rotations and translations
+    {parents, names (:func:`bone_names`), rest (:func:`rest_locals`), rotations and translations
     local to each parent joint (:func:`tree_local_transforms`, the inputs' shapes), free (B,) the
     unjointed bones below the root bone}, as ``formats.usd.JointTree`` holds them (its
     ``bind_centers`` are then ``skeleton["joints"]``)."""
@@ -263,7 +270,7 @@ def joint_tree_arrays(skeleton, rotations, translations, root_motion=None):
     local_r, local_t = tree_local_transforms(rotations.reshape(-1, *rotations.shape[-3:]),
                                              translations.reshape(-1, *translations.shape[-2:]), joints, parents,
                                              *(root_motion or (None, None)))
-    return dict(parents=parents, names=joint_names(parents, skeleton["jointed"]), rest=rest_locals(joints, parents),
+    return dict(parents=parents, names=bone_names(skeleton), rest=rest_locals(joints, parents),
                 rotations=local_r.reshape(rotations.shape), translations=local_t.reshape(translations.shape),
                 free=~np.asarray(skeleton["jointed"], dtype=bool) & (np.asarray(parents) >= 0))
 
@@ -337,7 +344,7 @@ def _converted(up_axis, meters_per_unit, points):
 
 
 def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis="Y", meters_per_unit=1.0,
-             quantize=None, face_uvs=None, morph_targets=None, parents=None, jointed=None):
+             quantize=None, face_uvs=None, morph_targets=None, parents=None, jointed=None, names=None):
     """What a glTF skin needs of a fitted rig, in glTF's axes and metres (:func:`to_gltf_axes`):
     {positions, normals (V, 3), faces, joints (V, 4), weights (V, 4) (float32, or ``quantize`` 8
     or 16 bits), inverse_binds (B + 1, 4, 4), bind_translations (B + 1, 3), joint_names}: joint 0
@@ -358,7 +365,7 @@ def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis=
     ``parents`` (B,), a skeleton's tree (−1 for the root bone; ``centres`` then its joints), makes
     the joints that tree (module notes): ``parents`` (B + 1,) each joint's parent joint
     (:func:`joint_parents`), ``bind_translations`` local to it (:func:`rest_locals`) and the
-    bones named by :func:`joint_names` (``jointed`` (B,) marks the free bones); the inverse
+    bones named ``names`` (B,) or by :func:`joint_names` (``jointed`` (B,) marks the free bones); the inverse
     binds are the same translations by −c_j."""
     from ..mesh.geometry import vertex_normals
 
@@ -374,7 +381,8 @@ def gltf_rig(rest_vertices, faces, bone_indices, bone_weights, centres, up_axis=
            "bind_translations": np.vstack([np.zeros((1, 3)), bone_centres]),
            "joint_names": ["root"] + [f"bone_{j:03d}" for j in range(len(centres))]}
     if parents is not None:
-        rig.update(parents=joint_parents(parents), joint_names=["root"] + joint_names(parents, jointed),
+        rig.update(parents=joint_parents(parents), joint_names=["root"] + (list(names) if names is not None
+                                                                           else joint_names(parents, jointed)),
                    bind_translations=np.vstack([np.zeros((1, 3)), rest_locals(bone_centres, parents)]))
     if morph_targets is not None:
         rig["morph_targets"] = _converted(up_axis, meters_per_unit, morph_targets)
@@ -457,7 +465,8 @@ def gltf_scene(skin, clips, up_axis, quantize=None, root_motion=False, morph=Non
     axes = dict(up_axis=up_axis, meters_per_unit=skin.scene.meters_per_unit)
     rig = gltf_rig(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, centres, **axes,
                    quantize=quantize, face_uvs=skin.face_uvs,  # UVs split at seams (pipeline.uv_seams)
-                   morph_targets=None if morph is None else morph[0], parents=parents, jointed=jointed)
+                   morph_targets=None if morph is None else morph[0], parents=parents, jointed=jointed,
+                   names=None if skeleton is None else bone_names(skeleton))
     ground = (skin.rest_vertices, skin.bone_indices, skin.bone_weights) if root_motion else None
     morph_weights = iter(() if morph is None else morph[1])
     animations = ({**gltf_clip(name, rotations, translations, centres, skin.fps, **axes, ground=ground,

@@ -79,8 +79,8 @@ class Skeleton:
     free ones, which keep their own translation); joints (B, 3): each bone's joint in the rest
     pose (its own weighted rest centroid where it has none); drift (B,): each joint's drift over
     the rest diagonal on the fit it was found from (0 where there is no joint); sliding (B,) bool
-    or None (none): the bone slides on its joint with its parent (module notes); root: the root
-    bone.
+    or None (none): the bone slides on its joint with its parent (module notes); names: [str]
+    (B,) the bones' joint names where a given skeleton has them, else None; root: the root bone.
     """
 
     parents: np.ndarray
@@ -88,6 +88,7 @@ class Skeleton:
     joints: np.ndarray
     drift: np.ndarray
     sliding: np.ndarray = None
+    names: list = None
 
     @property
     def root(self):
@@ -321,5 +322,5 @@ def given_skeleton(names, parents, positions, free):
     index[kept] = np.arange(kept.size)
     bone_parents = np.where(parents[kept] >= 0, index[np.maximum(parents[kept], 0)], -1)
     jointed = (bone_parents >= 0) & ~free[kept]
-    return Skeleton(parents=bone_parents, jointed=jointed, joints=positions[kept],
-                    drift=np.zeros(kept.size)), kept
+    return Skeleton(parents=bone_parents, jointed=jointed, joints=positions[kept], drift=np.zeros(kept.size),
+                    names=[str(names[k]).split("/")[-1] for k in kept]), kept

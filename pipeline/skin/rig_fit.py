@@ -44,7 +44,7 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
 
 def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, root_bone=None, max_joint_drift=None,
             max_influences=4, iterations=100, rest_frame=0, seed=0, tolerance=0.02, patience=5, joint_steps=0,
-            device=None, diagonal=1.0, surplus=0.0, progress=lambda phase, length: None):
+            device=None, diagonal=1.0, surplus=0.0, up_axis="Y", progress=lambda phase, length: None):
     """The rig of the examples ``vertices (F, V, 3)`` (faces (T, 3)), fitted as asked.
 
     ``rig``: a skin (rest_vertices (V, 3), bone_indices (V, K), bone_weights (V, K), bones) whose
@@ -53,7 +53,8 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     free fit of ``bones`` bones, find its joints (``root_bone``, ``max_joint_drift`` over the rest
     ``diagonal``) and refit so that they hold; with ``surplus`` > 0, grown from more bones and
     pruned instead (:func:`.bone_pruning.fit_pruned_skeleton`; no free fit of ``bones`` then,
-    its RMSE NaN). The other options are :func:`.skin_fit.fit_skin`'s
+    its RMSE NaN); its chains named from the geometry, ``up_axis`` ("Y" or "Z") up
+    (:func:`~skinsynth.pipeline.rig.chain_labels.chain_labels`). The other options are :func:`.skin_fit.fit_skin`'s
     (``joint_steps``: its ``--transform-steps``). ``progress(phase, length)`` is called as each
     phase starts, ``"fit"`` (the free fit or the rig's, ``iterations`` long), ``"joints"`` (the
     refit on found joints), ``"grow"`` and ``"prune"`` (``surplus``) or ``"given"`` (the fit
@@ -75,7 +76,7 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
         fitted, skeleton = fit_given_skeleton(vertices, vertices[rest_frame], faces, given,
                                               max_influences=max_influences, iterations=JOINTED_ITERATIONS,
                                               progress=progress("given", 2 * JOINTED_ITERATIONS))
-        return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), float("nan"))
+        return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), float("nan"), fitted)
     if rig is not None:
         return fit_bones_to_rig(vertices, rig.rest_vertices, rig.bone_indices, rig.bone_weights, rig.bones,
                                 iterations=iterations, tolerance=tolerance, patience=patience,
@@ -90,7 +91,8 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
                                                device=device, max_drift=max_drift,
                                                jointed_iterations=JOINTED_ITERATIONS, diagonal=diagonal,
                                                progress=progress)
-        return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), max_drift, fitted)
+        return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), max_drift, fitted,
+                                        (vertices, up_axis))
     free = fit_skin(vertices, bones, max_influences=max_influences, iterations=iterations, rest_frame=rest_frame,
                     seed=seed, tolerance=tolerance, patience=patience, joint_steps=joint_steps, device=device,
                     progress=progress("fit", iterations))
@@ -101,16 +103,24 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     fitted, skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights, free.rotations,
                                    found, faces=faces, max_influences=max_influences, iterations=JOINTED_ITERATIONS,
                                    progress=progress("joints", JOINTED_ITERATIONS))
-    return fitted, _skeleton_record(skeleton, found.drift, free.rmse, max_drift, fitted)
+    return fitted, _skeleton_record(skeleton, found.drift, free.rmse, max_drift, fitted, (vertices, up_axis))
 
 
-def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted=None):
+def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted, frames=None):
     """What /skin/skeleton stores of a fitted :class:`.joints.Skeleton` (docs/format.md); with
     sliding bones, each one's travel over the ``fitted`` frames (its slide's least and largest
     value per axis of its parent's frame, :func:`~skinsynth.pipeline.rig.skeleton.slide_offsets`):
-    the bounds every later pose keeps it within."""
+    the bounds every later pose keeps it within. The bones' names: the skeleton's own (a given
+    one's), else with ``frames`` (the examples (F, V, 3), the up axis) its chains named
+    (:func:`~skinsynth.pipeline.rig.chain_labels.chain_labels`; none where it finds no legs)."""
+    from ..rig.chain_labels import chain_labels
+
     record = {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints, "drift": drift,
-              "root": skeleton.root, "free_rmse": free_rmse, "max_drift": max_drift}
+              "root": skeleton.root, "free_rmse": free_rmse, "max_drift": max_drift, "names": skeleton.names}
+    if skeleton.names is None and frames is not None:
+        record["names"] = chain_labels(skeleton.parents, skeleton.joints, fitted.rest_vertices, fitted.bone_indices,
+                                       fitted.bone_weights, "XYZ".index(frames[1]), frames[0],
+                                       jointed=skeleton.jointed)
     if skeleton.sliding is not None and skeleton.sliding.any():
         from ..rig.skeleton import slide_offsets
 
@@ -158,8 +168,10 @@ def skin_summary(output, fit, frame_rmse, clips, diagonal, fps, scene, seconds, 
 
 def _skeleton_summary(record, fit, faces, diagonal):
     """--json's "skeleton" and its text line: the joints (how many inside the mesh), the sliding
-    bones with their travel, the free bones, the largest drift, the error against the free fit's."""
+    bones with their travel, the free bones, the largest drift, the error against the free fit's,
+    the bones' names and the chains named (:func:`~skinsynth.pipeline.rig.chain_labels.named_chains`)."""
     from ..mesh.geometry import points_inside
+    from ..rig.chain_labels import named_chains
 
     jointed = np.asarray(record["jointed"])
     sliding = np.asarray(record.get("sliding", np.zeros_like(jointed)), bool)
@@ -172,7 +184,7 @@ def _skeleton_summary(record, fit, faces, diagonal):
                            for b in np.flatnonzero(sliding)],
                "parents": [int(p) for p in record["parents"]],
                "joints_inside": int(inside.sum()), "largest_drift": float(np.max(record["drift"], initial=0.0)),
-               "free_rmse": float(record["free_rmse"]), "rmse": float(fit.rmse),
+               "free_rmse": float(record["free_rmse"]), "rmse": float(fit.rmse), "names": record.get("names"),
                "rmse_over_free": float(fit.rmse / record["free_rmse"]) if record["free_rmse"] > 0 else None}
     # --skeleton FILE has no free fit to compare with (NaN stored; null here)
     summary["free_rmse"] = summary["free_rmse"] if np.isfinite(summary["free_rmse"]) else None
@@ -180,9 +192,13 @@ def _skeleton_summary(record, fit, faces, diagonal):
     free_error = f" ({record['free_rmse'] / diagonal:.2e} of the diagonal)" if summary["free_rmse"] else ""
     given = np.isnan(record["max_drift"])  # --skeleton FILE; a found one without free fit: --surplus-bones
     slid = ", ".join(f"{s['bone']} on {s['parent']} ({s['travel_over_diagonal']:.1%})" for s in summary["sliding"])
+    chains = named_chains(summary["names"])
+    summary["chains"] = chains
     line = (f"skeleton: root bone {summary['root']}, {summary['joints']} fixed joints and {len(summary['sliding'])} "
             f"sliding{f' ({slid} of the diagonal)' if slid else ''} ({summary['joints_inside']} inside the mesh, "
             f"largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
             + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else
-               "given (--skeleton FILE)" if given else "grown from more bones (--surplus-bones)"))
+               "given (--skeleton FILE)" if given else "grown from more bones (--surplus-bones)")
+            + (f"; chains {', '.join(f'{c} ({n})' for c, n in chains.items())}" if chains
+               else "; no chains named (no two legs found)"))
     return summary, line

@@ -12,7 +12,7 @@ import pytest
 from skinsynth.formats.model import read_model
 from skinsynth.formats.skin_file import read_skin
 from skinsynth.gpu import lbs_reference
-from skinsynth.pipeline.rig.skeleton import joint_names
+from skinsynth.pipeline.rig.skeleton import bone_names
 
 from cli_helpers import assert_ok, assert_user_error, cli
 from glb_reading import glb_document, glb_node_parents, glb_skinned
@@ -48,7 +48,7 @@ def test_the_glb_of_a_jointed_skin_is_its_tree_and_skins_as_its_lbs(jointed_skin
     for node, bone in bones.items():
         if bone >= 0:  # each bone's node under its parent bone's, the root bone under the root joint
             assert bones[parents[node]] == skeleton["parents"][bone], (bone, skeleton["parents"])
-            assert document["nodes"][node]["name"] == joint_names(skeleton["parents"], skeleton["jointed"])[bone]
+            assert document["nodes"][node]["name"] == bone_names(skeleton)[bone]
     assert [bone for node, bone in bones.items() if parents.get(node) == root] == [skeleton["root"]]
     played = glb_skinned(out)  # every key of the one animation
     truth = in_gltf_axes(lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
@@ -88,7 +88,7 @@ def test_a_synthesis_of_a_jointed_skin_exports_its_tree_and_synthesize_writes_th
     assert (tmp_path / "run.glb").read_bytes() == (tmp_path / "later.glb").read_bytes()
     skin = skin_of(tmp_path / "b.h5")
     document, _ = glb_document(tmp_path / "run.glb")
-    assert document["nodes"][document["skins"][0]["joints"][1]]["name"].startswith("chain_")
+    assert document["nodes"][document["skins"][0]["joints"][1]]["name"] == bone_names(skin.skeleton)[0]
     with h5py.File(tmp_path / "b.h5") as f:
         rotations, translations = f["synthesis/bone_matrices"][()], f["synthesis/bone_translations"][()]
     for animation in range(2):
@@ -137,7 +137,7 @@ def test_the_usdskel_of_a_jointed_skin_is_its_tree_and_usdskel_skins_it_as_its_l
     paths = [str(p) for p in usd_skeleton.GetJointsAttr().Get()]
     topology = UsdSkel.Topology(usd_skeleton.GetJointsAttr().Get())
     assert topology.Validate()[0] and paths[0] == "root"
-    names = joint_names(skeleton["parents"], skeleton["jointed"])
+    names = bone_names(skeleton)
     bone = {i: names.index(path.rsplit("/", 1)[-1]) for i, path in enumerate(paths) if i}
     usd_parents = topology.GetParentIndices()
     for i, b in bone.items():
@@ -201,6 +201,19 @@ def test_a_skeleton_that_is_not_a_tree_is_refused_naming_the_file(jointed_skins,
     assert_user_error(cli("inspect", broken), str(broken), "exactly one root")
 
 
+@pytest.mark.parametrize("change, message", [(lambda names: names[:-1], "holds 9 names for 10 bones"),
+                                             (lambda names: [names[1]] + names[1:], "names a bone twice"),
+                                             (lambda names: ["leg l"] + names[1:], "'leg l', not a name")])
+def test_bone_names_that_no_export_could_use_are_refused_naming_the_file(jointed_skins, tmp_path, change, message):
+    broken = tmp_path / "names.h5"
+    broken.write_bytes((jointed_skins / "skin.h5").read_bytes())
+    with h5py.File(broken, "r+") as f:
+        names = [n.decode() if isinstance(n, bytes) else str(n) for n in f["skin/skeleton"].attrs["names"]]
+        f["skin/skeleton"].attrs["names"] = change(names)
+    assert_user_error(cli("export", broken, "-o", tmp_path / "out.glb"), str(broken), message)
+    assert not (tmp_path / "out.glb").exists()
+
+
 def test_a_skeleton_given_as_usdskel_is_fitted_under_with_its_tree_and_names(jointed_skins, tmp_path):
     """--skeleton FROM.usd: the found skeleton exported as UsdSkel, then the same clip fitted under
     it keeps the tree, the free bones and the joint names, at about the found rig's error
@@ -214,7 +227,7 @@ def test_a_skeleton_given_as_usdskel_is_fitted_under_with_its_tree_and_names(joi
     found, given = skin_of(jointed_skins / "free.h5"), skin_of(out)
 
     def tree(skin):
-        names = joint_names(skin.skeleton["parents"], skin.skeleton["jointed"])
+        names = bone_names(skin.skeleton)
         return {(names[b], names[p] if p >= 0 else None, bool(j))
                 for b, (p, j) in enumerate(zip(skin.skeleton["parents"], skin.skeleton["jointed"]))}
 
@@ -260,7 +273,7 @@ def test_a_jointed_skins_puppet_plays_its_rig_on_the_joints_and_evaluate_says_wh
     diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
     document, binary = glb_document(tmp_path / "p.glb")
     bones, checked = bone_of_node(document), 0
-    assert document["nodes"][document["skins"][0]["joints"][1]]["name"].startswith("chain_")
+    assert document["nodes"][document["skins"][0]["joints"][1]]["name"] == bone_names(skin.skeleton)[0]
     for animation in document["animations"]:
         for channel in animation["channels"]:
             node, path = channel["target"]["node"], channel["target"]["path"]
@@ -271,7 +284,8 @@ def test_a_jointed_skins_puppet_plays_its_rig_on_the_joints_and_evaluate_says_wh
     assert checked >= int(skin.skeleton["jointed"].sum())
 
     assert_ok(cli("play", tmp_path / "puppet.h5", "-c", walker, "-o", tmp_path / "p.usda", "--as", "skel", "-q"))
-    assert any(name.endswith("chain_00_joint_00") for name in read_skeleton(tmp_path / "p.usda").names)
+    root = bone_names(skin.skeleton)[skin.skeleton["root"]]
+    assert any(name.endswith(root) for name in read_skeleton(tmp_path / "p.usda").names)
     assert np.isfinite(read_skel_points(tmp_path / "p.usda")).all()
 
 
@@ -391,3 +405,34 @@ def test_a_synthesis_keeps_each_sliding_bone_within_the_travel_its_input_showed(
 def held_rig_without_slides(record):
     """pipeline.rig.skeleton.held_rig with the sliding bones' bounds left out."""
     return record["parents"], record["jointed"], record["joints"], None
+
+
+def test_a_fitted_walkers_chains_are_named_by_side_and_a_mirrored_one_swaps_them(jointed_skins, tmp_path):
+    """The walker faces +z with y up, its left at +x: each bone named ``…_l_…`` lies at +x, each
+    ``…_r_…`` at −x, the legs three bones each; the same fit of the walker mirrored in x names
+    each bone with the other side (a mirrored character swaps its labels)."""
+    from skinsynth.pipeline.rig.influence import bone_centroids
+
+    def named(path):
+        skin = read_skin(path)
+        centres = bone_centroids(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
+        return bone_names(skin.skeleton), centres
+
+    names, centres = named(jointed_skins / "skin.h5")
+    assert sorted(n for n in names if n.startswith("leg")) == ["leg_l_01", "leg_l_02", "leg_l_03", "leg_r_01",
+                                                                "leg_r_02", "leg_r_03"]
+    assert {"arm_l_01", "arm_r_01", "body"} <= set(names)
+    for name, centre in zip(names, centres):
+        assert ("_l_" not in name or centre[0] > 0.05) and ("_r_" not in name or centre[0] < -0.05), (name, centre)
+    with np.load(jointed_skins / "walker.npz") as data:
+        vertices, faces = data["vertices"] * [-1.0, 1.0, 1.0], data["faces"][:, ::-1]
+    np.savez(tmp_path / "mirrored.npz", vertices=vertices, faces=faces, fps=24.0)
+    assert_ok(cli("fit-skin", tmp_path / "mirrored.npz", "-o", tmp_path / "mirrored.h5", "--bones", 10, "--skeleton",
+                  "--iterations", 20, "-q"))
+    mirrored, mirrored_centres = named(tmp_path / "mirrored.h5")
+    def swapped(name):
+        return name.replace("_l_", "_x_").replace("_r_", "_l_").replace("_x_", "_r_")
+
+    for name, centre in zip(mirrored, mirrored_centres):  # bones matched by place: the mirror of each centroid
+        original = names[int(np.argmin(np.linalg.norm(centres - centre * [-1.0, 1.0, 1.0], axis=1)))]
+        assert name == swapped(original), (name, original)

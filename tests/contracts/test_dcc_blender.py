@@ -193,10 +193,10 @@ def test_blender_finds_one_root_in_the_usdskel_rig(stages, tmp_path):
 
 def _tree_by_name(skin):
     """{joint name: its parent joint's name} of a skin's skeleton as skinsynth exports it."""
-    from skinsynth.pipeline.rig.skeleton import joint_names
+    from skinsynth.pipeline.rig.skeleton import bone_names
 
     parents = skin.skeleton["parents"]
-    names = joint_names(parents, skin.skeleton["jointed"])
+    names = bone_names(skin.skeleton)
     return {"root": None, **{names[b]: "root" if parents[b] < 0 else names[parents[b]] for b in range(len(names))}}
 
 
@@ -270,11 +270,11 @@ def test_blender_turning_a_jointed_skins_knee_moves_what_hangs_below_it_and_noth
     it by more than 1e-3 of the diagonal (measured at least 9.4e-3), and every vertex without weight
     there by less than 1e-6 (measured 0): a joint turns the bones under it, and only those. The
     import keeps skinsynth's vertex order (its rest is the skin's, vertex for vertex)."""
-    from skinsynth.pipeline.rig.skeleton import joint_names
+    from skinsynth.pipeline.rig.skeleton import bone_names
     from gltf_clients import in_gltf_axes, skin_of
 
     skin = skin_of(jointed_skins / source)
-    names = joint_names(skin.skeleton["parents"], skin.skeleton["jointed"])
+    names = bone_names(skin.skeleton)
     knees = _knees(skin)
     assert len(knees) == 2, [names[b] for b in knees]
     if export == "glb":

@@ -168,7 +168,8 @@ def test_horse_gallop_skeleton_is_one_tree_of_joints_inside_the_horse_that_hold(
     free fit; the jointed rig within 1.5x the free fit's error (measured 1.37x); the hind hooves
     at least 3 joints from the root (measured 5; the fore hooves 2: a horse's shoulder is no joint,
     docs/skeleton.md); every joint held by the refitted bones. The bones with no fixed joint (the
-    forelegs' tops) slide on a neighbour, within the travel reported: none hangs free from the root."""
+    forelegs' tops) slide on a neighbour, within the travel reported: none hangs free from the root.
+    The four legs are named by what they are (issue 44)."""
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.mesh.geometry import points_inside
     from skinsynth.pipeline.rig.influence import bone_centroids
@@ -201,6 +202,13 @@ def test_horse_gallop_skeleton_is_one_tree_of_joints_inside_the_horse_that_hold(
         while parents[bone] >= 0:
             count, bone = count + int(jointed[bone]), parents[bone]
         assert count >= 3
+    # its four legs named from the geometry alone: the front ones at its head's end (−z), the left
+    # ones at −x (left = up × forward: y × −z), each leg's first bone its top
+    names = skin.skeleton["names"]
+    for leg in ("leg_front_l", "leg_front_r", "leg_back_l", "leg_back_r"):
+        bones = [b for b, name in enumerate(names) if name.startswith(leg + "_")]
+        assert bones, (leg, names)
+        assert (centres[bones, 2].mean() < -0.2) == ("front" in leg) and (centres[bones, 0].mean() < 0) == leg.endswith("_l")
 
 
 def test_horse_gallop_fitted_under_its_own_skeleton_as_usdskel_keeps_tree_names_and_error(shared_data, horse_skeleton,
@@ -210,7 +218,7 @@ def test_horse_gallop_fitted_under_its_own_skeleton_as_usdskel_keeps_tree_names_
     within 1.1x the found rig's (measured 1.04x)."""
     from cli_helpers import assert_ok, cli
     from skinsynth.formats.skin_file import read_skin
-    from skinsynth.pipeline.rig.skeleton import joint_names
+    from skinsynth.pipeline.rig.skeleton import bone_names
 
     gallop = shared_data / "horse_gallop" / "horse_gallop.npz"
     found_path, _ = horse_skeleton
@@ -219,7 +227,7 @@ def test_horse_gallop_fitted_under_its_own_skeleton_as_usdskel_keeps_tree_names_
     found, given = read_skin(found_path), read_skin(tmp_path / "given.h5")
 
     def tree(skin):
-        names = joint_names(skin.skeleton["parents"], skin.skeleton["jointed"])
+        names = bone_names(skin.skeleton)
         return {(names[b], names[p] if p >= 0 else None, bool(j))
                 for b, (p, j) in enumerate(zip(skin.skeleton["parents"], skin.skeleton["jointed"]))}
 

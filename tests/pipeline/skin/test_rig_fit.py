@@ -37,7 +37,7 @@ def test_a_found_skeleton_is_a_second_phase_and_its_record_and_line_come_with_th
     fit, record = fit_rig(vertices, faces, 10, find_joints=True, iterations=3, diagonal=diagonal, progress=progress)
     assert [(p, n) for p, n, _ in phases] == [("fit", 3), ("joints", JOINTED_ITERATIONS)]
     assert phases[0][2] == 3 and 0 < phases[1][2] <= JOINTED_ITERATIONS
-    assert set(record) == {"parents", "jointed", "joints", "drift", "root", "free_rmse", "max_drift"}
+    assert set(record) == {"parents", "jointed", "joints", "drift", "root", "free_rmse", "max_drift", "names"}
     assert record["free_rmse"] > 0 and np.asarray(record["joints"]).shape == (10, 3)
     frame_rmse, _, _ = finish_fit(fit, vertices)
     summary, lines = skin_summary("out.h5", fit, frame_rmse, Clips.single(12), diagonal, 24.0, _Scene(), 1.0, "cpu",

@@ -1,0 +1,212 @@
+"""Chains named by what they are: a skeleton's legs, arms, neck, tail and spine, from the
+geometry alone (issue 44: what Blender's, Unreal's and Godot's retargeters map by name and side).
+
+Nothing comes from a template; everything from the tree, the rest pose, the skin and the frames:
+
+1. **Feet**: the leaves of the tree whose skin comes within :data:`FOOT_BAND` of the height of
+   each frame's lowest point in at least :data:`FOOT_FRAMES` of the frames (a gallop's rest frame
+   has two hooves in the air; a hand that touches the floor once is not a foot). Leaves whose
+   paths meet below :data:`FOOT_SPAN` of the height are one foot (a toe and a heel bone), the one
+   farthest from the root along the tree kept. Two feet make a biped, four or
+   more a quadruped; fewer, and no chain is named (:func:`chain_labels` returns None).
+2. **Across** (left–right) is where the legs spread: two legs, the horizontal line between the
+   tops of their chains; more, the horizontal direction across the line they spread along (a
+   quadruped's legs lie along its length). **Forward** is horizontal and across it, its sign:
+   a biped's toes point forward (a foot's skin reaches further ahead of its joint than behind);
+   a quadruped's head leads (the highest end on the centre line lies ahead of the legs'
+   middle). **Left** is up × forward (a figure facing +z with y up has its left at +x): one rule
+   for every character, so a mirrored character swaps its labels.
+3. **Ends**: a biped's arms are, on each side (beyond :data:`CENTRE_BAND` of the width from the
+   legs' middle), the leaf farthest from the root along the tree that is not in a leg; its head
+   the highest limb near the centre line above the shoulders. A quadruped's head is the central
+   leaf farthest ahead, past the front legs; its tail the central leaf farthest behind, past the
+   hind legs.
+4. **Chains**: from each end up to the first bone that also carries another end (where the limb
+   branches off the body), the bones numbered from the body outwards: ``leg_l_01`` the thigh
+   (``leg_front_l_01``… on four legs), ``arm_r_02``, ``neck_01`` (its last bone the head),
+   ``tail_01``. Between the root (``body``) and where the neck branches, ``spine_01``…; between
+   the root and where the legs branch (a root in the chest), ``hips_01``…. Every other bone (a
+   side branch: a skirt panel, a bone on the belly) keeps its place name from
+   :func:`.skeleton.joint_names`.
+"""
+
+import numpy as np
+
+#: How close to each frame's lowest point (share of the height) a foot's skin comes.
+FOOT_BAND = 0.05
+#: Share of the frames in which a foot's skin comes that close to the ground.
+FOOT_FRAMES = 0.1
+#: Grounded leaves whose paths meet in a bone this low (share of the height, its centroid above
+#: the lowest point) are one foot (a toe and a heel bone meet in the foot or the shin; two legs
+#: meet at the hips, near half the height; a knee is at about a quarter).
+FOOT_SPAN = 0.2
+#: Share of the width (across) within which an end counts as on the centre line.
+CENTRE_BAND = 0.1
+
+
+def _paths(parents):
+    """[[root, …, b]] for every bone b."""
+    paths = [None] * len(parents)
+
+    def path(b):
+        if paths[b] is None:
+            paths[b] = [b] if parents[b] < 0 else path(parents[b]) + [b]
+        return paths[b]
+
+    for b in range(len(parents)):
+        path(b)
+    return paths
+
+
+def _reach(paths, joints, centres):
+    """(B,): each bone's distance from the root along the tree: its joints' steps plus its centroid's."""
+    return np.array([sum(np.linalg.norm(joints[c] - joints[p]) for p, c in zip(path[1:-1], path[2:]))
+                     + np.linalg.norm(centres[path[-1]] - joints[path[-1]]) for path in paths])
+
+
+def named_chains(names):
+    """{chain: bones} of bone names (:func:`chain_labels`'), chains sorted by name: ``leg_l_03``
+    counts towards ``leg_l``; the root (``body``) and the unnamed (``chain_…``) count nowhere."""
+    chains = {}
+    for name in names or ():
+        stem, _, number = name.rpartition("_")
+        if stem and number.isdigit() and not name.startswith("chain_"):
+            chains[stem] = chains.get(stem, 0) + 1
+    return dict(sorted(chains.items()))
+
+
+def _toes_ahead(leg, forward, up_axis, height):
+    """How far (along ``forward``) a leg's sole lies ahead of its ankle: the centroid of its skin
+    ``leg`` (N, 3) within :data:`FOOT_BAND` of the height of its own lowest point, less that of
+    its skin from 2 to 3 bands up (the ankle and the shin above the heel). A foot reaches forward
+    from the ankle, so the sign says which way the figure faces, whatever the bones."""
+    above = leg[:, up_axis] - leg[:, up_axis].min()
+    sole, ankle = leg[above < FOOT_BAND * height], leg[(above > 2 * FOOT_BAND * height) & (above < 3 * FOOT_BAND * height)]
+    if not (len(sole) and len(ankle)):
+        return 0.0
+    return float((sole.mean(axis=0) - ankle.mean(axis=0)) @ forward)
+
+
+def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, frames=None, jointed=None):
+    """[str] (B,) each bone's name (module notes), or None where the tree has fewer than two feet.
+
+    parents (B,) (−1 the root); joints (B, 3) rest joints; rest (V, 3); bone_indices /
+    bone_weights (V, K); up_axis 0, 1 or 2; frames (F, V, 3) the input's (None: the rest pose);
+    jointed (B,) as :func:`.skeleton.joint_names` takes it, for the bones no chain names."""
+    from .influence import bone_centroids, dense_weights
+    from .skeleton import joint_names
+
+    parents = np.asarray(parents, dtype=np.int64)
+    joints, rest = np.asarray(joints, np.float64), np.asarray(rest, np.float64)
+    bones = parents.size
+    up = np.eye(3)[up_axis]
+    centres = bone_centroids(rest, bone_indices, bone_weights, bones)
+    owner = np.argmax(dense_weights(bone_indices, bone_weights, bones), axis=1)
+    height = float(np.ptp(rest[:, up_axis])) or 1.0
+    paths = _paths(parents)
+    root = int(np.flatnonzero(parents < 0)[0])
+    reach = _reach(paths, joints, centres)
+    leaves = [b for b in range(bones) if not (parents == b).any() and parents[b] >= 0]
+    poses = rest[None] if frames is None else np.asarray(frames, dtype=np.float64)
+    floor = poses[..., up_axis].min(axis=1)  # (F,)
+
+    def grounded(bone):
+        mine = owner == bone
+        return mine.any() and np.mean(poses[:, mine, up_axis].min(axis=1) - floor < FOOT_BAND * height) >= FOOT_FRAMES
+
+    def meet(a, b):  # the deepest bone on both paths
+        return [k for k in paths[a] if k in paths[b]][-1]
+
+    low = rest[:, up_axis].min()
+    feet = []
+    for leaf in sorted((b for b in leaves if grounded(b)), key=lambda b: -reach[b]):
+        if all(centres[meet(leaf, f), up_axis] - low > FOOT_SPAN * height for f in feet):
+            feet.append(leaf)
+    if len(feet) < 2:
+        return None
+    quadruped = len(feet) >= 4
+
+    def top(end, others):
+        """The first bone of end's chain: below the deepest bone on its path that carries another end."""
+        shared = [b for b in paths[end][:-1] if any(b in paths[o] for o in others if o != end)]
+        return paths[end][paths[end].index(shared[-1]) + 1] if shared else paths[end][1]
+
+    hips = np.array([joints[top(f, feet)] for f in feet])
+    middle = hips.mean(axis=0)
+    flat = (hips if not quadruped else rest) - (middle if not quadruped else rest.mean(axis=0))
+    flat -= np.outer(flat @ up, up)
+    along = np.linalg.eigh(flat.T @ flat)[1][:, -1]  # two hips: the line between them; a quadruped: its length
+    across = along if not quadruped else np.cross(up, along)
+    across /= np.linalg.norm(across)
+    forward = np.cross(across, up)
+    width = float(np.ptp(rest @ across)) or 1.0
+    if quadruped:  # the head and neck reach further past the legs than the rump and tail do
+        ahead = (rest - middle) @ forward
+        sign = np.sign(np.percentile(ahead, 99) - (hips @ forward).max() + middle @ forward
+                       - (-np.percentile(ahead, 1) + (hips @ forward).min() - middle @ forward))
+    else:
+        sign = np.sign(sum(_toes_ahead(rest[np.isin(owner, paths[f][paths[f].index(top(f, feet)):])], forward,
+                                       up_axis, height) for f in feet))
+    forward = forward * (sign or 1.0)
+    left = np.cross(up, forward)
+
+    def side(b):
+        return "_l" if (centres[b] - middle) @ left > 0 else "_r"
+
+    def branch(b):
+        """The deepest bone on b's path that a leg's path shares (where b's limb leaves the legs')."""
+        return [k for k in paths[b] if any(k in paths[f] for f in feet)][-1]
+
+    ends = {}  # end bone: label
+    in_legs = set()
+    for f in feet:
+        where = "" if not quadruped else ("_front" if (joints[top(f, feet)] - middle) @ forward > 0 else "_back")
+        ends[f] = "leg" + where + side(f)
+    for f in feet:
+        in_legs.update(paths[f][paths[f].index(top(f, feet)):])
+    hips_bone = parents[top(feet[0], feet)] if len(feet) == 2 else None
+    # ends off the body: not in a leg, and on a biped leaving the legs' paths by a bone above the hips
+    rest_leaves = [b for b in leaves if b not in feet and not in_legs.intersection(paths[b])
+                   and (hips_bone is None or centres[paths[b][paths[b].index(branch(b)) + 1], up_axis]
+                        > centres[hips_bone, up_axis])]
+    central = [b for b in leaves if b not in feet and abs((centres[b] - middle) @ across) < CENTRE_BAND * width]
+    if quadruped:
+        front = max((joints[top(f, feet)] - middle) @ forward for f in feet)
+        head = max((b for b in central if b in rest_leaves and (centres[b] - middle) @ forward > front),
+                   key=lambda b: (centres[b] - middle) @ forward, default=None)
+        behind = min((joints[top(f, feet)] - middle) @ forward for f in feet)
+        tail = min((b for b in central if b in rest_leaves and (centres[b] - middle) @ forward < behind),
+                   key=lambda b: (centres[b] - middle) @ forward, default=None)
+        if tail is not None:
+            ends[tail] = "tail"
+    else:
+        for label in ("_l", "_r"):
+            arm = max((b for b in rest_leaves if side(b) == label), key=lambda b: reach[b], default=None)
+            if arm is not None:
+                ends[arm] = "arm" + label
+        shoulders = [joints[top(e, list(ends) + feet)] for e in ends if ends[e].startswith("arm")]
+        floor_of_head = max((s[up_axis] for s in shoulders), default=centres[root, up_axis])
+        def crown(b):  # the highest bone of b's limb, from where it leaves the body
+            return max(paths[b][paths[b].index(top(b, list(ends) + feet)):], key=lambda k: centres[k, up_axis])
+
+        heads = [b for b in rest_leaves if b not in ends and centres[crown(b), up_axis] > floor_of_head
+                 and abs((centres[crown(b)] - middle) @ across) < CENTRE_BAND * width]
+        head = max(heads, key=lambda b: centres[crown(b), up_axis], default=None)
+    if head is not None:
+        ends[head] = "neck"
+    names = list(joint_names(parents, jointed))
+    names[root] = "body"
+    taken = {}
+    for end, label in sorted(ends.items()):
+        count = taken[label] = taken.get(label, 0) + 1
+        stem = label if count == 1 else f"{label}_{count}"
+        chain = paths[end][paths[end].index(top(end, list(ends))):]
+        for k, b in enumerate(chain):
+            names[b] = f"{stem}_{k + 1:02d}"
+    upper = head if head is not None else next((e for e, label in ends.items() if label.startswith("arm")), None)
+    for end, label in (((upper, "spine"),) if upper is not None else ()) + ((feet[0], "spine" if quadruped else "hips"),):
+        trunk = paths[end][1:paths[end].index(top(end, list(ends)))]
+        for k, b in enumerate(trunk):
+            if names[b].startswith("chain_"):
+                names[b] = f"{label}_{k + 1:02d}"
+    return names

@@ -1,0 +1,58 @@
+"""Chains named from the geometry alone (issue 44): the walker's true rig named as its parts are, its
+mirror image with left and right swapped, the same names however it faces or whichever axis is up,
+and no names where the tree has no two legs."""
+
+import numpy as np
+import pytest
+
+from skinsynth.pipeline.inputs.examples import WALKER_PARTS, walker
+from skinsynth.pipeline.rig.chain_labels import chain_labels, named_chains
+from skinsynth.pipeline.rig.rotations import rotation_exp
+
+TRUE_NAMES = {"pelvis": "body", "chest": "spine_01", "thigh_l": "leg_l_01", "shin_l": "leg_l_02",
+              "foot_l": "leg_l_03", "thigh_r": "leg_r_01", "shin_r": "leg_r_02", "foot_r": "leg_r_03",
+              "arm_l": "arm_l_01", "arm_r": "arm_r_01"}
+
+
+@pytest.fixture(scope="module")
+def true_walker():
+    vertices, faces, rig = walker(rig=True)
+    indices = np.argsort(-rig.weights, axis=1, kind="stable")[:, :4]
+    return vertices, rig, indices, np.take_along_axis(rig.weights, indices, axis=1)
+
+
+def _names(true_walker, transform=np.eye(3), up_axis=1):
+    vertices, rig, indices, weights = true_walker
+    return chain_labels(rig.parents, rig.joints @ transform.T, rig.rest @ transform.T, indices, weights, up_axis,
+                        vertices @ transform.T)
+
+
+def test_the_walkers_true_rig_is_named_as_its_parts(true_walker):
+    """The walker faces +z with y up, its left at +x (examples.walker)."""
+    assert dict(zip(WALKER_PARTS, _names(true_walker))) == TRUE_NAMES
+    assert named_chains(_names(true_walker)) == {"arm_l": 1, "arm_r": 1, "leg_l": 3, "leg_r": 3, "spine": 1}
+
+
+def test_a_mirrored_walker_swaps_left_and_right(true_walker):
+    swapped = {part: name.replace("_l_", "_x_").replace("_r_", "_l_").replace("_x_", "_r_")
+               for part, name in TRUE_NAMES.items()}
+    assert dict(zip(WALKER_PARTS, _names(true_walker, np.diag([-1.0, 1.0, 1.0])))) == swapped
+
+
+@pytest.mark.parametrize("turn", [0.7, 2.0, -2.6])
+def test_the_names_do_not_depend_on_where_the_walker_faces(true_walker, turn):
+    facing = rotation_exp(np.array([0.0, turn, 0.0]))
+    assert dict(zip(WALKER_PARTS, _names(true_walker, facing))) == TRUE_NAMES
+
+
+def test_a_z_up_walker_is_named_the_same(true_walker):
+    y_to_z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # y up → z up, +z forward → +y
+    assert dict(zip(WALKER_PARTS, _names(true_walker, y_to_z, up_axis=2))) == TRUE_NAMES
+
+
+def test_a_tree_without_two_legs_names_no_chain(true_walker):
+    vertices, rig, indices, weights = true_walker
+    lifted = vertices.copy()
+    legs = np.isin(np.argmax(rig.weights, axis=1), [WALKER_PARTS.index(p) for p in ("foot_r", "shin_r", "thigh_r")])
+    lifted[:, legs, 1] += 0.5  # the right leg never comes near the ground
+    assert chain_labels(rig.parents, rig.joints, rig.rest, indices, weights, 1, lifted) is None
