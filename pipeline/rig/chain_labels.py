@@ -64,6 +64,12 @@ def _reach(paths, joints, centres):
                      + np.linalg.norm(centres[path[-1]] - joints[path[-1]]) for path in paths])
 
 
+def chain_tops(names):
+    """{chain: its first bone (B index)} of bone names (:func:`chain_labels`'), by chain name."""
+    return dict(sorted((name[:-3], b) for b, name in enumerate(names or ())
+                       if name.endswith("_01") and not name.startswith("chain_")))
+
+
 def named_chains(names):
     """{chain: bones} of bone names (:func:`chain_labels`'), chains sorted by name: ``leg_l_03``
     counts towards ``leg_l``; the root (``body``) and the unnamed (``chain_…``) count nowhere."""

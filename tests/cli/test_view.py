@@ -757,6 +757,7 @@ def test_skin_view_draws_a_skeleton_inside_the_see_through_fit(jointed_skins, br
     """fit-skin --skeleton: the fit's joints (points) and bones (lines) at the shown frame, over the
     reconstruction, which is see-through; a skin without a skeleton has neither (the test above)."""
     from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.rig.chain_labels import chain_tops
     from skinsynth.pipeline.view.scenes import side_by_side, skeleton_lines
 
     skin = read_skin(jointed_skins / "free.h5")
@@ -777,5 +778,9 @@ def test_skin_view_draws_a_skeleton_inside_the_see_through_fit(jointed_skins, br
             assert skeleton["sliding"].any() and len(lines) == int(held.sum()) == skin.bones - 1
             assert np.abs(lines - (bones + offset)).max() <= 1e-5 * scale
             assert all(node["opacity"] < 1 for name, node in scene.items() if name.startswith("/fit/"))
+            tops = chain_tops(skeleton["names"])  # each named chain labelled (issue 44)
+            assert {"leg_l", "leg_r"} <= set(tops)
+            assert {n: node["text"] for n, node in scene.items() if n.startswith("/chains/")} == {
+                f"/chains/{chain}": chain for chain in tops}
         finally:
             page.close()

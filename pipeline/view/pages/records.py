@@ -61,7 +61,8 @@ class SkinView:
     error shown full red (absolute, and as the fraction of the diagonal it was given), fps, up axis;
     contacts: a graph file's input ground contacts (/graph/contacts), None when it has none;
     skeleton: skeleton(frame) -> (joints (B, 3), bones (S, 2, 3)) of the fit (``scenes.skeleton_lines``),
-    None for a skin without one."""
+    None for a skin without one; chains: {chain name: its first bone} where its chains are named
+    (``leg_l`` at its thigh's joint)."""
 
     faces: np.ndarray
     examples: np.ndarray
@@ -72,6 +73,7 @@ class SkinView:
     up_axis: str
     contacts: tuple = None  # a graph file's ground contacts: (vertices (N,), offsets (P + 1,), planted (F, P))
     skeleton: Callable = None
+    chains: dict = None
 
 
 @dataclass

@@ -33,7 +33,8 @@ class SkinPage:
         if view.contacts is not None:
             server.gui.add_markdown("ground contacts: the planted patches' vertices of the input frame in cyan")
         if view.skeleton is not None:
-            server.gui.add_markdown("skeleton: the fit's joints and bones in yellow, inside the see-through fit")
+            server.gui.add_markdown("skeleton: the fit's joints and bones in yellow, inside the see-through fit"
+                                    + (", each named chain labelled at its first joint" if view.chains else ""))
         self.contact, self.point_size = None, 0.006 * float(np.ptp(view.examples[0], axis=0).max())
         self.info = server.gui.add_markdown("")
         self.timeline = Timeline(server, len(view.examples), view.fps, self.show, warn)
@@ -73,6 +74,8 @@ class SkinPage:
                                           point_shape="circle")
         if len(bones):
             self.server.scene.add_line_segments("/fit_bones", bones + offset, color, thickness=self.point_size / 2)
+        for chain, bone in (self.view.chains or {}).items():  # each named chain at its first joint
+            self.server.scene.add_label(f"/chains/{chain}", chain, position=joints[bone] + offset)
 
     def _contacts(self, frame, truth):
         """The planted contact vertices of input frame ``frame`` as cyan points on the input."""

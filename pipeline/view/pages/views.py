@@ -5,6 +5,7 @@ carries, the synthesis's vertices coloured by the component that moves them."""
 from skinsynth.gpu import lbs_reference
 
 from ...mesh.geometry import bounding_box_diagonal
+from ...rig.chain_labels import chain_tops
 from .records import SkinView, SynthesisView
 
 
@@ -21,7 +22,8 @@ def skin_view(skin, error_fraction, contacts=None):
                     error_scale=error_fraction * bounding_box_diagonal(skin.rest_vertices),
                     error_fraction=error_fraction, fps=skin.fps, up_axis=skin.scene.up_axis,
                     contacts=None if contacts is None else (contacts.vertices, contacts.offsets, contacts.planted),
-                    skeleton=None if skin.skeleton is None else skeleton_at(skin))
+                    skeleton=None if skin.skeleton is None else skeleton_at(skin),
+                    chains=None if skin.skeleton is None else chain_tops(skin.skeleton["names"]))
 
 
 def skeleton_at(skin):
