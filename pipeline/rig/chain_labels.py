@@ -7,20 +7,24 @@ Nothing comes from a template; everything from the tree, the rest pose, the skin
    each frame's lowest point in at least :data:`FOOT_FRAMES` of the frames (a gallop's rest frame
    has two hooves in the air; a hand that touches the floor once is not a foot). Leaves whose
    paths meet below :data:`FOOT_SPAN` of the height are one foot (a toe and a heel bone), the one
-   farthest from the root along the tree kept. Two feet make a biped, four or
-   more a quadruped; fewer, and no chain is named (:func:`chain_labels` returns None).
-2. **Across** (left–right) is where the legs spread: two legs, the horizontal line between the
-   tops of their chains; more, the horizontal direction across the line they spread along (a
-   quadruped's legs lie along its length). **Forward** is horizontal and across it, its sign:
-   a biped's toes point forward (a foot's skin reaches further ahead of its joint than behind);
-   a quadruped's head leads (the highest end on the centre line lies ahead of the legs'
-   middle). **Left** is up × forward (a figure facing +z with y up has its left at +x): one rule
-   for every character, so a mirrored character swaps its labels.
-3. **Ends**: a biped's arms are, on each side (beyond :data:`CENTRE_BAND` of the width from the
-   legs' middle), the leaf farthest from the root along the tree that is not in a leg; its head
-   the highest limb near the centre line above the shoulders. A quadruped's head is the central
-   leaf farthest ahead, past the front legs; its tail the central leaf farthest behind, past the
-   hind legs.
+   farthest from the root along the tree kept. Two feet make a biped, four a quadruped;
+   any other count, two legs on one side (or two front legs on one side: a sheet draped on the
+   ground, a horse lying down), or a leg whose top stands less than :data:`LEG_HEIGHT` of the
+   height above its foot at rest, and no chain is named (:func:`chain_labels` returns None):
+   nothing is named rather than named wrong.
+2. **Across** (left–right): two legs, the horizontal line between the tops of their chains;
+   four, across the body's length (the rest pose's largest horizontal spread: a quadruped is
+   longer than wide, and its legs, mid-gallop, may spread any way). **Forward** is horizontal
+   and across it, its sign: a biped's toes point forward (a sole lies ahead of the ankle above
+   it, :func:`_toes_ahead`); a quadruped's head and neck reach further past its legs' tops than
+   its rump and tail do (the skin's 99th percentile ahead against its 1st behind). **Left** is
+   up × forward (a figure facing +z with y up has its left at +x): one rule for every
+   character, so a mirrored character swaps its labels.
+3. **Ends**: a biped's arms are, on each side, the leaf farthest from the root along the tree
+   that is in no leg and leaves the legs' paths by a bone above the hips (not a bone on a
+   thigh); its head the highest limb near the centre line (within :data:`CENTRE_BAND` of the
+   width) above the shoulders. A quadruped's head is the central leaf farthest ahead, past the
+   front legs; its tail the central leaf farthest behind, past the hind legs.
 4. **Chains**: from each end up to the first bone that also carries another end (where the limb
    branches off the body), the bones numbered from the body outwards: ``leg_l_01`` the thigh
    (``leg_front_l_01``… on four legs), ``arm_r_02``, ``neck_01`` (its last bone the head),
@@ -40,6 +44,8 @@ FOOT_FRAMES = 0.1
 #: the lowest point) are one foot (a toe and a heel bone meet in the foot or the shin; two legs
 #: meet at the hips, near half the height; a knee is at about a quarter).
 FOOT_SPAN = 0.2
+#: How far (share of the height) a leg's top stands above its foot's lowest point at rest.
+LEG_HEIGHT = 0.2
 #: Share of the width (across) within which an end counts as on the centre line.
 CENTRE_BAND = 0.1
 
@@ -128,9 +134,9 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
     for leaf in sorted((b for b in leaves if grounded(b)), key=lambda b: -reach[b]):
         if all(centres[meet(leaf, f), up_axis] - low > FOOT_SPAN * height for f in feet):
             feet.append(leaf)
-    if len(feet) < 2:
+    if len(feet) not in (2, 4):
         return None
-    quadruped = len(feet) >= 4
+    quadruped = len(feet) == 4
 
     def top(end, others):
         """The first bone of end's chain: below the deepest bone on its path that carries another end."""
@@ -168,6 +174,10 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
     for f in feet:
         where = "" if not quadruped else ("_front" if (joints[top(f, feet)] - middle) @ forward > 0 else "_back")
         ends[f] = "leg" + where + side(f)
+    legs_stand = all(joints[top(f, feet)][up_axis] - rest[owner == f, up_axis].min(initial=np.inf) > LEG_HEIGHT * height
+                     for f in feet)
+    if len(set(ends.values())) < len(feet) or not legs_stand:
+        return None  # two legs on one side, or a leg not standing under the body: no character's legs
     for f in feet:
         in_legs.update(paths[f][paths[f].index(top(f, feet)):])
     hips_bone = parents[top(feet[0], feet)] if len(feet) == 2 else None

@@ -56,3 +56,13 @@ def test_a_tree_without_two_legs_names_no_chain(true_walker):
     legs = np.isin(np.argmax(rig.weights, axis=1), [WALKER_PARTS.index(p) for p in ("foot_r", "shin_r", "thigh_r")])
     lifted[:, legs, 1] += 0.5  # the right leg never comes near the ground
     assert chain_labels(rig.parents, rig.joints, rig.rest, indices, weights, 1, lifted) is None
+
+
+def test_legs_whose_tops_do_not_stand_above_their_feet_name_no_chain(true_walker):
+    """Nothing is named rather than named wrong: a leg whose top (its first bone's joint) stands
+    barely above its foot (the hips' joints put at 5 % of their height) is no leg a body stands on."""
+    vertices, rig, indices, weights = true_walker
+    low = rig.joints.copy()
+    low[[WALKER_PARTS.index("thigh_l"), WALKER_PARTS.index("thigh_r")], 1] *= 0.05
+    assert chain_labels(rig.parents, low, vertices[0], indices, weights, 1, vertices) is None
+    assert chain_labels(rig.parents, rig.joints, vertices[0], indices, weights, 1, vertices) is not None
