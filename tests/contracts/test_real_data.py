@@ -209,6 +209,13 @@ def test_horse_gallop_skeleton_is_one_tree_of_joints_inside_the_horse_that_hold(
         bones = [b for b, name in enumerate(names) if name.startswith(leg + "_")]
         assert bones, (leg, names)
         assert (centres[bones, 2].mean() < -0.2) == ("front" in leg) and (centres[bones, 0].mean() < 0) == leg.endswith("_l")
+    # the horse mirrored in x: the same bones named with the other side
+    from skinsynth.pipeline.rig.chain_labels import chain_labels
+
+    mirror = np.array([-1.0, 1.0, 1.0])
+    mirrored = chain_labels(parents, joints * mirror, skin.rest_vertices * mirror, skin.bone_indices, skin.bone_weights,
+                            1, skin.examples * mirror, jointed=jointed)
+    assert mirrored == [n.replace("_l_", "_x_").replace("_r_", "_l_").replace("_x_", "_r_") for n in names]
 
 
 def test_horse_gallop_fitted_under_its_own_skeleton_as_usdskel_keeps_tree_names_and_error(shared_data, horse_skeleton,

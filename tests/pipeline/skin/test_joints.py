@@ -68,7 +68,7 @@ def test_a_fitted_walker_whose_shoulders_slide_hangs_its_arms_on_the_chest(tmp_p
     """fit-skin --skeleton on that walker (10 bones, one per part; fit seed 1): each fitted bone, named
     by the part that dominates its vertices, sits in the walker's own tree (the chest, the heaviest,
     its root); the arms slide on the chest with the circle's up-and-down travel (20 cm), every other
-    bone is on a fixed joint."""
+    bone is on a fixed joint; its legs and arms are named by side."""
     from cli_helpers import assert_ok, cli
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.inputs.examples import WALKER_PARTS
@@ -92,6 +92,10 @@ def test_a_fitted_walker_whose_shoulders_slide_hangs_its_arms_on_the_chest(tmp_p
     assert all(skeleton["jointed"][b] for b in range(skin.bones) if b != skeleton["root"] and not skeleton["sliding"][b])
     travel = (skeleton["slide_high"] - skeleton["slide_low"])[skeleton["sliding"]]
     assert np.all(np.abs(travel[:, 1] - 0.2) < 0.05), travel  # up and down: measured 0.195 and 0.207
+    names = dict(zip(part, skeleton["names"]))  # its chains named by side (the walker's left at +x)
+    assert names["arm_l"] == "arm_l_01" and names["arm_r"] == "arm_r_01"
+    assert [names[p] for p in ("thigh_l", "shin_l", "foot_l")] == ["leg_l_01", "leg_l_02", "leg_l_03"]
+    assert [names[p] for p in ("thigh_r", "shin_r", "foot_r")] == ["leg_r_01", "leg_r_02", "leg_r_03"]
 
 
 def test_the_root_defaults_to_the_heaviest_bone_and_the_tree_is_the_same(true_walker):
