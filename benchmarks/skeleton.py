@@ -7,9 +7,10 @@ many inside the mesh by winding number, the largest drift over the rest diagonal
 bones (each with its parent and its travel over the diagonal), the free bones hanging from the
 root, the share of non-root bones on fixed joints, the feet (leaf bones whose rest centroid lies
 in the lowest 15 % of the height) with the fixed and sliding joints on each one's path to the
-root, the seconds and the peak memory. With ``--surplus S`` the skeleton is grown from (1 + S)
-times the bones and pruned (``--surplus-bones``), and the free fit of the bones is run too, for
-the error ratio and ``seconds_over_free`` (the whole commands' seconds).
+root, the seconds and the peak memory, and the free fit of the same bones run as its own command
+(``free_seconds``, ``seconds_over_free``: the whole commands'). With ``--surplus S`` the skeleton
+is grown from (1 + S) times the bones and pruned (``--surplus-bones``), its error over that free
+fit's.
 
     python benchmarks/skeleton.py [--only NAME] [--work DIR] [--surplus S]
 """
@@ -67,13 +68,14 @@ def main():
                                         "-q", *grown], work)
         summary = json.loads(stdout)
         skeleton = summary["skeleton"]
-        extra = {}
-        if options.surplus:  # no free fit of these bones inside the command: run one
-            free_seconds, _, _, free_out = run(["fit-skin", source, "-o", os.path.join(work, f"{name}.free.h5"),
-                                                "--bones", str(bones), "--json", "-q"], work)
+        # the free fit of the same bones, as its own command: the time the skeleton is measured against
+        free_seconds, _, _, free_out = run(["fit-skin", source, "-o", os.path.join(work, f"{name}.free.h5"),
+                                            "--bones", str(bones), "--json", "-q"], work)
+        extra = {"free_seconds": round(free_seconds, 1), "seconds_over_free": round(seconds / free_seconds, 2)}
+        if options.surplus:  # no free fit of these bones inside the command: the one above
             skeleton["free_rmse"] = json.loads(free_out)["rmse"]
             skeleton["rmse_over_free"] = summary["rmse"] / skeleton["free_rmse"]
-            extra = {"surplus": options.surplus, "seconds_over_free": round(seconds / free_seconds, 2)}
+            extra["surplus"] = options.surplus
         line = {"capture": name, "input": pathlib.Path(source).name, "bones": bones,
                 "rmse_over_free": round(skeleton["rmse_over_free"], 3),
                 "free_rmse_over_diagonal": skeleton["free_rmse"] / summary["rmse"] * summary["rmse_over_diagonal"],

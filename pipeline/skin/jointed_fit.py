@@ -109,15 +109,18 @@ def world_transforms(rotations, anchor_translations, parents, jointed, joints):
 class _Sums:
     """What a rotation sweep needs from the vertices, formed once per weight update."""
 
-    def __init__(self, data, s, a):
+    def __init__(self, data, s, a, rotations=True):
         """data: the examples' :class:`.bone_transforms.Trajectories` (``flat`` (V, F·3)); s (V, A),
-        a (V, B, 3): :func:`chain_coefficients`. Every sum is one matrix product over the vertices."""
+        a (V, B, 3): :func:`chain_coefficients`. Every sum is one matrix product over the vertices.
+        ``rotations=False``: only the anchors' sums, all :func:`_solve_translations` needs (the
+        rotations' Σ_i v_i(f) a_ikᵀ is the largest product: (F·3 × V) by (V × 3B))."""
         count, bones = a.shape[:2]
         frames = data.frames
         flat = a.reshape(count, bones * 3)
-        self.gram = (flat.T @ flat).reshape(bones, 3, bones, 3).transpose(0, 2, 1, 3)  # (B, B, 3, 3): Σ a_m a_kᵀ
-        # Σ_i v_i(f) a_ikᵀ (F, B, 3, 3)
-        self.cross = (data.flat.T @ flat).reshape(frames, 3, bones, 3).transpose(0, 2, 1, 3)
+        if rotations:
+            self.gram = (flat.T @ flat).reshape(bones, 3, bones, 3).transpose(0, 2, 1, 3)  # (B, B, 3, 3): Σ a_m a_kᵀ
+            # Σ_i v_i(f) a_ikᵀ (F, B, 3, 3)
+            self.cross = (data.flat.T @ flat).reshape(frames, 3, bones, 3).transpose(0, 2, 1, 3)
         self.anchor_gram = s.T @ s  # (A, A)
         self.anchor_cross = (s.T @ flat).reshape(-1, bones, 3)  # (A, B, 3): Σ_i s_ia a_ik
         self.anchor_vertices = (s.T @ data.flat).reshape(-1, frames, 3).transpose(1, 0, 2)  # (F, A, 3)
@@ -145,7 +148,8 @@ def _solve_joints(vertices, rest, weights, R, parents, jointed, joints, found, s
     """The joints (B, 3) that, with the anchors' translations, best fit for fixed rotations and
     weights (module notes, step 3): the translations eliminated per frame, one (3J × 3J) solve,
     pulled towards ``found`` (B, 3) by ``stiffness`` × each joint's largest eigenvalue in the
-    directions its motion leaves free and :data:`JOINT_FLOOR` × it in every direction."""
+    directions its motion leaves free and :data:`JOINT_FLOOR` × it in every direction.
+    ``vertices`` (V, F·3): the examples laid out as :class:`.bone_transforms.Trajectories`' ``flat``."""
     below, anchors = chain_masks(parents, jointed)
     child = np.flatnonzero(jointed)
     if child.size == 0:
@@ -154,15 +158,16 @@ def _solve_joints(vertices, rest, weights, R, parents, jointed, joints, found, s
     s, W = carried[:, anchors], carried[:, child]  # (V, A), (V, J)
     frames, count, bones = R.shape[0], len(rest), len(parents)
     D = R[:, parents[child]] - R[:, child]  # (F, J, 3, 3)
-    # The vertices less the bones' rotations of the rest pose, (V, F·3), as one product.
-    turned = (R.transpose(0, 2, 1, 3).reshape(frames * 3, bones * 3)
-              @ (weights[:, :, None] * rest[:, None, :]).reshape(count, bones * 3).T)
-    remainder = vertices.transpose(1, 0, 2).reshape(count, frames * 3) - turned.reshape(frames, 3, count).transpose(2, 0, 1).reshape(count, frames * 3)
     N = s.T @ s + 1e-12 * np.eye(anchors.size)
     P = s.T @ W  # (A, J)
     K = W.T @ W - P.T @ np.linalg.solve(N, P)  # (J, J)
-    # Σ_i (W_ic − (P^T N⁻¹ s_i)_c) r_i(f), (J, F, 3)
-    projected = ((W - s @ np.linalg.solve(N, P)).T @ remainder).reshape(child.size, frames, 3)
+    # Σ_i M_ic r_i(f), (J, F, 3), M = W − s N⁻¹P (V, J), r_i(f) the vertex less the bones' rotations
+    # of the rest pose: Mᵀ v(f) less (Mᵀ (w ⊗ rest)) R(f), so no (V, F·3) array is formed (they
+    # were most of this solve's time: 0.24 s an iteration on the samba).
+    M = W - s @ np.linalg.solve(N, P)
+    turned = ((M.T @ (weights[:, :, None] * rest[:, None, :]).reshape(count, bones * 3))
+              @ R.transpose(1, 3, 0, 2).reshape(bones * 3, frames * 3))
+    projected = (M.T @ vertices - turned).reshape(child.size, frames, 3)
     rhs = np.einsum("fcyx,cfy->cx", D, projected)
     count = child.size
     flat = D.transpose(0, 2, 1, 3).reshape(frames * 3, count * 3)  # [(f, y), (c, x)]
@@ -209,11 +214,12 @@ def _axial(m):
     return np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], axis=-1)
 
 
-def _gauss_newton(sums, squared, R, T, damping):
+def _gauss_newton(sums, squared, R, T, damping, before):
     """One Levenberg–Marquardt step on every bone's rotation and every anchor's translation of
     each frame at once (frames are independent for fixed weights and joints): R_k ← exp(ω_k) R_k,
     t_a ← t_a + δ_a; a frame keeps the step only where its error falls, and its ``damping`` (F,)
-    is divided by 3 there, multiplied by 10 elsewhere. Returns (R, T, damping)."""
+    is divided by 3 there, multiplied by 10 elsewhere. ``before`` (F,): the frames' energies at
+    (R, T) (:func:`_frame_energies`). Returns (R, T, damping, the energies at the R, T returned)."""
     frames, bones = R.shape[:2]
     anchors = T.shape[1]
     RG = np.einsum("fkxy,kmyz->fkmxz", R, sums.gram, optimize=True)
@@ -241,11 +247,11 @@ def _gauss_newton(sums, squared, R, T, damping):
     omega = step[:, :3 * bones].reshape(frames, bones, 3)
     R_new = rotation_exp(omega) @ R
     T_new = T + step[:, 3 * bones:].reshape(frames, anchors, 3)
-    before, after = _frame_energies(sums, squared, R, T), _frame_energies(sums, squared, R_new, T_new)
+    after = _frame_energies(sums, squared, R_new, T_new)
     better = after < before
     R = np.where(better[:, None, None, None], R_new, R)
     T = np.where(better[:, None, None], T_new, T)
-    return R, T, np.where(better, damping / 3.0, damping * 10.0)
+    return R, T, np.where(better, damping / 3.0, damping * 10.0), np.where(better, after, before)
 
 
 class _State:
@@ -273,15 +279,15 @@ def _iterate(state, vertices, rest, skeleton, data, found, max_influences, itera
         for _ in range(sweeps):
             state.R = _sweep_rotations(sums, state.R, T, order)
             T = _solve_translations(sums, state.R)
-        damping = np.full(frames, 1e-3)
+        damping, energies = np.full(frames, 1e-3), _frame_energies(sums, squared, state.R, T)
         for _ in range(NEWTON_STEPS):
-            state.R, T, damping = _gauss_newton(sums, squared, state.R, T, damping)
+            state.R, T, damping, energies = _gauss_newton(sums, squared, state.R, T, damping, energies)
         if move_joints:
-            state.joints = _solve_joints(vertices, rest, dense_weights(state.indices, state.weights, skeleton.bones),
+            state.joints = _solve_joints(data.flat, rest, dense_weights(state.indices, state.weights, skeleton.bones),
                                          state.R, skeleton.parents, skeleton.jointed, state.joints, found, stiffness)
             if faces is not None:  # back inside the body (module notes, step 3)
                 state.joints = inside_mesh(state.joints, found[:, None], rest, faces)[0]
-            T = _solve_translations(_Sums(data, *state.coefficients(rest, skeleton)), state.R)
+            T = _solve_translations(_Sums(data, *state.coefficients(rest, skeleton), rotations=False), state.R)
         world_R, world_t = world_transforms(state.R, T, skeleton.parents, skeleton.jointed, state.joints)
         transforms = np.concatenate([world_R, world_t[..., None]], axis=-1)
         state.indices, state.weights, error = update_weights(transforms, data, state.indices, state.weights,
