@@ -64,6 +64,11 @@ from .skin_weights import update_weights
 JOINT_STIFFNESS = 1e-3
 #: The same pull in every direction, as a share of that eigenvalue.
 JOINT_FLOOR = 1e-3
+#: Halvings of the segment to the skin when an iteration's joint solve takes a joint out of the
+#: body (:func:`.joints.inside_mesh`; 12 when a skeleton is found): 1/64 of the way, then a quarter
+#: of the rest in. The same fits to 1e-3 of their RMSE, 6–12 % faster than 12 (each halving tests
+#: the joints against every triangle).
+PROJECTION_STEPS = 6
 #: Levenberg–Marquardt steps on all of a frame's bones together after each iteration's sweeps: the
 #: chain couples every bone to its ancestors, where one-bone-at-a-time updates crawl (module notes).
 NEWTON_STEPS = 4
@@ -286,7 +291,7 @@ def _iterate(state, vertices, rest, skeleton, data, found, max_influences, itera
             state.joints = _solve_joints(data.flat, rest, dense_weights(state.indices, state.weights, skeleton.bones),
                                          state.R, skeleton.parents, skeleton.jointed, state.joints, found, stiffness)
             if faces is not None:  # back inside the body (module notes, step 3)
-                state.joints = inside_mesh(state.joints, found[:, None], rest, faces)[0]
+                state.joints = inside_mesh(state.joints, found[:, None], rest, faces, steps=PROJECTION_STEPS)[0]
             T = _solve_translations(_Sums(data, *state.coefficients(rest, skeleton), rotations=False), state.R)
         world_R, world_t = world_transforms(state.R, T, skeleton.parents, skeleton.jointed, state.joints)
         transforms = np.concatenate([world_R, world_t[..., None]], axis=-1)

@@ -176,13 +176,25 @@ def joint_drift(rotations, translations, pairs, joints):
     return np.sqrt(np.mean(np.sum(gap ** 2, axis=2), axis=0))
 
 
+#: Depths (shares of the mesh's diagonal) under the skin nearest a point where :func:`inside_mesh`
+#: looks for a way in when none of the point's anchors is inside (a thin, curved limb: both bones'
+#: centroids outside it).
+SKIN_DEPTHS = (0.005, 0.01, 0.02, 0.04)
+
+
 def inside_mesh(points, anchors, vertices, faces, steps=12):
     """points (P, 3) moved into the closed mesh (vertices, faces) where outside: along the segment to
     the first inside one of each point's ``anchors`` (P, N, 3), bisected to the skin (``steps``
     halvings, all points at once: the skin to 2.4e-4 of the segment, and each halving tests every
-    point against every triangle), then a quarter of the rest of the way on. A point with no
-    inside anchor stays. Returns (points (P, 3), moved (P,) bool)."""
-    from ..mesh.geometry import points_inside
+    point against every triangle), then a quarter of the rest of the way on. Last come points
+    under the skin nearest the point, :data:`SKIN_DEPTHS` deep along its vertex normal (either
+    way: the mesh's orientation is not assumed), for a point none of whose anchors is inside (on
+    the horse's clips, a sliding joint between two thin, curved leg bones whose centroids both lie
+    outside the leg). A point with no inside anchor even so stays. Returns (points (P, 3), moved
+    (P,) bool)."""
+    from scipy.spatial import cKDTree
+
+    from ..mesh.geometry import bounding_box_diagonal, points_inside, vertex_normals
 
     points = np.array(points, dtype=np.float64)
     anchors = np.asarray(anchors, dtype=np.float64)
@@ -190,10 +202,18 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
     moved = np.zeros(len(points), dtype=bool)
     if outside.size == 0:
         return points, moved
-    inside = points_inside(anchors[outside].reshape(-1, 3), vertices, faces).reshape(outside.size, -1)
-    outside, inside = outside[inside.any(axis=1)], inside[inside.any(axis=1)]
+    vertices = np.asarray(vertices, dtype=np.float64)
+    nearest = cKDTree(vertices).query(points[outside])[1]
+    normals = vertex_normals(vertices[None], faces)[0][nearest]  # (O, 3)
+    depths = np.asarray(SKIN_DEPTHS) * bounding_box_diagonal(vertices)
+    under = (vertices[nearest][:, None, None, :]
+             - np.array([1.0, -1.0])[None, None, :, None] * depths[None, :, None, None] * normals[:, None, None, :])
+    anchors = np.concatenate([anchors[outside], under.reshape(outside.size, -1, 3)], axis=1)
+    inside = points_inside(anchors.reshape(-1, 3), vertices, faces).reshape(outside.size, -1)
+    found = inside.any(axis=1)
+    outside, inside, anchors = outside[found], inside[found], anchors[found]
     start = points[outside]
-    target = anchors[outside, np.argmax(inside, axis=1)]
+    target = anchors[np.arange(outside.size), np.argmax(inside, axis=1)]
     low, high = np.zeros(outside.size), np.ones(outside.size)  # outside at low, inside at high
     for _ in range(steps):
         middle = 0.5 * (low + high)

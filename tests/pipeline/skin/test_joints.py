@@ -167,15 +167,19 @@ def test_points_inside_a_sphere_agree_with_their_distance():
     assert np.array_equal(points_inside(points, vertices, faces)[clear], (radius < 0.98)[clear])
 
 
-def test_a_joint_outside_is_moved_inside_towards_its_first_inside_anchor():
+def test_a_joint_outside_is_moved_inside_towards_its_first_inside_anchor_else_under_the_nearest_skin():
     vertices, faces = _sphere()
     points = np.array([[2.0, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, 3.0, 0.0]])
     anchors = np.array([[[5.0, 5.0, 5.0], [0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]] * 2, [[4.0, 4.0, 4.0]] * 2])
     moved_points, moved = inside_mesh(points, anchors, vertices, faces)
-    assert moved.tolist() == [True, False, False]  # the last has no inside anchor
-    assert np.allclose(moved_points[1:], points[1:])
+    assert moved.tolist() == [True, False, True]
+    assert np.allclose(moved_points[1], points[1])
     # a quarter of the way past the skin (radius ~1) towards the origin
     assert 0.7 < moved_points[0, 0] < 0.78 and np.allclose(moved_points[0, 1:], 0.0)
+    # the last has no inside anchor: it goes in under the skin nearest it, (0, 1, 0), 0.5 % of the
+    # diagonal (0.017) deep along the normal there
+    assert points_inside(moved_points[2:], vertices, faces).all()
+    assert 0.98 < moved_points[2, 1] < 1.0 and np.allclose(moved_points[2, [0, 2]], 0.0)
 
 
 def test_a_group_without_rigid_neighbours_slides_on_its_neighbour_not_on_the_root():
