@@ -100,7 +100,7 @@ def _toes_ahead(leg, forward, up_axis, height):
 
 
 def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, frames=None, jointed=None):
-    """[str] (B,) each bone's name (module notes), or None where the tree has fewer than two feet.
+    """[str] (B,) each bone's name (module notes), or None where it finds no character's legs.
 
     parents (B,) (−1 the root); joints (B, 3) rest joints; rest (V, 3); bone_indices /
     bone_weights (V, K); up_axis 0, 1 or 2; frames (F, V, 3) the input's (None: the rest pose);
@@ -126,22 +126,22 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
         mine = owner == bone
         return mine.any() and np.mean(poses[:, mine, up_axis].min(axis=1) - floor < FOOT_BAND * height) >= FOOT_FRAMES
 
-    def meet(a, b):  # the deepest bone on both paths
-        return [k for k in paths[a] if k in paths[b]][-1]
+    def junction(end, others):
+        """The position on end's path of its deepest bone on another's path (where they part)."""
+        return max(k for k, b in enumerate(paths[end][:-1]) if any(b in paths[o] for o in others if o != end))
+
+    def top(end, others):
+        """The first bone of end's chain: the one below where its path parts from the others'."""
+        return paths[end][junction(end, others) + 1]
 
     low = rest[:, up_axis].min()
     feet = []
     for leaf in sorted((b for b in leaves if grounded(b)), key=lambda b: -reach[b]):
-        if all(centres[meet(leaf, f), up_axis] - low > FOOT_SPAN * height for f in feet):
+        if all(centres[paths[leaf][junction(leaf, [f])], up_axis] - low > FOOT_SPAN * height for f in feet):
             feet.append(leaf)
     if len(feet) not in (2, 4):
         return None
     quadruped = len(feet) == 4
-
-    def top(end, others):
-        """The first bone of end's chain: below the deepest bone on its path that carries another end."""
-        shared = [b for b in paths[end][:-1] if any(b in paths[o] for o in others if o != end)]
-        return paths[end][paths[end].index(shared[-1]) + 1] if shared else paths[end][1]
 
     hips = np.array([joints[top(f, feet)] for f in feet])
     middle = hips.mean(axis=0)
@@ -153,9 +153,8 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
     forward = np.cross(across, up)
     width = float(np.ptp(rest @ across)) or 1.0
     if quadruped:  # the head and neck reach further past the legs than the rump and tail do
-        ahead = (rest - middle) @ forward
-        sign = np.sign(np.percentile(ahead, 99) - (hips @ forward).max() + middle @ forward
-                       - (-np.percentile(ahead, 1) + (hips @ forward).min() - middle @ forward))
+        ahead, hips_ahead = (rest - middle) @ forward, (hips - middle) @ forward
+        sign = np.sign((np.percentile(ahead, 99) - hips_ahead.max()) - (hips_ahead.min() - np.percentile(ahead, 1)))
     else:
         sign = np.sign(sum(_toes_ahead(rest[np.isin(owner, paths[f][paths[f].index(top(f, feet)):])], forward,
                                        up_axis, height) for f in feet))
@@ -164,10 +163,6 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
 
     def side(b):
         return "_l" if (centres[b] - middle) @ left > 0 else "_r"
-
-    def branch(b):
-        """The deepest bone on b's path that a leg's path shares (where b's limb leaves the legs')."""
-        return [k for k in paths[b] if any(k in paths[f] for f in feet)][-1]
 
     ends = {}  # end bone: label
     in_legs = set()
@@ -183,8 +178,7 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
     hips_bone = parents[top(feet[0], feet)] if len(feet) == 2 else None
     # ends off the body: not in a leg, and on a biped leaving the legs' paths by a bone above the hips
     rest_leaves = [b for b in leaves if b not in feet and not in_legs.intersection(paths[b])
-                   and (hips_bone is None or centres[paths[b][paths[b].index(branch(b)) + 1], up_axis]
-                        > centres[hips_bone, up_axis])]
+                   and (hips_bone is None or centres[top(b, feet), up_axis] > centres[hips_bone, up_axis])]
     central = [b for b in leaves if b not in feet and abs((centres[b] - middle) @ across) < CENTRE_BAND * width]
     if quadruped:
         front = max((joints[top(f, feet)] - middle) @ forward for f in feet)
@@ -202,6 +196,7 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
                 ends[arm] = "arm" + label
         shoulders = [joints[top(e, list(ends) + feet)] for e in ends if ends[e].startswith("arm")]
         floor_of_head = max((s[up_axis] for s in shoulders), default=centres[root, up_axis])
+
         def crown(b):  # the highest bone of b's limb, from where it leaves the body
             return max(paths[b][paths[b].index(top(b, list(ends) + feet)):], key=lambda k: centres[k, up_axis])
 

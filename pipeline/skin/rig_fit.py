@@ -54,7 +54,8 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     ``diagonal``) and refit so that they hold; with ``surplus`` > 0, grown from more bones and
     pruned instead (:func:`.bone_pruning.fit_pruned_skeleton`; no free fit of ``bones`` then,
     its RMSE NaN); its chains named from the geometry, ``up_axis`` ("Y" or "Z") up
-    (:func:`~skinsynth.pipeline.rig.chain_labels.chain_labels`). The other options are :func:`.skin_fit.fit_skin`'s
+    (:func:`~skinsynth.pipeline.rig.chain_labels.chain_labels`). The other options are
+    :func:`.skin_fit.fit_skin`'s
     (``joint_steps``: its ``--transform-steps``). ``progress(phase, length)`` is called as each
     phase starts, ``"fit"`` (the free fit or the rig's, ``iterations`` long), ``"joints"`` (the
     refit on found joints), ``"grow"`` and ``"prune"`` (``surplus``) or ``"given"`` (the fit
@@ -91,8 +92,7 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
                                                device=device, max_drift=max_drift,
                                                jointed_iterations=JOINTED_ITERATIONS, diagonal=diagonal,
                                                progress=progress)
-        return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), max_drift, fitted,
-                                        (vertices, up_axis))
+        return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), max_drift, fitted, vertices, up_axis)
     free = fit_skin(vertices, bones, max_influences=max_influences, iterations=iterations, rest_frame=rest_frame,
                     seed=seed, tolerance=tolerance, patience=patience, joint_steps=joint_steps, device=device,
                     progress=progress("fit", iterations))
@@ -103,24 +103,23 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     fitted, skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights, free.rotations,
                                    found, faces=faces, max_influences=max_influences, iterations=JOINTED_ITERATIONS,
                                    progress=progress("joints", JOINTED_ITERATIONS))
-    return fitted, _skeleton_record(skeleton, found.drift, free.rmse, max_drift, fitted, (vertices, up_axis))
+    return fitted, _skeleton_record(skeleton, found.drift, free.rmse, max_drift, fitted, vertices, up_axis)
 
 
-def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted, frames=None):
+def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted, vertices=None, up_axis="Y"):
     """What /skin/skeleton stores of a fitted :class:`.joints.Skeleton` (docs/format.md); with
     sliding bones, each one's travel over the ``fitted`` frames (its slide's least and largest
     value per axis of its parent's frame, :func:`~skinsynth.pipeline.rig.skeleton.slide_offsets`):
     the bounds every later pose keeps it within. The bones' names: the skeleton's own (a given
-    one's), else with ``frames`` (the examples (F, V, 3), the up axis) its chains named
+    one's), else, given the examples ``vertices`` (F, V, 3) and the ``up_axis``, its chains named
     (:func:`~skinsynth.pipeline.rig.chain_labels.chain_labels`; none where it finds no legs)."""
     from ..rig.chain_labels import chain_labels
 
     record = {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints, "drift": drift,
               "root": skeleton.root, "free_rmse": free_rmse, "max_drift": max_drift, "names": skeleton.names}
-    if skeleton.names is None and frames is not None:
+    if skeleton.names is None and vertices is not None:
         record["names"] = chain_labels(skeleton.parents, skeleton.joints, fitted.rest_vertices, fitted.bone_indices,
-                                       fitted.bone_weights, "XYZ".index(frames[1]), frames[0],
-                                       jointed=skeleton.jointed)
+                                       fitted.bone_weights, "XYZ".index(up_axis), vertices, jointed=skeleton.jointed)
     if skeleton.sliding is not None and skeleton.sliding.any():
         from ..rig.skeleton import slide_offsets
 
