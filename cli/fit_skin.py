@@ -55,6 +55,8 @@ MAX_TRANSFORM_STEPS = 100
 @click.option("--max-joint-drift", default=None, type=FiniteFloatRange(min=0.0),
               help="--skeleton: the largest drift of a joint (RMS distance its two bones carry it apart, over the "
                    "rest diagonal) that is fixed; a bone with no such joint slides on its neighbour. Default 0.02.")
+@click.option("--max-sliding-share", default=None, type=FiniteFloatRange(min=0.0, max=1.0),
+              help="--skeleton: the largest share of the bones that may slide (those drifting most). Default 0.2.")
 @click.option("--surplus-bones", default=0.0, type=FiniteFloatRange(min=0.0),
               help="--skeleton: start from (1 + this) × --bones bones and merge the redundant ones into their parents "
                    "as the joints are fitted (Le & Deng 2014): more fixed joints, 2-5x the time. Default 0 (off).")
@@ -69,8 +71,8 @@ MAX_TRANSFORM_STEPS = 100
 @summary_options
 @user_errors
 def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolerance, patience, device, rest_frame, seed,
-             transform_steps, skeleton, root_bone, max_joint_drift, surplus_bones, prim, fps, meters_per_unit, up_axis,
-             start_frame, quiet, as_json):
+             transform_steps, skeleton, root_bone, max_joint_drift, max_sliding_share, surplus_bones, prim, fps,
+             meters_per_unit, up_axis, start_frame, quiet, as_json):
     """Fit a linear-blend-skinning model with rigid bones to one or more clips of a mesh.
 
     Each INPUT is a clip: a folder or glob of OBJ/PLY/OFF frames (natural frame order), a USD
@@ -94,9 +96,8 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
 
     inputs = list(input_specs) + ([rig] if rig else []) + ([skeleton] if skeleton not in (None, FOUND) else [])
     check_output_path(output, (".h5", ".hdf5"), inputs=inputs)
-    bones, tolerance, transform_steps, brought, device = _resolved_options(bones, rig, tolerance, transform_steps,
-                                                                           skeleton, root_bone, max_joint_drift, fps,
-                                                                           device)
+    bones, tolerance, transform_steps, brought, device = _resolved_options(
+        bones, rig, tolerance, transform_steps, skeleton, root_bone, max_joint_drift, fps, device)
     sequence, clips, rig_model = _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig,
                                               skeleton, brought)
     bones, rest_frame, diagonal = fit_rest_pose(input_specs[0], sequence.vertices, clips, rig_model, bones, rest_frame,
@@ -109,15 +110,15 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
                                   iterations=iterations, rest_frame=rest_frame, seed=seed, tolerance=tolerance,
                                   patience=patience, joint_steps=transform_steps,
                                   device=None if device == "cpu" else device, diagonal=diagonal, surplus=surplus_bones,
-                                  up_axis=sequence.scene.up_axis, progress=phases)
+                                  up_axis=sequence.scene.up_axis, max_sliding_share=max_sliding_share, progress=phases)
     seconds = time.perf_counter() - phases.started
     frame_rmse, dq, rest_frames = finish_fit(result, sequence.vertices,
                                               rest_frames=None if rig_model is None else rig_model.bone_rest_frames)
     scene = sequence.scene
     parameters = dict(bones=bones, rig=rig, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
-                      patience=patience, device=device, rest_frame=rest_frame, seed=seed,
-                      transform_steps=transform_steps, skeleton=skeleton, root_bone=root_bone,
-                      max_joint_drift=max_joint_drift, surplus_bones=surplus_bones, prim=prim, fps=sequence.fps,
+                      patience=patience, device=device, rest_frame=rest_frame, seed=seed, prim=prim, fps=sequence.fps,
+                      transform_steps=transform_steps, skeleton=skeleton, root_bone=root_bone, surplus_bones=surplus_bones,
+                      max_joint_drift=max_joint_drift, max_sliding_share=max_sliding_share,
                       meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame)
     record = provenance_record("skin", command_line(), parameters, inputs, tool_version(), seed)
     write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal,
@@ -191,10 +192,9 @@ class _Phases:
 
     def __init__(self, bar, bones, rig, diagonal):
         self.bar, self.diagonal, self.history = bar, diagonal, []
-        self.labels = {"fit": f"fit-skin {bones} bones" + (" on the rig" if rig else ""),
-                       "grow": "fit-skin --surplus-bones: the larger free fit", "prune": "bones merged",
-                       "joints": "fit-skin --skeleton: the rig refitted on its joints",
-                       "given": f"fit-skin under the given skeleton ({bones} bones)"}
+        self.labels = {"fit": f"fit-skin {bones} bones" + (" on the rig" if rig else ""), "prune": "bones merged",
+                       "grow": "fit-skin --surplus-bones: the larger free fit", "given": f"fit-skin under the given "
+                       f"skeleton ({bones} bones)", "joints": "fit-skin --skeleton: the rig refitted on its joints"}
         self.started = time.perf_counter()
 
     def __call__(self, phase, length):

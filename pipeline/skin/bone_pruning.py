@@ -98,21 +98,22 @@ def cheapest_merges(pairs, costs, count):
 
 
 def fit_pruned_skeleton(vertices, faces, bones, surplus, max_influences=4, iterations=100, rest_frame=0, seed=0,
-                        tolerance=0.02, patience=5, joint_steps=0, device=None, max_drift=None, jointed_iterations=40,
-                        diagonal=None, progress=lambda phase, length: None):
+                        tolerance=0.02, patience=5, joint_steps=0, device=None, max_drift=None, max_sliding_share=None,
+                        jointed_iterations=40, diagonal=None, progress=lambda phase, length: None):
     """A jointed rig of ``bones`` bones grown from ``round((1 + surplus)·bones)`` (module notes).
 
     vertices (F, V, 3), faces (T, 3); the free fit's options as :func:`.skin_fit.fit_skin`'s;
-    ``max_drift`` (share of ``diagonal``) as :func:`.joints.find_skeleton`'s. ``progress`` as
+    ``max_drift`` (share of ``diagonal``) and ``max_sliding_share`` as :func:`.joints.find_skeleton`'s. ``progress`` as
     :func:`.rig_fit.fit_rig`'s: phases ``"grow"`` (the larger free fit), ``"prune"`` (one step per
     bone merged) and ``"joints"``. Returns what :func:`.jointed_fit.fit_jointed` does (the
     skeleton's ``drift``: its joints' on the rig of the last merges)."""
     from .jointed_fit import fit_jointed
-    from .joints import MAX_JOINT_DRIFT, bone_neighbours, find_skeleton
+    from .joints import MAX_JOINT_DRIFT, MAX_SLIDING_SHARE, bone_neighbours, find_skeleton
     from .skin_fit import fit_skin
 
     start = int(round((1.0 + surplus) * bones))
     max_drift = MAX_JOINT_DRIFT if max_drift is None else max_drift
+    max_sliding_share = MAX_SLIDING_SHARE if max_sliding_share is None else max_sliding_share
     free = fit_skin(vertices, start, max_influences=max_influences, iterations=iterations, rest_frame=rest_frame,
                     seed=seed, tolerance=tolerance, patience=patience, joint_steps=joint_steps, device=device,
                     progress=progress("grow", iterations))
@@ -120,7 +121,8 @@ def fit_pruned_skeleton(vertices, faces, bones, surplus, max_influences=4, itera
     indices, weights, R, t = free.bone_indices, free.bone_weights, free.rotations, free.translations
     step = progress("prune", start - bones)
     while True:
-        skeleton = find_skeleton(rest, faces, indices, weights, R, t, max_drift=max_drift, diagonal=diagonal)
+        skeleton = find_skeleton(rest, faces, indices, weights, R, t, max_drift=max_drift, diagonal=diagonal,
+                                 max_sliding_share=max_sliding_share)
         if skeleton.bones == bones:
             break
         fitted, skeleton = fit_jointed(vertices, rest, indices, weights, R, skeleton, faces=faces,

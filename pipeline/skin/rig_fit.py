@@ -44,14 +44,16 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
 
 def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, root_bone=None, max_joint_drift=None,
             max_influences=4, iterations=100, rest_frame=0, seed=0, tolerance=0.02, patience=5, joint_steps=0,
-            device=None, diagonal=1.0, surplus=0.0, up_axis="Y", progress=lambda phase, length: None):
+            device=None, diagonal=1.0, surplus=0.0, up_axis="Y", max_sliding_share=None,
+            progress=lambda phase, length: None):
     """The rig of the examples ``vertices (F, V, 3)`` (faces (T, 3)), fitted as asked.
 
     ``rig``: a skin (rest_vertices (V, 3), bone_indices (V, K), bone_weights (V, K), bones) whose
     rig is kept, only the bone transforms solved; ``given``: a :class:`.joints.Skeleton` to fit
     under (one bone per joint; the rest pose is frame ``rest_frame``); ``find_joints``: after the
     free fit of ``bones`` bones, find its joints (``root_bone``, ``max_joint_drift`` over the rest
-    ``diagonal``) and refit so that they hold; with ``surplus`` > 0, grown from more bones and
+    ``diagonal``, at most ``max_sliding_share`` of the bones sliding: None for
+    :data:`.joints.MAX_SLIDING_SHARE`) and refit so that they hold; with ``surplus`` > 0, grown from more bones and
     pruned instead (:func:`.bone_pruning.fit_pruned_skeleton`; no free fit of ``bones`` then,
     its RMSE NaN); its chains named from the geometry, ``up_axis`` ("Y" or "Z") up
     (:func:`~skinsynth.pipeline.rig.chain_labels.chain_labels`). The other options are
@@ -67,12 +69,13 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     ``surplus``: no free fit of ``bones``), max_drift)."""
     from ..errors import OptionError
     from .jointed_fit import fit_given_skeleton, fit_jointed
-    from .joints import MAX_JOINT_DRIFT, find_skeleton
+    from .joints import MAX_JOINT_DRIFT, MAX_SLIDING_SHARE, find_skeleton
     from .skin_fit import fit_bones_to_rig, fit_skin
 
-    if surplus and (not find_joints or root_bone is not None):
-        raise OptionError("--surplus-bones applies only with a bare --skeleton, and not with --root-bone (the bones "
-                          "are renumbered as they merge)")
+    if (surplus or max_sliding_share is not None) and not find_joints:
+        raise OptionError("--surplus-bones and --max-sliding-share apply only with a bare --skeleton (a skeleton found)")
+    if surplus and root_bone is not None:
+        raise OptionError("--surplus-bones does not combine with --root-bone (the bones are renumbered as they merge)")
     if given is not None:
         fitted, skeleton = fit_given_skeleton(vertices, vertices[rest_frame], faces, given,
                                               max_influences=max_influences, iterations=JOINTED_ITERATIONS,
@@ -83,13 +86,14 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
                                 iterations=iterations, tolerance=tolerance, patience=patience,
                                 joint_steps=joint_steps, progress=progress("fit", iterations), device=device), None
     max_drift = MAX_JOINT_DRIFT if max_joint_drift is None else max_joint_drift
+    sliding_share = MAX_SLIDING_SHARE if max_sliding_share is None else max_sliding_share
     if surplus > 0.0:
         from .bone_pruning import fit_pruned_skeleton
 
         fitted, skeleton = fit_pruned_skeleton(vertices, faces, bones, surplus, max_influences=max_influences,
                                                iterations=iterations, rest_frame=rest_frame, seed=seed,
                                                tolerance=tolerance, patience=patience, joint_steps=joint_steps,
-                                               device=device, max_drift=max_drift,
+                                               device=device, max_drift=max_drift, max_sliding_share=sliding_share,
                                                jointed_iterations=JOINTED_ITERATIONS, diagonal=diagonal,
                                                progress=progress)
         return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), max_drift, fitted, vertices, up_axis)
@@ -99,7 +103,8 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     if not find_joints:
         return free, None
     found = find_skeleton(free.rest_vertices, faces, free.bone_indices, free.bone_weights, free.rotations,
-                          free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal)
+                          free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal,
+                          max_sliding_share=sliding_share)
     fitted, skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights, free.rotations,
                                    found, faces=faces, max_influences=max_influences, iterations=JOINTED_ITERATIONS,
                                    progress=progress("joints", JOINTED_ITERATIONS))
@@ -184,6 +189,8 @@ def _skeleton_summary(record, fit, faces, diagonal):
                "parents": [int(p) for p in record["parents"]],
                "joints_inside": int(inside.sum()), "largest_drift": float(np.max(record["drift"], initial=0.0)),
                "free_rmse": float(record["free_rmse"]), "rmse": float(fit.rmse), "names": record.get("names"),
+               "held_fixed": [int(b) for b in np.flatnonzero(jointed & (np.asarray(record["drift"])
+                                                                         > record["max_drift"]))],
                "rmse_over_free": float(fit.rmse / record["free_rmse"]) if record["free_rmse"] > 0 else None}
     # --skeleton FILE has no free fit to compare with (NaN stored; null here)
     summary["free_rmse"] = summary["free_rmse"] if np.isfinite(summary["free_rmse"]) else None
@@ -193,11 +200,14 @@ def _skeleton_summary(record, fit, faces, diagonal):
     slid = ", ".join(f"{s['bone']} on {s['parent']} ({s['travel_over_diagonal']:.1%})" for s in summary["sliding"])
     chains = named_chains(summary["names"])
     summary["chains"] = chains
+    held = (f"; {len(summary['held_fixed'])} joint(s) drifting past --max-joint-drift held fixed (bones "
+            f"{', '.join(map(str, summary['held_fixed']))}: at most a fifth slide, --max-sliding-share)"
+            if summary["held_fixed"] else "")
     line = (f"skeleton: root bone {summary['root']}, {summary['joints']} fixed joints and {len(summary['sliding'])} "
             f"sliding{f' ({slid} of the diagonal)' if slid else ''} ({summary['joints_inside']} inside the mesh, "
             f"largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
             + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else
                "given (--skeleton FILE)" if given else "grown from more bones (--surplus-bones)")
-            + (f"; chains {', '.join(f'{c} ({n})' for c, n in chains.items())}" if chains
-               else "; no chains named (no two legs found)"))
+            + held + (f"; chains {', '.join(f'{c} ({n})' for c, n in chains.items())}" if chains
+                      else "; no chains named (no two legs found)"))
     return summary, line

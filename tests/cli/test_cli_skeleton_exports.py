@@ -174,9 +174,14 @@ def test_skeleton_options_are_refused_in_one_line(jointed_skins, tmp_path):
                       "--root-bone and --max-joint-drift apply only with a bare --skeleton")
     assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--skeleton", "--root-bone", 9),
                       "--root-bone 9 is not one of the 4 bones")
-    for extra in [(), ("--skeleton", "--root-bone", 0)]:
+    for extra, message in [((), "--surplus-bones and --max-sliding-share apply only with a bare --skeleton"),
+                           (("--skeleton", "--root-bone", 0), "--surplus-bones does not combine with --root-bone")]:
         assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--surplus-bones", 0.5, *extra),
-                          "--surplus-bones applies only with a bare --skeleton")
+                          message)
+    assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--max-sliding-share", 0.5),
+                      "--surplus-bones and --max-sliding-share apply only with a bare --skeleton")
+    assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--skeleton", "--max-sliding-share",
+                          1.5), "--max-sliding-share")
     assert not (tmp_path / "a.h5").exists()
 
 

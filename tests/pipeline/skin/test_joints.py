@@ -51,7 +51,9 @@ def test_a_walker_whose_shoulders_slide_gets_its_tree_its_fixed_joints_and_two_s
 
     vertices, faces, rig = walker(rig=True, shoulder_slide=0.1)
     indices, weights = _top_four(rig.weights)
-    found = find_skeleton(rig.rest, faces, indices, weights, rig.rotations, rig.translations, root=0)
+    # 2 of its 9 bones slide: more than the default fifth (the next test)
+    found = find_skeleton(rig.rest, faces, indices, weights, rig.rotations, rig.translations, root=0,
+                          max_sliding_share=0.25)
     arms = [WALKER_PARTS.index("arm_l"), WALKER_PARTS.index("arm_r")]
     height = np.ptp(vertices[..., 1])
     assert found.parents.tolist() == rig.parents.tolist()
@@ -64,8 +66,37 @@ def test_a_walker_whose_shoulders_slide_gets_its_tree_its_fixed_joints_and_two_s
     np.testing.assert_allclose(slides[..., 0], 0.0, atol=1e-12)
 
 
+def test_at_most_a_fifth_of_the_bones_slide_and_the_others_hold_on_their_joint():
+    """The walker with sliding shoulders at the default share (⌊0.2 · 9⌋ = 1 sliding bone): one arm
+    slides, the other holds fixed on the same joint, the tree the same as without a bound (None:
+    both slide). Its arms drift alike (a mirror pair), so which one slides is the next test's."""
+    from skinsynth.pipeline.inputs.examples import WALKER_PARTS
+
+    vertices, faces, rig = walker(rig=True, shoulder_slide=0.1)
+    indices, weights = _top_four(rig.weights)
+    free = find_skeleton(rig.rest, faces, indices, weights, rig.rotations, rig.translations, root=0,
+                         max_sliding_share=None)
+    bounded = find_skeleton(rig.rest, faces, indices, weights, rig.rotations, rig.translations, root=0)
+    arms = [WALKER_PARTS.index("arm_l"), WALKER_PARTS.index("arm_r")]
+    assert np.flatnonzero(free.sliding).tolist() == arms
+    assert bounded.sliding.sum() == 1 and bounded.sliding[arms].sum() == 1 and bounded.jointed[arms].sum() == 1
+    assert bounded.parents.tolist() == free.parents.tolist()
+    np.testing.assert_array_equal(bounded.joints, free.joints)
+
+
+def test_the_bones_that_slide_within_the_bound_are_those_whose_joints_drift_most():
+    # a chain 0-1-2-3 and a branch 0-4, every joint past the fixed joints' drift (0.01)
+    pairs = np.array([[0, 1], [1, 2], [2, 3], [0, 4]])
+    drift = np.array([0.03, 0.08, 0.05, 0.02])
+    parents, jointed, _, sliding = skeleton_tree(5, pairs, drift, np.array([9.0, 1, 1, 1, 1]), 0, 0.01,
+                                                 max_sliding=2)
+    assert parents.tolist() == [-1, 0, 1, 2, 0]
+    assert np.flatnonzero(sliding).tolist() == [2, 3] and np.flatnonzero(jointed).tolist() == [1, 4]
+
+
 def test_a_fitted_walker_whose_shoulders_slide_hangs_its_arms_on_the_chest(tmp_path):
-    """fit-skin --skeleton on that walker (10 bones, one per part; fit seed 1): each fitted bone, named
+    """fit-skin --skeleton on that walker (10 bones, one per part; fit seed 1; 2 of 9 bones may
+    slide: --max-sliding-share 0.25): each fitted bone, named
     by the part that dominates its vertices, sits in the walker's own tree (the chest, the heaviest,
     its root); the arms slide on the chest with the circle's up-and-down travel (20 cm), every other
     bone is on a fixed joint; its legs and arms are named by side."""
@@ -77,7 +108,7 @@ def test_a_fitted_walker_whose_shoulders_slide_hangs_its_arms_on_the_chest(tmp_p
     vertices, faces, rig = walker(rig=True, shoulder_slide=0.1)
     np.savez(tmp_path / "slide.npz", vertices=vertices, faces=faces, fps=24.0)
     assert_ok(cli("fit-skin", tmp_path / "slide.npz", "-o", tmp_path / "skin.h5", "--bones", 10, "--skeleton",
-                  "--seed", 1, "-q"))
+                  "--seed", 1, "--max-sliding-share", 0.25, "-q"))
     skin = read_skin(tmp_path / "skin.h5")
     dominant = np.argmax(dense_weights(skin.bone_indices, skin.bone_weights, skin.bones), axis=1)
     part = [WALKER_PARTS[np.bincount(np.argmax(rig.weights[dominant == b], axis=1), minlength=10).argmax()]
