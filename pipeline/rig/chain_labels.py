@@ -28,8 +28,9 @@ Nothing comes from a template; everything from the tree, the rest pose, the skin
 4. **Chains**: from each end up to the first bone that also carries another end (where the limb
    branches off the body), the bones numbered from the body outwards: ``leg_l_01`` the thigh
    (``leg_front_l_01``… on four legs), ``arm_r_02``, ``neck_01`` (its last bone the head),
-   ``tail_01``. Between the root (``body``) and where the neck branches, ``spine_01``…; between
-   the root and where the legs branch (a root in the chest), ``hips_01``…. Every other bone (a
+   ``tail_01``. Between the root (``body``) and where the neck branches (without a head, where
+   the arms do), ``spine_01``…; between the root and where the legs branch (a root in the
+   chest), ``hips_01``… (on four legs, ``spine_01``… to where each pair branches). Every other bone (a
    side branch: a skirt panel, a bone on the belly) keeps its place name from
    :func:`.skeleton.joint_names`.
 """
@@ -214,10 +215,15 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
         chain = paths[end][paths[end].index(top(end, list(ends))):]
         for k, b in enumerate(chain):
             names[b] = f"{stem}_{k + 1:02d}"
-    upper = head if head is not None else next((e for e, label in ends.items() if label.startswith("arm")), None)
-    for end, label in (((upper, "spine"),) if upper is not None else ()) + ((feet[0], "spine" if quadruped else "hips"),):
-        trunk = paths[end][1:paths[end].index(top(end, list(ends)))]
-        for k, b in enumerate(trunk):
+    def meeting(group):  # the deepest bone on every path of the group: where its limbs branch
+        return max(set.intersection(*(set(paths[e]) for e in group)), key=lambda k: len(paths[k]))
+
+    arms = [e for e, label in ends.items() if label.startswith("arm")]
+    upper = [parents[top(head, list(ends))]] if head is not None else [meeting(arms)] if len(arms) == 2 else []
+    pairs = [[f for f in feet if ends[f].startswith(end)] for end in ("leg_front", "leg_back")] if quadruped else [feet]
+    legs = [(meeting(pair), "spine" if quadruped else "hips") for pair in pairs]
+    for stop, label in [(bone, "spine") for bone in upper] + legs:
+        for k, b in enumerate(paths[stop][1:]):  # from the root (excluded) to where the limbs branch
             if names[b].startswith("chain_"):
                 names[b] = f"{label}_{k + 1:02d}"
     return names

@@ -66,3 +66,18 @@ def test_legs_whose_tops_do_not_stand_above_their_feet_name_no_chain(true_walker
     low[[WALKER_PARTS.index("thigh_l"), WALKER_PARTS.index("thigh_r")], 1] *= 0.05
     assert chain_labels(rig.parents, low, vertices[0], indices, weights, 1, vertices) is None
     assert chain_labels(rig.parents, rig.joints, vertices[0], indices, weights, 1, vertices) is not None
+
+
+def test_an_uneven_tree_mirrored_swaps_left_and_right_bone_for_bone(true_walker):
+    """A tree that is not its own mirror image (the right arm hung from the pelvis, the left from the
+    chest): mirrored, every bone gets its name with the other side, the trunk's included (the spine
+    runs to where both arms branch, not to where the arm found first does: the samba's fitted tree,
+    mirrored, named one trunk bone hips_01 one way and spine_01 the other before)."""
+    vertices, rig, indices, weights = true_walker
+    parents = rig.parents.copy()
+    parents[WALKER_PARTS.index("arm_r")] = WALKER_PARTS.index("pelvis")
+    mirror = np.diag([-1.0, 1.0, 1.0])
+    names = chain_labels(parents, rig.joints, vertices[0], indices, weights, 1, vertices)
+    mirrored = chain_labels(parents, rig.joints @ mirror, vertices[0] @ mirror, indices, weights, 1, vertices @ mirror)
+    assert names[WALKER_PARTS.index("arm_r")] == "arm_r_01" and names[WALKER_PARTS.index("arm_l")].startswith("arm_l")
+    assert mirrored == [n.replace("_l_", "_x_").replace("_r_", "_l_").replace("_x_", "_r_") for n in names]
