@@ -24,9 +24,9 @@ and the other arm hung from it. Half the excess per round, not one bone: the hor
 1.23× the free fit's error in 23 s one by one (parent merges), 1.34× in 12.6 s by halves.
 
 Off by default (``surplus`` 0): measured on the shared captures (docs/skeleton.md) it raises the
-fixed joints where the bones are clean (horse gallop 86 % → 95 %, crane 67 % → 90 %) but costs
-2–6× the free fit and raises the error on the elephant (1.48× → 1.68×: every joint fixed, where
-the default keeps one sliding) and the bending bar. Each round's skeleton is found on the
+fixed joints where the bones are clean (horse gallop 86 % → 95 %, crane 81 % → 90 %, at about the
+same error) but costs 2–6× the free fit and raises the error on the elephant (1.48× → 1.68×: every
+joint fixed, where the default keeps one sliding). Each round's skeleton is found on the
 jointed rig, where last round's joints show no drift; found on bones solved freely for the
 round's weights instead, the elephant's joints all stay fixed (1.52×) and the horse loses
 (1.30× → 1.40×), so the jointed rig is kept.
