@@ -71,6 +71,20 @@ def _reach(paths, joints, centres):
                      + np.linalg.norm(centres[path[-1]] - joints[path[-1]]) for path in paths])
 
 
+def trunk_names(names, paths, stops):
+    """``names`` (B,) with the trunk named: for each (stop, label) of ``stops``, the bones from the
+    root (excluded) to ``stop`` (where limbs branch) not yet named (``chain_…``) become
+    ``label_01``, ``label_02``… numbered by depth, ties by id, over all the label's stops at once
+    (a quadruped's front and hind legs may branch off two trunk bones at one depth: numbered along
+    each path, both would be ``spine_02``). paths: [[root, …, b]] per bone."""
+    names = list(names)
+    for label in dict.fromkeys(label for _, label in stops):
+        trunk = {b for stop, name in stops if name == label for b in paths[stop][1:] if names[b].startswith("chain_")}
+        for k, b in enumerate(sorted(trunk, key=lambda b: (len(paths[b]), b))):
+            names[b] = f"{label}_{k + 1:02d}"
+    return names
+
+
 def chain_tops(names):
     """{chain: its first bone (B index)} of bone names (:func:`chain_labels`'), by chain name."""
     return dict(sorted((name[:-3], b) for b, name in enumerate(names or ())
@@ -221,9 +235,6 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
     arms = [e for e, label in ends.items() if label.startswith("arm")]
     upper = [parents[top(head, list(ends))]] if head is not None else [meeting(arms)] if len(arms) == 2 else []
     pairs = [[f for f in feet if ends[f].startswith(end)] for end in ("leg_front", "leg_back")] if quadruped else [feet]
-    legs = [(meeting(pair), "spine" if quadruped else "hips") for pair in pairs]
-    for stop, label in [(bone, "spine") for bone in upper] + legs:
-        for k, b in enumerate(paths[stop][1:]):  # from the root (excluded) to where the limbs branch
-            if names[b].startswith("chain_"):
-                names[b] = f"{label}_{k + 1:02d}"
-    return names
+    stops = [(bone, "spine") for bone in upper] + [(meeting(pair), "spine" if quadruped else "hips") for pair in pairs]
+    names = trunk_names(names, paths, stops)
+    return names if len(set(names)) == bones else None  # distinct, as every export needs (never seen otherwise)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from skinsynth.pipeline.inputs.examples import WALKER_PARTS, walker
-from skinsynth.pipeline.rig.chain_labels import chain_labels, named_chains
+from skinsynth.pipeline.rig.chain_labels import _paths, chain_labels, named_chains, trunk_names
 from skinsynth.pipeline.rig.rotations import rotation_exp
 
 TRUE_NAMES = {"pelvis": "body", "chest": "spine_01", "thigh_l": "leg_l_01", "shin_l": "leg_l_02",
@@ -81,3 +81,13 @@ def test_an_uneven_tree_mirrored_swaps_left_and_right_bone_for_bone(true_walker)
     mirrored = chain_labels(parents, rig.joints @ mirror, vertices[0] @ mirror, indices, weights, 1, vertices @ mirror)
     assert names[WALKER_PARTS.index("arm_r")] == "arm_r_01" and names[WALKER_PARTS.index("arm_l")].startswith("arm_l")
     assert mirrored == [n.replace("_l_", "_x_").replace("_r_", "_l_").replace("_x_", "_r_") for n in names]
+
+
+def test_a_trunk_that_forks_is_numbered_by_depth_each_name_once():
+    """Front and hind legs branching off two trunk bones at one depth (0 → 1 → 2 and 0 → 3): numbered
+    along each path both 1 and 3 would be spine_01 (the elephant's fit wrote such a file, which every
+    reader refused); over both at once by depth, then id: 1, 3, 2."""
+    parents = np.array([-1, 0, 1, 0, 2])
+    names = ["body", "chain_01_joint_00", "chain_01_joint_01", "chain_02_joint_00", "leg_01"]
+    named = trunk_names(names, _paths(parents), [(2, "spine"), (3, "spine")])
+    assert named == ["body", "spine_01", "spine_03", "spine_02", "leg_01"]
