@@ -101,7 +101,7 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     sequence, clips, rig_model = _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig,
                                               skeleton, brought)
     bones, rest_frame, diagonal = fit_rest_pose(input_specs[0], sequence.vertices, clips, rig_model, bones, rest_frame,
-                                                max_influences, iterations, root_bone, transform_steps)
+                                                max_influences, iterations, root_bone, transform_steps, surplus_bones)
     with Progress(iterations, "", quiet) as bar:
         phases = _Phases(bar, bones, rig, diagonal)
         result, jointed = fit_rig(sequence.vertices, sequence.faces, bones, rig=rig_model,

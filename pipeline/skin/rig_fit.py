@@ -11,12 +11,14 @@ JOINTED_ITERATIONS = 40
 
 
 def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_influences, iterations, root_bone,
-                  transform_steps):
+                  transform_steps, surplus=0.0):
     """(bones, the rest frame, the rest pose's bounding-box diagonal) of a fit-skin request on the
     examples vertices (F, V, 3) of ``clips`` (a :class:`~..inputs.clips.Clips`), refused
     (OptionError) before the fit starts: options no fit can honour, a fit larger than the memory
     available, a rest pose with no extent (``first_input`` names the input). With ``rig`` (a
-    skin record: ``bones``, ``rest_vertices``) its bones and rest pose."""
+    skin record: ``bones``, ``rest_vertices``) its bones and rest pose. With ``surplus``
+    (``--surplus-bones``) the memory and the vertex count are checked for the larger fit, of
+    ``round((1 + surplus) · bones)`` bones."""
     from ..errors import OptionError
     from ..mesh.geometry import bounding_box_diagonal
     from ..runtime.resources import check_memory
@@ -33,9 +35,13 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
         validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
         if root_bone is not None and root_bone >= bones:
             raise OptionError(f"--root-bone {root_bone} is not one of the {bones} bones (0..{bones - 1})")
-        check_memory(fit_memory_bytes(frames, count, bones, transform_steps),
+        grown = int(round((1.0 + surplus) * bones))
+        if grown > count:
+            raise OptionError(f"--surplus-bones {surplus:g} grows {grown} bones, more than the mesh's {count} vertices")
+        check_memory(fit_memory_bytes(frames, count, grown, transform_steps),
                      f"fit-skin --bones {bones} on {count} vertices × {frames} frames"
-                     + (f" with --transform-steps {transform_steps}" if transform_steps else ""))
+                     + (f" with --transform-steps {transform_steps}" if transform_steps else "")
+                     + (f" grown from {grown} bones (--surplus-bones)" if grown > bones else ""))
     diagonal = bounding_box_diagonal(rig.rest_vertices if rig is not None else vertices[rest_frame])
     if not diagonal > 0.0:
         raise OptionError(f"{first_input}: the rest frame has no extent (all vertices coincide)")

@@ -178,6 +178,8 @@ def test_skeleton_options_are_refused_in_one_line(jointed_skins, tmp_path):
                            (("--skeleton", "--root-bone", 0), "--surplus-bones does not combine with --root-bone")]:
         assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--surplus-bones", 0.5, *extra),
                           message)
+    assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 400, "--skeleton", "--surplus-bones",
+                          1.0), "--surplus-bones 1 grows 800 bones, more than the mesh's")
     assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--max-sliding-share", 0.5),
                       "--surplus-bones and --max-sliding-share apply only with a bare --skeleton")
     assert_user_error(cli("fit-skin", walker, "-o", tmp_path / "a.h5", "--bones", 4, "--skeleton", "--max-sliding-share",
