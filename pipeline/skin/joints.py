@@ -204,28 +204,27 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
     the horse's clips, a sliding joint between two thin, curved leg bones whose centroids both lie
     outside the leg). A point with no inside anchor even so stays. Returns (points (P, 3), moved
     (P,) bool)."""
-    from scipy.spatial import cKDTree
-
-    from ..mesh.geometry import bounding_box_diagonal, points_inside, vertex_normals
+    from ..mesh.geometry import points_inside
 
     points = np.array(points, dtype=np.float64)
-    anchors = np.asarray(anchors, dtype=np.float64)
+    vertices = np.asarray(vertices, dtype=np.float64)
     outside = np.flatnonzero(~points_inside(points, vertices, faces))
     moved = np.zeros(len(points), dtype=bool)
     if outside.size == 0:
         return points, moved
-    vertices = np.asarray(vertices, dtype=np.float64)
-    nearest = cKDTree(vertices).query(points[outside])[1]
-    normals = vertex_normals(vertices[None], faces)[0][nearest]  # (O, 3)
-    depths = np.asarray(SKIN_DEPTHS) * bounding_box_diagonal(vertices)
-    under = (vertices[nearest][:, None, None, :]
-             - np.array([1.0, -1.0])[None, None, :, None] * depths[None, :, None, None] * normals[:, None, None, :])
-    anchors = np.concatenate([anchors[outside], under.reshape(outside.size, -1, 3)], axis=1)
-    inside = points_inside(anchors.reshape(-1, 3), vertices, faces).reshape(outside.size, -1)
-    found = inside.any(axis=1)
-    outside, inside, anchors = outside[found], inside[found], anchors[found]
+    target = np.full((outside.size, 3), np.nan)  # each outside point's first inside anchor
+    for candidates in (lambda rows: np.asarray(anchors, dtype=np.float64)[outside[rows]],
+                       lambda rows: _under_skin(points[outside[rows]], vertices, faces)):
+        rows = np.flatnonzero(np.isnan(target[:, 0]))  # the skin's way in only where no anchor is inside
+        if rows.size == 0:
+            break
+        near = candidates(rows)  # (n, N, 3)
+        inside = points_inside(near.reshape(-1, 3), vertices, faces).reshape(rows.size, -1)
+        hit = inside.any(axis=1)
+        target[rows[hit]] = near[hit, np.argmax(inside[hit], axis=1)]
+    found = ~np.isnan(target[:, 0])
+    outside, target = outside[found], target[found]
     start = points[outside]
-    target = anchors[np.arange(outside.size), np.argmax(inside, axis=1)]
     low, high = np.zeros(outside.size), np.ones(outside.size)  # outside at low, inside at high
     for _ in range(steps):
         middle = 0.5 * (low + high)
@@ -234,6 +233,22 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
     points[outside] = start + (high + 0.25 * (1.0 - high))[:, None] * (target - start)
     moved[outside] = True
     return points, moved
+
+
+def _under_skin(points, vertices, faces):
+    """(n, 8, 3): for each of ``points`` (n, 3), the points :data:`SKIN_DEPTHS` under the skin at
+    its nearest vertex, along that vertex's normal one way, then the other (the mesh's orientation
+    not assumed)."""
+    from scipy.spatial import cKDTree
+
+    from ..mesh.geometry import bounding_box_diagonal, vertex_normals
+
+    nearest = cKDTree(vertices).query(points)[1]
+    normals = vertex_normals(vertices[None], faces)[0][nearest]  # (n, 3)
+    depths = np.asarray(SKIN_DEPTHS) * bounding_box_diagonal(vertices)
+    under = (vertices[nearest][:, None, None, :]
+             - np.array([1.0, -1.0])[None, None, :, None] * depths[None, :, None, None] * normals[:, None, None, :])
+    return under.reshape(len(points), -1, 3)
 
 
 def skeleton_tree(bones, pairs, drift, weight_totals, root=None, max_drift=np.inf, contact=None, max_sliding=None):
