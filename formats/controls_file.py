@@ -25,7 +25,7 @@ import h5py
 import numpy as np
 
 from .errors import FormatError
-from .model import read_model, require
+from .model import read_model, require, text
 from .validation import check_controls
 
 #: Groups a controls file carries forward from the skin file, unchanged.
@@ -88,10 +88,6 @@ def controls_groups(selection, model=None, clips=None, markers=None):
     return groups
 
 
-def _text(value):
-    return value.decode("utf-8") if isinstance(value, bytes) else str(value)
-
-
 def read_controls(path, model=None):
     """Read ``/controls`` of a file that carries one; FormatError when it is missing or inconsistent."""
     model = read_model(path) if model is None else model
@@ -102,7 +98,7 @@ def read_controls(path, model=None):
     if "mesh" in model and "rest_vertices" in model["mesh"]:
         check_controls(path, model, {"V": np.shape(model["mesh"]["rest_vertices"])[0]})
     indices = np.asarray(group["vertex_indices"]).astype(np.int64)
-    reasons = [_text(r) for r in np.atleast_1d(group["reasons"])]
+    reasons = [text(r) for r in np.atleast_1d(group["reasons"])]
     candidates = np.asarray(group["candidate_vertices"]).astype(np.int64)
     variance = np.asarray(group["basis_variance"], dtype=np.float64)
     candidate_basis = np.asarray(group["candidate_basis"]).astype(np.int32)
@@ -124,7 +120,7 @@ def read_controls(path, model=None):
     if ("marker_labels" in group) != ("marker_offsets" in group):
         raise FormatError(path, "/controls has one of marker_labels and marker_offsets without the other")
     if "marker_labels" in group:
-        labels = tuple(_text(label) for label in np.atleast_1d(group["marker_labels"]))
+        labels = tuple(text(label) for label in np.atleast_1d(group["marker_labels"]))
         offsets = np.asarray(group["marker_offsets"], dtype=np.float64)
         if len(labels) != indices.size or offsets.shape != indices.shape or not np.isfinite(offsets).all():
             raise FormatError(path, "/controls: marker_labels and marker_offsets must give one finite entry per "
@@ -133,8 +129,8 @@ def read_controls(path, model=None):
         vertex_indices=indices, control_basis=control_basis, reasons=reasons, candidate_vertices=candidates,
         candidate_basis=candidate_basis, candidate_loading=np.asarray(group["candidate_loading"], dtype=np.float64),
         basis_variance=variance, components=int(group.get("@components", variance.size)),
-        count=int(group.get("@count", indices.size)), method=_text(group.get("@method", "")),
+        count=int(group.get("@count", indices.size)), method=text(group.get("@method", "")),
         explained=float(group.get("@explained", variance.sum())),
         min_spacing=float(group.get("@min_spacing", np.nan)),
-        clips=tuple(_text(name) for name in np.atleast_1d(group.get("@clips", []))),
+        clips=tuple(text(name) for name in np.atleast_1d(group.get("@clips", []))),
         marker_labels=labels, marker_offsets=offsets)

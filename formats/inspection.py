@@ -4,7 +4,7 @@ that reads a model's attributes by name)."""
 
 import numpy as np
 
-from .model import require
+from .model import require, text
 from .scene import Scene
 from .skin_file import stored_clips
 from .validation import check_controls, check_graph, check_puppet, check_skin, check_synthesis
@@ -47,7 +47,7 @@ def describe_skeleton(skeleton):
     sliding = np.asarray(skeleton.get("sliding", np.zeros_like(jointed))).astype(bool)
     root = parents.index(-1)
     names = skeleton.get("names", skeleton.get("@names"))  # read_skin's, or the file's attribute
-    names = None if names is None else [n.decode() if isinstance(n, bytes) else str(n) for n in np.atleast_1d(names)]
+    names = None if names is None else [text(n) for n in np.atleast_1d(names)]
     children = {bone: [c for c, p in enumerate(parents) if p == bone] for bone in range(len(parents))}
 
     def nested(bone):

@@ -241,6 +241,11 @@ def read_model(path, stages=None, groups=None, summarise_above=None):
     return model
 
 
+def text(value):
+    """A stored string as str: HDF5 hands some back as bytes (UTF-8)."""
+    return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+
+
 def require(model, path, group, names):
     """Check that ``model[group]`` holds every dataset in ``names``; FormatError otherwise."""
     missing = [n for n in names if n not in model.get(group, {})]

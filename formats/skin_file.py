@@ -34,7 +34,7 @@ import numpy as np
 
 from .errors import FormatError
 from .scene import Scene
-from .model import read_model, require
+from .model import read_model, require, text
 from .validation import check_skin
 
 
@@ -181,4 +181,4 @@ def _read_skeleton(group):
             "sliding": np.asarray(group.get("sliding", np.zeros(bones))).astype(bool),
             "slide_low": np.asarray(group.get("slide_low", np.zeros((bones, 3))), dtype=np.float64),
             "slide_high": np.asarray(group.get("slide_high", np.zeros((bones, 3))), dtype=np.float64),
-            "names": [str(n) for n in np.atleast_1d(group["@names"])] if "@names" in group else None}
+            "names": [text(n) for n in np.atleast_1d(group["@names"])] if "@names" in group else None}

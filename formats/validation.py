@@ -244,10 +244,12 @@ def _check_bone_names(path, skeleton, bones):
     take as it is (a letter or _, then letters, digits and _)."""
     import re
 
+    from .model import text
+
     if "@names" not in skeleton:
         return
-    names = [n.decode() if isinstance(n, bytes) else n for n in np.atleast_1d(skeleton["@names"])]
-    bad = [n for n in names if not isinstance(n, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", n)]
+    names = [text(n) for n in np.atleast_1d(skeleton["@names"])]
+    bad = [n for n in names if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", n)]
     if len(names) != bones or bad or len(set(names)) != bones:
         what = (f"holds {len(names)} names for {bones} bones" if len(names) != bones else
                 f"has {bad[0]!r}, not a name (a letter or _, then letters, digits, _)" if bad else "names a bone twice")
