@@ -207,7 +207,7 @@ def _skeleton_summary(record, fit, faces, diagonal):
     chains = named_chains(summary["names"])
     summary["chains"] = chains
     held = (f"; {len(summary['held_fixed'])} joint(s) drifting past --max-joint-drift held fixed (bones "
-            f"{', '.join(map(str, summary['held_fixed']))}: at most a fifth slide, --max-sliding-share)"
+            f"{', '.join(map(str, summary['held_fixed']))}: the --max-sliding-share bound)"
             if summary["held_fixed"] else "")
     line = (f"skeleton: root bone {summary['root']}, {summary['joints']} fixed joints and {len(summary['sliding'])} "
             f"sliding{f' ({slid} of the diagonal)' if slid else ''} ({summary['joints_inside']} inside the mesh, "
@@ -215,5 +215,5 @@ def _skeleton_summary(record, fit, faces, diagonal):
             + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else
                "given (--skeleton FILE)" if given else "grown from more bones (--surplus-bones)")
             + held + (f"; chains {', '.join(f'{c} ({n})' for c, n in chains.items())}" if chains
-                      else "; no chains named (no two legs found)"))
+                      else "; no chains named (no character's legs found)"))
     return summary, line
