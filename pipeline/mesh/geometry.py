@@ -19,9 +19,16 @@ def points_inside(points, vertices, faces):
     magnitude of the winding number (:func:`.winding.winding_numbers`) is at least ½. For one closed shell
     this is the ray-parity verdict; where shells overlap (several tubes in one mesh) parity would
     call the overlap outside, the winding number counts it twice, inside."""
-    from .winding import winding_numbers
+    return inside_test(vertices, faces)(points)
 
-    return np.abs(winding_numbers(points, vertices, faces)) >= 0.5
+
+def inside_test(vertices, faces):
+    """:func:`points_inside` of one mesh as a function of the points (P, 3) alone, the triangles
+    gathered once (for the many tests of a bisection)."""
+    from .winding import triangle_corners, winding_at
+
+    corners = triangle_corners(vertices, faces)
+    return lambda points: np.abs(winding_at(points, corners)) >= 0.5
 
 
 def largest_side(points):

@@ -91,18 +91,26 @@ def chain_masks(parents, jointed):
     return below, np.flatnonzero(~jointed)
 
 
+def _joint_terms(parents, jointed, joints):
+    """E (B, B·3): a (V, B, 3) of :func:`chain_coefficients` is (w ⊗ r) + W E, row c of E holding
+    q_c under each bone k that c is a jointed child of, less q_k under k itself where k is jointed."""
+    parents, jointed = np.asarray(parents), np.asarray(jointed, dtype=bool)
+    bones = parents.size
+    terms = np.zeros((bones, bones, 3))
+    child = np.flatnonzero(jointed)
+    terms[child, parents[child]] += joints[child]
+    terms[child, child] -= joints[child]
+    return terms.reshape(bones, bones * 3)
+
+
 def chain_coefficients(rest, weights, parents, jointed, joints):
     """(s (V, A), a (V, B, 3)): each anchor's translation and each bone's rotation coefficient in
     every vertex (module notes); weights (V, B) dense, joints (B, 3)."""
     below, anchors = chain_masks(parents, jointed)
     carried = weights @ below.astype(np.float64)  # W (V, B)
-    a = weights[:, :, None] * np.asarray(rest, np.float64)[:, None, :]
-    a -= (carried * jointed)[:, :, None] * joints[None]
-    child_of = np.zeros((len(parents), len(parents)))
-    child = np.flatnonzero(jointed)
-    child_of[child, np.asarray(parents)[child]] = 1.0
-    a += np.einsum("vc,ck,cx->vkx", carried, child_of, joints)
-    return carried[:, anchors], a
+    a = (weights[:, :, None] * np.asarray(rest, np.float64)[:, None, :]).reshape(len(rest), -1)
+    a += carried @ _joint_terms(parents, jointed, joints)
+    return carried[:, anchors], a.reshape(len(rest), len(parents), 3)
 
 
 def world_transforms(rotations, anchor_translations, parents, jointed, joints):
@@ -114,24 +122,54 @@ def world_transforms(rotations, anchor_translations, parents, jointed, joints):
     return rotations, hold_joints(rotations, translations, np.asarray(parents), np.asarray(jointed, dtype=bool), joints)
 
 
-class _Sums:
-    """What a rotation sweep needs from the vertices, formed once per weight update."""
+class _Products:
+    """The vertex sums of one weight update, from which every joint placement's sums follow.
 
-    def __init__(self, data, s, a, rotations=True):
-        """data: the examples' :class:`.bone_transforms.Trajectories` (``flat`` (V, F·3)); s (V, A),
-        a (V, B, 3): :func:`chain_coefficients`. Every sum is one matrix product over the vertices.
-        ``rotations=False``: only the anchors' sums, all :func:`_solve_translations` needs (the
-        rotations' Σ_i v_i(f) a_ikᵀ is the largest product: (F·3 × V) by (V × 3B))."""
-        count, bones = a.shape[:2]
-        frames = data.frames
-        flat = a.reshape(count, bones * 3)
-        if rotations:
-            self.gram = (flat.T @ flat).reshape(bones, 3, bones, 3).transpose(0, 2, 1, 3)  # (B, B, 3, 3): Σ a_m a_kᵀ
-            # Σ_i v_i(f) a_ikᵀ (F, B, 3, 3)
-            self.cross = (data.flat.T @ flat).reshape(frames, 3, bones, 3).transpose(0, 2, 1, 3)
-        self.anchor_gram = s.T @ s  # (A, A)
-        self.anchor_cross = (s.T @ flat).reshape(-1, bones, 3)  # (A, B, 3): Σ_i s_ia a_ik
-        self.anchor_vertices = (s.T @ data.flat).reshape(-1, frames, 3).transpose(1, 0, 2)  # (F, A, 3)
+    The chain coefficients are a = (w ⊗ r) + W E with only E (B, B·3) depending on the joints
+    (:func:`_joint_terms`), and s = W's anchor columns; so the products over the vertices that the
+    sweeps, the Levenberg–Marquardt steps and the joint solve need are those of (w ⊗ r) (V, B·3)
+    and W (V, B) with each other and with the examples, formed once per weight update
+    (:meth:`sums` then costs O(F B²) for any joints; forming a (V, B, 3) array and its products
+    for each joint placement, twice an iteration, was 45 % of the elephant's jointed fit)."""
+
+    def __init__(self, data, rest, weights, parents, jointed):
+        """data: the examples' :class:`.bone_transforms.Trajectories`; rest (V, 3); weights (V, B) dense."""
+        below, self.anchors = chain_masks(parents, jointed)
+        self.parents, self.jointed = np.asarray(parents), np.asarray(jointed, dtype=bool)
+        self.frames, bones = data.frames, len(self.parents)
+        stacked = np.empty((len(rest), bones * 4))  # [(w ⊗ r) (V, B·3) | W (V, B)]: two passes over the vertices
+        stacked[:, :bones * 3] = (weights[:, :, None] * np.asarray(rest, np.float64)[:, None, :]).reshape(len(rest), -1)
+        stacked[:, bones * 3:] = weights @ below.astype(np.float64)
+        gram, seen = stacked.T @ stacked, data.flat.T @ stacked
+        self.turned_gram = gram[:bones * 3, :bones * 3]  # (B·3, B·3)
+        self.carried_turned = gram[bones * 3:, :bones * 3]  # (B, B·3)
+        self.carried_gram = gram[bones * 3:, bones * 3:]  # (B, B)
+        self.vertices_turned = seen[:, :bones * 3]  # (F·3, B·3)
+        self.vertices_carried = seen[:, bones * 3:]  # (F·3, B)
+
+    def sums(self, joints):
+        """:class:`_Sums` of the chain coefficients at ``joints`` (B, 3)."""
+        return _Sums(self, _joint_terms(self.parents, self.jointed, joints))
+
+
+class _Sums:
+    """What the sweeps and the Levenberg–Marquardt steps need from the vertices (:class:`_Products`)."""
+
+    def __init__(self, products, terms):
+        """products: a :class:`_Products`; terms: its joints' E (B, B·3) (:func:`_joint_terms`).
+        gram (B, B, 3, 3): Σ_i a_m a_kᵀ; cross (F, B, 3, 3): Σ_i v_i(f) a_ikᵀ; anchor_gram (A, A);
+        anchor_cross (A, B, 3): Σ_i s_ia a_ik; anchor_vertices (F, A, 3): Σ_i s_ia v_i(f)."""
+        frames, anchors = products.frames, products.anchors
+        bones = len(products.parents)
+        mixed = products.carried_turned.T @ terms  # (B·3, B·3): (w ⊗ r)ᵀ W E
+        gram = products.turned_gram + mixed + mixed.T + terms.T @ products.carried_gram @ terms
+        self.gram = gram.reshape(bones, 3, bones, 3).transpose(0, 2, 1, 3)
+        cross = products.vertices_turned + products.vertices_carried @ terms  # (F·3, B·3)
+        self.cross = cross.reshape(frames, 3, bones, 3).transpose(0, 2, 1, 3)
+        self.anchor_gram = products.carried_gram[np.ix_(anchors, anchors)]
+        self.anchor_cross = (products.carried_turned[anchors]
+                             + products.carried_gram[anchors] @ terms).reshape(anchors.size, bones, 3)
+        self.anchor_vertices = products.vertices_carried[:, anchors].reshape(frames, 3, -1).transpose(0, 2, 1)
 
 
 def _solve_translations(sums, R):
@@ -152,30 +190,28 @@ def _sweep_rotations(sums, R, T, order):
     return R
 
 
-def _solve_joints(vertices, rest, weights, R, parents, jointed, joints, found, stiffness=JOINT_STIFFNESS):
+def _solve_joints(products, R, joints, found, stiffness=JOINT_STIFFNESS):
     """The joints (B, 3) that, with the anchors' translations, best fit for fixed rotations and
     weights (module notes, step 3): the translations eliminated per frame, one (3J × 3J) solve,
     pulled towards ``found`` (B, 3) by ``stiffness`` × each joint's largest eigenvalue in the
     directions its motion leaves free and :data:`JOINT_FLOOR` × it in every direction.
-    ``vertices`` (V, F·3): the examples laid out as :class:`.bone_transforms.Trajectories`' ``flat``."""
-    below, anchors = chain_masks(parents, jointed)
-    child = np.flatnonzero(jointed)
+    ``products``: the weights' :class:`_Products`."""
+    anchors, parents = products.anchors, products.parents
+    child = np.flatnonzero(products.jointed)
     if child.size == 0:
         return joints
-    carried = weights @ below.astype(np.float64)
-    s, W = carried[:, anchors], carried[:, child]  # (V, A), (V, J)
-    frames, count, bones = R.shape[0], len(rest), len(parents)
+    frames, bones = R.shape[:2]
     D = R[:, parents[child]] - R[:, child]  # (F, J, 3, 3)
-    N = s.T @ s + 1e-12 * np.eye(anchors.size)
-    P = s.T @ W  # (A, J)
-    K = W.T @ W - P.T @ np.linalg.solve(N, P)  # (J, J)
-    # Σ_i M_ic r_i(f), (J, F, 3), M = W − s N⁻¹P (V, J), r_i(f) the vertex less the bones' rotations
-    # of the rest pose: Mᵀ v(f) less (Mᵀ (w ⊗ rest)) R(f), so no (V, F·3) array is formed (they
-    # were most of this solve's time: 0.24 s an iteration on the samba).
-    M = W - s @ np.linalg.solve(N, P)
-    turned = ((M.T @ (weights[:, :, None] * rest[:, None, :]).reshape(count, bones * 3))
-              @ R.transpose(1, 3, 0, 2).reshape(bones * 3, frames * 3))
-    projected = (M.T @ vertices - turned).reshape(child.size, frames, 3)
+    gram = products.carried_gram  # WᵀW: s = W's anchor columns
+    N = gram[np.ix_(anchors, anchors)] + 1e-12 * np.eye(anchors.size)
+    P = gram[np.ix_(anchors, child)]  # sᵀ W_J (A, J)
+    eliminated = np.linalg.solve(N, P)  # N⁻¹P (A, J)
+    K = gram[np.ix_(child, child)] - P.T @ eliminated  # (J, J)
+    # Σ_i M_ic r_i(f), (J, F, 3), M = W_J − s N⁻¹P (V, J), r_i(f) the vertex less the bones' rotations
+    # of the rest pose: Mᵀ v(f) less (Mᵀ (w ⊗ rest)) R(f), both from the weight update's products.
+    turned = products.carried_turned[child] - eliminated.T @ products.carried_turned[anchors]  # (J, B·3)
+    seen = (products.vertices_carried[:, child] - products.vertices_carried[:, anchors] @ eliminated).T  # (J, F·3)
+    projected = (seen - turned @ R.transpose(1, 3, 0, 2).reshape(bones * 3, frames * 3)).reshape(child.size, frames, 3)
     rhs = np.einsum("fcyx,cfy->cx", D, projected)
     count = child.size
     flat = D.transpose(0, 2, 1, 3).reshape(frames * 3, count * 3)  # [(f, y), (c, x)]
@@ -268,9 +304,10 @@ class _State:
     def __init__(self, rotations, indices, weights, joints):
         self.R, self.indices, self.weights, self.joints = rotations, indices, weights, joints
 
-    def coefficients(self, rest, skeleton):
+    def products(self, data, rest, skeleton):
+        """The :class:`_Products` of the current weights."""
         dense = dense_weights(self.indices, self.weights, skeleton.bones)
-        return chain_coefficients(rest, dense, skeleton.parents, skeleton.jointed, self.joints)
+        return _Products(data, rest, dense, skeleton.parents, skeleton.jointed)
 
 
 def _iterate(state, vertices, rest, skeleton, data, found, max_influences, iterations, sweeps, tolerance, patience,
@@ -282,7 +319,8 @@ def _iterate(state, vertices, rest, skeleton, data, found, max_influences, itera
     first = len(history)
     squared = np.einsum("fvx,fvx->f", vertices, vertices)
     for iteration in range(1, iterations + 1):
-        sums = _Sums(data, *state.coefficients(rest, skeleton))
+        products = state.products(data, rest, skeleton)
+        sums = products.sums(state.joints)
         T = _solve_translations(sums, state.R)
         for _ in range(sweeps):
             state.R = _sweep_rotations(sums, state.R, T, order)
@@ -291,11 +329,10 @@ def _iterate(state, vertices, rest, skeleton, data, found, max_influences, itera
         for _ in range(NEWTON_STEPS):
             state.R, T, damping, energies = _gauss_newton(sums, squared, state.R, T, damping, energies)
         if move_joints:
-            state.joints = _solve_joints(data.flat, rest, dense_weights(state.indices, state.weights, skeleton.bones),
-                                         state.R, skeleton.parents, skeleton.jointed, state.joints, found, stiffness)
+            state.joints = _solve_joints(products, state.R, state.joints, found, stiffness)
             if faces is not None:  # back inside the body (module notes, step 3)
                 state.joints = inside_mesh(state.joints, found[:, None], rest, faces, steps=PROJECTION_STEPS)[0]
-            T = _solve_translations(_Sums(data, *state.coefficients(rest, skeleton), rotations=False), state.R)
+            T = _solve_translations(products.sums(state.joints), state.R)
         world_R, world_t = world_transforms(state.R, T, skeleton.parents, skeleton.jointed, state.joints)
         transforms = np.concatenate([world_R, world_t[..., None]], axis=-1)
         state.indices, state.weights, error = update_weights(transforms, data, state.indices, state.weights,
@@ -338,8 +375,7 @@ def fit_jointed(vertices, rest, bone_indices, bone_weights, rotations, skeleton,
     options = (max_influences, iterations, sweeps, tolerance, patience)
     stopped = _iterate(state, vertices, rest, skeleton, data, found, *options, move_joints, stiffness, history,
                        progress, faces)
-    s, a = state.coefficients(rest, skeleton)
-    T = _solve_translations(_Sums(data, s, a), state.R)
+    T = _solve_translations(state.products(data, rest, skeleton).sums(state.joints), state.R)
     world_R, world_t = world_transforms(state.R, T, skeleton.parents, skeleton.jointed, state.joints)
     dense = dense_weights(state.indices, state.weights, skeleton.bones)
     fitted = SkinFit(rest_vertices=rest.copy(), bone_indices=state.indices, bone_weights=state.weights,

@@ -204,11 +204,12 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
     the horse's clips, a sliding joint between two thin, curved leg bones whose centroids both lie
     outside the leg). A point with no inside anchor even so stays. Returns (points (P, 3), moved
     (P,) bool)."""
-    from ..mesh.geometry import points_inside
+    from ..mesh.geometry import inside_test
 
     points = np.array(points, dtype=np.float64)
     vertices = np.asarray(vertices, dtype=np.float64)
-    outside = np.flatnonzero(~points_inside(points, vertices, faces))
+    points_inside = inside_test(vertices, faces)
+    outside = np.flatnonzero(~points_inside(points))
     moved = np.zeros(len(points), dtype=bool)
     if outside.size == 0:
         return points, moved
@@ -219,7 +220,7 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
         if rows.size == 0:
             break
         near = candidates(rows)  # (n, N, 3)
-        inside = points_inside(near.reshape(-1, 3), vertices, faces).reshape(rows.size, -1)
+        inside = points_inside(near.reshape(-1, 3)).reshape(rows.size, -1)
         hit = inside.any(axis=1)
         target[rows[hit]] = near[hit, np.argmax(inside[hit], axis=1)]
     found = ~np.isnan(target[:, 0])
@@ -228,7 +229,7 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
     low, high = np.zeros(outside.size), np.ones(outside.size)  # outside at low, inside at high
     for _ in range(steps):
         middle = 0.5 * (low + high)
-        now = points_inside(start + middle[:, None] * (target - start), vertices, faces)
+        now = points_inside(start + middle[:, None] * (target - start))
         high, low = np.where(now, middle, high), np.where(now, low, middle)
     points[outside] = start + (high + 0.25 * (1.0 - high))[:, None] * (target - start)
     moved[outside] = True
