@@ -46,6 +46,8 @@ on them, and spent as many iterations again getting back. The world transforms
 (R_j, t_j) are ordinary LBS bones, so every later stage reads the result as any skin.
 """
 
+import copy
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
 import numpy as np
@@ -58,6 +60,7 @@ from .bone_transforms import Trajectories
 from .skin_fit import SkinFit
 from .joints import inside_mesh
 from .skin_weights import update_weights
+from .transform_sweep import sparse_weighted_sums
 
 #: Pull of the joint solve towards the joints found, in the directions a joint's motion leaves
 #: free, as a share of its block's largest eigenvalue (:func:`_solve_joints`).
@@ -75,6 +78,12 @@ PROJECTION_STEPS = 6
 #: fit as well or better (RMSE over the free fit's 1.385 → 1.365 horse, 1.195 → 1.191 collapse,
 #: 1.245 → 1.244 crane, 1.331 → 1.326 samba, 1.480 → 1.473 elephant) in 9 % less time together.
 NEWTON_STEPS = 2
+#: Runs of frames whose rotations are fitted at once on threads of their own (frames are
+#: independent for fixed weights and joints; numpy lets go of the interpreter in its products and
+#: solves): the same rotations, bit for bit, as one run. Two on two cores: the crane's rotation
+#: step 65 → 39 ms, the horse collapse's 16 → 12.5 ms; four were slower there (20.9 ms), the
+#: interpreter's share between the calls then the bound.
+FRAME_BLOCKS = 2
 
 
 def chain_masks(parents, jointed):
@@ -126,26 +135,26 @@ class _Products:
     """The vertex sums of one weight update, from which every joint placement's sums follow.
 
     The chain coefficients are a = (w ⊗ r) + W E with only E (B, B·3) depending on the joints
-    (:func:`_joint_terms`), and s = W's anchor columns; so the products over the vertices that the
-    sweeps, the Levenberg–Marquardt steps and the joint solve need are those of (w ⊗ r) (V, B·3)
-    and W (V, B) with each other and with the examples, formed once per weight update
-    (:meth:`sums` then costs O(F B²) for any joints; forming a (V, B, 3) array and its products
-    for each joint placement, twice an iteration, was 45 % of the elephant's jointed fit)."""
+    (:func:`_joint_terms`), and s = W's anchor columns, W = w ``below``; so the products over the
+    vertices that the sweeps, the Levenberg–Marquardt steps and the joint solve need are those of
+    (w ⊗ r) and w with each other and with the examples: the free fit's weighted sums
+    (:func:`.transform_sweep.sparse_weighted_sums`, over each vertex's few weights), formed once
+    per weight update (:meth:`sums` then costs O(F B²) for any joints; forming a (V, B, 3) array
+    and its products for each joint placement, twice an iteration, was 45 % of the elephant's
+    jointed fit)."""
 
-    def __init__(self, data, rest, weights, parents, jointed):
-        """data: the examples' :class:`.bone_transforms.Trajectories`; rest (V, 3); weights (V, B) dense."""
+    def __init__(self, data, indices, weights, parents, jointed):
+        """data: the examples' :class:`.bone_transforms.Trajectories`; indices, weights (V, K)."""
         below, self.anchors = chain_masks(parents, jointed)
+        below = below.astype(np.float64)  # W = w below (V, B)
         self.parents, self.jointed = np.asarray(parents), np.asarray(jointed, dtype=bool)
         self.frames, bones = data.frames, len(self.parents)
-        stacked = np.empty((len(rest), bones * 4))  # [(w ⊗ r) (V, B·3) | W (V, B)]: two passes over the vertices
-        stacked[:, :bones * 3] = (weights[:, :, None] * np.asarray(rest, np.float64)[:, None, :]).reshape(len(rest), -1)
-        stacked[:, bones * 3:] = weights @ below.astype(np.float64)
-        gram, seen = stacked.T @ stacked, data.flat.T @ stacked
-        self.turned_gram = gram[:bones * 3, :bones * 3]  # (B·3, B·3)
-        self.carried_turned = gram[bones * 3:, :bones * 3]  # (B, B·3)
-        self.carried_gram = gram[bones * 3:, bones * 3:]  # (B, B)
-        self.vertices_turned = seen[:, :bones * 3]  # (F·3, B·3)
-        self.vertices_carried = seen[:, bones * 3:]  # (F·3, B)
+        moment, second = sparse_weighted_sums(indices, weights, data, bones)  # Σ w v ũᵀ (B, F, 3, 4), Σ w w ũ ũᵀ
+        self.turned_gram = second[:, :, :3, :3].transpose(0, 2, 1, 3).reshape(bones * 3, bones * 3)  # (B·3, B·3)
+        self.carried_turned = below.T @ second[:, :, 3, :3].reshape(bones, bones * 3)  # Wᵀ (w ⊗ r) (B, B·3)
+        self.carried_gram = below.T @ second[:, :, 3, 3] @ below  # WᵀW (B, B)
+        self.vertices_turned = moment[..., :3].transpose(1, 2, 0, 3).reshape(self.frames * 3, bones * 3)  # (F·3, B·3)
+        self.vertices_carried = moment[..., 3].transpose(1, 2, 0).reshape(self.frames * 3, bones) @ below  # (F·3, B)
 
     def sums(self, joints):
         """:class:`_Sums` of the chain coefficients at ``joints`` (B, 3)."""
@@ -157,19 +166,25 @@ class _Sums:
 
     def __init__(self, products, terms):
         """products: a :class:`_Products`; terms: its joints' E (B, B·3) (:func:`_joint_terms`).
-        gram (B, B, 3, 3): Σ_i a_m a_kᵀ; cross (F, B, 3, 3): Σ_i v_i(f) a_ikᵀ; anchor_gram (A, A);
+        gram (B, B, 3, 3): [k, m] = Σ_i a_ik a_imᵀ (gram_flat (B·3, B·3): the same, [(k, y), (m, z)]); cross (F, B, 3, 3): Σ_i v_i(f) a_ikᵀ; anchor_gram (A, A);
         anchor_cross (A, B, 3): Σ_i s_ia a_ik; anchor_vertices (F, A, 3): Σ_i s_ia v_i(f)."""
         frames, anchors = products.frames, products.anchors
         bones = len(products.parents)
         mixed = products.carried_turned.T @ terms  # (B·3, B·3): (w ⊗ r)ᵀ W E
-        gram = products.turned_gram + mixed + mixed.T + terms.T @ products.carried_gram @ terms
-        self.gram = gram.reshape(bones, 3, bones, 3).transpose(0, 2, 1, 3)
+        self.gram_flat = products.turned_gram + mixed + mixed.T + terms.T @ products.carried_gram @ terms
+        self.gram = self.gram_flat.reshape(bones, 3, bones, 3).transpose(0, 2, 1, 3)
         cross = products.vertices_turned + products.vertices_carried @ terms  # (F·3, B·3)
         self.cross = cross.reshape(frames, 3, bones, 3).transpose(0, 2, 1, 3)
         self.anchor_gram = products.carried_gram[np.ix_(anchors, anchors)]
         self.anchor_cross = (products.carried_turned[anchors]
                              + products.carried_gram[anchors] @ terms).reshape(anchors.size, bones, 3)
         self.anchor_vertices = products.vertices_carried[:, anchors].reshape(frames, 3, -1).transpose(0, 2, 1)
+
+    def frames(self, rows):
+        """These sums for the frames ``rows`` alone (the frame-free sums shared)."""
+        part = copy.copy(self)
+        part.cross, part.anchor_vertices = self.cross[rows], self.anchor_vertices[rows]
+        return part
 
 
 def _solve_translations(sums, R):
@@ -235,15 +250,28 @@ def _solve_joints(products, R, joints, found, stiffness=JOINT_STIFFNESS):
 
 def _frame_energies(sums, squared, R, T):
     """Σ_i ‖v_i(f) − model_i(f)‖² per frame (F,), from the sums alone; ``squared`` (F,) is
-    Σ_i ‖v_i(f)‖². (Here and in :func:`_gauss_newton` the contractions over bones let einsum pick
-    BLAS products, ``optimize=True``: its own loops took half of a jointed fit's time; the samba's
-    22-bone fit 29.5 → 21 s, its RMSE the same to 1e-12.)"""
+    Σ_i ‖v_i(f)‖². (Here and in :func:`_gauss_newton` the contractions over bones are batched
+    matrix products, :func:`_turned_gram`, or einsum left to pick them, ``optimize=True``: einsum's
+    own loops took half of a jointed fit's time.)"""
     cross = (np.einsum("fax,fax->f", T, sums.anchor_vertices) + np.einsum("fkxy,fkxy->f", R, sums.cross))
-    RG = np.einsum("fkxy,kmyz->fkmxz", R, sums.gram, optimize=True)  # R_k G_km
+    rows, turned = _turned_rows(sums, R)
     model = (np.einsum("ab,fax,fbx->f", sums.anchor_gram, T, T)
              + 2.0 * np.einsum("fax,fkxy,aky->f", T, R, sums.anchor_cross, optimize=True)
-             + np.einsum("fkmxz,fmxz->f", RG, R, optimize=True))
+             + np.einsum("fxq,fxq->f", turned, rows))  # Σ_km tr(R_k G_km R_mᵀ)
     return squared - 2.0 * cross + model
+
+
+def _turned_rows(sums, R):
+    """(rows (F, 3, B·3): R laid out [f, x, (k, y)] = R_k[x, y]; Σ_k R_k G_km (F, 3, B·3): [f, x, (m, z)])."""
+    frames, bones = R.shape[:2]
+    rows = R.transpose(0, 2, 1, 3).reshape(frames, 3, bones * 3)
+    return rows, rows @ sums.gram_flat
+
+
+def _turned_gram(sums, R):
+    """R_k G_km (F, B, 3, B·3) for rotations R (F, B, 3, 3): [f, k, x, (m, z)], one batched product."""
+    bones = R.shape[1]
+    return R @ sums.gram_flat.reshape(bones, 3, bones * 3)
 
 
 def _skew(v):
@@ -266,14 +294,16 @@ def _gauss_newton(sums, squared, R, T, damping, before):
     (R, T) (:func:`_frame_energies`). Returns (R, T, damping, the energies at the R, T returned)."""
     frames, bones = R.shape[:2]
     anchors = T.shape[1]
-    RG = np.einsum("fkxy,kmyz->fkmxz", R, sums.gram, optimize=True)
-    Y = np.einsum("fkmxz,fmwz->fkmxw", RG, R, optimize=True)  # M_km = R_k G_km R_mᵀ
+    RG = _turned_gram(sums, R).reshape(frames, bones * 3, bones, 3).transpose(0, 2, 1, 3)  # [f, m, (k, x), z]
+    Y = (RG @ np.swapaxes(R, 2, 3)).reshape(frames, bones, bones, 3, 3)  # Y[f, k, m] = M_mk = R_m G_mk R_kᵀ
     n = 3 * (bones + anchors)
-    H = np.zeros((frames, n, n))
-    trace = np.einsum("fkmxx->fkm", Y)
-    # ω–ω blocks: tr(M_km) I − M_mk
-    rot = trace[..., None, None] * np.eye(3) - np.swapaxes(Y, 1, 2)
-    H[:, :3 * bones, :3 * bones] = rot.transpose(0, 1, 3, 2, 4).reshape(frames, 3 * bones, 3 * bones)
+    H = np.empty((frames, n, n))  # every block written below (empty: no fresh zeroed pages each step)
+    # ω–ω blocks: tr(M_km) I − M_mk, in place in H's view
+    rot = H[:, :3 * bones, :3 * bones].reshape(frames, bones, 3, bones, 3)
+    rot[...] = -Y.transpose(0, 1, 3, 2, 4)
+    trace = np.einsum("fkmxx->fkm", Y)  # tr(M_mk) = tr(M_km): M_mk = M_kmᵀ, G symmetric
+    for x in range(3):
+        rot[:, :, x, :, x] += trace
     RH = np.einsum("fkxy,aky->fkax", R, sums.anchor_cross, optimize=True)  # R_k H_ak
     mixed = _skew(RH)  # (F, B, A, 3, 3): [R_k H_ak]×
     H[:, :3 * bones, 3 * bones:] = mixed.transpose(0, 1, 3, 2, 4).reshape(frames, 3 * bones, 3 * anchors)
@@ -281,7 +311,8 @@ def _gauss_newton(sums, squared, R, T, damping, before):
     H[:, 3 * bones:, 3 * bones:] = np.kron(sums.anchor_gram, np.eye(3))
     # Right-hand side: Σ_i y_ik × e_i and Σ_i s_ia e_i.
     X = np.einsum("fkxy,fkzy->fkxz", sums.cross, R, optimize=True)  # Σ_i v_i y_ikᵀ = C_k R_kᵀ
-    model_rot = np.einsum("fmkxy->fkxy", Y)  # Σ_m M_mk: Σ_i (model part of bones) y_ikᵀ
+    # Σ_m M_mk = (Σ_m R_m G_mk) R_kᵀ: Σ_i (model part of bones) y_ikᵀ
+    model_rot = _turned_rows(sums, R)[1].reshape(frames, 3, bones, 3).transpose(0, 2, 1, 3) @ np.swapaxes(R, 2, 3)
     g_rot = _axial(X - model_rot) - np.cross(RH, T[:, None]).sum(axis=2)
     g_t = sums.anchor_vertices - np.einsum("ab,fbx->fax", sums.anchor_gram, T) - np.einsum("fkax->fax", RH)
     g = np.concatenate([g_rot.reshape(frames, -1), g_t.reshape(frames, -1)], axis=1)
@@ -298,36 +329,47 @@ def _gauss_newton(sums, squared, R, T, damping, before):
     return R, T, np.where(better, damping / 3.0, damping * 10.0), np.where(better, after, before)
 
 
+def _fit_rotations(sums, squared, R, order, sweeps):
+    """Module notes' steps 1–2 on some frames (their :meth:`_Sums.frames`, ``squared`` (F,), R (F,
+    B, 3, 3)): ``sweeps`` passes of translations and rotations, then :data:`NEWTON_STEPS`
+    Levenberg–Marquardt steps. Returns (R, the anchors' translations (F, A, 3))."""
+    T = _solve_translations(sums, R)
+    for _ in range(sweeps):
+        R = _sweep_rotations(sums, R, T, order)
+        T = _solve_translations(sums, R)
+    damping, energies = np.full(len(R), 1e-3), _frame_energies(sums, squared, R, T)
+    for _ in range(NEWTON_STEPS):
+        R, T, damping, energies = _gauss_newton(sums, squared, R, T, damping, energies)
+    return R, T
+
+
 class _State:
     """A jointed fit in progress: rotations R (F, B, 3, 3), weights, joints (B, 3)."""
 
     def __init__(self, rotations, indices, weights, joints):
         self.R, self.indices, self.weights, self.joints = rotations, indices, weights, joints
 
-    def products(self, data, rest, skeleton):
+    def products(self, data, skeleton):
         """The :class:`_Products` of the current weights."""
-        dense = dense_weights(self.indices, self.weights, skeleton.bones)
-        return _Products(data, rest, dense, skeleton.parents, skeleton.jointed)
+        return _Products(data, self.indices, self.weights, skeleton.parents, skeleton.jointed)
 
 
 def _iterate(state, vertices, rest, skeleton, data, found, max_influences, iterations, sweeps, tolerance, patience,
-             move_joints, stiffness, history, progress, faces=None):
+             move_joints, stiffness, history, progress, faces, pool):
     """Iterations of module notes' steps 1–4 on ``state`` until the stopping rule (with ``faces``,
-    the joints kept inside the mesh); appends each RMSE to ``history``; returns what stopped it."""
+    the joints kept inside the mesh), the rotations of :data:`FRAME_BLOCKS` runs of frames fitted
+    on ``pool``'s threads; appends each RMSE to ``history``; returns what stopped it."""
     frames, count = vertices.shape[:2]
     order = skeleton.order()
     first = len(history)
     squared = np.einsum("fvx,fvx->f", vertices, vertices)
+    blocks = np.array_split(np.arange(frames), min(FRAME_BLOCKS, frames))
     for iteration in range(1, iterations + 1):
-        products = state.products(data, rest, skeleton)
+        products = state.products(data, skeleton)
         sums = products.sums(state.joints)
-        T = _solve_translations(sums, state.R)
-        for _ in range(sweeps):
-            state.R = _sweep_rotations(sums, state.R, T, order)
-            T = _solve_translations(sums, state.R)
-        damping, energies = np.full(frames, 1e-3), _frame_energies(sums, squared, state.R, T)
-        for _ in range(NEWTON_STEPS):
-            state.R, T, damping, energies = _gauss_newton(sums, squared, state.R, T, damping, energies)
+        turned = pool.map(lambda rows: _fit_rotations(sums.frames(rows), squared[rows], state.R[rows], order, sweeps),
+                          blocks)
+        state.R, T = (np.concatenate(parts) for parts in zip(*turned))
         if move_joints:
             state.joints = _solve_joints(products, state.R, state.joints, found, stiffness)
             if faces is not None:  # back inside the body (module notes, step 3)
@@ -373,9 +415,10 @@ def fit_jointed(vertices, rest, bone_indices, bone_weights, rotations, skeleton,
                    np.asarray(bone_weights, np.float64), found.copy())
     history = []
     options = (max_influences, iterations, sweeps, tolerance, patience)
-    stopped = _iterate(state, vertices, rest, skeleton, data, found, *options, move_joints, stiffness, history,
-                       progress, faces)
-    T = _solve_translations(state.products(data, rest, skeleton).sums(state.joints), state.R)
+    with ThreadPoolExecutor(FRAME_BLOCKS) as pool:
+        stopped = _iterate(state, vertices, rest, skeleton, data, found, *options, move_joints, stiffness, history,
+                           progress, faces, pool)
+    T = _solve_translations(state.products(data, skeleton).sums(state.joints), state.R)
     world_R, world_t = world_transforms(state.R, T, skeleton.parents, skeleton.jointed, state.joints)
     dense = dense_weights(state.indices, state.weights, skeleton.bones)
     fitted = SkinFit(rest_vertices=rest.copy(), bone_indices=state.indices, bone_weights=state.weights,
