@@ -59,6 +59,7 @@ from ..rig.skeleton import hold_joints
 from .bone_transforms import Trajectories
 from .skin_fit import SkinFit
 from .joints import inside_mesh
+from .rig_normal_equations import normal_equations
 from .skin_weights import update_weights
 from .transform_sweep import sparse_weighted_sums
 
@@ -250,9 +251,8 @@ def _solve_joints(products, R, joints, found, stiffness=JOINT_STIFFNESS):
 
 def _frame_energies(sums, squared, R, T):
     """Σ_i ‖v_i(f) − model_i(f)‖² per frame (F,), from the sums alone; ``squared`` (F,) is
-    Σ_i ‖v_i(f)‖². (Here and in :func:`_gauss_newton` the contractions over bones are batched
-    matrix products, :func:`_turned_gram`, or einsum left to pick them, ``optimize=True``: einsum's
-    own loops took half of a jointed fit's time.)"""
+    Σ_i ‖v_i(f)‖². (The contractions over bones are matrix products, :func:`_turned_rows`, or
+    einsum left to pick them, ``optimize=True``: einsum's own loops took half of a jointed fit's time.)"""
     cross = (np.einsum("fax,fax->f", T, sums.anchor_vertices) + np.einsum("fkxy,fkxy->f", R, sums.cross))
     rows, turned = _turned_rows(sums, R)
     model = (np.einsum("ab,fax,fbx->f", sums.anchor_gram, T, T)
@@ -268,54 +268,19 @@ def _turned_rows(sums, R):
     return rows, rows @ sums.gram_flat
 
 
-def _turned_gram(sums, R):
-    """R_k G_km (F, B, 3, B·3) for rotations R (F, B, 3, 3): [f, k, x, (m, z)], one batched product."""
-    bones = R.shape[1]
-    return R @ sums.gram_flat.reshape(bones, 3, bones * 3)
-
-
-def _skew(v):
-    """[v]× (..., 3, 3) of vectors (..., 3)."""
-    out = np.zeros(v.shape + (3,))
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    return out - np.swapaxes(out, -1, -2)
-
-
-def _axial(m):
-    """s (..., 3) with [s]× = m − mᵀ, of matrices m (..., 3, 3): Σ_i w_i u_iᵀ gives Σ_i u_i × w_i."""
-    return np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], axis=-1)
-
-
 def _gauss_newton(sums, squared, R, T, damping, before):
     """One Levenberg–Marquardt step on every bone's rotation and every anchor's translation of
-    each frame at once (frames are independent for fixed weights and joints): R_k ← exp(ω_k) R_k,
+    each frame at once (frames are independent for fixed weights and joints; the normal equations
+    :func:`.rig_normal_equations.normal_equations`): R_k ← exp(ω_k) R_k,
     t_a ← t_a + δ_a; a frame keeps the step only where its error falls, and its ``damping`` (F,)
     is divided by 3 there, multiplied by 10 elsewhere. ``before`` (F,): the frames' energies at
     (R, T) (:func:`_frame_energies`). Returns (R, T, damping, the energies at the R, T returned)."""
     frames, bones = R.shape[:2]
     anchors = T.shape[1]
-    RG = _turned_gram(sums, R).reshape(frames, bones * 3, bones, 3).transpose(0, 2, 1, 3)  # [f, m, (k, x), z]
-    Y = (RG @ np.swapaxes(R, 2, 3)).reshape(frames, bones, bones, 3, 3)  # Y[f, k, m] = M_mk = R_m G_mk R_kᵀ
     n = 3 * (bones + anchors)
-    H = np.empty((frames, n, n))  # every block written below (empty: no fresh zeroed pages each step)
-    # ω–ω blocks: tr(M_km) I − M_mk, in place in H's view
-    rot = H[:, :3 * bones, :3 * bones].reshape(frames, bones, 3, bones, 3)
-    rot[...] = -Y.transpose(0, 1, 3, 2, 4)
-    trace = np.einsum("fkmxx->fkm", Y)  # tr(M_mk) = tr(M_km): M_mk = M_kmᵀ, G symmetric
-    for x in range(3):
-        rot[:, :, x, :, x] += trace
-    RH = np.einsum("fkxy,aky->fkax", R, sums.anchor_cross, optimize=True)  # R_k H_ak
-    mixed = _skew(RH)  # (F, B, A, 3, 3): [R_k H_ak]×
-    H[:, :3 * bones, 3 * bones:] = mixed.transpose(0, 1, 3, 2, 4).reshape(frames, 3 * bones, 3 * anchors)
-    H[:, 3 * bones:, :3 * bones] = np.swapaxes(H[:, :3 * bones, 3 * bones:], 1, 2)
-    H[:, 3 * bones:, 3 * bones:] = np.kron(sums.anchor_gram, np.eye(3))
-    # Right-hand side: Σ_i y_ik × e_i and Σ_i s_ia e_i.
-    X = np.einsum("fkxy,fkzy->fkxz", sums.cross, R, optimize=True)  # Σ_i v_i y_ikᵀ = C_k R_kᵀ
-    # Σ_m M_mk = (Σ_m R_m G_mk) R_kᵀ: Σ_i (model part of bones) y_ikᵀ
-    model_rot = _turned_rows(sums, R)[1].reshape(frames, 3, bones, 3).transpose(0, 2, 1, 3) @ np.swapaxes(R, 2, 3)
-    g_rot = _axial(X - model_rot) - np.cross(RH, T[:, None]).sum(axis=2)
-    g_t = sums.anchor_vertices - np.einsum("ab,fbx->fax", sums.anchor_gram, T) - np.einsum("fkax->fax", RH)
-    g = np.concatenate([g_rot.reshape(frames, -1), g_t.reshape(frames, -1)], axis=1)
+    H, g = np.empty((frames, n, n)), np.empty((frames, n))
+    normal_equations(*(np.ascontiguousarray(x) for x in (R, sums.gram_flat, sums.anchor_cross, sums.anchor_gram,
+                                                         sums.cross, sums.anchor_vertices, T)), H, g)
     diagonal = np.einsum("fii->fi", H)  # a view: the damping goes onto it in place (no (F, n, n) copies)
     diagonal += damping[:, None] * (diagonal + 1e-12 * diagonal.mean(axis=1, keepdims=True))
     step = np.linalg.solve(H, g[..., None])[..., 0]

@@ -72,3 +72,40 @@ def test_the_jointed_fit_holds_its_joints_inside_the_body_and_never_worsens_with
     frozen, _ = fit_jointed(noisy, rig.rest, indices, weights, rig.rotations, skeleton, iterations=8, tolerance=0.0,
                             move_joints=False)
     assert np.all(np.diff(frozen.error_history) <= 1e-12 * frozen.error_history[0])
+
+
+def test_the_rig_normal_equations_are_the_gauss_newton_system_formed_vertex_by_vertex():
+    """H = Σ_i J_iᵀ J_i, g = Σ_i J_iᵀ e_i with J_i = [−[y_ik]× per bone | s_ia I per anchor] and e_i the
+    residual, from the chain coefficients directly; against the sums' compiled system."""
+    from skinsynth.pipeline.skin.bone_transforms import Trajectories
+    from skinsynth.pipeline.skin.jointed_fit import _Products
+    from skinsynth.pipeline.skin.rig_normal_equations import normal_equations
+
+    rng = np.random.default_rng(1)
+    bones, count, frames = 6, 50, 4
+    parents, jointed = np.array([-1, 0, 1, 0, 3, 0]), np.array([False, True, True, True, True, False])
+    joints, rest = rng.normal(size=(bones, 3)), rng.normal(size=(count, 3))
+    weights = rng.random((count, bones)) * (rng.random((count, bones)) < 0.6)
+    weights[np.arange(count), rng.integers(0, bones, count)] += 0.5
+    weights /= weights.sum(axis=1, keepdims=True)
+    vertices = rng.normal(size=(frames, count, 3))
+    R, T = rotation_exp(rng.normal(size=(frames, bones, 3))), rng.normal(size=(frames, 2, 3))
+    sums = _Products(Trajectories(vertices, rest), np.tile(np.arange(bones), (count, 1)), weights, parents,
+                     jointed).sums(joints)
+    n = 3 * (bones + 2)
+    H, g = np.empty((frames, n, n)), np.empty((frames, n))
+    normal_equations(*(np.ascontiguousarray(x) for x in (R, sums.gram_flat, sums.anchor_cross, sums.anchor_gram,
+                                                         sums.cross, sums.anchor_vertices, T)), H, g)
+    s, a = chain_coefficients(rest, weights, parents, jointed, joints)
+    y = np.einsum("fkxy,vky->fvkx", R, a)  # (F, V, B, 3)
+    residual = vertices - np.einsum("va,fax->fvx", s, T) - y.sum(axis=2)
+    skew = np.zeros(y.shape + (3,))
+    skew[..., 0, 1], skew[..., 0, 2], skew[..., 1, 2] = -y[..., 2], y[..., 1], -y[..., 0]
+    skew -= np.swapaxes(skew, -1, -2)
+    J = np.concatenate([-skew.transpose(0, 1, 3, 2, 4).reshape(frames, count, 3, 3 * bones),
+                        np.einsum("va,xw->vxaw", s, np.eye(3)).reshape(1, count, 3, 6).repeat(frames, 0)], axis=3)
+    expected_H = np.einsum("fvxi,fvxj->fij", J, J)
+    expected_g = np.einsum("fvxi,fvx->fi", J, residual)
+    scale = np.abs(expected_H).max()
+    assert np.abs(H - expected_H).max() < 1e-11 * scale
+    assert np.abs(g - expected_g).max() < 1e-11 * np.abs(expected_g).max()
