@@ -19,15 +19,17 @@ def points_inside(points, vertices, faces):
     magnitude of the winding number (:func:`.winding.winding_numbers`) is at least ½. For one closed shell
     this is the ray-parity verdict; where shells overlap (several tubes in one mesh) parity would
     call the overlap outside, the winding number counts it twice, inside."""
-    return inside_test(vertices, faces)(points)
+    from .winding import triangle_corners
+
+    return inside_test(triangle_corners(vertices, faces))(points)
 
 
-def inside_test(vertices, faces):
-    """:func:`points_inside` of one mesh as a function of the points (P, 3) alone, the triangles
-    gathered once (for the many tests of a bisection)."""
-    from .winding import triangle_corners, winding_at
+def inside_test(corners):
+    """:func:`points_inside` of the mesh whose triangles are ``corners`` (T, 3, 3)
+    (:func:`.winding.triangle_corners`, gathered once for many tests) as a function of the points
+    (P, 3) alone."""
+    from .winding import winding_at
 
-    corners = triangle_corners(vertices, faces)
     return lambda points: np.abs(winding_at(points, corners)) >= 0.5
 
 

@@ -196,19 +196,24 @@ SKIN_DEPTHS = (0.005, 0.01, 0.02, 0.04)
 
 def inside_mesh(points, anchors, vertices, faces, steps=12):
     """points (P, 3) moved into the closed mesh (vertices, faces) where outside: along the segment to
-    the first inside one of each point's ``anchors`` (P, N, 3), bisected to the skin (``steps``
-    halvings, all points at once: the skin to 2.4e-4 of the segment, and each halving tests every
-    point against every triangle), then a quarter of the rest of the way on. Last come points
-    under the skin nearest the point, :data:`SKIN_DEPTHS` deep along its vertex normal (either
-    way: the mesh's orientation is not assumed), for a point none of whose anchors is inside (on
-    the horse's clips, a sliding joint between two thin, curved leg bones whose centroids both lie
-    outside the leg). A point with no inside anchor even so stays. Returns (points (P, 3), moved
-    (P,) bool)."""
+    the first inside one of each point's ``anchors`` (P, N, 3), to where it last crosses the skin
+    (:func:`..mesh.crossing.last_crossings`, one pass over the triangles), then a quarter of the
+    rest of the way on. Where that point is not inside even so (a mesh with holes, whose winding
+    number changes off the skin too) or no crossing is found, the segment is bisected to the skin
+    instead (``steps`` halvings: the skin to 2.4e-4 of the segment at 12; each halving tests every
+    such point against every triangle). Last come points under the skin nearest the point,
+    :data:`SKIN_DEPTHS` deep along its vertex normal (either way: the mesh's orientation is not
+    assumed), for a point none of whose anchors is inside (on the horse's clips, a sliding joint
+    between two thin, curved leg bones whose centroids both lie outside the leg). A point with no
+    inside anchor even so stays. Returns (points (P, 3), moved (P,) bool)."""
+    from ..mesh.crossing import last_crossings
     from ..mesh.geometry import inside_test
+    from ..mesh.winding import triangle_corners
 
     points = np.array(points, dtype=np.float64)
     vertices = np.asarray(vertices, dtype=np.float64)
-    points_inside = inside_test(vertices, faces)
+    corners = triangle_corners(vertices, faces)
+    points_inside = inside_test(corners)
     outside = np.flatnonzero(~points_inside(points))
     moved = np.zeros(len(points), dtype=bool)
     if outside.size == 0:
@@ -226,12 +231,18 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
     found = ~np.isnan(target[:, 0])
     outside, target = outside[found], target[found]
     start = points[outside]
-    low, high = np.zeros(outside.size), np.ones(outside.size)  # outside at low, inside at high
-    for _ in range(steps):
-        middle = 0.5 * (low + high)
-        now = points_inside(start + middle[:, None] * (target - start))
-        high, low = np.where(now, middle, high), np.where(now, low, middle)
-    points[outside] = start + (high + 0.25 * (1.0 - high))[:, None] * (target - start)
+    high = last_crossings(start, target, corners)  # outside before it, inside after
+    placed = start + (high + 0.25 * (1.0 - high))[:, None] * (target - start)
+    astray = np.flatnonzero((high < 0.0) | ~points_inside(placed))
+    if astray.size:
+        low, high_astray = np.zeros(astray.size), np.ones(astray.size)  # outside at low, inside at high
+        for _ in range(steps):
+            middle = 0.5 * (low + high_astray)
+            now = points_inside(start[astray] + middle[:, None] * (target[astray] - start[astray]))
+            high_astray, low = np.where(now, middle, high_astray), np.where(now, low, middle)
+        placed[astray] = start[astray] + (high_astray + 0.25 * (1.0 - high_astray))[:, None] * (target[astray]
+                                                                                               - start[astray])
+    points[outside] = placed
     moved[outside] = True
     return points, moved
 
