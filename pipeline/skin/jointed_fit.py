@@ -69,9 +69,9 @@ JOINT_STIFFNESS = 1e-3
 #: The same pull in every direction, as a share of that eigenvalue.
 JOINT_FLOOR = 1e-3
 #: Halvings of the segment to the skin when an iteration's joint solve takes a joint out of the
-#: body (:func:`.joints.inside_mesh`; 12 when a skeleton is found): 1/64 of the way, then a quarter
-#: of the rest in. The same fits to 1e-3 of their RMSE, 6–12 % faster than 12 (each halving tests
-#: the joints against every triangle).
+#: body and the skin's last crossing does not put it in (:func:`.joints.inside_mesh`, a mesh with
+#: holes; 12 when a skeleton is found): 1/64 of the way, then a quarter of the rest in. The same
+#: fits to 1e-3 of their RMSE as 12 (each halving tests the joints against every triangle).
 PROJECTION_STEPS = 6
 #: Levenberg–Marquardt steps on all of a frame's bones together after each iteration's sweeps: the
 #: chain couples every bone to its ancestors, where one-bone-at-a-time updates crawl (module notes).
