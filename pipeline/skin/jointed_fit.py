@@ -150,7 +150,8 @@ class _Products:
         below = below.astype(np.float64)  # W = w below (V, B)
         self.parents, self.jointed = np.asarray(parents), np.asarray(jointed, dtype=bool)
         self.frames, bones = data.frames, len(self.parents)
-        moment, second = sparse_weighted_sums(indices, weights, data, bones)  # Σ w v ũᵀ (B, F, 3, 4), Σ w w ũ ũᵀ
+        # Σ_i w_ij v_i(f) ũ_iᵀ (B, F, 3, 4) and Σ_i w_ij w_ik ũ_i ũ_iᵀ (B, B, 4, 4), ũ the homogeneous rest
+        moment, second = sparse_weighted_sums(indices, weights, data, bones)
         self.turned_gram = second[:, :, :3, :3].transpose(0, 2, 1, 3).reshape(bones * 3, bones * 3)  # (B·3, B·3)
         self.carried_turned = below.T @ second[:, :, 3, :3].reshape(bones, bones * 3)  # Wᵀ (w ⊗ r) (B, B·3)
         self.carried_gram = below.T @ second[:, :, 3, 3] @ below  # WᵀW (B, B)
@@ -167,8 +168,9 @@ class _Sums:
 
     def __init__(self, products, terms):
         """products: a :class:`_Products`; terms: its joints' E (B, B·3) (:func:`_joint_terms`).
-        gram (B, B, 3, 3): [k, m] = Σ_i a_ik a_imᵀ (gram_flat (B·3, B·3): the same, [(k, y), (m, z)]); cross (F, B, 3, 3): Σ_i v_i(f) a_ikᵀ; anchor_gram (A, A);
-        anchor_cross (A, B, 3): Σ_i s_ia a_ik; anchor_vertices (F, A, 3): Σ_i s_ia v_i(f)."""
+        gram (B, B, 3, 3): [k, m] = Σ_i a_ik a_imᵀ (gram_flat (B·3, B·3): the same, [(k, y), (m, z)]);
+        cross (F, B, 3, 3): Σ_i v_i(f) a_ikᵀ; anchor_gram (A, A); anchor_cross (A, B, 3): Σ_i s_ia a_ik;
+        anchor_vertices (F, A, 3): Σ_i s_ia v_i(f)."""
         frames, anchors = products.frames, products.anchors
         bones = len(products.parents)
         mixed = products.carried_turned.T @ terms  # (B·3, B·3): (w ⊗ r)ᵀ W E

@@ -53,7 +53,8 @@ def normal_equations(R, gram, anchor_cross, anchor_gram, cross, anchor_vertices,
         for k in range(bones):
             for a in range(anchors):
                 for x in range(3):
-                    turned_cross[k, a, x] = (R[f, k, x, 0] * anchor_cross[a, k, 0] + R[f, k, x, 1] * anchor_cross[a, k, 1]
+                    turned_cross[k, a, x] = (R[f, k, x, 0] * anchor_cross[a, k, 0]
+                                             + R[f, k, x, 1] * anchor_cross[a, k, 1]
                                              + R[f, k, x, 2] * anchor_cross[a, k, 2])
                 v0, v1, v2 = turned_cross[k, a, 0], turned_cross[k, a, 1], turned_cross[k, a, 2]
                 r, c = 3 * k, rows + 3 * a
