@@ -231,18 +231,20 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
     found = ~np.isnan(target[:, 0])
     outside, target = outside[found], target[found]
     start = points[outside]
+
+    def placed(rows, fraction):  # past the skin at ``fraction`` of the way in, a quarter of the rest on
+        return start[rows] + (fraction + 0.25 * (1.0 - fraction))[:, None] * (target[rows] - start[rows])
+
+    every = np.arange(outside.size)
     high = last_crossings(start, target, corners)  # outside before it, inside after
-    placed = start + (high + 0.25 * (1.0 - high))[:, None] * (target - start)
-    astray = np.flatnonzero((high < 0.0) | ~points_inside(placed))
-    if astray.size:
-        low, high_astray = np.zeros(astray.size), np.ones(astray.size)  # outside at low, inside at high
+    astray = np.flatnonzero((high < 0.0) | ~points_inside(placed(every, high)))
+    if astray.size:  # bisected: outside at low, inside at high
+        low, high[astray] = np.zeros(astray.size), 1.0
         for _ in range(steps):
-            middle = 0.5 * (low + high_astray)
+            middle = 0.5 * (low + high[astray])
             now = points_inside(start[astray] + middle[:, None] * (target[astray] - start[astray]))
-            high_astray, low = np.where(now, middle, high_astray), np.where(now, low, middle)
-        placed[astray] = start[astray] + (high_astray + 0.25 * (1.0 - high_astray))[:, None] * (target[astray]
-                                                                                               - start[astray])
-    points[outside] = placed
+            high[astray], low = np.where(now, middle, high[astray]), np.where(now, low, middle)
+    points[outside] = placed(every, high)
     moved[outside] = True
     return points, moved
 

@@ -30,6 +30,7 @@ def normal_equations(R, gram, anchor_cross, anchor_gram, cross, anchor_vertices,
     turned = np.empty((rows, rows))  # R_k G_km, [(k, x), (m, z)]
     model = np.empty((bones, 3, 3))  # Σ_m M_mk
     turned_cross = np.empty((bones, anchors, 3))  # R_k H_ak
+    d = np.empty((3, 3))  # C_k R_kᵀ − Σ_m M_mk
     for f in range(frames):
         for k in range(bones):
             for x in range(3):
@@ -71,7 +72,6 @@ def normal_equations(R, gram, anchor_cross, anchor_gram, cross, anchor_vertices,
                         H[f, rows + 3 * a + x, rows + 3 * b + w] = anchor_gram[a, b] if x == w else 0.0
         for k in range(bones):
             # X_k = C_k R_kᵀ less Σ_m M_mk; its axial vector, less Σ_a (R_k H_ak) × t_a
-            d = np.empty((3, 3))
             for x in range(3):
                 for z in range(3):
                     d[x, z] = (cross[f, k, x, 0] * R[f, k, z, 0] + cross[f, k, x, 1] * R[f, k, z, 1]
