@@ -225,9 +225,12 @@ def inside_mesh(points, anchors, vertices, faces, steps=12):
         if rows.size == 0:
             break
         near = candidates(rows)  # (n, N, 3)
-        inside = points_inside(near.reshape(-1, 3)).reshape(rows.size, -1)
-        hit = inside.any(axis=1)
-        target[rows[hit]] = near[hit, np.argmax(inside[hit], axis=1)]
+        for column in range(near.shape[1]):  # in order, each tested only while none before it was inside
+            left = np.flatnonzero(np.isnan(target[rows, 0]))
+            if left.size == 0:
+                break
+            inside = left[points_inside(near[left, column])]
+            target[rows[inside]] = near[inside, column]
     found = ~np.isnan(target[:, 0])
     outside, target = outside[found], target[found]
     start = points[outside]
