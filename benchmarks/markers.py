@@ -8,14 +8,22 @@ Builds, as a user would, the samba puppet on the controls of the committed Plug-
   millimetres, Z up, a known rotation, scale and translation; noise of 0.1 % of the height and
   5 % of the samples missing in gaps of 1–30 frames), played with ``--neutral-frame 0`` (the
   capture's rest pose): the mean vertex error over the capture's frames against that of playing
-  the clean controls (``error_ratio``), and without the noise the largest error of the recovered
-  map (``transform_error``, relative).
+  the clean controls (``error_ratio``), and without the noise (and ``--filter none``) the largest
+  error of the recovered map (``transform_error``, relative).
+- ``held_out``: issue 45's takes of a capture no layout was made for (``vlasic_samba`` and
+  ``vlasic_crane``): 16 markers by farthest-point sampling on the rest mesh, a puppet on them
+  (``select-controls --markers``), and takes written from those vertices at 100 Hz (from 24 fps),
+  in millimetres, turned and moved, played with no neutral frame given: ``clean``, ``noise``
+  (0.1 % of the height), ``gaps`` (5 % of the samples in runs of 1–30 frames, the first sample
+  too), and ``both``; each one's mean vertex error over the capture's frames against that of
+  playing the clean control vertices (``error_ratio``), and its worst frame's against the clean
+  controls' worst (``worst_ratio``).
 - ``take``: each real take in ../shared/data/mocap_c3d played to .glb and .usdc: frames, NaN,
   the extrapolation per frame (mean, worst), the markers filled and frames held.
 - ``speed``: reading, aligning, filling and playing the 1,092-frame take at its own 50 Hz, in
   process, best of 3: take frames per second.
 
-    python benchmarks/markers.py [--work DIR]
+    python benchmarks/markers.py [--work DIR] [--only truth|held_out|take|speed]
 """
 
 import argparse
@@ -76,8 +84,9 @@ def truth(work, puppet):
         points = take_points(frames, 5, SCALE, ROTATION, SHIFT_MM, noise=noise, missing=0.05, longest=30, seed=7)
         write_c3d(os.path.join(work, f"{name}.c3d"), [f"Samba:{label}" for label in labels], points, 120.0,
                   units="mm")
+        raw = ["--filter", "none"] if name == "exact" else []  # the map recovered exactly: no low-pass
         _, _, _, stdout = run(["play", puppet, "-c", f"{name}.c3d", "--neutral-frame", "0", "-o", f"{name}.h5",
-                               "--json"], work)
+                               "--json", *raw], work)
         rows[name] = json.loads(stdout)
     truth_frames = skin.examples.astype(np.float64)
     error = {name: float(np.mean(np.linalg.norm(played(os.path.join(work, f"{name}.h5")) - truth_frames, axis=2)))
@@ -92,6 +101,67 @@ def truth(work, puppet):
             "error_ratio": error["noisy"] / error["clean"], "error_exact_take": error["exact"] / height,
             "transform_error": map_error, "markers_filled": len(filled),
             "samples_filled": int(sum(v["frames"] for v in filled.values()))}
+
+
+#: The held-out takes' map (a turn about a tilted axis, a scale, a shift in millimetres).
+HELD_SCALE, HELD_ROTATION, HELD_SHIFT_MM = 0.93, rotation_about([-0.2, 0.4, 1.0], -1.3), np.array([-2310.0, 640.0, 12.0])
+HELD_MARKERS, HELD_RATE = 16, 100.0
+
+
+def farthest_points(points, count):
+    """count indices of points (V, 3) by farthest-point sampling from the highest one."""
+    chosen = [int(np.argmax(points[:, 1]))]
+    distance = np.linalg.norm(points - points[chosen[0]], axis=1)
+    for _ in range(count - 1):
+        chosen.append(int(np.argmax(distance)))
+        distance = np.minimum(distance, np.linalg.norm(points - points[chosen[-1]], axis=1))
+    return chosen
+
+
+def held_out(work, capture):
+    """Issue 45's held-out takes on ``capture``: one JSON line per variant."""
+    from skinsynth.formats.skin_file import read_skin
+
+    folder = os.path.join(work, capture)
+    os.makedirs(folder, exist_ok=True)
+    skin_path, puppet = os.path.join(folder, "skin.h5"), os.path.join(folder, "puppet.h5")
+    if not os.path.exists(puppet):
+        run(["fit-skin", str(SHARED_DATA / capture / f"{capture}.npz"), "-o", skin_path, "--bones", "22", "-q"], folder)
+        rest = read_skin(skin_path).rest_vertices
+        layout = {f"M{i:02d}": vertex for i, vertex in enumerate(farthest_points(rest, HELD_MARKERS))}
+        pathlib.Path(folder, "layout.json").write_text(json.dumps(layout))
+        run(["select-controls", skin_path, "-o", "controls.h5", "--markers", "layout.json", "-q"], folder)
+        run(["train-kcca", "controls.h5", "-o", puppet, "-q"], folder)  # as a new user would: the defaults
+    skin = read_skin(skin_path)
+    layout = json.loads(pathlib.Path(folder, "layout.json").read_text())
+    frames = skin.examples[:, list(layout.values())]
+    height = float(np.ptp(skin.rest_vertices[:, 1]))
+    np.save(os.path.join(folder, "clean.npy"), frames)
+    run(["play", puppet, "-c", "clean.npy", "-o", "clean.h5", "-q"], folder)
+    truth_frames = skin.examples.astype(np.float64)
+
+    def errors(name):
+        vertices = played(os.path.join(folder, f"{name}.h5"))
+        count = min(len(vertices), len(truth_frames))
+        per_frame = np.linalg.norm(vertices[:count] - truth_frames[:count], axis=2).mean(axis=1)
+        return float(per_frame.mean()), float(per_frame.max())
+
+    clean_mean, clean_worst = errors("clean")
+    factor = HELD_RATE / float(skin.fps)
+    for name, noise, missing in (("clean", 0.0, 0.0), ("noise", 0.001 * height, 0.0), ("gaps", 0.0, 0.05),
+                                 ("both", 0.001 * height, 0.05)):
+        points = take_points(frames, factor, HELD_SCALE, HELD_ROTATION, HELD_SHIFT_MM, noise=noise, missing=missing,
+                             longest=30, seed=11, keep_first=False)
+        write_c3d(os.path.join(folder, f"take_{name}.c3d"), [f"Dancer:{label}" for label in layout], points, HELD_RATE,
+                  units="mm")
+        _, _, _, stdout = run(["play", puppet, "-c", f"take_{name}.c3d", "-o", f"take_{name}.h5", "--json"], folder)
+        report = json.loads(stdout)["takes"][0]
+        mean, worst = errors(f"take_{name}")
+        yield {"benchmark": "markers", "case": "held_out", "capture": capture, "take": name,
+               "markers": HELD_MARKERS, "rate": HELD_RATE, "error_clean": clean_mean / height,
+               "error_take": mean / height, "error_ratio": round(mean / clean_mean, 3),
+               "worst_ratio": round(worst / clean_worst, 3), "neutral_frame": report["neutral_frame"],
+               "samples_filled": int(sum(v["frames"] for v in report["filled"].values()))}
 
 
 def real_takes(work, puppet):
@@ -139,17 +209,28 @@ def speed(work, puppet):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", default=None, help="folder kept between runs (the puppet is built once)")
+    parser.add_argument("--only", default=None, choices=["truth", "held_out", "take", "speed"])
     options = parser.parse_args()
     if not (SHARED_DATA / "vlasic_samba").is_dir() or not TAKES.is_dir():
         print(json.dumps({"benchmark": "markers", "skipped": f"needs vlasic_samba and mocap_c3d in {SHARED_DATA}"}))
         return
     work = options.work or tempfile.mkdtemp(prefix="markers_bench_")
     os.makedirs(work, exist_ok=True)
+    wanted = (lambda case: options.only in (None, case))
+    if wanted("held_out"):
+        for capture in ("vlasic_samba", "vlasic_crane"):
+            if (SHARED_DATA / capture).is_dir():
+                for row in held_out(work, capture):
+                    print(json.dumps(row), flush=True)
+    if wanted("held_out") and options.only:
+        return
     _, puppet = samba_puppet(work)
-    print(json.dumps(truth(work, puppet)), flush=True)
-    for row in real_takes(work, puppet):
+    if wanted("truth"):
+        print(json.dumps(truth(work, puppet)), flush=True)
+    for row in real_takes(work, puppet) if wanted("take") else ():
         print(json.dumps(row), flush=True)
-    print(json.dumps(speed(work, puppet)), flush=True)
+    if wanted("speed"):
+        print(json.dumps(speed(work, puppet)), flush=True)
 
 
 if __name__ == "__main__":

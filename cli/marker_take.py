@@ -1,19 +1,18 @@
-"""A motion-capture take (C3D) as a puppet's control trajectory: what ``play`` and ``view`` share.
-
-Reads the take and the marker layout with ``formats``, ties the layout to the puppet's control
-vertices, and hands the arrays to ``pipeline.puppet.drive_from_markers``; returns the
-trajectory with a summary for ``--json`` and the lines a person reads.
-"""
+"""A motion-capture take (C3D) as a puppet's control trajectory, what ``play`` and ``view`` share:
+the take and layout read with ``formats``, tied to the control vertices, handed to
+``pipeline.puppet.drive_from_markers``; the trajectory returned with its ``--json`` summary and lines."""
 
 from dataclasses import dataclass
 
 import numpy as np
 
+from skinsynth.pipeline.puppet.marker_filter import BODY_CUTOFF, cutoff_option
 from skinsynth.pipeline.puppet.markers import MAX_GAP
 
 #: The options of :func:`skinsynth.cli.options.marker_take_options` and their defaults, by name.
 TAKE_DEFAULTS = {"marker_layout": None, "marker_units": None, "take_up_axis": "Z", "fps": None, "neutral_frame": None,
-             "retarget": "delta", "stabilize": None, "max_gap": MAX_GAP, "min_markers": None, "allow_missing": False}
+             "retarget": "delta", "stabilize": None, "max_gap": MAX_GAP, "min_markers": None, "allow_missing": False,
+             "cutoff": f"{BODY_CUTOFF:g}"}
 
 
 @dataclass
@@ -98,7 +97,7 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
                                puppet_up=skin.scene.up_axis, offsets=offsets, normals=normals,
                                neutral_frame=options["neutral_frame"], retarget=options["retarget"],
                                stabilize=stabilize, max_gap=options["max_gap"], min_markers=options["min_markers"],
-                               labels=labels)
+                               labels=labels, cutoff=cutoff_option(options["cutoff"]))
     if not np.isfinite(drive.controls).all():
         raise FormatError(path, "the take gives no finite control positions")
     summary, lines = take_report(path, take, matched, labels, drive, fps, options["retarget"])

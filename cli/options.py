@@ -89,9 +89,10 @@ def marker_take_options(command):
         click.option("--min-markers", default=None, type=int,
                      help="C3D: a frame seeing fewer markers is held from the last good one  [default: half the "
                           "layout, at least 3]"),
+        click.option("--filter", "cutoff", default=TAKE_DEFAULTS["cutoff"], show_default=True, metavar="HZ|none",
+                     help="C3D: the markers' low-pass cut-off (zero-phase Butterworth, docs/mocap.md), or none."),
         click.option("--allow-missing", is_flag=True,
-                     help="C3D: play even when the take lacks some of the layout's markers (filled every frame "
-                          "from the others)."),
+                     help="C3D: play a take lacking some of the layout's markers (each frame filled from the others)."),
     ]
     for option in reversed(options):
         command = option(command)

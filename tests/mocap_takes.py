@@ -16,9 +16,9 @@ def rotation_about(axis, angle):
 
 
 def denser(frames, factor):
-    """frames (F, n, 3) at some rate -> (factor (F − 1) + 1, n, 3) at factor × it, linear between
-    frames; sample factor·f is frame f exactly."""
-    times = np.arange((len(frames) - 1) * factor + 1) / factor
+    """frames (F, n, 3) at some rate -> (⌊factor (F − 1)⌋ + 1, n, 3) at factor × it, linear between
+    frames; with a whole factor sample factor·f is frame f exactly (100 Hz from 24 fps: 25/6)."""
+    times = np.arange(int(np.floor((len(frames) - 1) * factor + 1e-9)) + 1) / factor
     low = np.minimum(np.floor(times).astype(int), len(frames) - 1)
     high = np.minimum(low + 1, len(frames) - 1)
     mix = (times - low)[:, None, None]
@@ -38,17 +38,19 @@ def gap_mask(samples, markers, share, longest, seed, keep_first=True):
     return mask
 
 
-def take_points(frames, factor, scale, rotation, shift_mm, noise=0.0, missing=0.0, longest=30, seed=0):
+def take_points(frames, factor, scale, rotation, shift_mm, noise=0.0, missing=0.0, longest=30, seed=0,
+                keep_first=True):
     """A take (T, n, 3) in millimetres, Z up, of a Y-up capture's control positions frames
     (F, n, 3) in metres: ``1000 (scale · rotation @ Y_TO_Z @ x) + shift_mm`` at factor × the
     capture's rate, plus Gaussian noise of ``noise`` metres per coordinate, and ``missing`` of
-    the samples NaN in gaps of 1..longest take frames."""
+    the samples NaN in gaps of 1..longest take frames (the first sample kept whole when
+    ``keep_first``)."""
     rng = np.random.default_rng(seed + 1)
     dense = denser(np.asarray(frames, dtype=float), factor)
     points = 1000.0 * scale * dense @ (rotation @ Y_TO_Z).T + shift_mm
     points += 1000.0 * noise * rng.normal(size=points.shape)
     if missing > 0:
-        points[gap_mask(len(points), points.shape[1], missing, longest, seed)] = np.nan
+        points[gap_mask(len(points), points.shape[1], missing, longest, seed, keep_first)] = np.nan
     return points
 
 

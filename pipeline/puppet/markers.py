@@ -9,7 +9,11 @@ order :func:`drive_from_markers` runs them (each an option of ``play``):
    Z) turned onto the puppet's (:func:`up_axis_rotation`).
 2. **Short gaps** (≤ ``max_gap`` take frames, both ends seen) are filled by linear interpolation
    in time (:func:`fill_short_gaps`). Linear, not a spline: a gap of a few frames at 50–120 Hz is
-   a few centimetres of travel, and a spline overshoots at a marker's noisy ends.
+   a few centimetres of travel, and a spline overshoots at a marker's noisy ends. Then every
+   marker's runs of samples are **low-passed** (``cutoff`` Hz, default
+   :data:`.marker_filter.BODY_CUTOFF`; None keeps them raw): a zero-phase Butterworth along time,
+   as mocap tools filter before anything reads the trajectories (:func:`.marker_filter.lowpass_runs`)
+   — before the neutral frame is read, whose noise would otherwise offset every frame.
 3. **Stabilised** (``--stabilize A,B,C``): each frame's rigid motion of three or more markers
    (a face's head markers) relative to the neutral frame is removed from every marker
    (:func:`stabilize_markers`).
@@ -36,6 +40,7 @@ import numpy as np
 
 from ..errors import OptionError
 from ..rig.rotations import polar_rotation
+from .marker_filter import BODY_CUTOFF, ORDER, can_filter, lowpass_runs
 
 #: The short-gap rule: gaps of at most this many take frames are interpolated (Vicon Nexus and
 #: Qualisys fill up to 10 frames by default).
@@ -66,7 +71,8 @@ class MarkerDrive:
     (3, 3), translation (3,): the whole map from the take's metres to the puppet's space,
     ``x ↦ scale · rotation @ x + translation`` (units, up axis and Umeyama together);
     neutral_frame (take frame); interpolated and subspace: {marker index: take frames filled that
-    way}; held: take frames held from the last good one; min_markers: the rule used for ``held``.
+    way}; held: take frames held from the last good one; min_markers: the rule used for ``held``;
+    cutoff: the low-pass cut-off applied (Hz), None where the take was kept raw.
     """
 
     controls: np.ndarray
@@ -80,6 +86,7 @@ class MarkerDrive:
     subspace: dict = field(default_factory=dict)
     held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     min_markers: int = 3
+    cutoff: float = None
 
 
 def up_axis_rotation(source, target):
@@ -300,7 +307,7 @@ def first_complete_frame(points):
 
 def drive_from_markers(points, rate, fps, reference, training, *, meters_per_unit=1.0, take_up="Z", puppet_up="Y",
                        offsets=None, normals=None, neutral_frame=None, retarget="delta", stabilize=(),
-                       max_gap=MAX_GAP, min_markers=None, labels=None):
+                       max_gap=MAX_GAP, min_markers=None, labels=None, cutoff=BODY_CUTOFF):
     """A take's markers as the puppet's controls (the module's steps 1–7).
 
     points (T, n, 3) metres, the markers in the puppet's control order, NaN where missing; rate
@@ -309,7 +316,9 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     (n, 3): markers sitting ``offset`` along the rest normal from their control (mesh units);
     neutral_frame: take frame of the neutral pose (default the first complete one after the short
     fill); stabilize: marker indices; min_markers: a frame seeing fewer is held (default half the
-    markers, at least 3); labels (n,): the markers' names in messages (default their numbers).
+    markers, at least 3); labels (n,): the markers' names in messages (default their numbers);
+    cutoff: the low-pass cut-off in Hz (step 2), None for none; a take too slow for it (its
+    Nyquist frequency below the filter's) is kept raw, ``MarkerDrive.cutoff`` None.
     -> :class:`MarkerDrive`; OptionError (one line) for an option the take cannot satisfy."""
     points = np.asarray(points, dtype=np.float64)
     frames, count = points.shape[:2]
@@ -327,6 +336,12 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     turn = up_axis_rotation(take_up, puppet_up) / meters_per_unit  # metres, take up -> mesh units, puppet up
     local = points @ turn.T
     local, interpolated = fill_short_gaps(local, max_gap)
+    if cutoff is not None:
+        if not (np.isfinite(cutoff) and cutoff > 0):
+            raise OptionError(f"--filter must be a positive cut-off in Hz or none (got {cutoff:g})")
+        cutoff = float(cutoff) if can_filter(rate, cutoff) else None
+        if cutoff is not None:
+            local = lowpass_runs(local, rate, cutoff)
     if neutral_frame is None:
         neutral_frame = first_complete_frame(local)
         if neutral_frame is None:
@@ -366,7 +381,7 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
                        interpolated={m: np.flatnonzero(interpolated[:, m]) for m in range(count)
                                      if interpolated[:, m].any()},
                        subspace={m: np.flatnonzero(by_subspace[:, m]) for m in range(count) if by_subspace[:, m].any()},
-                       held=held, min_markers=min_markers)
+                       held=held, min_markers=min_markers, cutoff=cutoff)
 
 
 def frame_ranges(frames):
@@ -395,11 +410,14 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
                "missing_markers": list(matched.missing), "unmatched_labels": list(matched.unmatched),
                "transform": {"scale": drive.scale, "rotation": drive.rotation.tolist(),
                              "translation": drive.translation.tolist()},
-               "filled": filled, "held_frames": frame_ranges(drive.held), "min_markers": drive.min_markers}
+               "filled": filled, "held_frames": frame_ranges(drive.held), "min_markers": drive.min_markers,
+               "filter": ({"cutoff_hz": drive.cutoff, "order": ORDER, "passes": 2} if drive.cutoff is not None
+                          else "none")}
     name = os.path.basename(str(path))
     lines = [f"{name}: {take.points.shape[0]} frames at {take.rate:g} Hz ({take.units}, from {take.units_source}) -> "
              f"{len(drive.controls)} frames at {fps:g} fps from {take.first_time:g} s; {len(labels)} markers, aligned "
-             f"at take frame {drive.neutral_frame} (scale {drive.scale:.4g}), {retarget} retargeting"]
+             f"at take frame {drive.neutral_frame} (scale {drive.scale:.4g}), {retarget} retargeting, "
+             + (f"low-passed at {drive.cutoff:g} Hz" if drive.cutoff is not None else "not filtered")]
     if matched.unmatched:
         lines.append(f"{name}: labels not in the layout, ignored: {', '.join(matched.unmatched)}")
     if matched.missing:

@@ -71,7 +71,7 @@ def test_a_clean_take_plays_as_its_own_controls_and_recovers_the_transform(puppe
     take, clean = _take(folder, labels, picks, "clean.c3d")
     np.save(tmp_path / "clean.npy", clean)
     report = json.loads(assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / "take.h5",
-                                      "--json")).stdout)
+                                      "--json", "--filter", "none")).stdout)  # raw: exactly the controls
     assert_ok(cli("play", folder / "puppet.h5", "-c", tmp_path / "clean.npy", "-o", tmp_path / "clean.h5", "-q"))
     with h5py.File(tmp_path / "take.h5", "r") as a, h5py.File(tmp_path / "clean.h5", "r") as b:
         played, truth = a["vertices"][()], b["vertices"][()]
@@ -126,6 +126,23 @@ def test_bad_takes_and_layouts_are_refused_in_one_line(puppet, tmp_path, case, n
         layout.write_text(json.dumps({**{l: v for l, v in zip(labels, picks)}, "M7": picks[7] + 1}))
     result = cli("play", folder / "puppet.h5", "-c", take, "--markers", layout, "-o", tmp_path / "out.glb")
     assert_user_error(result, needle, folder=tmp_path, keep=[p.name for p in tmp_path.iterdir()])
+
+
+def test_the_take_is_low_passed_by_default_and_reported(puppet, tmp_path):
+    folder, labels, picks = puppet
+    take, _ = _take(folder, labels, picks, "filtered.c3d")
+    runs = {}
+    for name, extra in (("default", []), ("raw", ["--filter", "none"]), ("three", ["--filter", "3"])):
+        runs[name] = json.loads(assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / f"{name}.h5",
+                                              "--json", *extra)).stdout)["takes"][0]["filter"]
+    assert runs["default"] == {"cutoff_hz": 10.0, "order": 2, "passes": 2} and runs["raw"] == "none"
+    assert runs["three"]["cutoff_hz"] == 3.0
+    with h5py.File(tmp_path / "raw.h5", "r") as a, h5py.File(tmp_path / "three.h5", "r") as b:
+        raw, cut = a["vertices"][()], b["vertices"][()]
+        assert np.abs(raw - cut).max() > 0.01 * np.ptp(raw[..., 1])  # the strides cut at 3 Hz (9 % of the height)
+    assert_user_error(cli("play", folder / "puppet.h5", "-c", take, "--filter", "low", "-o", tmp_path / "x.h5"),
+                      "--filter takes a cut-off in Hz or none", folder=tmp_path,
+                      keep=[p.name for p in tmp_path.iterdir()])
 
 
 def test_take_options_need_a_take(puppet, tmp_path):
