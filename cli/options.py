@@ -74,8 +74,8 @@ def marker_take_options(command):
                      help="C3D: frames per second the take is resampled to and the output plays at  "
                           "[default: the puppet's]"),
         click.option("--neutral-frame", default=None, type=int,
-                     help="C3D: the take frame (0-based) whose pose matches the puppet's rest pose; the take is "
-                          "aligned to the puppet there  [default: the first frame with every marker]"),
+                     help="C3D: the take frame (0-based) posed as the puppet's rest pose, where the take is aligned "
+                          "[default: the one nearest it seeing every marker the take has]"),
         click.option("--retarget", default="delta", show_default=True, type=click.Choice(["delta", "absolute"]),
                      help="C3D: delta moves each control by its marker's displacement from the neutral frame (a "
                           "performer of other proportions keeps the character's shape); absolute puts the "
@@ -88,7 +88,7 @@ def marker_take_options(command):
                           "from the other markers through the puppet's training poses."),
         click.option("--min-markers", default=None, type=int,
                      help="C3D: a frame seeing fewer markers is held from the last good one  [default: half the "
-                          "layout, at least 3]"),
+                          "take's markers, at least 3]"),
         click.option("--filter", "cutoff", default=TAKE_DEFAULTS["cutoff"], show_default=True, metavar="HZ|none",
                      help="C3D: the markers' low-pass cut-off (zero-phase Butterworth, docs/mocap.md), or none."),
         click.option("--allow-missing", is_flag=True,

@@ -18,7 +18,8 @@ order :func:`drive_from_markers` runs them (each an option of ``play``):
    (a face's head markers) relative to the neutral frame is removed from every marker
    (:func:`stabilize_markers`).
 4. **The neutral frame** (the pose that matches the puppet's rest pose, as a facial capture's
-   neutral calibration; default the first frame with every marker) is mapped onto the puppet's
+   neutral calibration; default the frame closest to the rest pose among those seeing every
+   marker the take has, :func:`closest_to_rest`) is mapped onto the puppet's
    reference controls by the least-squares similarity of Umeyama 1991 (scale, rotation,
    translation; :func:`similarity_transform`). Markers sitting ``offset`` out from the skin are
    aimed at the rest control vertex moved that far along its normal.
@@ -299,10 +300,42 @@ def layout_order(vertices, positions, rest_vertices, control_indices):
     return np.array([where[int(v)] for v in controls])
 
 
-def first_complete_frame(points):
-    """The first frame (T, M, 3) with every marker seen, or None."""
-    complete = np.flatnonzero(~np.isnan(points).any(axis=(1, 2)))
-    return int(complete[0]) if len(complete) else None
+def sample_noise(points):
+    """The variance of a take's measurement noise per marker sample, Σ over the 3 coordinates
+    (points (T, M, 3), NaN where missing): from the second differences of seen samples,
+    x(t+1) − 2 x(t) + x(t−1), whose variance is 6× that of white noise where the motion is smooth
+    at the take's rate (an upper bound where it is not); 0 with fewer than 3 samples."""
+    second = points[2:] - 2.0 * points[1:-1] + points[:-2]
+    squared = np.sum(second ** 2, axis=2)
+    seen = np.isfinite(squared)
+    return float(np.mean(squared[seen]) / 6.0) if seen.any() else 0.0
+
+
+def closest_to_rest(points, targets, present, noise=0.0):
+    """The neutral frame of a take: among the frames of points (T, M, 3) seeing every marker it
+    has (``present`` (M,) bool), the one whose markers a similarity brings nearest their targets
+    (M, 3), the puppet's rest controls (Umeyama's least residual, Σ|t − t̄|² − tr(DS)²/Σ|s − s̄|²,
+    all frames at once). Frames whose residual exceeds the least by no more than the take's noise
+    could explain (twice its ``noise`` variance per sample, :func:`sample_noise`, over the markers,
+    in the targets' scale; at least 1e-9 of their spread: a cyclic take returning to its rest pose)
+    are ties, and the first of them is taken (noise alone would otherwise pick a neighbour of the
+    rest frame). None when no frame sees them all."""
+    complete = np.flatnonzero(~np.isnan(points[:, present]).any(axis=(1, 2)))
+    if not len(complete):
+        return None
+    source = points[complete][:, present]
+    source = source - source.mean(axis=1, keepdims=True)
+    target = targets[present] - targets[present].mean(axis=0)
+    covariance = np.einsum("ma,tmb->tab", target, source)
+    singular = np.linalg.svd(covariance, compute_uv=False)  # (T', 3), descending
+    turn = np.sign(np.linalg.det(covariance))  # det(U)·det(Vᵀ): no reflection (Umeyama's S)
+    trace = singular[:, 0] + singular[:, 1] + np.where(turn < 0, -1.0, 1.0) * singular[:, 2]
+    spread = np.maximum(np.sum(source ** 2, axis=(1, 2)), 1e-300)
+    residual = np.sum(target ** 2) - trace ** 2 / spread
+    best = int(np.argmin(residual))
+    scale = trace[best] / spread[best]  # the best frame's similarity scale, take units -> the targets'
+    tie = max(2.0 * noise * int(present.sum()) * scale ** 2, 1e-9 * np.sum(target ** 2))
+    return int(complete[np.argmax(residual <= residual[best] + tie)])
 
 
 def drive_from_markers(points, rate, fps, reference, training, *, meters_per_unit=1.0, take_up="Z", puppet_up="Y",
@@ -314,9 +347,10 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     (Hz); fps (the output's); reference (n, 3) the puppet's reference (rest) controls; training
     (n_p, n, 3) its training controls in place (for the long-gap fill); offsets (n,) and normals
     (n, 3): markers sitting ``offset`` along the rest normal from their control (mesh units);
-    neutral_frame: take frame of the neutral pose (default the first complete one after the short
-    fill); stabilize: marker indices; min_markers: a frame seeing fewer is held (default half the
-    markers, at least 3); labels (n,): the markers' names in messages (default their numbers);
+    neutral_frame: take frame of the neutral pose (default :func:`closest_to_rest`, after the
+    short fill, over the markers the take has: a marker with no sample at all, one the take lacks,
+    is filled every frame from the others); stabilize: marker indices; min_markers: a frame seeing
+    fewer is held (default half the markers the take has, at least 3); labels (n,): the markers' names in messages (default their numbers);
     cutoff: the low-pass cut-off in Hz (step 2), None for none; a take too slow for it (its
     Nyquist frequency below the filter's) is kept raw, ``MarkerDrive.cutoff`` None.
     -> :class:`MarkerDrive`; OptionError (one line) for an option the take cannot satisfy."""
@@ -328,13 +362,13 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
         raise OptionError(f"--max-gap must be ≥ 0 frames (got {max_gap})")
     if not (np.isfinite(fps) and fps > 0):
         raise OptionError(f"--fps must be a positive number (got {fps})")
-    min_markers = max(3, -(-count // 2)) if min_markers is None else int(min_markers)
-    if not 3 <= min_markers <= count:
+    if min_markers is not None and not 3 <= min_markers <= count:
         raise OptionError(f"--min-markers must be between 3 and the layout's {count} markers (got {min_markers})")
     offsets = np.zeros(count) if offsets is None else np.asarray(offsets, dtype=np.float64)
     normals = np.zeros((count, 3)) if normals is None else np.asarray(normals, dtype=np.float64)
     turn = up_axis_rotation(take_up, puppet_up) / meters_per_unit  # metres, take up -> mesh units, puppet up
     local = points @ turn.T
+    noise = sample_noise(local)
     local, interpolated = fill_short_gaps(local, max_gap)
     if cutoff is not None:
         if not (np.isfinite(cutoff) and cutoff > 0):
@@ -342,24 +376,30 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
         cutoff = float(cutoff) if can_filter(rate, cutoff) else None
         if cutoff is not None:
             local = lowpass_runs(local, rate, cutoff)
+    present = ~np.isnan(local).any(axis=2).all(axis=0)  # (n,) the markers the take has (seen at all)
+    targets = reference + offsets[:, None] * normals
     if neutral_frame is None:
-        neutral_frame = first_complete_frame(local)
+        neutral_frame = closest_to_rest(local, targets, present, noise)
         if neutral_frame is None:
-            raise OptionError("no frame of the take sees every marker (after filling short gaps): give "
+            raise OptionError("no frame of the take sees every marker it has (after filling short gaps): give "
                               "--neutral-frame a frame that does, or --max-gap more frames")
     elif not 0 <= neutral_frame < frames:
         raise OptionError(f"--neutral-frame {neutral_frame} is outside the take's frames 0..{frames - 1}")
-    elif np.isnan(local[neutral_frame]).any():
-        lost = np.flatnonzero(np.isnan(local[neutral_frame]).any(axis=1))
+    elif np.isnan(local[neutral_frame, present]).any():
+        lost = np.flatnonzero(present & np.isnan(local[neutral_frame]).any(axis=1))
         names = [str(labels[m]) if labels is not None else str(m) for m in lost]
         raise OptionError(f"--neutral-frame {neutral_frame} lacks markers {', '.join(names)}: the neutral "
-                          "frame needs every marker")
+                          "frame needs every marker the take has")
+    spread = local[neutral_frame, present] - local[neutral_frame, present].mean(axis=0)
+    singular = np.linalg.svd(spread, compute_uv=False)
+    if present.sum() < 3 or singular[1] <= 1e-9 * max(singular[0], 1e-300):
+        raise OptionError(f"the take's {int(present.sum())} markers at its neutral frame {neutral_frame} do not span "
+                          "a plane (3 not in a line are needed to align it)")
     if len(stabilize):
         if len(set(stabilize)) < 3:
             raise OptionError("--stabilize needs at least 3 distinct markers")
         local = stabilize_markers(local, stabilize, neutral_frame)
-    targets = reference + offsets[:, None] * normals
-    scale, rotation, translation = similarity_transform(local[neutral_frame], targets)
+    scale, rotation, translation = similarity_transform(local[neutral_frame, present], targets[present])
     markers = scale * local @ rotation.T + translation  # NaN where still missing
     if retarget == "delta":
         controls = reference + (markers - markers[neutral_frame])
@@ -369,6 +409,8 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
             seen = ~np.isnan(markers).any(axis=2)
             turns, _ = _rigid_onto(markers, targets, seen)  # frame -> rest; its transpose turns rest normals
             controls = markers - offsets[None, :, None] * np.einsum("tba,mb->tma", turns, normals)
+    if min_markers is None:  # half the markers the take has (a partial set plays), at least 3
+        min_markers = max(3, -(-int(present.sum()) // 2))
     controls, by_subspace, held = fill_from_training(controls, training, min_markers)
     # the drawn markers follow their controls where they were filled
     markers = np.where(np.isnan(markers), controls + (markers[neutral_frame] - reference

@@ -166,11 +166,17 @@ def test_drive_refuses_what_the_take_cannot_give():
     with pytest.raises(OptionError, match="outside"):
         drive_from_markers(take, 20.0, 20.0, rest, shapes, neutral_frame=20)
     holed = take.copy()
-    holed[:, 0] = np.nan
-    with pytest.raises(OptionError, match="every marker"):
-        drive_from_markers(holed, 20.0, 20.0, rest, shapes)
+    holed[:12, 0] = np.nan  # marker 0 seen from frame 12 on, marker 1 only before it: no frame sees both
+    holed[12:, 1] = np.nan
+    with pytest.raises(OptionError, match="every marker it has"):
+        drive_from_markers(holed, 20.0, 20.0, rest, shapes, max_gap=0)
     with pytest.raises(OptionError, match="lacks markers 0"):
-        drive_from_markers(holed, 20.0, 20.0, rest, shapes, neutral_frame=3)
+        drive_from_markers(holed, 20.0, 20.0, rest, shapes, neutral_frame=3, max_gap=0)
+    line = take.copy()
+    line[:, 3:] = np.nan  # three markers left ...
+    line[:, 2] = 2.0 * line[:, 1] - line[:, 0]  # ... on a line
+    with pytest.raises(OptionError, match="do not span a plane"):
+        drive_from_markers(line, 20.0, 20.0, rest, shapes)
     with pytest.raises(OptionError, match="stabilize"):
         drive_from_markers(take, 20.0, 20.0, rest, shapes, stabilize=[0, 1])
 
@@ -195,3 +201,31 @@ def test_a_layouts_markers_are_ordered_by_the_controls_and_a_mismatch_is_refused
         layout_order([0, 0, 2], np.full((3, 3), np.nan), rest, [0, 2, 3])
     with pytest.raises(ValueError, match=r"vertices \[1\] are not controls, controls \[3\] have no marker"):
         layout_order([0, 1, 2], np.full((3, 3), np.nan), rest, [0, 2, 3])
+
+
+def test_the_neutral_frame_is_the_one_a_similarity_brings_nearest_the_rest_pose():
+    from skinsynth.pipeline.puppet.markers import closest_to_rest, sample_noise
+
+    rng = np.random.default_rng(8)
+    rest = rng.normal(size=(7, 3))
+    poses = rest + 0.3 * rng.normal(size=(40, 7, 3))  # deformed frames
+    poses[23] = 2.5 * rest @ _rotation(3).T + np.array([1.0, -4.0, 2.0])  # the rest pose, moved and scaled
+    present = np.ones(7, dtype=bool)
+    assert closest_to_rest(poses, rest, present) == 23
+    poses[30] = poses[23]  # a cyclic take comes back to it: the first
+    assert closest_to_rest(poses, rest, present) == 23
+    holed = poses.copy()
+    holed[:, 4] = np.nan  # a marker the take lacks: the others decide
+    present[4] = False
+    assert closest_to_rest(holed, rest, present) == 23
+    holed[23, 1] = np.nan  # frame 23 no longer sees all it has
+    assert closest_to_rest(holed, rest, present) == 30
+    # white noise of σ per coordinate on a slow straight path: 3σ² per sample
+    line = np.linspace(0.0, 1.0, 4000)[:, None, None] * np.ones((1, 5, 3))
+    noisy = line + 0.01 * rng.normal(size=line.shape)
+    assert abs(sample_noise(noisy) / (3 * 0.01 ** 2) - 1.0) < 0.1
+    # noise no larger than the take's own makes near-rest neighbours ties: the first is taken
+    near = np.repeat(rest[None], 5, axis=0) + 0.001 * rng.normal(size=(5, 7, 3))
+    near[3] = rest
+    assert closest_to_rest(near, rest, np.ones(7, dtype=bool), noise=3 * 0.001 ** 2) == 0
+    assert closest_to_rest(near, rest, np.ones(7, dtype=bool)) == 3
