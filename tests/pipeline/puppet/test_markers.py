@@ -229,3 +229,23 @@ def test_the_neutral_frame_is_the_one_a_similarity_brings_nearest_the_rest_pose(
     near[3] = rest
     assert closest_to_rest(near, rest, np.ones(7, dtype=bool), noise=3 * 0.001 ** 2) == 0
     assert closest_to_rest(near, rest, np.ones(7, dtype=bool)) == 3
+
+
+def test_filled_runs_are_joined_to_their_seen_ends():
+    """A run filled with the right motion but off by a drift linear in time comes back exactly:
+    the line between the jumps at its two seen ends is that drift."""
+    from skinsynth.pipeline.puppet.markers import join_filled_runs
+
+    frames = np.arange(60, dtype=float)
+    truth = np.zeros((60, 2, 3))
+    truth[:, 0] = np.array([0.3, -1.0, 2.0]) + np.outer(frames, [0.01, 0.02, -0.005])
+    truth[:, 1] = 5.0
+    filled = np.zeros((60, 2), dtype=bool)
+    filled[20:35, 0] = True  # inside the take
+    filled[50:, 1] = True  # at its end: one seen side
+    guessed = truth.copy()
+    guessed[20:35, 0] = truth[19, 0] + np.array([0.5, 0.1, 0.0])  # held still and off: the drift is linear
+    guessed[50:, 1] = 4.0
+    joined = join_filled_runs(guessed, filled)
+    np.testing.assert_allclose(joined, truth, atol=1e-12)
+    assert np.array_equal(join_filled_runs(guessed, np.zeros_like(filled)), guessed)
