@@ -65,6 +65,10 @@ SUBSPACE_RIDGE = 1e-4
 #: The fill alternates the rigid fit of a frame's seen markers onto its fitted pose and the pose's
 #: subspace coefficients (both least squares, so the error never grows); at most this many rounds.
 FILL_ITERATIONS = 50
+#: A frame is reported as filled uncertainly where a filled marker's expected error
+#: (:func:`fill_uncertainty`) exceeds this share of the rest controls' largest side: 1 %, about
+#: 2 cm on a person, where a marker's misplacement starts to show.
+UNCERTAIN = 0.01
 RETARGETS = ("delta", "absolute")
 _UP = {"X": 0, "Y": 1, "Z": 2}
 
@@ -80,7 +84,10 @@ class MarkerDrive:
     ``x ↦ scale · rotation @ x + translation`` (units, up axis and Umeyama together);
     neutral_frame (take frame); interpolated and subspace: {marker index: take frames filled that
     way}; held: take frames held from the last good one; min_markers: the rule used for ``held``;
-    cutoff: the low-pass cut-off applied (Hz), None where the take was kept raw.
+    cutoff: the low-pass cut-off applied (Hz), None where the take was kept raw; uncertainty (F,):
+    each output frame's expected error of a marker filled from the others
+    (:func:`fill_uncertainty`, 0 where none is), over the rest controls' largest side; a held
+    frame's is its pose's whole spread over the training poses (nothing was seen to fit).
     """
 
     controls: np.ndarray
@@ -95,6 +102,7 @@ class MarkerDrive:
     held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     min_markers: int = 3
     cutoff: float = None
+    uncertainty: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def up_axis_rotation(source, target):
@@ -243,6 +251,35 @@ def fill_from_training(controls, training, min_markers, ridge=SUBSPACE_RIDGE):
     return controls, filled, held
 
 
+def fill_uncertainty(missing, training, ridge=SUBSPACE_RIDGE):
+    """Each frame's expected error of :func:`fill_from_training`'s fill: missing (T, n) bool, the
+    markers it fills; training (n_p, n, 3). The fit is a Gaussian's conditional mean (each
+    coefficient's prior its direction's variance v_j, the seen coordinates' noise ``ridge`` · v_0),
+    so the filled markers' error has the covariance B_m (DᵀD + Λ)⁻¹ B_mᵀ · ridge · v_0 from the
+    directions fitted, plus Σ v_j B_j B_jᵀ over those left out (more than the seen markers can
+    determine); it depends only on which markers are seen. -> (T,) the RMS distance of a filled
+    marker from where it should be (0 where nothing is filled), in the controls' units; the rigid
+    alignment's own error is left out."""
+    _, bases, variances = training_subspace(training)
+    out = np.zeros(len(missing))
+    todo = missing.any(axis=1) & ~missing.all(axis=1)
+    if not todo.any() or not len(variances):
+        return out
+    patterns, which = np.unique(missing[todo], axis=0, return_inverse=True)
+    frames = np.flatnonzero(todo)
+    for number, pattern in enumerate(patterns):
+        seen = ~pattern
+        k = min(len(variances), max(3 * int(seen.sum()) - 6, 0))
+        design = bases[:k, seen].reshape(k, -1).T
+        noise = ridge * variances[0]
+        posterior = noise * np.linalg.inv(design.T @ design + np.diag(noise / variances[:k]))
+        lost = bases[:, pattern].reshape(len(variances), -1)  # (K, 3 |missing|)
+        fitted = np.einsum("ka,kl,la->a", lost[:k], posterior, lost[:k])
+        left = np.einsum("k,ka->a", variances[k:], lost[k:] ** 2)
+        out[frames[which.reshape(-1) == number]] = np.sqrt(3.0 * np.mean(fitted + left))
+    return out
+
+
 def join_filled_runs(points, filled):
     """points (T, M, 3) with ``filled`` (T, M) samples made by :func:`fill_from_training`: each
     filled run with a seen sample on both sides is offset by the line from the jump at its start
@@ -379,7 +416,8 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     neutral_frame: take frame of the neutral pose (default :func:`closest_to_rest`, after the
     short fill, over the markers the take has: a marker with no sample at all, one the take lacks,
     is filled every frame from the others); stabilize: marker indices; min_markers: a frame seeing
-    fewer is held (default half the markers the take has, at least 3); labels (n,): the markers' names in messages (default their numbers);
+    fewer is held (default half the markers the take has, at least 3); labels (n,): the markers'
+    names in messages (default their numbers);
     cutoff: the low-pass cut-off in Hz (step 2), None for none; a take too slow for it (its
     Nyquist frequency below the filter's) is kept raw, ``MarkerDrive.cutoff`` None.
     -> :class:`MarkerDrive`; OptionError (one line) for an option the take cannot satisfy."""
@@ -442,10 +480,14 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
         min_markers = max(3, -(-int(present.sum()) // 2))
     controls, by_subspace, held = fill_from_training(controls, training, min_markers)
     controls = join_filled_runs(controls, by_subspace)
+    side = max(float(np.ptp(reference, axis=0).max()), 1e-300)
+    uncertainty = fill_uncertainty(by_subspace, training) / side
+    uncertainty[held] = np.sqrt(3.0 * training_subspace(training)[2].sum() / count) / side
     # the drawn markers follow their controls where they were filled
     markers = np.where(np.isnan(markers), controls + (markers[neutral_frame] - reference
                                                       if retarget == "delta" else 0.0), markers)
     controls, markers = resample_uniform(controls, rate, fps), resample_uniform(markers, rate, fps)
+    uncertainty = resample_uniform(uncertainty, rate, fps)
     total = scale * rotation @ turn
     return MarkerDrive(controls=controls, markers=markers, times=np.arange(len(controls)) / fps,
                        scale=float(np.cbrt(np.linalg.det(total))), rotation=total / np.cbrt(np.linalg.det(total)),
@@ -453,7 +495,7 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
                        interpolated={m: np.flatnonzero(interpolated[:, m]) for m in range(count)
                                      if interpolated[:, m].any()},
                        subspace={m: np.flatnonzero(by_subspace[:, m]) for m in range(count) if by_subspace[:, m].any()},
-                       held=held, min_markers=min_markers, cutoff=cutoff)
+                       held=held, min_markers=min_markers, cutoff=cutoff, uncertainty=uncertainty)
 
 
 def frame_ranges(frames):
@@ -484,7 +526,11 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
                              "translation": drive.translation.tolist()},
                "filled": filled, "held_frames": frame_ranges(drive.held), "min_markers": drive.min_markers,
                "filter": ({"cutoff_hz": drive.cutoff, "order": ORDER, "passes": 2} if drive.cutoff is not None
-                          else "none")}
+                          else "none"),
+               "fill_uncertainty": {"per_frame": [round(float(u), 6) for u in drive.uncertainty],
+                                    "worst": float(drive.uncertainty.max(initial=0.0)),
+                                    "uncertain_frames": frame_ranges(np.flatnonzero(drive.uncertainty
+                                                                                    > UNCERTAIN))}}
     name = os.path.basename(str(path))
     lines = [f"{name}: {take.points.shape[0]} frames at {take.rate:g} Hz ({take.units}, from {take.units_source}) -> "
              f"{len(drive.controls)} frames at {fps:g} fps from {take.first_time:g} s; {len(labels)} markers, aligned "
@@ -502,4 +548,7 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
     if len(drive.held):
         lines.append(f"{name}: take frames {frame_ranges(drive.held)} see fewer than {drive.min_markers} markers: "
                      "held from the last good frame")
+    if summary["fill_uncertainty"]["uncertain_frames"]:
+        lines.append(f"{name}: frames {summary['fill_uncertainty']['uncertain_frames']} filled uncertainly (a filled "
+                     f"marker's expected error over {UNCERTAIN:.0%} of the character's size; --json: fill_uncertainty)")
     return summary, lines

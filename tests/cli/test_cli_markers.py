@@ -94,6 +94,9 @@ def test_gaps_are_filled_and_listed(puppet, tmp_path):
     filled = report["takes"][0]["filled"]
     assert filled["M2"] == {"interpolated": "10–14", "from_other_markers": "", "frames": 5}
     assert filled["M5"] == {"interpolated": "", "from_other_markers": "40–140", "frames": 101}
+    uncertainty = report["takes"][0]["fill_uncertainty"]["per_frame"]  # at the walker's 24 fps: take frame / 5
+    assert len(uncertainty) == report["frames"] and all(u > 0 for u in uncertainty[8:29])
+    assert all(u == 0 for u in uncertainty[:2] + uncertainty[29:])
     with h5py.File(tmp_path / "take.h5", "r") as f:
         assert np.isfinite(f["vertices"][()]).all()
 

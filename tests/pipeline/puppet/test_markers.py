@@ -249,3 +249,24 @@ def test_filled_runs_are_joined_to_their_seen_ends():
     joined = join_filled_runs(guessed, filled)
     np.testing.assert_allclose(joined, truth, atol=1e-12)
     assert np.array_equal(join_filled_runs(guessed, np.zeros_like(filled)), guessed)
+
+
+def test_the_fill_uncertainty_is_the_priors_spread_where_nothing_seen_informs_it():
+    """Markers 3–5 move along one direction with the training poses, 0–2 never do: a frame that
+    sees marker 3 determines the motion (its fill nearly certain); one that sees only 0–2 knows
+    nothing of it, and its fill's expected error is the training poses' own spread of 3–5."""
+    from skinsynth.pipeline.puppet.markers import fill_uncertainty
+
+    rng = np.random.default_rng(6)
+    base = rng.normal(size=(6, 3))
+    direction = np.zeros((6, 3))
+    direction[3:] = rng.normal(size=(3, 3))
+    training = base + rng.uniform(-1.0, 1.0, size=(200, 1, 1)) * direction
+    missing = np.zeros((3, 6), dtype=bool)
+    missing[0, 4:] = True  # sees 0–3
+    missing[1, 3:] = True  # sees 0–2 only
+    uncertainty = fill_uncertainty(missing, training)
+    spread = np.sqrt(np.mean(np.sum((training[:, 3:] - training[:, 3:].mean(axis=0)) ** 2, axis=2)))
+    assert uncertainty[2] == 0.0
+    assert abs(uncertainty[1] / spread - 1.0) < 1e-6
+    assert uncertainty[0] < 0.05 * spread  # 1.9 %: the fit's assumed noise (ridge · v_0) is all that is left
