@@ -17,9 +17,8 @@ TAKE_DEFAULTS = {"marker_layout": None, "marker_units": None, "take_up_axis": "Z
 
 @dataclass
 class TakeControls:
-    """controls (F, n_c, 3) world; markers (F, n_c, 3) the aligned markers; fps; start_time
-    (seconds of the first frame, the take's); labels (n_c,) the marker on each control;
-    summary (JSON-ready) and lines (text)."""
+    """controls (F, n_c, 3) world; markers (F, n_c, 3) the aligned markers; fps; start_time (seconds
+    of the first frame, the take's); labels (n_c,) each control's marker; summary (JSON) and lines."""
 
     controls: np.ndarray
     markers: np.ndarray
@@ -41,8 +40,7 @@ def check_take_options(control_files, options):
 
     if any(is_take(f) for f in control_files):
         return
-    given = [name for name, default in TAKE_DEFAULTS.items() if options.get(name, default) != default]
-    if given:
+    if given := [name for name, default in TAKE_DEFAULTS.items() if options.get(name, default) != default]:
         flag = "--" + given[0].replace("_", "-").replace("marker-layout", "markers")
         raise OptionError(f"{flag} applies to a motion-capture take: give --controls a .c3d file")
 
@@ -58,7 +56,7 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.mesh.geometry import vertex_normals
     from skinsynth.pipeline.puppet import drive_from_markers, host_inputs, layout_order, take_report
-    from skinsynth.pipeline.puppet.markers import check_take_size
+    from skinsynth.pipeline.puppet.markers import check_take_size, rigid_clusters
 
     options = {**TAKE_DEFAULTS, **options}
     if options["marker_layout"] is not None:
@@ -90,14 +88,16 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
     fps = float(skin.fps if options["fps"] is None else options["fps"])
     fps_from = "--fps" if options["fps"] is not None else "the puppet's"
     check_take_size(path, matched.points.shape[:2], take.rate, fps, fps_from, skin.rest_vertices.shape[0])
-    training = host_inputs(puppet, skin.examples[puppet.train_frames][:, puppet.control_indices])[1]
-    normals = vertex_normals(skin.rest_vertices[None], skin.faces)[0][puppet.control_indices]
+    ids = puppet.control_indices
+    training = host_inputs(puppet, skin.examples[puppet.train_frames][:, ids])[1]
     drive = drive_from_markers(matched.points[:, order], take.rate, fps, puppet.reference_controls, training,
                                meters_per_unit=skin.scene.meters_per_unit, take_up=options["take_up_axis"],
-                               puppet_up=skin.scene.up_axis, offsets=offsets, normals=normals,
+                               puppet_up=skin.scene.up_axis, offsets=offsets,
+                               normals=vertex_normals(skin.rest_vertices[None], skin.faces)[0][ids],
                                neutral_frame=options["neutral_frame"], retarget=options["retarget"],
                                stabilize=stabilize, max_gap=options["max_gap"], min_markers=options["min_markers"],
-                               labels=labels, cutoff=cutoff_option(options["cutoff"]))
+                               labels=labels, cutoff=cutoff_option(options["cutoff"]),
+                               bones=rigid_clusters(skin.bone_indices[ids], skin.bone_weights[ids]))
     if not np.isfinite(drive.controls).all():
         raise FormatError(path, "the take gives no finite control positions")
     summary, lines = take_report(path, take, matched, labels, drive, fps, options["retarget"])

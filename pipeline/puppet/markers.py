@@ -65,6 +65,9 @@ SUBSPACE_RIDGE = 1e-4
 #: The fill alternates the rigid fit of a frame's seen markers onto its fitted pose and the pose's
 #: subspace coefficients (both least squares, so the error never grows); at most this many rounds.
 FILL_ITERATIONS = 50
+#: A marker rides one bone rigidly where that bone carries at least this share of its control
+#: vertex's skin weight; markers riding the same bone form a rigid cluster (:func:`fill_rigid_clusters`).
+RIGID_WEIGHT = 0.9
 #: A frame is reported as filled uncertainly where a filled marker's expected error
 #: (:func:`fill_uncertainty`) exceeds this share of the rest controls' largest side: 1 %, about
 #: 2 cm on a person, where a marker's misplacement starts to show.
@@ -82,8 +85,9 @@ class MarkerDrive:
     draws them beside the controls); times (F,) seconds of each output frame; scale, rotation
     (3, 3), translation (3,): the whole map from the take's metres to the puppet's space,
     ``x ↦ scale · rotation @ x + translation`` (units, up axis and Umeyama together);
-    neutral_frame (take frame); interpolated and subspace: {marker index: take frames filled that
-    way}; held: take frames held from the last good one; min_markers: the rule used for ``held``;
+    neutral_frame (take frame); interpolated, rigid (from the marker's rigid cluster) and
+    subspace: {marker index: take frames filled that way}; held: take frames held from the last
+    good one; min_markers: the rule used for ``held``;
     cutoff: the low-pass cut-off applied (Hz), None where the take was kept raw; uncertainty (F,):
     each output frame's expected error of a marker filled from the others
     (:func:`fill_uncertainty`, 0 where none is), over the rest controls' largest side; a held
@@ -99,6 +103,7 @@ class MarkerDrive:
     neutral_frame: int
     interpolated: dict = field(default_factory=dict)
     subspace: dict = field(default_factory=dict)
+    rigid: dict = field(default_factory=dict)
     held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     min_markers: int = 3
     cutoff: float = None
@@ -249,6 +254,51 @@ def fill_from_training(controls, training, min_markers, ridge=SUBSPACE_RIDGE):
     held = np.flatnonzero(~good)
     controls[held] = controls[source[held]]
     return controls, filled, held
+
+
+def rigid_clusters(bone_indices, bone_weights):
+    """The bone each marker rides rigidly, from its control vertex's skin weights (bone_indices,
+    bone_weights (n, K)): (n,) the bone carrying at least :data:`RIGID_WEIGHT` of it, −1 where
+    none does (a marker over a joint moves with two bones)."""
+    weights = np.asarray(bone_weights, dtype=np.float64)
+    strongest = np.argmax(weights, axis=1)
+    rows = np.arange(len(weights))
+    return np.where(weights[rows, strongest] >= RIGID_WEIGHT, np.asarray(bone_indices)[rows, strongest], -1)
+
+
+def fill_rigid_clusters(markers, bones, neutral):
+    """Fill markers (T, n, 3) (NaN where missing) from the others riding the same bone (``bones``
+    (n,), :func:`rigid_clusters`), as motion-capture tools fill a rigid body: where a frame sees
+    at least 3 of a missing marker's cluster, not on a line, the rigid motion taking them from the
+    ``neutral`` frame to this one carries the missing marker from where the neutral frame saw it
+    (exact for a rigid cluster). Returns (filled copy, rigid (T, n) bool: the samples filled)."""
+    markers = np.array(markers, dtype=np.float64)
+    missing = np.isnan(markers).any(axis=2)
+    rigid = np.zeros_like(missing)
+    for bone in np.unique(bones[bones >= 0]):  # bones, never vertices
+        cluster = np.flatnonzero(bones == bone)
+        if len(cluster) < 4:
+            continue
+        seen = ~missing[:, cluster]
+        frames = np.flatnonzero(missing[:, cluster].any(axis=1) & (seen.sum(axis=1) >= 3))
+        if not len(frames) or np.isnan(markers[neutral, cluster]).any():
+            continue
+        # each frame's rigid motion of its seen cluster markers from the neutral frame (R maps now -> neutral)
+        turns, shifts = _rigid_onto(markers[frames][:, cluster], markers[neutral, cluster], seen[frames])
+        weights = seen[frames].astype(np.float64)  # the seen markers must span a plane
+        points = np.where(seen[frames][..., None], markers[frames][:, cluster], 0.0)
+        centred = points - (np.einsum("tm,tma->ta", weights, points) / weights.sum(axis=1)[:, None])[:, None]
+        spread = np.linalg.eigvalsh(np.einsum("tm,tma,tmb->tab", weights, centred, centred))  # ascending
+        usable = spread[:, 1] > 1e-12 * np.maximum(spread[:, 2], 1e-300)
+        for slot, marker in enumerate(cluster):
+            take = usable & missing[frames, marker]
+            if not take.any():
+                continue
+            # Rᵀ (x_neutral − t): the neutral position carried back to the frame
+            placed = np.einsum("tba,tb->ta", turns[take], markers[neutral, marker] - shifts[take])
+            markers[frames[take], marker] = placed
+            rigid[frames[take], marker] = True
+    return markers, rigid
 
 
 def fill_uncertainty(missing, training, ridge=SUBSPACE_RIDGE):
@@ -406,7 +456,7 @@ def closest_to_rest(points, targets, present, noise=0.0):
 
 def drive_from_markers(points, rate, fps, reference, training, *, meters_per_unit=1.0, take_up="Z", puppet_up="Y",
                        offsets=None, normals=None, neutral_frame=None, retarget="delta", stabilize=(),
-                       max_gap=MAX_GAP, min_markers=None, labels=None, cutoff=BODY_CUTOFF):
+                       max_gap=MAX_GAP, min_markers=None, labels=None, cutoff=BODY_CUTOFF, bones=None):
     """A take's markers as the puppet's controls (the module's steps 1–7).
 
     points (T, n, 3) metres, the markers in the puppet's control order, NaN where missing; rate
@@ -419,7 +469,9 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     fewer is held (default half the markers the take has, at least 3); labels (n,): the markers'
     names in messages (default their numbers);
     cutoff: the low-pass cut-off in Hz (step 2), None for none; a take too slow for it (its
-    Nyquist frequency below the filter's) is kept raw, ``MarkerDrive.cutoff`` None.
+    Nyquist frequency below the filter's) is kept raw, ``MarkerDrive.cutoff`` None; bones (n,):
+    the bone each marker rides rigidly (:func:`rigid_clusters`, −1 none), whose clusters fill
+    their gaps first (:func:`fill_rigid_clusters`); None: no such fill.
     -> :class:`MarkerDrive`; OptionError (one line) for an option the take cannot satisfy."""
     points = np.asarray(points, dtype=np.float64)
     frames, count = points.shape[:2]
@@ -468,6 +520,9 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
         local = stabilize_markers(local, stabilize, neutral_frame)
     scale, rotation, translation = similarity_transform(local[neutral_frame, present], targets[present])
     markers = scale * local @ rotation.T + translation  # NaN where still missing
+    by_cluster = np.zeros((frames, count), dtype=bool)
+    if bones is not None:
+        markers, by_cluster = fill_rigid_clusters(markers, np.asarray(bones), neutral_frame)
     if retarget == "delta":
         controls = reference + (markers - markers[neutral_frame])
     else:
@@ -495,6 +550,7 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
                        interpolated={m: np.flatnonzero(interpolated[:, m]) for m in range(count)
                                      if interpolated[:, m].any()},
                        subspace={m: np.flatnonzero(by_subspace[:, m]) for m in range(count) if by_subspace[:, m].any()},
+                       rigid={m: np.flatnonzero(by_cluster[:, m]) for m in range(count) if by_cluster[:, m].any()},
                        held=held, min_markers=min_markers, cutoff=cutoff, uncertainty=uncertainty)
 
 
@@ -513,10 +569,12 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
     (T, M, 3), rate, units and where they came from, first_time: ``formats.c3d``'s record);
     matched: its labels matched to the layout (missing, unmatched); labels (n_c,) the marker on
     each control; drive: the :class:`MarkerDrive` it gave at ``fps`` with ``retarget``."""
+    ways = (drive.interpolated, drive.rigid, drive.subspace)
     filled = {labels[m]: {"interpolated": frame_ranges(drive.interpolated.get(m, [])),
+                          **({"from_rigid_cluster": frame_ranges(drive.rigid[m])} if m in drive.rigid else {}),
                           "from_other_markers": frame_ranges(drive.subspace.get(m, [])),
-                          "frames": int(len(drive.interpolated.get(m, [])) + len(drive.subspace.get(m, [])))}
-              for m in sorted(set(drive.interpolated) | set(drive.subspace))}
+                          "frames": int(sum(len(way.get(m, [])) for way in ways))}
+              for m in sorted(set().union(*ways))}
     summary = {"take": str(path), "take_frames": int(take.points.shape[0]), "take_rate": float(take.rate),
                "units": take.units, "units_from": take.units_source, "start_time": float(take.first_time),
                "fps": fps, "frames": int(len(drive.controls)), "neutral_frame": drive.neutral_frame,
@@ -543,6 +601,7 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
                      "other markers every frame (--allow-missing)")
     for label, what in filled.items():
         ways = [f"interpolated {what['interpolated']}" if what["interpolated"] else "",
+                f"from its rigid cluster {what['from_rigid_cluster']}" if what.get("from_rigid_cluster") else "",
                 f"from the other markers {what['from_other_markers']}" if what["from_other_markers"] else ""]
         lines.append(f"{name}: {label} filled in {what['frames']} take frames ({'; '.join(w for w in ways if w)})")
     if len(drive.held):

@@ -270,3 +270,26 @@ def test_the_fill_uncertainty_is_the_priors_spread_where_nothing_seen_informs_it
     assert uncertainty[2] == 0.0
     assert abs(uncertainty[1] / spread - 1.0) < 1e-6
     assert uncertainty[0] < 0.05 * spread  # 1.9 %: the fit's assumed noise (ridge · v_0) is all that is left
+
+
+def test_a_rigid_cluster_with_a_marker_missing_recovers_it():
+    """Issue 45: four markers riding one bone, one of them missing for a while, the cluster's three
+    others carry it exactly (to 1e-6); a marker over a joint (two bones) is no cluster's."""
+    from skinsynth.pipeline.puppet.markers import fill_rigid_clusters, rigid_clusters
+
+    rng = np.random.default_rng(9)
+    local = rng.normal(size=(6, 3))
+    turns = rotation_exp(rng.normal(size=(80, 3)) * np.linspace(0.0, 1.5, 80)[:, None])
+    markers = np.einsum("tab,mb->tma", turns, local) + rng.normal(size=(80, 1, 3))
+    bones = rigid_clusters(np.array([[2, 0]] * 4 + [[2, 1], [3, 0]]),
+                           np.array([[1.0, 0.0]] * 3 + [[0.95, 0.05], [0.6, 0.4], [1.0, 0.0]]))
+    assert bones.tolist() == [2, 2, 2, 2, -1, 3]
+    holed = markers.copy()
+    holed[30:60, 1] = np.nan  # in the cluster: three others seen
+    holed[40:50, 4] = np.nan  # over a joint: left for the subspace
+    holed[10:20, 0] = np.nan
+    holed[10:20, 2] = np.nan  # two others seen only: left too
+    filled, rigid = fill_rigid_clusters(holed, bones, neutral=0)
+    assert rigid[30:60, 1].all() and rigid.sum() == 30
+    np.testing.assert_allclose(filled[30:60, 1], markers[30:60, 1], atol=1e-6)
+    assert np.isnan(filled[40:50, 4]).all() and np.isnan(filled[10:20, [0, 2]]).all()
