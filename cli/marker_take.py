@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skinsynth.pipeline.puppet.marker_filter import BODY_CUTOFF, cutoff_option
-from skinsynth.pipeline.puppet.markers import MAX_GAP
+from skinsynth.pipeline.puppet.marker_gaps import MAX_GAP, rigid_clusters
 
 #: The options of :func:`skinsynth.cli.options.marker_take_options` and their defaults, by name.
 TAKE_DEFAULTS = {"marker_layout": None, "marker_units": None, "take_up_axis": "Z", "fps": None, "neutral_frame": None,
@@ -56,7 +56,7 @@ def take_controls(path, puppet, record, skin, options, puppet_path):
     from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.mesh.geometry import vertex_normals
     from skinsynth.pipeline.puppet import drive_from_markers, host_inputs, layout_order, take_report
-    from skinsynth.pipeline.puppet.markers import check_take_size, rigid_clusters
+    from skinsynth.pipeline.puppet.markers import check_take_size
 
     options = {**TAKE_DEFAULTS, **options}
     if options["marker_layout"] is not None:

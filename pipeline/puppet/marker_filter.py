@@ -70,11 +70,12 @@ def lowpass(values, rate, cutoff):
 def lowpass_runs(points, rate, cutoff):
     """points (T, M, 3) with NaN where a marker is missing, each marker's runs of seen samples
     low-passed on their own (:func:`lowpass`; never across a gap); the NaN stay."""
+    from .marker_gaps import runs
+
     points = np.array(points, dtype=np.float64)
-    missing = np.isnan(points).any(axis=2)
+    seen = ~np.isnan(points).any(axis=2)
     for marker in range(points.shape[1]):  # markers, never vertices
-        edges = np.diff(np.concatenate([[0], (~missing[:, marker]).astype(np.int8), [0]]))
-        for start, end in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        for start, end in zip(*runs(seen[:, marker])):
             points[start:end, marker] = lowpass(points[start:end, marker], rate, cutoff)
     return points
 

@@ -1,12 +1,13 @@
-"""Markers to controls (pipeline/puppet/markers.py) against closed-form truth."""
+"""Markers to controls (pipeline/puppet/markers.py, its gaps pipeline/puppet/marker_gaps.py)
+against closed-form truth."""
 
 import numpy as np
 import pytest
 
 from skinsynth.pipeline.errors import OptionError
-from skinsynth.pipeline.puppet.markers import (drive_from_markers, fill_from_training, fill_short_gaps,
-                                               resample_uniform, similarity_transform, stabilize_markers,
-                                               training_subspace, up_axis_rotation)
+from skinsynth.pipeline.puppet.marker_gaps import fill_from_training, fill_short_gaps, training_subspace
+from skinsynth.pipeline.puppet.markers import (drive_from_markers, resample_uniform, similarity_transform,
+                                               stabilize_markers, up_axis_rotation)
 from skinsynth.pipeline.rig.rotations import rotation_exp
 
 
@@ -234,7 +235,7 @@ def test_the_neutral_frame_is_the_one_a_similarity_brings_nearest_the_rest_pose(
 def test_filled_runs_are_joined_to_their_seen_ends():
     """A run filled with the right motion but off by a drift linear in time comes back exactly:
     the line between the jumps at its two seen ends is that drift."""
-    from skinsynth.pipeline.puppet.markers import join_filled_runs
+    from skinsynth.pipeline.puppet.marker_gaps import join_filled_runs
 
     frames = np.arange(60, dtype=float)
     truth = np.zeros((60, 2, 3))
@@ -255,7 +256,7 @@ def test_the_fill_uncertainty_is_the_priors_spread_where_nothing_seen_informs_it
     """Markers 3–5 move along one direction with the training poses, 0–2 never do: a frame that
     sees marker 3 determines the motion (its fill nearly certain); one that sees only 0–2 knows
     nothing of it, and its fill's expected error is the training poses' own spread of 3–5."""
-    from skinsynth.pipeline.puppet.markers import fill_uncertainty
+    from skinsynth.pipeline.puppet.marker_gaps import fill_uncertainty
 
     rng = np.random.default_rng(6)
     base = rng.normal(size=(6, 3))
@@ -275,7 +276,7 @@ def test_the_fill_uncertainty_is_the_priors_spread_where_nothing_seen_informs_it
 def test_a_rigid_cluster_with_a_marker_missing_recovers_it():
     """Issue 45: four markers riding one bone, one of them missing for a while, the cluster's three
     others carry it exactly (to 1e-6); a marker over a joint (two bones) is no cluster's."""
-    from skinsynth.pipeline.puppet.markers import fill_rigid_clusters, rigid_clusters
+    from skinsynth.pipeline.puppet.marker_gaps import fill_rigid_clusters, rigid_clusters
 
     rng = np.random.default_rng(9)
     local = rng.normal(size=(6, 3))
