@@ -20,10 +20,13 @@ Builds, as a user would, the samba puppet on the controls of the committed Plug-
   controls' worst (``worst_ratio``).
 - ``take``: each real take in ../shared/data/mocap_c3d played to .glb and .usdc: frames, NaN,
   the extrapolation per frame (mean, worst), the markers filled and frames held.
+- ``skeleton``: the serve on the samba puppet of its ``--skeleton`` fit (``train-kcca``'s
+  defaults): edge strain (p99, largest) against the same puppet on its own samba controls, with
+  ``--ik`` (the skeleton beyond the examples) and ``--no-ik``; the held-out frames it touches.
 - ``speed``: reading, aligning, filling and playing the 1,092-frame take at its own 50 Hz, in
   process, best of 3: take frames per second.
 
-    python benchmarks/markers.py [--work DIR] [--only truth|held_out|take|speed]
+    python benchmarks/markers.py [--work DIR] [--only truth|held_out|take|speed|skeleton]
 """
 
 import argparse
@@ -196,7 +199,7 @@ def speed(work, puppet):
         started = time.perf_counter()
         controls = take_controls(str(take), model, record, skin, {"fps": 50.0}, puppet).controls
         read = time.perf_counter() - started
-        vertices, _ = play_characters(model, controls, "cpu", translation_solver=True)
+        vertices, _, _ = play_characters(model, controls, "cpu", translation_solver=True)
         total = time.perf_counter() - started
         if best is None or total < best[0]:
             best = (total, read, len(controls))
@@ -206,10 +209,70 @@ def speed(work, puppet):
             "frames_per_second": round(best[2] / best[0], 1), "threads": os.cpu_count()}
 
 
+def edge_strain(skin, vertices):
+    """(p99, largest) of |edge length / rest length − 1| over every edge and frame of vertices (F, V, 3)."""
+    from skinsynth.pipeline.mesh.geometry import mesh_edges
+
+    edges = mesh_edges(skin.faces)
+    rest = np.linalg.norm(skin.rest_vertices[edges[:, 0]] - skin.rest_vertices[edges[:, 1]], axis=1)
+    strain = np.abs(np.linalg.norm(vertices[:, edges[:, 0]] - vertices[:, edges[:, 1]], axis=2) / rest - 1.0)
+    return float(np.percentile(strain, 99)), float(strain.max())
+
+
+def skeleton(work):
+    """Issue 45's serve on the samba puppet of its --skeleton fit (train-kcca defaults): edge strain
+    of the serve against the same puppet on its own samba controls, with the skeleton beyond the
+    examples (--ik) and without; how far the played controls are from the take's; the held-out
+    frames the skeleton path touches (none: evaluate's error is the same puppet's)."""
+    from skinsynth.cli.marker_take import take_controls
+    from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.puppet import puppet_from_record
+
+    folder = os.path.join(work, "skeleton")
+    os.makedirs(folder, exist_ok=True)
+    if not os.path.exists(os.path.join(folder, "puppet.h5")):
+        run(["fit-skin", str(SHARED_DATA / "vlasic_samba" / "vlasic_samba.npz"), "-o", "skin.h5", "--bones", "22",
+             "--skeleton", "-q"], folder)
+        run(["select-controls", "skin.h5", "-o", "controls.h5", "--markers", str(LAYOUT), "-q"], folder)
+        run(["train-kcca", "controls.h5", "-o", "puppet.h5", "-q"], folder)
+    skin = read_skin(os.path.join(folder, "skin.h5"))
+    layout = list(json.loads(LAYOUT.read_text()).values())
+    height = float(np.ptp(skin.rest_vertices[:, 1]))
+    with __import__("h5py").File(os.path.join(folder, "puppet.h5"), "r") as f:
+        train = set(np.asarray(f["training/train_frames"][()]).tolist()) if "training/train_frames" in f else set()
+    held = [i for i in range(len(skin.examples)) if i not in train]
+    np.save(os.path.join(folder, "own.npy"), skin.examples[:, layout])
+    np.save(os.path.join(folder, "held.npy"), skin.examples[held][:, layout])
+    take = str(TAKES / "kinematics_tennis_serve_nan.c3d")
+    record, _, puppet_skin = read_puppet(os.path.join(folder, "puppet.h5"))
+    targets = take_controls(take, puppet_from_record(record), record, puppet_skin, {}, "puppet.h5").controls
+    row = {"benchmark": "markers", "case": "skeleton", "take": "kinematics_tennis_serve_nan.c3d"}
+    for flag in ("--ik", "--no-ik"):
+        strains = {}
+        for name, source in (("own", "own.npy"), ("serve", take), ("held", "held.npy")):
+            seconds, _, _, stdout = run(["play", "puppet.h5", "-c", source, "-o", f"{name}{flag}.h5", "--json", flag],
+                                        folder)
+            summary = json.loads(stdout)
+            vertices = played(os.path.join(folder, f"{name}{flag}.h5"))
+            strains[name] = edge_strain(skin, vertices)
+            if name == "serve":  # how far the played control vertices are from the take's controls
+                miss = np.linalg.norm(vertices[:, layout] - targets, axis=2).mean() / height
+                row[f"serve_seconds{flag}"], row[f"serve_control_miss{flag}"] = summary["seconds"], round(miss, 4)
+                if flag == "--ik":
+                    row["serve_frames_beyond"] = summary["skeleton"]["frames_beyond"]
+            if name == "held" and flag == "--ik":
+                row["held_out_frames_beyond"] = summary["skeleton"]["frames_beyond"]
+        row[f"own_strain{flag}"] = [round(v, 3) for v in strains["own"]]
+        row[f"serve_strain{flag}"] = [round(v, 3) for v in strains["serve"]]
+        row[f"strain_ratio{flag}"] = [round(a / b, 3) for a, b in zip(strains["serve"], strains["own"])]
+    return row
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", default=None, help="folder kept between runs (the puppet is built once)")
-    parser.add_argument("--only", default=None, choices=["truth", "held_out", "take", "speed"])
+    parser.add_argument("--only", default=None, choices=["truth", "held_out", "take", "speed", "skeleton"])
     options = parser.parse_args()
     if not (SHARED_DATA / "vlasic_samba").is_dir() or not TAKES.is_dir():
         print(json.dumps({"benchmark": "markers", "skipped": f"needs vlasic_samba and mocap_c3d in {SHARED_DATA}"}))
@@ -222,7 +285,9 @@ def main():
             if (SHARED_DATA / capture).is_dir():
                 for row in held_out(work, capture):
                     print(json.dumps(row), flush=True)
-    if wanted("held_out") and options.only:
+    if wanted("skeleton"):
+        print(json.dumps(skeleton(work)), flush=True)
+    if options.only in ("held_out", "skeleton"):
         return
     _, puppet = samba_puppet(work)
     if wanted("truth"):

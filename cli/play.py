@@ -45,14 +45,16 @@ from .outputs import (TEXTURES, check_animation_output, check_bone_texture_outpu
               help="Grid spacing between characters on the ground plane (default 1.5 × the largest rest bounding-box side).")
 @click.option("--translation-solver/--no-translation-solver", default=True, show_default=True,
               help="Recompute bone translations with the Poisson solve (needs a puppet trained with it).")
+@click.option("--ik/--no-ik", default=True, show_default=True, help="A puppet of a jointed skin (fit-skin --skeleton): "
+              "frames beyond its examples follow the controls with the skeleton (docs/mocap.md).")
 @device_option("auto, cpu, cuda or cuda:N.")
 @click.option("--threads", default=0, type=int, help="CPU threads for the kernels (default: all cores).")
 @up_axis_option("Ground plane and USD up axis (default: the input's, as fit-skin recorded it).")
 @marker_take_options
 @summary_options
 @user_errors
-def play(path, control_files, output, instances, kind, skinning, half, max_width, spacing, translation_solver, device,
-         threads, up_axis, as_json, quiet, **take_options):
+def play(path, control_files, output, instances, kind, skinning, half, max_width, spacing, translation_solver, ik,
+         device, threads, up_axis, as_json, quiet, **take_options):
     """Play a puppet: control-point trajectories in, whole-surface animation out (Feng §6).
 
     Per frame and character: kernel vector, d = M ξ for all bones, dual-quaternion
@@ -71,7 +73,8 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.puppet import character_offsets, play_characters, play_summary, puppet_from_record
+    from skinsynth.pipeline.puppet import (character_offsets, example_poses, play_characters, play_extrapolation,
+                                           play_summary, puppet_from_record)
 
     from .marker_take import check_take_options
 
@@ -93,15 +96,16 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     offsets = character_offsets(characters, spacing, skin.rest_vertices, up_axis)
     # before any output is written: writing is the last step (a signal after it would say "interrupted"
     # of a complete file)
-    extrapolation = _extrapolation(puppet, skin, control_files, trajectories)
-    vertices, seconds = play_characters(puppet, controls.reshape(-1, *controls.shape[2:]), device, skinning,
-                                        translation_solver, threads)
+    extrapolation = play_extrapolation(puppet, skin.examples, control_files, trajectories)
+    poses = example_poses(puppet, skin) if ik else None  # None unless the skin is jointed
+    vertices, seconds, blend = play_characters(puppet, controls.reshape(-1, *controls.shape[2:]), device, skinning,
+                                               translation_solver, threads, poses)
     vertices = vertices.reshape(characters, frames, -1, 3) + offsets[:, None, None, :].astype(np.float32)
     morph = _write(output, output_kind, kind, path, skin, puppet, controls, vertices, offsets, up_axis, skinning,
-                   translation_solver, half, max_width, folders)
+                   translation_solver, half, max_width, folders, poses)
     summary, lines = play_summary(characters, frames, seconds, device, skinning, translation_solver, [output],
                                   extrapolation, [(take.summary, take.lines) for take in takes], morph,
-                                  0 if puppet.correctives is None else len(puppet.correctives.offsets))
+                                  0 if puppet.correctives is None else len(puppet.correctives.offsets), blend)
     report(summary, lines, as_json, quiet)
 
 
@@ -162,20 +166,8 @@ def _characters(output, output_kind, kind, skin, trajectories, instances, max_wi
     return controls
 
 
-def _extrapolation(puppet, skin, control_files, trajectories):
-    """How far each trajectory's controls go from what the puppet was trained on, per frame
-    (``pipeline.view.extrapolation_report``, the rest box's largest side = 1): (entries, lines)."""
-    from skinsynth.pipeline.mesh.geometry import largest_side
-    from skinsynth.pipeline.puppet import host_inputs
-    from skinsynth.pipeline.view import extrapolation_report
-
-    training = host_inputs(puppet, skin.examples[puppet.train_frames][:, puppet.control_indices])[1]
-    return extrapolation_report(control_files, [host_inputs(puppet, t)[1] for t in trajectories], training,
-                                largest_side(skin.rest_vertices))
-
-
 def _write(output, output_kind, kind, label, skin, puppet, controls, vertices, offsets, up_axis, skinning,
-           translation_solver, half, max_width, folders):
+           translation_solver, half, max_width, folders, poses=None):
     """Write the characters, controls (C, F, n_c, 3) played as vertices (C, F, V, 3) placed by
     offsets (C, 3): a rig (glTF, bone textures, UsdSkel) from their world bones, else their
     vertices (USD points, textures, .h5). Returns the glTF's morph targets
@@ -184,7 +176,8 @@ def _write(output, output_kind, kind, label, skin, puppet, controls, vertices, o
 
     names = [f"character_{c:03d}" for c in range(len(controls))]
     if output_kind == "gltf" or kind == "bones" or (output_kind == "usd" and kind == "skel"):
-        rotations, translations, shape_weights = character_bones(puppet, controls, translation_solver, skin.skeleton)
+        rotations, translations, shape_weights = character_bones(puppet, controls, translation_solver, skin.skeleton,
+                                                                 poses)
         clips = ((name, rotations[c], translations[c]) for c, name in enumerate(names))  # each character in place
         if kind == "bones":  # one rig, each character a clip (no grid: clips alternate)
             write_bone_textures(output, skin, clips, half, max_width, folders.guard(output), label=label)

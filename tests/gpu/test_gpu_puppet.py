@@ -380,7 +380,7 @@ def test_play_characters_plays_both_skinnings_on_the_device(skinning, device):
     rng = np.random.default_rng(5)
     puppet = random_pipeline_puppet(rng, "control-frame", corrected=True, skinning=skinning)
     controls = rng.normal(size=(20, 4, 3)) * 2.0
-    vertices, seconds = play_characters(puppet, controls, device, skinning, threads=2)
+    vertices, seconds, _ = play_characters(puppet, controls, device, skinning, threads=2)
     assert vertices.dtype == np.float32 and seconds > 0.0
     expected = predict_vertices(puppet, controls, skinning=skinning)
     assert relative_error(vertices.astype(np.float64), expected) < TOL
