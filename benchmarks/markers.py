@@ -226,7 +226,6 @@ def skeleton(work):
     frames the skeleton path touches (none: evaluate's error is the same puppet's)."""
     from skinsynth.cli.marker_take import take_controls
     from skinsynth.formats.puppet_file import read_puppet
-    from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.puppet import puppet_from_record
 
     folder = os.path.join(work, "skeleton")
@@ -236,17 +235,15 @@ def skeleton(work):
              "--skeleton", "-q"], folder)
         run(["select-controls", "skin.h5", "-o", "controls.h5", "--markers", str(LAYOUT), "-q"], folder)
         run(["train-kcca", "controls.h5", "-o", "puppet.h5", "-q"], folder)
-    skin = read_skin(os.path.join(folder, "skin.h5"))
+    record, _, skin = read_puppet(os.path.join(folder, "puppet.h5"))
+    model = puppet_from_record(record)
     layout = list(json.loads(LAYOUT.read_text()).values())
     height = float(np.ptp(skin.rest_vertices[:, 1]))
-    with __import__("h5py").File(os.path.join(folder, "puppet.h5"), "r") as f:
-        train = set(np.asarray(f["training/train_frames"][()]).tolist()) if "training/train_frames" in f else set()
-    held = [i for i in range(len(skin.examples)) if i not in train]
+    held = np.setdiff1d(np.arange(len(skin.examples)), model.train_frames)
     np.save(os.path.join(folder, "own.npy"), skin.examples[:, layout])
     np.save(os.path.join(folder, "held.npy"), skin.examples[held][:, layout])
     take = str(TAKES / "kinematics_tennis_serve_nan.c3d")
-    record, _, puppet_skin = read_puppet(os.path.join(folder, "puppet.h5"))
-    targets = take_controls(take, puppet_from_record(record), record, puppet_skin, {}, "puppet.h5").controls
+    targets = take_controls(take, model, record, skin, {}, "puppet.h5").controls
     row = {"benchmark": "markers", "case": "skeleton", "take": "kinematics_tennis_serve_nan.c3d"}
     for flag in ("--ik", "--no-ik"):
         strains = {}

@@ -98,14 +98,14 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     # of a complete file)
     extrapolation = play_extrapolation(puppet, skin.examples, control_files, trajectories)
     poses = example_poses(puppet, skin) if ik else None  # None unless the skin is jointed
-    vertices, seconds, blend = play_characters(puppet, controls.reshape(-1, *controls.shape[2:]), device, skinning,
-                                               translation_solver, threads, poses)
+    vertices, seconds, beyond = play_characters(puppet, controls.reshape(-1, *controls.shape[2:]), device, skinning,
+                                                translation_solver, threads, poses)
     vertices = vertices.reshape(characters, frames, -1, 3) + offsets[:, None, None, :].astype(np.float32)
     morph = _write(output, output_kind, kind, path, skin, puppet, controls, vertices, offsets, up_axis, skinning,
-                   translation_solver, half, max_width, folders, poses)
+                   translation_solver, half, max_width, folders, beyond)
     summary, lines = play_summary(characters, frames, seconds, device, skinning, translation_solver, [output],
                                   extrapolation, [(take.summary, take.lines) for take in takes], morph,
-                                  0 if puppet.correctives is None else len(puppet.correctives.offsets), blend)
+                                  0 if puppet.correctives is None else len(puppet.correctives.offsets), beyond)
     report(summary, lines, as_json, quiet)
 
 
@@ -167,7 +167,7 @@ def _characters(output, output_kind, kind, skin, trajectories, instances, max_wi
 
 
 def _write(output, output_kind, kind, label, skin, puppet, controls, vertices, offsets, up_axis, skinning,
-           translation_solver, half, max_width, folders, poses=None):
+           translation_solver, half, max_width, folders, beyond=None):
     """Write the characters, controls (C, F, n_c, 3) played as vertices (C, F, V, 3) placed by
     offsets (C, 3): a rig (glTF, bone textures, UsdSkel) from their world bones, else their
     vertices (USD points, textures, .h5). Returns the glTF's morph targets
@@ -177,7 +177,7 @@ def _write(output, output_kind, kind, label, skin, puppet, controls, vertices, o
     names = [f"character_{c:03d}" for c in range(len(controls))]
     if output_kind == "gltf" or kind == "bones" or (output_kind == "usd" and kind == "skel"):
         rotations, translations, shape_weights = character_bones(puppet, controls, translation_solver, skin.skeleton,
-                                                                 poses)
+                                                                 beyond)
         clips = ((name, rotations[c], translations[c]) for c, name in enumerate(names))  # each character in place
         if kind == "bones":  # one rig, each character a clip (no grid: clips alternate)
             write_bone_textures(output, skin, clips, half, max_width, folders.guard(output), label=label)

@@ -22,7 +22,7 @@ _EXPORTS = {"select_controls": "controls", "selection_summary": "controls", "tra
             "extrapolation_split": "evaluation", "clip_hold_out_split": "evaluation",
             "evaluate_clip_hold_out": "evaluation", "evaluate_hold_outs": "evaluation",
             "evaluation_report": "evaluation", "instance_trajectories": "playback", "host_inputs": "playback", "play_characters": "playback", "DevicePlayer": "playback",
-            "world_bones": "playback", "drive_from_markers": "markers", "MarkerDrive": "markers", "character_offsets": "playback", "take_report": "markers", "layout_order": "markers", "play_summary": "playback", "character_bones": "playback", "play_extrapolation": "playback",
-            "example_poses": "jointed_play"}
+            "world_bones": "playback", "drive_from_markers": "markers", "MarkerDrive": "markers", "character_offsets": "playback", "take_report": "markers", "layout_order": "markers", "play_summary": "playback", "character_bones": "playback",
+            "play_extrapolation": "playback", "example_poses": "jointed_play"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

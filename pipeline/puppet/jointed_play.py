@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .alignment import invert_frames
+from .alignment import apply_frames
 from .correctives import rest_offsets
 from .playback import host_inputs, world_bones
 from .puppet import in_place
@@ -98,7 +98,7 @@ def example_poses(puppet, skin):
     bones_r = np.asarray(rotations[frames], dtype=np.float64)
     bones_t = np.asarray(translations[frames], dtype=np.float64)
     frame_r, frame_t = in_place(controls, puppet.reference_controls, puppet.global_motion)
-    training = host_inputs(puppet, controls)[1]
+    training = apply_frames(frame_r, frame_t, controls)
     offsets = rest_offsets(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights,
                            rigid_to_dual_quaternion(bones_r, bones_t), np.asarray(examples[frames], np.float64),
                            "linear")
@@ -114,35 +114,49 @@ def skeleton_blend(distances, scale):
     return x * x * (3.0 - 2.0 * x)
 
 
+@dataclass
+class BeyondExamples:
+    """The skeleton path's frames of a trajectory of N frames: alpha (N,) each frame's blend; for
+    the M frames with α > 0, rows (M,), and the bones and rest offsets to skin them linearly with:
+    rotations (M, B, 3, 3), translations (M, B, 3), offsets (M, V, 3) (None when M = 0)."""
+
+    alpha: np.ndarray
+    rows: np.ndarray
+    rotations: np.ndarray | None
+    translations: np.ndarray | None
+    offsets: np.ndarray | None
+
+
 def jointed_frames(puppet, poses, controls, translation_solver=True, prior_weight=SKELETON_PRIOR):
-    """The skeleton path for world controls (N, n_c, 3): (α (N,), and for the frames with α > 0,
-    ``moving`` (M,) their rows, rotations (M, B, 3, 3), translations (M, B, 3), rest offsets (M, V,
-    3)): bones and offsets to skin linearly (module docstring)."""
+    """The skeleton path for world controls (N, n_c, 3): :class:`BeyondExamples` (module
+    docstring)."""
     controls = np.asarray(controls, dtype=np.float64)
     alpha = np.empty(len(controls))
     moving, parts = [], []
     for start in range(0, len(controls), CHUNK):
         chunk = controls[start:start + CHUNK]
-        distances = pose_distances(host_inputs(puppet, chunk)[1], poses.training, poses.unit)  # (n, n_p)
+        _, placed, world = host_inputs(puppet, chunk)  # in place, and back to the world (n, 4, 4)
+        distances = pose_distances(placed, poses.training, poses.unit)  # (n, n_p)
         nearest = distances.min(axis=1)
         alpha[start:start + len(chunk)] = skeleton_blend(nearest, poses.scale)
         rows = np.flatnonzero(alpha[start:start + len(chunk)] > 0.0)
         if rows.size:
             moving.append(start + rows)
-            parts.append(_blended_bones(puppet, poses, chunk[rows], distances[rows], nearest[rows],
+            parts.append(_blended_bones(puppet, poses, chunk[rows], world[rows], distances[rows], nearest[rows],
                                         alpha[start + rows], translation_solver, prior_weight))
     if not moving:
-        return alpha, np.zeros(0, np.int64), None, None, None
-    return (alpha, np.concatenate(moving), *(np.concatenate([part[k] for part in parts]) for k in range(3)))
+        return BeyondExamples(alpha, np.zeros(0, np.int64), None, None, None)
+    rotations, translations, offsets = (np.concatenate([part[k] for part in parts]) for k in range(3))
+    return BeyondExamples(alpha, np.concatenate(moving), rotations, translations, offsets)
 
 
-def _blended_bones(puppet, poses, controls, distances, nearest, alpha, translation_solver, prior_weight):
+def _blended_bones(puppet, poses, controls, world, distances, nearest, alpha, translation_solver, prior_weight):
     """(rotations (n, B, 3, 3), translations (n, B, 3), offsets (n, V, 3)) of frames beyond the
-    examples: the examples' pose, the skeleton solved from it, blended with the prediction by α."""
+    examples (world: their frames' inverse control frames, (n, 4, 4), :func:`.playback.host_inputs`'):
+    the examples' pose, the skeleton solved from it, blended with the prediction by α."""
     weights = np.exp(-(distances ** 2 - nearest[:, None] ** 2) / (2.0 * poses.scale ** 2))
     weights /= weights.sum(axis=1, keepdims=True)  # (n, n_p)
-    frame_r, frame_t = in_place(controls, puppet.reference_controls, puppet.global_motion)
-    inv_r, inv_t = invert_frames(frame_r, frame_t)
+    inv_r, inv_t = world[:, :3, :3], world[:, :3, 3]
     # each example's bones carried from its control frame to this one's: inv_f ∘ frame_i
     carried_r = np.einsum("ni,ixy,ibyz->nbxz", weights, poses.frame_rotations, poses.rotations)
     prior_r = polar_rotation(np.einsum("nxy,nbyz->nbxz", inv_r, carried_r))
@@ -170,15 +184,17 @@ def _blended_bones(puppet, poses, controls, distances, nearest, alpha, translati
 
 def play_beyond_examples(puppet, poses, controls, vertices, device, translation_solver=True):
     """The frames of controls (N, n_c, 3) beyond the examples replaced in vertices (N, V, 3) (play's
-    prediction, float32) by the skeleton path, skinned linearly on ``device``; returns α (N,)."""
+    prediction, float32) by the skeleton path, skinned linearly on ``device``; returns its
+    :class:`BeyondExamples` (rig outputs take their bones from it)."""
     from skinsynth.gpu import lbs
 
-    alpha, rows, rotations, translations, offsets = jointed_frames(puppet, poses, controls, translation_solver)
-    for start in range(0, len(rows), CHUNK):
+    beyond = jointed_frames(puppet, poses, controls, translation_solver)
+    for start in range(0, len(beyond.rows), CHUNK):
         part = slice(start, start + CHUNK)
-        vertices[rows[part]] = lbs(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights, rotations[part],
-                                   translations[part], device, rest_offsets=offsets[part])
-    return alpha
+        vertices[beyond.rows[part]] = lbs(puppet.rest_vertices, puppet.bone_indices, puppet.bone_weights,
+                                          beyond.rotations[part], beyond.translations[part], device,
+                                          rest_offsets=beyond.offsets[part])
+    return beyond
 
 
 def skeleton_summary(alpha):

@@ -61,7 +61,7 @@ def world_bones(puppet, controls, translation_solver=True):
             np.einsum("nac,nbc->nba", inv_r, translations) + inv_t[:, None, :], weights)
 
 
-def character_bones(puppet, controls, translation_solver=True, skeleton=None, poses=None):
+def character_bones(puppet, controls, translation_solver=True, skeleton=None, beyond=None):
     """Each character's world bones for a rig output: controls (C, F, n_c, 3) -> (rotations
     (C, F, B, 3, 3), translations (C, F, B, 3), corrective blend weights (C·F, n_p) or None)
     (:func:`world_bones`). ``skeleton``: a jointed skin's /skin/skeleton as read
@@ -69,20 +69,19 @@ def character_bones(puppet, controls, translation_solver=True, skeleton=None, po
     1.5 % of the diagonal on the walker), so every jointed bone is put back on its joint and every
     sliding one within its travel (:func:`~skinsynth.pipeline.rig.skeleton.hold_joints`;
     ``evaluate`` reports what that costs, kcca_on_joints); vertex outputs play the prediction
-    itself. poses: as :func:`play_characters`' (the frames beyond the examples from the skeleton
-    path, their correctives' weights scaled by 1 − α)."""
-    from .jointed_play import jointed_frames
+    itself. beyond: the skeleton path's :class:`~.jointed_play.BeyondExamples` of those controls
+    (:func:`play_characters`'), or None: its frames' bones taken from it, every frame's correctives'
+    weights scaled by 1 − α."""
     from ..rig.skeleton import held_rig, hold_joints
 
     characters, frames = controls.shape[:2]
     flat = controls.reshape(-1, *controls.shape[2:])
     rotations, translations, shape_weights = world_bones(puppet, flat, translation_solver)
-    if poses is not None:
-        alpha, rows, moved_rotations, moved_translations, _ = jointed_frames(puppet, poses, flat, translation_solver)
-        if rows.size:
-            rotations[rows], translations[rows] = moved_rotations, moved_translations
+    if beyond is not None:
+        if beyond.rows.size:
+            rotations[beyond.rows], translations[beyond.rows] = beyond.rotations, beyond.translations
         if shape_weights is not None:
-            shape_weights *= (1.0 - alpha)[:, None]
+            shape_weights *= (1.0 - beyond.alpha)[:, None]
     if skeleton is not None:
         hold_joints(rotations, translations, *held_rig(skeleton))
     return (rotations.reshape(characters, frames, *rotations.shape[1:]),
@@ -145,7 +144,8 @@ class DevicePlayer:
 
 def play_characters(puppet, controls, device, skinning=None, translation_solver=True, threads=0, poses=None):
     """Every vertex of every frame of controls (C·F, n_c, 3) played through the puppet on
-    ``device``: (vertices (C·F, V, 3) float32, seconds of compute, blends α (C·F,) or None). Both
+    ``device``: (vertices (C·F, V, 3) float32, seconds of compute, the skeleton path's
+    :class:`~.jointed_play.BeyondExamples` or None). Both
     skinnings run the whole run-time path in warp kernels (:class:`DevicePlayer`, ``threads`` CPU
     threads, 0: all cores). The kernels are compiled (or loaded) on a one-frame warm-up first,
     outside the time. poses: a jointed skin's :class:`~.jointed_play.ExamplePoses`, or None: the
@@ -157,19 +157,19 @@ def play_characters(puppet, controls, device, skinning=None, translation_solver=
     player.play(controls[:1])  # warm-up, untimed
     started = time.perf_counter()
     vertices = player.play(controls, threads or os.cpu_count() or 1)
-    alpha = None if poses is None else play_beyond_examples(puppet, poses, controls, vertices, device,
-                                                            translation_solver)
-    return vertices, time.perf_counter() - started, alpha
+    beyond = None if poses is None else play_beyond_examples(puppet, poses, controls, vertices, device,
+                                                             translation_solver)
+    return vertices, time.perf_counter() - started, beyond
 
 
 def play_summary(characters, frames, seconds, device, skinning, translation_solver, written, extrapolation,
-                 takes=(), morph=None, shapes=0, blend=None):
+                 takes=(), morph=None, shapes=0, beyond=None):
     """play's summary (the --json object) and text lines: ``characters`` × ``frames`` played on
     ``device`` in ``seconds`` of compute, ``written`` the outputs; extrapolation: (entries, lines)
     (``pipeline.view.extrapolation_report``); takes: each motion-capture take's (summary, lines);
     morph: the glTF morph targets of the ``shapes`` correctives
-    (``pipeline.rig.morph_targets.played_morph_targets``), or None; blend: the skeleton path's α
-    per frame (:func:`~.jointed_play.skeleton_summary`), or None."""
+    (``pipeline.rig.morph_targets.played_morph_targets``), or None; beyond: the skeleton path's
+    :class:`~.jointed_play.BeyondExamples` (:func:`~.jointed_play.skeleton_summary`), or None."""
     summary = {"frames": int(frames), "characters": int(characters), "seconds": round(seconds, 4),
                "frames_per_second": round(frames / seconds, 1),
                "character_frames_per_second": round(characters * frames / seconds, 1),
@@ -181,10 +181,10 @@ def play_summary(characters, frames, seconds, device, skinning, translation_solv
     lines.append(f"played {characters} character(s) × {frames} frames on {device} in {seconds:.3f} s: "
                  f"{summary['frames_per_second']:.0f} frames/s, {summary['character_frames_per_second']:.0f} "
                  f"character-frames/s (compute only); wrote {', '.join(written)}")
-    if blend is not None:
+    if beyond is not None:
         from .jointed_play import skeleton_summary
 
-        summary["skeleton"], line = skeleton_summary(blend)
+        summary["skeleton"], line = skeleton_summary(beyond.alpha)
         lines.append(line)
     if morph is not None:
         summary.update(morph_targets=len(morph[0]), morph_target_error=morph[2])

@@ -13,10 +13,9 @@ def extrapolation_distances(controls, training, unit):
     divided by ``unit`` (``evaluate``'s: the largest side of the rest bounding box), and that
     example's row (the first of equally near ones); vectorised over frames in blocks of bounded
     memory (``play --json`` reports a whole take)."""
-    flat = np.asarray(controls, dtype=np.float64).reshape(len(controls), -1)
     block = max(1, (32 << 20) // (8 * max(np.size(training), 1)))
-    distances, nearest = np.empty(len(flat)), np.empty(len(flat), dtype=np.int64)
-    for start in range(0, len(flat), block):
+    distances, nearest = np.empty(len(controls)), np.empty(len(controls), dtype=np.int64)
+    for start in range(0, len(controls), block):
         gaps = pose_distances(controls[start:start + block], training, unit)  # (block, n_p)
         nearest[start:start + block] = np.argmin(gaps, axis=1)
         distances[start:start + block] = gaps[np.arange(len(gaps)), nearest[start:start + block]]
