@@ -28,6 +28,8 @@ k components are 2k targets with at most k active.
 
 import numpy as np
 
+from ..runtime.rows import unique_rows
+
 #: Morph targets written at most: the few engines play simultaneously active (module docstring).
 MAX_MORPH_TARGETS = 8
 #: Largest vertex error of the compressed correctives, relative to the rest bounding-box diagonal.
@@ -53,7 +55,7 @@ def corrective_morph_targets(offsets, weights, diagonal, tolerance=MORPH_TOLERAN
     signs = np.where(shape_rows[np.arange(len(singular)), largest] < 0.0, -1.0, 1.0)
     basis, shape_rows = basis * signs, shape_rows * signs[:, None]
     components = singular[:, None] * shape_rows  # (r, 3V): every target, largest first
-    played = np.unique(weights, axis=0) @ basis  # (F', r): each distinct frame's blend, once
+    played = unique_rows(weights) @ basis  # (F', r): each distinct frame's blend, once
     bound = tolerance * diagonal
     errors = _truncation_errors(played, components, verts, min(maximum, len(singular)))
     within = np.flatnonzero(errors <= bound)

@@ -101,6 +101,7 @@ import scipy.sparse as sp
 
 from ..inputs.clips import Clips
 from ..errors import ClipError, OptionError
+from ..runtime.rows import unique_rows
 
 NO_CYCLE_MESSAGE = ("the clip has no repeated states at this threshold: no transition leads back; "
                     "run build-graph again with a larger --threshold-scale")
@@ -171,7 +172,7 @@ class MotionGraph:
 
         # transitions i → (frame entered) between shown frames; drop (i, i) (= playback) and any
         # j that does not play on in its clip (one clip: j = F−1)
-        pairs = np.unique(pairs, axis=0)
+        pairs = unique_rows(pairs)
         keep = layout.valid_j(pairs[:, 1]) & (pairs[:, 0] != pairs[:, 1])
         pairs = pairs[keep]
         pairs = pairs[allowed[pairs[:, 0]] & allowed[layout.targets(pairs[:, 1])]]

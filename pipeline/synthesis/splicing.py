@@ -132,6 +132,7 @@ import numpy as np
 import scipy.linalg
 
 from .deformation_gradients import rotation_times_strain
+from ..runtime.rows import unique_rows
 from ..rig.rotations import apply_rigid_into, heading_and_posture, rotation_exp, rotation_log
 from .transitions import local_frame_positions
 
@@ -589,7 +590,7 @@ def distinct_windows(sources, windows):
     frame = np.where(valid, left[:, None] + offset[None, :], 0)
     # −1 past the end keeps windows of different lengths apart.
     keys = np.where(valid, sources[windows.animation[used][:, None], frame], -1)
-    keys, first, inverse_used = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    keys, first, inverse_used = unique_rows(keys, return_index=True, return_inverse=True)
     inverse[used] = inverse_used.reshape(-1)
     count = keys.shape[0]
     unique = SeamWindows(animation=np.arange(count, dtype=np.int64), seam=(windows.seam[used] - left)[first],

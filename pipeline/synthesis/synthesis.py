@@ -33,6 +33,7 @@ from .contact.planting import lowest_samples, plant_feet, plant_rig
 from .deformation_gradients import gradient_operator
 from ..errors import OptionError
 from ..runtime.execution import concatenate_rows, run_batches
+from ..runtime.rows import unique_rows
 from .graph import ComponentAnalysis
 from ..rig.skeleton import held_rig, hold_joints, reach_with_legs
 from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks, walk_statistics
@@ -606,6 +607,6 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
         seams_used = np.sum(clips.seams(sources), axis=(0, 2))
         statistics = walk_statistics(sources, rotations.shape[0], clips=clips, fps=request.fps)
     joint = sources.transpose(1, 0, 2).reshape(sources.shape[1], -1)
-    distinct = int(np.unique(joint, axis=0).shape[0])
+    distinct = int(unique_rows(joint).shape[0])
     return Synthesis(F=F, t=t, sources=sources, choice=choice, seams_used=seams_used, distinct=distinct,
                      rejected=rejected, statistics=statistics)
