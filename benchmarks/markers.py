@@ -17,7 +17,8 @@ Builds, as a user would, the samba puppet on the controls of the committed Plug-
   (0.1 % of the height), ``gaps`` (5 % of the samples in runs of 1–30 frames, the first sample
   too), and ``both``; each one's mean vertex error over the capture's frames against that of
   playing the clean control vertices (``error_ratio``), and its worst frame's against the clean
-  controls' worst (``worst_ratio``).
+  controls' worst (``worst_ratio``), with seed 11; the same over seeds 11–15
+  (``error_ratio_mean``, ``error_ratio_max``, ``worst_ratio_max``).
 - ``take``: each real take in ../shared/data/mocap_c3d played to .glb and .usdc: frames, NaN,
   the extrapolation per frame (mean, worst), the markers filled and frames held.
 - ``skeleton``: the serve on the samba puppet of its ``--skeleton`` fit (``train-kcca``'s
@@ -109,6 +110,9 @@ def truth(work, puppet):
 #: The held-out takes' map (a turn about a tilted axis, a scale, a shift in millimetres).
 HELD_SCALE, HELD_ROTATION, HELD_SHIFT_MM = 0.93, rotation_about([-0.2, 0.4, 1.0], -1.3), np.array([-2310.0, 640.0, 12.0])
 HELD_MARKERS, HELD_RATE = 16, 100.0
+#: The takes' noise and gaps are drawn with the first seed (the must-show's take), then again with
+#: the others: a rule that holds only on one draw is fitted to it.
+HELD_SEEDS = (11, 12, 13, 14, 15)
 
 
 def farthest_points(points, count):
@@ -153,18 +157,26 @@ def held_out(work, capture):
     factor = HELD_RATE / float(skin.fps)
     for name, noise, missing in (("clean", 0.0, 0.0), ("noise", 0.001 * height, 0.0), ("gaps", 0.0, 0.05),
                                  ("both", 0.001 * height, 0.05)):
-        points = take_points(frames, factor, HELD_SCALE, HELD_ROTATION, HELD_SHIFT_MM, noise=noise, missing=missing,
-                             longest=30, seed=11, keep_first=False)
-        write_c3d(os.path.join(folder, f"take_{name}.c3d"), [f"Dancer:{label}" for label in layout], points, HELD_RATE,
-                  units="mm")
-        _, _, _, stdout = run(["play", puppet, "-c", f"take_{name}.c3d", "-o", f"take_{name}.h5", "--json"], folder)
-        report = json.loads(stdout)["takes"][0]
-        mean, worst = errors(f"take_{name}")
+        rows = []
+        for seed in HELD_SEEDS:  # the first is the must-show's take; the others, its noise and gaps drawn again
+            points = take_points(frames, factor, HELD_SCALE, HELD_ROTATION, HELD_SHIFT_MM, noise=noise,
+                                 missing=missing, longest=30, seed=seed, keep_first=False)
+            write_c3d(os.path.join(folder, f"take_{name}.c3d"), [f"Dancer:{label}" for label in layout], points,
+                      HELD_RATE, units="mm")
+            _, _, _, stdout = run(["play", puppet, "-c", f"take_{name}.c3d", "-o", f"take_{name}.h5", "--json"], folder)
+            rows.append((*errors(f"take_{name}"), json.loads(stdout)["takes"][0]))
+            if name == "clean":
+                break  # nothing drawn
+        (mean, worst, report), ratios = rows[0], [m / clean_mean for m, _, _ in rows]
         yield {"benchmark": "markers", "case": "held_out", "capture": capture, "take": name,
                "markers": HELD_MARKERS, "rate": HELD_RATE, "error_clean": clean_mean / height,
                "error_take": mean / height, "error_ratio": round(mean / clean_mean, 3),
                "worst_ratio": round(worst / clean_worst, 3), "neutral_frame": report["neutral_frame"],
-               "samples_filled": int(sum(v["frames"] for v in report["filled"].values()))}
+               "neutral_kept": round(report["neutral_residual"]["kept"], 3),
+               "samples_filled": int(sum(v["frames"] for v in report["filled"].values())),
+               "seeds": list(HELD_SEEDS[:len(rows)]), "error_ratio_mean": round(float(np.mean(ratios)), 3),
+               "error_ratio_max": round(float(np.max(ratios)), 3),
+               "worst_ratio_max": round(float(max(w for _, w, _ in rows)) / clean_worst, 3)}
 
 
 def real_takes(work, puppet):

@@ -90,7 +90,8 @@ def marker_take_options(command):
                      help="C3D: a frame seeing fewer markers is held from the last good one  [default: half the "
                           "take's markers, at least 3]"),
         click.option("--filter", "cutoff", default=TAKE_DEFAULTS["cutoff"], show_default=True, metavar="HZ|none",
-                     help="C3D: the markers' low-pass cut-off (zero-phase Butterworth, docs/mocap.md), or none."),
+                     help="C3D: the markers' low-pass cut-off (zero-phase Butterworth, docs/mocap.md), or none (the "
+                          "take raw, its neutral frame as measured)."),
         click.option("--allow-missing", is_flag=True,
                      help="C3D: play a take lacking some of the layout's markers (each frame filled from the others)."),
     ]

@@ -10,21 +10,39 @@ moves in time.
 
 Here: a second-order Butterworth run forward and backward (:func:`scipy.signal.filtfilt`), its
 cut-off raised by Winter's correction so that after both passes the response is −3 dB at the
-cut-off asked for (:func:`lowpass_response`). The ends use Gustafsson's initial conditions
-(``method="gust"``), not a padding: an odd reflection (scipy's default) pins each end to its
-raw, noisy sample, and a take's first frame is often its neutral one (measured on issue 45's
-held-out samba take with noise of 0.1 % of the height: vertex error 1.21× the clean controls'
-with the padding, 1.12× with Gustafsson's ends).
+cut-off asked for (:func:`lowpass_response`). The ends are padded by an odd reflection (scipy's
+default): a marker moving in a straight line comes through (within 2 % of a sample's step), and
+its end sample keeps its raw noise but little more. Gustafsson's initial conditions
+(``method="gust"``), used before, filter the end's noise more but bend a moving end: on
+band-limited motion (0.1 m at 3 Hz, 1 mm of noise, 100 Hz) the first sample 9 mm off against the
+reflection's 1 mm, and a run of 3 samples metres off (a marker seen for 3 frames between two gaps
+moved to the origin). A run shorter than the filter's reach (:data:`REACH` cut-off periods,
+:func:`shortest_run`) is kept raw: there its ends' transients outweigh the noise removed (measured
+on that motion at 50–480 Hz: 4 periods 1.0–1.5× the raw error, 6 periods 0.8–1.0×, 12 periods
+0.75–0.8×). The neutral frame's noise, which a ``delta`` retargeting adds to every frame, is
+handled where it is used (:func:`.marker_neutral.shrink_neutral_residual`,
+:func:`.marker_neutral.closest_to_rest`) from the noise the filter removed
+(:func:`removed_noise`).
 """
+
+import functools
 
 import numpy as np
 
 #: The default cut-off, Hz: the fastest body motions (sport, dance) have energy to about 10 Hz
 #: (Winter §3.4.4; walking is filtered at 6 Hz), and a puppet playing at 24–30 fps shows nothing
 #: above 12–15 Hz. Measured on issue 45's held-out takes (``benchmarks/markers.py --only
-#: held_out``): 6 Hz cut the crane's kicks (its worst clean frame 1.65× the clean controls'),
-#: 10 Hz 1.21×; the noise take's error 1.12× at 10 Hz, 1.21× unfiltered (samba).
+#: held_out``, with Gustafsson's ends then): 6 Hz cut the crane's kicks (its worst clean frame
+#: 1.65× the clean controls'), 10 Hz 1.21×; the noise take's error 1.12× at 10 Hz, 1.21×
+#: unfiltered (samba). With the reflection's ends, 7 and 8 Hz gave the noise takes nothing over
+#: 10 Hz (crane 1.106× both, five draws) and cost the crane's noise-and-gaps take (1.22×, 1.20×).
 BODY_CUTOFF = 10.0
+#: How far the filter's response to one sample reaches, in periods of the cut-off (``rate /
+#: cutoff`` samples): 4 (a window that wide gives an endless take's noise gain to 1e-4 at 30–1000
+#: Hz). Runs shorter are kept raw (:func:`shortest_run`); :func:`noise_gains` looks no further
+#: (at most :data:`MAX_REACH` samples).
+REACH = 4.0
+MAX_REACH = 500
 #: Order of each pass (two passes: a fourth-order, zero-phase response).
 ORDER = 2
 #: Winter's correction for two passes of a second-order Butterworth, (√2 − 1)^(1/4): the −3 dB
@@ -54,17 +72,23 @@ def can_filter(rate, cutoff):
     return cutoff / PASSES_CORRECTION < 0.5 * rate
 
 
+def shortest_run(rate, cutoff):
+    """The fewest samples :func:`lowpass` filters at ``rate`` Hz and ``cutoff`` Hz: the filter's
+    reach, :data:`REACH` periods of the cut-off (40 samples at 10 Hz of 100 Hz)."""
+    return int(np.ceil(REACH * rate / cutoff))
+
+
 def lowpass(values, rate, cutoff):
     """values (T, ...) sampled at ``rate`` Hz, low-passed along time at ``cutoff`` Hz (−3 dB there
-    after both passes, zero phase, Gustafsson's ends); a copy unchanged where :func:`can_filter`
-    is false or there are fewer than 3 samples."""
+    after both passes, zero phase, ends padded by an odd reflection); a copy unchanged where
+    :func:`can_filter` is false or there are fewer than :func:`shortest_run` samples."""
     from scipy.signal import filtfilt
 
     values = np.asarray(values, dtype=np.float64)
-    if len(values) < 3 or not can_filter(rate, cutoff):
+    if not can_filter(rate, cutoff) or len(values) < shortest_run(rate, cutoff):
         return values.copy()
     b, a = _coefficients(rate, cutoff)
-    return filtfilt(b, a, values, axis=0, method="gust")
+    return filtfilt(b, a, values, axis=0, padtype="odd")
 
 
 def lowpass_runs(points, rate, cutoff):
@@ -78,6 +102,49 @@ def lowpass_runs(points, rate, cutoff):
         for start, end in zip(*runs(seen[:, marker])):
             points[start:end, marker] = lowpass(points[start:end, marker], rate, cutoff)
     return points
+
+
+@functools.lru_cache(maxsize=4096)
+def noise_gains(rate, cutoff, position, length):
+    """What :func:`lowpass` does to white noise of variance 1 at sample ``position`` of a run of
+    ``length`` samples: (kept, removed), the variance of the filtered sample and of the raw minus
+    the filtered one. The filter is linear, so its row for that sample is the filtered
+    identity's: an interior sample keeps 0.21 of the variance at 10 Hz of 100 Hz, a run's end all
+    of it (the reflection), a run too short to filter all of it."""
+    reach = int(min(np.ceil(REACH * rate / cutoff), MAX_REACH))
+    start, end = max(0, int(position) - reach), min(int(length), int(position) + reach + 1)
+    row = lowpass(np.eye(end - start), rate, cutoff)[position - start]
+    kept = float(row @ row)
+    return kept, 1.0 - 2.0 * float(row[position - start]) + kept
+
+
+def removed_noise(raw, filtered, rate, cutoff, exclude=None):
+    """Each marker's measurement noise variance per coordinate (M,), from what :func:`lowpass_runs`
+    removed: raw, filtered (T, M, 3) NaN where missing; exclude (T, M) bool: samples that carry no
+    measurement (interpolated). The filter's own assumption — what lies above the cut-off is noise
+    — estimated on the samples at least the filter's reach from their run's ends (every filtered
+    one where a marker has fewer than 10), divided by the share of white noise the filter removes
+    there (:func:`noise_gains`). 0 where a marker has no filtered sample to estimate it from."""
+    from .marker_gaps import runs
+
+    seen = ~np.isnan(raw).any(axis=2) & ~np.isnan(filtered).any(axis=2)
+    if exclude is not None:
+        seen &= ~exclude
+    reach, shortest = int(min(np.ceil(REACH * rate / cutoff), MAX_REACH)), shortest_run(rate, cutoff)
+    _, removed = noise_gains(rate, cutoff, reach, 2 * reach + 1)
+    squared = np.sum((raw - filtered) ** 2, axis=2) / 3.0  # (T, M) per coordinate
+    variances = np.zeros(raw.shape[1])
+    for marker in range(raw.shape[1]):  # markers, never vertices
+        interior, filtered_run = np.zeros((2, len(raw)), dtype=bool)
+        for start, end in zip(*runs(seen[:, marker] | ~np.isnan(filtered[:, marker]).any(axis=1))):
+            interior[start + reach:end - reach] = True
+            filtered_run[start:end] = end - start >= shortest
+        use = seen[:, marker] & interior
+        if use.sum() < 10:
+            use = seen[:, marker] & filtered_run
+        if use.any():
+            variances[marker] = float(np.mean(squared[use, marker])) / removed
+    return variances
 
 
 def lowpass_response(rate, cutoff, frequencies):

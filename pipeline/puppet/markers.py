@@ -19,14 +19,17 @@ order :func:`drive_from_markers` runs them (each an option of ``play``):
    (:func:`stabilize_markers`).
 4. **The neutral frame** (the pose that matches the puppet's rest pose, as a facial capture's
    neutral calibration; default the frame closest to the rest pose among those seeing every
-   marker the take has, :func:`closest_to_rest`) is mapped onto the puppet's
+   marker the take has, :func:`.marker_neutral.closest_to_rest`) is mapped onto the puppet's
    reference controls by the least-squares similarity of Umeyama 1991 (scale, rotation,
    translation; :func:`similarity_transform`). Markers sitting ``offset`` out from the skin are
    aimed at the rest control vertex moved that far along its normal.
 5. **Retargeting.** ``delta`` (default): each control moves by its marker's displacement from
    the neutral frame, carried by that transform, so the rest shape is the character's own and a
    performer of other proportions does not distort it; ``absolute``: controls at the aligned
-   markers (less the skin offset, turned with the frame).
+   markers (less the skin offset, turned with the frame). ``delta`` adds the neutral frame's
+   residual to every frame, noise and all; on a filtered take that residual is shrunk by James
+   and Stein's estimator towards none, by as much as the take's noise could explain
+   (:func:`.marker_neutral.shrink_neutral_residual`).
 6. **Long gaps** are filled from the other markers through the puppet's own training controls
    (:func:`.marker_gaps.fill_from_training`): least squares on their principal subspace, in place; then each
    filled run is offset by the line between the jumps at its seen ends (:func:`.marker_gaps.join_filled_runs`,
@@ -44,7 +47,9 @@ import numpy as np
 from ..errors import OptionError
 from .marker_gaps import (MAX_GAP, fill_from_training, fill_rigid_clusters, fill_short_gaps, fill_uncertainty,
                           join_filled_runs, rigid_onto, training_subspace)
-from .marker_filter import BODY_CUTOFF, ORDER, can_filter, lowpass_runs
+from .marker_filter import BODY_CUTOFF, ORDER, can_filter, lowpass_runs, removed_noise
+from .marker_neutral import (QUIET_PERIODS, closest_to_rest, frame_gains, residual_summary, sample_noise,
+                             shrink_neutral_residual)
 
 #: A frame is reported as filled uncertainly where a filled marker's expected error
 #: (:func:`.marker_gaps.fill_uncertainty`) exceeds this share of the rest controls' largest side: 1 %, about
@@ -66,10 +71,13 @@ class MarkerDrive:
     neutral_frame (take frame); interpolated, rigid (from the marker's rigid cluster) and
     subspace: {marker index: take frames filled that way}; held: take frames held from the last
     good one; min_markers: the rule used for ``held``;
-    cutoff: the low-pass cut-off applied (Hz), None where the take was kept raw; uncertainty (F,):
-    each output frame's expected error of a marker filled from the others
-    (:func:`.marker_gaps.fill_uncertainty`, 0 where none is), over the rest controls' largest side; a held
-    frame's is its pose's whole spread over the training poses (nothing was seen to fit).
+    cutoff: the low-pass cut-off applied (Hz), None where the take was kept raw; neutral: the
+    neutral frame's residual from the rest controls ("residual", root mean square over the
+    markers, mesh units), the noise in it ("noise") and the share kept ("kept",
+    :func:`.marker_neutral.shrink_neutral_residual`); uncertainty (F,): each output frame's
+    expected error of a marker filled from the others (:func:`.marker_gaps.fill_uncertainty`, 0
+    where none is), over the rest controls' largest side; a held frame's is its pose's whole
+    spread over the training poses (nothing was seen to fit).
     """
 
     controls: np.ndarray
@@ -86,6 +94,7 @@ class MarkerDrive:
     min_markers: int = 3
     cutoff: float = None
     uncertainty: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    neutral: dict = field(default_factory=dict)
 
 
 def up_axis_rotation(source, target):
@@ -193,44 +202,6 @@ def layout_order(vertices, positions, rest_vertices, control_indices):
     return np.array([where[int(v)] for v in controls])
 
 
-def sample_noise(points):
-    """The variance of a take's measurement noise per marker sample, Σ over the 3 coordinates
-    (points (T, M, 3), NaN where missing): from the second differences of seen samples,
-    x(t+1) − 2 x(t) + x(t−1), whose variance is 6× that of white noise where the motion is smooth
-    at the take's rate (an upper bound where it is not); 0 with fewer than 3 samples."""
-    second = points[2:] - 2.0 * points[1:-1] + points[:-2]
-    squared = np.sum(second ** 2, axis=2)
-    seen = np.isfinite(squared)
-    return float(np.mean(squared[seen]) / 6.0) if seen.any() else 0.0
-
-
-def closest_to_rest(points, targets, present, noise=0.0):
-    """The neutral frame of a take: among the frames of points (T, M, 3) seeing every marker it
-    has (``present`` (M,) bool), the one whose markers a similarity brings nearest their targets
-    (M, 3), the puppet's rest controls (Umeyama's least residual, Σ|t − t̄|² − tr(DS)²/Σ|s − s̄|²,
-    all frames at once). Frames whose residual exceeds the least by no more than the take's noise
-    could explain (twice its ``noise`` variance per sample, :func:`sample_noise`, over the markers,
-    in the targets' scale; at least 1e-9 of their spread: a cyclic take returning to its rest pose)
-    are ties, and the first of them is taken (noise alone would otherwise pick a neighbour of the
-    rest frame). None when no frame sees them all."""
-    complete = np.flatnonzero(~np.isnan(points[:, present]).any(axis=(1, 2)))
-    if not len(complete):
-        return None
-    source = points[complete][:, present]
-    source = source - source.mean(axis=1, keepdims=True)
-    target = targets[present] - targets[present].mean(axis=0)
-    covariance = np.einsum("ma,tmb->tab", target, source)
-    singular = np.linalg.svd(covariance, compute_uv=False)  # (T', 3), descending
-    turn = np.sign(np.linalg.det(covariance))  # det(U)·det(Vᵀ): no reflection (Umeyama's S)
-    trace = singular[:, 0] + singular[:, 1] + np.where(turn < 0, -1.0, 1.0) * singular[:, 2]
-    spread = np.maximum(np.sum(source ** 2, axis=(1, 2)), 1e-300)
-    residual = np.sum(target ** 2) - trace ** 2 / spread
-    best = int(np.argmin(residual))
-    scale = trace[best] / spread[best]  # the best frame's similarity scale, take units -> the targets'
-    tie = max(2.0 * noise * int(present.sum()) * scale ** 2, 1e-9 * np.sum(target ** 2))
-    return int(complete[np.argmax(residual <= residual[best] + tie)])
-
-
 def drive_from_markers(points, rate, fps, reference, training, *, meters_per_unit=1.0, take_up="Z", puppet_up="Y",
                        offsets=None, normals=None, neutral_frame=None, retarget="delta", stabilize=(),
                        max_gap=MAX_GAP, min_markers=None, labels=None, cutoff=BODY_CUTOFF, bones=None):
@@ -240,8 +211,8 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     (Hz); fps (the output's); reference (n, 3) the puppet's reference (rest) controls; training
     (n_p, n, 3) its training controls in place (for the long-gap fill); offsets (n,) and normals
     (n, 3): markers sitting ``offset`` along the rest normal from their control (mesh units);
-    neutral_frame: take frame of the neutral pose (default :func:`closest_to_rest`, after the
-    short fill, over the markers the take has: a marker with no sample at all, one the take lacks,
+    neutral_frame: take frame of the neutral pose (default
+    :func:`.marker_neutral.closest_to_rest`, after the short fill, over the markers the take has: a marker with no sample at all, one the take lacks,
     is filled every frame from the others); stabilize: marker indices; min_markers: a frame seeing
     fewer is held (default half the markers the take has, at least 3); labels (n,): the markers'
     names in messages (default their numbers);
@@ -270,12 +241,17 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
         if not (np.isfinite(cutoff) and cutoff > 0):
             raise OptionError(f"--filter must be a positive cut-off in Hz or none (got {cutoff:g})")
         cutoff = float(cutoff) if can_filter(rate, cutoff) else None
+    raw = local
     if cutoff is not None:
         local = lowpass_runs(local, rate, cutoff)
     present = ~np.isnan(local).any(axis=2).all(axis=0)  # (n,) the markers the take has (seen at all)
     targets = reference + offsets[:, None] * normals
+    # each marker's noise per coordinate, from what the filter removed (none known on a raw take)
+    variances = removed_noise(raw, local, rate, cutoff, exclude=interpolated) if cutoff is not None else None
     if neutral_frame is None:
-        neutral_frame = closest_to_rest(local, targets, present, noise)
+        gains = (lambda frame: frame_gains(local, rate, cutoff, frame)) if cutoff is not None else None
+        within = int(np.ceil(QUIET_PERIODS * rate / cutoff)) if cutoff is not None else 0
+        neutral_frame = closest_to_rest(local, targets, present, noise, gains, variances, within)
         if neutral_frame is None:
             raise OptionError("no frame of the take sees every marker it has (after filling short gaps): give "
                               "--neutral-frame a frame that does, or --max-gap more frames")
@@ -300,8 +276,15 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     by_cluster = np.zeros((frames, count), dtype=bool)
     if bones is not None:
         markers, by_cluster = fill_rigid_clusters(markers, np.asarray(bones), neutral_frame)
+    residual = targets - markers[neutral_frame]  # (n, 3): the neutral frame's miss of its targets
+    # its noise per coordinate, in the targets' units: what the filter leaves of each marker's there
+    noise_there = (variances * frame_gains(local, rate, cutoff, neutral_frame) * scale ** 2
+                   if cutoff is not None else np.zeros(count))
+    neutral = residual_summary(residual, noise_there, 1.0)
     if retarget == "delta":
-        controls = reference + (markers - markers[neutral_frame])
+        if cutoff is not None:  # a raw take (--filter none) is taken as measured
+            residual, neutral["kept"] = shrink_neutral_residual(residual, noise_there)
+        controls = markers + (reference - targets) + residual  # reference + displacement, less the noise
     else:
         controls = markers
         if np.any(offsets):  # back onto the skin: the rest normal turned with the frame's markers
@@ -311,8 +294,9 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     if min_markers is None:  # half the markers the take has (a partial set plays), at least 3
         min_markers = max(3, -(-int(present.sum()) // 2))
     subspace = training_subspace(training)
+    seen_controls = controls
     controls, by_subspace, held = fill_from_training(controls, training, min_markers, subspace=subspace)
-    controls = join_filled_runs(controls, by_subspace)
+    controls = join_filled_runs(controls, by_subspace, seen_controls, training, subspace=subspace)
     side = max(float(np.ptp(reference, axis=0).max()), 1e-300)
     uncertainty = fill_uncertainty(by_subspace, training, subspace=subspace) / side
     uncertainty[held] = np.sqrt(3.0 * subspace[2].sum() / count) / side
@@ -329,7 +313,8 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
                                      if interpolated[:, m].any()},
                        subspace={m: np.flatnonzero(by_subspace[:, m]) for m in range(count) if by_subspace[:, m].any()},
                        rigid={m: np.flatnonzero(by_cluster[:, m]) for m in range(count) if by_cluster[:, m].any()},
-                       held=held, min_markers=min_markers, cutoff=cutoff, uncertainty=uncertainty)
+                       held=held, min_markers=min_markers, cutoff=cutoff, uncertainty=uncertainty,
+                       neutral=neutral)
 
 
 def frame_ranges(frames):
@@ -356,7 +341,7 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
     summary = {"take": str(path), "take_frames": int(take.points.shape[0]), "take_rate": float(take.rate),
                "units": take.units, "units_from": take.units_source, "start_time": float(take.first_time),
                "fps": fps, "frames": int(len(drive.controls)), "neutral_frame": drive.neutral_frame,
-               "retarget": retarget, "markers": list(labels),
+               "neutral_residual": dict(drive.neutral), "retarget": retarget, "markers": list(labels),
                "missing_markers": list(matched.missing), "unmatched_labels": list(matched.unmatched),
                "transform": {"scale": drive.scale, "rotation": drive.rotation.tolist(),
                              "translation": drive.translation.tolist()},
@@ -370,7 +355,10 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
     name = os.path.basename(str(path))
     lines = [f"{name}: {take.points.shape[0]} frames at {take.rate:g} Hz ({take.units}, from {take.units_source}) -> "
              f"{len(drive.controls)} frames at {fps:g} fps from {take.first_time:g} s; {len(labels)} markers, aligned "
-             f"at take frame {drive.neutral_frame} (scale {drive.scale:.4g}), {retarget} retargeting, "
+             f"at take frame {drive.neutral_frame} (scale {drive.scale:.4g}), {retarget} retargeting"
+             + (f" (of the neutral frame's residual {drive.neutral['residual']:.3g}, its noise about "
+                f"{drive.neutral['noise']:.3g}, {drive.neutral['kept']:.0%} kept), "
+                if drive.neutral.get("kept", 1.0) < 1.0 else ", ")
              + (f"low-passed at {drive.cutoff:g} Hz" if drive.cutoff is not None else "not filtered")]
     if matched.unmatched:
         lines.append(f"{name}: labels not in the layout, ignored: {', '.join(matched.unmatched)}")

@@ -1,10 +1,14 @@
 """pipeline.puppet.marker_filter: the zero-phase Butterworth's response against its closed form
-and on sinusoids, runs filtered on their own, and a take too slow for the cut-off kept raw."""
+and on sinusoids, its ends on moving markers, runs filtered on their own (a run too short for the
+filter kept raw), the noise it keeps and removes against the response's integral and against
+known white noise, and a take too slow for the cut-off kept raw."""
 
 import numpy as np
+import pytest
 
 from skinsynth.pipeline.puppet.marker_filter import (BODY_CUTOFF, PASSES_CORRECTION, can_filter, lowpass,
-                                                     lowpass_response, lowpass_runs)
+                                                     lowpass_response, lowpass_runs, noise_gains, removed_noise,
+                                                     shortest_run)
 from skinsynth.pipeline.puppet.markers import drive_from_markers
 
 
@@ -54,3 +58,69 @@ def test_a_take_too_slow_for_the_cut_off_is_kept_raw():
     filtered = drive_from_markers(shapes, rate=60.0, fps=60.0, reference=rest, training=shapes, take_up="Y",
                                   puppet_up="Y")
     assert filtered.cutoff == BODY_CUTOFF and not np.allclose(filtered.controls, raw.controls)
+
+
+def _moving(samples, rate, seed):
+    """A marker's smooth motion (samples, 3): a few sinusoids of 0.3–3 Hz, 0.05–0.1 m, random phase."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(samples)[:, None] / rate
+    frequencies, amplitudes = rng.uniform(0.3, 3.0, (3, 3)), rng.uniform(0.05, 0.1, (3, 3))
+    phases = rng.uniform(0, 6, (3, 3))
+    return sum(amplitudes[k] * np.sin(2 * np.pi * frequencies[k] * t + phases[k]) for k in range(3))
+
+
+def test_a_moving_end_keeps_no_more_than_its_noise():
+    """The odd reflection carries a line on past the end (a line comes through within 2 % of one
+    sample's step), so a marker in mid-motion at a run's end is off by about its noise;
+    Gustafsson's ends (used before) bent it by centimetres."""
+    rate, noise = 100.0, 0.001
+    rng = np.random.default_rng(5)
+    ends = []
+    for seed in range(40):
+        motion = _moving(300, rate, seed)
+        filtered = lowpass(motion + noise * rng.normal(size=motion.shape), rate, BODY_CUTOFF)
+        ends.append(filtered[[0, -1]] - motion[[0, -1]])
+    assert np.sqrt(np.mean(np.square(ends))) < 1.5 * noise  # raw: 1 × noise
+    line = np.outer(np.arange(50.0), [0.01, -0.02, 0.005]) + 3.0
+    assert np.abs(lowpass(line, rate, BODY_CUTOFF) - line).max() < 0.02 * 0.02
+
+
+def test_a_run_too_short_for_the_filter_is_kept_raw():
+    """A marker seen for 3 samples between two gaps stays where it was seen (Gustafsson's ends put
+    such a run near the origin: metres off on a real take)."""
+    rate = 100.0
+    assert shortest_run(rate, BODY_CUTOFF) == 40
+    points = np.full((200, 1, 3), np.nan)
+    points[:, 0] = _moving(200, rate, 1) + np.array([2.0, 1.0, -3.0])
+    holed = points.copy()
+    holed[60:100] = np.nan
+    holed[103:150] = np.nan  # an island of 3 samples, 100–102
+    out = lowpass_runs(holed, rate, BODY_CUTOFF)
+    np.testing.assert_array_equal(out[100:103], holed[100:103])
+    assert np.abs(out[:60] - points[:60]).max() < 0.01 and np.abs(out[150:] - points[150:]).max() < 0.01
+    short = 0.01 * np.random.default_rng(2).normal(size=(39, 3))
+    np.testing.assert_array_equal(lowpass(short, rate, BODY_CUTOFF), short)
+
+
+@pytest.mark.parametrize("rate", [50.0, 100.0, 240.0])
+def test_the_noise_kept_inside_a_run_is_the_responses_integral(rate):
+    """White noise of variance 1 comes out of a linear filter with variance ∫|H(f)|² df / (rate / 2)
+    over 0..rate/2; H real (zero phase), so what is removed has ∫(1 − H)²."""
+    frequencies = np.linspace(0.0, rate / 2, 20001)
+    response = lowpass_response(rate, BODY_CUTOFF, frequencies)
+    kept, removed = noise_gains(rate, BODY_CUTOFF, 500, 1001)
+    assert kept == pytest.approx(np.trapezoid(response ** 2, frequencies) / (rate / 2), rel=2e-3)
+    assert removed == pytest.approx(np.trapezoid((1 - response) ** 2, frequencies) / (rate / 2), rel=2e-3)
+    assert noise_gains(rate, BODY_CUTOFF, 0, 1001)[0] == pytest.approx(1.0, abs=0.01)  # the end: all its noise
+    assert noise_gains(rate, BODY_CUTOFF, 5, 10) == (1.0, 0.0)  # too short to filter
+
+
+def test_the_noise_removed_measures_the_takes_noise():
+    rate, sigma = 100.0, 0.002
+    rng = np.random.default_rng(6)
+    motion = np.stack([_moving(3000, rate, seed) for seed in range(4)], axis=1)  # (T, 4, 3)
+    raw = motion + sigma * np.array([1.0, 1.0, 2.0, 0.5])[None, :, None] * rng.normal(size=motion.shape)
+    raw[500:700, 1] = np.nan
+    interpolated = np.zeros(raw.shape[:2], dtype=bool)
+    variances = removed_noise(raw, lowpass_runs(raw, rate, BODY_CUTOFF), rate, BODY_CUTOFF, exclude=interpolated)
+    np.testing.assert_allclose(np.sqrt(variances), sigma * np.array([1.0, 1.0, 2.0, 0.5]), rtol=0.05)

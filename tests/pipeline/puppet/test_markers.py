@@ -152,9 +152,14 @@ def test_drive_absolute_places_controls_on_the_aligned_markers():
     shapes, rest = _poses(frames=30, markers=8)
     performer = shapes * np.array([1.2, 0.9, 1.0])  # other proportions
     take = _take(performer, 1.0, _rotation(9), np.zeros(3), units=1.0)
-    delta = drive_from_markers(take, 30.0, 30.0, rest, shapes, retarget="delta")
+    delta = drive_from_markers(take, 30.0, 30.0, rest, shapes, retarget="delta", cutoff=None)
     absolute = drive_from_markers(take, 30.0, 30.0, rest, shapes, retarget="absolute")
     assert np.abs(delta.controls[0] - rest).max() < 1e-12  # the rest shape is the character's own
+    # filtered, the neutral frame's residual (the performer's proportions) is far above what the filter
+    # removed: kept almost whole (James–Stein), the rest shape the character's to a fraction of a percent
+    filtered = drive_from_markers(take, 30.0, 30.0, rest, shapes, retarget="delta")
+    assert filtered.neutral["kept"] > 0.95 and filtered.neutral["residual"] > 10 * filtered.neutral["noise"]
+    assert np.abs(filtered.controls[0] - rest).max() < 0.01 * np.ptp(rest)
     assert np.abs(absolute.controls - absolute.markers).max() < 1e-12
     assert np.abs(absolute.controls[0] - rest).max() > 1e-3
 
@@ -205,7 +210,7 @@ def test_a_layouts_markers_are_ordered_by_the_controls_and_a_mismatch_is_refused
 
 
 def test_the_neutral_frame_is_the_one_a_similarity_brings_nearest_the_rest_pose():
-    from skinsynth.pipeline.puppet.markers import closest_to_rest, sample_noise
+    from skinsynth.pipeline.puppet.marker_neutral import closest_to_rest, sample_noise
 
     rng = np.random.default_rng(8)
     rest = rng.normal(size=(7, 3))
@@ -294,3 +299,21 @@ def test_a_rigid_cluster_with_a_marker_missing_recovers_it():
     assert rigid[30:60, 1].all() and rigid.sum() == 30
     np.testing.assert_allclose(filled[30:60, 1], markers[30:60, 1], atol=1e-6)
     assert np.isnan(filled[40:50, 4]).all() and np.isnan(filled[10:20, [0, 2]]).all()
+
+
+def test_the_jump_at_a_seen_end_is_the_fills_own_error_there():
+    """Where the fill is right (a take on the training poses' subspace), the jump measured at the
+    seen sample beside the run, that sample less the fill of it from the others, is ~0 and the run
+    stays right; the old jump, the seen sample less the run's first filled one, counted the
+    frame's motion between them as error and moved the whole run by it."""
+    from skinsynth.pipeline.puppet.marker_gaps import join_filled_runs
+
+    shapes, _ = _poses(frames=80, markers=10, rank=3)
+    holed = shapes.copy()
+    holed[20:40, 5] = np.nan
+    filled, by_subspace, _ = fill_from_training(holed, shapes, 3)
+    assert np.abs(filled - shapes).max() < 1e-4  # the fill itself: right
+    measured = join_filled_runs(filled, by_subspace, holed, shapes)
+    assert np.abs(measured - shapes).max() < 1e-4
+    motion = np.abs(shapes[20, 5] - shapes[19, 5]).max()
+    assert motion > 1e-3 and np.abs(join_filled_runs(filled, by_subspace) - shapes).max() > 0.5 * motion

@@ -1,0 +1,132 @@
+"""A take's neutral frame: which one (:func:`closest_to_rest`), and how much of what it shows to
+trust (:func:`shrink_neutral_residual`) (:func:`.markers.drive_from_markers`'s steps 4–5).
+
+The neutral frame is the one pose where the performer matches the puppet's rest pose: the take is
+aligned there, and a ``delta`` retargeting adds its residual from the rest controls to every
+frame. So its noise does not average away over the take: it turns the whole performance (the
+alignment) and offsets every frame (the residual). Two rules keep it small, both from the noise
+the low-pass removed (:func:`.marker_filter.removed_noise`), i.e. the filter's own assumption that
+what lies above its cut-off is noise:
+
+- among the frames tied for nearest the rest pose, one inside a run of samples is preferred to a
+  run's end sample, which the filter leaves with all its raw noise, where the noise saved
+  outweighs the pose given up (:func:`closest_to_rest`);
+- the residual is shrunk towards none by as much as that noise could explain (James–Stein).
+"""
+
+import numpy as np
+
+from .marker_filter import noise_gains
+
+#: How far after the first tie a quieter neutral frame is looked for (:func:`closest_to_rest`), in
+#: periods of the filter's cut-off: the filter leaves a run's end sample all its raw noise and is
+#: back within 10 % of its interior gain about a fifth of a period in (2 samples at 10 Hz of
+#: 100 Hz, 5 of 240 Hz); half a period leaves room and gives up little pose.
+QUIET_PERIODS = 0.5
+
+
+def sample_noise(points):
+    """The variance of a take's measurement noise per marker sample, Σ over the 3 coordinates
+    (points (T, M, 3), NaN where missing): from the second differences of seen samples,
+    x(t+1) − 2 x(t) + x(t−1), whose variance is 6× that of white noise where the motion is smooth
+    at the take's rate (an upper bound where it is not); 0 with fewer than 3 samples."""
+    second = points[2:] - 2.0 * points[1:-1] + points[:-2]
+    squared = np.sum(second ** 2, axis=2)
+    seen = np.isfinite(squared)
+    return float(np.mean(squared[seen]) / 6.0) if seen.any() else 0.0
+
+
+def closest_to_rest(points, targets, present, noise=0.0, gains=None, variances=None, within=0):
+    """The neutral frame of a take: among the frames of points (T, M, 3) seeing every marker it
+    has (``present`` (M,) bool), the one whose markers a similarity brings nearest their targets
+    (M, 3), the puppet's rest controls (Umeyama's least residual, Σ|t − t̄|² − tr(DS)²/Σ|s − s̄|²,
+    all frames at once). Frames whose residual exceeds the least by no more than the take's noise
+    could explain (twice its ``noise`` variance per sample, :func:`sample_noise`, over the markers,
+    in the targets' scale; at least 1e-9 of their spread: a cyclic take returning to its rest pose)
+    are ties, and the first of them is taken (noise alone would otherwise pick a neighbour of the
+    rest frame). None when no frame sees them all.
+
+    A filtered take (``gains``: frame -> (M,) the share of white noise the filter leaves there,
+    :func:`frame_gains`; ``variances`` (M,): each marker's noise per coordinate,
+    :func:`.marker_filter.removed_noise`) may take a tie up to ``within`` frames after the first
+    (:data:`QUIET_PERIODS` of the cut-off) instead, the one where the noise saved,
+    3 Σ_m variance_m (gain_first − gain_tie) in the targets' scale, most exceeds the residual it
+    adds: the first tie is often a run's end sample
+    (a take's first frame), which keeps all its raw noise — five times an interior sample's at
+    10 Hz of 100 Hz. A clean take saves nothing and keeps the first."""
+    complete = np.flatnonzero(~np.isnan(points[:, present]).any(axis=(1, 2)))
+    if not len(complete):
+        return None
+    source = points[complete][:, present]
+    source = source - source.mean(axis=1, keepdims=True)
+    target = targets[present] - targets[present].mean(axis=0)
+    covariance = np.einsum("ma,tmb->tab", target, source)
+    singular = np.linalg.svd(covariance, compute_uv=False)  # (T', 3), descending
+    turn = np.sign(np.linalg.det(covariance))  # det(U)·det(Vᵀ): no reflection (Umeyama's S)
+    trace = singular[:, 0] + singular[:, 1] + np.where(turn < 0, -1.0, 1.0) * singular[:, 2]
+    spread = np.maximum(np.sum(source ** 2, axis=(1, 2)), 1e-300)
+    residual = np.sum(target ** 2) - trace ** 2 / spread
+    best = int(np.argmin(residual))
+    scale = trace[best] / spread[best]  # the best frame's similarity scale, take units -> the targets'
+    floor = 1e-9 * np.sum(target ** 2)  # below this, residuals are equal (and noise none)
+    tie = max(2.0 * noise * int(present.sum()) * scale ** 2, floor)
+    ties = np.flatnonzero(residual <= residual[best] + tie)  # into complete
+    ties = ties[complete[ties] <= complete[ties[0]] + within]
+    if gains is None or variances is None or len(ties) == 1:
+        return int(complete[ties[0]])
+    first = gains(int(complete[ties[0]]))[present]
+    gain = np.array([3.0 * scale ** 2 * np.sum(variances[present] * (first - gains(int(complete[t]))[present]))
+                     - (residual[t] - residual[ties[0]]) for t in ties])
+    return int(complete[ties[int(np.argmax(gain))] if gain.max() > floor else ties[0]])
+
+
+def frame_gains(filtered, rate, cutoff, frame):
+    """(M,) the share of white noise :func:`.marker_filter.lowpass_runs` leaves at ``frame`` of
+    each marker's run of samples (filtered (T, M, 3), NaN where missing: 0 there)."""
+    from .marker_gaps import runs
+
+    gains = np.zeros(filtered.shape[1])
+    for marker in np.flatnonzero(~np.isnan(filtered[frame]).any(axis=1)):  # markers, never vertices
+        starts, ends = runs(~np.isnan(filtered[:, marker]).any(axis=1))
+        at = np.searchsorted(ends, frame, side="right")  # the run holding the frame
+        gains[marker] = noise_gains(rate, cutoff, frame - starts[at], ends[at] - starts[at])[0]
+    return gains
+
+
+def shrink_neutral_residual(residual, variances):
+    """The neutral frame's residual from the rest controls with its noise shrunk: residual (n, 3)
+    the targets less the aligned neutral markers (NaN for a marker the take lacks), variances (n,)
+    each one's noise variance per coordinate there. -> (shrunk residual (n, 3), share kept).
+
+    ``delta`` retargeting adds this residual to every frame: the performer's proportions and the
+    markers' placement, which it must keep, and the neutral frame's noise, which it should not.
+    Which is which is unknown, so the residual is shrunk by the positive-part James–Stein
+    estimator (James & Stein 1961; Efron & Morris 1973), towards none (``absolute``): each
+    coordinate standardised by its noise, the whole residual scaled by max(0, 1 − (p − 2) / |z|²)
+    with p = 3 n' − 7 (its n' markers' coordinates less the similarity's 7 fitted from them). A
+    residual the noise explains (|z|² ≈ p) goes almost wholly; one of real offsets (|z|² ≫ p, a
+    performer of other proportions: centimetres against the fraction of a millimetre a filtered
+    marker is off) is kept almost whole — never changed by more than the noise could have put
+    there, and for Gaussian noise never worse on average than keeping it raw (p > 2; fewer than
+    4 markers: kept). Whole rather than per marker: James–Stein's guarantee needs the dimensions
+    pooled, and one marker's three give too few."""
+    residual = np.array(residual, dtype=np.float64)
+    variances = np.asarray(variances, dtype=np.float64)
+    use = np.isfinite(residual).all(axis=1) & (variances > 0)
+    free = 3 * int(use.sum()) - 7
+    squared = float(np.sum(residual[use] ** 2 / variances[use, None]))
+    if free <= 2 or squared <= 0.0:
+        return residual, 1.0
+    kept = max(0.0, 1.0 - (free - 2) / squared)
+    residual[use] *= kept
+    return residual, kept
+
+
+def residual_summary(residual, variances, kept):
+    """The neutral frame's report (mesh units): {"residual": its RMS over the markers seen there,
+    "noise": the RMS noise in it (variances (n,) per coordinate), "kept": the share kept}."""
+    seen = np.isfinite(residual).all(axis=1)
+    if not seen.any():
+        return {"residual": 0.0, "noise": 0.0, "kept": float(kept)}
+    return {"residual": float(np.sqrt(np.mean(np.sum(residual[seen] ** 2, axis=1)))),
+            "noise": float(np.sqrt(3.0 * np.mean(variances[seen]))), "kept": float(kept)}

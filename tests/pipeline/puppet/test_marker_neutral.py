@@ -1,0 +1,65 @@
+"""pipeline.puppet.marker_neutral: the neutral residual's James–Stein shrinkage against its closed
+form and its two limits (noise alone, real offsets), and the choice of a quiet neutral frame."""
+
+import numpy as np
+import pytest
+
+from skinsynth.pipeline.puppet.marker_filter import BODY_CUTOFF, lowpass_runs, removed_noise
+from skinsynth.pipeline.puppet.marker_neutral import closest_to_rest, frame_gains, shrink_neutral_residual
+
+
+def test_the_shrinkage_is_james_steins_on_the_standardised_residual():
+    residual = np.array([[1.0, 2.0, 0.0], [0.0, -1.0, 3.0], [2.0, 2.0, 2.0], [1.0, 0.0, 1.0], [np.nan] * 3])
+    variances = np.array([0.5, 0.5, 2.0, 1.0, 0.5])
+    shrunk, kept = shrink_neutral_residual(residual, variances)
+    z2 = 5 / 0.5 + 10 / 0.5 + 12 / 2.0 + 2 / 1.0  # four markers seen: p = 12 − 7 = 5
+    assert kept == pytest.approx(1.0 - 3.0 / z2, abs=1e-15)
+    np.testing.assert_allclose(shrunk[:4], kept * residual[:4], atol=1e-15)
+    assert np.isnan(shrunk[4]).all()
+    assert shrink_neutral_residual(residual[:3], variances[:3])[1] == 1.0  # 3 markers: p = 2, nothing to gain
+
+
+def test_noise_goes_and_real_offsets_stay():
+    """A residual of pure noise (after the similarity's 7 fitted coordinates) is shrunk nearly to
+    nothing and its error falls; a performer's offsets, far above the noise, are kept to within it."""
+    rng = np.random.default_rng(3)
+    markers, sigma = 16, 0.001
+    errors_raw, errors_shrunk, kept = [], [], []
+    for _ in range(200):
+        noise = sigma * rng.normal(size=(markers, 3))
+        shrunk, share = shrink_neutral_residual(noise, np.full(markers, sigma ** 2))
+        errors_raw.append(np.sum(noise ** 2))
+        errors_shrunk.append(np.sum(shrunk ** 2))
+        kept.append(share)
+    assert np.mean(errors_shrunk) < 0.2 * np.mean(errors_raw) and np.median(kept) < 0.2
+    offsets = 0.02 * rng.normal(size=(markers, 3))  # 2 cm: markers placed off the character's vertices
+    noisy = offsets + sigma * rng.normal(size=(markers, 3))
+    shrunk, share = shrink_neutral_residual(noisy, np.full(markers, sigma ** 2))
+    assert share > 0.99 and np.abs(shrunk - noisy).max() < sigma
+
+
+def test_a_noisy_take_starting_at_rest_is_aligned_inside_its_first_run():
+    """A performer holding the rest pose at the take's start: the first sample ties with the next
+    ones, but the filter leaves it all its raw noise (an end) and the next but one a fifth: the
+    quieter is taken; a clean take keeps the first."""
+    rate = 100.0
+    rng = np.random.default_rng(4)
+    rest = rng.normal(size=(10, 3))
+    still = np.concatenate([np.zeros(30), np.linspace(0.0, 1.0, 170) ** 2])  # at rest for 0.3 s, then away
+    poses = rest + still[:, None, None] * rng.normal(size=(1, 10, 3))
+    present = np.ones(10, dtype=bool)
+    noisy = poses + 0.002 * rng.normal(size=poses.shape)
+    filtered = lowpass_runs(noisy, rate, BODY_CUTOFF)
+    variances = removed_noise(noisy, filtered, rate, BODY_CUTOFF)
+
+    def gains(frame):
+        return frame_gains(filtered, rate, BODY_CUTOFF, frame)
+
+    assert gains(0) == pytest.approx(np.ones(10), abs=0.01) and gains(2).max() < 0.3
+    chosen = closest_to_rest(filtered, rest, present, noise=3 * 0.002 ** 2, gains=gains, variances=variances,
+                             within=5)
+    assert 1 <= chosen <= 5 and gains(chosen).max() < 0.4
+    assert closest_to_rest(filtered, rest, present, noise=3 * 0.002 ** 2) == 0  # without the filter's gains
+    clean = lowpass_runs(poses, rate, BODY_CUTOFF)
+    assert closest_to_rest(clean, rest, present, noise=1e-12, gains=lambda f: frame_gains(clean, rate, BODY_CUTOFF, f),
+                           variances=removed_noise(poses, clean, rate, BODY_CUTOFF), within=5) == 0
