@@ -147,6 +147,19 @@ def removed_noise(raw, filtered, rate, cutoff, exclude=None):
     return variances
 
 
+def unfiltered_samples(seen, rate, cutoff):
+    """(T, M) bool: the seen samples (``seen`` (T, M)) that :func:`lowpass_runs` keeps raw, in runs
+    shorter than :func:`shortest_run`."""
+    from .marker_gaps import runs
+
+    short = np.zeros_like(seen, dtype=bool)
+    shortest = shortest_run(rate, cutoff)
+    for marker in range(seen.shape[1]):  # markers, never vertices
+        for start, end in zip(*runs(seen[:, marker])):
+            short[start:end, marker] = end - start < shortest
+    return short
+
+
 def lowpass_response(rate, cutoff, frequencies):
     """|H(f)| of :func:`lowpass` (both passes) at ``frequencies`` (Hz)."""
     from scipy.signal import freqz

@@ -50,8 +50,9 @@ def closest_to_rest(points, targets, present, noise=0.0, gains=None, variances=N
     :func:`frame_gains`; ``variances`` (M,): each marker's noise per coordinate,
     :func:`.marker_filter.removed_noise`) may take a tie up to ``within`` frames after the first
     (:data:`QUIET_PERIODS` of the cut-off) instead, the one where the noise saved,
-    3 Σ_m variance_m (gain_first − gain_tie) in the targets' scale, most exceeds the residual it
-    adds: the first tie is often a run's end sample
+    3 Σ_m variance_m (gain_first − gain_tie) in the targets' scale, most exceeds what it costs: the
+    residual it adds, and the rigid motion between the two (aligning there moves the whole take
+    by it; ties are equal in shape, not in place: a performer may walk in the rest pose): the first tie is often a run's end sample
     (a take's first frame), which keeps all its raw noise — five times an interior sample's at
     10 Hz of 100 Hz. A clean take saves nothing and keeps the first."""
     complete = np.flatnonzero(~np.isnan(points[:, present]).any(axis=(1, 2)))
@@ -75,9 +76,22 @@ def closest_to_rest(points, targets, present, noise=0.0, gains=None, variances=N
     if gains is None or variances is None or len(ties) == 1:
         return int(complete[ties[0]])
     first = gains(int(complete[ties[0]]))[present]
+    moved = _rigid_motion(points[complete[ties]][:, present], points[complete[ties[0]], present]) * scale ** 2
     gain = np.array([3.0 * scale ** 2 * np.sum(variances[present] * (first - gains(int(complete[t]))[present]))
-                     - (residual[t] - residual[ties[0]]) for t in ties])
+                     - (residual[t] - residual[ties[0]]) for t in ties]) - moved
     return int(complete[ties[int(np.argmax(gain))] if gain.max() > floor else ties[0]])
+
+
+def _rigid_motion(frames, first):
+    """How far the rigid motion from ``first`` (M, 3) to each of ``frames`` (K, M, 3) moves the
+    markers: (K,) Σ_m |R first_m + t − first_m|² of the least-squares rigid fit (Kabsch). Aligning
+    at another frame than the first moves the whole take by that much."""
+    from .marker_gaps import rigid_onto
+
+    rotations, translations = rigid_onto(np.broadcast_to(first, frames.shape), frames,
+                                         np.ones(frames.shape[:2], dtype=bool))
+    carried = np.einsum("kab,mb->kma", rotations, first) + translations[:, None]
+    return np.sum((carried - first) ** 2, axis=(1, 2))
 
 
 def frame_gains(filtered, rate, cutoff, frame):

@@ -47,7 +47,7 @@ import numpy as np
 from ..errors import OptionError
 from .marker_gaps import (MAX_GAP, fill_from_training, fill_rigid_clusters, fill_short_gaps, fill_uncertainty,
                           join_filled_runs, rigid_onto, training_subspace)
-from .marker_filter import BODY_CUTOFF, ORDER, can_filter, lowpass_runs, removed_noise
+from .marker_filter import BODY_CUTOFF, ORDER, can_filter, lowpass_runs, removed_noise, unfiltered_samples
 from .marker_neutral import (QUIET_PERIODS, closest_to_rest, frame_gains, residual_summary, sample_noise,
                              shrink_neutral_residual)
 
@@ -71,7 +71,9 @@ class MarkerDrive:
     neutral_frame (take frame); interpolated, rigid (from the marker's rigid cluster) and
     subspace: {marker index: take frames filled that way}; held: take frames held from the last
     good one; min_markers: the rule used for ``held``;
-    cutoff: the low-pass cut-off applied (Hz), None where the take was kept raw; neutral: the
+    cutoff: the low-pass cut-off applied (Hz), None where the take was kept raw (too slow for it, or
+    no run of samples long enough); kept_raw: samples of a filtered take left raw, their runs too
+    short (:func:`.marker_filter.shortest_run`); neutral: the
     neutral frame's residual from the rest controls ("residual", root mean square over the
     markers, mesh units), the noise in it ("noise") and the share kept ("kept",
     :func:`.marker_neutral.shrink_neutral_residual`); uncertainty (F,): each output frame's
@@ -95,6 +97,7 @@ class MarkerDrive:
     cutoff: float = None
     uncertainty: np.ndarray = field(default_factory=lambda: np.zeros(0))
     neutral: dict = field(default_factory=dict)
+    kept_raw: int = 0
 
 
 def up_axis_rotation(source, target):
@@ -241,7 +244,12 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
         if not (np.isfinite(cutoff) and cutoff > 0):
             raise OptionError(f"--filter must be a positive cut-off in Hz or none (got {cutoff:g})")
         cutoff = float(cutoff) if can_filter(rate, cutoff) else None
-    raw = local
+    raw, kept_raw = local, 0
+    if cutoff is not None:  # runs too short for the filter stay raw; none long enough: the take is raw
+        seen = ~np.isnan(local).any(axis=2)
+        kept_raw = int(unfiltered_samples(seen, rate, cutoff).sum())
+        if kept_raw == int(seen.sum()):
+            cutoff, kept_raw = None, 0
     if cutoff is not None:
         local = lowpass_runs(local, rate, cutoff)
     present = ~np.isnan(local).any(axis=2).all(axis=0)  # (n,) the markers the take has (seen at all)
@@ -314,6 +322,7 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
                        subspace={m: np.flatnonzero(by_subspace[:, m]) for m in range(count) if by_subspace[:, m].any()},
                        rigid={m: np.flatnonzero(by_cluster[:, m]) for m in range(count) if by_cluster[:, m].any()},
                        held=held, min_markers=min_markers, cutoff=cutoff, uncertainty=uncertainty,
+                       kept_raw=kept_raw,
                        neutral=neutral)
 
 
@@ -346,7 +355,8 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
                "transform": {"scale": drive.scale, "rotation": drive.rotation.tolist(),
                              "translation": drive.translation.tolist()},
                "filled": filled, "held_frames": frame_ranges(drive.held), "min_markers": drive.min_markers,
-               "filter": ({"cutoff_hz": drive.cutoff, "order": ORDER, "passes": 2} if drive.cutoff is not None
+               "filter": ({"cutoff_hz": drive.cutoff, "order": ORDER, "passes": 2,
+                           "samples_kept_raw": drive.kept_raw} if drive.cutoff is not None
                           else "none"),
                "fill_uncertainty": {"per_frame": [round(float(u), 6) for u in drive.uncertainty],
                                     "worst": float(drive.uncertainty.max(initial=0.0)),
@@ -359,7 +369,9 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
              + (f" (of the neutral frame's residual {drive.neutral['residual']:.3g}, its noise about "
                 f"{drive.neutral['noise']:.3g}, {drive.neutral['kept']:.0%} kept), "
                 if drive.neutral.get("kept", 1.0) < 1.0 else ", ")
-             + (f"low-passed at {drive.cutoff:g} Hz" if drive.cutoff is not None else "not filtered")]
+             + (f"low-passed at {drive.cutoff:g} Hz" + (f" ({drive.kept_raw} samples in runs too short for it kept "
+                                                        "raw)" if drive.kept_raw else "")
+                if drive.cutoff is not None else "not filtered")]
     if matched.unmatched:
         lines.append(f"{name}: labels not in the layout, ignored: {', '.join(matched.unmatched)}")
     if matched.missing:

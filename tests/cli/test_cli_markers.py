@@ -157,7 +157,8 @@ def test_the_take_is_low_passed_by_default_and_reported(puppet, tmp_path):
         summary = json.loads(assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / f"{name}.h5",
                                            "--json", *extra)).stdout)["takes"][0]
         runs[name], neutral[name] = summary["filter"], summary["neutral_residual"]
-    assert runs["default"] == {"cutoff_hz": 10.0, "order": 2, "passes": 2} and runs["raw"] == "none"
+    assert runs["default"] == {"cutoff_hz": 10.0, "order": 2, "passes": 2, "samples_kept_raw": 0}
+    assert runs["raw"] == "none"
     # the neutral frame's residual and the noise in it: none known on a raw take, which keeps it whole
     assert set(neutral["default"]) == {"residual", "noise", "kept"} and 0.0 <= neutral["default"]["kept"] <= 1.0
     assert neutral["default"]["noise"] > 0.0 and neutral["raw"]["noise"] == 0.0 and neutral["raw"]["kept"] == 1.0

@@ -55,9 +55,19 @@ def test_a_take_too_slow_for_the_cut_off_is_kept_raw():
     slow = drive_from_markers(shapes, rate=15.0, fps=15.0, reference=rest, training=shapes, take_up="Y",
                               puppet_up="Y")
     assert slow.cutoff is None and np.array_equal(slow.controls, raw.controls)
-    filtered = drive_from_markers(shapes, rate=60.0, fps=60.0, reference=rest, training=shapes, take_up="Y",
-                                  puppet_up="Y")
-    assert filtered.cutoff == BODY_CUTOFF and not np.allclose(filtered.controls, raw.controls)
+    # 20 samples at 60 Hz: shorter than the filter's reach (24), so nothing is filtered, and it says so
+    short = drive_from_markers(shapes, rate=60.0, fps=60.0, reference=rest, training=shapes, take_up="Y",
+                               puppet_up="Y")
+    assert short.cutoff is None and np.array_equal(short.controls, raw.controls)
+    whole = rest + 0.1 * rng.normal(size=(60, 6, 3))
+    longer = whole.copy()
+    longer[20:50, 2] = np.nan  # marker 2 seen for 20 samples, then 10: both runs kept raw
+    filtered = drive_from_markers(longer, rate=60.0, fps=60.0, reference=rest, training=whole, take_up="Y",
+                                  puppet_up="Y", max_gap=0)
+    unfiltered = drive_from_markers(longer, rate=60.0, fps=60.0, reference=rest, training=whole, take_up="Y",
+                                    puppet_up="Y", max_gap=0, cutoff=None)
+    assert filtered.cutoff == BODY_CUTOFF and filtered.kept_raw == 30
+    assert not np.allclose(filtered.controls, unfiltered.controls)
 
 
 def _moving(samples, rate, seed):

@@ -63,3 +63,19 @@ def test_a_noisy_take_starting_at_rest_is_aligned_inside_its_first_run():
     clean = lowpass_runs(poses, rate, BODY_CUTOFF)
     assert closest_to_rest(clean, rest, present, noise=1e-12, gains=lambda f: frame_gains(clean, rate, BODY_CUTOFF, f),
                            variances=removed_noise(poses, clean, rate, BODY_CUTOFF), within=5) == 0
+
+
+def test_a_performer_moving_in_the_rest_pose_is_aligned_at_the_first_tie():
+    """Walking in the rest pose, every early frame ties on shape, but aligning at a later one would
+    move the whole take by the walk between them: the first is kept."""
+    rate = 100.0
+    rng = np.random.default_rng(7)
+    rest = rng.normal(size=(10, 3))
+    walk = np.outer(np.arange(200) / rate, [1.0, 0.0, 0.3])  # 1 m/s, the shape unchanged
+    poses = rest[None] + walk[:, None]
+    noisy = poses + 0.002 * rng.normal(size=poses.shape)
+    filtered = lowpass_runs(noisy, rate, BODY_CUTOFF)
+    variances = removed_noise(noisy, filtered, rate, BODY_CUTOFF)
+    chosen = closest_to_rest(filtered, rest, np.ones(10, dtype=bool), noise=3 * 0.002 ** 2,
+                             gains=lambda f: frame_gains(filtered, rate, BODY_CUTOFF, f), variances=variances, within=5)
+    assert chosen == 0
