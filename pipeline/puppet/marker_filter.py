@@ -111,7 +111,7 @@ def noise_gains(rate, cutoff, position, length):
     the filtered one. The filter is linear, so its row for that sample is the filtered
     identity's: an interior sample keeps 0.21 of the variance at 10 Hz of 100 Hz, a run's end all
     of it (the reflection), a run too short to filter all of it."""
-    reach = int(min(np.ceil(REACH * rate / cutoff), MAX_REACH))
+    reach = min(shortest_run(rate, cutoff), MAX_REACH)
     start, end = max(0, int(position) - reach), min(int(length), int(position) + reach + 1)
     row = lowpass(np.eye(end - start), rate, cutoff)[position - start]
     kept = float(row @ row)
@@ -130,13 +130,14 @@ def removed_noise(raw, filtered, rate, cutoff, exclude=None):
     seen = ~np.isnan(raw).any(axis=2) & ~np.isnan(filtered).any(axis=2)
     if exclude is not None:
         seen &= ~exclude
-    reach, shortest = int(min(np.ceil(REACH * rate / cutoff), MAX_REACH)), shortest_run(rate, cutoff)
+    shortest = shortest_run(rate, cutoff)
+    reach = min(shortest, MAX_REACH)
     _, removed = noise_gains(rate, cutoff, reach, 2 * reach + 1)
     squared = np.sum((raw - filtered) ** 2, axis=2) / 3.0  # (T, M) per coordinate
     variances = np.zeros(raw.shape[1])
     for marker in range(raw.shape[1]):  # markers, never vertices
         interior, filtered_run = np.zeros((2, len(raw)), dtype=bool)
-        for start, end in zip(*runs(seen[:, marker] | ~np.isnan(filtered[:, marker]).any(axis=1))):
+        for start, end in zip(*runs(~np.isnan(filtered[:, marker]).any(axis=1))):  # the runs the filter took
             interior[start + reach:end - reach] = True
             filtered_run[start:end] = end - start >= shortest
         use = seen[:, marker] & interior

@@ -49,11 +49,11 @@ def closest_to_rest(points, targets, present, noise=0.0, gains=None, variances=N
     A filtered take (``gains``: frame -> (M,) the share of white noise the filter leaves there,
     :func:`frame_gains`; ``variances`` (M,): each marker's noise per coordinate,
     :func:`.marker_filter.removed_noise`) may take a tie up to ``within`` frames after the first
-    (:data:`QUIET_PERIODS` of the cut-off) instead, the one where the noise saved,
-    3 Σ_m variance_m (gain_first − gain_tie) in the targets' scale, most exceeds what it costs: the
-    residual it adds, and the rigid motion between the two (aligning there moves the whole take
-    by it; ties are equal in shape, not in place: a performer may walk in the rest pose): the first tie is often a run's end sample
-    (a take's first frame), which keeps all its raw noise — five times an interior sample's at
+    (:data:`QUIET_PERIODS` of the cut-off) instead, the one where the noise saved, 3 Σ_m variance_m
+    (gain_first − gain_tie) in the targets' scale, most exceeds what it costs: the residual it adds,
+    and the rigid motion between the two (aligning there moves the whole take by it; ties are equal in
+    shape, not in place: a performer may walk in the rest pose): the first tie is often a run's end
+    sample (a take's first frame), which keeps all its raw noise — five times an interior sample's at
     10 Hz of 100 Hz. A clean take saves nothing and keeps the first."""
     complete = np.flatnonzero(~np.isnan(points[:, present]).any(axis=(1, 2)))
     if not len(complete):

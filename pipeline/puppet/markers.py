@@ -214,11 +214,11 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     (Hz); fps (the output's); reference (n, 3) the puppet's reference (rest) controls; training
     (n_p, n, 3) its training controls in place (for the long-gap fill); offsets (n,) and normals
     (n, 3): markers sitting ``offset`` along the rest normal from their control (mesh units);
-    neutral_frame: take frame of the neutral pose (default
-    :func:`.marker_neutral.closest_to_rest`, after the short fill, over the markers the take has: a marker with no sample at all, one the take lacks,
+    neutral_frame: take frame of the neutral pose (default :func:`.marker_neutral.closest_to_rest`, after
+    the short fill, over the markers the take has: a marker with no sample at all, one the take lacks,
     is filled every frame from the others); stabilize: marker indices; min_markers: a frame seeing
-    fewer is held (default half the markers the take has, at least 3); labels (n,): the markers'
-    names in messages (default their numbers);
+    fewer is held (default half the markers the take has, at least 3); labels (n,): the markers' names
+    in messages (default their numbers);
     cutoff: the low-pass cut-off in Hz (step 2), None for none; a take too slow for it (its
     Nyquist frequency below the filter's) is kept raw, ``MarkerDrive.cutoff`` None; bones (n,):
     the bone each marker rides rigidly (:func:`.marker_gaps.rigid_clusters`, −1 none), whose clusters fill
@@ -322,8 +322,7 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
                        subspace={m: np.flatnonzero(by_subspace[:, m]) for m in range(count) if by_subspace[:, m].any()},
                        rigid={m: np.flatnonzero(by_cluster[:, m]) for m in range(count) if by_cluster[:, m].any()},
                        held=held, min_markers=min_markers, cutoff=cutoff, uncertainty=uncertainty,
-                       kept_raw=kept_raw,
-                       neutral=neutral)
+                       kept_raw=kept_raw, neutral=neutral)
 
 
 def frame_ranges(frames):
