@@ -226,12 +226,14 @@ def join_filled_runs(points, filled, seen_points=None, training=None, ridge=SUBS
 
     The jump at a seen end: with ``seen_points`` (T, M, 3), the take before the fill (NaN where
     missing), and ``training``, the seen sample beside the run less what the same fill makes of
-    it there from the other markers (:func:`fill_from_training` with it hidden): the fill's own
-    error, measured at one frame. Without them (or where fewer than 3 others are seen there), the
-    seen sample less the run's first filled one, which also counts one frame's motion as error
-    (issue 45's held-out takes with noise and gaps: crane 1.19× → 1.17× the clean controls'
-    error over five seeds; averaging the measured jump over the 3 or 10 seen samples beyond the
-    end did worse, 1.18× and 1.20×: the fill's error changes faster than the filtered noise)."""
+    it there from the markers the run's adjacent filled frame sees (:func:`fill_from_training`
+    with the run's pattern hidden): the fill's own error, measured at one frame. Without them (or
+    where fewer than 3 markers are seen there), the seen sample less the run's first filled one,
+    which also counts one frame's motion as error (issue 45's held-out takes with noise and gaps:
+    crane 1.19× → 1.17× the clean controls' error over five seeds; averaging the measured jump
+    over the 3 or 10 seen samples beyond the end did worse, 1.18× and 1.20×: the fill's error
+    changes faster than the filtered noise). Where the pattern changes inside the run (another
+    marker lost or found) the line between the ends is all the correction there is."""
     points = np.array(points, dtype=np.float64)
     total = len(points)
     jumps = _measured_jumps(filled, seen_points, training, ridge, subspace) \
@@ -239,9 +241,10 @@ def join_filled_runs(points, filled, seen_points=None, training=None, ridge=SUBS
     for marker in np.flatnonzero(filled.any(axis=0)):  # markers, never vertices
         starts, ends = runs(filled[:, marker])
         for start, end in zip(starts, ends):
-            before = jumps.get((start - 1, marker), points[start - 1, marker] - points[start, marker]) \
+            before = jumps.get((start - 1, marker, start), points[start - 1, marker] - points[start, marker]) \
                 if start > 0 else None
-            after = jumps.get((end, marker), points[end, marker] - points[end - 1, marker]) if end < total else None
+            after = jumps.get((end, marker, end - 1), points[end, marker] - points[end - 1, marker]) \
+                if end < total else None
             if before is None and after is None:
                 continue
             before = after if before is None else before
@@ -252,18 +255,24 @@ def join_filled_runs(points, filled, seen_points=None, training=None, ridge=SUBS
 
 
 def _measured_jumps(filled, seen_points, training, ridge, subspace):
-    """{(frame, marker): the jump (3,)} at each seen sample beside a filled run, for
-    :func:`join_filled_runs`: the sample less the fill of it from the others seen there (≥ 3)."""
+    """{(frame, marker, filled frame): the jump (3,)} at each seen sample beside a filled run, for
+    :func:`join_filled_runs`: the sample less its fill from the markers seen there that the run's
+    adjacent filled frame also sees (the same pattern as the run's fill, so the same error; ≥ 3)."""
     seen = ~np.isnan(seen_points).any(axis=2)
-    before = np.zeros_like(filled)
-    before[:-1] = filled[1:] & ~filled[:-1]  # the frame before a run
-    after = np.zeros_like(filled)
-    after[1:] = filled[:-1] & ~filled[1:]  # the frame after one
-    frames, markers = np.nonzero((before | after) & seen & (seen.sum(axis=1) > 3)[:, None])
-    if not len(frames):
+    rows = []
+    for step in (1, -1):  # the frame before a run (its filled frame next), the frame after one
+        beside = np.zeros_like(filled)
+        if step == 1:
+            beside[:-1] = filled[1:] & ~filled[:-1]
+        else:
+            beside[1:] = filled[:-1] & ~filled[1:]
+        frames, markers = np.nonzero(beside & seen)
+        rows += [(f, m, f + step) for f, m in zip(frames, markers)]
+    rows = [(f, m, g) for f, m, g in rows if (seen[f] & seen[g]).sum() >= 3]
+    if not rows:
         return {}
-    hidden = seen_points[frames].copy()
-    hidden[np.arange(len(frames)), markers] = np.nan
+    frames, markers, adjacent = (np.array(column) for column in zip(*rows))
+    hidden = np.where(seen[adjacent][..., None], seen_points[frames], np.nan)  # the run's pattern there
     fill, _, _ = fill_from_training(hidden, training, 3, ridge=ridge, subspace=subspace)
     jumps = seen_points[frames, markers] - fill[np.arange(len(frames)), markers]
-    return {(int(f), int(m)): jump for f, m, jump in zip(frames, markers, jumps)}
+    return {(int(f), int(m), int(g)): jump for f, m, g, jump in zip(frames, markers, adjacent, jumps)}
