@@ -75,10 +75,10 @@ def closest_to_rest(points, targets, present, noise=0.0, gains=None, variances=N
     ties = ties[complete[ties] <= complete[ties[0]] + within]
     if gains is None or variances is None or len(ties) == 1:
         return int(complete[ties[0]])
-    first = gains(int(complete[ties[0]]))[present]
+    kept = np.array([gains(int(frame))[present] for frame in complete[ties]])  # (K, M') the filter's gains
+    saved = 3.0 * scale ** 2 * (kept[0] - kept) @ variances[present]  # the noise variance a tie saves
     moved = _rigid_motion(points[complete[ties]][:, present], points[complete[ties[0]], present]) * scale ** 2
-    gain = np.array([3.0 * scale ** 2 * np.sum(variances[present] * (first - gains(int(complete[t]))[present]))
-                     - (residual[t] - residual[ties[0]]) for t in ties]) - moved
+    gain = saved - (residual[ties] - residual[ties[0]]) - moved
     return int(complete[ties[int(np.argmax(gain))] if gain.max() > floor else ties[0]])
 
 
