@@ -26,6 +26,7 @@ handled where it is used (:func:`.marker_neutral.shrink_neutral_residual`,
 """
 
 import functools
+from typing import NamedTuple
 
 import numpy as np
 
@@ -48,6 +49,42 @@ ORDER = 2
 #: Winter's correction for two passes of a second-order Butterworth, (√2 − 1)^(1/4): the −3 dB
 #: point of the pair lies at this share of each pass's cut-off.
 PASSES_CORRECTION = (np.sqrt(2.0) - 1.0) ** 0.25
+
+
+class FilteredTake(NamedTuple):
+    """What :func:`filter_take` made of a take: points (T, M, 3), NaN where missing; cutoff (Hz),
+    None where the take was kept raw; kept_raw: seen samples left raw in runs too short for the
+    filter; variances (M,): each marker's noise per coordinate (:func:`removed_noise`), None for a
+    raw take."""
+
+    points: np.ndarray
+    cutoff: float
+    kept_raw: int
+    variances: np.ndarray
+
+
+def filter_take(points, rate, cutoff, exclude=None):
+    """A take's markers points (T, M, 3) (NaN where missing) low-passed at ``cutoff`` Hz, None for
+    none (:func:`lowpass_runs`), with what :func:`removed_noise` reads of their noise (exclude (T, M):
+    samples that measured nothing, interpolated ones). Kept raw, reported with cutoff None, where
+    the take is too slow for the filter (:func:`can_filter`) or no run of samples is long enough
+    (:func:`unfiltered_samples`). -> :class:`FilteredTake`; OptionError for a cut-off ≤ 0."""
+    from ..errors import OptionError
+
+    raw = np.asarray(points, dtype=np.float64)
+    if cutoff is None:
+        return FilteredTake(raw, None, 0, None)
+    if not (np.isfinite(cutoff) and cutoff > 0):
+        raise OptionError(f"--filter must be a positive cut-off in Hz or none (got {cutoff:g})")
+    if not can_filter(rate, cutoff):
+        return FilteredTake(raw, None, 0, None)
+    seen = ~np.isnan(raw).any(axis=2)
+    kept_raw = int(unfiltered_samples(seen, rate, cutoff).sum())
+    if kept_raw == int(seen.sum()):  # no run long enough: the take is raw
+        return FilteredTake(raw, None, 0, None)
+    cutoff = float(cutoff)
+    filtered = lowpass_runs(raw, rate, cutoff)
+    return FilteredTake(filtered, cutoff, kept_raw, removed_noise(raw, filtered, rate, cutoff, exclude=exclude))
 
 
 def cutoff_option(text):

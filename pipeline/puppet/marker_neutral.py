@@ -82,6 +82,38 @@ def closest_to_rest(points, targets, present, noise=0.0, gains=None, variances=N
     return int(complete[ties[int(np.argmax(gain))] if gain.max() > floor else ties[0]])
 
 
+def choose_neutral_frame(points, targets, present, noise, rate, cutoff, variances, frame=None, labels=None):
+    """The take frame the take is aligned at (:func:`.markers.drive_from_markers`'s step 4):
+    ``frame`` (the user's ``--neutral-frame``) checked, or :func:`closest_to_rest` of points
+    (T, M, 3) (filtered at ``cutoff`` Hz, None: raw; ``variances`` (M,) their noise per coordinate,
+    :func:`.marker_filter.removed_noise`) to targets (M, 3) over the ``present`` (M,) markers.
+    OptionError (one line; markers named by ``labels``) when no frame sees every marker the take
+    has, the given one does not, or the markers there do not span a plane."""
+    from ..errors import OptionError
+
+    frames = len(points)
+    if frame is None:
+        gains = (lambda at: frame_gains(points, rate, cutoff, at)) if cutoff is not None else None
+        within = int(np.ceil(QUIET_PERIODS * rate / cutoff)) if cutoff is not None else 0
+        frame = closest_to_rest(points, targets, present, noise, gains, variances, within)
+        if frame is None:
+            raise OptionError("no frame of the take sees every marker it has (after filling short gaps): give "
+                              "--neutral-frame a frame that does, or --max-gap more frames")
+    elif not 0 <= frame < frames:
+        raise OptionError(f"--neutral-frame {frame} is outside the take's frames 0..{frames - 1}")
+    elif np.isnan(points[frame, present]).any():
+        lost = np.flatnonzero(present & np.isnan(points[frame]).any(axis=1))
+        names = [str(labels[m]) if labels is not None else str(m) for m in lost]
+        raise OptionError(f"--neutral-frame {frame} lacks markers {', '.join(names)}: the neutral "
+                          "frame needs every marker the take has")
+    spread = points[frame, present] - points[frame, present].mean(axis=0)
+    singular = np.linalg.svd(spread, compute_uv=False)
+    if present.sum() < 3 or singular[1] <= 1e-9 * max(singular[0], 1e-300):
+        raise OptionError(f"the take's {int(present.sum())} markers at its neutral frame {frame} do not span "
+                          "a plane (3 not in a line are needed to align it)")
+    return int(frame)
+
+
 def _rigid_motion(frames, first):
     """How far the rigid motion from ``first`` (M, 3) to each of ``frames`` (K, M, 3) moves the
     markers: (K,) Σ_m |R first_m + t − first_m|² of the least-squares rigid fit (Kabsch). Aligning

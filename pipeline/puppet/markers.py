@@ -12,7 +12,7 @@ order :func:`drive_from_markers` runs them (each an option of ``play``):
    a few centimetres of travel, and a spline overshoots at a marker's noisy ends. Then every
    marker's runs of samples are **low-passed** (``cutoff`` Hz, default
    :data:`.marker_filter.BODY_CUTOFF`; None keeps them raw): a zero-phase Butterworth along time,
-   as mocap tools filter before anything reads the trajectories (:func:`.marker_filter.lowpass_runs`)
+   as mocap tools filter before anything reads the trajectories (:func:`.marker_filter.filter_take`)
    — before the neutral frame is read, whose noise would otherwise offset every frame.
 3. **Stabilised** (``--stabilize A,B,C``): each frame's rigid motion of three or more markers
    (a face's head markers) relative to the neutral frame is removed from every marker
@@ -47,8 +47,8 @@ import numpy as np
 from ..errors import OptionError
 from .marker_gaps import (MAX_GAP, fill_from_training, fill_rigid_clusters, fill_short_gaps, fill_uncertainty,
                           join_filled_runs, rigid_onto, training_subspace)
-from .marker_filter import BODY_CUTOFF, ORDER, can_filter, lowpass_runs, removed_noise, unfiltered_samples
-from .marker_neutral import (QUIET_PERIODS, closest_to_rest, frame_gains, residual_summary, sample_noise,
+from .marker_filter import BODY_CUTOFF, ORDER, filter_take
+from .marker_neutral import (choose_neutral_frame, frame_gains, residual_summary, sample_noise,
                              shrink_neutral_residual)
 
 #: A frame is reported as filled uncertainly where a filled marker's expected error
@@ -226,55 +226,19 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     -> :class:`MarkerDrive`; OptionError (one line) for an option the take cannot satisfy."""
     points = np.asarray(points, dtype=np.float64)
     frames, count = points.shape[:2]
-    if retarget not in RETARGETS:
-        raise OptionError(f"--retarget must be one of {', '.join(RETARGETS)} (got {retarget})")
-    if max_gap < 0:
-        raise OptionError(f"--max-gap must be ≥ 0 frames (got {max_gap})")
-    if not (np.isfinite(fps) and fps > 0):
-        raise OptionError(f"--fps must be a positive number (got {fps})")
-    if min_markers is not None and not 3 <= min_markers <= count:
-        raise OptionError(f"--min-markers must be between 3 and the layout's {count} markers (got {min_markers})")
+    _check_drive_options(retarget, max_gap, fps, min_markers, count)
     offsets = np.zeros(count) if offsets is None else np.asarray(offsets, dtype=np.float64)
     normals = np.zeros((count, 3)) if normals is None else np.asarray(normals, dtype=np.float64)
     turn = up_axis_rotation(take_up, puppet_up) / meters_per_unit  # metres, take up -> mesh units, puppet up
     local = points @ turn.T
     noise = sample_noise(local)
     local, interpolated = fill_short_gaps(local, max_gap)
-    if cutoff is not None:
-        if not (np.isfinite(cutoff) and cutoff > 0):
-            raise OptionError(f"--filter must be a positive cut-off in Hz or none (got {cutoff:g})")
-        cutoff = float(cutoff) if can_filter(rate, cutoff) else None
-    raw, kept_raw = local, 0
-    if cutoff is not None:  # runs too short for the filter stay raw; none long enough: the take is raw
-        seen = ~np.isnan(local).any(axis=2)
-        kept_raw = int(unfiltered_samples(seen, rate, cutoff).sum())
-        if kept_raw == int(seen.sum()):
-            cutoff, kept_raw = None, 0
-    if cutoff is not None:
-        local = lowpass_runs(local, rate, cutoff)
+    filtered = filter_take(local, rate, cutoff, exclude=interpolated)
+    local, cutoff = filtered.points, filtered.cutoff
     present = ~np.isnan(local).any(axis=2).all(axis=0)  # (n,) the markers the take has (seen at all)
     targets = reference + offsets[:, None] * normals
-    # each marker's noise per coordinate, from what the filter removed (none known on a raw take)
-    variances = removed_noise(raw, local, rate, cutoff, exclude=interpolated) if cutoff is not None else None
-    if neutral_frame is None:
-        gains = (lambda frame: frame_gains(local, rate, cutoff, frame)) if cutoff is not None else None
-        within = int(np.ceil(QUIET_PERIODS * rate / cutoff)) if cutoff is not None else 0
-        neutral_frame = closest_to_rest(local, targets, present, noise, gains, variances, within)
-        if neutral_frame is None:
-            raise OptionError("no frame of the take sees every marker it has (after filling short gaps): give "
-                              "--neutral-frame a frame that does, or --max-gap more frames")
-    elif not 0 <= neutral_frame < frames:
-        raise OptionError(f"--neutral-frame {neutral_frame} is outside the take's frames 0..{frames - 1}")
-    elif np.isnan(local[neutral_frame, present]).any():
-        lost = np.flatnonzero(present & np.isnan(local[neutral_frame]).any(axis=1))
-        names = [str(labels[m]) if labels is not None else str(m) for m in lost]
-        raise OptionError(f"--neutral-frame {neutral_frame} lacks markers {', '.join(names)}: the neutral "
-                          "frame needs every marker the take has")
-    spread = local[neutral_frame, present] - local[neutral_frame, present].mean(axis=0)
-    singular = np.linalg.svd(spread, compute_uv=False)
-    if present.sum() < 3 or singular[1] <= 1e-9 * max(singular[0], 1e-300):
-        raise OptionError(f"the take's {int(present.sum())} markers at its neutral frame {neutral_frame} do not span "
-                          "a plane (3 not in a line are needed to align it)")
+    neutral_frame = choose_neutral_frame(local, targets, present, noise, rate, cutoff, filtered.variances,
+                                         frame=neutral_frame, labels=labels)
     if len(stabilize):
         if len(set(stabilize)) < 3:
             raise OptionError("--stabilize needs at least 3 distinct markers")
@@ -284,30 +248,14 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     by_cluster = np.zeros((frames, count), dtype=bool)
     if bones is not None:
         markers, by_cluster = fill_rigid_clusters(markers, np.asarray(bones), neutral_frame)
-    residual = targets - markers[neutral_frame]  # (n, 3): the neutral frame's miss of its targets
-    # its noise per coordinate, in the targets' units: what the filter leaves of each marker's there
-    noise_there = (variances * frame_gains(local, rate, cutoff, neutral_frame) * scale ** 2
+    # the neutral frame's noise per coordinate, in the targets' units: what the filter leaves of each marker's there
+    noise_there = (filtered.variances * frame_gains(local, rate, cutoff, neutral_frame) * scale ** 2
                    if cutoff is not None else np.zeros(count))
-    neutral = residual_summary(residual, noise_there, 1.0)
-    if retarget == "delta":
-        if cutoff is not None:  # a raw take (--filter none) is taken as measured
-            residual, neutral["kept"] = shrink_neutral_residual(residual, noise_there)
-        controls = markers + (reference - targets) + residual  # reference + displacement, less the noise
-    else:
-        controls = markers
-        if np.any(offsets):  # back onto the skin: the rest normal turned with the frame's markers
-            seen = ~np.isnan(markers).any(axis=2)
-            turns, _ = rigid_onto(markers, targets, seen)  # frame -> rest; its transpose turns rest normals
-            controls = markers - offsets[None, :, None] * np.einsum("tba,mb->tma", turns, normals)
+    controls, neutral = _retarget(markers, reference, targets, offsets, normals, neutral_frame, noise_there,
+                                  retarget, shrink=cutoff is not None)
     if min_markers is None:  # half the markers the take has (a partial set plays), at least 3
         min_markers = max(3, -(-int(present.sum()) // 2))
-    subspace = training_subspace(training)
-    seen_controls = controls
-    controls, by_subspace, held = fill_from_training(controls, training, min_markers, subspace=subspace)
-    controls = join_filled_runs(controls, by_subspace, seen_controls, training, subspace=subspace)
-    side = max(float(np.ptp(reference, axis=0).max()), 1e-300)
-    uncertainty = fill_uncertainty(by_subspace, training, subspace=subspace) / side
-    uncertainty[held] = np.sqrt(3.0 * subspace[2].sum() / count) / side
+    controls, by_subspace, held, uncertainty = _fill_long_gaps(controls, training, min_markers, reference)
     # the drawn markers follow their controls where they were filled
     markers = np.where(np.isnan(markers), controls + (markers[neutral_frame] - reference
                                                       if retarget == "delta" else 0.0), markers)
@@ -317,12 +265,59 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     return MarkerDrive(controls=controls, markers=markers, times=np.arange(len(controls)) / fps,
                        scale=float(np.cbrt(np.linalg.det(total))), rotation=total / np.cbrt(np.linalg.det(total)),
                        translation=translation, neutral_frame=int(neutral_frame),
-                       interpolated={m: np.flatnonzero(interpolated[:, m]) for m in range(count)
-                                     if interpolated[:, m].any()},
-                       subspace={m: np.flatnonzero(by_subspace[:, m]) for m in range(count) if by_subspace[:, m].any()},
-                       rigid={m: np.flatnonzero(by_cluster[:, m]) for m in range(count) if by_cluster[:, m].any()},
-                       held=held, min_markers=min_markers, cutoff=cutoff, uncertainty=uncertainty,
-                       kept_raw=kept_raw, neutral=neutral)
+                       interpolated=_frames_by_marker(interpolated), subspace=_frames_by_marker(by_subspace),
+                       rigid=_frames_by_marker(by_cluster), held=held, min_markers=min_markers, cutoff=cutoff,
+                       uncertainty=uncertainty, kept_raw=filtered.kept_raw, neutral=neutral)
+
+
+def _check_drive_options(retarget, max_gap, fps, min_markers, count):
+    """OptionError (one line) for a value of :func:`drive_from_markers` no take can satisfy."""
+    if retarget not in RETARGETS:
+        raise OptionError(f"--retarget must be one of {', '.join(RETARGETS)} (got {retarget})")
+    if max_gap < 0:
+        raise OptionError(f"--max-gap must be ≥ 0 frames (got {max_gap})")
+    if not (np.isfinite(fps) and fps > 0):
+        raise OptionError(f"--fps must be a positive number (got {fps})")
+    if min_markers is not None and not 3 <= min_markers <= count:
+        raise OptionError(f"--min-markers must be between 3 and the layout's {count} markers (got {min_markers})")
+
+
+def _retarget(markers, reference, targets, offsets, normals, neutral_frame, noise_there, retarget, shrink):
+    """Step 5: the aligned markers (T, n, 3) as controls (T, n, 3), and the neutral frame's report
+    (:func:`.marker_neutral.residual_summary`). ``delta``: the rest controls plus each marker's
+    displacement, i.e. the markers plus the neutral frame's residual from their targets (n, 3),
+    shrunk (``shrink``, a filtered take) by its noise ``noise_there`` (n,) per coordinate;
+    ``absolute``: the markers, less their skin offset along the rest normal turned with the frame."""
+    residual = targets - markers[neutral_frame]  # (n, 3): the neutral frame's miss of its targets
+    neutral = residual_summary(residual, noise_there, 1.0)
+    if retarget == "delta":
+        if shrink:  # a raw take (--filter none) is taken as measured
+            residual, neutral["kept"] = shrink_neutral_residual(residual, noise_there)
+        return markers + (reference - targets) + residual, neutral  # reference + displacement, less the noise
+    if not np.any(offsets):
+        return markers, neutral
+    seen = ~np.isnan(markers).any(axis=2)
+    turns, _ = rigid_onto(markers, targets, seen)  # frame -> rest; its transpose turns rest normals
+    return markers - offsets[None, :, None] * np.einsum("tba,mb->tma", turns, normals), neutral
+
+
+def _fill_long_gaps(controls, training, min_markers, reference):
+    """Step 6 on controls (T, n, 3), NaN where missing, from the training controls (n_p, n, 3):
+    (filled controls, by_subspace (T, n) bool, held (take frames), uncertainty (T,) over the rest
+    controls' largest side; a held frame's is its pose's whole spread over the training poses)."""
+    count = controls.shape[1]
+    subspace = training_subspace(training)
+    filled, by_subspace, held = fill_from_training(controls, training, min_markers, subspace=subspace)
+    filled = join_filled_runs(filled, by_subspace, controls, training, subspace=subspace)
+    side = max(float(np.ptp(reference, axis=0).max()), 1e-300)
+    uncertainty = fill_uncertainty(by_subspace, training, subspace=subspace) / side
+    uncertainty[held] = np.sqrt(3.0 * subspace[2].sum() / count) / side
+    return filled, by_subspace, held, uncertainty
+
+
+def _frames_by_marker(done):
+    """done (T, n) bool -> {marker: its take frames} for the markers with any."""
+    return {m: np.flatnonzero(done[:, m]) for m in range(done.shape[1]) if done[:, m].any()}
 
 
 def frame_ranges(frames):

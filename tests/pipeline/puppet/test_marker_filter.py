@@ -134,3 +134,27 @@ def test_the_noise_removed_measures_the_takes_noise():
     interpolated = np.zeros(raw.shape[:2], dtype=bool)
     variances = removed_noise(raw, lowpass_runs(raw, rate, BODY_CUTOFF), rate, BODY_CUTOFF, exclude=interpolated)
     np.testing.assert_allclose(np.sqrt(variances), sigma * np.array([1.0, 1.0, 2.0, 0.5]), rtol=0.05)
+
+
+def test_a_take_is_filtered_where_it_can_be_and_says_what_was_kept_raw():
+    """filter_take: long runs filtered and their noise read, a short run kept raw and counted; a take
+    too slow for the cut-off or with no run long enough kept raw with no cut-off reported."""
+    from skinsynth.pipeline.errors import OptionError
+    from skinsynth.pipeline.puppet.marker_filter import filter_take
+
+    rate, sigma = 100.0, 0.002
+    motion = np.stack([_moving(600, rate, seed) for seed in range(2)], axis=1)  # (T, 2, 3)
+    raw = motion + sigma * np.random.default_rng(4).normal(size=motion.shape)
+    raw[300:310, 1] = np.nan
+    raw[320:600, 1] = np.nan  # marker 1: a run of 300, then one of 10 (too short for 40 samples' reach)
+    took = filter_take(raw, rate, BODY_CUTOFF)
+    assert took.cutoff == BODY_CUTOFF and took.kept_raw == 10
+    np.testing.assert_array_equal(took.points[310:320, 1], raw[310:320, 1])
+    assert np.sqrt(np.mean((took.points[100:200] - motion[100:200]) ** 2)) < 0.7 * sigma  # raw: 1, filtered 0.46
+    np.testing.assert_allclose(np.sqrt(took.variances), sigma, rtol=0.15)
+    for slow in (filter_take(raw, 15.0, BODY_CUTOFF), filter_take(raw[:30], rate, BODY_CUTOFF),
+                 filter_take(raw, rate, None)):
+        assert slow.cutoff is None and slow.kept_raw == 0 and slow.variances is None
+        assert np.array_equal(slow.points, raw[:len(slow.points)], equal_nan=True)
+    with pytest.raises(OptionError, match="positive cut-off"):
+        filter_take(raw, rate, -2.0)
