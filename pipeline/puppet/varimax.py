@@ -43,7 +43,7 @@ def varimax(loadings, normalize=False, tol=1e-8, max_iter=500):
     criterion = 0.0
     for _ in range(max_iter):
         rotated = work @ rotation
-        gradient = work.T @ (rotated ** 3 - rotated * (np.sum(rotated ** 2, axis=0) / p))
+        gradient = work.T @ (rotated * (rotated * rotated - np.sum(rotated * rotated, axis=0) / p))
         u, s, vt = np.linalg.svd(gradient)
         rotation = u @ vt
         previous, criterion = criterion, float(np.sum(s))
