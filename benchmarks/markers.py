@@ -15,9 +15,10 @@ Builds, as a user would, the samba puppet on the controls of the committed Plug-
   (``select-controls --markers``), and takes written from those vertices at 100 Hz (from 24 fps),
   in millimetres, turned and moved, played with no neutral frame given: ``clean``, ``noise``
   (0.1 % of the height), ``gaps`` (5 % of the samples in runs of 1–30 frames, the first sample
-  too), and ``both``; each one's mean vertex error over the capture's frames against that of
-  playing the clean control vertices (``error_ratio``), and its worst frame's against the clean
-  controls' worst (``worst_ratio``), with seed 11; the same over seeds 11–15
+  too), ``both``, and ``still_noise`` (the noise take after a second of the first frame held,
+  as a real take starts in a calibration pose; scored after it); each one's mean vertex error
+  over the capture's frames against that of playing the clean control vertices (``error_ratio``),
+  and its worst frame's against the clean controls' worst (``worst_ratio``), with seed 11; the same over seeds 11–15
   (``error_ratio_mean``, ``error_ratio_max``, ``worst_ratio_max``).
 - ``take``: each real take in ../shared/data/mocap_c3d played to .glb and .usdc: frames, NaN,
   the extrapolation per frame (mean, worst), the markers filled and frames held.
@@ -113,6 +114,9 @@ HELD_MARKERS, HELD_RATE = 16, 100.0
 #: The takes' noise and gaps are drawn with the first seed (the must-show's take), then again with
 #: the others: a rule that holds only on one draw is fitted to it.
 HELD_SEEDS = (11, 12, 13, 14, 15)
+#: ``still_noise``: the noise take with the capture's first frame held this long before it, as a
+#: real take starts in a calibration pose (the shared tennis serve: still for its first second).
+HELD_STILL_SECONDS = 1.0
 
 
 def farthest_points(points, count):
@@ -147,24 +151,27 @@ def held_out(work, capture):
     run(["play", puppet, "-c", "clean.npy", "-o", "clean.h5", "-q"], folder)
     truth_frames = skin.examples.astype(np.float64)
 
-    def errors(name):
-        vertices = played(os.path.join(folder, f"{name}.h5"))
+    def errors(name, skip=0):
+        vertices = played(os.path.join(folder, f"{name}.h5"))[skip:]
         count = min(len(vertices), len(truth_frames))
         per_frame = np.linalg.norm(vertices[:count] - truth_frames[:count], axis=2).mean(axis=1)
         return float(per_frame.mean()), float(per_frame.max())
 
     clean_mean, clean_worst = errors("clean")
     factor = HELD_RATE / float(skin.fps)
+    held = int(round(HELD_STILL_SECONDS * float(skin.fps)))  # capture frames of the still start
     for name, noise, missing in (("clean", 0.0, 0.0), ("noise", 0.001 * height, 0.0), ("gaps", 0.0, 0.05),
-                                 ("both", 0.001 * height, 0.05)):
+                                 ("both", 0.001 * height, 0.05), ("still_noise", 0.001 * height, 0.0)):
         rows = []
+        skip = held if name.startswith("still") else 0
+        performed = np.concatenate([np.repeat(frames[:1], skip, axis=0), frames])
         for seed in HELD_SEEDS:  # the first is the must-show's take; the others, its noise and gaps drawn again
-            points = take_points(frames, factor, HELD_SCALE, HELD_ROTATION, HELD_SHIFT_MM, noise=noise,
+            points = take_points(performed, factor, HELD_SCALE, HELD_ROTATION, HELD_SHIFT_MM, noise=noise,
                                  missing=missing, longest=30, seed=seed, keep_first=False)
             write_c3d(os.path.join(folder, f"take_{name}.c3d"), [f"Dancer:{label}" for label in layout], points,
                       HELD_RATE, units="mm")
             _, _, _, stdout = run(["play", puppet, "-c", f"take_{name}.c3d", "-o", f"take_{name}.h5", "--json"], folder)
-            rows.append((*errors(f"take_{name}"), json.loads(stdout)["takes"][0]))
+            rows.append((*errors(f"take_{name}", skip), json.loads(stdout)["takes"][0]))
             if name == "clean":
                 break  # nothing drawn
         (mean, worst, report), ratios = rows[0], [m / clean_mean for m, _, _ in rows]
@@ -173,6 +180,7 @@ def held_out(work, capture):
                "error_take": mean / height, "error_ratio": round(mean / clean_mean, 3),
                "worst_ratio": round(worst / clean_worst, 3), "neutral_frame": report["neutral_frame"],
                "neutral_kept": round(report["neutral_residual"]["kept"], 3),
+               "neutral_frames": report["neutral_residual"]["frames"],
                "samples_filled": int(sum(v["frames"] for v in report["filled"].values())),
                "seeds": list(HELD_SEEDS[:len(rows)]), "error_ratio_mean": round(float(np.mean(ratios)), 3),
                "error_ratio_max": round(float(np.max(ratios)), 3),

@@ -75,7 +75,8 @@ def marker_take_options(command):
                           "[default: the puppet's]"),
         click.option("--neutral-frame", default=None, type=int,
                      help="C3D: the take frame (0-based) posed as the puppet's rest pose, where the take is aligned "
-                          "[default: the one nearest it seeing every marker the take has]"),
+                          "(over the frames around it where the pose is held) [default: the one nearest it seeing "
+                          "every marker the take has]"),
         click.option("--retarget", default="delta", show_default=True, type=click.Choice(["delta", "absolute"]),
                      help="C3D: delta moves each control by its marker's displacement from the neutral frame (a "
                           "performer of other proportions keeps the character's shape); absolute puts the "

@@ -155,6 +155,21 @@ def noise_gains(rate, cutoff, position, length):
     return kept, 1.0 - 2.0 * float(row[position - start]) + kept
 
 
+def combined_noise_gain(rate, cutoff, first, weights, length):
+    """What :func:`lowpass` leaves of white noise of variance 1 in Σ_k weights_k · filtered[first + k],
+    a weighted sum of consecutive samples of a run of ``length`` (cutoff None: a raw run): the
+    filtered identity's rows there, weighted, squared and summed (for one sample and weight 1,
+    :func:`noise_gains`' kept share). weights (K,) -> a float; (W, K), several sums -> (W,)."""
+    weights = np.asarray(weights, dtype=np.float64)
+    if cutoff is None:
+        return np.sum(weights ** 2, axis=-1)
+    reach = min(shortest_run(rate, cutoff), MAX_REACH)
+    start, end = max(0, int(first) - reach), min(int(length), int(first) + weights.shape[-1] + reach)
+    rows = lowpass(np.eye(end - start), rate, cutoff)[first - start:first - start + weights.shape[-1]]
+    combined = weights @ rows
+    return np.sum(combined ** 2, axis=-1)
+
+
 def removed_noise(raw, filtered, rate, cutoff, exclude=None):
     """Each marker's measurement noise variance per coordinate (M,), from what :func:`lowpass_runs`
     removed: raw, filtered (T, M, 3) NaN where missing; exclude (T, M) bool: samples that carry no

@@ -4,25 +4,43 @@ trust (:func:`shrink_neutral_residual`) (:func:`.markers.drive_from_markers`'s s
 The neutral frame is the one pose where the performer matches the puppet's rest pose: the take is
 aligned there, and a ``delta`` retargeting adds its residual from the rest controls to every
 frame. So its noise does not average away over the take: it turns the whole performance (the
-alignment) and offsets every frame (the residual). Two rules keep it small, both from the noise
+alignment) and offsets every frame (the residual). Three rules keep it small, all from the noise
 the low-pass removed (:func:`.marker_filter.removed_noise`), i.e. the filter's own assumption that
 what lies above its cut-off is noise:
 
 - among the frames tied for nearest the rest pose, one inside a run of samples is preferred to a
   run's end sample, which the filter leaves with all its raw noise, where the noise saved
   outweighs the pose given up (:func:`closest_to_rest`);
+- a pose held (a calibration pose) is read as its mean over the frames it is held, not at one
+  (:func:`still_window`, :func:`neutral_pose`);
 - the residual is shrunk towards none by as much as that noise could explain (James–Stein).
 """
 
 import numpy as np
 
-from .marker_filter import noise_gains
+from .marker_filter import MAX_REACH, combined_noise_gain, noise_gains
 
 #: How far after the first tie a quieter neutral frame is looked for (:func:`closest_to_rest`), in
 #: periods of the filter's cut-off: the filter leaves a run's end sample all its raw noise and is
 #: back within 10 % of its interior gain about a fifth of a period in (2 samples at 10 Hz of
 #: 100 Hz, 5 of 240 Hz); half a period leaves room and gives up little pose.
 QUIET_PERIODS = 0.5
+#: The longest still stretch read for the neutral pose (:func:`still_window`), in seconds each way
+#: from the neutral frame: a capture's calibration pose is held for a second or two, and a second
+#: of samples already leaves its noise a few hundredths of one sample's. At most
+#: :data:`.marker_filter.MAX_REACH` samples each way.
+STILL_SECONDS = 1.0
+#: A frame is as still as the neutral one while its markers' squared distance from the neutral
+#: frame's, summed over them, stays within this many times the noise variance of one filtered
+#: sample (summed the same way): twice what two independent samples' noise puts there on
+#: average, beyond which noise alone rarely goes (16 markers: a χ² of 48 degrees of freedom,
+#: 2× its mean is 5 standard deviations up) and motion soon does.
+STILL_NOISE = 4.0
+#: The shortest still stretch read as a pose held, in seconds: a calibration pose is held for a
+#: second or more, while motion passing through the rest pose looks still for a few samples (the
+#: held-out takes, which start in mid-motion: 60–90 ms at 100 Hz), too short for its mean to be
+#: told from a drift; a quarter second of stillness is a pose held.
+STILL_SHORTEST = 0.25
 
 
 def sample_noise(points):
@@ -112,6 +130,61 @@ def choose_neutral_frame(points, targets, present, noise, rate, cutoff, variance
         raise OptionError(f"the take's {int(present.sum())} markers at its neutral frame {frame} do not span "
                           "a plane (3 not in a line are needed to align it)")
     return int(frame)
+
+
+def still_window(points, frame, present, noise, rate):
+    """(first, last): the take frames around ``frame`` (both included) over which the performer
+    holds the neutral pose, grown from it both ways while every ``present`` (M,) marker is seen and
+    Σ_m |points_t,m − points_frame,m|² (points (T, M, 3)) stays within :data:`STILL_NOISE` × ``noise``
+    (one sample's noise variance, Σ over coordinates and those markers), at most
+    :data:`STILL_SECONDS` each way."""
+    reach = max(0, min(int(STILL_SECONDS * rate), MAX_REACH))
+    lo, hi = max(0, frame - reach), min(len(points), frame + reach + 1)
+    moved = np.sum((points[lo:hi][:, present] - points[frame, present]) ** 2, axis=(1, 2))  # NaN: unseen
+    still = moved <= STILL_NOISE * noise
+    at = frame - lo
+    breaks = np.flatnonzero(~still)
+    first = breaks[breaks < at].max(initial=-1) + 1
+    last = breaks[breaks > at].min(initial=len(still)) - 1
+    return int(lo + first), int(lo + last)
+
+
+def neutral_pose(points, frame, window, present, variances, rate, cutoff):
+    """The neutral markers (M, 3) (NaN where not ``present``) of points (T, M, 3) filtered at
+    ``cutoff`` Hz, the share of white noise left in each (M,), and the frames read, (first, last):
+    the mean over the still ``window`` (:func:`still_window`) where it is a pose held
+    (:data:`STILL_SHORTEST` seconds or more) to within what that mean's own noise explains — the
+    means of its first and second halves apart by no more than :data:`STILL_NOISE` / 2 × the
+    variance noise alone puts between them (``variances`` (M,) each marker's per coordinate), so a
+    slow drift that the per-frame test lets through is not averaged in — and where the mean leaves
+    less noise than the frame; else the frame's own markers."""
+    from .marker_gaps import runs
+
+    first, last = window
+    single = frame_gains(points, rate, cutoff, frame)
+    alone = (np.where(present[:, None], points[frame], np.nan), single * present, (frame, frame))
+    length = last - first + 1
+    if length < max(2, STILL_SHORTEST * rate):
+        return alone
+    half = length // 2
+    sums = np.stack([np.full(length, 1.0 / length),  # the mean, and its halves' difference (the drift)
+                     np.r_[np.full(half, 1.0 / half), np.zeros(length - 2 * half), np.full(half, -1.0 / half)]])
+    gains, drift_gains = np.zeros((2, points.shape[1]))
+    by_run = {}  # markers seen over the same run share its filter rows
+    for marker in np.flatnonzero(present):  # markers, never vertices
+        starts, ends = runs(~np.isnan(points[:, marker]).any(axis=1))
+        at = np.searchsorted(ends, frame, side="right")  # the run holding the window
+        key = (first - starts[at], ends[at] - starts[at])
+        if key not in by_run:
+            by_run[key] = combined_noise_gain(rate, cutoff, key[0], sums, key[1])
+        gains[marker], drift_gains[marker] = by_run[key]
+    seen = points[first:last + 1][:, present]
+    moved = np.sum((seen[:half].mean(axis=0) - seen[length - half:].mean(axis=0)) ** 2)
+    if moved > STILL_NOISE / 2 * 3.0 * float(variances @ drift_gains) or gains @ variances >= single @ variances:
+        return alone
+    pose = np.full(points.shape[1:], np.nan)
+    pose[present] = seen.mean(axis=0)
+    return pose, gains, window
 
 
 def _rigid_motion(frames, first):

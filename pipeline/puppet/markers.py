@@ -21,7 +21,9 @@ order :func:`drive_from_markers` runs them (each an option of ``play``):
    neutral calibration; default the frame closest to the rest pose among those seeing every
    marker the take has, :func:`.marker_neutral.closest_to_rest`) is mapped onto the puppet's
    reference controls by the least-squares similarity of Umeyama 1991 (scale, rotation,
-   translation; :func:`similarity_transform`). Markers sitting ``offset`` out from the skin are
+   translation; :func:`similarity_transform`); on a filtered take where the pose is held (a
+   calibration pose), its markers are their mean over the frames it is held
+   (:func:`.marker_neutral.neutral_pose`). Markers sitting ``offset`` out from the skin are
    aimed at the rest control vertex moved that far along its normal.
 5. **Retargeting.** ``delta`` (default): each control moves by its marker's displacement from
    the neutral frame, carried by that transform, so the rest shape is the character's own and a
@@ -48,8 +50,8 @@ from ..errors import OptionError
 from .marker_gaps import (MAX_GAP, fill_from_training, fill_rigid_clusters, fill_short_gaps, fill_uncertainty,
                           join_filled_runs, rigid_onto, training_subspace)
 from .marker_filter import BODY_CUTOFF, ORDER, filter_take
-from .marker_neutral import (choose_neutral_frame, frame_gains, residual_summary, sample_noise,
-                             shrink_neutral_residual)
+from .marker_neutral import (choose_neutral_frame, frame_gains, neutral_pose, residual_summary, sample_noise,
+                             shrink_neutral_residual, still_window)
 
 #: A frame is reported as filled uncertainly where a filled marker's expected error
 #: (:func:`.marker_gaps.fill_uncertainty`) exceeds this share of the rest controls' largest side: 1 %, about
@@ -75,8 +77,9 @@ class MarkerDrive:
     no run of samples long enough); kept_raw: samples of a filtered take left raw, their runs too
     short (:func:`.marker_filter.shortest_run`); neutral: the
     neutral frame's residual from the rest controls ("residual", root mean square over the
-    markers, mesh units), the noise in it ("noise") and the share kept ("kept",
-    :func:`.marker_neutral.shrink_neutral_residual`); uncertainty (F,): each output frame's
+    markers, mesh units), the noise in it ("noise"), the share kept ("kept",
+    :func:`.marker_neutral.shrink_neutral_residual`) and the take frames its pose was read over
+    ("frames": [first, last], the neutral frame twice where it was read alone); uncertainty (F,): each output frame's
     expected error of a marker filled from the others (:func:`.marker_gaps.fill_uncertainty`, 0
     where none is), over the rest controls' largest side; a held frame's is its pose's whole
     spread over the training poses (nothing was seen to fit).
@@ -243,21 +246,30 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
         if len(set(stabilize)) < 3:
             raise OptionError("--stabilize needs at least 3 distinct markers")
         local = stabilize_markers(local, stabilize, neutral_frame)
-    scale, rotation, translation = similarity_transform(local[neutral_frame, present], targets[present])
+    # a filtered take's neutral pose is read over the frames the performer holds it (a calibration
+    # pose), with its noise; a raw one's (--filter none) taken as measured at the frame
+    still, pose = (neutral_frame, neutral_frame), np.where(present[:, None], local[neutral_frame], np.nan)
+    if cutoff is not None:
+        one_sample = 3.0 * float(filtered.variances @ frame_gains(local, rate, cutoff, neutral_frame))
+        still = still_window(local, neutral_frame, present, one_sample, rate)
+        pose, gains, still = neutral_pose(local, neutral_frame, still, present, filtered.variances, rate,
+                                          cutoff)
+    scale, rotation, translation = similarity_transform(pose[present], targets[present])
     markers = scale * local @ rotation.T + translation  # NaN where still missing
     by_cluster = np.zeros((frames, count), dtype=bool)
     if bones is not None:
         markers, by_cluster = fill_rigid_clusters(markers, np.asarray(bones), neutral_frame)
-    # the neutral frame's noise per coordinate, in the targets' units: what the filter leaves of each marker's there
-    noise_there = (filtered.variances * frame_gains(local, rate, cutoff, neutral_frame) * scale ** 2
-                   if cutoff is not None else np.zeros(count))
-    controls, neutral = _retarget(markers, reference, targets, offsets, normals, neutral_frame, noise_there,
+    # the neutral pose's noise per coordinate, in the targets' units: what the filter leaves of each marker's there
+    noise_there = filtered.variances * gains * scale ** 2 if cutoff is not None else np.zeros(count)
+    aligned_pose = scale * pose @ rotation.T + translation
+    controls, neutral = _retarget(markers, aligned_pose, reference, targets, offsets, normals, noise_there,
                                   retarget, shrink=cutoff is not None)
+    neutral["frames"] = list(still)
     if min_markers is None:  # half the markers the take has (a partial set plays), at least 3
         min_markers = max(3, -(-int(present.sum()) // 2))
     controls, by_subspace, held, uncertainty = _fill_long_gaps(controls, training, min_markers, reference)
     # the drawn markers follow their controls where they were filled
-    markers = np.where(np.isnan(markers), controls + (markers[neutral_frame] - reference
+    markers = np.where(np.isnan(markers), controls + (aligned_pose - reference
                                                       if retarget == "delta" else 0.0), markers)
     controls, markers = resample_uniform(controls, rate, fps), resample_uniform(markers, rate, fps)
     uncertainty = resample_uniform(uncertainty, rate, fps)
@@ -282,13 +294,14 @@ def _check_drive_options(retarget, max_gap, fps, min_markers, count):
         raise OptionError(f"--min-markers must be between 3 and the layout's {count} markers (got {min_markers})")
 
 
-def _retarget(markers, reference, targets, offsets, normals, neutral_frame, noise_there, retarget, shrink):
-    """Step 5: the aligned markers (T, n, 3) as controls (T, n, 3), and the neutral frame's report
+def _retarget(markers, pose, reference, targets, offsets, normals, noise_there, retarget, shrink):
+    """Step 5: the aligned markers (T, n, 3) as controls (T, n, 3), and the neutral pose's report
     (:func:`.marker_neutral.residual_summary`). ``delta``: the rest controls plus each marker's
-    displacement, i.e. the markers plus the neutral frame's residual from their targets (n, 3),
-    shrunk (``shrink``, a filtered take) by its noise ``noise_there`` (n,) per coordinate;
-    ``absolute``: the markers, less their skin offset along the rest normal turned with the frame."""
-    residual = targets - markers[neutral_frame]  # (n, 3): the neutral frame's miss of its targets
+    displacement, i.e. the markers plus the aligned neutral pose's (n, 3) residual from their
+    targets (n, 3), shrunk (``shrink``, a filtered take) by its noise ``noise_there`` (n,) per
+    coordinate; ``absolute``: the markers, less their skin offset along the rest normal turned with
+    the frame."""
+    residual = targets - pose  # (n, 3): the neutral pose's miss of its targets
     neutral = residual_summary(residual, noise_there, 1.0)
     if retarget == "delta":
         if shrink:  # a raw take (--filter none) is taken as measured
@@ -357,9 +370,12 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
                                     "uncertain_frames": frame_ranges(np.flatnonzero(drive.uncertainty
                                                                                     > UNCERTAIN))}}
     name = os.path.basename(str(path))
+    held = drive.neutral.get("frames", [drive.neutral_frame] * 2)
     lines = [f"{name}: {take.points.shape[0]} frames at {take.rate:g} Hz ({take.units}, from {take.units_source}) -> "
              f"{len(drive.controls)} frames at {fps:g} fps from {take.first_time:g} s; {len(labels)} markers, aligned "
-             f"at take frame {drive.neutral_frame} (scale {drive.scale:.4g}), {retarget} retargeting"
+             f"at take frame {drive.neutral_frame}" + (f" (its pose held over frames {held[0]}–{held[1]})"
+                                                       if held[1] > held[0] else "")
+             + f" (scale {drive.scale:.4g}), {retarget} retargeting"
              + (f" (of the neutral frame's residual {drive.neutral['residual']:.3g}, its noise about "
                 f"{drive.neutral['noise']:.3g}, {drive.neutral['kept']:.0%} kept), "
                 if drive.neutral.get("kept", 1.0) < 1.0 else ", ")

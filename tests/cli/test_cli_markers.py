@@ -152,16 +152,19 @@ def test_a_partial_marker_set_plays_with_allow_missing(puppet, tmp_path):
 def test_the_take_is_low_passed_by_default_and_reported(puppet, tmp_path):
     folder, labels, picks = puppet
     take, _ = _take(folder, labels, picks, "filtered.c3d")
-    runs, neutral = {}, {}
+    runs, neutral, frame = {}, {}, {}
     for name, extra in (("default", []), ("raw", ["--filter", "none"]), ("three", ["--filter", "3"])):
         summary = json.loads(assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / f"{name}.h5",
                                            "--json", *extra)).stdout)["takes"][0]
         runs[name], neutral[name] = summary["filter"], summary["neutral_residual"]
+        frame[name] = summary["neutral_frame"]
     assert runs["default"] == {"cutoff_hz": 10.0, "order": 2, "passes": 2, "samples_kept_raw": 0}
     assert runs["raw"] == "none"
     # the neutral frame's residual and the noise in it: none known on a raw take, which keeps it whole
-    assert set(neutral["default"]) == {"residual", "noise", "kept"} and 0.0 <= neutral["default"]["kept"] <= 1.0
+    assert set(neutral["default"]) == {"residual", "noise", "kept", "frames"}
+    assert 0.0 <= neutral["default"]["kept"] <= 1.0
     assert neutral["default"]["noise"] > 0.0 and neutral["raw"]["noise"] == 0.0 and neutral["raw"]["kept"] == 1.0
+    assert neutral["raw"]["frames"] == [frame["raw"]] * 2  # raw: the neutral frame as measured
     assert runs["three"]["cutoff_hz"] == 3.0
     with h5py.File(tmp_path / "raw.h5", "r") as a, h5py.File(tmp_path / "three.h5", "r") as b:
         raw, cut = a["vertices"][()], b["vertices"][()]

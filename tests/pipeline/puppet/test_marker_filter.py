@@ -158,3 +158,19 @@ def test_a_take_is_filtered_where_it_can_be_and_says_what_was_kept_raw():
         assert np.array_equal(slow.points, raw[:len(slow.points)], equal_nan=True)
     with pytest.raises(OptionError, match="positive cut-off"):
         filter_take(raw, rate, -2.0)
+
+
+def test_the_noise_left_in_a_weighted_sum_of_filtered_samples_is_what_white_noise_shows():
+    """combined_noise_gain: one sample of weight 1 is noise_gains' share; a mean over 50 samples
+    and a difference of two halves' means against the variance measured over 4000 noise draws."""
+    from skinsynth.pipeline.puppet.marker_filter import combined_noise_gain
+
+    rate, length, first = 100.0, 300, 120
+    assert combined_noise_gain(rate, BODY_CUTOFF, 150, [1.0], length) == pytest.approx(
+        noise_gains(rate, BODY_CUTOFF, 150, length)[0], rel=1e-9)
+    sums = np.stack([np.full(50, 1 / 50), np.r_[np.full(25, 1 / 25), np.full(25, -1 / 25)]])
+    predicted = combined_noise_gain(rate, BODY_CUTOFF, first, sums, length)
+    draws = lowpass(np.random.default_rng(8).normal(size=(length, 4000)), rate, BODY_CUTOFF)
+    measured = np.var(sums @ draws[first:first + 50], axis=1)
+    np.testing.assert_allclose(predicted, measured, rtol=0.1)  # 4000 draws: the variance to about 2 %
+    np.testing.assert_allclose(combined_noise_gain(rate, None, first, sums, length), [1 / 50, 2 / 25])

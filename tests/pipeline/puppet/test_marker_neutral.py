@@ -80,3 +80,66 @@ def test_a_performer_moving_in_the_rest_pose_is_aligned_at_the_first_tie():
     chosen = closest_to_rest(filtered, rest, np.ones(10, dtype=bool), noise=3 * 0.002 ** 2,
                              gains=lambda f: frame_gains(filtered, rate, BODY_CUTOFF, f), variances=variances, within=5)
     assert chosen == 0
+
+
+def _held_then_moving(seconds_still, rate=100.0, seed=7, markers=16, sigma=0.002):
+    """A body's markers (T, M, 3): still at rest for ``seconds_still``, then a smooth move away (a
+    turn and a walk), 2 s in all; the clean poses, the noisy ones and the rest pose."""
+    rng = np.random.default_rng(seed)
+    rest = rng.normal(scale=0.3, size=(markers, 3))
+    times = np.arange(int(2.0 * rate)) / rate
+    moving = np.clip(times - seconds_still, 0.0, None)
+    angle = 0.8 * moving ** 2
+    turn = np.stack([np.stack([np.cos(angle), -np.sin(angle), 0 * angle], -1),
+                     np.stack([np.sin(angle), np.cos(angle), 0 * angle], -1),
+                     np.stack([0 * angle, 0 * angle, 1 + 0 * angle], -1)], axis=1)  # (T, 3, 3)
+    clean = np.einsum("tab,mb->tma", turn, rest) + (0.5 * moving)[:, None, None] * np.array([1.0, 0.0, 0.0])
+    return clean, clean + sigma * rng.normal(size=clean.shape), rest
+
+
+def _neutral(noisy, rate=100.0, frame=2):
+    from skinsynth.pipeline.puppet.marker_filter import filter_take
+    from skinsynth.pipeline.puppet.marker_neutral import neutral_pose, still_window
+
+    took = filter_take(noisy, rate, BODY_CUTOFF)
+    present = np.ones(noisy.shape[1], dtype=bool)
+    one_sample = 3.0 * float(took.variances @ frame_gains(took.points, rate, BODY_CUTOFF, frame))
+    window = still_window(took.points, frame, present, one_sample, rate)
+    return window, neutral_pose(took.points, frame, window, present, took.variances, rate, BODY_CUTOFF)
+
+
+def test_a_pose_held_is_read_over_the_frames_it_is_held():
+    """A second at rest, then away: the still window is that second (a few samples of the slow
+    start of the move at most), its mean the pose to a fraction of one frame's noise, with the noise
+    it leaves as the filter's rows say; a take moving from its first frame is read at the frame."""
+    errors_mean, errors_frame = [], []
+    for seed in range(5):
+        clean, noisy, rest = _held_then_moving(1.0, seed=seed)
+        window, (pose, gains, used) = _neutral(noisy)
+        assert window[0] <= 2 and 95 <= window[1] <= 110 and used == window  # frame 0 keeps its raw noise
+        errors_mean.append(np.sqrt(np.mean((pose - rest) ** 2)))
+        errors_frame.append(np.sqrt(np.mean((lowpass_runs(noisy, 100.0, BODY_CUTOFF)[2] - rest) ** 2)))
+        assert gains.max() < 0.05  # a mean over a hundred samples: about 1 / 100 of one's variance
+    assert np.mean(errors_mean) < 0.3 * np.mean(errors_frame)  # measured 0.2
+    clean, noisy, rest = _held_then_moving(0.0, seed=1)
+    window, (pose, gains, used) = _neutral(noisy)
+    assert window[1] - window[0] < 25 and used == (2, 2)  # moving: a few frames look still, not a pose held
+    np.testing.assert_array_equal(pose, lowpass_runs(noisy, 100.0, BODY_CUTOFF)[2])
+
+
+def test_a_held_calibration_pose_aligns_the_take_better_than_one_frame(monkeypatch):
+    """drive_from_markers on takes starting in a held rest pose: the map recovered from the held
+    second's mean is nearer the truth than the one from the neutral frame alone (five draws)."""
+    import skinsynth.pipeline.puppet.marker_neutral as marker_neutral
+    from skinsynth.pipeline.puppet.markers import drive_from_markers
+
+    errors, default = {}, marker_neutral.STILL_SHORTEST
+    for shortest in (default, np.inf):
+        monkeypatch.setattr(marker_neutral, "STILL_SHORTEST", shortest)
+        errors[shortest] = []
+        for seed in range(5):
+            clean, noisy, rest = _held_then_moving(1.0, seed=seed)
+            drive = drive_from_markers(noisy, 100.0, 100.0, rest, clean[::10], take_up="Y", puppet_up="Y")
+            carried = drive.scale * clean @ drive.rotation.T + drive.translation  # truth: the identity
+            errors[shortest].append(np.sqrt(np.mean((carried - clean) ** 2)))
+    assert np.mean(errors[default]) < 0.5 * np.mean(errors[np.inf]), errors
