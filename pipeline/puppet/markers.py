@@ -79,8 +79,8 @@ class MarkerDrive:
     neutral frame's residual from the rest controls ("residual", root mean square over the
     markers, mesh units), the noise in it ("noise"), the share kept ("kept",
     :func:`.marker_neutral.shrink_neutral_residual`) and the take frames its pose was read over
-    ("frames": [first, last], the neutral frame twice where it was read alone); uncertainty (F,): each output frame's
-    expected error of a marker filled from the others (:func:`.marker_gaps.fill_uncertainty`, 0
+    ("frames": [first, last], the neutral frame twice where it was read alone); uncertainty (F,):
+    each output frame's expected error of a marker filled from the others (:func:`.marker_gaps.fill_uncertainty`, 0
     where none is), over the rest controls' largest side; a held frame's is its pose's whole
     spread over the training poses (nothing was seen to fit).
     """

@@ -140,6 +140,8 @@ def test_a_held_calibration_pose_aligns_the_take_better_than_one_frame(monkeypat
         for seed in range(5):
             clean, noisy, rest = _held_then_moving(1.0, seed=seed)
             drive = drive_from_markers(noisy, 100.0, 100.0, rest, clean[::10], take_up="Y", puppet_up="Y")
+            first, last = drive.neutral["frames"]
+            assert (last - first >= 95) == (shortest == default)  # the held second, or the frame alone
             carried = drive.scale * clean @ drive.rotation.T + drive.translation  # truth: the identity
             errors[shortest].append(np.sqrt(np.mean((carried - clean) ** 2)))
     assert np.mean(errors[default]) < 0.5 * np.mean(errors[np.inf]), errors
