@@ -149,10 +149,11 @@ def still_window(points, frame, present, noise, rate):
     return int(lo + first), int(lo + last)
 
 
-def neutral_pose(points, frame, window, present, variances, rate, cutoff):
+def neutral_pose(points, frame, present, variances, rate, cutoff):
     """The neutral markers (M, 3) (NaN where not ``present``) of points (T, M, 3) filtered at
     ``cutoff`` Hz, the share of white noise left in each (M,), and the frames read, (first, last):
-    the mean over the still ``window`` (:func:`still_window`) where it is a pose held
+    the mean over the still window around ``frame`` (:func:`still_window`, against one sample's
+    noise there) where it is a pose held
     (:data:`STILL_SHORTEST` seconds or more) to within what that mean's own noise explains — the
     means of its first and second halves apart by no more than :data:`STILL_NOISE` / 2 × the
     variance noise alone puts between them (``variances`` (M,) each marker's per coordinate), so a
@@ -160,8 +161,8 @@ def neutral_pose(points, frame, window, present, variances, rate, cutoff):
     less noise than the frame; else the frame's own markers."""
     from .marker_gaps import runs
 
-    first, last = window
     single = frame_gains(points, rate, cutoff, frame)
+    window = first, last = still_window(points, frame, present, 3.0 * float(variances @ single), rate)
     alone = (np.where(present[:, None], points[frame], np.nan), single * present, (frame, frame))
     length = last - first + 1
     if length < max(2, STILL_SHORTEST * rate):

@@ -50,8 +50,8 @@ from ..errors import OptionError
 from .marker_gaps import (MAX_GAP, fill_from_training, fill_rigid_clusters, fill_short_gaps, fill_uncertainty,
                           join_filled_runs, rigid_onto, training_subspace)
 from .marker_filter import BODY_CUTOFF, ORDER, filter_take
-from .marker_neutral import (choose_neutral_frame, frame_gains, neutral_pose, residual_summary, sample_noise,
-                             shrink_neutral_residual, still_window)
+from .marker_neutral import (choose_neutral_frame, neutral_pose, residual_summary, sample_noise,
+                             shrink_neutral_residual)
 
 #: A frame is reported as filled uncertainly where a filled marker's expected error
 #: (:func:`.marker_gaps.fill_uncertainty`) exceeds this share of the rest controls' largest side: 1 %, about
@@ -250,10 +250,7 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     # pose), with its noise; a raw one's (--filter none) taken as measured at the frame
     still, pose = (neutral_frame, neutral_frame), np.where(present[:, None], local[neutral_frame], np.nan)
     if cutoff is not None:
-        one_sample = 3.0 * float(filtered.variances @ frame_gains(local, rate, cutoff, neutral_frame))
-        still = still_window(local, neutral_frame, present, one_sample, rate)
-        pose, gains, still = neutral_pose(local, neutral_frame, still, present, filtered.variances, rate,
-                                          cutoff)
+        pose, gains, still = neutral_pose(local, neutral_frame, present, filtered.variances, rate, cutoff)
     scale, rotation, translation = similarity_transform(pose[present], targets[present])
     markers = scale * local @ rotation.T + translation  # NaN where still missing
     by_cluster = np.zeros((frames, count), dtype=bool)

@@ -105,7 +105,7 @@ def _neutral(noisy, rate=100.0, frame=2):
     present = np.ones(noisy.shape[1], dtype=bool)
     one_sample = 3.0 * float(took.variances @ frame_gains(took.points, rate, BODY_CUTOFF, frame))
     window = still_window(took.points, frame, present, one_sample, rate)
-    return window, neutral_pose(took.points, frame, window, present, took.variances, rate, BODY_CUTOFF)
+    return window, neutral_pose(took.points, frame, present, took.variances, rate, BODY_CUTOFF)
 
 
 def test_a_pose_held_is_read_over_the_frames_it_is_held():
