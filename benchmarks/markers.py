@@ -15,11 +15,12 @@ Builds, as a user would, the samba puppet on the controls of the committed Plug-
   (``select-controls --markers``), and takes written from those vertices at 100 Hz (from 24 fps),
   in millimetres, turned and moved, played with no neutral frame given: ``clean``, ``noise``
   (0.1 % of the height), ``gaps`` (5 % of the samples in runs of 1–30 frames, the first sample
-  too), ``both``, and ``still_noise`` (the noise take after a second of the first frame held,
-  as a real take starts in a calibration pose; scored after it); each one's mean vertex error
-  over the capture's frames against that of playing the clean control vertices (``error_ratio``),
-  and its worst frame's against the clean controls' worst (``worst_ratio``), with seed 11; the same over seeds 11–15
-  (``error_ratio_mean``, ``error_ratio_max``, ``worst_ratio_max``).
+  too), ``both``, ``still_noise`` and ``still_both`` (those takes after a second of the first
+  frame held, as a real take starts in a calibration pose; scored after it); each one's mean
+  vertex error over the capture's frames against that of playing the clean control vertices
+  (``error_ratio``), and its worst frame's against the clean controls' worst (``worst_ratio``),
+  with seed 11; the same over seeds 11–15 (``error_ratio_mean``, ``error_ratio_max``,
+  ``worst_ratio_max``).
 - ``take``: each real take in ../shared/data/mocap_c3d played to .glb and .usdc: frames, NaN,
   the extrapolation per frame (mean, worst), the markers filled and frames held.
 - ``skeleton``: the serve on the samba puppet of its ``--skeleton`` fit (``train-kcca``'s
@@ -161,7 +162,8 @@ def held_out(work, capture):
     factor = HELD_RATE / float(skin.fps)
     held = int(round(HELD_STILL_SECONDS * float(skin.fps)))  # capture frames of the still start
     for name, noise, missing in (("clean", 0.0, 0.0), ("noise", 0.001 * height, 0.0), ("gaps", 0.0, 0.05),
-                                 ("both", 0.001 * height, 0.05), ("still_noise", 0.001 * height, 0.0)):
+                                 ("both", 0.001 * height, 0.05), ("still_noise", 0.001 * height, 0.0),
+                                 ("still_both", 0.001 * height, 0.05)):
         rows = []
         skip = held if name.startswith("still") else 0
         performed = np.concatenate([np.repeat(frames[:1], skip, axis=0), frames])

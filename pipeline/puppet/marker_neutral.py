@@ -134,14 +134,17 @@ def choose_neutral_frame(points, targets, present, noise, rate, cutoff, variance
 
 def still_window(points, frame, present, noise, rate):
     """(first, last): the take frames around ``frame`` (both included) over which the performer
-    holds the neutral pose, grown from it both ways while every ``present`` (M,) marker is seen and
-    Σ_m |points_t,m − points_frame,m|² (points (T, M, 3)) stays within :data:`STILL_NOISE` × ``noise``
-    (one sample's noise variance, Σ over coordinates and those markers), at most
-    :data:`STILL_SECONDS` each way."""
+    holds the neutral pose, grown from it both ways while each frame sees at least half the
+    ``present`` (M,) markers (3 at least) and Σ_m |points_t,m − points_frame,m|² over those it sees
+    (points (T, M, 3)) stays within :data:`STILL_NOISE` × their ``noise`` (M,) (one sample's noise
+    variance, Σ over coordinates), at most :data:`STILL_SECONDS` each way."""
     reach = max(0, min(int(STILL_SECONDS * rate), MAX_REACH))
     lo, hi = max(0, frame - reach), min(len(points), frame + reach + 1)
-    moved = np.sum((points[lo:hi][:, present] - points[frame, present]) ** 2, axis=(1, 2))  # NaN: unseen
-    still = moved <= STILL_NOISE * noise
+    squared = np.sum((points[lo:hi] - points[frame]) ** 2, axis=2)  # (L, M), NaN where either is unseen
+    seen = present & np.isfinite(squared)
+    moved = np.sum(np.where(seen, squared, 0.0), axis=1)
+    enough = seen.sum(axis=1) >= max(3, -(-int(present.sum()) // 2))
+    still = enough & (moved <= STILL_NOISE * (seen @ noise))
     at = frame - lo
     breaks = np.flatnonzero(~still)
     first = breaks[breaks < at].max(initial=-1) + 1
@@ -152,40 +155,64 @@ def still_window(points, frame, present, noise, rate):
 def neutral_pose(points, frame, present, variances, rate, cutoff):
     """The neutral markers (M, 3) (NaN where not ``present``) of points (T, M, 3) filtered at
     ``cutoff`` Hz, the share of white noise left in each (M,), and the frames read, (first, last):
-    the mean over the still window around ``frame`` (:func:`still_window`, against one sample's
-    noise there) where it is a pose held
-    (:data:`STILL_SHORTEST` seconds or more) to within what that mean's own noise explains — the
-    means of its first and second halves apart by no more than :data:`STILL_NOISE` / 2 × the
-    variance noise alone puts between them (``variances`` (M,) each marker's per coordinate), so a
-    slow drift that the per-frame test lets through is not averaged in — and where the mean leaves
-    less noise than the frame; else the frame's own markers."""
-    from .marker_gaps import runs
-
+    each marker's mean over the frames it is seen in the still window around ``frame``
+    (:func:`still_window`, against one sample's noise there) where that is a pose held
+    (:data:`STILL_SHORTEST` seconds or more) to within what the means' own noise explains — each
+    marker's means over its first and second halves apart, summed over the markers seen in both,
+    by no more than :data:`STILL_NOISE` / 2 × the variance noise alone puts between them
+    (``variances`` (M,) each marker's per coordinate), so a slow drift that the per-frame test lets
+    through is not averaged in — and where the means leave less noise than the frame; else the
+    frame's own markers."""
     single = frame_gains(points, rate, cutoff, frame)
-    window = first, last = still_window(points, frame, present, 3.0 * float(variances @ single), rate)
+    window = first, last = still_window(points, frame, present, 3.0 * variances * single, rate)
     alone = (np.where(present[:, None], points[frame], np.nan), single * present, (frame, frame))
     length = last - first + 1
     if length < max(2, STILL_SHORTEST * rate):
         return alone
+    inside = points[first:last + 1]
+    seen = ~np.isnan(inside).any(axis=2) & present  # (L, M)
     half = length // 2
-    sums = np.stack([np.full(length, 1.0 / length),  # the mean, and its halves' difference (the drift)
-                     np.r_[np.full(half, 1.0 / half), np.zeros(length - 2 * half), np.full(half, -1.0 / half)]])
-    gains, drift_gains = np.zeros((2, points.shape[1]))
-    by_run = {}  # markers seen over the same run share its filter rows
-    for marker in np.flatnonzero(present):  # markers, never vertices
-        starts, ends = runs(~np.isnan(points[:, marker]).any(axis=1))
-        at = np.searchsorted(ends, frame, side="right")  # the run holding the window
-        key = (first - starts[at], ends[at] - starts[at])
-        if key not in by_run:
-            by_run[key] = combined_noise_gain(rate, cutoff, key[0], sums, key[1])
-        gains[marker], drift_gains[marker] = by_run[key]
-    seen = points[first:last + 1][:, present]
-    moved = np.sum((seen[:half].mean(axis=0) - seen[length - half:].mean(axis=0)) ** 2)
-    if moved > STILL_NOISE / 2 * 3.0 * float(variances @ drift_gains) or gains @ variances >= single @ variances:
-        return alone
+    halves = np.zeros((2, length), dtype=bool)
+    halves[0, :half], halves[1, length - half:] = True, True
     pose = np.full(points.shape[1:], np.nan)
-    pose[present] = seen.mean(axis=0)
+    gains, drift_gains, drift = np.zeros(points.shape[1]), np.zeros(points.shape[1]), 0.0
+    cache = {}  # markers seen over the same frames of the same run share their filter rows
+    for marker in np.flatnonzero(present):  # markers, never vertices
+        mask = seen[:, marker]
+        parts = [mask & h for h in halves]
+        both = all(part.any() for part in parts)
+        sums = np.stack([mask / mask.sum()] + ([parts[0] / parts[0].sum() - parts[1] / parts[1].sum()]
+                                               if both else [np.zeros(length)]))  # the mean; the halves' drift
+        key = (mask.tobytes(), both) + _run_bounds(points[:, marker], first, last)
+        if key not in cache:
+            cache[key] = _window_noise_gains(points[:, marker], first, sums, rate, cutoff)
+        gains[marker], drift_gains[marker] = cache[key]
+        pose[marker] = sums[0] @ np.nan_to_num(inside[:, marker])
+        if both:
+            drift += float(np.sum((sums[1] @ np.nan_to_num(inside[:, marker])) ** 2))
+    if drift > STILL_NOISE / 2 * 3.0 * float(variances @ drift_gains) or gains @ variances >= single @ variances:
+        return alone
     return pose, gains, window
+
+
+def _run_bounds(track, first, last):
+    """The (start, end) of each run of seen samples of track (T, 3) that meets frames first..last."""
+    from .marker_gaps import runs
+
+    starts, ends = runs(~np.isnan(track).any(axis=1))
+    meets = (starts <= last) & (ends > first)
+    return tuple(zip(starts[meets].tolist(), ends[meets].tolist()))
+
+
+def _window_noise_gains(track, first, sums, rate, cutoff):
+    """(W,): what the filter leaves of white noise of variance 1 in each weighted sum sums (W, L)
+    of track (T, 3)'s samples first..first + L − 1 (0 weight where unseen): summed over its runs
+    there, which are filtered apart and so carry independent noise."""
+    total = np.zeros(len(sums))
+    for start, end in _run_bounds(track, first, first + sums.shape[1] - 1):
+        lo, hi = max(start, first), min(end, first + sums.shape[1])
+        total += combined_noise_gain(rate, cutoff, lo - start, sums[:, lo - first:hi - first], end - start)
+    return total
 
 
 def _rigid_motion(frames, first):

@@ -103,7 +103,7 @@ def _neutral(noisy, rate=100.0, frame=2):
 
     took = filter_take(noisy, rate, BODY_CUTOFF)
     present = np.ones(noisy.shape[1], dtype=bool)
-    one_sample = 3.0 * float(took.variances @ frame_gains(took.points, rate, BODY_CUTOFF, frame))
+    one_sample = 3.0 * took.variances * frame_gains(took.points, rate, BODY_CUTOFF, frame)  # (M,)
     window = still_window(took.points, frame, present, one_sample, rate)
     return window, neutral_pose(took.points, frame, present, took.variances, rate, BODY_CUTOFF)
 
@@ -145,3 +145,19 @@ def test_a_held_calibration_pose_aligns_the_take_better_than_one_frame(monkeypat
             carried = drive.scale * clean @ drive.rotation.T + drive.translation  # truth: the identity
             errors[shortest].append(np.sqrt(np.mean((carried - clean) ** 2)))
     assert np.mean(errors[default]) < 0.5 * np.mean(errors[np.inf]), errors
+
+
+def test_a_marker_lost_while_the_pose_is_held_is_read_over_the_frames_it_is_seen():
+    """Two markers lost for 30 samples each inside the held second (neither beside the neutral
+    frame): the window still spans the second, each marker is its mean over the samples it has
+    (measured 0.96x the gapless means' error, 0.22x the frame's), and its noise is that mean's (the
+    two runs filtered apart add up): more than with all its samples."""
+    clean, noisy, rest = _held_then_moving(1.0, seed=3)
+    holed = noisy.copy()
+    holed[30:60, 4] = np.nan
+    holed[50:80, 9] = np.nan
+    (whole_window, (whole, whole_gains, _)), (window, (pose, gains, used)) = _neutral(noisy), _neutral(holed)
+    assert used == window and window[0] <= 2 and window[1] >= 95
+    assert np.sqrt(np.mean((pose - rest) ** 2)) < 1.5 * np.sqrt(np.mean((whole - rest) ** 2))
+    assert gains[4] > 1.2 * whole_gains[4] and gains[9] > 1.2 * whole_gains[9]  # 70 samples, not 100: 1.4x
+    assert gains.max() < 0.05
