@@ -183,9 +183,10 @@ def neutral_pose(points, frame, present, variances, rate, cutoff):
         both = all(part.any() for part in parts)
         sums = np.stack([mask / mask.sum()] + ([parts[0] / parts[0].sum() - parts[1] / parts[1].sum()]
                                                if both else [np.zeros(length)]))  # the mean; the halves' drift
-        key = (mask.tobytes(), both) + _run_bounds(points[:, marker], first, last)
+        bounds = _run_bounds(points[:, marker], first, last)
+        key = (mask.tobytes(), both) + bounds
         if key not in cache:
-            cache[key] = _window_noise_gains(points[:, marker], first, sums, rate, cutoff)
+            cache[key] = _window_noise_gains(bounds, first, sums, rate, cutoff)
         gains[marker], drift_gains[marker] = cache[key]
         pose[marker] = sums[0] @ np.nan_to_num(inside[:, marker])
         if both:
@@ -204,12 +205,13 @@ def _run_bounds(track, first, last):
     return tuple(zip(starts[meets].tolist(), ends[meets].tolist()))
 
 
-def _window_noise_gains(track, first, sums, rate, cutoff):
+def _window_noise_gains(bounds, first, sums, rate, cutoff):
     """(W,): what the filter leaves of white noise of variance 1 in each weighted sum sums (W, L)
-    of track (T, 3)'s samples first..first + L − 1 (0 weight where unseen): summed over its runs
-    there, which are filtered apart and so carry independent noise."""
+    of a marker's samples first..first + L − 1 (0 weight where unseen), whose runs of seen samples
+    meeting them are ``bounds`` ((start, end), :func:`_run_bounds`): summed over those runs, which
+    are filtered apart and so carry independent noise."""
     total = np.zeros(len(sums))
-    for start, end in _run_bounds(track, first, first + sums.shape[1] - 1):
+    for start, end in bounds:
         lo, hi = max(start, first), min(end, first + sums.shape[1])
         total += combined_noise_gain(rate, cutoff, lo - start, sums[:, lo - first:hi - first], end - start)
     return total
