@@ -41,7 +41,7 @@ def shared_sequences():
 
 #: Bones per capture (the issues' tables; Zheng Table 1 for the horse).
 BONES = {"horse_gallop": 22, "vlasic_samba": 22, "vlasic_crane": 22, "vellum_sheet": 30, "dembones_bone": 12,
-         "walker": 12}
+         "walker": 12, "geomvideo_dance": 27}
 
 
 def _hwm_mib(pid):

@@ -16,6 +16,10 @@ runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``,
 - components, transitions per component, mean segment length (output frames between seams of
   one component), coverage (the smallest share, over components, of input frames that the
   1,000 walks play; goal ≥ 0.9);
+- shape (issue 62; docs/contact.md, ``pipeline/synthesis/shape.py``): over the same first ``--feet``
+  animations, on every capture, the share of broken frames (more than 0.5 % of their edges strained
+  a quarter of their rest length past anything the capture and the fit's playback of it show), the
+  worst frame's share of such edges, and the largest vertex acceleration over the input's;
 - feet (issue 35 part 4; every definition in docs/contact.md and
   ``pipeline/synthesis/contact/measures.py``): on the captures with a ground (``GROUNDED``) and the
   walker, the first ``--feet`` (16) of the 1,000 animations skinned and measured against the input
@@ -34,7 +38,8 @@ runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``,
   degrees.
 
 Which shared captures have a ground (``GROUNDED``): vlasic_samba (a dancer on a floor), vlasic_crane
-(the same performer's slow crane form, both feet on the floor most of the time),
+(the same performer's slow crane form, both feet on the floor most of the time), geomvideo_dance
+(Zheng's own dancer, spinning on a floor),
 horse_gallop, elephant_clips (the elephant's gallop; its key poses are no animation) and horse_clips
 (the horse's gallop and its collapse onto the floor, fitted as one rig and walked together:
 :func:`datasets.clip_sets`; the collapse alone is 53 frames that end lying down, a clip no walk
@@ -54,7 +59,9 @@ Built-in procedural stand-ins run only when ../shared/data is absent.
 
 The command run is $SKINSYNTH when set (e.g. another checkout's, for a before/after table).
 
-    python benchmarks/synthesize.py [--only NAME] [--mode multi_component] [--count 1000] [--frames 600]
+Issue 62's table: ``--count 20 --frames 600 --seed 3 --feet 20 --feet-only``.
+
+    python benchmarks/synthesize.py [--only NAME] [--mode multi_component] [--count 1000] [--frames 600] [--seed 0]
                                     [--synthesize-args "--no-contact"] [--feet 16] [--feet-only]
 """
 
@@ -70,8 +77,8 @@ from datasets import BONES, clip_sets, run, walker_inputs
 
 UP = 1  # every capture in shared/data is Y up
 #: Captures that rest on a ground (module notes): their feet are measured.
-GROUNDED = {"vlasic_samba", "vlasic_crane", "horse_gallop", "elephant_clips", "horse_clips", "walker", "walker_planted",
-            "walker_tempo"}
+GROUNDED = {"vlasic_samba", "vlasic_crane", "horse_gallop", "elephant_clips", "horse_clips", "geomvideo_dance", "walker",
+            "walker_planted", "walker_tempo"}
 
 
 def bake(skin, F, t):
@@ -131,6 +138,34 @@ def feet(skin, path, count):
     return {"animations": count, **{k: rounded(figures[k]) for k in ("input", "output", "ratios", "played", "ratios_played")}}
 
 
+def shape(skin_path, path, count):
+    """Issue 62's shape figures of the first ``count`` animations of the synthesis at ``path``
+    (``synthesize --json``'s "shape": :func:`skinsynth.pipeline.synthesis.measure_shape`, frames whose
+    edges strain far past the capture's and its fit's; docs/contact.md), and the largest vertex
+    acceleration over them against the input's largest (``worst_accel``)."""
+    from types import SimpleNamespace
+
+    from skinsynth.pipeline.mesh.geometry import largest_acceleration
+    from skinsynth.pipeline.synthesis import measure_shape
+
+    with h5py.File(skin_path, "r") as f:
+        skin = SimpleNamespace(examples=f["examples/vertices"][()], faces=f["mesh/faces"][()],
+                               rest_vertices=f["mesh/rest_vertices"][()], bone_indices=f["skin/bone_indices"][()],
+                               bone_weights=f["skin/bone_weights"][()], rotations=f["skin/rotations"][()],
+                               translations=f["skin/translations"][()])
+        frames = f["examples/clip_frames"][()] if "clip_frames" in f["examples"] else [skin.examples.shape[0]]
+    starts = np.concatenate([[0], np.cumsum(frames)]).astype(np.int64)
+    with h5py.File(path, "r") as f:
+        F, t = f["synthesis/bone_matrices"], f["synthesis/bone_translations"]
+        count = min(count, F.shape[0])
+        figures = measure_shape(skin, F, t, count)
+        worst = max(largest_acceleration(bake({"rest": skin.rest_vertices, "indices": skin.bone_indices,
+                                                "weights": skin.bone_weights}, F[a], t[a])) for a in range(count))
+    accel_in = largest_acceleration(skin.examples.astype(np.float64), starts)
+    return {"animations": count, "broken_share": round(figures["broken_share"], 4),
+            "worst_frame": round(figures["worst_frame"], 4), "worst_accel": round(float(worst / accel_in), 3)}
+
+
 def walks(sources, graph_path, count):
     """Issue 48's walk figures over the first ``count`` animations, per component: the median and
     least number of distinct input frames an animation plays, over the frames on the largest
@@ -178,7 +213,8 @@ def measure(name, spec, single, work, args):
     out = os.path.join(work, f"{name}.{mode}.bones.h5")
     extra = args.synthesize_args.split()
     seconds, peak, worker, _ = run(["synthesize", graph_path, "-o", out, "-n", str(args.count), "-m",
-                                    str(args.frames), "--seed", "0", "-q", "--measure-feet", "0", *extra], work)
+                                    str(args.frames), "--seed", str(args.seed), "-q", "--measure-feet", "0", *extra],
+                                   work)
     line.update(seconds=round(seconds, 2), peak_rss_mib=round(peak), peak_rss_second_process_mib=round(worker))
     skin = read_skin(skin_path)
     examples = skin["examples"]
@@ -194,6 +230,8 @@ def measure(name, spec, single, work, args):
         line["walks"] = walks(sources, graph_path, args.feet or 20)
     if name in GROUNDED and args.feet:
         line["contact"] = feet(skin, out, args.feet)
+    if args.feet:
+        line["shape"] = shape(skin_path, out, args.feet)
     with h5py.File(out, "r") as f:
         worst = []
         for a in range(0 if args.feet_only else min(args.smooth, sources.shape[1])):
@@ -234,6 +272,7 @@ def main():
     parser.add_argument("--only")
     parser.add_argument("--mode", choices=["multi_component", "single_component"])
     parser.add_argument("--count", type=int, default=1000)
+    parser.add_argument("--seed", type=int, default=0, help="synthesize --seed of the main run")
     parser.add_argument("--frames", type=int, default=600)
     parser.add_argument("--smooth", type=int, default=50, help="animations whose vertices are baked")
     parser.add_argument("--long-count", type=int, default=3)

@@ -78,12 +78,18 @@ def _target(text):
                    "at most 0.2 s bridged; a swinging foot stays no lower than the input's (docs/contact.md). "
                    "Then, and alone for a graph without contacts: where a frame's lowest point would leave the "
                    "input's own range of lowest points, the whole character moves vertically back.")
+@click.option("--shape-check/--no-shape-check", default=True, show_default=True,
+              help="Keep the body whole: walk only the transitions whose splice keeps it (each spliced once and its "
+                   "frames measured against the capture's edges), and cut a planted limb's turn that would strain "
+                   "its skin past them (the foot slides a little instead; docs/contact.md). Off: every transition, "
+                   "every turn.")
 @click.option("--measure-feet", "measure_feet", default=4, show_default=True, type=click.IntRange(min=0),
               metavar="N",
               help="Measure how well the feet stay planted (slide, float and penetration of the contact vertices, "
-                   "worst acceleration; docs/contact.md) on the first N animations, skinned, and on the input; "
-                   "reported in the summary and --json's \"contact\" (its own seconds, not in the run's). 0: skip. "
-                   "It skins N whole animations: about 1.4 s each for 600 frames of 42,000 vertices on 2 cores.")
+                   "worst acceleration) and the body keeps its shape (frames whose edges strain far past the "
+                   "capture's; docs/contact.md) on the first N animations, skinned, and on the input; reported in "
+                   "the summary and --json's \"contact\" and \"shape\" (their own seconds, not in the run's). 0: "
+                   "skip. It skins N whole animations: about 1.4 s each for 600 frames of 42,000 vertices on 2 cores.")
 @click.option("--usd", "usd_dir", type=click.Path(file_okay=False), default=None, help="Also write one USD point cache per animation here.")
 @click.option("--crowd", type=click.Path(dir_okay=False), default=None, help="Also write one USD stage with every animation on a grid.")
 @click.option("--gltf", type=click.Path(dir_okay=False), default=None, metavar="FILE.glb",
@@ -118,7 +124,7 @@ def _target(text):
 @user_errors
 def synthesize(path, output, count, frames, seed, start_frame, end_frame, targets, obstacles, ground_plane,
                min_difference, single_component, min_segment, window, blend, alignment, cut_damping, spread_velocity, contact,
-               measure_feet, usd_dir, crowd, gltf, root_motion, exr_dir, half,
+               shape_check, measure_feet, usd_dir, crowd, gltf, root_motion, exr_dir, half,
                max_width, up_axis, plot_dir, plot_count, device, jobs, cluster, cluster_timeout, as_json, quiet):
     """Synthesise many different animations from the clip analysed in a graph file.
 
@@ -140,7 +146,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.synthesis_file import synthesis_groups, written_motions
     from skinsynth.gpu import resolve_device
-    from skinsynth.pipeline.synthesis import prepare_synthesis, report_feet, synthesis_request, synthesis_summary
+    from skinsynth.pipeline.synthesis import prepare_synthesis, report_measures, synthesis_request, synthesis_summary
 
     sides = SynthesisOutputs(usd_dir, crowd, gltf, root_motion, exr_dir, plot_dir, plot_count, half, max_width)
     folders, jobs = _check_options(path, output, obstacles, sides, cluster, jobs)
@@ -152,7 +158,7 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         request = synthesis_request(graph_file, start_frame, end_frame, targets, min_segment, up_axis, count=count,
                                     frames=frames, seed=seed, min_difference=min_difference, window=window,
                                     spread_velocity=spread_velocity, cut_damping=cut_damping, blend=blend,
-                                    alignment=alignment, contact=contact)
+                                    alignment=alignment, contact=contact, shape_check=shape_check)
         what = _check_resources(path, output, graph_file, request, sides, cluster)
         components = prepare_synthesis(request, graph_file, [read_obstacle(o) for o in obstacles], ground_plane,
                                        single_component)
@@ -170,10 +176,10 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
     with written_motions(output, result) if remote else contextlib.nullcontext(result) as motions:
         written = [output] + write_synthesis_outputs(sides, skin, motions, "XYZ"[request.up_axis], skinning_device,
                                                      folders, jobs, path, request.clips)
-        feet = report_feet(skin, motions.F, motions.t, motions.sources, min(measure_feet, count), request.up_axis,
-                           resolve_device(device)) if measure_feet and count else None
+        measures = report_measures(skin, motions.F, motions.t, motions.sources, min(measure_feet, count),
+                                   request.up_axis, resolve_device(device)) if measure_feet and count else None
     summary, lines = synthesis_summary(output, result, components, frames, request.min_segment, jobs, seconds, written,
-                                       feet, _cluster_report(cluster, ran, remote, result, shards))
+                                       measures, _cluster_report(cluster, ran, remote, result, shards))
     report(summary, lines, as_json, quiet)
 
 

@@ -241,6 +241,25 @@ def samba_skin(shared_data, tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def dancer_graph(shared_data, tmp_path_factory):
+    """Zheng's own dancer (``geomvideo_dance``) fitted and analysed as a user would (``fit-skin
+    --bones 27 --seed 0``, ``build-graph`` at its defaults: four components), once per run: its
+    graph file. Read it, never change it. Skips when the capture is absent."""
+    from cli_helpers import assert_ok, cli
+
+    capture = shared_data / "geomvideo_dance" / "geomvideo_dance.npz"
+    if not capture.is_file():
+        pytest.skip(f"{capture} is absent")
+
+    def build(out):
+        assert_ok(cli("fit-skin", capture, "-o", out / "skin.h5", "--bones", 27, "--seed", 0, "-q"))
+        assert_ok(cli("build-graph", out / "skin.h5", "-o", out / "graph.h5", "-q"))
+
+    built_once(tmp_path_factory, "dancer_graph", build)
+    return run_folder(tmp_path_factory) / "dancer_graph" / "graph.h5"
+
+
+@pytest.fixture(scope="session")
 def jointed_skins(tmp_path_factory):
     """Skins whose rig is a joint tree (fit-skin --skeleton), once per run, in one folder:
     walker.npz (the walker example, two gait cycles in 32 frames, 648 vertices), skin.h5 (10 bones,

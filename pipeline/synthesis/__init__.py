@@ -9,7 +9,7 @@ with Poisson blending (:mod:`.splicing`, eq. 7–10), the multi-component merge
 Public: build_graph, analyse_fit, graph_summary, GraphOptions, validate_graph_options, bone_layout, default_min_segment, walk_statistics,
 synthesize, batch_sizes, BATCH_REVISION, Request, validate_request, synthesis_request, prepare_synthesis, component_from_file, synthesis_components, avoid_obstacles,
 keep_input_support, keep_input_plants, mark_contact_jumps, compile_loops (the plants' compiled loops built
-ahead of use: ``skinsynth precompile``), SkinnedAnimations, measure_feet, report_feet, acceleration_plots, build_obstacles,
+ahead of use: ``skinsynth precompile``), SkinnedAnimations, measure_feet, measure_shape, report_measures, acceleration_plots, build_obstacles,
 colliding, vertex_subset, find_contacts, validate_contact_options, synthesis_summary, cluster_summary (what synthesize
 reports: :mod:`.summaries`).
 """
@@ -23,7 +23,7 @@ _EXPORTS = {"build_graph": "graph", "analyse_fit": "graph", "graph_summary": "su
             "synthesis_request": "synthesis", "avoid_obstacles": "synthesis", "keep_input_support": "synthesis",
             "keep_input_plants": "synthesis", "mark_contact_jumps": "contact.planting", "compile_loops": "precompile",
             "SkinnedAnimations": "skinned", "find_contacts": "contact.patches",
-            "validate_contact_options": "contact.patches", "measure_feet": "skinned", "report_feet": "skinned", "acceleration_plots": "skinned",
+            "validate_contact_options": "contact.patches", "measure_feet": "skinned", "measure_shape": "skinned", "report_measures": "skinned", "acceleration_plots": "skinned",
             "synthesis_summary": "summaries", "cluster_summary": "summaries", "build_obstacles": "collisions", "colliding": "collisions", "vertex_subset": "collisions"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -9,25 +9,51 @@ from ..runtime import compiled
 
 
 def tiny_rig():
-    """The :class:`.planting.PlantRig` of a two-bone bar with one patch planted in all six frames:
-    what loading (or compiling) the loops runs them on."""
+    """The :class:`.planting.PlantRig` of a three-bone strip (a heavy body, a shin, a foot) with the
+    foot's patch planted in all six frames while the shin swings: what loading (or compiling) the
+    loops runs them on, its limb's inverse kinematics and the check of its seams included."""
+    from ..rig.rotations import rotation_exp
     from .contact import planting
 
-    rest = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
-    indices = np.array([[0, 1], [0, 1], [0, 1], [1, 0]])
-    weights = np.array([[1.0, 0.0], [0.8, 0.2], [0.9, 0.1], [1.0, 0.0]])
+    x = np.arange(12, dtype=np.float64)
+    rest = np.concatenate([np.stack([x, np.zeros(12), np.zeros(12)], 1), np.stack([x, np.ones(12), np.zeros(12)], 1)])
+    faces = np.array([f for i in range(11) for f in ([i, i + 1, 12 + i], [i + 1, 13 + i, 12 + i])])
+    bone = np.clip(x - 8.0, 0.0, 2.0)  # 0 up to x = 8, then 1, then 2 at the strip's end
+    lower = np.minimum(np.floor(bone).astype(np.int64), 1)
+    share = bone - lower
+    indices = np.tile(np.stack([lower, lower + 1], 1), (2, 1))
+    weights = np.tile(np.stack([1.0 - share, share], 1), (2, 1))
     frames = 6
-    rotations = np.broadcast_to(np.eye(3), (frames, 2, 3, 3)).copy()
-    translations = np.zeros((frames, 2, 3))
-    examples = np.broadcast_to(rest, (frames, 4, 3)).copy()
+    rotations = np.broadcast_to(np.eye(3), (frames, 3, 3, 3)).copy()
+    rotations[:, 1:] = rotation_exp(np.outer(np.linspace(0.0, 0.5, frames), [0.0, 0.0, 1.0]))[:, None]
+    joint = np.array([9.0, 0.0, 0.0])
+    translations = np.zeros((frames, 3, 3))
+    translations[:, 1:] = joint - np.einsum("fij,j->fi", rotations[:, 1], joint)[:, None]
+    examples = _skinned(rest, indices, weights, rotations, translations)
     planted = np.ones((frames, 1), bool)
-    return planting.plant_rig(rest, indices, weights, rotations, translations, examples, [np.array([0, 1, 2])],
-                              planted, np.zeros(1), np.array([0, frames]), 24.0, [[0, 1]])
+    from ..rig.joint_tree import skin_joint_tree
+    from .shape import shape_envelope
+
+    tree = skin_joint_tree(rest, faces, indices, weights, rotations, translations)
+    return planting.plant_rig(rest, indices, weights, rotations, translations, examples, [np.array([11, 23])], planted,
+                              np.zeros(1), np.array([0, frames]), 24.0, [[0, 1, 2]], tree,
+                              envelope=shape_envelope(examples, faces))
+
+
+def _skinned(rest, indices, weights, rotations, translations):
+    """Linear blend skinning of rest (V, 3) by (F, B, 3, 3), (F, B, 3): (F, V, 3)."""
+    moved = np.einsum("fvkij,vj->fvki", rotations[:, indices], rest) + translations[:, indices]
+    return np.einsum("fvki,vk->fvi", moved, weights)
 
 
 def compile_loops():
     """Compile (or load from numba's cache) synthesize's numba loops; returns
     :func:`skinsynth.pipeline.runtime.compiled.compile_run`'s report."""
-    from .contact import planting, planting_loops
+    from . import shape
+    from .contact import limb_reach, limb_shape, planting, planting_loops
 
-    return compiled.compile_run("synthesis", [planting_loops], lambda: planting.warm_up(tiny_rig()))
+    def exercise():
+        planting.warm_up(tiny_rig())
+        shape.edge_strain(np.zeros((1, 2, 3)), np.array([[0, 1]]), np.ones(1))
+
+    return compiled.compile_run("synthesis", [planting_loops, limb_reach, limb_shape, shape], exercise)

@@ -93,18 +93,62 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
             "ratios": ratios(figures_out, figures_in), "played": played, "ratios_played": ratios(figures_out, played)}
 
 
-def report_feet(skin, F, t, sources, count, up_axis=1, device="cpu"):
-    """``synthesize --measure-feet``: :func:`measure_feet` (the same arguments; the input's clips
-    are the skin's clip_names and clip_frames) timed and reported, (the --json "contact" object,
-    one text line) (:func:`~.contact.measures.feet_report`)."""
+def capture_envelope(skin, skinning, block=64):
+    """The :class:`.shape.ShapeEnvelope` of a skin's capture: its frames (examples (Fi, V, 3), faces)
+    and the fit's playback of them (rest_vertices, bone_indices, bone_weights, rotations and
+    translations), skinned in blocks of ``block`` frames by ``skinning`` (rest, indices, weights,
+    rotations, translations) -> vertices (:func:`skinsynth.gpu.lbs`, or its numpy reference)."""
+    from .shape import shape_envelope
+
+    fit = skin.rotations.shape[0]
+
+    def playback():
+        for s in range(0, fit, block):
+            yield skinning(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations[s:s + block],
+                           skin.translations[s:s + block])
+
+    return shape_envelope(skin.examples, skin.faces, playback(), block)
+
+
+def measure_shape(skin, F, t, count, device="cpu", block=64):
+    """The shape figures (:mod:`.shape`: edges strained far past anything the capture or its fit shows)
+    of the first ``count`` synthesized animations, skinned in blocks of ``block`` frames: ``skin`` has
+    examples (Fi, V, 3), faces, rest_vertices, bone_indices, bone_weights, rotations and translations
+    (the fit, whose playback of the capture the envelope takes in); F (A, M, B, 3, 3), t (A, M, B, 3).
+    Returns a dict: frames measured, broken_frames and broken_share (frames with more than
+    :data:`.shape.BROKEN_SHARE` of their edges beyond), worst_frame (the largest share of one frame's
+    edges beyond), margin and broken_edge_share (the definitions' constants)."""
+    envelope = capture_envelope(skin, lambda *bones: lbs(*bones, device=device), block)
+    shares = []
+    for a in range(count):
+        Fa, ta = np.asarray(F[a]), np.asarray(t[a])
+        for s in range(0, Fa.shape[0], block):
+            shares.append(envelope.beyond_share(lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights,
+                                                    Fa[s:s + block], ta[s:s + block], device=device)))
+    shares = np.concatenate(shares) if shares else np.zeros(0)
+    broken = int(np.count_nonzero(shares > envelope.broken_share))
+    return {"frames": int(shares.size), "broken_frames": broken, "broken_share": broken / max(shares.size, 1),
+            "worst_frame": float(shares.max(initial=0.0)), "margin": envelope.margin,
+            "broken_edge_share": envelope.broken_share}
+
+
+def report_measures(skin, F, t, sources, count, up_axis=1, device="cpu"):
+    """``synthesize --measure-feet``: the feet (:func:`measure_feet`; the input's clips are the
+    skin's clip_names and clip_frames) and the shape (:func:`measure_shape`) of the first ``count``
+    animations, each timed and reported: {"contact": (its --json object, one text line), "shape": …}
+    (:func:`~.contact.measures.feet_report`, :func:`~.shape.shape_report`)."""
     from ..inputs.clips import Clips
     from .contact.measures import feet_report
+    from .shape import shape_report
 
     starts = Clips(skin.clip_names, skin.clip_frames).starts
     started = time.perf_counter()
     figures = measure_feet(skin, F, t, sources, starts, count, up_axis, device)
     figures["seconds"] = time.perf_counter() - started
-    return feet_report(figures, count)
+    started = time.perf_counter()
+    shape = measure_shape(skin, F, t, count, device)
+    shape["seconds"] = time.perf_counter() - started
+    return {"contact": feet_report(figures, count), "shape": shape_report(shape, count)}
 
 
 @dataclass

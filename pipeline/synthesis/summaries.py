@@ -4,14 +4,14 @@ and the text lines a person reads, built from the result alone."""
 import numpy as np
 
 
-def synthesis_summary(output, result, components, frames, min_segment, jobs, seconds, written, feet=None,
+def synthesis_summary(output, result, components, frames, min_segment, jobs, seconds, written, measures=None,
                       cluster=None):
     """synthesize's summary of ``result`` (a :class:`~.synthesis.Synthesis`), written to
     ``output`` with the other files ``written`` (``output`` first), made of ``components`` with
     segments of at least ``min_segment`` frames by ``jobs`` processes in ``seconds``: (summary,
     lines). With several clips it counts, per component, the frames played from each clip and
-    the transitions taken from each clip to each. ``feet``: the feet measures' report
-    (:func:`~.skinned.report_feet`), ``cluster`` a cluster run's (:func:`cluster_summary`), or
+    the transitions taken from each clip to each. ``measures``: the feet's and the shape's reports
+    (:func:`~.skinned.report_measures`), ``cluster`` a cluster run's (:func:`cluster_summary`), or
     None."""
     stats = result.statistics
     summary = {"animations": int(result.F.shape[0]), "frames": int(frames), "seconds": round(seconds, 3),
@@ -33,6 +33,13 @@ def synthesis_summary(output, result, components, frames, min_segment, jobs, sec
              "distinct input frames per animation: " + ", ".join(
                  f"median {np.median(d):.0f} (least {min(d)})" for d in stats["distinct_frames"] if d)
              + " (per component); stuck in a loop: " + ", ".join(map(str, stats["stuck"]))]
+    refused = [getattr(c, "shape_refused", 0) for c in components]
+    kept_all = [k for k, c in enumerate(components) if getattr(c, "shape_kept_all", False)]
+    summary["shape_refused_transitions"] = refused
+    if any(refused) or kept_all:
+        lines.append(f"transitions refused for tearing the body (docs/contact.md): {', '.join(map(str, refused))} "
+                     "(per component)" + (f"; component(s) {', '.join(map(str, kept_all))} kept all theirs, "
+                                          "refusing them would leave too few walks" if kept_all else ""))
     if "coverage_per_clip" in stats:  # several clips: what each clip gave, and the way between them
         summary["coverage_per_clip"] = [{name: round(share, 4) for name, share in shares.items()}
                                         for shares in stats["coverage_per_clip"]]
@@ -42,8 +49,8 @@ def synthesis_summary(output, result, components, frames, min_segment, jobs, sec
             played = ", ".join(f"{name} {share:.0%}" for name, share in shares.items())
             taken = ", ".join(f"{pair.replace('->', '→')} {n}" for pair, n in used.items() if n) or "none"
             lines.append(f"component {c}: frames played per clip {played}; transitions {taken}")
-    if feet is not None:
-        summary["contact"], line = feet
+    for key, (figures, line) in (measures or {}).items():
+        summary[key] = figures
         lines.append(line)
     if cluster is not None:
         summary["cluster"], cluster_lines = cluster

@@ -22,6 +22,7 @@ more than a third of the run).
 """
 
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -69,7 +70,10 @@ REPLACEMENT_CAP = 8
 #: both edges of a gap between plants keep their steps (:func:`.planting_loops.blend_edges_row`).
 #: 12: every plant correction within the same limit (a plant starts from what the last one's spring
 #: leaves, planted steps and turns capped, releases, root and lift widened: :mod:`.planting`, 6.).
-BATCH_REVISION = 12
+#: 13: plants made by each limb's joints within the input's ranges (:mod:`.limb_reach`), kept to the
+#: capture's shapes (:mod:`.limb_shape`), transitions that tear refused (:mod:`.seam_shape`), turns'
+#: holds leaking past 5°, and past its hold what exceeds 0.015 of the height leaks (:mod:`.planting`).
+BATCH_REVISION = 13
 
 
 def component_from_file(data, rest, contacts=False):
@@ -147,6 +151,17 @@ def batch_sizes(count, first=0):
     return [(first + b, min(BATCH, count - b * BATCH)) for b in range(-(-count // BATCH))]
 
 
+def skin_tree(skin):
+    """The skin's :class:`~skinsynth.pipeline.rig.joint_tree.JointTree`: a jointed skin's own skeleton,
+    or a free fit's, found from its joints (``skin``: rest_vertices, faces, weights, rotations,
+    translations, skeleton)."""
+    from ..rig.joint_tree import skin_joint_tree
+
+    skeleton = None if skin.skeleton is None else (skin.skeleton["parents"], skin.skeleton["joints"])
+    return skin_joint_tree(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
+                           skin.translations, skeleton)
+
+
 def keep_input_support(request, skin):
     """Set ``request.support``, what the merged rig keeps (:mod:`.contact`): the support vertices
     of ``skin``'s fit and, as the range of lowest points, the input frames' own (examples
@@ -172,10 +187,15 @@ def keep_input_plants(request, skin, contacts, components):
     bones = [c.bones for c in components]
     from .contact.planting import warm_up
 
+    if request.tree is None:
+        request.tree = skin_tree(skin)
+    if request.envelope is None and request.shape_check:
+        request.envelope = skin_envelope(skin)
     sampled = lowest_samples(skin.rest_vertices, skin.examples, patches, request.up_axis)  # (P, S), −1 padded
     request.plants = plant_rig(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
                                skin.translations, skin.examples, patches, np.asarray(contacts.planted, bool), contacts.ground,
-                               clips.starts, skin.fps, bones, request.up_axis, samples=sampled)
+                               clips.starts, skin.fps, bones, request.tree, request.up_axis, samples=sampled,
+                               envelope=request.envelope)
     warm_up(request.plants)  # the compiled loops loaded here, once, not in every forked worker
     if request.support is not None:  # the band's floor: the ground the contacts stand on (contact.GROUND_TOLERANCE)
         request.support = ground_floored(request.support, contacts.ground)
@@ -206,7 +226,57 @@ def prepare_synthesis(request, graph, meshes=(), ground_plane=False, single_comp
                                       contacts=contacts if request.contact else None)
     if request.contact and contacts is not None:
         keep_input_plants(request, skin, contacts, components)
+    if request.shape_check:
+        refuse_tearing(request, skin, components)
     return components
+
+
+def refuse_tearing(request, skin, components):
+    """Each component walks only the transitions whose splice keeps the body whole
+    (:mod:`.seam_shape`), in place (its ``transitions`` cut, ``shape_refused`` the number refused,
+    ``shape_kept_all`` whether it kept them all for want of walks), unless that leaves it under
+    :data:`.seam_shape.KEEP_PLAYABLE` of the frames it could play for ever from. ``skin``: the fit
+    and its capture (examples, faces) the shape is measured against."""
+    from .contact.planting import contact_transitions
+    from .seam_shape import KEEP_PLAYABLE, tearing_transitions
+
+    if request.envelope is None:
+        request.envelope = skin_envelope(skin)
+    envelope = request.envelope
+    pivots = bone_centroids(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations.shape[1])
+    frames = skin.rotations.shape[0]
+    for component in components:
+        tearing = tearing_transitions(component, skin, envelope, request, pivots, _skinning)
+        component.shape_refused, component.shape_kept_all = int(tearing.sum()), False
+        if not tearing.any():
+            continue
+        kept = contact_transitions(component.transitions, ~tearing)
+        if _playable(frames, kept, request) < KEEP_PLAYABLE * _playable(frames, component.transitions, request):
+            component.shape_refused, component.shape_kept_all = 0, True
+            continue
+        component.transitions = kept
+
+
+def _skinning(*bones):
+    """Linear blend skinning on the CPU (:func:`skinsynth.gpu.lbs`'s arguments)."""
+    from skinsynth.gpu import lbs
+
+    return lbs(*bones, device="cpu")
+
+
+def skin_envelope(skin):
+    """The :class:`.shape.ShapeEnvelope` of ``skin``'s capture and its fit's playback of it."""
+    from .skinned import capture_envelope
+
+    return capture_envelope(skin, _skinning)
+
+
+def _playable(frames, transitions, request):
+    """How many frames a motion graph over ``transitions`` can play for ever from (0: none)."""
+    try:
+        return motion_graphs([SimpleNamespace(transitions=transitions)], request.forbidden, request.clips)[0].usable_count
+    except OptionError:
+        return 0
 
 
 def synthesis_request(graph, start=None, end=None, targets=(), min_segment=None, up_axis=None, **options):
@@ -257,6 +327,12 @@ class Request:
 
     fps: the input's frame rate (what a stuck walk's two seconds are: :mod:`.walk_measures`).
 
+    tree: the skin's joint tree (:class:`~skinsynth.pipeline.rig.joint_tree.JointTree`, :func:`skin_tree`),
+    whose joints the plants turn a limb at (:mod:`.contact.limb_chains`), or None.
+
+    envelope: the capture's :class:`.shape.ShapeEnvelope` (:func:`skin_envelope`), which the plants'
+    limbs (:mod:`.contact.limb_shape`) and the seams (:mod:`.seam_shape`) keep to, or None.
+
     contact: keep the merged rig's lowest point within the input's range (:mod:`.contact`);
     ``support`` (a :class:`.contact.Support`, from :func:`keep_input_support`: the input frames'
     own range of lowest points), or None: made in each batch from the fit's playback of them.
@@ -303,6 +379,9 @@ class Request:
     clips: object = None
     skeleton: object = None
     fps: float = 24.0
+    tree: object = None
+    shape_check: bool = True
+    envelope: object = None
 
     def parameters(self, obstacles, ground_plane, single_component):
         """{name: value} of the request as synthesize's provenance records it, with its
@@ -312,7 +391,8 @@ class Request:
                     targets=[list(t) for t in self.targets], obstacles=list(obstacles), ground_plane=ground_plane,
                     min_difference=self.min_difference, single_component=single_component, window=self.window,
                     spread_velocity=self.spread_velocity, cut_damping=self.cut_damping, min_segment=self.min_segment,
-                    blend=self.blend, alignment=self.alignment, up_axis="XYZ"[self.up_axis], contact=self.contact)
+                    blend=self.blend, alignment=self.alignment, up_axis="XYZ"[self.up_axis], contact=self.contact,
+                    shape_check=self.shape_check)
 
 
 @dataclass

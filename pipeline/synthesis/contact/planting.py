@@ -14,21 +14,26 @@ The targets are the input frames themselves, not the fit's playback of them (a 2
 samba slides its feet 0.22 % of the height a frame where the dancer slides 0.08 %).
 
 Splicing (a seam's blend) and the multi-component merge (a body from one input frame, legs from
-others: Zheng §4.2) break that, and the foot slides. The correction (:func:`plant_feet`, compiled
-in :mod:`.planting_loops`, one animation at a time):
+others: Zheng §4.2) break that, and the foot slides. The correction (:func:`plant_feet`): its
+targets, compiled in :mod:`.planting_loops` (:func:`plant_targets`, steps 0–6 below, one animation
+at a time), and the limbs that make them, compiled in :mod:`.limb_reach` (:func:`reach_targets`):
 
 0. **Plants**: a patch's states at its owner's source frames, a gap of at most :data:`BRIDGE`
    between two plants bridged (the patch follows the input's steps and heights through it).
-1. **The feet's turn.** Each patch on bones of its own (:data:`CARRIES`) has them turned about
-   its centroid, at most :data:`MAX_TURN`: at a plant's first frame to the orientation the input's
-   patch had at the source frame (the fit's error at the patch undone by a Kabsch fit E per input
-   frame, then under the output's heading); at every later frame of the plant to the orientation
+1. **The feet's turn.** Each patch on bones of its own (:data:`CARRIES`) asks its bone turned, at
+   most :data:`MAX_TURN`: at a plant's first frame (and where the input's foot is lifted inside a
+   bridged gap) to the orientation the input's patch had at the source frame (the fit's error at the
+   patch undone by a Kabsch fit E per input frame, then under the output's heading); at every later frame of the plant to the orientation
    it had one frame before, turned by the input patch's own step into the source frame (under the
    output's heading), as the centroid is moved by its own steps (2.). So a planted foot turns only
    as the input's did: neither a seam's jump in the source frame nor a splice's blend, which
    turns the legs over its window, turns it (on the crane, the planted feet slid 0.56 % of the
    height a frame within 6 frames of a seam, 9 times the input's, when each frame's orientation
-   was the input's under the blended heading, a seam's jump spread over σ = ``half_life``).
+   was the input's under the blended heading, a seam's jump spread over σ = ``half_life``). Past
+   :data:`HOLD` what the turn holds beyond :data:`TURN_BOUND` leaks (:data:`LIMB_MEMORY`): a plant
+   of minutes (the samba's feet are planted 97 % of the time) sums every seam's turn, and held at
+   up to 35° the limbs twisted to make it and slid the feet instead (the samba's single component:
+   median slide 2.0× the input's; 0.6× with the leak).
 2. **The patch's error.** Its centroid c(m) is linear in the bones (Σ_b F_b ā_pb + ω_pb t_b, ā
    and ω the patch's weighted rest positions and weights). Its step c(m) − c(m−1) should be the
    input's own horizontal step into the source frame, carried by the patch bone's map
@@ -45,11 +50,10 @@ in :mod:`.planting_loops`, one animation at a time):
    residual slide summed from the plant's first frame (0 there; past :data:`HOLD` what exceeds
    :data:`LIMB_BOUND` leaks, :data:`LIMB_MEMORY`; let go where the input's foot is lifted inside a
    bridged gap, :data:`RELEASE`) and the residual height error.
-   It moves the bones near the patch: ``α_pb`` = 1 on every bone with weight on it, falling
-   linearly to 0 over ``reach`` hops of the bone graph (Zheng eq. 11's couplings, neighbours at
-   :data:`COUPLING`); the bones' shifts Σ_q α_qb g_q are solved so that every patch moves by its
-   e_p (the patches × patches system ω αᵀ g = e, truncated where patches share their bones:
-   :data:`RCOND`).
+   The limbs make it (:mod:`.limb_reach`): the patch's centroid moved by e_p and its anchor bone
+   turned by step 1's turn, by the joints of its limb (:mod:`.limb_chains`: ankle, knee, hip)
+   within the ranges the input shows them in, all that hangs below a joint turning with it; what
+   the limb cannot reach slides.
    **The floor**: where a patch is not planted, its lowest point is kept no lower than the input
    patch's at the source frame, the lift it needs dilated and smoothed (a raised cosine over
    ``lift_radius`` frames) and tapered to 0 at the plants, added to its e_p.
@@ -85,13 +89,17 @@ in :mod:`.planting_loops`, one animation at a time):
    acceleration fell from 1.01× to 0.81× the input's (16 × 600, two components) but its feet's
    median slide rose from 1.50× to 1.78× the input's, and 1.01× is inside what issue 48 allows.
 
-   The corrections' own accelerations still add to the walk's: the property test over random
-   merged walks of the planted walker finds the plants raising an animation's largest acceleration
-   by at most 1.24 L (64 animations), and lowering it in most (the limits off: up to 7.2 L).
+   And the limbs: each joint's turn changes its step by at most :data:`.limb_reach.JOINT_ACCEL` L
+   over its reach (:func:`.limb_reach._track`), whatever its solution does from one frame to the
+   next.
 
-Why translations and a foot's turn, not IK: the fitted rig has no joints (one root, every bone
-free: :mod:`~skinsynth.pipeline.rig.skeleton`), so there is no chain to bend; a bone's translation is
-its free parameter, and a correction spread by the weights is how the rig itself blends bones.
+Why a limb's joints, not a shift of its bones (issue 62): the first corrections moved each bone
+near a patch by a translation falling off over two hops of the bone graph, and turned the foot's
+bones about the patch's centroid. Two neighbouring bones shifted by different amounts shear the skin
+between them, and a foot turned about its sole tears at the ankle: 69 % of the dancer's synthesized
+frames and 41 % of the samba's were broken (:mod:`..shape`), where the same walks without plants
+had none. A skeleton's move keeps every joint and bone length, so the skin bends as the rig bends
+it; the limbs' ranges and their acceleration limit keep it to what the input shows.
 
 After the plants, synthesize still keeps the input's range of lowest points (:mod:`.contact`), a
 safety net that is zero wherever the plants kept it: a merge can plant one foot and sink the other.
@@ -110,18 +118,12 @@ import numpy as np
 from .ground import raised_cosine
 from .measures import character_height
 from ...rig.influence import dense_weights
+from .limb_chains import plant_chains
+from .limb_shape import HALVINGS, limb_seams, no_seams
 from .patches import patch_vertices
 
 #: Half-life (seconds) of the blend in and out of a limb correction, and the σ of the root's smoothing.
 HALF_LIFE = 0.1
-#: Hops of the bone graph over which a limb correction falls from 1 to 0. With :data:`COUPLING`, how
-#: local a foot's correction is: the samba's fit spreads its weights, so at 3 hops of a 0.1 coupling
-#: each foot's correction reached every bone at three quarters or more, the two feet's were nearly
-#: the same (their coupling's singular values 1.89 and 0.13), and solving both feet exactly pushed
-#: its legs 0.2 of the height apart, the mesh tilted 8° beyond the input's over 3,000 frames; at 2
-#: hops of a 0.3 coupling (singular values 1.63 and 0.58) 5° at most, its feet sliding as much.
-#: Dropping the feet's difference (a truncation at 0.3) removes the tilt but slides its feet 2.2×.
-REACH = 2
 #: Largest turn (degrees) given a planted patch's own bones: a foot that a merge tilted further than
 #: this (a shin from another frame) is turned this far only, for turning it all the way tears the ankle.
 #: Since a plant holds its foot's orientation from frame to frame (module notes, 1.), the turn also
@@ -130,6 +132,10 @@ REACH = 2
 #: the input's share, slide p95 1.57×); at 35°, none and 1.23×, the largest acceleration unchanged
 #: (1.13× the input's) and the samba's below 0.9×.
 MAX_TURN = 35.0
+#: Degrees a plant holds its foot's turn (module notes, 1.) past :data:`HOLD` before what exceeds
+#: them leaks, with the time constant :data:`LIMB_MEMORY`, as a limb's summed slide does past
+#: :data:`LIMB_BOUND`.
+TURN_BOUND = 5.0
 #: A bone carries a patch (and is turned with it) when its mean weight on the patch is at least this
 #: share of the patch's heaviest bone's (a foot bone, not the shin's few percent at the ankle).
 CARRIES = 0.25
@@ -158,8 +164,8 @@ LIMB_MEMORY = 1.0
 RELEASE = 0.125
 #: Share of the input's largest vertex acceleration a limb correction's spring at a plant's edge may
 #: add (module notes, 5.): the spring x(k) = (x₀ + c k) e^(−y k) accelerates by y² ‖x₀‖ as it starts,
-#: so a large correction let go at :data:`HALF_LIFE` (past :data:`HOLD` it may hold 0.1 of the
-#: height, :data:`LIMB_BOUND`) kicked the foot as it lifted: on the crane, 50 × 600, the largest
+#: so a large correction let go at :data:`HALF_LIFE` (past :data:`HOLD` it may hold :data:`LIMB_BOUND`
+#: of the height) kicked the foot as it lifted: on the crane, 50 × 600, the largest
 #: acceleration was 1.57× the input's (1.13× in most animations, at the lift of frame 64) where
 #: the same walks without contacts stay at 0.91×. There y is slowed to √(limit / ‖x₀‖): 1.14× at
 #: a quarter (1.05× at a tenth). A quarter leaves the limb's own motion as it lifts most of the
@@ -170,18 +176,22 @@ RELEASE = 0.125
 #: a dancer and a horse alike.
 EDGE_ACCEL = 0.25
 #: Share of the character's height a limb's summed slide may reach past :data:`HOLD` before the part
-#: beyond it leaks (:data:`LIMB_MEMORY`). Why a bound, not a leak of the whole sum (as before): a
-#: leak moves the planted foot by its share of the sum every frame, a creep on the ground; on the
-#: samba's two components (16 × 600) that made the feet slide 1.8× what the input's did at the
-#: frames played (its planted centroids strayed 2.3× as far from the input's steps as with no
-#: correction at all). Why this bound: there, 0.03 / 0.06 / 0.1 /
-#: unbounded gave slide medians of 1.45 / 1.30 / 1.19 / 1.21× with the edge strain p99 at 0.83 /
-#: 0.85 / 0.87 / 0.88 (the input's 0.59, the same walks without contacts 0.68); past 0.1 nothing
-#: is gained. Height, not a length of the rig's, since a correction is a shift of the foot.
-LIMB_BOUND = 0.1
-#: Least share of a bone's largest coupling that makes two bones neighbours for the limb corrections
-#: (stricter than Zheng's pruning rule, §4.1, 0.1: :data:`REACH`).
-COUPLING = 0.3
+#: beyond it leaks (:data:`LIMB_MEMORY`). Why a bound, not a leak of the whole sum: a leak moves the
+#: planted foot by its share of the sum every frame, a creep on the ground; on the samba's two
+#: components (16 × 600) that made the feet slide 1.8× what the input's did. Why this bound, since
+#: the limbs make the corrections with their joints (:mod:`.limb_reach`): a sum held for seconds
+#: past a few hundredths of the height is one the leg cannot reach within the ranges the input shows
+#: (the samba's merged legs: a median correction of 2 % of the height, 9–10 % at the 95th
+#: percentile), so the foot is dragged by the leg's range, not held; letting it go over
+#: :data:`LIMB_MEMORY` slides it less. On the samba's two components (20 × 600, seed 3) the feet's
+#: slide at the 95th percentile was 3.0 / 2.4 / 1.7× the input's, and their sliding share
+#: 4.5× at 0.03 and 3.7× at 0.015, at a bound of 0.1 / 0.03 / 0.015 of the height; the dancer's,
+#: the crane's and the walker's did not move (their stances are shorter than :data:`HOLD`). Letting
+#: go more often costs acceleration where merged legs drag the feet (the planted walker's
+#: components, ``test_plants_add_no_acceleration``: 1.86 / 1.79 / 2.56 of the plants' limit added,
+#: within the three a leg's joints may add), not on the captures (the samba's largest 0.84× the
+#: input's). A share of the height: a correction is a shift of the foot.
+LIMB_BOUND = 0.015
 
 
 @dataclass
@@ -197,11 +207,12 @@ class PlantRig:
     bone's frame (F_in⁻¹ Δ); heights_in (Fi, P) the height of its lowest vertex above its clip's
     ground; sample_rest (P, S, 3), sample_bones and sample_weights (P, S, K) the rest positions and
     skin of the vertices that find each patch's lowest point (:func:`lowest_samples`; padding:
-    weight 0); ground (Fi,) the ground of each frame's clip; influence (P, B) α; own: per patch the
+    weight 0); ground (Fi,) the ground of each frame's clip; own: per patch the
     bones that carry it and turn with it (:data:`CARRIES`; none where another patch shares one);
     orientation_in (Fi, P, 3, 3) the orientation the anchor bone should have to carry the patch as
     the input's (E R_in); turn_steps_in (Fi, P, 3, 3) its step into each frame, O(f) O(f − 1)ᵀ (the
-    identity at a clip's first frame); solve (P, P) (ω αᵀ)⁺; decay y per frame; sigma (frames) of the root's
+    identity at a clip's first frame); chains: the :class:`.limb_chains.LimbChains` that make the
+    corrections; lever (P,) each patch's size (:func:`patch_levers`); decay y per frame; sigma (frames) of the root's
     smoothing and of a seam's turn; bridge (frames) the longest gap between plants bridged
     (:data:`BRIDGE`); hold and memory (frames): how long a plant is held exactly, and the time
     constant of the leak past it (:data:`HOLD`, :data:`LIMB_MEMORY`); bound (mesh units) what a
@@ -209,8 +220,10 @@ class PlantRig:
     release of a bridged gap (:data:`RELEASE`); edge_limit (mesh units a frame²) what a limb
     correction's spring at a plant's edge may accelerate (:data:`EDGE_ACCEL`), and turn_limit (P,)
     (radians a frame²) a turn's, the same limit over the farthest its turn moves a vertex
-    (:func:`turn_reach`; inf for a patch that does not turn); max_turn (radians);
-    up_axis."""
+    (:func:`turn_reach`; inf for a patch that does not turn); max_turn and turn_bound (radians:
+    :data:`MAX_TURN`, :data:`TURN_BOUND`); up_axis; rest (V, 3), bone_indices and bone_weights
+    (V, K) the skin; seams: the :class:`.limb_shape.LimbSeams` each limb's turn is checked on (None:
+    no check)."""
 
     planted: np.ndarray
     owner: np.ndarray
@@ -225,11 +238,11 @@ class PlantRig:
     sample_bones: np.ndarray
     sample_weights: np.ndarray
     ground: np.ndarray
-    influence: np.ndarray
     own: list
     orientation_in: np.ndarray
     turn_steps_in: np.ndarray
-    solve: np.ndarray
+    chains: object
+    lever: np.ndarray
     decay: float
     sigma: float
     bridge: int
@@ -240,7 +253,12 @@ class PlantRig:
     edge_limit: float
     turn_limit: np.ndarray
     max_turn: float
+    turn_bound: float
     up_axis: int
+    rest: np.ndarray = None
+    bone_indices: np.ndarray = None
+    bone_weights: np.ndarray = None
+    seams: object = None
 
     @property
     def lift_radius(self):
@@ -250,10 +268,28 @@ class PlantRig:
 
     def concerning(self, component, bones):
         """The planted states (Fi, p) of the patches a component (its index, its bones) moves:
-        those it owns and those whose limb correction reaches one of its bones (a thigh or a shin
-        cut into a component of its own decides where its foot goes)."""
-        reached = self.influence[:, np.asarray(bones, dtype=np.int64)].any(axis=1)
+        those it owns and those whose limb holds one of its bones (a thigh or a shin cut into a
+        component of its own decides where its foot goes)."""
+        bones = np.asarray(bones, dtype=np.int64)
+        reached = np.array([np.isin(limb, bones).any() for limb in self.chains.limb_bones], dtype=bool)
         return self.planted[:, (self.owner == component) | reached]
+
+    def limbs(self):
+        """(joints (L, n), patches (L, p)), −1 padded: the limbs the plants move, each a chain's
+        joints (parents first) and the patches whose last joint is on it (patches sharing a chain
+        are solved together); a patch with no limb is in none."""
+        from .limb_chains import parent_top
+
+        chains = self.chains
+        tops = sorted({parent_top(chains.parent, int(k)) for k in chains.patch_joint if k >= 0})
+        groups = [(np.array([k for k in range(chains.joints) if parent_top(chains.parent, k) == top], np.int64),
+                   np.array([p for p, k in enumerate(chains.patch_joint) if k >= 0
+                             and parent_top(chains.parent, int(k)) == top], np.int64)) for top in tops]
+        joints = np.full((len(groups), max([1] + [g[0].size for g in groups])), -1, np.int64)
+        patches = np.full((len(groups), max([1] + [g[1].size for g in groups])), -1, np.int64)
+        for l, (j, q) in enumerate(groups):
+            joints[l, :j.size], patches[l, :q.size] = j, q
+        return joints, patches
 
 
 def patch_owners(patches, dense, components):
@@ -263,35 +299,10 @@ def patch_owners(patches, dense, components):
     return np.argmax(mass, axis=1).astype(np.int64) if len(components) else np.zeros(len(patches), np.int64)
 
 
-def bone_hops(bone_indices, bone_weights, bones, coupling=COUPLING):
-    """(B, B) hops between bones in the bone graph (Zheng eq. 11 couplings of at least ``coupling``
-    × the largest; unreachable: inf)."""
-    from scipy.sparse.csgraph import shortest_path
-
-    from ..bone_graph import bone_graph_weights
-
-    d = bone_graph_weights(bone_indices, bone_weights, bones)
-    adjacent = (d >= coupling * d.max()) if d.max() > 0 else np.zeros_like(d, bool)
-    return shortest_path(adjacent.astype(np.float64), unweighted=True, directed=False)
-
-
-def limb_influence(weight_terms, hops, reach=REACH):
-    """α (P, B): 1 on every bone moving each patch (any weight on it: then all its vertices move
-    by the same shift, its lowest point as its centroid), falling
-    linearly with their hops in the bone graph to 0 at ``reach`` + 1 hops. weight_terms (P, B) ω;
-    hops (B, B) (:func:`bone_hops`). Not stopped at the synthesis's cut nodes: a leg cut into
-    components of a bone or two (the walker's foot is one) must still bend as a whole."""
-    alpha = np.zeros(weight_terms.shape)
-    for p in range(weight_terms.shape[0]):  # few patches
-        moving = np.flatnonzero(weight_terms[p] > 0.0)
-        alpha[p] = np.clip(1.0 - hops[moving].min(axis=0) / (reach + 1.0), 0.0, 1.0)
-    return alpha
-
-
 def plant_rig(rest, bone_indices, bone_weights, rotations, translations, examples, patches, planted, grounds,
-              clip_starts, fps, components, up_axis=1, half_life=HALF_LIFE, reach=REACH, max_turn=MAX_TURN,
+              clip_starts, fps, components, tree, up_axis=1, half_life=HALF_LIFE, max_turn=MAX_TURN,
               bridge=BRIDGE, hold=HOLD, limb_memory=LIMB_MEMORY, limb_bound=LIMB_BOUND, release=RELEASE,
-              edge_accel=EDGE_ACCEL, samples=None):
+              edge_accel=EDGE_ACCEL, samples=None, turn_bound=TURN_BOUND, envelope=None):
     """The :class:`PlantRig` of an input: rest (V, 3), weights (V, K), its fit rotations
     (Fi, B, 3, 3) and translations (Fi, B, 3), and the input frames themselves, examples
     (Fi, V, 3): the plants follow the input, not the fit's playback of it (a 20-bone fit of the
@@ -303,7 +314,10 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     share of the height, :data:`LIMB_BOUND`); release (seconds, :data:`RELEASE`); edge_accel (a
     share of the input's largest vertex acceleration, :data:`EDGE_ACCEL`); samples:
     the sample vertex ids (P, S) of :func:`lowest_samples` when the caller has them already
-    (None: found here)."""
+    (None: found here); tree: the skin's :class:`~skinsynth.pipeline.rig.joint_tree.JointTree`, which
+    the limbs are found on (:func:`.limb_chains.plant_chains`); turn_bound (degrees, :data:`TURN_BOUND`);
+    envelope: the capture's :class:`..shape.ShapeEnvelope`, which the limbs' turns keep to
+    (:mod:`.limb_shape`; None: unchecked)."""
     from ...mesh.geometry import largest_acceleration
     from ...rig.rotations import polar_rotation
 
@@ -357,25 +371,43 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     edge_limit = edge_accel * largest_acceleration(examples, starts)
     lever = turn_reach(rest, dense, patches, own)
     turn_limit = np.where(lever > 0.0, edge_limit / np.where(lever > 0.0, lever, 1.0), np.inf)
-    hops = bone_hops(bone_indices, bone_weights, B)
-    influence = limb_influence(weight_terms, hops, reach)
-    coupling = weight_terms @ influence.T  # (P, P): patch p's centroid moves by Σ_q coupling[p, q] g_q
+    chains = plant_chains(tree, bones[anchor], [rest[np.asarray(ids)].mean(axis=0) for ids in patches], R, rest,
+                          bone_indices, bone_weights)
     inverse_in = np.linalg.inv(anchor_in)
     orientation = turns @ anchor_in
     turn_steps = np.broadcast_to(np.eye(3), orientation.shape).copy()  # identity at a clip's first frame
     turn_steps[1:] = orientation[1:] @ np.swapaxes(orientation[:-1], -1, -2)
     turn_steps[first] = np.eye(3)
-    return PlantRig(planted=np.asarray(planted, bool), owner=owner, bones=bones, rest_terms=rest_terms[:, bones],
+    rig = PlantRig(planted=np.asarray(planted, bool), owner=owner, bones=bones, rest_terms=rest_terms[:, bones],
                     weight_terms=weight_terms[:, bones], anchor_bone=anchor, inverse_in=inverse_in,
                     steps_in=(inverse_in @ steps[..., None])[..., 0], heights_in=heights, sample_rest=rest[at],
                     sample_bones=np.asarray(bone_indices)[at], sample_weights=sample_weights, ground=ground,
-                    influence=influence, own=own,
-                    orientation_in=orientation, turn_steps_in=turn_steps, solve=_regularised_inverse(coupling),
+                    own=own, orientation_in=orientation, turn_steps_in=turn_steps, chains=chains,
+                    lever=patch_levers(rest, patches, character_height(rest, up_axis)),
                     decay=2.0 * np.log(2.0) / (half_life * fps), sigma=half_life * fps,
                     bridge=int(round(bridge * fps)), hold=int(round(hold * fps)), memory=limb_memory * fps,
                     bound=limb_bound * character_height(rest, up_axis), release=max(1, int(round(release * fps))),
                     edge_limit=edge_limit, turn_limit=turn_limit,
-                    max_turn=np.radians(max_turn), up_axis=int(up_axis))
+                    max_turn=np.radians(max_turn), turn_bound=np.radians(turn_bound), up_axis=int(up_axis),
+                    rest=rest, bone_indices=np.asarray(bone_indices, np.int64),
+                    bone_weights=np.asarray(bone_weights, np.float64))
+    if envelope is not None:
+        rig.seams = limb_seams(rig.limbs()[0], chains.bone_joint, bone_indices, bone_weights, envelope)
+    return rig
+
+
+#: The least size of a patch the limbs' orientation target assumes, as a share of the height.
+LEAST_LEVER = 0.01
+
+
+def patch_levers(rest, patches, height):
+    """(P,) each patch's size at rest: the RMS distance of its vertices from its centroid, at least
+    :data:`LEAST_LEVER` of the height. The limbs weigh a patch's turn by it (:mod:`.limb_reach`): a
+    turn of one radian misses by as much as the patch's vertices move."""
+    rest = np.asarray(rest, dtype=np.float64)
+    sizes = [np.sqrt(((rest[np.asarray(ids)] - rest[np.asarray(ids)].mean(axis=0)) ** 2).sum(axis=1).mean())
+             for ids in patches]
+    return np.maximum(np.array(sizes, dtype=np.float64).reshape(-1), LEAST_LEVER * height)
 
 
 def turn_reach(rest, dense, patches, own):
@@ -391,36 +423,104 @@ def turn_reach(rest, dense, patches, own):
     return reach
 
 
-def plant_feet(F, t, sources, rig, lowest=None):
-    """Keep every plant of the animations F (A, M, B, 3, 3), t (A, M, B, 3) on its anchor (module
-    notes), in place (:func:`.planting_loops.plant_animations`, compiled: the same steps, one
-    animation at a time); sources (C, A, M) the input frame each component plays. Returns the
-    planted states (A, P, M) bool (the gaps of at most :data:`BRIDGE` bridged). lowest: None, or
-    an (A, M) float64 array filled with the lowest of the patches' sample vertices once planted
-    (what the band after the plants keeps, :func:`.synthesis.make_batch`)."""
+def _contiguous(array, dtype=np.float64):
+    """One specialisation of the compiled loops: C-ordered arrays of these types."""
+    return np.ascontiguousarray(array, dtype=dtype)
+
+
+@dataclass
+class PlantTargets:
+    """What keeps the plants of A animations of M frames (:func:`plant_targets`): states (A, P, M)
+    bool, the planted states (the gaps of at most :data:`BRIDGE` bridged); each patch's centroid as
+    the feet's turns leave it, its anchor bone's turn (axis-angle) and its correction (where the
+    centroid goes beyond that and the root's offset) (A, P, M, 3); the root's offset (A, M, 3),
+    moving every bone."""
+
+    states: np.ndarray
+    centre: np.ndarray
+    turn: np.ndarray
+    correction: np.ndarray
+    root: np.ndarray
+
+
+def plant_targets(F, t, sources, rig):
+    """The :class:`PlantTargets` of the animations F (A, M, B, 3, 3), t (A, M, B, 3) (read only;
+    module notes 0–6, :func:`.planting_loops.plant_animations`, compiled, one animation at a time);
+    sources (C, A, M) the input frame each component plays."""
     from .planting_loops import plant_animations
 
     A, M = F.shape[:2]
     P = rig.owner.size
-    src = np.ascontiguousarray(np.moveaxis(sources[rig.owner], 0, 1), dtype=np.int64)  # (A, P, M)
+    src = _contiguous(np.moveaxis(sources[rig.owner], 0, 1), np.int64)  # (A, P, M)
     width = max([1] + [bones.size for bones in rig.own])
     own = np.full((P, width), -1, np.int64)
     for p, bones in enumerate(rig.own):  # as slots in rig.bones
         own[p, :bones.size] = np.searchsorted(rig.bones, bones)
-    states = np.zeros((A, P, M), bool)
-    def c(array, dtype=np.float64):  # one specialisation of the loops: C-ordered arrays of these types
-        return np.ascontiguousarray(array, dtype=dtype)
+    c = _contiguous
+    targets = PlantTargets(states=np.zeros((A, P, M), bool), centre=np.zeros((A, P, M, 3)), turn=np.zeros((A, P, M, 3)),
+                           correction=np.zeros((A, P, M, 3)), root=np.zeros((A, M, 3)))
+    up_columns, lowest_rows = lowest_operator(rig)
+    plant_animations(F, t, src, c(sources[0], np.int64), c(rig.planted, np.bool_), c(rig.bones, np.int64),
+                     centre_operator(rig.rest_terms, rig.weight_terms), up_columns, lowest_rows, sample_counts(rig),
+                     c(rig.anchor_bone, np.int64), c(rig.inverse_in), c(rig.steps_in), c(rig.heights_in),
+                     c(rig.ground), c(rig.orientation_in), c(rig.turn_steps_in), own,
+                     float(rig.decay), gaussian_weights(rig.sigma), float(rig.sigma),
+                     raised_cosine(rig.lift_radius), float(rig.max_turn), int(rig.up_axis), int(rig.bridge),
+                     int(rig.hold), float(np.exp(-1.0 / rig.memory)), float(rig.bound), int(rig.release),
+                     float(rig.edge_limit), c(rig.turn_limit), float(rig.turn_bound), targets.states, targets.centre,
+                     targets.correction,
+                     targets.turn, targets.root)
+    return targets
 
-    return plant_animations(F, t, src, c(sources[0], np.int64), c(rig.planted, np.bool_), c(rig.bones, np.int64),
-                            centre_operator(rig.rest_terms, rig.weight_terms), *lowest_operator(rig),
-                            c((rig.sample_weights.sum(axis=2) > 0.0).sum(axis=1), np.int64),
-                            c(rig.anchor_bone, np.int64), c(rig.inverse_in), c(rig.steps_in), c(rig.heights_in),
-                            c(rig.ground), c(rig.orientation_in), c(rig.turn_steps_in), own, c(rig.influence), c(rig.solve),
-                            float(rig.decay), gaussian_weights(rig.sigma), float(rig.sigma),
-                            raised_cosine(rig.lift_radius), float(rig.max_turn), int(rig.up_axis), int(rig.bridge),
-                            int(rig.hold), float(np.exp(-1.0 / rig.memory)), float(rig.bound), int(rig.release),
-                            float(rig.edge_limit), c(rig.turn_limit), states, lowest is not None,
-                            np.zeros((0, 0)) if lowest is None else lowest)
+
+def reach_targets(F, t, targets, rig, held=None, cut=None):
+    """Make the :class:`PlantTargets` on the animations F, t, in place: each limb turned at its
+    joints towards its patches' targets, within their ranges, the plants' acceleration limit and
+    the capture's shapes (:func:`.limb_reach.reach_animations`), every bone moved by the root. held,
+    cut: None, or (A, M) int64 arrays of zeros, counting at each frame the joints held at the edge
+    of their ranges and the limbs whose turn tore the skin and was cut (:mod:`.limb_shape`)."""
+    from .limb_reach import COLD_STEPS, JOINT_ACCEL, PRIOR, RANGE_MARGIN, STIFF, WARM_STEPS, reach_animations
+
+    c = _contiguous
+    chains, ranges = rig.chains, rig.chains.ranges
+    largest = ranges.spread.max(axis=1, initial=0.0)[:, None]
+    weight = np.where(largest > 0.0, largest / np.maximum(np.maximum(ranges.spread, STIFF * largest), 1e-300), 1.0)
+    frame = np.einsum("kxu,kvx->kuv", ranges.axes, ranges.mean)  # Uᵀ Q̄ᵀ
+    limb_joints, limb_patches = rig.limbs()
+    seams = no_seams(limb_joints.shape[0]) if rig.seams is None else rig.seams
+    reach_animations(F, t, targets.centre, targets.correction, targets.turn, targets.root, limb_joints, limb_patches,
+                     c(chains.bone, np.int64), c(chains.body, np.int64), c(chains.point.reshape(-1, 3)),
+                     c(chains.parent, np.int64), c(chains.reach), c(ranges.mean.reshape(-1, 3, 3)),
+                     c(ranges.axes.reshape(-1, 3, 3)), c(frame.reshape(-1, 3, 3)), c(weight.reshape(-1, 3)),
+                     c(ranges.low.reshape(-1, 3)), c(ranges.high.reshape(-1, 3)), float(RANGE_MARGIN), float(PRIOR),
+                     c(rig.lever), c(chains.patch_joint, np.int64), c(chains.bone_joint, np.int64), c(rig.bones, np.int64),
+                     c(rig.rest_terms), c(rig.weight_terms), int(WARM_STEPS),
+                     int(COLD_STEPS), float(JOINT_ACCEL * rig.edge_limit), c(rig.rest), c(rig.bone_indices, np.int64),
+                     c(rig.bone_weights), c(seams.vertices, np.int64), c(seams.edges, np.int64), c(seams.lengths),
+                     c(seams.one), c(seams.allowance), c(seams.budget, np.int64), int(HALVINGS),
+                     np.zeros(F.shape[:2], np.int64) if held is None else held,
+                     np.zeros(F.shape[:2], np.int64) if cut is None else cut)
+
+
+def plant_feet(F, t, sources, rig, lowest=None, held=None):
+    """Keep every plant of the animations F (A, M, B, 3, 3), t (A, M, B, 3) on its anchor (module
+    notes), in place: :func:`plant_targets`, then :func:`reach_targets`; sources (C, A, M) the input
+    frame each component plays. Returns the planted states (A, P, M) bool (the gaps of at most
+    :data:`BRIDGE` bridged). lowest: None, or an (A, M) float64 array filled with the lowest of the
+    patches' sample vertices once planted (what the band after the plants keeps,
+    :func:`.synthesis.make_batch`); held: :func:`reach_targets`'."""
+    from .planting_loops import lowest_after
+
+    targets = plant_targets(F, t, sources, rig)
+    reach_targets(F, t, targets, rig, held)
+    if lowest is not None:
+        lowest_after(F, t, _contiguous(rig.bones, np.int64), *lowest_operator(rig), sample_counts(rig), lowest)
+    return targets.states
+
+
+def sample_counts(rig):
+    """(P,) int64: how many of each patch's sample vertices are real (the rest is padding)."""
+    return _contiguous((rig.sample_weights.sum(axis=2) > 0.0).sum(axis=1), np.int64)
 
 
 def centre_operator(rest_terms, weight_terms):
@@ -488,10 +588,10 @@ def lowest_samples(rest, examples, patches, up_axis, most=SAMPLES):
 def warm_up(rig):
     """Load (or compile) :func:`plant_feet`'s compiled loops for ``rig`` on one animation of two
     frames: a synthesis's workers are forked after it, and would each load them again."""
-    B = int(max(rig.bones.max(), rig.influence.shape[1] - 1)) + 1
+    B = rig.chains.bone_joint.size
     F = np.broadcast_to(np.eye(3, dtype=np.float32), (1, 2, B, 3, 3)).copy()
     t = np.zeros((1, 2, B, 3), np.float32)
-    plant_feet(F, t, np.zeros((int(rig.owner.max()) + 1, 1, 2), np.int64), rig)
+    plant_feet(F, t, np.zeros((int(rig.owner.max()) + 1, 1, 2), np.int64), rig, lowest=np.zeros((1, 2)))
 
 
 def gaussian_weights(sigma, truncate=4.0):
@@ -588,17 +688,3 @@ def _usable(frames, pairs, clips):
         return MotionGraph(frames, pairs, None, clips).usable_count
     except OptionError:
         return 0
-
-
-#: Singular values of the patches' coupling below this share of the largest are dropped in its solve:
-#: patches moved by the same bones (a body lying on its side) ask them for conflicting shifts, and
-#: the exact solution of a near-singular coupling is huge shifts; patches on bones of their own
-#: (feet, hooves: singular values near 1) are solved exactly.
-RCOND = 0.05
-
-
-def _regularised_inverse(coupling, rcond=RCOND):
-    """The truncated pseudo-inverse of the patches' coupling C (P, P) (:data:`RCOND`)."""
-    return np.linalg.pinv(coupling, rcond=rcond)
-
-

@@ -15,6 +15,7 @@ import numba
 import numpy as np
 
 
+
 @numba.njit(cache=True, nogil=True)
 def _smooth(values, kernel, nearest):
     """values (M,) convolved with a symmetric kernel (2r + 1,): zeros beyond the ends, or (nearest)
@@ -467,9 +468,12 @@ def _lowest(rows, up_columns, lowest_operator, samples, out):
 @numba.njit(cache=True, nogil=True)
 def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_columns, lowest_operator, samples,
                      anchor_slot, inverse_in, steps_in, heights_in, ground, orientation_in, turn_steps_in, own,
-                     influence, solve, decay, kernel, sigma, lift_kernel, max_turn, up, bridge, hold, keep, bound, release,
-                     edge_limit, turn_limit, states, want_lowest, lowest):
-    """Keep the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, in place); src
+                     decay, kernel, sigma, lift_kernel, max_turn, up, bridge, hold, keep, bound, release,
+                     edge_limit, turn_limit, turn_bound, states, centre_out, correction_out, turn_out, root_out):
+    """What keeps the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, read only):
+    each patch's centroid (after its turn), correction and turn (A, P, M, 3) and the root's offset
+    (A, M, 3), written
+    into the ``*_out`` arrays for :func:`.limb_reach.reach_animations` to make; src
     (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
     :class:`.planting.PlantRig` tables (own (P, K) the slots in ``bones`` of each patch's own bones,
     padded with −1), the operators of the patches'
@@ -484,8 +488,9 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
     a bridged gap lets the sum go (:data:`.planting.RELEASE`); edge_limit: the acceleration a limb
     correction's springs at a plant's edges may add (:func:`edge_decay`), and what bounds every other
     correction (:mod:`.planting` notes, 6.), turn_limit (P,) the same for each patch's turn (radians a
-    frame²); states (A, P, M) written; with want_lowest, lowest (A, M) too:
-    the lowest of the patches' sample vertices once planted (the band's, :mod:`.contact`)."""
+    frame²); turn_bound: the turn (radians) a plant holds past ``hold`` before the part beyond it
+    leaks (as a limb's sum does past ``bound``, :data:`.planting.TURN_BOUND`); states (A, P, M) written. An animation with no plant keeps its targets 0 (the caller's
+    zeros)."""
     A, M, B = F.shape[0], F.shape[1], F.shape[2]
     P = planted.shape[1]
     step_cap = edge_limit / (2.0 * decay) if edge_limit > 0.0 else np.inf
@@ -506,6 +511,10 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
     rotation = np.empty((3, 3))
     final = np.empty((3, 3))
     change = np.empty(3)
+    Fw = np.empty((1, M, B, 3, 3))  # the bones as the feet's turn leaves them: what steps 2 and 3 measure
+    tw = np.empty((1, M, B, 3))
+    turned_centre = np.zeros((P, M, 3))  # each patch's centroid after the feet's turns, and its turn
+    turned_by = np.zeros((P, M, 3))
     for a in range(A):
         anything = False
         for p in range(P):
@@ -516,17 +525,27 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
                 states[a, p, m] = state[p, m]
                 anything = anything or state[p, m]
         if not anything:
-            if want_lowest:
-                _lowest_after(F, t, a, bones, rows, up_columns, lowest_operator, samples, low, lowest)
             continue
+        for m in range(M):
+            for b in range(B):
+                for i in range(3):
+                    tw[0, m, b, i] = t[a, m, b, i]
+                    for j in range(3):
+                        Fw[0, m, b, i, j] = F[a, m, b, i, j]
         # 1. the feet's turn: the input's orientation under the output's heading, about each centroid
+        # (on the work copy: the limbs' inverse kinematics makes it, 4.)
+        for p in range(P):
+            for m in range(M):
+                for d in range(3):
+                    turned_by[p, m, d] = 0.0
         if own[:, 0].max() >= 0:
-            _bone_rows(F, t, a, bones, rows)
+            _bone_rows(Fw, tw, 0, bones, rows)
             _centres(rows, centre_operator, centre)  # then moved with each bone a turn moves
         for p in range(P):
             if own[p, 0] < 0:
                 continue
             anchor = bones[anchor_slot[p]]
+            age = 0  # frames the plant has held its foot's orientation
             for m in range(M):
                 turn[m, 0] = 0.0
                 turn[m, 1] = 0.0
@@ -536,20 +555,29 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
                 f = src[a, p, m]
                 for i in range(3):
                     for j in range(3):
-                        now[i, j] = F[a, m, anchor, i, j]
+                        now[i, j] = Fw[0, m, anchor, i, j]
                 _mul(now, inverse_in[f, p], mapped)
                 _heading(mapped, up, head)
-                if m > 0 and state[p, m - 1]:  # inside a plant: the last frame's, by the input's own step
+                inside = m > 0 and state[p, m - 1]
+                if inside and planted[f, p]:  # inside a plant: the last frame's, by the input's own step
+                    age += 1
                     _mul(head, turn_steps_in[f, p], product)
                     _mul_t(product, head, rotation)
                     _mul(rotation, final, wanted)
-                else:  # a plant's first frame: the input's orientation under the output's heading
+                else:  # a plant's first frame, or the input's foot lifted inside a bridged gap: the
+                    # input's orientation under the output's heading
+                    age = 0
                     _mul(head, orientation_in[f, p], wanted)
                 _mul_t(wanted, now, product)
                 _near_log(product, change)
-                if m > 0 and state[p, m - 1]:  # a turn changes by at most its cap a frame inside a plant
+                if inside:  # a turn changes by at most its cap a frame inside a plant
                     _cap_step(change, turn[m - 1], turn_limit[p] / (2.0 * decay))
                 angle = np.sqrt(change[0] ** 2 + change[1] ** 2 + change[2] ** 2)
+                if age > hold and angle > turn_bound:  # past the hold, what exceeds the bound leaks
+                    shrink = (turn_bound + (angle - turn_bound) * keep) / angle
+                    for d in range(3):
+                        change[d] *= shrink
+                    angle *= shrink
                 scale = min(1.0, max_turn / max(angle, 1e-12))
                 for d in range(3):
                     turn[m, d] = change[d] * scale
@@ -559,6 +587,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
             # the turn, about the patch's centroid; every patch centroid moves with each bone turned
             nb = bones.shape[0]
             for m in range(M):
+                for d in range(3):
+                    turned_by[p, m, d] = turn[m, d]
                 _rotation_exp(turn[m, 0], turn[m, 1], turn[m, 2], rotation)
                 for k in range(own.shape[1]):
                     slot = own[p, k]
@@ -567,18 +597,18 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
                     b = bones[slot]
                     for i in range(3):
                         for j in range(3):
-                            now[i, j] = F[a, m, b, i, j]
+                            now[i, j] = Fw[0, m, b, i, j]
                     _mul(rotation, now, product)
                     for d in range(3):
-                        change[d] = t[a, m, b, d] - centre[p, m, d]
+                        change[d] = tw[0, m, b, d] - centre[p, m, d]
                     for i in range(3):
                         moved = (rotation[i, 0] * change[0] + rotation[i, 1] * change[1]
                                  + rotation[i, 2] * change[2] + centre[p, m, i])
-                        step[i] = moved - t[a, m, b, i]
-                        t[a, m, b, i] = moved
+                        step[i] = moved - tw[0, m, b, i]
+                        tw[0, m, b, i] = moved
                         for j in range(3):
                             turned[i, j] = product[i, j] - now[i, j]
-                            F[a, m, b, i, j] = product[i, j]
+                            Fw[0, m, b, i, j] = product[i, j]
                     for q in range(P):  # Δc_q = ΔF ā_qb + ω_qb Δt (the centroid operator's entries)
                         for i in range(3):
                             total = step[i] * centre_operator[9 * nb + 3 * slot + i, 3 * q + i]
@@ -586,9 +616,13 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
                                 total += turned[i, j] * centre_operator[9 * slot + 3 * i + j, 3 * q + i]
                             centre[q, m, i] += total
         # 2. the centroids and lowest points after the turn; the input's steps, carried; the slide
-        _bone_rows(F, t, a, bones, rows)
+        _bone_rows(Fw, tw, 0, bones, rows)
         _centres(rows, centre_operator, centre)
         _lowest(rows, up_columns, lowest_operator, samples, low)
+        for p in range(P):  # what each correction moves from
+            for m in range(M):
+                for d in range(3):
+                    turned_centre[p, m, d] = centre[p, m, d]
         slide = np.zeros((P, M, 3))  # each step's horizontal slide beyond the input's own, inside a plant
         push = np.zeros((M, 3))
         for m in range(1, M):
@@ -600,8 +634,8 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
                     b = bones[anchor_slot[p]]
                     for d in range(3):
                         if d != up:
-                            expected = (F[a, m, b, d, 0] * steps_in[f, p, 0] + F[a, m, b, d, 1] * steps_in[f, p, 1]
-                                        + F[a, m, b, d, 2] * steps_in[f, p, 2])
+                            expected = (Fw[0, m, b, d, 0] * steps_in[f, p, 0] + Fw[0, m, b, d, 1] * steps_in[f, p, 1]
+                                        + Fw[0, m, b, d, 2] * steps_in[f, p, 2])
                             slide[p, m, d] = centre[p, m, d] - centre[p, m - 1, d] - expected
                             push[m, d] -= slide[p, m, d]
             if count > 0:
@@ -691,33 +725,30 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
             floor_lift(need, state[p], lift_radius, lift_kernel, edge_limit, hold, lift)
             for m in range(M):
                 correction[p, m, up] += lift[m]
-        # 4. the bones: the root moves all, each limb's share solved so every centroid lands
-        shifts = np.empty((P, 3))
+        # 4. the targets, for the limbs' inverse kinematics (:mod:`.limb_reach`) and the root
+        for p in range(P):
+            for m in range(M):
+                for d in range(3):
+                    centre_out[a, p, m, d] = turned_centre[p, m, d]
+                    correction_out[a, p, m, d] = correction[p, m, d]
+                    turn_out[a, p, m, d] = turned_by[p, m, d]
         for m in range(M):
-            for q in range(P):  # every patch's centroid moves by its correction: shifts = solve · corrections
-                for i in range(3):
-                    total = 0.0
-                    for p in range(P):
-                        total += solve[q, p] * correction[p, m, i]
-                    shifts[q, i] = total
-            for b in range(B):
-                for i in range(3):
-                    delta = root[m, i]
-                    for q in range(P):
-                        delta += influence[q, b] * shifts[q, i]
-                    t[a, m, b, i] += delta
-        if want_lowest:
-            _lowest_after(F, t, a, bones, rows, up_columns, lowest_operator, samples, low, lowest)
+            for d in range(3):
+                root_out[a, m, d] = root[m, d]
     return states
 
 
 @numba.njit(cache=True, nogil=True)
-def _lowest_after(F, t, a, bones, rows, up_columns, lowest_operator, samples, low, lowest):
-    """lowest[a] (M,): the lowest of every patch's sample vertices at each frame of animation a, as
-    its bones are now (``rows`` and ``low`` are work space)."""
-    _bone_rows(F, t, a, bones, rows)
-    _lowest(rows, up_columns, lowest_operator, samples, low)
-    for m in range(low.shape[1]):
-        lowest[a, m] = np.inf
-        for p in range(low.shape[0]):
-            lowest[a, m] = min(lowest[a, m], low[p, m])
+def lowest_after(F, t, bones, up_columns, lowest_operator, samples, lowest):
+    """lowest (A, M): the lowest of every patch's sample vertices (:func:`_lowest`) at each frame of
+    the animations F (A, M, B, 3, 3), t (A, M, B, 3), as their bones are now."""
+    A, M = F.shape[0], F.shape[1]
+    rows = np.zeros((M, 12 * bones.shape[0]))
+    low = np.zeros((samples.shape[0], M))
+    for a in range(A):
+        _bone_rows(F, t, a, bones, rows)
+        _lowest(rows, up_columns, lowest_operator, samples, low)
+        for m in range(M):
+            lowest[a, m] = np.inf
+            for p in range(low.shape[0]):
+                lowest[a, m] = min(lowest[a, m], low[p, m])

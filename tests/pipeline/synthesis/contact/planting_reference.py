@@ -1,21 +1,36 @@
 """The numpy reference of :func:`skinsynth.pipeline.synthesis.contact.planting_loops.plant_animations`:
 the same steps (:mod:`skinsynth.pipeline.synthesis.contact.planting`'s module notes) on whole arrays of
-animations, patches and frames, as they were first written. The compiled loops must match it to
-rounding (tests/pipeline/synthesis/test_planting.py)."""
+animations, patches and frames, as they were first written, giving the same targets (each patch's
+pivot, turn and correction, the root's offset). The compiled loops must match it to rounding
+(tests/pipeline/synthesis/test_planting.py)."""
 
 import numpy as np
 
 from skinsynth.pipeline.synthesis.contact.ground import _raise
-from skinsynth.pipeline.synthesis.contact.planting import centre_operator
+from skinsynth.pipeline.synthesis.contact.planting import PlantTargets, centre_operator
 
 
-def plant_feet_reference(F, t, sources, rig, block=16):
-    """:func:`skinsynth.pipeline.synthesis.contact.planting.plant_feet` in numpy: F, t in place; returns
-    the planted states (A, P, M)."""
-    states = np.zeros((F.shape[0], rig.owner.size, F.shape[1]), bool)
-    for a in range(0, F.shape[0], block):
-        states[a:a + block] = _plant_block(F[a:a + block], t[a:a + block], sources[:, a:a + block], rig)
-    return states
+def plant_targets_reference(F, t, sources, rig, block=16):
+    """:func:`skinsynth.pipeline.synthesis.contact.planting.plant_targets` in numpy (F, t unchanged):
+    its :class:`~skinsynth.pipeline.synthesis.contact.planting.PlantTargets`."""
+    A, M, P = F.shape[0], F.shape[1], rig.owner.size
+    out = PlantTargets(states=np.zeros((A, P, M), bool), centre=np.zeros((A, P, M, 3)), turn=np.zeros((A, P, M, 3)),
+                       correction=np.zeros((A, P, M, 3)), root=np.zeros((A, M, 3)))
+    for a in range(0, A, block):
+        parts = _plant_block(F[a:a + block].copy(), t[a:a + block].copy(), sources[:, a:a + block], rig)
+        for name, value in zip(("states", "centre", "turn", "correction", "root"), parts):
+            getattr(out, name)[a:a + block] = value
+    return out
+
+
+def turned_lowest(F, t, sources, rig):
+    """(A, P, M): the patches' lowest sample vertices once the feet are turned (step 1), what the
+    plants' floor and heights are measured on."""
+    F, t = F.copy(), t.copy()
+    src = np.moveaxis(sources[rig.owner], 0, 1)
+    state = _bridged(rig.planted[src, np.arange(rig.owner.size)[None, :, None]], rig.bridge)
+    _turn_feet(F, t, src, state, _centres(F, t, rig), rig)
+    return _lowest(F, t, rig)
 
 
 def _shifted(x, by, fill):
@@ -35,11 +50,11 @@ def _plant_block(F, t, sources, rig):
     patches = np.arange(P)[None, :, None]
     src = np.moveaxis(sources[rig.owner], 0, 1)  # (A, P, M)
     state = _bridged(rig.planted[src, patches], rig.bridge)
-    if not state.any():
-        return state
     A, M = F.shape[:2]
+    if not state.any():
+        return state, 0.0, 0.0, 0.0, 0.0
     centre = _centres(F, t, rig)  # (A, P, M, 3)
-    _turn_feet(F, t, src, state, centre, rig)
+    turn = _turn_feet(F, t, src, state, centre, rig)
     # the input's step into the source frame, carried by the patch bone's input → output map
     anchor = np.moveaxis(F[:, :, rig.bones[rig.anchor_bone]], 2, 1).astype(np.float64)  # (A, P, M, 3, 3)
     expected = (anchor @ rig.steps_in[src, patches][..., None])[..., 0]
@@ -118,16 +133,10 @@ def _plant_block(F, t, sources, rig):
     need = np.where(state, 0.0, np.maximum(0.0, target - (lowest + root[:, None, :, up] + correction[..., up])))
     for a, p in zip(*np.nonzero(need.any(axis=2))):
         correction[a, p, :, up] += _floor_lift(need[a, p], state[a, p], rig)
-    # bone shifts: every patch's centroid moves by its correction (ω αᵀ g = e), the root moves all
-    shifts = np.tensordot(rig.solve, correction, axes=([1], [1]))  # (P, A, M, 3)
-    moved = np.flatnonzero(rig.influence.any(axis=0))
-    bones = np.moveaxis(np.tensordot(rig.influence[:, moved], shifts, axes=([0], [0])), 0, 2)  # (A, M, b', 3)
-    root = root.astype(t.dtype)
-    for slot in range(t.shape[2]):  # one bone slot at a time: a fancy-index scatter is several times slower
-        t[:, :, slot] += root
-    for k, b in enumerate(moved):
-        t[:, :, b] += bones[:, :, k].astype(t.dtype)
-    return state
+    # animations with no plant keep their targets 0
+    some = state.any(axis=(1, 2))
+    return (state, centre * some[:, None, None, None], turn, correction * some[:, None, None, None],
+            root * some[:, None, None])
 
 
 def _smooth_push(push, rig):
@@ -301,12 +310,14 @@ def _turn_feet(F, t, src, state, centre, rig):
     patch undone, E) under the output's heading, and later in the plant the orientation it was
     turned to one frame before, turned by the input's own step (module notes), blended in and
     out like the translations; F, t and the
-    centroids centre (A, P, M, 3) (the patches that share a turned bone move with it) in place."""
+    centroids centre (A, P, M, 3) (the patches that share a turned bone move with it) in place.
+    Returns each patch's turn (A, P, M, 3)."""
     from skinsynth.pipeline.rig.rotations import rotation_exp
 
     turning = np.flatnonzero([bones.size > 0 for bones in rig.own])
+    turns = np.zeros(centre.shape)
     if not turning.size:
-        return
+        return turns
     state = state[:, turning]
     src = src[:, turning]
     slots = rig.anchor_bone[turning]
@@ -316,10 +327,14 @@ def _turn_feet(F, t, src, state, centre, rig):
     first = heading @ rig.orientation_in[src, patches]  # a plant's first frame: the input's, under the heading
     step = heading @ rig.turn_steps_in[src, patches] @ np.swapaxes(heading, -1, -2)  # the input's own step
     stepping = state & _shifted(state, 1, False)
+    holding = stepping & rig.planted[src, patches]  # inside a plant, the input's foot down: held
     turn = np.zeros(now.shape[:-1])
     final = now[:, :, 0].copy()
+    age = np.zeros(state.shape[:2], np.int64)
+    keep = np.exp(-1.0 / rig.memory)
     for m in range(now.shape[2]):  # inside a plant each frame starts from the last one's turned orientation
-        wanted = np.where(stepping[:, :, m, None, None], step[:, :, m] @ final, first[:, :, m])
+        age = np.where(holding[:, :, m], age + 1, 0)
+        wanted = np.where(holding[:, :, m, None, None], step[:, :, m] @ final, first[:, :, m])
         change = _near_log(wanted @ np.swapaxes(now[:, :, m], -1, -2))
         if m > 0:  # inside a plant a turn changes by at most its cap a frame
             cap = (rig.turn_limit[turning] / (2.0 * rig.decay))[None, :, None]
@@ -327,6 +342,10 @@ def _turn_feet(F, t, src, state, centre, rig):
             size = np.linalg.norm(moved, axis=-1, keepdims=True)
             capped = turn[:, :, m - 1] + moved * np.minimum(1.0, cap / np.maximum(size, 1e-300))
             change = np.where(stepping[:, :, m, None] & (size > cap), capped, change)
+        angle = np.linalg.norm(change, axis=-1, keepdims=True)
+        leaking = (age[..., None] > rig.hold) & (angle > rig.turn_bound)  # past the hold what exceeds the bound leaks
+        change = np.where(leaking, change * (rig.turn_bound + (angle - rig.turn_bound) * keep) / np.maximum(angle, 1e-300),
+                          change)
         angle = np.linalg.norm(change, axis=-1, keepdims=True)
         turn[:, :, m] = np.where(state[:, :, m, None], change * np.minimum(1.0, rig.max_turn / np.maximum(angle, 1e-12)),
                                  0.0)
@@ -337,6 +356,7 @@ def _turn_feet(F, t, src, state, centre, rig):
     for k, p in enumerate(turning):  # few patches: each turns its own bones about its centroid
         rotation = rotation_exp(turn[:, k])  # (A, M, 3, 3)
         c = centre[:, p].copy()
+        turns[:, p] = turn[:, k]
         for b in rig.own[p]:
             before_F, before_t = F[:, :, b].astype(np.float64), t[:, :, b].astype(np.float64)
             after_F = rotation @ before_F
@@ -347,6 +367,7 @@ def _turn_feet(F, t, src, state, centre, rig):
             change_F, change_t = after_F - before_F, after_t - before_t
             centre += np.moveaxis(change_F @ rig.rest_terms[:, slot].T, -1, 1) \
                 + rig.weight_terms[None, :, slot, None, None] * change_t[:, None]
+    return turns
 
 
 def _near_log(matrices):

@@ -16,11 +16,11 @@ from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.inputs.clips import Clips
 from skinsynth.pipeline.inputs.examples import walker_contacts
 from skinsynth.pipeline.synthesis import Request, keep_input_plants, synthesis_components
-from skinsynth.pipeline.synthesis.contact.planting import (KEEP_USABLE, agreeing_transitions, limb_influence, output_states,
-                                                   plant_feet, mark_contact_jumps, contact_transitions)
+from skinsynth.pipeline.synthesis.contact.planting import (KEEP_USABLE, agreeing_transitions, output_states, plant_feet,
+                                                   plant_targets, reach_targets, mark_contact_jumps, contact_transitions)
 from skinsynth.pipeline.synthesis.contact.planting_loops import blend_edges_row
 
-from planting_reference import _blend_edges, _shifted, plant_feet_reference
+from planting_reference import _blend_edges, _shifted, plant_targets_reference
 from skinsynth.pipeline.synthesis.synthesis import synthesize
 
 UP = 1
@@ -133,17 +133,11 @@ def _input_plant_drift(w):
 # ---------------------------------------------------------------------------------------------- 1. plants hold
 
 
-@pytest.mark.parametrize("single", [False, True], ids=["components", "single-component"])
-def test_plants_hold_on_the_planted_walker(walker_graph, single):
-    """plant_feet on the walks and merges of a synthesis (its bones before the plants; synthesize
-    then keeps the input's range of lowest points too, :mod:`.contact`, which moves the body where
-    a six-component merge sinks another part of the walker below the input's range). The merged
-    walker's legs drag its feet up to a sixth of its height a frame: held exactly only with the
-    acceleration limits off (:func:`_unlimited`; with them that foot slides instead, and nothing
-    pops: test_plants_add_no_acceleration); the single component's are held at the defaults."""
+def test_plants_hold_on_the_planted_walker(walker_graph):
+    """plant_feet on the walks of a single-component synthesis (its bones before the plants): each
+    stance foot stands still and at the input's height, to rounding."""
     w = walker_graph
-    r, rig = _synthesize(w, single, seed=0, plants=False)
-    rig = rig if single else _unlimited(rig)
+    r, rig = _synthesize(w, True, seed=0, plants=False)
     states = plant_feet(r.F, r.t, r.sources, rig)  # (A, P, M); F and t corrected in place
     np.testing.assert_array_equal(states, output_states(r.sources, rig))
     assert states.shape == (8, 2, 600)
@@ -172,10 +166,69 @@ def test_plants_hold_on_the_planted_walker(walker_graph, single):
                 worst_stance = max(worst_stance, _horizontal_drift(c[b:e, p]))
     assert plants > 100 and stance_runs > 100
     H = w.H
-    assert worst_stance < 1e-3 * H, worst_stance / H  # measured ~3e-6 H
-    assert worst_plant < in_drift + 1e-3 * H, (worst_plant / H, in_drift / H)  # measured: in_drift + ~1e-6 H
-    assert worst_height < 1e-3 * H, worst_height / H  # measured < 1e-7 H
+    assert worst_stance < 1e-3 * H, worst_stance / H  # measured ~1e-6 H
+    assert worst_plant < in_drift + 1e-3 * H, (worst_plant / H, in_drift / H)
+    assert worst_height < 1e-3 * H, worst_height / H
     assert worst_height_rig < 1e-3 * H, worst_height_rig / H
+
+
+def test_plants_hold_the_merged_walker_as_far_as_its_legs_reach(walker_graph):
+    """The planted walker cut into six components: its merge drags a stance foot 0.65 of the height
+    at the median over a stance (legs of one frame on a body of another). Its limbs turn at their
+    joints and within their ranges to hold it, and hold what they can reach: measured 0.21 H at the
+    median (0.02 H with the acceleration limits off), the rest slides rather than the body tearing
+    (test_large_corrections_keep_every_joint_and_the_shape)."""
+    w = walker_graph
+    r, rig = _synthesize(w, False, seed=0, plants=False)
+    F, t = r.F.copy(), r.t.copy()
+    states = plant_feet(F, t, r.sources, rig)
+    corrected, uncorrected = [], []
+    for a in range(F.shape[0]):
+        c, c0 = _patch_centroids(w, F[a], t[a]), _patch_centroids(w, r.F[a], r.t[a])
+        for p in range(2):
+            for b, e in _runs(states[a, p] & w.truly[r.sources[rig.owner[p], a], p]):
+                corrected.append(_horizontal_drift(c[b:e, p]))
+                uncorrected.append(_horizontal_drift(c0[b:e, p]))
+    assert np.median(uncorrected) > 0.4 * w.H
+    assert np.median(corrected) < 0.5 * np.median(uncorrected), (np.median(corrected) / w.H, np.median(uncorrected) / w.H)
+
+
+def test_large_corrections_keep_every_joint_and_the_shape(walker_graph):
+    """Issue 62 on the walker cut into six components, whose merge asks its plants for the largest
+    corrections (a stance foot dragged 0.65 of the height): every bone a plant moves is moved
+    rigidly, all the bones hung below one joint by the same motion (so their lengths and the skin
+    between them are kept), every limb joint's two bones carry its point as far apart as before (to
+    1e-6 of the height: the joints hold), and the body keeps its shape against the capture
+    (:mod:`skinsynth.pipeline.synthesis.shape`: no broken frame, no frame past 2 % of its edges)."""
+    from skinsynth.gpu import lbs
+    from skinsynth.pipeline.synthesis.skinned import capture_envelope
+
+    w = walker_graph
+    r, rig = _synthesize(w, False, seed=1, plants=False, count=6, frames=300)
+    F, t = r.F.copy(), r.t.copy()
+    plant_feet(F, t, r.sources, rig)
+    H, chains = w.H, rig.chains
+    F0, t0, F1, t1 = (np.asarray(x, dtype=np.float64) for x in (r.F, r.t, F, t))
+    motion = F1 @ np.linalg.inv(F0)  # each bone's map x ↦ motion x + shift, frame by frame
+    shift = t1 - np.einsum("amkij,amkj->amki", motion, t0)
+    np.testing.assert_allclose(motion @ np.swapaxes(motion, -1, -2), np.broadcast_to(np.eye(3), motion.shape), atol=1e-5)
+    for k in range(chains.joints):
+        group = np.flatnonzero(chains.bone_joint == k)
+        assert group.size and np.abs(motion[:, :, group] - motion[:, :, group[:1]]).max() < 1e-5
+        assert np.abs(shift[:, :, group] - shift[:, :, group[:1]]).max() < 1e-5 * H
+
+        def gap(F_, t_):  # (A, M) how far apart the joint's two bones carry its point
+            body, bone, point = chains.body[k], chains.bone[k], chains.point[k]
+            return np.linalg.norm(F_[:, :, body] @ point + t_[:, :, body] - F_[:, :, bone] @ point - t_[:, :, bone],
+                                  axis=-1)
+
+        np.testing.assert_allclose(gap(F1, t1), gap(F0, t0), atol=1e-6 * H)
+    assert np.abs(t1 - t0).max() > 0.05 * H  # large corrections were made
+    envelope = capture_envelope(w.skin, lambda *bones: lbs(*bones, device="cpu"))
+    s = w.skin
+    shares = np.concatenate([envelope.beyond_share(lbs(s.rest_vertices, s.bone_indices, s.bone_weights, F[a], t[a],
+                                                       device="cpu")) for a in range(F.shape[0])])
+    assert (shares > envelope.broken_share).mean() == 0.0 and shares.max() < 0.02, shares.max()
 
 
 def test_without_plants_the_merged_feet_slide(walker_graph):
@@ -212,7 +265,7 @@ def test_input_played_straight_is_left_alone(walker_graph, single, start, frames
     planted = np.asarray(w.contacts.planted, bool)[start:start + frames].T  # (P, n)
     assert planted.any()
     np.testing.assert_array_equal(states[0], planted)
-    assert np.abs(t.astype(np.float64) - t0).max() <= 1e-5 * w.H
+    assert np.abs(t.astype(np.float64) - t0).max() <= 1e-4 * w.H  # the limbs reach targets of 4e-6 H to 2e-5 H
 
 
 # ---------------------------------------------------------------------------------------------- 3. plant edges
@@ -246,20 +299,16 @@ def _edge_jumps(w, single, seeds, count=8, frames=600, plant=plant_feet):
     return worst
 
 
+def _planted_by_reference(F, t, sources, rig):
+    """:func:`plant_feet` with the numpy reference's targets (planting_reference), made by the
+    limbs (:func:`reach_targets`); returns the planted states."""
+    targets = plant_targets_reference(F, t, sources, rig)
+    reach_targets(F, t, targets, rig)
+    return targets.states
+
+
 def _input_acceleration(w):
     return float(np.linalg.norm(np.diff(w.skin.examples, 2, axis=0), axis=-1).max())
-
-
-def test_blend_cuts_the_edge_jumps_of_the_merged_walker(walker_graph, monkeypatch):
-    """The spring of _blend_edges at work: without it (the correction zero outside the plants) the
-    edges jump far more (measured 1.6x the input's largest acceleration with it, ~5x without)."""
-    import planting_reference
-
-    w = walker_graph
-    blended = _edge_jumps(w, False, seeds=(0,), plant=plant_feet_reference)
-    monkeypatch.setattr(planting_reference, "_blend_edges", lambda *args, **kwargs: None)
-    cut = _edge_jumps(w, False, seeds=(0,), plant=plant_feet_reference)
-    assert blended < 0.5 * cut, (blended / _input_acceleration(w), cut / _input_acceleration(w))
 
 
 def test_no_velocity_jump_at_plant_edges_single_component(walker_graph):
@@ -457,26 +506,6 @@ def test_mark_contact_jumps_keeps_all_when_too_few_frames_remain():
     np.testing.assert_array_equal(short.transitions.pairs, before[1])
 
 
-def test_limb_influence_on_a_chain():
-    B = 8
-    chain = np.abs(np.subtract.outer(np.arange(B), np.arange(B))).astype(float)  # hops along a chain of bones
-    weights = np.zeros((2, B))
-    weights[0, 0] = 1.0  # patch 0 moved by bone 0 alone
-    weights[1, [5, 6]] = [0.7, 0.3]  # patch 1 by bones 5 and 6
-    weights[1, 2] = 0.001  # any weight on the patch: a moving bone (all its vertices then move alike)
-    alpha = limb_influence(weights, chain, reach=3)
-    np.testing.assert_allclose(alpha[0], [1, 0.75, 0.5, 0.25, 0, 0, 0, 0])
-    np.testing.assert_allclose(alpha[1], [0.5, 0.75, 1, 0.75, 0.75, 1, 1, 0.75])
-    alpha = limb_influence(weights, chain, reach=1)
-    np.testing.assert_allclose(alpha[0], [1, 0.5, 0, 0, 0, 0, 0, 0])
-    # unreachable bones (another component of the bone graph) get nothing
-    hops = chain.copy()
-    hops[:4, 4:] = hops[4:, :4] = np.inf
-    np.testing.assert_allclose(limb_influence(weights, hops, reach=3)[0], [1, 0.75, 0.5, 0.25, 0, 0, 0, 0])
-    # bone 2 (patch 1's tiny weight) is cut off from 5 and 6: its own reach remains on that side
-    np.testing.assert_allclose(limb_influence(weights, hops, reach=3)[1], [0.5, 0.75, 1, 0.75, 0.75, 1, 1, 0.75])
-
-
 def test_output_states_by_hand():
     planted = np.array([[1, 0], [1, 1], [0, 1], [0, 0]], bool)  # (Fi = 4, P = 2)
     rig = SimpleNamespace(planted=planted, owner=np.array([1, 0]))  # patch 0 owned by component 1
@@ -496,8 +525,8 @@ def test_output_states_by_hand():
 @pytest.mark.parametrize("single,hold", [(False, None), (True, None), (False, 4)],
                          ids=["components", "single-component", "components-leaking"])
 def test_compiled_loops_match_the_numpy_reference(walker_graph, single, hold):
-    """plant_feet (numba, one animation at a time) against the numpy reference of the same steps
-    on whole arrays, on uncorrected walker syntheses: bones and states. ``hold``: frames a plant
+    """plant_targets (numba, one animation at a time) against the numpy reference of the same steps
+    on whole arrays, on uncorrected walker syntheses: states, centroids, turns, corrections, root. ``hold``: frames a plant
     is held exactly before what its limb correction sums beyond a bound leaks (the walker's stances
     are shorter than the default's 2 s: 4 frames, a bound of 0.2 % of the height, and gaps of up
     to 12 frames bridged, each let go over at least 5, make them leak and release)."""
@@ -507,20 +536,18 @@ def test_compiled_loops_match_the_numpy_reference(walker_graph, single, hold):
     r, rig = _synthesize(w, single, 5, plants=False, count=6, frames=300)
     if hold is not None:
         rig = dataclasses.replace(rig, hold=hold, bound=0.002 * w.H, bridge=12, release=5)
-    F, t = r.F.copy(), r.t.copy()
-    states = plant_feet(F, t, r.sources, rig)
-    F_ref, t_ref = r.F.copy(), r.t.copy()
-    states_ref = plant_feet_reference(F_ref, t_ref, r.sources, rig)
-    np.testing.assert_array_equal(states, states_ref)
-    assert np.abs(t.astype(np.float64) - t_ref).max() <= 1e-5 * w.H
-    assert np.abs(F.astype(np.float64) - F_ref).max() <= 1e-5
+    targets = plant_targets(r.F, r.t, r.sources, rig)
+    reference = plant_targets_reference(r.F, r.t, r.sources, rig)
+    np.testing.assert_array_equal(targets.states, reference.states)
+    for name in ("centre", "correction", "root"):
+        assert np.abs(getattr(targets, name) - getattr(reference, name)).max() <= 1e-5 * w.H, name
+    assert np.abs(targets.turn - reference.turn).max() <= 1e-5
     if not single:  # the merged walker's feet slide: it did correct something
-        assert np.abs(t.astype(np.float64) - r.t).max() > 1e-3 * w.H
+        assert np.abs(targets.correction).max() > 1e-3 * w.H
     if hold is not None:  # bridged gaps were released, and the bound made a difference
-        assert (states & ~output_states(r.sources, rig)).any()
-        F_free, t_free = r.F.copy(), r.t.copy()
-        plant_feet(F_free, t_free, r.sources, dataclasses.replace(rig, bound=np.inf))
-        assert np.abs(t_free.astype(np.float64) - t).max() > 1e-4 * w.H
+        assert (targets.states & ~output_states(r.sources, rig)).any()
+        free = plant_targets(r.F, r.t, r.sources, dataclasses.replace(rig, bound=np.inf))
+        assert np.abs(free.correction - targets.correction).max() > 1e-4 * w.H
 
 
 def test_compiled_blend_matches_the_numpy_reference():
@@ -535,31 +562,33 @@ def test_compiled_blend_matches_the_numpy_reference():
     np.testing.assert_allclose(blend_edges_row(values.copy(), state, 0.4), expected[0, 0], rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("single", [False, True], ids=["components", "single-component"])
-def test_swinging_patches_no_lower_than_the_input(walker_graph, single):
-    """The floor: at every frame a patch swings (away from its plants by the taper's radius), its
-    lowest point is no lower than the input patch's lowest at the source frame; the merged
-    walker's uncorrected feet do sink below it (so the check can fail)."""
+def test_swinging_patches_are_asked_no_lower_than_the_input(walker_graph):
+    """The floor: at every frame a patch swings (away from its plants by the taper's radius), the
+    plants ask its lowest point no lower than the input patch's lowest at the source frame (its
+    lowest, the root's vertical offset and its correction's); the six-component walker's merged
+    legs sink the uncorrected feet 14 % of the height below it, so the check can fail. (What the
+    limbs make of it within their ranges: test_large_corrections_keep_every_joint_and_the_shape.)"""
+    from planting_reference import turned_lowest
+
     w = walker_graph
-    r, rig = _synthesize(w, single, 7, plants=False, count=4, frames=400)
-    rig = rig if single else _unlimited(rig)  # a lift that would kick a foot is widened (the defaults)
-    F, t = r.F.copy(), r.t.copy()
-    states = plant_feet(F, t, r.sources, rig)
+    r, rig = _synthesize(w, False, 7, plants=False, count=4, frames=400)
+    rig = _unlimited(rig)  # a lift that would kick a foot is widened (the defaults)
+    targets = plant_targets(r.F, r.t, r.sources, rig)
+    low = turned_lowest(r.F, r.t, r.sources, rig)  # (A, P, M) the patches' lowest, the feet turned
     radius = rig.lift_radius
-    worst_before, worst_after = 0.0, 0.0
-    for a in range(F.shape[0]):
-        before, after = _patch_lowest(w, r.F[a], r.t[a]), _patch_lowest(w, F[a], t[a])
+    worst_before, worst_asked = 0.0, 0.0
+    for a in range(r.F.shape[0]):
         for p in range(rig.owner.size):
             src = r.sources[rig.owner[p], a]
             want = rig.heights_in[src, p] + rig.ground[0]
-            planted = np.flatnonzero(states[a, p])
-            far = np.ones(F.shape[1], bool) if not planted.size else \
-                np.abs(np.arange(F.shape[1])[:, None] - planted[None]).min(axis=1) >= radius
-            worst_before = max(worst_before, float((want - before[:, p])[far].max()))
-            worst_after = max(worst_after, float((want - after[:, p])[far].max()))
-    assert worst_after <= 1e-4 * w.H  # measured 3e-6 H with components
-    if not single:
-        assert worst_before >= 1e-2 * w.H  # measured 10 % of the height
+            planted = np.flatnonzero(targets.states[a, p])
+            far = np.ones(r.F.shape[1], bool) if not planted.size else \
+                np.abs(np.arange(r.F.shape[1])[:, None] - planted[None]).min(axis=1) >= radius
+            asked = low[a, p] + targets.root[a, :, UP] + targets.correction[a, p, :, UP]
+            worst_before = max(worst_before, float((want - low[a, p])[far].max()))
+            worst_asked = max(worst_asked, float((want - asked)[far].max()))
+    assert worst_asked <= 1e-4 * w.H
+    assert worst_before >= 1e-2 * w.H  # measured 14 % of the height
 
 
 def test_bridge_gaps_by_hand_and_against_the_reference():
@@ -592,11 +621,13 @@ def _largest_acceleration(w, F, t, every=2):
 def test_plants_add_no_acceleration(walker_graph):
     """Property over random walks and merges of the planted walker (its components: the single
     component's plants, near exact, added nothing in these walks): in no animation do the plants
-    raise the largest vertex acceleration by more than twice their limit (:data:`.planting.EDGE_ACCEL`
-    of the input's largest: each capped step, slowed spring, widened root or lift adds at most about
-    the limit; measured at most 1.24 limits over 64 merged animations of eight seeds, most lower
-    it; here −0.38). The merged legs drag the feet so fast that the limits-off rig, holding them,
-    adds 7.2 limits in one of these four (so the check can fail)."""
+    raise the largest vertex acceleration by more than three times their limit
+    (:data:`.planting.EDGE_ACCEL` of the input's largest: each capped step, slowed spring, widened
+    root or lift adds at most about the limit, and each of a leg's three joints follows its solution
+    within it at its reach, :mod:`.limb_reach`; here 2.6 limits, 1.9 with a tenth of the height
+    held past the hold, :data:`.planting.LIMB_BOUND`). The merged legs drag the feet so
+    fast that the limits-off rig, holding them, adds 35 limits in one of these four (so the check
+    can fail)."""
     w = walker_graph
     r, rig = _synthesize(w, False, 7, plants=False, count=4, frames=600)
     without = [_largest_acceleration(w, r.F[a], r.t[a]) for a in range(r.F.shape[0])]  # the same walks, no plants
@@ -605,8 +636,8 @@ def test_plants_add_no_acceleration(walker_graph):
         F, t = r.F.copy(), r.t.copy()
         plant_feet(F, t, r.sources, limits)
         out.extend(_largest_acceleration(w, F[a], t[a]) - without[a] for a in range(F.shape[0]))
-    assert max(added) <= 2.0 * rig.edge_limit, max(added) / rig.edge_limit
-    assert max(added_unlimited) >= 3.0 * rig.edge_limit, max(added_unlimited) / rig.edge_limit
+    assert max(added) <= 3.0 * rig.edge_limit, max(added) / rig.edge_limit
+    assert max(added_unlimited) >= 10.0 * rig.edge_limit, max(added_unlimited) / rig.edge_limit
 
 
 def test_limits_closed_form():
@@ -652,32 +683,32 @@ def test_limits_closed_form():
 
 
 def test_a_planted_foot_turns_only_as_the_inputs_did(walker_graph):
-    """Inside a plant the foot's bone keeps its orientation from frame to frame, turned only by the
-    input's own step (the walker's planted feet do not turn at all), whatever the seams and the
-    merge do to the leg (on the merged walker they turn the planted feet's bones by 5–9° a frame,
-    at the median). Where they turn it further than MAX_TURN from what it holds, the foot goes
-    with them: measured, 73–90 % of the steps inside plants hold within 0.2° (seeds 3, 4); when
-    each frame took the input's orientation under the blended heading, a seam's jump spread over
-    frames, 2–22 % (and on the crane the feet slid 9 times the input's median near seams)."""
-    from skinsynth.pipeline.rig.rotations import rotation_log
+    """Inside a plant the foot's bone is asked to keep its orientation from frame to frame, turned
+    only by the input's own step (the walker's planted feet do not turn at all), whatever the seams
+    and the merge do to the leg (on the merged walker they turn the planted feet's bones by 5–9° a
+    frame, at the median). Where they turn it further than MAX_TURN from what it holds, the foot
+    goes with them: measured, most of the steps inside plants are asked to hold within 0.2°. (The
+    limbs make the turn at their joints, within their ranges: test_limb_reach.)"""
+    from skinsynth.pipeline.rig.rotations import rotation_exp, rotation_log
 
     w = walker_graph
     r, rig = _synthesize(w, False, 3, plants=False, count=8, frames=300)
     rig = _unlimited(rig)  # the defaults cap a planted turn's step (a faster leg turns the foot with it)
-    F, t = r.F.copy(), r.t.copy()
-    states = plant_feet(F, t, r.sources, rig)
+    targets = plant_targets(r.F, r.t, r.sources, rig)
+    states = targets.states
     src = np.moveaxis(r.sources[rig.owner], 0, 1)  # (A, P, M)
 
-    def steps(bones, anchor):  # (A, M − 1) angle of each frame-to-frame turn of the anchor bone
-        return np.linalg.norm(rotation_log(bones[:, 1:, anchor].astype(float)
-                                           @ np.swapaxes(bones[:, :-1, anchor], -1, -2).astype(float)), axis=-1)
+    def steps(bones):  # (A, M − 1) angle of each frame-to-frame turn
+        return np.linalg.norm(rotation_log(bones[:, 1:] @ np.swapaxes(bones[:, :-1], -1, -2)), axis=-1)
 
     for p in range(rig.owner.size):
         anchor = rig.bones[rig.anchor_bone[p]]
+        now = r.F[:, :, anchor].astype(float)
+        asked = rotation_exp(targets.turn[:, p]) @ now
         inside = states[:, p, 1:] & states[:, p, :-1]  # the steps inside a plant
         own = np.linalg.norm(rotation_log(rig.turn_steps_in[src[:, p, 1:], p]), axis=-1)  # the input's own step
-        held = np.abs(steps(F, anchor) - own)[inside] < np.radians(0.2)
-        assert np.median(steps(r.F, anchor)[inside]) > np.radians(2.0)  # the walks and merges do turn them
+        held = np.abs(steps(asked) - own)[inside] < np.radians(0.2)
+        assert np.median(steps(now)[inside]) > np.radians(2.0)  # the walks and merges do turn them
         assert held.mean() > 0.6, held.mean()
 
 
