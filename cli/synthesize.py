@@ -177,7 +177,9 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
         written = [output] + write_synthesis_outputs(sides, skin, motions, "XYZ"[request.up_axis], skinning_device,
                                                      folders, jobs, path, request.clips)
         measures = report_measures(skin, motions.F, motions.t, motions.sources, min(measure_feet, count),
-                                   request.up_axis, resolve_device(device)) if measure_feet and count else None
+                                   request.up_axis, resolve_device(device),
+                                   result.limited if request.contact and request.plants is not None else None) \
+            if measure_feet and count else None
     summary, lines = synthesis_summary(output, result, components, frames, request.min_segment, jobs, seconds, written,
                                        measures, _cluster_report(cluster, ran, remote, result, shards))
     report(summary, lines, as_json, quiet)

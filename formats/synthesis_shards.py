@@ -41,7 +41,8 @@ READERS = ".readers"
 READERS_WAIT = 10.0
 
 SHARD_FORMAT = "skinsynth-shard"
-SHARD_VERSION = 1
+#: 2: each shard holds ``limited`` (where the plants could not hold a foot).
+SHARD_VERSION = 2
 #: The outcome's large arrays, in order, as the shards and the output's /synthesis name them.
 MOTIONS = ("bone_matrices", "bone_translations")
 _REJECTED = ("collisions", "too_similar", "merges")
@@ -69,18 +70,18 @@ def _key(record, batch, count):
 
 def shard_bytes(count, frames, bones, components):
     """An upper bound of one shard's size: ``count`` animations of ``frames`` frames, their bone
-    motions (float32 3×3 + 3 per bone) and walks (sources and choice, int64 per component), plus
-    1 MiB of HDF5 structure. What the worker checks the free space against, and ``synthesize``
+    motions (float32 3×3 + 3 per bone), walks (sources and choice, int64 per component) and limbs'
+    limits (a byte a frame), plus 1 MiB of HDF5 structure. What the worker checks the free space against, and ``synthesize``
     sums over the batches before any work."""
-    return 4 * 12 * count * frames * bones + 8 * components * count * (frames + 1) + (1 << 20)
+    return 4 * 12 * count * frames * bones + 8 * components * count * (frames + 1) + count * frames + (1 << 20)
 
 
 def write_synthesis_shard(folder, record, batch, count, outcome):
-    """Write one batch (``outcome`` = [F, t, sources, choice, rejected] from
+    """Write one batch (``outcome`` = [F, t, sources, choice, limited, rejected] from
     ``pipeline.synthesis.make_batch``) to its shard in ``folder``; returns the file's name."""
     key = _key(record, batch, count)
     name = f"batch_{int(batch):06d}_{key[:16]}.h5"
-    F, t, sources, choice, rejected = outcome
+    F, t, sources, choice, limited, rejected = outcome
     path = os.path.join(folder, name)
     frames, bones = np.shape(t)[1:3]
     with atomic_output(path, expected_bytes=shard_bytes(len(t), frames, bones, np.shape(sources)[0])) as tmp:
@@ -94,11 +95,12 @@ def write_synthesis_shard(folder, record, batch, count, outcome):
                 f.create_dataset(dataset, data=np.asarray(array, dtype=np.float32), track_times=False)
             f.create_dataset("sources", data=np.asarray(sources, dtype=np.int64), track_times=False)
             f.create_dataset("choice", data=np.asarray(choice, dtype=np.int64), track_times=False)
+            f.create_dataset("limited", data=np.asarray(limited, dtype=np.uint8), track_times=False)
     return name
 
 
 def stored_shards(folder, record, frames, bones):
-    """{(batch, count): (name, [sources, choice, rejected])} for every complete shard in
+    """{(batch, count): (name, [sources, choice, limited, rejected])} for every complete shard in
     ``folder`` whose key matches ``record`` (names are not trusted: a shard is what its
     attributes and shapes say), and whose motions are finite (a damaged shard is computed again, as
     a fresh batch with NaN would be refused). Files that are not such shards are left alone."""
@@ -121,7 +123,8 @@ def stored_shards(folder, record, frames, bones):
                     continue
                 if not all(all_finite(f[d][()]) for d in shapes):  # checked as a fresh batch is: never reused
                     continue
-                rest = [f["sources"][()], f["choice"][()], {r: int(f.attrs[f"rejected_{r}"]) for r in _REJECTED}]
+                rest = [f["sources"][()], f["choice"][()], f["limited"][()],
+                        {r: int(f.attrs[f"rejected_{r}"]) for r in _REJECTED}]
         except (OSError, KeyError, ValueError, TypeError):
             continue  # unreadable or not ours: computed again
         found[(batch, count)] = (name, rest)

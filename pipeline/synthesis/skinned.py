@@ -61,7 +61,7 @@ class SkinnedAnimations:
             self._pool, self._pending = None, {}
 
 
-def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", block=64):
+def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", block=64, limited=None):
     """The feet figures (:mod:`.contact.measures`, docs/contact.md) of the input and of the first
     ``count`` synthesized animations, their vertices skinned in blocks of ``block`` frames:
     ``skin`` has examples (Fi, V, 3), rest_vertices, bone_indices, bone_weights; F (A, M, B, 3, 3),
@@ -70,9 +70,11 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
     ground (per clip), input, output (:func:`~.contact.measures.summary`), ratios, and ``played``
     with ``ratios_played``: the input frames themselves replayed along the first component's walks
     (steps across a seam left out), the reference for what synthesis adds where a walk dwells on
-    part of a clip (:func:`~.contact.measures.played_input`)."""
-    from .contact.measures import (Steps, character_height, input_steps, measure_frames, played_input, ratios,
-                                   steps_of_input, summary)
+    part of a clip (:func:`~.contact.measures.played_input`). limited (A, M) uint8 or None
+    (:attr:`.synthesis.Synthesis.limited`): where the plants could not hold a foot, reported as
+    ``limits`` (:func:`~.contact.measures.limits_summary`) where any animation has plants."""
+    from .contact.measures import (Steps, character_height, input_steps, limits_summary, measure_frames,
+                                   played_input, ratios, steps_of_input, summary)
 
     height = character_height(skin.rest_vertices, up_axis)
     table = input_steps(skin.examples, starts, height, up_axis, block=block)  # the input's, step by step
@@ -86,11 +88,16 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
         def frames(s, e, Fa=Fa, ta=ta):
             return lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, Fa[s:e], ta[s:e], device=device)
 
-        parts.append(measure_frames(frames, Fa.shape[0], grounds[clip_of[a]], height, up_axis, block=block))
-    figures_in, figures_out = summary(measured_in), summary(Steps.join(parts))
+        parts.append(measure_frames(frames, Fa.shape[0], grounds[clip_of[a]], height, up_axis, block=block,
+                                    limited=None if limited is None else np.asarray(limited[a]) > 0))
+    measured = Steps.join(parts)
+    figures_in, figures_out = summary(measured_in), summary(measured)
     played = summary(played_input(table, sources[0, :count], starts))
-    return {"height": height, "ground": [float(g) for g in grounds], "input": figures_in, "output": figures_out,
-            "ratios": ratios(figures_out, figures_in), "played": played, "ratios_played": ratios(figures_out, played)}
+    figures = {"height": height, "ground": [float(g) for g in grounds], "input": figures_in, "output": figures_out,
+               "ratios": ratios(figures_out, figures_in), "played": played, "ratios_played": ratios(figures_out, played)}
+    if limited is not None:
+        figures["limits"] = limits_summary(measured, np.asarray(limited[:count]))
+    return figures
 
 
 def capture_envelope(skin, skinning, block=64):
@@ -132,7 +139,7 @@ def measure_shape(skin, F, t, count, device="cpu", block=64):
             "broken_edge_share": envelope.broken_share}
 
 
-def report_measures(skin, F, t, sources, count, up_axis=1, device="cpu"):
+def report_measures(skin, F, t, sources, count, up_axis=1, device="cpu", limited=None):
     """``synthesize --measure-feet``: the feet (:func:`measure_feet`; the input's clips are the
     skin's clip_names and clip_frames) and the shape (:func:`measure_shape`) of the first ``count``
     animations, each timed and reported: {"contact": (its --json object, one text line), "shape": …}
@@ -143,7 +150,7 @@ def report_measures(skin, F, t, sources, count, up_axis=1, device="cpu"):
 
     starts = Clips(skin.clip_names, skin.clip_frames).starts
     started = time.perf_counter()
-    figures = measure_feet(skin, F, t, sources, starts, count, up_axis, device)
+    figures = measure_feet(skin, F, t, sources, starts, count, up_axis, device, limited=limited)
     figures["seconds"] = time.perf_counter() - started
     started = time.perf_counter()
     shape = measure_shape(skin, F, t, count, device)

@@ -75,6 +75,9 @@ REPLACEMENT_CAP = 8
 #: holds leaking past 5°, and past its hold what exceeds 0.015 of the height leaks (:mod:`.planting`).
 BATCH_REVISION = 13
 
+#: :attr:`Synthesis.limited`'s flags: a limb held at the edge of its range; a limb's turn cut.
+LIMB_HELD, LIMB_CUT = 1, 2
+
 
 def component_from_file(data, rest, contacts=False):
     """ComponentAnalysis from a graph file's component record (``formats.graph_file.ComponentRecord``;
@@ -404,7 +407,10 @@ class Synthesis:
     distinct: animations whose walks differ from every other; rejected: counts of animations
     replaced (collisions, too similar, failed merges); statistics: per component transitions,
     mean and shortest segment, coverage (and with several clips coverage per clip and
-    transitions per pair of clips: :func:`.motion_graph.walk_statistics`)."""
+    transitions per pair of clips: :func:`.motion_graph.walk_statistics`); limited (N, M) uint8:
+    where the plants could not hold a foot (:data:`LIMB_HELD`: a limb held at the edge of its
+    joints' range, :data:`LIMB_CUT`: its turn cut to keep the skin whole; 0 everywhere without
+    plants), what the feet report splits the slide by (:func:`.skinned.measure_feet`)."""
 
     F: np.ndarray
     t: np.ndarray
@@ -414,6 +420,7 @@ class Synthesis:
     distinct: int
     rejected: dict
     statistics: dict = field(default_factory=dict)
+    limited: np.ndarray = None
 
 
 def validate_request(request, input_frames):
@@ -458,7 +465,8 @@ def _walks(graph, request, count, rng):
 
 
 def make_batch(components, graphs, rotations, translations, rest, bone_indices, bone_weights, request, batch, count):
-    """``count`` animations of one batch: (F, t, sources (C, count, M), choice, rejected dict)."""
+    """``count`` animations of one batch: (F, t, sources (C, count, M), choice, limited (count, M)
+    uint8: :attr:`Synthesis.limited`, rejected dict)."""
     rng = np.random.default_rng([request.seed, batch])
     bones = rotations.shape[1]
     # Components assembly carries onto another through a cut node: their eq. 7 motion cancels.
@@ -467,7 +475,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
     subset = vertex_subset(rest.shape[0])
     pivots = bone_centroids(rest, bone_indices, bone_weights, bones)
     up = None if request.alignment == "full" else np.eye(3)[request.up_axis]
-    kept_F, kept_t, kept_src, kept_choice = [], [], [], []
+    kept_F, kept_t, kept_src, kept_choice, kept_limited = [], [], [], [], []
     rejected = {"collisions": 0, "too_similar": 0, "merges": 0}
     need, rounds, held, tries, found = count, 0, request.support, 0, 0
     # Obstacles may reject most walks of a round whatever the variety: they keep the long bound.
@@ -495,9 +503,12 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             # Output a uses walk choice[a, c] of component c: keep the walks actually used.
             sources = np.stack([sources[k, choice[:, k]] for k in range(len(components))])
         lowest = None
+        limited = np.zeros(F.shape[:2], np.uint8)
         if request.contact and request.plants is not None:  # the merged bones are final: plant the feet
             lowest = np.empty(F.shape[:2]) if request.support_beyond_plants is not None else None
-            plant_feet(F, t, sources, request.plants, lowest)
+            at_range, cut = np.zeros(F.shape[:2], np.int64), np.zeros(F.shape[:2], np.int64)
+            plant_feet(F, t, sources, request.plants, lowest, at_range, cut)
+            limited = ((at_range > 0) * LIMB_HELD + (cut > 0) * LIMB_CUT).astype(np.uint8)
         if request.contact:  # keep the input's range of lowest points (:mod:`.contact`): after the plants, a
             # safety net, zero wherever they kept it (a merge can plant one foot and sink the other)
             if held is None:
@@ -523,7 +534,7 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
                 ok[a] = not colliding(request.obstacles, points).any()
             rejected["collisions"] += int((~ok).sum())
         if not ok.all():  # fancy indexing copies F and t: only when something was dropped
-            F, t, choice, sources = F[ok], t[ok], choice[ok], sources[:, ok]
+            F, t, choice, sources, limited = F[ok], t[ok], choice[ok], sources[:, ok], limited[ok]
         previous = np.concatenate(kept_src, axis=1) if kept_src else np.zeros((len(graphs), 0, request.frames), int)
         if request.min_difference > 0.0 and F.shape[0]:
             stacked = np.concatenate([previous, sources], axis=1)
@@ -531,17 +542,18 @@ def make_batch(components, graphs, rotations, translations, rest, bone_indices, 
             keep = diversity_filter(joint, request.min_difference)[previous.shape[1]:]
             rejected["too_similar"] += int((~keep).sum())
             if not keep.all():
-                F, t, choice, sources = F[keep], t[keep], choice[keep], sources[:, keep]
+                F, t, choice, sources, limited = F[keep], t[keep], choice[keep], sources[:, keep], limited[keep]
         take = found = min(need, F.shape[0])
         kept_F.append(F[:take])
         kept_t.append(t[:take])
         kept_src.append(sources[:, :take])
         kept_choice.append(choice[:take])
+        kept_limited.append(limited[:take])
         need -= take
     if len(kept_F) == 1:  # the usual case: no second round, no copy
-        return [kept_F[0], kept_t[0], kept_src[0], kept_choice[0], rejected]
+        return [kept_F[0], kept_t[0], kept_src[0], kept_choice[0], kept_limited[0], rejected]
     return [np.concatenate(kept_F), np.concatenate(kept_t), np.concatenate(kept_src, axis=1),
-            np.concatenate(kept_choice), rejected]
+            np.concatenate(kept_choice), np.concatenate(kept_limited), rejected]
 
 
 def motion_graphs(components, forbidden=None, clips=None):
@@ -554,7 +566,7 @@ def motion_graphs(components, forbidden=None, clips=None):
 
 def _run_batches(args, batches, jobs, progress, done_before, remote):
     """make_batch over (batch id, count) pairs (:func:`.execution.run_batches`: here, in worker
-    processes when jobs > 1, or on ``remote``'s cluster). Returns one round: [F, t, sources, choice, rejected] of all
+    processes when jobs > 1, or on ``remote``'s cluster). Returns one round: [F, t, sources, choice, limited, rejected] of all
     batches in order."""
     total = sum(n for _, n in batches)
     rotations, frames = args[2], args[-1].frames
@@ -565,8 +577,9 @@ def _run_batches(args, batches, jobs, progress, done_before, remote):
     # 2.4 GB per component instead of 4.8)
     sources = np.concatenate([r[0].astype(np.int32, copy=False) for r in rests], axis=1)
     choice = np.concatenate([r[1] for r in rests])
-    rejected = {key: sum(r[2][key] for r in rests) for key in rests[0][2]}
-    return [F, t, sources, choice, rejected]
+    limited = np.concatenate([r[2] for r in rests])
+    rejected = {key: sum(r[3][key] for r in rests) for key in rests[0][3]}
+    return [F, t, sources, choice, limited, rejected]
 
 
 def _replacements(need, asked, found, cap):
@@ -656,7 +669,7 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
         joint = np.concatenate([r[2] for r in results], axis=1)
         joint = joint.transpose(1, 0, 2).reshape(joint.shape[1], -1)
         keep = diversity_filter(joint, request.min_difference, kept_before=done)
-        results[0][4]["too_similar"] += int((~keep).sum())
+        results[0][5]["too_similar"] += int((~keep).sum())
         surplus = int(keep.sum()) - request.count
         if surplus > 0:  # the last round's extra animations: the first kept ones are taken
             keep[np.flatnonzero(keep)[-surplus:]] = False
@@ -667,7 +680,7 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
             mine = keep[offset:offset + r[0].shape[0]]
             offset += r[0].shape[0]
             if not mine.all():
-                r[0:4] = [r[0][mine], r[1][mine], r[2][:, mine], r[3][mine]]
+                r[0:5] = [r[0][mine], r[1][mine], r[2][:, mine], r[3][mine], r[4][mine]]
         if need == 0:
             break
         if _out_of_reach(found, ask, need, DIVERSITY_ROUNDS - 1 - round_, cap):
@@ -678,7 +691,8 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     t = results[0][1] if len(results) == 1 else concatenate_rows([r[1] for r in results])
     sources = np.concatenate([r[2] for r in results], axis=1)
     choice = np.concatenate([r[3] for r in results])
-    rejected = {key: sum(r[4][key] for r in results) for key in results[0][4]}
+    limited = np.concatenate([r[4] for r in results])
+    rejected = {key: sum(r[5][key] for r in results) for key in results[0][5]}
     clips = request.clips
     if clips is None:
         seams_used = np.sum(sources[..., 1:] != sources[..., :-1] + 1, axis=(0, 2))
@@ -689,4 +703,4 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     joint = sources.transpose(1, 0, 2).reshape(sources.shape[1], -1)
     distinct = int(unique_rows(joint).shape[0])
     return Synthesis(F=F, t=t, sources=sources, choice=choice, seams_used=seams_used, distinct=distinct,
-                     rejected=rejected, statistics=statistics)
+                     rejected=rejected, statistics=statistics, limited=limited)

@@ -296,7 +296,7 @@ def test_a_stored_shard_holding_nan_is_computed_again_not_reused(tmp_path):
     count, frames, bones = 2, 5, 3
     F = np.tile(np.eye(3, dtype=np.float32), (count, frames, bones, 1, 1))
     t = np.zeros((count, frames, bones, 3), dtype=np.float32)
-    rest = [np.zeros((1, count, frames), np.int64), np.zeros((count, 1), np.int64),
+    rest = [np.zeros((1, count, frames), np.int64), np.zeros((count, 1), np.int64), np.zeros((count, frames), np.uint8),
             {"collisions": 0, "too_similar": 0, "merges": 0}]
     write_synthesis_shard(str(tmp_path), record, 0, count, [F, t, *rest])
     assert list(stored_shards(str(tmp_path), record, frames, bones)) == [(0, count)]

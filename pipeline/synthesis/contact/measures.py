@@ -56,19 +56,23 @@ class Steps:
     """Raw per-step figures of one or more animations, to be joined and summarised
     (:func:`summary`): ``slide``, ``offset`` (lowest contact vertex minus ground) over the height,
     one per contact step; ``steps`` all steps measured; ``accel`` the largest acceleration seen
-    (NaN: none, under 3 frames)."""
+    (NaN: none, under 3 frames); ``limited`` (one per contact step) bool: the step starts or ends
+    at a frame where the plants could not hold a foot (:func:`limits_summary`)."""
 
     slide: np.ndarray
     offset: np.ndarray
     steps: int
     accel: float
+    limited: np.ndarray = None
 
     @staticmethod
     def join(parts):
         parts = list(parts)
         return Steps(np.concatenate([p.slide for p in parts] + [np.zeros(0)]),
                      np.concatenate([p.offset for p in parts] + [np.zeros(0)]),
-                     int(sum(p.steps for p in parts)), _largest([p.accel for p in parts]))
+                     int(sum(p.steps for p in parts)), _largest([p.accel for p in parts]),
+                     np.concatenate([np.zeros(p.slide.size, bool) if p.limited is None else p.limited
+                                     for p in parts] + [np.zeros(0, bool)]))
 
 
 def _largest(values):
@@ -85,13 +89,18 @@ def _blocks(first, end, block):
         yield start, min(start + block + 2, end)
 
 
-def contact_steps(vertices, ground, height, up_axis=1, band=BAND, plays_on=None, steps=None):
+def contact_steps(vertices, ground, height, up_axis=1, band=BAND, plays_on=None, steps=None, limited=None):
     """The :class:`Steps` of vertices (M, V, 3): ``ground`` a float or (M,) per frame;
     ``plays_on`` (M,) bool (frame m is followed by m+1; None: every frame but the last).
     ``steps``: count only the steps m → m+1 and the second differences centred on m+1 for
-    m < steps (None: all; :func:`measure_frames`' blocks)."""
+    m < steps (None: all; :func:`measure_frames`' blocks). ``limited`` (M,) bool or None: the
+    frames where the plants could not hold a foot (a step is limited where either end is)."""
     rows, slide, offset, counted, accel = _step_table(vertices, ground, height, up_axis, band, plays_on, steps)
-    return Steps(slide, offset, int(counted[:-1].sum()), _largest(accel))
+    marked = None
+    if limited is not None:
+        limited = np.asarray(limited, dtype=bool)
+        marked = limited[rows] | limited[rows + 1]
+    return Steps(slide, offset, int(counted[:-1].sum()), _largest(accel), marked)
 
 
 def _step_table(vertices, ground, height, up_axis=1, band=BAND, plays_on=None, steps=None):
@@ -131,18 +140,19 @@ def _step_table(vertices, ground, height, up_axis=1, band=BAND, plays_on=None, s
     return rows, slide, offset, counted, accel
 
 
-def measure_frames(frames, count, ground, height, up_axis=1, band=BAND, plays_on=None, block=64):
+def measure_frames(frames, count, ground, height, up_axis=1, band=BAND, plays_on=None, block=64, limited=None):
     """:func:`contact_steps` of a long animation given as ``frames(start, stop)`` -> vertices
     (stop − start, V, 3) of ``count`` frames, in blocks of ``block`` frames (two frames of
     overlap, so every step and every second difference is counted once). ``ground``: a float or
-    (count,); ``plays_on`` (count,) or None."""
+    (count,); ``plays_on``, ``limited`` (count,) or None."""
     ground = np.broadcast_to(np.asarray(ground, dtype=np.float64), (count,))
     plays = np.ones(count, bool) if plays_on is None else np.asarray(plays_on, dtype=bool)
     parts = []
     for start, stop in _blocks(0, count, block):
         # steps start .. start+block−1, second differences centred on start+1 .. start+block
         parts.append(contact_steps(frames(start, stop), ground[start:stop], height, up_axis, band,
-                                   plays[start:stop], steps=block))
+                                   plays[start:stop], steps=block,
+                                   limited=None if limited is None else limited[start:stop]))
     return Steps.join(parts)
 
 
@@ -158,6 +168,24 @@ def summary(measured, limit=LIMIT):
                    float_max=float(float_.max()), penetration_median=float(np.median(sink)),
                    penetration_p95=float(np.percentile(sink, 95)), penetration_max=float(sink.max()))
     out["largest_accel"] = measured.accel
+    return out
+
+
+def limits_summary(measured, limited, limit=LIMIT):
+    """Where the plants could not hold a foot, and how much it slid there (issue 62: a limb held at
+    the edge of its joints' range, or its turn cut to keep the skin whole, lets its foot slide a
+    little): ``measured`` the output's :class:`Steps` (with ``limited``), limited (A, M) uint8 the
+    measured animations' flags (:attr:`.synthesis.Synthesis.limited`: 1 held, 2 cut). A dict:
+    held_frames, cut_frames (shares of the frames), contact_steps (the share of the contact steps
+    at such frames) and their slide_median, slide_p95, sliding_share (absent where none is)."""
+    limited = np.asarray(limited)
+    out = {"held_frames": float(np.mean(limited & 1 > 0)) if limited.size else 0.0,
+           "cut_frames": float(np.mean(limited & 2 > 0)) if limited.size else 0.0}
+    at = measured.slide[measured.limited] if measured.limited is not None else np.zeros(0)
+    out["contact_steps"] = float(at.size / max(measured.slide.size, 1))
+    if at.size:
+        out.update(slide_median=float(np.median(at)), slide_p95=float(np.percentile(at, 95)),
+                   sliding_share=float(np.mean(at > limit)))
     return out
 
 
@@ -277,10 +305,17 @@ def feet_report(figures, count):
         return f"{side[key]:.2%}" if side.get(key) is not None else "n/a"
 
     accel = f"{r['largest_accel']:.2f}×" if r.get("largest_accel") is not None else "n/a"
+    limits = ""
+    if "limits" in figures:
+        held = figures["limits"]
+        limits = (f"; limbs held at their joints' range in {held['held_frames']:.1%} of the frames, turns cut to "
+                  f"keep the skin in {held['cut_frames']:.1%}, {held['contact_steps']:.1%} of the contact steps "
+                  f"there" + (f" (slide median {share(held, 'slide_median')}, 95th percentile "
+                              f"{share(held, 'slide_p95')})" if held.get("slide_median") is not None else ""))
     line = (f"feet (first {count} animations against the input, shares of the height; docs/contact.md): slide "
             f"median {share(o, 'slide_median')} (input {share(i, 'slide_median')}), 95th percentile "
             f"{share(o, 'slide_p95')} ({share(i, 'slide_p95')}), steps sliding over 0.5 % {share(o, 'sliding_share')} "
             f"({share(i, 'sliding_share')}); float p95 {share(o, 'float_p95')} ({share(i, 'float_p95')}), "
             f"penetration p95 {share(o, 'penetration_p95')} ({share(i, 'penetration_p95')}); "
-            f"worst acceleration {accel} the input's")
+            f"worst acceleration {accel} the input's{limits}")
     return contact, line

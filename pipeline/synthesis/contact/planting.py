@@ -502,17 +502,17 @@ def reach_targets(F, t, targets, rig, held=None, cut=None):
                      np.zeros(F.shape[:2], np.int64) if cut is None else cut)
 
 
-def plant_feet(F, t, sources, rig, lowest=None, held=None):
+def plant_feet(F, t, sources, rig, lowest=None, held=None, cut=None):
     """Keep every plant of the animations F (A, M, B, 3, 3), t (A, M, B, 3) on its anchor (module
     notes), in place: :func:`plant_targets`, then :func:`reach_targets`; sources (C, A, M) the input
     frame each component plays. Returns the planted states (A, P, M) bool (the gaps of at most
     :data:`BRIDGE` bridged). lowest: None, or an (A, M) float64 array filled with the lowest of the
     patches' sample vertices once planted (what the band after the plants keeps,
-    :func:`.synthesis.make_batch`); held: :func:`reach_targets`'."""
+    :func:`.synthesis.make_batch`); held, cut: :func:`reach_targets`'."""
     from .planting_loops import lowest_after
 
     targets = plant_targets(F, t, sources, rig)
-    reach_targets(F, t, targets, rig, held)
+    reach_targets(F, t, targets, rig, held, cut)
     if lowest is not None:
         lowest_after(F, t, _contiguous(rig.bones, np.int64), *lowest_operator(rig), sample_counts(rig), lowest)
     return targets.states

@@ -5,8 +5,8 @@ import pytest
 
 from skinsynth.pipeline.inputs.clips import Clips
 from skinsynth.pipeline.synthesis.contact.measures import (BAND, Steps, character_height, clip_ground, contact_steps,
-                                                           input_steps, measure_frames, measure_input, played_input,
-                                                           ratios, summary)
+                                                           input_steps, limits_summary, measure_frames, measure_input,
+                                                           played_input, ratios, summary)
 
 
 def block(frames=30, velocity=(0.0, 0.0, 0.0), lift=0.0):
@@ -70,6 +70,25 @@ def test_blocks_count_every_step_once():
     assert blocks.steps == whole.steps == 49
     assert np.allclose(blocks.slide, whole.slide) and np.allclose(blocks.offset, whole.offset)
     assert blocks.accel == pytest.approx(whole.accel)
+
+
+def test_the_slide_where_the_plants_could_not_hold_a_foot_is_told_apart():
+    """Issue 62: where a limb is held at its range (flag 1) or its turn cut (flag 2) the foot may
+    slide; the report says in which share of the frames and how much it slid there. A block resting
+    still for 20 frames, then sliding 0.02 a frame (H = 2) while flagged: the flagged steps are the
+    sliding ones (a step is flagged where either end is), counted the same in blocks of frames."""
+    x = np.concatenate([block(frames=20), block(frames=20, velocity=(0.02, 0.0, 0.0))[1:]])  # slides from frame 19
+    limited = np.zeros(39, np.uint8)
+    limited[20:30] = 1
+    limited[30:] = 2
+    for measured in (contact_steps(x, 0.0, 2.0, limited=limited > 0),
+                     measure_frames(lambda s, e: x[s:e], 39, 0.0, 2.0, block=7, limited=limited > 0)):
+        got = limits_summary(measured, limited[None])
+        assert got["held_frames"] == pytest.approx(10 / 39) and got["cut_frames"] == pytest.approx(9 / 39)
+        assert got["contact_steps"] == pytest.approx(19 / 38)  # steps 19→20 … 37→38
+        assert got["slide_median"] == pytest.approx(0.01) and got["sliding_share"] == 1.0
+    unflagged = limits_summary(contact_steps(x, 0.0, 2.0, limited=np.zeros(39, bool)), np.zeros((1, 39), np.uint8))
+    assert unflagged == {"held_frames": 0.0, "cut_frames": 0.0, "contact_steps": 0.0}
 
 
 def test_the_step_from_one_clip_to_the_next_is_not_motion():

@@ -712,6 +712,23 @@ def test_a_planted_foot_turns_only_as_the_inputs_did(walker_graph):
         assert held.mean() > 0.6, held.mean()
 
 
+def test_a_synthesis_says_where_its_plants_could_not_hold_a_foot(walker_graph):
+    """Issue 62: ``Synthesis.limited`` flags each output frame where a limb was held at the edge of
+    its joints' range (1) or had its turn cut to keep the skin (2), for the feet report
+    (:func:`.measures.limits_summary`). The planted walker's merged legs reach past their ranges in
+    a third of the frames; the same synthesis without plants flags none."""
+    from skinsynth.pipeline.synthesis.synthesis import LIMB_CUT, LIMB_HELD
+
+    w = walker_graph
+    planted, rig = _synthesize(w, False, 5, count=4, frames=300)
+    assert planted.limited.shape == (4, 300) and planted.limited.dtype == np.uint8
+    assert set(np.unique(planted.limited)) <= {0, LIMB_HELD, LIMB_CUT, LIMB_HELD | LIMB_CUT}
+    assert 0.02 < np.mean(planted.limited & LIMB_HELD > 0) < 0.6  # 0.35 here
+    assert np.any(planted.limited & LIMB_CUT)  # 7 % of the frames here
+    plain, _ = _synthesize(w, False, 5, plants=False, count=4, frames=300)
+    assert not plain.limited.any()
+
+
 def test_a_large_correction_is_let_go_no_faster_than_its_limit_and_both_edges_keep_their_steps():
     # a plant holding a large correction (1.0, at rest) until frame 19, then a gap, then a plant whose
     # small correction moves; the spring out starts with y² ‖x₀‖ = 0.334 at y = 0.578 a frame
