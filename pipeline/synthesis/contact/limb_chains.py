@@ -40,19 +40,25 @@ LIMB_SHARE = 1.0 / 3.0
 #: How far from its limb's top joint a patch's rest centroid must lie, as a share of the limb's reach
 #: (its farthest vertex), to be a foot the limb turns to hold (module notes: a foot).
 FOOT_REACH = 0.85
+#: Most input frames whose joint poses :attr:`JointRange.seen` keeps (evenly spaced past them): what
+#: a limb's turn is compared with before its skin is checked (:mod:`.limb_shape`).
+SEEN_FRAMES = 512
 
 
 @dataclass
 class JointRange:
     """The turns each of K joints shows in the input (module notes). mean (K, 3, 3) Q̄; axes
     (K, 3, 3) the principal axes of log(Q̄ᵀ Q) as columns; spread (K, 3) its standard deviation
-    along each, radians; low, high (K, 3) its least and largest coordinate along each."""
+    along each, radians; low, high (K, 3) its least and largest coordinate along each; seen (K, S, 3)
+    its coordinates in S of the input's frames (every frame up to :data:`SEEN_FRAMES`, evenly
+    spaced past them): the poses the input shows it in, not only their ranges."""
 
     mean: np.ndarray
     axes: np.ndarray
     spread: np.ndarray
     low: np.ndarray
     high: np.ndarray
+    seen: np.ndarray = None
 
 
 @dataclass
@@ -173,8 +179,10 @@ def joint_ranges(rotations, body, bone):
     covariance = np.einsum("fki,fkj->kij", logs, logs) / max(R.shape[0], 1)
     values, axes = np.linalg.eigh(covariance)  # ascending
     coordinates = np.einsum("kij,fki->fkj", axes, logs)
+    frames = np.unique(np.linspace(0, max(R.shape[0] - 1, 0), min(R.shape[0], SEEN_FRAMES)).round().astype(np.int64))
     return JointRange(mean=mean, axes=axes, spread=np.sqrt(np.maximum(values, 0.0)),
-                      low=coordinates.min(axis=0), high=coordinates.max(axis=0))
+                      low=coordinates.min(axis=0), high=coordinates.max(axis=0),
+                      seen=np.ascontiguousarray(coordinates[frames].transpose(1, 0, 2)))
 
 
 def plant_chains(tree, anchors, centres, rotations, rest, bone_indices, bone_weights, limb_share=LIMB_SHARE,

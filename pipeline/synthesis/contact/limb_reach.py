@@ -201,6 +201,26 @@ def _track(goal, last, velocity, most):
 
 
 @numba.njit(cache=True, nogil=True)
+def _seen_pose(joints, rho, Rb, Rl, mean, axes, seen, z0, margin, z, work, work2, vec):
+    """Whether every joint of a limb turned by rho (n, 3, 3) is within ``margin`` (radians) of its
+    uncorrected pose z0 (n, 3) or of a pose the input shows it in (seen (K, S, 3), its coordinates in
+    S input frames): then the skin it bends is bent as the capture or its fit bends it, and the
+    seams need no check (:mod:`.limb_shape`). z (3,), work, work2 (3, 3), vec (3,): workspace."""
+    limit = margin * margin
+    for i in range(joints.shape[0]):
+        k = joints[i]
+        _coordinates(Rb[i], rho[i], Rl[i], mean[k], axes[k], z, work, work2, vec)
+        near = (z[0] - z0[i, 0]) ** 2 + (z[1] - z0[i, 1]) ** 2 + (z[2] - z0[i, 2]) ** 2 <= limit
+        f = 0
+        while not near and f < seen.shape[1]:
+            near = (z[0] - seen[k, f, 0]) ** 2 + (z[1] - seen[k, f, 1]) ** 2 + (z[2] - seen[k, f, 2]) ** 2 <= limit
+            f += 1
+        if not near:
+            return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
 def _kept(F, t, a, m, logs, applied, parent, point, A, g, now, halvings, measured, maps, rest, bone_indices,
           bone_weights, seam_vertices, seam_edges, seam_lengths, seam_one, seam_allowance, budget, before, after,
           strain0):
@@ -224,7 +244,8 @@ def _kept(F, t, a, m, logs, applied, parent, point, A, g, now, halvings, measure
 
 @numba.njit(cache=True, nogil=True)
 def reach_limb(F, t, a, m, joints, parent, local, patches, patch_joint, joint_bone, joint_body, joint_point,
-               joint_reach, range_mean, range_axes, range_frame, range_weight, range_low, range_high, margin, prior,
+               joint_reach, range_mean, range_axes, range_frame, range_weight, range_low, range_high, range_seen, margin,
+               prior,
                centre, shift, turn, lever, rho, warm, steps, bone_joint, limb_bones, part_bones, part_rest, part_weight,
                at, last, velocity, most, point, Rb, Rl, C, z0, A, g, now, applied, H, b, parts, X, W, on, m3a, m3b, m3c,
                v3a, v3b, v3c, v3d, v3e, maps, rest, bone_indices, bone_weights, seam_vertices, seam_edges, seam_lengths,
@@ -380,7 +401,8 @@ def reach_limb(F, t, a, m, joints, parent, local, patches, patch_joint, joint_bo
     kept = 1.0  # the solution, kept to the capture's shapes (:mod:`.limb_shape`) before it is followed
     for i in range(n):
         _log(rho[i], logs[i])
-    if steps > 0:
+    if steps > 0 and not _seen_pose(joints, rho, Rb, Rl, range_mean, range_axes, range_seen, z0, margin, v3a, m3a,
+                                    m3b, v3d):
         kept = _kept(F, t, a, m, logs, applied, parent, point, A, g, now, halvings, False, maps, rest, bone_indices,
                      bone_weights, seam_vertices, seam_edges, seam_lengths, seam_one, seam_allowance, budget, before,
                      after, strain0)
@@ -408,7 +430,7 @@ def reach_limb(F, t, a, m, joints, parent, local, patches, patch_joint, joint_bo
 @numba.njit(cache=True, nogil=True)
 def reach_animations(F, t, centres, correction, turned_by, root, limb_joints, limb_patches, joint_bone, joint_body,
                      joint_point, joint_parent, joint_reach, range_mean, range_axes, range_frame, range_weight,
-                     range_low, range_high, margin, prior, lever, patch_joint, bone_joint, part_bones, part_rest,
+                     range_low, range_high, range_seen, margin, prior, lever, patch_joint, bone_joint, part_bones, part_rest,
                      part_weight, warm_steps, cold_steps, limit, rest, bone_indices, bone_weights, seam_vertices,
                      seam_edges, seam_lengths, seam_one, seam_allowance, budget, halvings, held, cut):
     """The plants made, in place, on animations F (A, M, B, 3, 3), t (A, M, B, 3): at each frame each
@@ -505,7 +527,8 @@ def reach_animations(F, t, centres, correction, turned_by, root, limb_joints, li
                     steps = warm_steps if warm else cold_steps
                 joints_held, turn_cut = reach_limb(F, t, a, m, joints, parent, local, patches, patch_joint, joint_bone, joint_body,
                                          joint_point, joint_reach, range_mean, range_axes, range_frame, range_weight,
-                                         range_low, range_high, margin, prior, centre, shift, turn, lever, rho, warm,
+                                         range_low, range_high, range_seen, margin, prior, centre, shift, turn, lever,
+                                         rho, warm,
                                          steps, bone_joint, limb_bones, part_bones, part_rest, part_weight, at, last,
                                          velocity, most, point, Rb, Rl, C, z0, A3, g, now, applied, H, b, parts, X, W,
                                          on, m3a, m3b, m3c, v3a, v3b, v3c, v3d, v3e, maps, rest, bone_indices,

@@ -18,20 +18,24 @@ the foot misses its target by what the turn no longer makes. The joints follow w
 their bounded acceleration, so a cut turn is let go smoothly, over a few frames; cutting what they
 apply instead popped (the dancer's worst acceleration rose from 1.39 to 2.1 times the input's).
 
-Why :data:`LIMB_TEAR` is a thousandth of a limb's seams: a seam a hair past its envelope (a turn of a
-degree at a joint the capture holds at its extreme) should not cut a plant, and a limb's seams are
-thousands of edges (the samba's legs 9,120 and 9,814 of its 29,907; the dancer's 5,527 and 4,284
-of 21,177), so a few of them may be; they are at most a third of the mesh's edges, so four limbs
-at their budget (0.13 % of the mesh) stay far under what breaks a frame
-(:data:`..shape.BROKEN_SHARE`, 0.5 %), with room for a splice's own strain. Measured at 20 × 600, seed 3
-(``benchmarks/synthesize.py``): on the horse's clips (its gallop's hips turned by 48° after a plant of
-its collapse) 1.05 % of the frames were broken with no check, 0.32 % with no seam allowed, 0.22 %
-with this, 0.40–0.51 % with 0.0025 of the seams; the samba's feet slid 1.7 times the input's at the
-95th percentile with this, 1.6 with 0.0025. The dancer, the crane, the cow and the walker: no frame
-broken with or without it (their corrections stay inside the capture's combinations).
+Why :data:`LIMB_TEAR` is a thousandth of a limb's checked seams (one edge of 1,024): a seam a hair
+past its envelope (a turn of a degree at a joint the capture holds at its extreme) should not cut a
+plant; a limb's seams are at most a third of the mesh's edges (the samba's legs 9,120 and 9,814 of
+its 29,907; the dancer's 5,527 and 4,284 of 21,177), so four limbs at that share stay far under what
+breaks a frame (:data:`..shape.BROKEN_SHARE`, 0.5 %), with room for a splice's own strain. Measured
+at 20 × 600, seed 3 (``benchmarks/synthesize.py``), every seam checked: on the horse's clips (its
+gallop's hips turned by 48° after a plant of its collapse) 1.05 % of the frames were broken with no
+check, 0.32 % with no seam allowed, 0.22 % with a thousandth, 0.40–0.51 % with 0.0025; the dancer,
+the crane, the cow and the walker: no frame broken with or without it.
 
-Only the limb's own seams are skinned, one frame at a time, from the frame's bones
-(:func:`seam_tears`): a limb's seams, not the mesh.
+**The cost.** Checking every seam skins thousands of vertices a limb a frame: the samba's
+``synthesize -n 100 -m 600`` took 26 s instead of 3. So a frame whose every joint stays within
+:data:`.limb_reach.RANGE_MARGIN` of a pose the input shows it in (:attr:`.limb_chains.JointRange.seen`)
+or of its own uncorrected pose is not checked (the skin bends as the capture or its fit bent it),
+and at most :data:`SEAM_EDGES` seams a limb are checked, evenly spaced over them, so the share torn
+is kept: 6.3 s; the horse's clips 0.40 % broken (0.22 % with every seam), the dancer's figures the
+same. The 384 most blended seams instead (3.5 s) missed the horse's hips (0.51 %) and cut the
+dancer's turns ten times as often.
 """
 
 from dataclasses import dataclass
@@ -39,11 +43,13 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-#: The share of a limb's seams its turn may strain past the capture's envelope before the turn is
-#: cut (module notes).
+#: The share of a limb's checked seams its turn may strain past the capture's envelope before the
+#: turn is cut (module notes).
 LIMB_TEAR = 0.001
 #: How many times a tearing turn is halved before it is let go (module notes).
 HALVINGS = 3
+#: Most seams checked per limb, evenly spaced over its seams (module notes, the cost).
+SEAM_EDGES = 1024
 
 
 @dataclass
@@ -62,14 +68,15 @@ class LimbSeams:
     budget: int
 
 
-def limb_seams(limb_joints, bone_joint, bone_indices, bone_weights, envelope, tear=LIMB_TEAR):
+def limb_seams(limb_joints, bone_joint, bone_indices, bone_weights, envelope, tear=LIMB_TEAR, most=SEAM_EDGES):
     """The :class:`LimbSeams` of limbs (limb_joints (L, n), −1 padded, as
     :meth:`.planting.PlantRig.limbs`) whose joints carry bones as bone_joint (B,) says (each bone's
     last joint, −1: none); bone_indices, bone_weights (V, K) the skin; envelope: the capture's
     :class:`..shape.ShapeEnvelope` (edges, rest_lengths, envelope, margin). A vertex moves with one
     joint's map when every bone weighing on it has that last joint in the limb (or none: the body);
-    an edge is a seam when its ends are not carried by the same map. tear: the share of each limb's
-    seams its turn may tear (:data:`LIMB_TEAR`)."""
+    an edge is a seam when its ends are not carried by the same map. Of a limb's seams at most
+    ``most`` are kept, evenly spaced in edge order (:data:`SEAM_EDGES`). tear: the share of the kept
+    seams a turn may tear (:data:`LIMB_TEAR`)."""
     indices = np.asarray(bone_indices, dtype=np.int64)
     carried = np.asarray(bone_weights) > 0.0
     edges = np.asarray(envelope.edges, dtype=np.int64)
@@ -85,6 +92,8 @@ def limb_seams(limb_joints, bone_joint, bone_indices, bone_weights, envelope, te
         carrier = np.where(pure, first, -2)  # −2: blended from several maps
         ends = carrier[edges]
         seams = np.flatnonzero((ends[:, 0] == -2) | (ends[:, 0] != ends[:, 1]))
+        if seams.size > most:  # evenly spaced over the limb's seams, so the share torn is kept
+            seams = seams[np.unique(np.linspace(0, seams.size - 1, most).round().astype(np.int64))]
         chosen.append(seams)
     count = max([1] + [s.size for s in chosen])
     L = len(chosen)

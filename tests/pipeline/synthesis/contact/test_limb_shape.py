@@ -61,6 +61,9 @@ def test_the_seams_are_the_edges_at_the_limbs_blended_joints():
     found = seams.vertices[0][seams.edges[0][seams.edges[0, :, 0] >= 0]]
     assert {tuple(e) for e in found} == {tuple(e) for e in edges[expected]}
     assert seams.budget[0] == np.floor(1e-3 * expected.size)
+    few = limb_seams(LIMB, BONE_JOINT, indices, weights, _envelope(F, t, skin), most=9)  # at most 9, evenly spaced
+    kept = few.vertices[0][few.edges[0][few.edges[0, :, 0] >= 0]]
+    np.testing.assert_array_equal(kept, edges[expected[np.linspace(0, expected.size - 1, 9).round().astype(int)]])
     # each seam measured against its own envelope plus the margin; the rest lengths kept
     where = {tuple(e): i for i, e in enumerate(edges)}
     places = [where[tuple(e)] for e in found]
