@@ -33,8 +33,8 @@ the crane, the cow and the walker: no frame broken with or without it.
 :data:`.limb_reach.RANGE_MARGIN` of a pose the input shows it in (:attr:`.limb_chains.JointRange.seen`)
 or of its own uncorrected pose is not checked (the skin bends as the capture or its fit bent it),
 and at most :data:`SEAM_EDGES` seams a limb are checked, evenly spaced over them, so the share torn
-is kept: 6.3 s; the horse's clips 0.40 % broken (0.22 % with every seam), the dancer's figures the
-same. The 384 most blended seams instead (3.5 s) missed the horse's hips (0.51 %) and cut the
+is kept: 7.1 s (2.9 s with ``--no-shape-check``, 2.8 s with ``--no-contact``); the horse's clips 0.40 % broken (0.22 % with every seam), the dancer's figures the
+same. The 384 most blended seams instead (cheaper still) missed the horse's hips (0.51 %) and cut the
 dancer's turns ten times as often.
 """
 
