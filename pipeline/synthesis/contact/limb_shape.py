@@ -158,7 +158,9 @@ def seam_tears(F, t, a, m, A, g, maps, rest, bone_indices, bone_weights, vertice
     g (n, 3), each joint's map; maps (B,) each bone's joint in it, −1: none) tears at frame m of
     animation a (F (A, M, B, 3, 3), t (A, M, B, 3) the frame as it is, not turned): strained past
     its allowance and past the frame's own strain. before, after (S, 3), strain0 (E,): workspace;
-    ``measured``: the frame's own already in before and strain0 (a second call at the same frame)."""
+    ``measured``: a second call at the same frame, whose own positions and strains found so far
+    stay in before and strain0. The frame's own are skinned only for the edges the turn strains past
+    their allowance (NaN marks those not yet known): most edges never need them."""
     S = 0
     while S < vertices.shape[0] and vertices[S] >= 0:
         S += 1
@@ -167,14 +169,23 @@ def seam_tears(F, t, a, m, A, g, maps, rest, bone_indices, bone_weights, vertice
         E += 1
     if not measured:
         for s in range(S):
-            _skin_vertex(F, t, a, m, vertices[s], rest, bone_indices, bone_weights, maps, A, g, False, before[s])
+            before[s, 0] = np.nan
         for e in range(E):
-            strain0[e] = _strain(before, edges[e, 0], edges[e, 1], lengths[e], one[e])
+            strain0[e] = np.nan
     for s in range(S):
         _skin_vertex(F, t, a, m, vertices[s], rest, bone_indices, bone_weights, maps, A, g, True, after[s])
     torn = 0
     for e in range(E):
         strain = _strain(after, edges[e, 0], edges[e, 1], lengths[e], one[e])
-        if strain > allowance[e] and strain > strain0[e]:
+        if strain <= allowance[e]:
+            continue
+        if np.isnan(strain0[e]):
+            for end in range(2):
+                s = edges[e, end]
+                if np.isnan(before[s, 0]):
+                    _skin_vertex(F, t, a, m, vertices[s], rest, bone_indices, bone_weights, maps, A, g, False,
+                                 before[s])
+            strain0[e] = _strain(before, edges[e, 0], edges[e, 1], lengths[e], one[e])
+        if strain > strain0[e]:
             torn += 1
     return torn
