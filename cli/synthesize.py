@@ -86,9 +86,10 @@ def _target(text):
 @click.option("--measure-feet", "measure_feet", default=4, show_default=True, type=click.IntRange(min=0),
               metavar="N",
               help="Measure how well the feet stay planted (slide, float and penetration of the contact vertices, "
-                   "worst acceleration) and the body keeps its shape (frames whose edges strain far past the "
-                   "capture's; docs/contact.md) on the first N animations, skinned, and on the input; reported in "
-                   "the summary and --json's \"contact\" and \"shape\" (their own seconds, not in the run's). 0: "
+                   "worst acceleration; where a limb could not hold its foot, and how much it slid there) and the "
+                   "body keeps its shape (frames whose edges strain far past the capture's; docs/contact.md) on the "
+                   "first N animations, skinned, and on the input; reported in the summary and --json's "
+                   "\"contact\" and \"shape\" (their own seconds, not in the run's). 0: "
                    "skip. It skins N whole animations: about 1.4 s each for 600 frames of 42,000 vertices on 2 cores.")
 @click.option("--usd", "usd_dir", type=click.Path(file_okay=False), default=None, help="Also write one USD point cache per animation here.")
 @click.option("--crowd", type=click.Path(dir_okay=False), default=None, help="Also write one USD stage with every animation on a grid.")
