@@ -206,12 +206,14 @@ def _track(goal, last, velocity, most):
 
 
 @numba.njit(cache=True, nogil=True)
-def _seen_pose(joints, rho, Rb, Rl, mean, axes, seen, z0, margin, z, work, work2, vec):
-    """Whether every joint of a limb turned by rho (n, 3, 3) is within ``margin`` (radians) of its
-    uncorrected pose z0 (n, 3) or of a pose the input shows it in (seen (K, S, 3), its coordinates in
-    S input frames): then the skin it bends is bent as the capture or its fit bends it, and the
-    seams need no check (:mod:`.limb_shape`). z (3,), work, work2 (3, 3), vec (3,): workspace."""
+def _unseen_joints(joints, rho, Rb, Rl, mean, axes, seen, z0, margin, z, work, work2, vec):
+    """The joints of a limb turned by rho (n, 3, 3) farther than ``margin`` (radians) from their
+    uncorrected pose z0 (n, 3) and from every pose the input shows them in (seen (K, S, 3), their
+    coordinates in S input frames), as bits (i + 1 for joint i; 0: none). A joint within it bends
+    its skin as the capture or its fit bends it: its seams need no check (:mod:`.limb_shape`).
+    z (3,), work, work2 (3, 3), vec (3,): workspace."""
     limit = margin * margin
+    unseen = 0
     for i in range(joints.shape[0]):
         k = joints[i]
         _coordinates(Rb[i], rho[i], Rl[i], mean[k], axes[k], z, work, work2, vec)
@@ -221,18 +223,19 @@ def _seen_pose(joints, rho, Rb, Rl, mean, axes, seen, z0, margin, z, work, work2
             near = (z[0] - seen[k, f, 0]) ** 2 + (z[1] - seen[k, f, 1]) ** 2 + (z[2] - seen[k, f, 2]) ** 2 <= limit
             f += 1
         if not near:
-            return False
-    return True
+            unseen |= 1 << (i + 1)
+    return unseen
 
 
 @numba.njit(cache=True, nogil=True)
 def _kept(F, t, a, m, logs, applied, parent, point, A, g, now, halvings, measured, maps, rest, bone_indices,
-          bone_weights, seam_vertices, seam_edges, seam_lengths, seam_one, seam_allowance, budget, before, after,
-          strain0):
+          bone_weights, seam_vertices, seam_edges, seam_lengths, seam_one, seam_allowance, seam_masks, sides, unseen,
+          budget, before, after, strain0):
     """The share of a limb's turns (logs (n, 3): each joint's, world axis-angle) that tears at most
     ``budget`` of its seams (:func:`.limb_shape.seam_tears`): 1, halved up to ``halvings`` times,
     or 0. applied, A, g, now: left as that share's turns and maps (:func:`_forward` about the
-    joints' points ``point``); measured: the frame's own strain already measured (by a first call)."""
+    joints' points ``point``); measured: the frame's own strain already measured (by a first call);
+    the seams measured: those spanning the ``unseen`` joints (:func:`.limb_shape.seam_tears`)."""
     keep = 1.0
     for trial in range(halvings + 2):
         if trial > 0:
@@ -241,8 +244,8 @@ def _kept(F, t, a, m, logs, applied, parent, point, A, g, now, halvings, measure
             _rotation_exp(keep * logs[i, 0], keep * logs[i, 1], keep * logs[i, 2], applied[i])
         _forward(applied, parent, point, A, g, now)
         if keep == 0.0 or seam_tears(F, t, a, m, A, g, maps, rest, bone_indices, bone_weights, seam_vertices, seam_edges,
-                                     seam_lengths, seam_one, seam_allowance, before, after, strain0,
-                                     measured or trial > 0) <= budget:
+                                     seam_lengths, seam_one, seam_allowance, seam_masks, sides, unseen, before, after,
+                                     strain0, measured or trial > 0) <= budget:
             break
     return keep
 
@@ -254,7 +257,7 @@ def reach_limb(F, t, a, m, joints, parent, local, patches, patch_joint, joint_bo
                centre, shift, turn, lever, rho, warm, steps, bone_joint, limb_bones, part_bones, part_rest, part_weight,
                at, last, velocity, most, point, Rb, Rl, C, z0, A, g, now, applied, H, b, parts, X, W, on, m3a, m3b, m3c,
                v3a, v3b, v3c, v3d, v3e, maps, rest, bone_indices, bone_weights, seam_vertices, seam_edges, seam_lengths,
-               seam_one, seam_allowance, budget, halvings, before, after, strain0, logs):
+               seam_one, seam_allowance, seam_masks, sides, budget, halvings, before, after, strain0, logs):
     """One limb at output frame m of animation a (module notes), F, t in place: its joints (n,) (ids,
     parents first; parent (n,) in the limb, local (K,) each joint's place in it, −1 elsewhere) turned
     so that its patches (ids, each with its last joint patch_joint (P,)) reach their targets (pivot,
@@ -406,11 +409,13 @@ def reach_limb(F, t, a, m, joints, parent, local, patches, patch_joint, joint_bo
     kept = 1.0  # the solution, kept to the capture's shapes (:mod:`.limb_shape`) before it is followed
     for i in range(n):
         _log(rho[i], logs[i])
-    if steps > 0 and not _seen_pose(joints, rho, Rb, Rl, range_mean, range_axes, range_seen, z0, margin, v3a, m3a,
-                                    m3b, v3d):
+    unseen = 0
+    if steps > 0:
+        unseen = _unseen_joints(joints, rho, Rb, Rl, range_mean, range_axes, range_seen, z0, margin, v3a, m3a, m3b, v3d)
+    if unseen:
         kept = _kept(F, t, a, m, logs, applied, parent, point, A, g, now, halvings, False, maps, rest, bone_indices,
-                     bone_weights, seam_vertices, seam_edges, seam_lengths, seam_one, seam_allowance, budget, before,
-                     after, strain0)
+                     bone_weights, seam_vertices, seam_edges, seam_lengths, seam_one, seam_allowance, seam_masks, sides,
+                     unseen, budget, before, after, strain0)
     for i in range(n):  # followed in the body-side bone's frame, where a held correction stays still
         for d in range(3):
             v3b[d] = kept * (Rb[i, 0, d] * logs[i, 0] + Rb[i, 1, d] * logs[i, 1] + Rb[i, 2, d] * logs[i, 2])
@@ -437,7 +442,7 @@ def reach_animations(F, t, centres, correction, turned_by, root, limb_joints, li
                      joint_point, joint_parent, joint_reach, range_mean, range_axes, range_frame, range_weight,
                      range_low, range_high, range_seen, margin, prior, lever, patch_joint, bone_joint, part_bones, part_rest,
                      part_weight, warm_steps, cold_steps, limit, rest, bone_indices, bone_weights, seam_vertices,
-                     seam_edges, seam_lengths, seam_one, seam_allowance, budget, halvings, held, cut):
+                     seam_edges, seam_lengths, seam_one, seam_allowance, seam_masks, budget, halvings, held, cut):
     """The plants made, in place, on animations F (A, M, B, 3, 3), t (A, M, B, 3): at each frame each
     limb (limb_joints (L, n), limb_patches (L, p), −1 padded; the :class:`.limb_chains.LimbChains`
     tables) turned by :func:`reach_limb` so that its patches reach their pivots (A, P, M, 3) moved by
@@ -498,6 +503,9 @@ def reach_animations(F, t, centres, correction, turned_by, root, limb_joints, li
             maps[bone] = local[bone_joint[bone]]
         before, after = np.empty((seam_vertices.shape[1], 3)), np.empty((seam_vertices.shape[1], 3))
         strain0 = np.empty(seam_edges.shape[1])
+        sides = np.empty(n, np.int64)  # the maps a seam spanning each joint has: its own and its parent's (or the body's)
+        for i in range(n):
+            sides[i] = (1 << (i + 1)) | (1 << (parent[i] + 1) if parent[i] >= 0 else 1)
         logs = np.empty((n, 3))
         at = np.full(part_bones.shape[0], -1, np.int64)  # each part's last joint in this limb
         for k in range(part_bones.shape[0]):
@@ -538,7 +546,8 @@ def reach_animations(F, t, centres, correction, turned_by, root, limb_joints, li
                                          velocity, most, point, Rb, Rl, C, z0, A3, g, now, applied, H, b, parts, X, W,
                                          on, m3a, m3b, m3c, v3a, v3b, v3c, v3d, v3e, maps, rest, bone_indices,
                                          bone_weights, seam_vertices[l], seam_edges[l], seam_lengths[l], seam_one[l],
-                                         seam_allowance[l], budget[l], halvings, before, after, strain0, logs)
+                                         seam_allowance[l], seam_masks[l], sides, budget[l], halvings, before, after,
+                                         strain0, logs)
                 held[a, m] += joints_held
                 cut[a, m] += turn_cut
                 warm = moving

@@ -29,13 +29,15 @@ check, 0.32 % with no seam allowed, 0.22 % with a thousandth, 0.40–0.51 % with
 the crane, the cow and the walker: no frame broken with or without it.
 
 **The cost.** Checking every seam skins thousands of vertices a limb a frame: the samba's
-``synthesize -n 100 -m 600`` took 26 s instead of 3. So a frame whose every joint stays within
+``synthesize -n 100 -m 600`` took 26 s instead of 3. So only the seams spanning a joint the turn
+leaves in a pose the input never shows are measured (:attr:`LimbSeams.masks`): a joint within
 :data:`.limb_reach.RANGE_MARGIN` of a pose the input shows it in (:attr:`.limb_chains.JointRange.seen`)
-or of its own uncorrected pose is not checked (the skin bends as the capture or its fit bent it),
-and at most :data:`SEAM_EDGES` seams a limb are checked, evenly spaced over them, so the share torn
-is kept: 7.1 s (2.9 s with ``--no-shape-check``, 2.8 s with ``--no-contact``); the horse's clips 0.40 % broken (0.22 % with every seam), the dancer's figures the
-same. The 384 most blended seams instead (cheaper still) missed the horse's hips (0.51 %) and cut the
-dancer's turns ten times as often.
+or of its own uncorrected pose bends its skin as the capture or its fit bent it; a frame with no
+such joint is not checked at all. And at most :data:`SEAM_EDGES` seams a limb are, evenly spaced
+over them, so the share torn is kept: 5.6 s (2.9 s with ``--no-shape-check``, 2.8 s with
+``--no-contact``); the horse's clips 0.40 % broken (0.22 % with every seam), the dancer's figures
+the same. The 384 most blended seams instead missed the horse's hips (0.51 %) and cut the dancer's
+turns ten times as often.
 """
 
 from dataclasses import dataclass
@@ -58,6 +60,8 @@ class LimbSeams:
     (L, S) their ends' ids; edges (L, E, 2) each edge's ends as places in its limb's ``vertices``;
     lengths (L, E) rest lengths (a zero one replaced by the mean edge's, with one (L, E) 0 there,
     as :func:`..shape.edge_strain` measures it); allowance (L, E) the envelope plus its margin;
+    masks (L, E) the maps each edge's ends are carried by (bit 0 the body, bit i + 1 the limb's
+    joint i): an edge spans joint i when it has both i's bit and its parent's (or the body's);
     budget (L,): how many of them each limb's turn may tear (``tear`` of its seams, rounded down)."""
 
     vertices: np.ndarray
@@ -66,6 +70,7 @@ class LimbSeams:
     one: np.ndarray
     allowance: np.ndarray
     budget: int
+    masks: np.ndarray = None
 
 
 def limb_seams(limb_joints, bone_joint, bone_indices, bone_weights, envelope, tear=LIMB_TEAR, most=SEAM_EDGES):
@@ -83,10 +88,15 @@ def limb_seams(limb_joints, bone_joint, bone_indices, bone_weights, envelope, te
     rest = np.asarray(envelope.rest_lengths, dtype=np.float64)
     floor = max(float(rest.mean()) if rest.size else 1.0, 1e-300)
     allowance = np.asarray(envelope.envelope, dtype=np.float64) + float(envelope.margin)
-    chosen = []
+    chosen, carried_by = [], []
     for joints in np.asarray(limb_joints, dtype=np.int64):
         mine = np.isin(bone_joint, joints[joints >= 0])
         maps = np.where(mine, bone_joint, -1)[indices]  # (V, K) each weight's map (−1: the body)
+        place = np.full(max(int(np.max(bone_joint, initial=-1)) + 2, 1), 0, np.int64)  # a joint's bit: 1 + its place
+        for i, k in enumerate(joints[joints >= 0]):
+            place[k + 1] = i + 1
+        bits = np.where(carried, np.left_shift(1, place[maps + 1]), 0)
+        carried_by.append(np.bitwise_or.reduce(bits, axis=1))  # (V,) each vertex's maps
         first = maps[np.arange(len(maps)), np.argmax(carried, axis=1)]
         pure = np.all(~carried | (maps == first[:, None]), axis=1)
         carrier = np.where(pure, first, -2)  # −2: blended from several maps
@@ -100,14 +110,16 @@ def limb_seams(limb_joints, bone_joint, bone_indices, bone_weights, envelope, te
     vertices = np.full((L, 2 * count), -1, np.int64)
     local = np.full((L, count, 2), -1, np.int64)
     lengths, one, allow = np.ones((L, count)), np.zeros((L, count)), np.zeros((L, count))
+    masks = np.zeros((L, count), np.int64)
     for l, seams in enumerate(chosen):
+        masks[l, :seams.size] = carried_by[l][edges[seams, 0]] | carried_by[l][edges[seams, 1]]
         ids, places = np.unique(edges[seams], return_inverse=True)
         vertices[l, :ids.size] = ids
         local[l, :seams.size] = places.reshape(-1, 2)
         lengths[l, :seams.size] = np.where(rest[seams] > 0.0, rest[seams], floor)
         one[l, :seams.size] = (rest[seams] > 0.0).astype(np.float64)
         allow[l, :seams.size] = allowance[seams]
-    return LimbSeams(vertices=vertices, edges=local, lengths=lengths, one=one, allowance=allow,
+    return LimbSeams(vertices=vertices, edges=local, lengths=lengths, one=one, allowance=allow, masks=masks,
                      budget=np.floor(tear * np.array([s.size for s in chosen], dtype=np.float64)).astype(np.int64))
 
 
@@ -115,7 +127,8 @@ def no_seams(count):
     """The :class:`LimbSeams` of ``count`` limbs with nothing to check (no envelope): no seams."""
     none = np.full((count, 1), -1, np.int64)
     return LimbSeams(vertices=none, edges=np.repeat(none[..., None], 2, axis=2), lengths=np.ones(none.shape),
-                     one=np.zeros(none.shape), allowance=np.zeros(none.shape), budget=np.zeros(count, np.int64))
+                     one=np.zeros(none.shape), allowance=np.zeros(none.shape), budget=np.zeros(count, np.int64),
+                     masks=np.zeros(none.shape, np.int64))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -153,14 +166,17 @@ def _strain(points, a, b, length, one):
 
 @numba.njit(cache=True, nogil=True)
 def seam_tears(F, t, a, m, A, g, maps, rest, bone_indices, bone_weights, vertices, edges, lengths, one, allowance,
-               before, after, strain0, measured):
+               masks, sides, unseen, before, after, strain0, measured):
     """How many of a limb's seams (one limb's rows of :class:`LimbSeams`) its turn (A (n, 3, 3),
     g (n, 3), each joint's map; maps (B,) each bone's joint in it, −1: none) tears at frame m of
     animation a (F (A, M, B, 3, 3), t (A, M, B, 3) the frame as it is, not turned): strained past
-    its allowance and past the frame's own strain. before, after (S, 3), strain0 (E,): workspace;
+    its allowance and past the frame's own strain. Only the seams spanning a joint of ``unseen``
+    (bit i + 1: joint i; masks (E,) each seam's, sides (n,) the bits a seam spanning joint i has:
+    its own and its parent's or the body's) are measured: a joint the turn leaves in a pose the
+    input shows bends its skin as the capture does. before, after (S, 3), strain0 (E,): workspace;
     ``measured``: a second call at the same frame, whose own positions and strains found so far
-    stay in before and strain0. The frame's own are skinned only for the edges the turn strains past
-    their allowance (NaN marks those not yet known): most edges never need them."""
+    stay in before and strain0. Vertices are skinned only for the seams measured, and the frame's
+    own only for those the turn strains past their allowance (NaN marks what is not yet known)."""
     S = 0
     while S < vertices.shape[0] and vertices[S] >= 0:
         S += 1
@@ -173,9 +189,20 @@ def seam_tears(F, t, a, m, A, g, maps, rest, bone_indices, bone_weights, vertice
         for e in range(E):
             strain0[e] = np.nan
     for s in range(S):
-        _skin_vertex(F, t, a, m, vertices[s], rest, bone_indices, bone_weights, maps, A, g, True, after[s])
+        after[s, 0] = np.nan
     torn = 0
     for e in range(E):
+        spans = False
+        for i in range(sides.shape[0]):
+            if (unseen >> (i + 1)) & 1 and (masks[e] & sides[i]) == sides[i]:
+                spans = True
+                break
+        if not spans:
+            continue
+        for end in range(2):
+            s = edges[e, end]
+            if np.isnan(after[s, 0]):
+                _skin_vertex(F, t, a, m, vertices[s], rest, bone_indices, bone_weights, maps, A, g, True, after[s])
         strain = _strain(after, edges[e, 0], edges[e, 1], lengths[e], one[e])
         if strain <= allowance[e]:
             continue

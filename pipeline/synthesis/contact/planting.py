@@ -498,7 +498,7 @@ def reach_targets(F, t, targets, rig, held=None, cut=None):
                      c(rig.rest_terms), c(rig.weight_terms), int(WARM_STEPS),
                      int(COLD_STEPS), float(JOINT_ACCEL * rig.edge_limit), c(rig.rest), c(rig.bone_indices, np.int64),
                      c(rig.bone_weights), c(seams.vertices, np.int64), c(seams.edges, np.int64), c(seams.lengths),
-                     c(seams.one), c(seams.allowance), c(seams.budget, np.int64), int(HALVINGS),
+                     c(seams.one), c(seams.allowance), c(seams.masks, np.int64), c(seams.budget, np.int64), int(HALVINGS),
                      np.zeros(F.shape[:2], np.int64) if held is None else held,
                      np.zeros(F.shape[:2], np.int64) if cut is None else cut)
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from skinsynth.pipeline.rig.rotations import rotation_exp, rotation_log
 from skinsynth.pipeline.synthesis.contact.limb_reach import (COLD_STEPS, PRIOR, RANGE_MARGIN, STIFF, WARM_STEPS,
-                                                          _seen_pose, _track, reach_animations)
+                                                          _track, _unseen_joints, reach_animations)
 from skinsynth.pipeline.synthesis.contact.limb_shape import HALVINGS, no_seams
 
 #: The leg's rest joints: hip, knee, ankle; its sole's centre in front of the ankle.
@@ -68,7 +68,7 @@ def _reach(F, t, correction, turn=None, hinge=False, limit=np.inf, skin=None):
                      float(PRIOR), np.array([0.05]), np.array([2]), np.array([-1, 0, 1, 2]), np.array([3]),
                      SOLE[None, None].copy(), np.ones((1, 1)), int(WARM_STEPS), int(COLD_STEPS), float(limit), rest,
                      indices, weights, seams.vertices, seams.edges, seams.lengths, seams.one, seams.allowance,
-                     seams.budget, int(HALVINGS), held, cut)
+                     seams.masks, seams.budget, int(HALVINGS), held, cut)
     return held, cut
 
 
@@ -166,21 +166,22 @@ def test_track_follows_without_overshoot_or_pops():
 
 
 def test_a_pose_the_input_shows_or_the_frame_had_is_seen():
-    """:func:`_seen_pose`: a limb whose every joint is within the margin of a pose the input shows
-    (or of its own uncorrected pose) needs no check of its skin; one joint beyond both, it does."""
+    """:func:`_unseen_joints`: a joint within the margin of a pose the input shows (or of its own
+    uncorrected pose) bends its skin as the capture does; the others are named, by bit (i + 1)."""
     eye = np.broadcast_to(np.eye(3), (2, 3, 3)).copy()  # body-side and limb-side bones at rest, mean and axes I
     seen = np.zeros((2, 3, 3))
     seen[:, 1] = [0.5, 0.0, 0.0]
     seen[:, 2] = [0.0, 0.0, -0.8]
     z0 = np.array([[0.0, 0.3, 0.0], [0.0, 0.0, 0.0]])
 
-    def seen_pose(turns):
+    def unseen(turns):
         rho = np.stack([rotation_exp(np.asarray(x, dtype=np.float64)) for x in turns])
-        return _seen_pose(np.array([0, 1]), rho, eye, eye, eye, eye, seen, z0, float(RANGE_MARGIN), np.empty(3),
-                          np.empty((3, 3)), np.empty((3, 3)), np.empty(3))
+        return _unseen_joints(np.array([0, 1]), rho, eye, eye, eye, eye, seen, z0, float(RANGE_MARGIN), np.empty(3),
+                              np.empty((3, 3)), np.empty((3, 3)), np.empty(3))
 
     small = 0.5 * RANGE_MARGIN
-    assert seen_pose([[0.5 + small, 0.0, 0.0], [0.0, 0.0, -0.8 + small]])  # both near a seen pose
-    assert seen_pose([[0.0, 0.3 + small, 0.0], [small, 0.0, 0.0]])  # near their own, uncorrected
-    assert not seen_pose([[0.5 + 3 * RANGE_MARGIN, 0.0, 0.0], [0.0, 0.0, 0.0]])  # the first beyond both
-    assert not seen_pose([[0.5, 0.0, 0.0], [0.0, 0.4, 0.0]])  # the second beyond both
+    assert unseen([[0.5 + small, 0.0, 0.0], [0.0, 0.0, -0.8 + small]]) == 0  # both near a seen pose
+    assert unseen([[0.0, 0.3 + small, 0.0], [small, 0.0, 0.0]]) == 0  # near their own, uncorrected
+    assert unseen([[0.5 + 3 * RANGE_MARGIN, 0.0, 0.0], [0.0, 0.0, 0.0]]) == 0b10  # the first beyond both
+    assert unseen([[0.5, 0.0, 0.0], [0.0, 0.4, 0.0]]) == 0b100  # the second
+    assert unseen([[1.5, 0.0, 0.0], [0.0, 0.4, 0.0]]) == 0b110  # both

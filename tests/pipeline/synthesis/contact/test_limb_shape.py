@@ -73,12 +73,24 @@ def test_the_seams_are_the_edges_at_the_limbs_blended_joints():
     turn = np.array([[[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]] * 3)  # 90° about x, at every joint's map
     hip = F[0, 0, 0].astype(np.float64) @ np.array([0.0, 1.0, 0.0]) + t[0, 0, 0]
     g = np.repeat((hip - turn[0] @ hip)[None], 3, axis=0)
+    # each seam's maps: the hip's ring the body's and the hip's (bits 0, 1), the knee's the hip's and the knee's, …
+    masks = dict(zip(map(tuple, found), seams.masks[0, :len(found)]))
+    for e in edges[expected]:
+        rings = set(np.asarray(e) // 4)
+        spanned = {1: 0b11, 4: 0b110, 7: 0b1100}[next(r for r in rings if r in BLENDED)]
+        assert masks[tuple(e)] == spanned, (e, masks[tuple(e)])
     S, E = seams.vertices.shape[1], seams.edges.shape[1]
-    torn = seam_tears(F.astype(np.float64), t.astype(np.float64), 0, 0, turn, g, BONE_JOINT, rest, indices, weights,
-                      seams.vertices[0], seams.edges[0], seams.lengths[0], seams.one[0], seams.allowance[0],
-                      np.empty((S, 3)), np.empty((S, 3)), np.empty(E), False)
+    sides = np.array([0b11, 0b110, 0b1100])  # the bits a seam spanning the hip, knee, ankle has
+
+    def torn(unseen):
+        return seam_tears(F.astype(np.float64), t.astype(np.float64), 0, 0, turn, g, BONE_JOINT, rest, indices, weights,
+                          seams.vertices[0], seams.edges[0], seams.lengths[0], seams.one[0], seams.allowance[0],
+                          seams.masks[0], sides, unseen, np.empty((S, 3)), np.empty((S, 3)), np.empty(E), False)
+
     touching_hip = np.isin(ring[expected], [1]).any(axis=1).sum()
-    assert 0 < torn <= touching_hip
+    assert 0 < torn(0b1110) <= touching_hip
+    assert torn(0b10) == torn(0b1110)  # only the hip's seams can tear: measuring them alone finds the same
+    assert torn(0b1100) == 0 and torn(0) == 0  # the knee's and ankle's seams are not strained
 
 
 def test_a_turn_that_would_tear_the_knee_is_cut_and_one_within_the_envelope_is_kept():
