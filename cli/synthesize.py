@@ -179,7 +179,8 @@ def synthesize(path, output, count, frames, seed, start_frame, end_frame, target
                                                      folders, jobs, path, request.clips)
         measures = report_measures(skin, motions.F, motions.t, motions.sources, min(measure_feet, count),
                                    request.up_axis, resolve_device(device),
-                                   result.limited if request.contact and request.plants is not None else None) \
+                                   result.limited if request.contact and request.plants is not None else None,
+                                   request.envelope) \
             if measure_feet and count else None
     summary, lines = synthesis_summary(output, result, components, frames, request.min_segment, jobs, seconds, written,
                                        measures, _cluster_report(cluster, ran, remote, result, shards))

@@ -12,6 +12,8 @@ def tiny_rig():
     """The :class:`.planting.PlantRig` of a three-bone strip (a heavy body, a shin, a foot) with the
     foot's patch planted in all six frames while the shin swings: what loading (or compiling) the
     loops runs them on, its limb's inverse kinematics and the check of its seams included."""
+    from skinsynth.gpu import lbs_reference
+
     from ..rig.rotations import rotation_exp
     from .contact import planting
 
@@ -29,7 +31,7 @@ def tiny_rig():
     joint = np.array([9.0, 0.0, 0.0])
     translations = np.zeros((frames, 3, 3))
     translations[:, 1:] = joint - np.einsum("fij,j->fi", rotations[:, 1], joint)[:, None]
-    examples = _skinned(rest, indices, weights, rotations, translations)
+    examples = lbs_reference(rest, indices, weights, rotations, translations)
     planted = np.ones((frames, 1), bool)
     from ..rig.joint_tree import skin_joint_tree
     from .shape import shape_envelope
@@ -38,12 +40,6 @@ def tiny_rig():
     return planting.plant_rig(rest, indices, weights, rotations, translations, examples, [np.array([11, 23])], planted,
                               np.zeros(1), np.array([0, frames]), 24.0, [[0, 1, 2]], tree,
                               envelope=shape_envelope(examples, faces))
-
-
-def _skinned(rest, indices, weights, rotations, translations):
-    """Linear blend skinning of rest (V, 3) by (F, B, 3, 3), (F, B, 3): (F, V, 3)."""
-    moved = np.einsum("fvkij,vj->fvki", rotations[:, indices], rest) + translations[:, indices]
-    return np.einsum("fvki,vk->fvi", moved, weights)
 
 
 def compile_loops():

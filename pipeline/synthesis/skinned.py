@@ -117,15 +117,17 @@ def capture_envelope(skin, skinning, block=64):
     return shape_envelope(skin.examples, skin.faces, playback(), block)
 
 
-def measure_shape(skin, F, t, count, device="cpu", block=64):
+def measure_shape(skin, F, t, count, device="cpu", block=64, envelope=None):
     """The shape figures (:mod:`.shape`: edges strained far past anything the capture or its fit shows)
     of the first ``count`` synthesized animations, skinned in blocks of ``block`` frames: ``skin`` has
     examples (Fi, V, 3), faces, rest_vertices, bone_indices, bone_weights, rotations and translations
     (the fit, whose playback of the capture the envelope takes in); F (A, M, B, 3, 3), t (A, M, B, 3).
     Returns a dict: frames measured, broken_frames and broken_share (frames with more than
     :data:`.shape.BROKEN_SHARE` of their edges beyond), worst_frame (the largest share of one frame's
-    edges beyond), margin and broken_edge_share (the definitions' constants)."""
-    envelope = capture_envelope(skin, lambda *bones: lbs(*bones, device=device), block)
+    edges beyond), margin and broken_edge_share (the definitions' constants). envelope: the
+    capture's, where the synthesis already made it (:func:`.synthesis.skin_envelope`), or None."""
+    if envelope is None:
+        envelope = capture_envelope(skin, lambda *bones: lbs(*bones, device=device), block)
     shares = []
     for a in range(count):
         Fa, ta = np.asarray(F[a]), np.asarray(t[a])
@@ -139,11 +141,12 @@ def measure_shape(skin, F, t, count, device="cpu", block=64):
             "broken_edge_share": envelope.broken_share}
 
 
-def report_measures(skin, F, t, sources, count, up_axis=1, device="cpu", limited=None):
+def report_measures(skin, F, t, sources, count, up_axis=1, device="cpu", limited=None, envelope=None):
     """``synthesize --measure-feet``: the feet (:func:`measure_feet`; the input's clips are the
     skin's clip_names and clip_frames) and the shape (:func:`measure_shape`) of the first ``count``
     animations, each timed and reported: {"contact": (its --json object, one text line), "shape": …}
-    (:func:`~.contact.measures.feet_report`, :func:`~.shape.shape_report`)."""
+    (:func:`~.contact.measures.feet_report`, :func:`~.shape.shape_report`); limited, envelope: as
+    :func:`measure_feet` and :func:`measure_shape` take them."""
     from ..inputs.clips import Clips
     from .contact.measures import feet_report
     from .shape import shape_report
@@ -153,7 +156,7 @@ def report_measures(skin, F, t, sources, count, up_axis=1, device="cpu", limited
     figures = measure_feet(skin, F, t, sources, starts, count, up_axis, device, limited=limited)
     figures["seconds"] = time.perf_counter() - started
     started = time.perf_counter()
-    shape = measure_shape(skin, F, t, count, device)
+    shape = measure_shape(skin, F, t, count, device, envelope=envelope)
     shape["seconds"] = time.perf_counter() - started
     return {"contact": feet_report(figures, count), "shape": shape_report(shape, count)}
 

@@ -29,6 +29,7 @@ import numpy as np
 from .assembly import assemble, cut_bones, merge_order
 from .collisions import build_obstacles, colliding, vertex_subset
 from .contact.ground import ground_floored, keep_contact, lowest_range, support, support_without
+from .contact.measures import LIMB_CUT, LIMB_HELD
 from .contact.patches import patch_vertices
 from .contact.planting import lowest_samples, plant_feet, plant_rig
 from .deformation_gradients import gradient_operator
@@ -74,9 +75,6 @@ REPLACEMENT_CAP = 8
 #: capture's shapes (:mod:`.limb_shape`), transitions that tear refused (:mod:`.seam_shape`), turns'
 #: holds leaking past 5°, and past its hold what exceeds 0.015 of the height leaks (:mod:`.planting`).
 BATCH_REVISION = 13
-
-#: :attr:`Synthesis.limited`'s flags: a limb held at the edge of its range; a limb's turn cut.
-LIMB_HELD, LIMB_CUT = 1, 2
 
 
 def component_from_file(data, rest, contacts=False):
@@ -408,8 +406,8 @@ class Synthesis:
     replaced (collisions, too similar, failed merges); statistics: per component transitions,
     mean and shortest segment, coverage (and with several clips coverage per clip and
     transitions per pair of clips: :func:`.motion_graph.walk_statistics`); limited (N, M) uint8:
-    where the plants could not hold a foot (:data:`LIMB_HELD`: a limb held at the edge of its
-    joints' range, :data:`LIMB_CUT`: its turn cut to keep the skin whole; 0 everywhere without
+    where the plants could not hold a foot (:data:`.contact.measures.LIMB_HELD`: a limb held at the edge of
+    its joints' range, :data:`.contact.measures.LIMB_CUT`: its turn cut to keep the skin whole; 0 everywhere without
     plants), what the feet report splits the slide by (:func:`.skinned.measure_feet`)."""
 
     F: np.ndarray

@@ -57,7 +57,7 @@ import numba
 import numpy as np
 
 from .limb_shape import seam_tears
-from .planting_loops import _mul, _rotation_exp
+from .planting_loops import _mul, _rotation_exp, _rotation_log
 
 #: λ: the prior's weight (module notes). A turn that moves the limb's far end by 1 cm costs as a miss
 #: of λ cm: at 0.05 a reachable patch lands within a few thousandths of its shift.
@@ -83,30 +83,6 @@ JOINT_ACCEL = 1.0
 #: Gauss–Newton steps of a frame solved from the last frame's turns, and from rest.
 WARM_STEPS = 1
 COLD_STEPS = 6
-
-
-@numba.njit(cache=True, nogil=True)
-def _log(m, out):
-    """out (3,): the axis-angle of a rotation m (3, 3), a half turn included."""
-    out[0] = 0.5 * (m[2, 1] - m[1, 2])
-    out[1] = 0.5 * (m[0, 2] - m[2, 0])
-    out[2] = 0.5 * (m[1, 0] - m[0, 1])
-    sine = np.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2)
-    cosine = 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0)
-    angle = np.arctan2(sine, cosine)
-    if sine > 1e-9:
-        for d in range(3):
-            out[d] *= angle / sine
-    elif cosine < 0.0:  # a half turn: the axis from the symmetric part's largest column
-        best = 0
-        for d in range(3):
-            if m[d, d] > m[best, best]:
-                best = d
-        for d in range(3):
-            out[d] = 0.5 * (m[d, best] + m[best, d])
-        norm = np.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2)
-        for d in range(3):
-            out[d] *= np.pi / max(norm, 1e-300)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -174,7 +150,7 @@ def _coordinates(Rb, rho, Rl, mean, axes, out, work, work2, vec):
     for x in range(3):
         for y in range(3):
             work[x, y] = mean[0, x] * work2[0, y] + mean[1, x] * work2[1, y] + mean[2, x] * work2[2, y]
-    _log(work, vec)
+    _rotation_log(work, vec)
     for i in range(3):
         out[i] = axes[0, i] * vec[0] + axes[1, i] * vec[1] + axes[2, i] * vec[2]
 
@@ -342,7 +318,7 @@ def reach_limb(F, t, a, m, joints, parent, local, patches, patch_joint, joint_bo
             for u in range(3):  # the anchor's turn: log(A Tᵀ), weighed by the patch's size
                 for v in range(3):
                     m3a[u, v] = A[end, u, 0] * turn[p, v, 0] + A[end, u, 1] * turn[p, v, 1] + A[end, u, 2] * turn[p, v, 2]
-            _log(m3a, v3c)
+            _rotation_log(m3a, v3c)
             w2 = lever[p] * lever[p]
             for i in range(n):
                 on[i] = False
@@ -408,7 +384,7 @@ def reach_limb(F, t, a, m, joints, parent, local, patches, patch_joint, joint_bo
                     rho[i, u, v] = m3b[u, v]
     kept = 1.0  # the solution, kept to the capture's shapes (:mod:`.limb_shape`) before it is followed
     for i in range(n):
-        _log(rho[i], logs[i])
+        _rotation_log(rho[i], logs[i])
     unseen = 0
     if steps > 0:
         unseen = _unseen_joints(joints, rho, Rb, Rl, range_mean, range_axes, range_seen, z0, margin, v3a, m3a, m3b, v3d)

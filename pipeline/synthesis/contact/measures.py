@@ -171,16 +171,22 @@ def summary(measured, limit=LIMIT):
     return out
 
 
+#: The flags of where the plants could not hold a foot (:attr:`.synthesis.Synthesis.limited`): a
+#: limb held at the edge of its joints' range; a limb's turn cut to keep the skin whole.
+LIMB_HELD, LIMB_CUT = 1, 2
+
+
 def limits_summary(measured, limited, limit=LIMIT):
     """Where the plants could not hold a foot, and how much it slid there (issue 62: a limb held at
     the edge of its joints' range, or its turn cut to keep the skin whole, lets its foot slide a
     little): ``measured`` the output's :class:`Steps` (with ``limited``), limited (A, M) uint8 the
-    measured animations' flags (:attr:`.synthesis.Synthesis.limited`: 1 held, 2 cut). A dict:
+    measured animations' flags (:attr:`.synthesis.Synthesis.limited`: :data:`LIMB_HELD`,
+    :data:`LIMB_CUT`). A dict:
     held_frames, cut_frames (shares of the frames), contact_steps (the share of the contact steps
     at such frames) and their slide_median, slide_p95, sliding_share (absent where none is)."""
     limited = np.asarray(limited)
-    out = {"held_frames": float(np.mean(limited & 1 > 0)) if limited.size else 0.0,
-           "cut_frames": float(np.mean(limited & 2 > 0)) if limited.size else 0.0}
+    out = {"held_frames": float(np.mean(limited & LIMB_HELD > 0)) if limited.size else 0.0,
+           "cut_frames": float(np.mean(limited & LIMB_CUT > 0)) if limited.size else 0.0}
     at = measured.slide[measured.limited] if measured.limited is not None else np.zeros(0)
     out["contact_steps"] = float(at.size / max(measured.slide.size, 1))
     if at.size:

@@ -383,16 +383,27 @@ def _rotation_exp(x, y, z, r):
 
 
 @numba.njit(cache=True, nogil=True)
-def _near_log(m, out):
-    """out = the axis-angle of a matrix near a rotation (:func:`.planting._near_log`)."""
+def _rotation_log(m, out):
+    """out (3,): the axis-angle of a rotation m (3, 3) (or a matrix near one), a half turn included."""
     out[0] = 0.5 * (m[2, 1] - m[1, 2])
     out[1] = 0.5 * (m[0, 2] - m[2, 0])
     out[2] = 0.5 * (m[1, 0] - m[0, 1])
     sine = np.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2)
-    angle = np.arctan2(sine, 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0))
+    cosine = 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0)
+    angle = np.arctan2(sine, cosine)
     if sine > 1e-12:
         for d in range(3):
             out[d] *= angle / sine
+    elif cosine < 0.0:  # a half turn: the axis from the symmetric part's largest column
+        best = 0
+        for d in range(3):
+            if m[d, d] > m[best, best]:
+                best = d
+        for d in range(3):
+            out[d] = 0.5 * (m[d, best] + m[best, d])
+        norm = np.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2)
+        for d in range(3):
+            out[d] *= np.pi / max(norm, 1e-300)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -569,7 +580,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
                     age = 0
                     _mul(head, orientation_in[f, p], wanted)
                 _mul_t(wanted, now, product)
-                _near_log(product, change)
+                _rotation_log(product, change)
                 if inside:  # a turn changes by at most its cap a frame inside a plant
                     _cap_step(change, turn[m - 1], turn_limit[p] / (2.0 * decay))
                 angle = np.sqrt(change[0] ** 2 + change[1] ** 2 + change[2] ** 2)

@@ -5,6 +5,7 @@ them past the capture's envelope is cut, in the compiled plant loop, while one w
 
 import numpy as np
 
+from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.synthesis.contact.limb_shape import limb_seams, seam_tears
 from skinsynth.pipeline.synthesis.shape import ShapeEnvelope, edge_strain
 
@@ -36,18 +37,11 @@ def _leg_skin():
     return np.array(rest), np.array(indices, np.int64), np.array(weights), np.array(edges, np.int64)
 
 
-def _skinned(F, t, rest, indices, weights):
-    """(M, V, 3) the leg's skin posed by F (1, M, B, 3, 3), t (1, M, B, 3)."""
-    F, t = F[0].astype(np.float64), t[0].astype(np.float64)
-    moved = np.einsum("mvkij,vj->mvki", F[:, indices], rest) + t[:, indices]
-    return np.einsum("mvki,vk->mvi", moved, weights)
-
-
 def _envelope(F, t, skin, margin=0.02):
     """The capture's envelope when it shows only the pose F, t (every frame the same)."""
     rest, indices, weights, edges = skin
     lengths = np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)
-    strain = edge_strain(_skinned(F, t, rest, indices, weights)[:1], edges, lengths)[0]
+    strain = edge_strain(lbs_reference(rest, indices, weights, F[0].astype(np.float64), t[0].astype(np.float64))[:1], edges, lengths)[0]
     return ShapeEnvelope(edges=edges, rest_lengths=lengths, envelope=strain, margin=margin)
 
 
@@ -109,7 +103,7 @@ def test_a_turn_that_would_tear_the_knee_is_cut_and_one_within_the_envelope_is_k
     kept = limb_seams(LIMB, BONE_JOINT, indices, weights, envelope, tear=0.0)
 
     def past(F, t):
-        strain = edge_strain(_skinned(F, t, rest, indices, weights), edges, envelope.rest_lengths)
+        strain = edge_strain(lbs_reference(rest, indices, weights, F[0].astype(np.float64), t[0].astype(np.float64)), edges, envelope.rest_lengths)
         return (strain > envelope.envelope + envelope.margin + 1e-5).sum(axis=1)
 
     before = _sole(F0, t0)

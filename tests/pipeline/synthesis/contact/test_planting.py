@@ -717,7 +717,7 @@ def test_a_synthesis_says_where_its_plants_could_not_hold_a_foot(walker_graph):
     its joints' range (1) or had its turn cut to keep the skin (2), for the feet report
     (:func:`.measures.limits_summary`). The planted walker's merged legs reach past their ranges in
     a third of the frames; the same synthesis without plants flags none."""
-    from skinsynth.pipeline.synthesis.synthesis import LIMB_CUT, LIMB_HELD
+    from skinsynth.pipeline.synthesis.contact.measures import LIMB_CUT, LIMB_HELD
 
     w = walker_graph
     planted, rig = _synthesize(w, False, 5, count=4, frames=300)
