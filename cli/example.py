@@ -28,9 +28,12 @@ DEFAULTS = {"bending-bar": {"frames": 60, "rings": 40, "segments": 16, "cycles":
               help="walker: walk forward with truly planted feet (legs by inverse kinematics) instead of in place.")
 @click.option("--tempo", default=0.0, show_default=True, type=FiniteFloatRange(min=0.0, max=1.0, max_open=True),
               help="walker: speed up over the clip, from 1 − TEMPO to 1 + TEMPO times the mean: no two strides alike.")
+@click.option("--event", is_flag=True,
+              help="walker: stand 2 s, walk 4 s, stumble once, run off for 3 s (a one-time event; --frames and "
+                   "--cycles follow from --fps).")
 @summary_options
 @user_errors
-def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, quiet, as_json):
+def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, event, quiet, as_json):
     """Write a built-in example mesh sequence (no download needed).
 
     bending-bar: a capped cylinder that bends into an arc and twists over one cycle, the kind of
@@ -46,7 +49,8 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
     1,248 vertices; a whole number of cycles loops. On the spot each stance foot slides back (as
     on a treadmill); --planted walks forward instead, each stance foot exactly still on the ground
     while the body travels (1.06 units a cycle), so a whole number of cycles loops but for that
-    travel.
+    travel. --event makes a clip with a one-time event, as captures have: the walker stands 2 s,
+    walks 4 s, stumbles once and runs off (228 frames at 24 fps).
 
     \b
     Example:
@@ -57,7 +61,7 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
       skinsynth fit-skin walker.npz -o walker.skin.h5 --bones 12
     """
     from skinsynth.formats.meshseq import write_array_sequence
-    from skinsynth.pipeline.inputs.examples import bending_bar, example_memory, walker
+    from skinsynth.pipeline.inputs.examples import WALKER_EVENT_SECONDS, bending_bar, example_memory, walker, walker_event
     from skinsynth.pipeline.runtime.resources import check_memory
 
     defaults = DEFAULTS[name]
@@ -68,10 +72,16 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
     check_output_path(output, (".npz",))
     if frames < 2 or rings < 2 or segments < 3 or cycles < 1 or not fps > 0:
         fail("--frames and --rings must be at least 2, --segments at least 3, --cycles at least 1, --fps positive")
-    if (planted or tempo) and name != "walker":
-        fail("--planted and --tempo are the walker's: the bending bar has no feet")
+    if (planted or tempo or event) and name != "walker":
+        fail("--planted, --tempo and --event are the walker's: the bending bar has no feet")
+    if event and (planted or tempo):
+        fail("--event walks in place at its own pace: it takes neither --planted nor --tempo")
+    if event:
+        frames = int(round(WALKER_EVENT_SECONDS * fps))
     check_memory(*example_memory(name, frames, rings, segments))
-    if name == "walker":
+    if event:
+        vertices, faces = walker_event(fps=fps, rings=rings, segments=segments)
+    elif name == "walker":
         vertices, faces = walker(frames=frames, cycles=cycles, rings=rings, segments=segments, planted=planted,
                                   tempo=tempo)
     else:
@@ -80,5 +90,7 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
     summary = {"output": output, "name": name, "frames": frames, "vertices": int(vertices.shape[1]), "fps": fps}
     if name == "walker":
         summary["planted"] = planted
-    report(summary, [f"wrote {output}: {name}{', planted' if planted else ''}, {frames} frames, "
+        summary["event"] = event
+    report(summary, [f"wrote {output}: {name}{', planted' if planted else ''}{', with an event' if event else ''}, "
+                     f"{frames} frames, "
                      f"{vertices.shape[1]} vertices"], as_json, quiet)

@@ -56,8 +56,8 @@ def _target(text):
 @click.option("--min-segment", type=int, default=None,
               help="Shortest stretch (frames) a walk plays between two seams (half of it to leave a loop it would "
                    "replay).  [default: the graph's, set by build-graph: half a second]")
-@click.option("--window", default=4, show_default=True, type=int,
-              help="Frames blended on each side of a transition.")
+@click.option("--window", default=None, type=int,
+              help="Frames blended on each side of a transition.  [default: a sixth of a second (4 frames at 24 fps), at most 12]")
 @click.option("--blend", type=click.Choice(["bones", "key-vertices"]), default="bones", show_default=True,
               help="What a transition blends: each bone's rotation and pivot in the reference bone's frame (rigid "
                    "bones), or Zheng's deformation gradients at key vertices solved back to affine bones (eq. 8–9).")

@@ -26,6 +26,10 @@ Copies forward ``/mesh``, ``/examples`` and ``/skin`` and adds ``/graph``:
   (frames on the motion graph's largest strongly connected part). Key-vertex data use the component's own weights, renormalised over
   its bones (the component is synthesised as if it were the whole mesh).
 
+- ``held_runs (R, 2)`` and ``@held_keep``, only when the clip holds a pose still (issue 63,
+  :mod:`~skinsynth.pipeline.synthesis.held_poses`): each held run's first and last frame; walks
+  show a run's first ``@held_keep`` frames and its last, the frames between never (each
+  component's transitions hold the skip from the one to the other).
 - ``/graph/contacts``, only when the input's ground contacts were found (issue 35): ``vertices (N,)``
   patch after patch, ``offsets (P + 1,)``, ``planted (F, P)`` uint8, ``ground (C,)`` per clip;
   attributes ``@patches``, ``@character_height`` and the thresholds ``@height``, ``@speed``,
@@ -88,6 +92,10 @@ def graph_groups(model, analysis):
             graph[f"component_{number:03d}"]["contact_agrees"] = np.asarray(c.contact_agrees, dtype=np.uint8)
         if getattr(t, "thresholds", None) is not None:  # several clips: T_c per (clip left, clip entered)
             graph[f"component_{number:03d}"]["clip_thresholds"] = np.asarray(t.thresholds, dtype=np.float64)
+    held = getattr(analysis, "held", None)
+    if held is not None and len(held.runs):  # issue 63: only then, so a clip that never stands still keeps its file
+        graph["held_runs"] = np.asarray(held.runs, dtype=np.int64).reshape(-1, 2)
+        graph["@held_keep"] = int(held.keep)
     contacts = getattr(analysis, "contacts", None)
     if contacts is not None and contacts.count:  # only then: a capture without contacts keeps every dataset
         graph["contacts"] = {
@@ -184,7 +192,9 @@ class GraphFile:
     """A graph file as read: skin (SkinModel), graph (the /graph dict), options (build-graph's
     options the file records, {name: value}, ``up_axis`` as "Y" or "Z"), components
     (list of :class:`ComponentRecord`), provenance (the file's records), contacts (the input's
-    ground contacts, :class:`ContactsRecord`, or None: none found, or a file from before)."""
+    ground contacts, :class:`ContactsRecord`, or None: none found, or a file from before); held_runs
+    (R, 2) the held poses' first and last frames and held_keep the frames a walk shows of each
+    (None and 0: the clip never stands still, or a file from before)."""
 
     skin: object
     graph: dict
@@ -192,6 +202,8 @@ class GraphFile:
     components: list
     provenance: list
     contacts: object = None
+    held_runs: np.ndarray | None = None
+    held_keep: int = 0
 
 
 def _component_record(data):
@@ -223,5 +235,10 @@ def read_graph(path):
         components.append(_component_record(graph[name]))
     options = {name: graph[f"@{name}"] for name in GRAPH_OPTIONS if f"@{name}" in graph}
     contacts = read_contacts(graph)
+    held_runs = graph.get("held_runs")
+    if held_runs is not None:
+        held_runs = np.asarray(held_runs, np.int64).reshape(-1, 2)  # shape, type and range: check_graph
+        if held_runs.size and (held_runs[:, 1] < held_runs[:, 0]).any():
+            raise FormatError(path, "/graph/held_runs has a run that ends before it starts: the file is damaged")
     return GraphFile(skin=skin, graph=graph, options=options, components=components, provenance=model["provenance"],
-                     contacts=contacts)
+                     contacts=contacts, held_runs=held_runs, held_keep=int(graph.get("@held_keep", 0)))

@@ -316,7 +316,8 @@ def check_clips(path, examples, frames):
 
 GRAPH = {"weights": Field("float", ("B", "B")), "kept_edges": Field("int", ("E", 2), low=0, high="B"),
          "cut_nodes": Field("int", (None,), low=0, high="B"),
-         "articulation_points": Field("int", (None,), low=0, high="B", optional=True)}
+         "articulation_points": Field("int", (None,), low=0, high="B", optional=True),
+         "held_runs": Field("int", (None, 2), low=0, high="F", optional=True)}  # issue 63: held poses
 GRAPH_CONTACTS = {  # /graph/contacts, only where ground contacts were found (issue 35)
     "vertices": Field("int", (None,), low=0, high="V"),
     "offsets": Field("int", (None,), low=0),
@@ -356,7 +357,8 @@ GRAPH_ATTRIBUTES = {  # build-graph's options (formats.graph_file.GRAPH_OPTIONS)
     "min_bones": Attribute("int", low=1), "min_segment": Attribute("int", low=1),
     "single_component": Attribute("bool"), "coverage": Attribute("float", low=0.0, high=1.0),
     "posture_weight": Attribute("float", low=0.0), "up_axis": Attribute("choice", choices=("Y", "Z")),
-    "threshold_reference": Attribute("choice", choices=("median-step", "max-step")), "clips": Attribute("names")}
+    "threshold_reference": Attribute("choice", choices=("median-step", "max-step")), "clips": Attribute("names"),
+    "held_keep": Attribute("int", low=1)}
 COMPONENT_ATTRIBUTES = {  # each component's cost balance and threshold (Zheng eqs. 4–6), its walks' share
     "threshold": Attribute("float", low=0.0), "alpha": Attribute("float", low=0.0), "beta": Attribute("float", low=0.0),
     "lambda": Attribute("float", low=0.0), "ridge": Attribute("float", low=0.0),

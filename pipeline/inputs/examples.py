@@ -270,6 +270,29 @@ def walker_contacts(frames=48, cycles=2, stride=0.4, stance=0.6, start=0.0, temp
     return WalkerContacts(planted, ankles, anchors, stances, float(travel), float(reach))
 
 
+#: Seconds of :func:`walker_event` at its defaults (2 standing, 4 walking, 0.5 stumbling, 3 running).
+WALKER_EVENT_SECONDS = 9.5
+
+
+def walker_event(fps=24.0, rings=24, segments=10, stand=2.0, walk=4.0, stumble=0.5, run=3.0, pace=1.8, rig=False):
+    """A walk with a one-time event (issue 63): the in-place :func:`walker` stands ``stand`` s in its
+    first pose, walks ``walk`` s at a cycle a second, stumbles once over ``stumble`` s (chest pitched,
+    arms thrown up, knees buckled: poses it shows nowhere else) and runs off at ``pace`` cycles a
+    second for ``run`` s, leaning into it with longer strides and higher knees (pace and posture
+    ramped over 0.3 s), so that nothing in the run resembles the walk: a part of the clip the
+    stumble leads into and nothing leads back from. Returns walker's (vertices, faces[, rig])."""
+    fps = float(fps)
+    seconds = np.arange(int(round((stand + walk + stumble + run) * fps))) / fps
+    moving = np.clip(seconds - stand, 0.0, None)
+    ramp = np.clip((moving - walk - stumble) / 0.3, 0.0, 1.0)
+    speed_gain = np.cumsum(ramp) / fps * (pace - 1.0)  # the extra cycles the run adds
+    phase = moving + speed_gain
+    into = (seconds - stand - walk) / stumble
+    lurch = np.where((into > 0.0) & (into < 1.0), np.sin(np.pi * np.clip(into, 0.0, 1.0)) ** 2, 0.0)
+    return walker(frames=seconds.size, rings=rings, segments=segments, phase=phase, lurch=lurch, lean=0.35 * ramp,
+                  stride=0.4 + 0.25 * ramp, knee=1.1 + 0.7 * ramp, rig=rig)
+
+
 def _two_link(hip, ankle, upper, lower):
     """Analytic inverse kinematics of a two-link leg, the knee bending forward (+z): world rotations
     (F, 3, 3) of the upper and the lower link, each taking its rest direction (straight down) to
@@ -315,7 +338,8 @@ class WalkerRig:
 
 
 def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, stance=0.6, arm_swing=0.4,
-           blend=0.05, coupling=0.1, start=0.0, planted=False, rig=False, tempo=0.0, shoulder_slide=0.0):
+           blend=0.05, coupling=0.1, start=0.0, planted=False, rig=False, tempo=0.0, shoulder_slide=0.0, phase=None,
+           lurch=None, lean=None):
     """An articulated figure walking in place (as on a treadmill): ``cycles`` gait cycles over ``frames``.
 
     Returns (vertices (F, V, 3) float64, faces (T, 3) int64): metres, Y up, facing +z, about 1.75
@@ -369,6 +393,12 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     scapula does (no bony joint): the arm's joint, in the chest's frame, goes round a circle of that
     radius in the chest's sagittal plane (up and forward) once a gait cycle, the right half a cycle
     after the left; the other joints hold. The truth for a sliding joint (``fit-skin --skeleton``).
+
+    ``phase`` (F,) (in place only): each frame's time in gait cycles, instead of ``cycles`` even
+    ones (a figure that stands, walks and runs: :func:`walker_event`); ``lurch`` (F,) in [0, 1]: how
+    far the figure stumbles at each frame, the chest pitched forward, the arms thrown up and the
+    knees buckled (0: not at all); ``lean`` (F,) radians the chest leans forward (a run); ``stride``
+    and ``knee`` may also be (F,) (in place only).
 
     ``rig=True`` also returns the true rig, a :class:`WalkerRig`: (vertices, faces, rig).
     """
@@ -427,12 +457,15 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
     faces = np.concatenate([f + o for (_, f, _), o in zip(tubes, offsets)]).astype(np.int64)
 
     # The gait: each part's rotation relative to its parent, per frame (F, 3, 3).
-    time = _cycle_time(frames, cycles, start, tempo)  # in cycles
+    time = _cycle_time(frames, cycles, start, tempo) if phase is None else np.asarray(phase, np.float64)  # in cycles
+    stumble = np.zeros(frames) if lurch is None else np.asarray(lurch, np.float64)
+    lean = 0.0 if lean is None else np.asarray(lean, np.float64)
     phi = 2.0 * np.pi * time
     turn = np.cos(phi)  # +1 with the left leg forward
     over = np.sin(phi - np.pi * (stance - 0.5))  # +1 over the left foot (mid left stance), −1 over the right
     local = {"pelvis": _rotation(1, -0.15 * turn) @ _rotation(2, 0.05 * over),  # drops on the swing side
-             "chest": _rotation(2, -0.14 * over) @ _rotation(1, 0.27 * turn)}  # turns and leans against it
+             "chest": _rotation(2, -0.14 * over) @ _rotation(1, 0.27 * turn)  # turns and leans against it
+             @ _rotation(0, 0.7 * stumble + lean)}  # and pitches forward in a stumble, or leans
     world = {}  # parts turned in the world rather than against their parent: thighs and feet
     for side, sign, shift in (("l", 1.0, 0.0), ("r", -1.0, 0.5)):
         cycle = np.mod(time + shift, 1.0)
@@ -445,10 +478,10 @@ def walker(frames=48, cycles=2, rings=24, segments=10, stride=0.4, knee=1.1, sta
         push = np.where(in_stance, 0.0, np.maximum(0.0, np.sin(2.0 * np.pi * v)) ** 2)  # early swing
         # The thigh swings in its own plane (not turned with the pelvis), a little out in swing.
         world[f"thigh_{side}"] = _rotation(2, sign * 0.1 * lift) @ _rotation(0, -stride * forward)
-        local[f"shin_{side}"] = _rotation(0, 0.12 * loading + knee * lift)
+        local[f"shin_{side}"] = _rotation(0, 0.12 * loading + knee * lift + 0.5 * stumble)
         world[f"foot_{side}"] = _rotation(0, 0.5 * push)  # level, the toes down at push-off
         # The arm hangs a little out from the body and swings back as this side's leg goes forward.
-        local[f"arm_{side}"] = _rotation(2, sign * 0.1) @ _rotation(0, arm_swing * forward)
+        local[f"arm_{side}"] = _rotation(2, sign * (0.1 + 0.8 * stumble)) @ _rotation(0, arm_swing * forward - 1.3 * stumble)
     # Forward kinematics: world rotations R and joint positions p; the pelvis at its rest height,
     # swaying 3 cm over the stance foot.
     # Planted: the pelvis travels along +z and bobs, lowest in double support (the middle of it)

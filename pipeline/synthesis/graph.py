@@ -19,6 +19,7 @@ from .deformation_gradients import deformation_gradients, gradient_operator, rot
 from ..errors import ClipError, OptionError
 from .key_vertices import gather_weights, key_vertices, vertex_neighbours, weight_gradients
 from .graph_options import GraphOptions
+from .held_poses import find_held_poses
 from .motion_graph import transitions_between
 from .transitions import bone_centroids, find_transitions, local_frame_positions
 
@@ -53,7 +54,9 @@ class GraphAnalysis:
     inside a merged component); components; options; clips: the :class:`.clips.Clips` of the
     frames (None: one clip); contacts: the input's :class:`.contact.patches.ContactPatches`
     (None: not looked for); refused: per component, the transitions refused for a contact jump and
-    whether it kept them all (:func:`.contact.planting.mark_contact_jumps`), or None (no contacts)."""
+    whether it kept them all (:func:`.contact.planting.mark_contact_jumps`), or None (no contacts);
+    held: the clip's :class:`.held_poses.HeldPoses` (whole-body stills, each one place in every
+    component's graph)."""
 
     weights: np.ndarray
     kept_edges: np.ndarray
@@ -64,6 +67,7 @@ class GraphAnalysis:
     clips: object = None
     contacts: object = None
     refused: list | None = None
+    held: object = None
 
     @property
     def transition_count(self):
@@ -105,6 +109,11 @@ def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshol
         raise OptionError(f"--min-gap must be at least 1 (got {min_gap})")
     if min_segment < 1:
         raise OptionError(f"--min-segment must be at least 1 frame (got {min_segment})")
+    if min_segment > frames:  # issue 63: sized work refused before it starts (1e9 ran out of memory)
+        raise OptionError(f"--min-segment {min_segment} is longer than the clip's {frames} frames; walks could never "
+                          "take a transition")
+    if min_gap >= frames:
+        raise OptionError(f"--min-gap {min_gap} is not shorter than the clip's {frames} frames")
     if not 0.0 <= coverage <= 1.0:
         raise OptionError(f"--coverage must lie in [0, 1] (got {coverage})")
     if not 0.0 <= posture_weight < np.inf:
@@ -112,9 +121,10 @@ def validate_graph_options(frames, threshold_scale, edge_threshold, svd_threshol
 
 
 def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotations, translations, options,
-                      clips=None, walkable=None):
+                      clips=None, walkable=None, held=None, fps=24.0):
     """ComponentAnalysis of one bone component (sorted bone ids); clips: the frames' clips (None:
-    one); walkable (F,) bool: the frames transitions may leave and enter (None: all)."""
+    one); walkable (F,) bool: the frames transitions may leave and enter (None: all); held: the
+    clip's :class:`.held_poses.HeldPoses` (None: none); fps: the clip's frame rate."""
     total = rotations.shape[1]
     transitions = find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=bones,
                                    svd_threshold=options["svd_threshold"], threshold_scale=options["threshold_scale"],
@@ -123,7 +133,7 @@ def analyse_component(bones, rest, neighbours, bone_indices, bone_weights, rotat
                                    up=np.eye(3)[options["up_axis"]], pivots=bone_centroids(rest, bone_indices, bone_weights, total),
                                    scale=float(np.ptp(rest, axis=0).max()), posture_weight=options["posture_weight"],
                                    clips=clips, walkable=walkable, spread=4 * options["min_segment"],
-                                   segment=options["min_segment"])
+                                   segment=options["min_segment"], held=held, fps=fps)
     # The component is synthesised as if it were the whole mesh: its key vertices see only its
     # own bones, weights renormalised over them, so eq. 8 needs no bone from another component
     # and the unit-sum and eq. 15 properties still hold.
@@ -147,7 +157,7 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
                 edge_threshold=_DEFAULT.edge_threshold, single_component=_DEFAULT.single_component,
                 svd_threshold=_DEFAULT.svd_threshold, min_gap=_DEFAULT.min_gap, min_bones=_DEFAULT.min_bones,
                 min_segment=_DEFAULT.min_segment, coverage=_DEFAULT.coverage, up_axis=_DEFAULT.up_axis,
-                posture_weight=_DEFAULT.posture_weight, clips=None, walk_clips=None):
+                posture_weight=_DEFAULT.posture_weight, clips=None, walk_clips=None, fps=24.0):
     """Analyse a skin fit for synthesis. rest (V, 3); faces (T, 3); bone_indices/bone_weights
     (V, K); rotations (F, B, 3, 3); translations (F, B, 3). min_segment: the shortest stretch
     walks play between seams (frames); transitions closer than half of it to a cheaper one are
@@ -156,8 +166,9 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
     (:func:`.transitions.posture_costs`; 0: Zheng's eq. 5 alone); clips: the
     :class:`.clips.Clips` of the F frames (None: one clip; several: transitions within and between
     them); walk_clips: the names of the clips walks may play (None: every clip; the others, e.g. a
-    library of unrelated key poses, get no transition in or out, so no walk reaches them).
-    Returns GraphAnalysis."""
+    library of unrelated key poses, get no transition in or out, so no walk reaches them); fps: the
+    clip's frame rate (the time the threshold counts a playback step in; held poses last at least
+    ``min_segment`` frames, :mod:`.held_poses`). Returns GraphAnalysis."""
     from .bone_graph import bone_components  # networkx: imported when a graph is built, not by synthesize
 
     validate_graph_options(rotations.shape[0], threshold_scale, edge_threshold, svd_threshold, min_gap, min_segment,
@@ -176,15 +187,18 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
                    up_axis=int(up_axis), posture_weight=float(posture_weight),
                    walk_clips=list(clips.names if walk_clips is None or clips is None else
                                    clips.subset(walk_clips).names) if clips is not None else None)
+    held = find_held_poses(rotations, translations, bone_centroids(rest, bone_indices, bone_weights, bones),
+                           float(np.ptp(rest, axis=0).max()), 2 * max(2, int(min_segment)), clips, keep=max(2, int(min_segment)))
     components = [analyse_component([int(b) for b in members], rest, neighbours, bone_indices, bone_weights, rotations,
-                                    translations, options, clips, walkable) for members in decomposition.components]
+                                    translations, options, clips, walkable, held, fps)
+                  for members in decomposition.components]
     edges = np.array(sorted(graph.edges()), dtype=np.int64).reshape(-1, 2)
     # Only articulation points that still join components matter to synthesis (Alg. 1);
     # others ended up inside a merged block.
     joining = sorted(int(b) for b in decomposition.component_of_cut)
     return GraphAnalysis(weights=weights, kept_edges=edges, cut_nodes=joining,
                          articulation_points=[int(b) for b in decomposition.cut_nodes], components=components,
-                         options=options, clips=clips)
+                         options=options, clips=clips, held=held)
 
 
 def analyse_fit(skin, options, walk_clips=None):
@@ -209,7 +223,7 @@ def analyse_fit(skin, options, walk_clips=None):
     if walk_clips is not None:
         walk_clips = clips.subset(walk_clips).names
     analysis = build_graph(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
-                           skin.translations, **o.analysis_options(), clips=clips, walk_clips=walk_clips)
+                           skin.translations, **o.analysis_options(), clips=clips, walk_clips=walk_clips, fps=skin.fps)
     if o.contacts:
         analysis.contacts = find_contacts(skin.examples, skin.faces, skin.fps, o.up_axis, clips,
                                           height=o.contact_height, speed=o.contact_speed, release=o.contact_release,

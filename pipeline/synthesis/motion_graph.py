@@ -227,7 +227,12 @@ class MotionGraph:
         """Where :func:`random_walks` start: the usable frames; when ``fresh`` > 0 (walks avoid loops
         and play traps as endings only) and the graph has a trap (:meth:`trapped`) for strict walks
         (``segment`` = min_segment) or in the frame graph, only those from which a strict walk
-        starting there reaches the largest part, unless that leaves none."""
+        starting there reaches the largest part, unless that leaves none. So a walk never starts
+        past a one-way event; it may start on a lead-in to the part (frames before it that nothing
+        returns to), which it plays once. Starting only on the part, as Kovar et al. 2002 do, was
+        tried (issue 63) and left: on the planted walker cut into six components its walks put
+        legs on bodies that drag a stance foot 0.17 of the height, and the plants, holding it,
+        dragged it 0.24 (0.65 and 0.21 as the walks start now)."""
         frames = self.usable_frames
         if fresh > 0:
             strict_returning, strict_trapped = self._parts(False, segment)
@@ -338,7 +343,7 @@ class MotionGraph:
         return self._backward_cache[key]
 
 
-def recurrent_frames(frames, transitions, clips=None, segment=1):
+def recurrent_frames(frames, transitions, clips=None, segment=1, hidden=None):
     """Frames (F,) bool in the largest strongly connected part of the frame graph (playback
     i → i+1 and i → j+1 per transition (i, j), j + 1 < F, j = −1 included): the frames a long walk can keep
     coming back to (of equally large parts, the first scipy labels). ``clips`` (None: one clip):
@@ -351,16 +356,57 @@ def recurrent_frames(frames, transitions, clips=None, segment=1):
     projected onto frames: a transition whose frame i lies fewer than ``segment`` frames after
     every way in cannot be taken by a strict walk. On the samba's arm component every way back from
     its late frames to its early ones left from frame 115, two frames after the only way in, so the
-    late part was a trap the frame graph did not show (walks played a median 32 % of its frames)."""
+    late part was a trap the frame graph did not show (walks played a median 32 % of its frames).
+
+    ``hidden`` (F,) bool (None: none): frames never shown (a held pose's, :mod:`.held_poses`),
+    left out with every edge that touches them."""
     frames, segment = int(frames), max(1, int(segment))
     if frames == 0:
         return np.zeros(0, bool)
+    matrix = _state_graph(frames, *_frame_edges(frames, transitions, clips, hidden), segment, np.int8)
+    return _largest_part(matrix, segment).reshape(frames, segment).any(axis=1)
+
+
+def _frame_edges(frames, transitions, clips, hidden):
+    """(play (n,), leave (m,), enter (m,)): the frame graph's playback steps f → f + 1 and its
+    transitions' frames left and entered (:func:`recurrent_frames`), none touching a ``hidden`` frame."""
     layout = Clips.single(frames) if clips is None else clips
     pairs = np.asarray(transitions, dtype=np.int64).reshape(-1, 2)
     pairs = pairs[layout.valid_j(pairs[:, 1])]
     play = np.flatnonzero(layout.plays_on()[:-1])
-    matrix = _state_graph(frames, play, pairs[:, 0], layout.targets(pairs[:, 1]), segment, np.int8)
-    return _largest_part(matrix, segment).reshape(frames, segment).any(axis=1)
+    enter = layout.targets(pairs[:, 1])
+    if hidden is not None:
+        hidden = np.asarray(hidden, bool)
+        play = play[~hidden[play] & ~hidden[play + 1]]
+        kept = ~hidden[pairs[:, 0]] & ~hidden[enter]
+        pairs, enter = pairs[kept], enter[kept]
+    return play, pairs[:, 0], enter
+
+
+def frames_off_part(frames, transitions, clips=None, segment=1, hidden=None):
+    """Where the frames off the largest strongly connected part lie (issue 63; the graph of
+    :func:`recurrent_frames`): ``(on, after, before)``, each (F,) bool: on the part; reached from
+    it but with no way back (the far side of a one-way event: walks play them once, at their end);
+    leading into it but never reached from it (a lead-in: walks, which start on the part, never
+    play them). A frame off the part that is neither is cut off from it (hidden frames included)."""
+    from scipy.sparse.csgraph import breadth_first_order
+
+    frames, segment = int(frames), max(1, int(segment))
+    matrix = _state_graph(frames, *_frame_edges(frames, transitions, clips, hidden), segment, np.int8)
+    main = _largest_part(matrix, segment)
+    n = matrix.shape[0]
+
+    def reached(graph):  # every state reached from the part along graph's edges: one search from a joined source
+        joined = sp.bmat([[graph, sp.csr_matrix((n, 1), dtype=np.int8)],
+                          [sp.csr_matrix(main.astype(np.int8)[None, :]), sp.csr_matrix((1, 1), dtype=np.int8)]],
+                         format="csr")
+        out = np.zeros(n + 1, bool)
+        out[breadth_first_order(joined, n, directed=True, return_predecessors=False)] = True
+        return out[:n].reshape(frames, segment).any(axis=1)
+
+    on = main.reshape(frames, segment).any(axis=1)
+    forward, backward = reached(matrix.tocsr()), reached(matrix.T.tocsr())  # along the edges, and against them
+    return on, forward & ~on, backward & ~on & ~forward
 
 
 def _state_graph(frames, play, leave, enter, segment, dtype):
@@ -556,7 +602,7 @@ def transitions_between(pairs, clips):
             for y, b in enumerate(clips.names)}
 
 
-def walk_statistics(sources, frames, clips=None, fps=None):
+def walk_statistics(sources, frames, clips=None, fps=None, held=None):
     """What walks of C components make of the clip: sources (C, N, M) -> dict of (C,) lists:
     ``transitions`` (seams in all N walks), ``mean_segment_frames`` (output frames per segment,
     the partial first and last segments included), ``shortest_segment`` (frames of the shortest
@@ -568,13 +614,16 @@ def walk_statistics(sources, frames, clips=None, fps=None):
     every ordered pair, within a clip "a->a"; they sum to ``transitions``). Per animation, also
     ``distinct_frames`` ((N,) lists: the distinct input frames each walk plays) and, with ``fps``,
     ``stuck`` (how many walks repeat a loop shorter than 2 s more than 3 times in a row):
-    :mod:`.walk_measures`."""
+    :mod:`.walk_measures`; ``distinct_poses`` ((N,) lists) counts a held pose once (``held``, a
+    :class:`.held_poses.HeldPoses`; None: as ``distinct_frames``)."""
     from .walk_measures import distinct_frames, stuck_walks
 
     sources = np.asarray(sources)
     count, length = sources.shape[1:]
     out = {"transitions": [], "mean_segment_frames": [], "shortest_segment": [], "coverage": [],
-           "distinct_frames": []}
+           "distinct_frames": [], "distinct_poses": []}
+    pose = np.arange(frames) if held is None else held.representative
+    moving = int(frames) if held is None else int(held.moving.sum())  # a held pose once
     if fps is not None:
         out["stuck"] = []
     if clips is not None:
@@ -590,8 +639,9 @@ def walk_statistics(sources, frames, clips=None, fps=None):
         played = np.unique(walks)
         out["coverage"].append(float(played.size / frames))
         out["distinct_frames"].append(distinct_frames(walks).tolist())
+        out["distinct_poses"].append(distinct_frames(pose[walks]).tolist())
         if fps is not None:
-            out["stuck"].append(int(stuck_walks(walks, fps).sum()))
+            out["stuck"].append(int(stuck_walks(walks, fps, clip_frames=moving).sum()))
         if clips is not None:
             shown = np.bincount(clips.clip_of(played), minlength=len(clips))
             out["coverage_per_clip"].append({name: float(shown[c] / clips.frames[c])
@@ -775,12 +825,20 @@ def _walk_interval(graph, usable_only, first, since, end_frame, length, rng, p, 
         u = uniforms[t]
         take = ((cnt > 0) & (s == last) & (u[0] < p)) | ~can_play
         if fresh > 0:  # a walk replaying one loop a second time leaves it at its first way out
-            looping = np.flatnonzero((period < fresh) & (run >= 2 * period) & (s >= half) & ~take)
+            in_loop = (period < fresh) & (run >= 2 * period)
+            looping = np.flatnonzero(in_loop & (s >= half) & ~take)
             if looping.size:  # an edge into a frame older than the loop, where a full segment fits
                 _, valid, age = _edge_ages(looping, lo, hi, t_target, strict_next[:, 0], plain_next, loose, played,
                                            t + 1, degree)
                 out = looping[(valid & (age > period[looping, None])).any(axis=1)]
                 take[out], cnt[out] = True, 1
+            # ... and takes no drawn transition back into it where it can play on (out of it, where its
+            # only way out is playback: the samba at 12 fps replayed frames 70–80 four times in a row)
+            back = np.flatnonzero(in_loop & take & can_play)
+            if back.size:
+                _, valid, age = _edge_ages(back, lo, hi, t_target, strict_next[:, 0], plain_next, loose, played,
+                                           t + 1, degree)
+                take[back[~(valid & (age > period[back, None])).any(axis=1)]] = False
         movers = np.flatnonzero(take)
         if movers.size:
             if (cnt[movers] == 0).any():  # cannot happen: every state in the sets has a valid move

@@ -14,6 +14,7 @@ def synthesis_summary(output, result, components, frames, min_segment, jobs, sec
     (:func:`~.skinned.report_measures`), ``cluster`` a cluster run's (:func:`cluster_summary`), or
     None."""
     stats = result.statistics
+    held = stats.get("distinct_poses", stats["distinct_frames"]) != stats["distinct_frames"]
     summary = {"animations": int(result.F.shape[0]), "frames": int(frames), "seconds": round(seconds, 3),
                "distinct": result.distinct, "transitions_used": int(np.sum(result.seams_used)),
                "components": len(components), "min_segment": int(min_segment), "jobs": int(jobs),
@@ -22,7 +23,8 @@ def synthesis_summary(output, result, components, frames, min_segment, jobs, sec
                "mean_segment_frames": [round(m, 2) for m in stats["mean_segment_frames"]],
                "shortest_segment": stats["shortest_segment"],
                "coverage": [round(c, 4) for c in stats["coverage"]],
-               "distinct_frames": stats["distinct_frames"], "stuck": stats["stuck"],
+               "distinct_frames": stats["distinct_frames"], "distinct_poses": stats["distinct_poses"],
+               "stuck": stats["stuck"],
                "rejected": result.rejected, "outputs": written}
     lines = [f"wrote {output}: {summary['animations']} animations × {frames} frames from {len(components)} "
              f"component(s), {result.distinct} distinct, {summary['transitions_used']} transitions used; "
@@ -30,8 +32,9 @@ def synthesis_summary(output, result, components, frames, min_segment, jobs, sec
              f"segments: mean {', '.join(f'{m:.1f}' for m in stats['mean_segment_frames'])} frames, shortest "
              f"{', '.join(map(str, stats['shortest_segment']))} (≥ {min_segment} asked); input frames played: "
              f"{', '.join(f'{c:.0%}' for c in stats['coverage'])} (per component)",
-             "distinct input frames per animation: " + ", ".join(
-                 f"median {np.median(d):.0f} (least {min(d)})" for d in stats["distinct_frames"] if d)
+             ("distinct poses per animation (a held pose once): " if held else "distinct input frames per animation: ")
+             + ", ".join(f"median {np.median(d):.0f} (least {min(d)})"
+                         for d in stats["distinct_poses" if held else "distinct_frames"] if d)
              + " (per component); stuck in a loop: " + ", ".join(map(str, stats["stuck"]))]
     refused = [getattr(c, "shape_refused", 0) for c in components]
     kept_all = [k for k, c in enumerate(components) if getattr(c, "shape_kept_all", False)]
@@ -84,19 +87,29 @@ def graph_summary(output, analysis, seconds):
     lines = [f"wrote {output}: {len(analysis.components)} component(s), cut nodes {analysis.cut_nodes}, "
              f"{analysis.transition_count} transitions, segments ≥ {min_segment} frames; {seconds:.1f} s"]
     components = []
+    held = analysis.held if analysis.held is not None and len(analysis.held.runs) else None
     between = analysis.transitions_between()
     for number, component in enumerate(analysis.components):
         t = component.transitions
         extra = f", {t.admitted} above T_c for coverage" if t.admitted else ""
         lines.append(f"  component {number}: bones {component.bones} (reference {t.reference}), "
-                     f"{len(t.pairs)} transitions{extra}, {t.share:.0%} of the frames on one strongly connected "
-                     f"part, {len(component.key)} key vertices, {t.q.shape[1]} reduced coordinates")
+                     f"{len(t.pairs)} transitions{extra}, {t.share:.0%} of the {'moving ' if held else ''}frames on "
+                     f"one strongly connected part, {len(component.key)} key vertices, {t.q.shape[1]} reduced "
+                     "coordinates")
         if len(clips) > 1:
             lines.append("    " + _transitions_by_direction(between[number], clips))
+        one_way, lead_in = _off_part(t, clips, min_segment, held)
+        if one_way:
+            lines.append(f"    frames {_ranges(one_way, clips)} are reached one way only (a one-time event and what "
+                         "follows it: no transition leads back), so a walk plays them at most once, in its last 2 s")
+        if lead_in:
+            lines.append(f"    frames {_ranges(lead_in, clips)} only lead into the strongly connected part (nothing "
+                         "returns to them): walks start on that part and never play them")
         components.append({"bones": list(component.bones), "reference": int(t.reference),
                            "transitions": len(t.pairs), "admitted": int(t.admitted), "share": float(t.share),
                            "key_vertices": len(component.key), "reduced_coordinates": int(t.q.shape[1]),
-                           "transitions_between": between[number]})
+                           "transitions_between": between[number], "one_way_frames": one_way,
+                           "lead_in_frames": lead_in})
     total = {key: sum(counts[key] for counts in between) for key in between[0]} if between else {}
     if len(clips) > 1:
         every = f"; all components: {_transitions_by_direction(total, clips)}" if len(between) > 1 else ""
@@ -105,6 +118,13 @@ def graph_summary(output, analysis, seconds):
                "transitions": int(analysis.transition_count), "min_segment": int(min_segment), "up_axis": up_axis,
                "seconds": round(seconds, 3), "clips": list(clips.names), "transitions_between": total,
                "walk_clips": list(analysis.options.get("walk_clips") or clips.names)}
+    if held is not None:  # issue 63: each held pose one place in the graph
+        runs = held.runs.tolist()
+        summary["held_poses"] = {"runs": runs, "shown_frames": int(held.keep) + 1,
+                                 "moving_frames": int(held.moving.sum())}
+        lines.insert(1, f"  held poses (one place each, shown {held.keep + 1} frames): " + ", ".join(
+            f"{clips.label(a)}–{clips.label(b)}" for a, b in runs[:8]) + (f" and {len(runs) - 8} more" if len(runs) > 8 else "")
+            + f"; {summary['held_poses']['moving_frames']} moving frames of {held.frames}")
     contacts = analysis.contacts
     if contacts is not None:
         share = float(contacts.planted.any(axis=1).mean()) if contacts.count else 0.0
@@ -123,6 +143,27 @@ def graph_summary(output, analysis, seconds):
     if left_out:
         lines.insert(2, f"  walks play {', '.join(summary['walk_clips'])}; left out (--clips): {', '.join(left_out)}")
     return summary, lines
+
+
+def _off_part(transitions, clips, segment, held):
+    """([frames reached one way only], [frames that only lead in]) of a component's
+    :class:`~.transitions.Transitions`, moving frames only (:func:`.motion_graph.frames_off_part`)."""
+    from .motion_graph import frames_off_part
+
+    frames = transitions.D.shape[0]
+    hidden = None if held is None else held.hidden
+    _, after, before = frames_off_part(frames, transitions.pairs, clips if len(clips) > 1 else None, segment, hidden)
+    moving = np.ones(frames, bool) if held is None else held.moving
+    return np.flatnonzero(after & moving).tolist(), np.flatnonzero(before & moving).tolist()
+
+
+def _ranges(frames, clips):
+    """'3–9, 40' of sorted frame ids (as the clips name them), at most 6 ranges."""
+    frames = np.asarray(frames, np.int64)
+    cuts = np.flatnonzero(np.diff(frames) != 1) + 1
+    runs = [(int(r[0]), int(r[-1])) for r in np.split(frames, cuts)]
+    text = ", ".join(clips.label(a) if a == b else f"{clips.label(a)}–{clips.label(b)}" for a, b in runs[:6])
+    return text + (f" and {len(runs) - 6} more" if len(runs) > 6 else "")
 
 
 def _transitions_by_direction(counts, clips):

@@ -38,6 +38,7 @@ from ..runtime.execution import concatenate_rows, run_batches
 from ..runtime.rows import unique_rows
 from .graph import ComponentAnalysis
 from ..rig.skeleton import held_rig, hold_joints, reach_with_legs
+from .held_poses import HeldPoses
 from .motion_graph import MotionGraph, constrained_walks, diversity_filter, random_walks, walk_statistics
 from .splicing import splice_local
 from .transitions import Transitions, bone_centroids
@@ -275,9 +276,37 @@ def skin_envelope(skin):
 def _playable(frames, transitions, request):
     """How many frames a motion graph over ``transitions`` can play for ever from (0: none)."""
     try:
-        return motion_graphs([SimpleNamespace(transitions=transitions)], request.forbidden, request.clips)[0].usable_count
+        return motion_graphs([SimpleNamespace(transitions=transitions)], request.never_shown(), request.clips)[0].usable_count
     except OptionError:
         return 0
+
+
+#: Frames blended on each side of a seam at 24 fps, and the chance per frame that a walk past its
+#: shortest segment takes a transition (Request's window and transition_probability): at another
+#: frame rate the same time and the same chance per second (:func:`timed_walk_options`).
+WINDOW_AT_24 = 4
+TRANSITION_PROBABILITY_AT_24 = 0.1
+#: The longest default blend window (frames) at a high frame rate (:func:`timed_walk_options`).
+LONGEST_WINDOW = 12
+
+
+def timed_walk_options(fps):
+    """{window, transition_probability} at ``fps`` (issue 63): the blend window the same time as
+    :data:`WINDOW_AT_24` frames at 24 fps (at least 1 frame, at most :data:`LONGEST_WINDOW`) and the
+    chance of a transition the same per second as :data:`TRANSITION_PROBABILITY_AT_24` per frame at
+    24 fps. At 24 fps both are the defaults exactly.
+
+    Why a cap: the splice's velocity spreading leaves kinks and a drift that depend on the window's
+    frames, not only its time (:mod:`.splicing`, module notes), and not alike on every clip: in
+    20 walks of 25 s in-betweened to 96 fps the samba reached 0.92 / 1.35 / 1.76 / 3.42 × its input's
+    largest acceleration at windows of 8 / 12 / 16 / 32 frames (1.67 at 4), the crane 1.52 / 1.08 /
+    0.96 at 8 / 12 / 16 (at 24 fps with 4: 0.84 and 1.10). 12 keeps both under 1.5; a window in time
+    needs a splice whose kinks scale with it (left for later: issue 63's note)."""
+    fps = float(fps)
+    if fps == 24.0:
+        return {"window": WINDOW_AT_24, "transition_probability": TRANSITION_PROBABILITY_AT_24}
+    return {"window": min(LONGEST_WINDOW, max(1, int(round(WINDOW_AT_24 * fps / 24.0)))),
+            "transition_probability": 1.0 - (1.0 - TRANSITION_PROBABILITY_AT_24) ** (24.0 / fps)}
 
 
 def synthesis_request(graph, start=None, end=None, targets=(), min_segment=None, up_axis=None, **options):
@@ -286,11 +315,13 @@ def synthesis_request(graph, start=None, end=None, targets=(), min_segment=None,
     (:func:`validate_request`): ``start``, ``end`` and ``targets`` [(frame, time)] read against its
     clips (CLIP:FRAME or a global frame, :meth:`~skinsynth.pipeline.inputs.clips.Clips.frame`: an
     OptionError names the option), the shortest segment and the up axis ("Y" or "Z") the file
-    recorded unless given, the skin's skeleton."""
+    recorded unless given, the skin's skeleton; a ``window`` of None (or absent) and the
+    ``transition_probability`` the clip's frame rate sets (:func:`timed_walk_options`)."""
     from ..inputs.clips import Clips
     from .motion_graph import default_min_segment
 
     skin = graph.skin
+    options = {**timed_walk_options(skin.fps), **{k: v for k, v in options.items() if v is not None}}
     if up_axis is None:
         up_axis = str(graph.options.get("up_axis", "Y"))
     if min_segment is None:
@@ -300,9 +331,12 @@ def synthesis_request(graph, start=None, end=None, targets=(), min_segment=None,
     end = None if end is None else clips.frame(end, "--end")
     targets = [(clips.frame(frame, "--target"), time) for frame, time in targets]
     # one clip: today's path exactly (no clip table handed down)
+    held = None
+    if getattr(graph, "held_runs", None) is not None and len(graph.held_runs):
+        held = HeldPoses(graph.held_runs, max(1, int(graph.held_keep)), skin.rotations.shape[0])
     request = Request(**options, targets=targets, start=start, end=end, min_segment=min_segment, fps=float(skin.fps),
                       up_axis=1 if up_axis == "Y" else 2, clips=clips if len(clips) > 1 else None,
-                      skeleton=None if skin.skeleton is None else held_rig(skin.skeleton))
+                      skeleton=None if skin.skeleton is None else held_rig(skin.skeleton), held=held)
     validate_request(request, skin.rotations.shape[0])
     return request
 
@@ -383,6 +417,15 @@ class Request:
     tree: object = None
     shape_check: bool = True
     envelope: object = None
+    held: object = None
+
+    def never_shown(self):
+        """(F,) bool or None: the frames no walk may show, those that collide (``forbidden``) and the
+        held poses' hidden frames (``held``, a :class:`.held_poses.HeldPoses`: each held pose one place)."""
+        if self.held is None:
+            return self.forbidden
+        hidden = self.held.hidden
+        return hidden if self.forbidden is None else hidden | np.asarray(self.forbidden, bool)
 
     def parameters(self, obstacles, ground_plane, single_component):
         """{name: value} of the request as synthesize's provenance records it, with its
@@ -428,6 +471,11 @@ def validate_request(request, input_frames):
         raise OptionError(f"--cut-damping must be at least 0 (got {request.cut_damping})")
     if request.min_segment < 1:
         raise OptionError(f"--min-segment must be at least 1 frame (got {request.min_segment})")
+    if request.min_segment > max(input_frames, request.frames):  # issue 63: sized work refused before it starts
+        raise OptionError(f"--min-segment {request.min_segment} is longer than both the clip ({input_frames} frames) "
+                          f"and the animations ({request.frames})")
+    if request.window > input_frames:
+        raise OptionError(f"--window {request.window} is longer than the clip's {input_frames} frames")
     if request.alignment not in ("ground", "full"):
         raise OptionError(f"--alignment must be ground or full (got {request.alignment!r})")
     if request.blend not in ("bones", "key-vertices"):
@@ -650,7 +698,7 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     batch ids, so the outcome still depends on the seed alone. ``progress(done)`` is called with
     the number of animations finished after each batch."""
     validate_request(request, rotations.shape[0])
-    graphs = motion_graphs(components, request.forbidden, request.clips)
+    graphs = motion_graphs(components, request.never_shown(), request.clips)
     check_diversity_reachable(graphs, request)
     args = (components, graphs, rotations, translations, rest, bone_indices, bone_weights, request)
     results, next_batch, need, ask, found, cap = [], 0, request.count, 0, 0, REPLACEMENT_CAP * request.count
@@ -694,10 +742,10 @@ def synthesize(components, rotations, translations, rest, bone_indices, bone_wei
     clips = request.clips
     if clips is None:
         seams_used = np.sum(sources[..., 1:] != sources[..., :-1] + 1, axis=(0, 2))
-        statistics = walk_statistics(sources, rotations.shape[0], fps=request.fps)
+        statistics = walk_statistics(sources, rotations.shape[0], fps=request.fps, held=request.held)
     else:
         seams_used = np.sum(clips.seams(sources), axis=(0, 2))
-        statistics = walk_statistics(sources, rotations.shape[0], clips=clips, fps=request.fps)
+        statistics = walk_statistics(sources, rotations.shape[0], clips=clips, fps=request.fps, held=request.held)
     joint = sources.transpose(1, 0, 2).reshape(sources.shape[1], -1)
     distinct = int(unique_rows(joint).shape[0])
     return Synthesis(F=F, t=t, sources=sources, choice=choice, seams_used=seams_used, distinct=distinct,

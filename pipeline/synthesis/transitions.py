@@ -44,6 +44,10 @@ Steps, each a function here:
   r₋₁ = r_0), so the position term alone decides between them: where the clip's first frames
   barely move but accelerate hard, the minimum can fall on j = 0 and no wrap is listed (the
   horse gallop's first cycle cut alone: D(23, 0) = 0.70 T_c against D(23, −1) = 0.72 T_c).
+  Leaving j = 0 out of the virtual column's neighbourhood was tried (issue 63): the gallop's
+  frames all joined the strongly connected part (96 % at 24 fps, 83 % at 12), but the samba's
+  arm got a wrap one step from the diagonal's valley ((3, −1) at 0.01 T_c) and its body a cheaper,
+  shorter one, and its walks played 155 distinct frames where they played 163.
   Extrapolating, rather than comparing i + 1 with frame 0, keeps the meaning of a pair (i, j)
   and needs nothing past the clip's end (the clip's last frame, the very frame that must go back,
   has no i + 1). Only the column is virtual: frame −1 is never played, and no row −1 exists.
@@ -116,6 +120,10 @@ from ..rig.influence import bone_centroids, weight_sums  # noqa: F401 (bone_cent
 from ..rig.rotations import heading_and_posture, rotation_log
 
 THRESHOLD_REFERENCES = ("median-step", "max-step")
+#: The frame rate a playback step is counted at (:func:`transition_threshold`): a step is what the
+#: motion does in 1/24 s, the rate Zheng's and most captures' clips play at, so a 24 fps file keeps
+#: the threshold it always had.
+REFERENCE_FPS = 24.0
 
 
 def reference_bone(bone_indices, bone_weights, bones, subset=None):
@@ -334,9 +342,21 @@ def padded_costs(D, start):
     return np.concatenate([np.asarray(start, np.float64).reshape(D.shape[0], 1), D], axis=1)
 
 
-def transition_threshold(D, scale=3.0, reference="median-step", clips=None):
+def transition_threshold(D, scale=3.0, reference="median-step", clips=None, moving=None, fps=REFERENCE_FPS):
     """T_c = ``scale`` × (median or max) of the playback steps D(i, i−1), i = 1..F−1 (with
-    ``clips``: only the steps within a clip, i not the first frame of its clip).
+    ``clips``: only the steps within a clip, i not the first frame of its clip), in the clip's time:
+    × (fps / :data:`REFERENCE_FPS`)².
+
+    **Sampling (issue 63).** Every term of a step D(i, i−1) grows with the square of the frame
+    interval (its pose term ‖q_i − q_{i−1}‖² directly; its velocity and reference-motion terms
+    because α and β divide by the largest squared per-frame velocity), while D(i, j) between two
+    strides does not change: at 48 fps the steps are a quarter of those at 24 and the samba's
+    strides no longer joined (a quarter of its frames on the strongly connected part). A step is
+    therefore counted as what it is over 1/24 s, D(i, i−1) (fps / 24)²: the same threshold for the
+    same motion at 12, 24, 48 or 96 fps, and for a file at 24 fps (every shared capture, and the
+    default of ``fit-skin --fps``) exactly today's. Only the ``moving`` (F,) bool frames' steps
+    count (:attr:`.held_poses.HeldPoses.moving`, None: all): a held pose's frames step by nothing
+    and dragged the median to a tenth (the samba with 5 s held: 29 % on the strongly connected part).
 
     ``reference="max-step"`` with ``scale=40`` is Zheng's literal rule (§3.2, "T_c = 40 max
     D(i, i−1)"). It does not transfer: on a 201-frame, 27-bone dancer fit (shared/NOTES.md) the
@@ -350,22 +370,47 @@ def transition_threshold(D, scale=3.0, reference="median-step", clips=None):
     D = np.asarray(D, np.float64)
     if D.shape[0] < 2:
         raise OptionError(f"a transition threshold needs at least 2 frames (got {D.shape[0]})")
-    steps = np.diagonal(D, offset=-1)  # D(i, i−1)
-    if clips is not None:
-        steps = steps[clips.plays_on()[:-1]]  # i − 1 plays on to i: both in one clip
-        if steps.size == 0:
-            raise OptionError("a transition threshold needs a clip of at least 2 frames "
-                              f"(the clips have {', '.join(str(f) for f in clips.frames)})")
+    if clips is not None and not clips.plays_on()[:-1].any():
+        raise OptionError("a transition threshold needs a clip of at least 2 frames "
+                          f"(the clips have {', '.join(str(f) for f in clips.frames)})")
+    steps, span = _spans(D, clips, moving, fps)
+    return float(scale * _step_reference(steps, reference) * _time_scale(fps, span))
+
+
+def _spans(D, clips, moving, fps, owner=None):
+    """The playback steps a threshold is sized by: D(i, i − k) over k = max(1, round(fps / 24))
+    frames, about 1/24 s (:func:`transition_threshold`), i − k and i in one clip and both ``moving``
+    (a clip whose frames never move, or are too few: all of its steps over one frame) -> (steps,
+    k), or with ``owner`` a clip id: that clip's alone."""
+    frames = D.shape[0]
+    span = max(1, int(round(float(fps) / REFERENCE_FPS)))
+    clip = np.zeros(frames, np.int64) if clips is None else clips.clip_of(np.arange(frames))
+    for k in (span, 1):  # a loop over two spans at most
+        i = np.arange(k, frames)
+        within = clip[i] == clip[i - k]
+        if owner is not None:
+            within &= clip[i] == owner
+        counted = within & (True if moving is None else np.asarray(moving, bool)[i] & np.asarray(moving, bool)[i - k])
+        chosen = counted if counted.any() else within  # a clip that never moves: its own steps
+        if chosen.any() or k == 1:
+            return D[i[chosen], i[chosen] - k], k
+
+
+def _step_reference(steps, reference):
     if reference == "median-step":
-        base = np.median(steps)
-    elif reference == "max-step":
-        base = np.max(steps)
-    else:
-        raise OptionError(f"unknown threshold reference {reference!r}; choose one of {THRESHOLD_REFERENCES}")
-    return float(scale * base)
+        return float(np.median(steps))
+    if reference == "max-step":
+        return float(np.max(steps))
+    raise OptionError(f"unknown threshold reference {reference!r}; choose one of {THRESHOLD_REFERENCES}")
 
 
-def clip_thresholds(D, scale=3.0, reference="median-step", clips=None):
+def _time_scale(fps, span=1):
+    """(fps / (span · :data:`REFERENCE_FPS`))²: a step over ``span`` frames counted over 1/24 s
+    (:func:`transition_threshold`)."""
+    return (float(fps) / (span * REFERENCE_FPS)) ** 2
+
+
+def clip_thresholds(D, scale=3.0, reference="median-step", clips=None, moving=None, fps=REFERENCE_FPS):
     """T_c per (clip left, clip entered) -> (C, C): ``scale`` × the larger of the two clips' step
     references (the median or max of each clip's own playback steps D(i, i−1)); the diagonal is
     each clip's own T_c. One clip: [[:func:`transition_threshold`]].
@@ -379,17 +424,14 @@ def clip_thresholds(D, scale=3.0, reference="median-step", clips=None):
     what its own steps do. A clip with no step of its own (one frame) takes the other clip's; two
     such, the pooled reference."""
     if clips is None or len(clips) == 1:
-        return np.array([[transition_threshold(D, scale, reference, clips)]])
+        return np.array([[transition_threshold(D, scale, reference, clips, moving, fps)]])
     D = np.asarray(D, np.float64)
-    steps = np.diagonal(D, offset=-1)
-    owner = clips.clip_of(np.arange(1, clips.total))[clips.plays_on()[:-1]]
-    steps = steps[clips.plays_on()[:-1]]
-    pooled = transition_threshold(D, scale, reference, clips) / scale
+    pooled = transition_threshold(D, scale, reference, clips, moving, fps) / scale
     base = np.full(len(clips), np.nan)
     for c in range(len(clips)):  # a loop over clips
-        own = steps[owner == c]
+        own, span = _spans(D, clips, moving, fps, owner=c)
         if own.size:
-            base[c] = np.median(own) if reference == "median-step" else np.max(own)
+            base[c] = _step_reference(own, reference) * _time_scale(fps, span)
     pair = np.fmax(base[:, None], base[None, :])
     return scale * np.where(np.isnan(pair), pooled, pair)
 
@@ -579,6 +621,43 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
     return every[chosen].reshape(-1, 2), costs[chosen], admitted, share
 
 
+def select_held(D, threshold, min_gap=2, spacing=0, coverage=0.95, start=None, clips=None, walkable=None, spread=0,
+                segment=1, held=None):
+    """:func:`select_transitions` with each held pose one place (issue 63; ``held`` a
+    :class:`.held_poses.HeldPoses`, None or no run: :func:`select_transitions` itself, bit for bit).
+
+    The frames a held run hides (:attr:`.held_poses.HeldPoses.hidden`) are left out and the rest
+    selected from as one sequence, in which a run's last kept frame plays on to its last frame: so
+    the rules (local minima, spacing, coverage, spread) see a still of any length as ``keep`` + 1
+    frames, and its many near-zero costs neither crowd the candidates nor fill the strongly
+    connected part. The pairs found are numbered back in the clip's frames ((i, j) plays j + 1
+    after i: j becomes the frame before the one entered) and each run's skip
+    (:attr:`.held_poses.HeldPoses.skips`) is added, with its cost D. ``share``: the moving frames
+    (a held pose once) on the largest strongly connected part of the clip's graph, skips taken and
+    hidden frames never shown. Returns what :func:`select_transitions` returns."""
+    from .motion_graph import recurrent_frames
+
+    if held is None or not len(held.runs):
+        return select_transitions(D, threshold, min_gap, spacing, coverage, start=start, clips=clips,
+                                  walkable=walkable, spread=spread, segment=segment)
+    frames = D.shape[0]
+    layout = Clips.single(frames) if clips is None else clips
+    shown = np.flatnonzero(~held.hidden)
+    counts = np.bincount(layout.clip_of(shown), minlength=len(layout))
+    reduced = Clips(layout.names, counts) if clips is not None else None
+    pairs, costs, admitted, _ = select_transitions(
+        D[np.ix_(shown, shown)], threshold, min_gap, spacing, coverage, start=None if start is None else start[shown],
+        clips=reduced, walkable=None if walkable is None else walkable[shown], spread=spread, segment=segment)
+    entered = np.where(pairs[:, 1] >= 0, shown[np.maximum(pairs[:, 1], -1) + 1] - 1, pairs[:, 1])
+    skips = held.skips
+    pairs = np.concatenate([np.stack([shown[pairs[:, 0]], entered], axis=1).reshape(-1, 2), skips]).astype(np.int64)
+    costs = np.concatenate([costs, D[skips[:, 0], skips[:, 1]]])
+    order = np.lexsort((pairs[:, 1], pairs[:, 0], costs))
+    pairs, costs = pairs[order], costs[order]
+    recurrent = recurrent_frames(frames, pairs, clips, segment, hidden=held.hidden)
+    return pairs, costs, admitted, float(recurrent[held.moving].mean())
+
+
 def _spread(chosen, over, key, i, before, radius):
     """Candidates to add (of ``over``, in its order: by cost) so that transitions lie all along the
     clip: each one with no transition yet within ``radius`` frames of it in both the frame left
@@ -689,7 +768,7 @@ def posture_costs(D, q, posture, weight=1.0):
 def find_transitions(rotations, translations, bone_indices, bone_weights, bones_subset=None, svd_threshold=0.005,
                      threshold_scale=3.0, threshold_reference="median-step", min_gap=2, spacing=0, coverage=0.95,
                      up=None, pivots=None, scale=1.0, posture_weight=1.0, clips=None, walkable=None, spread=0,
-                     segment=1):
+                     segment=1, held=None, fps=REFERENCE_FPS):
     """Zheng §3.2 end to end: reference bone, eq. 2–6, threshold, candidate transitions.
 
     rotations (F, B, 3, 3), translations (F, B, 3), bone_indices (V, K), bone_weights (V, K);
@@ -700,7 +779,9 @@ def find_transitions(rotations, translations, bone_indices, bone_weights, bones_
     (:class:`.clips.Clips` of the F frames; None: one clip, the same numbers as
     ``Clips.single(F)``): several clips of one character, transitions within and between them
     (module notes: several clips); ``walkable`` (F,) bool: transitions only between such frames
-    (:func:`select_transitions`). Returns a :class:`Transitions`.
+    (:func:`select_transitions`); ``held``: the clip's :class:`.held_poses.HeldPoses` (None: none),
+    each held pose one place (:func:`select_held`); fps: the clip's frame rate, the time a playback
+    step is counted in (:func:`transition_threshold`). Returns a :class:`Transitions`.
     """
     rotations = np.asarray(rotations, np.float64)
     translations = np.asarray(translations, np.float64)
@@ -723,12 +804,13 @@ def find_transitions(rotations, translations, bone_indices, bone_weights, bones_
         posture = reference_posture(rotations[:, reference], translations[:, reference], pivots[reference], up, scale)
         D, gamma = posture_costs(D, q, posture, posture_weight)
     virtual = virtual_costs(q, r, alpha, beta, posture, gamma, clips)  # a virtual frame per clip (module notes)
-    threshold = transition_threshold(D, threshold_scale, threshold_reference, clips)
+    moving = None if held is None else held.moving
+    threshold = transition_threshold(D, threshold_scale, threshold_reference, clips, moving, fps)
     thresholds = None if clips is None or len(clips) == 1 else \
-        clip_thresholds(D, threshold_scale, threshold_reference, clips)
-    pairs, costs, admitted, share = select_transitions(D, threshold if thresholds is None else thresholds, min_gap,
-                                                       spacing, coverage, start=virtual, clips=clips,
-                                                       walkable=walkable, spread=spread, segment=segment)
+        clip_thresholds(D, threshold_scale, threshold_reference, clips, moving, fps)
+    pairs, costs, admitted, share = select_held(D, threshold if thresholds is None else thresholds, min_gap,
+                                                spacing, coverage, start=virtual, clips=clips, walkable=walkable,
+                                                spread=spread, segment=segment, held=held)
     options = dict(svd_threshold=svd_threshold, threshold_scale=threshold_scale,
                    threshold_reference=threshold_reference, min_gap=min_gap, spacing=spacing, spread=spread, segment=segment,
                    coverage=coverage,

@@ -32,15 +32,21 @@ def distinct_frames(sources):
     return 1 + np.count_nonzero(sources[:, 1:] != sources[:, :-1], axis=1)
 
 
-def stuck_loops(sources, fps, longest=STUCK_SECONDS, repeats=STUCK_REPEATS):
+def stuck_loops(sources, fps, longest=STUCK_SECONDS, repeats=STUCK_REPEATS, clip_frames=None):
     """(N,) int: per walk of sources (N, M), the output frames inside a loop of some period P
     (2 ≤ P < ``longest`` × fps frames) repeated more than ``repeats`` times in a row: the frames
     m .. m + (repeats + 1)·P − 1 of every run where ``source[m + k] == source[m + k + P]`` for
-    ``repeats × P`` consecutive k (module notes). P = 1 (a frame held) is no loop of a walk."""
+    ``repeats × P`` consecutive k (module notes). P = 1 (a frame held) is no loop of a walk, nor is
+    P ≥ ``clip_frames`` (None: any P counts): a clip shorter than ``longest`` played whole, over and
+    over, is the clip looping, not a walk caught in a part of it (the horse gallop is 2 s long:
+    in-betweened to 48 fps it has 95 frames, 1.98 s, and a walk that played it end to end was
+    "stuck" where the same walk at 24 fps, 48 frames, 2.0 s, was not)."""
     sources = np.asarray(sources, np.int64)
     count, length = sources.shape
     covered = np.zeros((count, length), bool)
     most = min(int(np.ceil(longest * float(fps))) - 1, length // (repeats + 1))  # shorter than `longest`
+    if clip_frames is not None:
+        most = min(most, int(clip_frames) - 1)
     for period in range(2, most + 1):
         same = sources[:, period:] == sources[:, :-period]  # (N, M − P)
         need = repeats * period
@@ -60,7 +66,7 @@ def stuck_loops(sources, fps, longest=STUCK_SECONDS, repeats=STUCK_REPEATS):
     return covered.sum(axis=1)
 
 
-def stuck_walks(sources, fps, longest=STUCK_SECONDS, repeats=STUCK_REPEATS):
+def stuck_walks(sources, fps, longest=STUCK_SECONDS, repeats=STUCK_REPEATS, clip_frames=None):
     """(N,) bool: the walks of sources (N, M) that repeat a loop shorter than ``longest`` seconds
-    more than ``repeats`` times in a row (:func:`stuck_loops`)."""
-    return stuck_loops(sources, fps, longest, repeats) > 0
+    (and than ``clip_frames``) more than ``repeats`` times in a row (:func:`stuck_loops`)."""
+    return stuck_loops(sources, fps, longest, repeats, clip_frames) > 0

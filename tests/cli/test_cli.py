@@ -302,6 +302,21 @@ def test_fit_skin_output_in_missing_folder(data, out):
 def test_example_bad_options(out):
     assert_user_error(cli("example", "bending-bar", "-o", out / "bar.txt"), "bar.txt", ".npz", folder=out)
     assert_user_error(cli("example", "bending-bar", "-o", out / "bar.npz", "--frames", 1), "--frames", folder=out)
+    assert_user_error(cli("example", "bending-bar", "-o", out / "bar.npz", "--event"), "--event", folder=out)
+    assert_user_error(cli("example", "walker", "-o", out / "w.npz", "--event", "--planted"), "--event", folder=out)
+
+
+def test_example_walker_with_an_event(out):
+    """Issue 63's one-time event: 2 s standing (a held pose to build-graph), 4 s walking, a stumble,
+    3 s running, at the frame rate asked."""
+    from skinsynth.pipeline.inputs.examples import walker_event
+
+    done = assert_ok(cli("example", "walker", "--event", "-o", out / "event.npz", "--fps", 12, "--json"))
+    assert json.loads(done.stdout)["frames"] == 114 and json.loads(done.stdout)["event"]
+    with np.load(out / "event.npz") as f:
+        vertices = f["vertices"]
+    assert vertices.shape[0] == 114 and np.allclose(vertices, walker_event(fps=12.0)[0], atol=1e-6)
+    assert np.ptp(vertices[:24], axis=0).max() == 0.0 and np.ptp(vertices[24:48], axis=0).max() > 0.1
 
 
 # ---------------------------------------------------------------- bad input: inspect and export

@@ -140,6 +140,13 @@ def test_bad_inputs(files, tmp_path):
     assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 30,
                           "--obstacle", tmp_path / "bad.obj"), "bad.obj", folder=tmp_path, keep=["bad.obj"])
     assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 0), "--frames")
+    # options that size work are refused before it (issue 63: --min-segment 1e9 ran out of memory)
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 30,
+                          "--min-segment", 1000000000), "--min-segment 1000000000 is longer")
+    assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 30,
+                          "--window", 1000000000), "--window 1000000000 is longer")
+    assert_user_error(cli("build-graph", files / "skin.h5", "-o", tmp_path / "g.h5", "--min-segment", 1000000000),
+                      "--min-segment 1000000000 is longer")
     assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 5,
                           "--cut-damping", -1), "--cut-damping")
     assert_user_error(cli("synthesize", files / "graph.h5", "-o", tmp_path / "b.h5", "-n", 2, "-m", 5,

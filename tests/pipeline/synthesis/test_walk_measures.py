@@ -114,3 +114,13 @@ def test_walks_leave_a_loop_they_replay_where_a_short_clip_has_one_way_back():
     assert steps <= allowed
     # a walk leaving a loop may cut a segment short, never under half of min_segment
     assert walk_statistics(after[None], 48)["shortest_segment"][0] >= 6
+
+
+def test_a_clip_shorter_than_two_seconds_played_whole_is_not_stuck():
+    """Issue 63: a 30-frame clip (1.25 s at 24 fps) played end to end ten times is the clip looping;
+    the same loop inside a longer clip is a walk caught in a part of it."""
+    whole = np.tile(np.arange(30), 10)[None]
+    assert stuck_walks(whole, 24.0)[0] and not stuck_walks(whole, 24.0, clip_frames=30)[0]
+    assert stuck_walks(whole, 24.0, clip_frames=31)[0]
+    assert walk_statistics(whole[None], 30, fps=24.0)["stuck"] == [0]
+    assert walk_statistics(whole[None], 200, fps=24.0)["stuck"] == [1]
