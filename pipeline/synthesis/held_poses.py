@@ -18,13 +18,14 @@ the fitted bones' jitter on the shared captures; the length is in time (build-gr
 twice the shortest segment walks play, :func:`.motion_graph.default_min_segment`), so the same
 pause is found at 12 fps or at 96, and neither the slow ends of a gesture (a limb turning round,
 still for a frame or two) nor a beat's half-second pause, part of the motion, is a run (the Dem
-Bones bar pauses 12 frames at frame 174: counted as a run, its walks played fewer poses). Runs are found greedily from each clip's first
-frame: a run ends at the first frame that leaves its first frame's tolerance.
+Bones bar pauses 12 frames at frame 174: counted as a run, its walks played fewer poses). Runs
+are found greedily from each clip's first frame: a run ends at the first frame that leaves its
+first frame's tolerance.
 
 The graph then shows ``keep`` + 1 frames of each run (its first ``keep``, half a second, and its last):
 walks that reach a held pose show it for ``keep`` frames and go on from its last frame, by a
 *skip* (``(first + keep − 1, last − 1)`` as a transition: D ≈ 0, the poses are one) that
-:func:`.transitions.find_transitions` adds and the frames between never shown
+:func:`.transitions.select_held` adds, and the frames between are never shown
 (:attr:`HeldPoses.hidden`, synthesize's forbidden frames).
 """
 
@@ -75,11 +76,6 @@ class HeldPoses:
         """(F,) bool: one frame per pose: every frame outside the runs and each run's first."""
         rep = self.representative
         return rep == np.arange(self.frames)
-
-
-def no_held_poses(frames, keep=1):
-    """HeldPoses with no run (a clip that never stands still)."""
-    return HeldPoses(np.zeros((0, 2), np.int64), int(keep), int(frames))
 
 
 def find_held_poses(rotations, translations, pivots, size, min_frames, clips=None, tolerance=HELD_TOLERANCE,

@@ -355,9 +355,11 @@ def transition_threshold(D, scale=3.0, reference="median-step", clips=None, movi
     because α and β divide by the largest squared per-frame velocity), while D(i, j) between two
     strides does not change: at 48 fps the steps are a quarter of those at 24 and the samba's
     strides no longer joined (a quarter of its frames on the strongly connected part). A step is
-    therefore counted as what it is over 1/24 s, D(i, i−1) (fps / 24)²: the same threshold for the
-    same motion at 12, 24, 48 or 96 fps, and for a file at 24 fps (every shared capture, and the
-    default of ``fit-skin --fps``) exactly today's. Only the ``moving`` (F,) bool frames' steps
+    therefore counted over about 1/24 s: D(i, i − k), k = round(fps / 24) frames, × (fps / 24k)²
+    (:func:`_spans`): the same threshold for the same motion at 12, 24, 48 or 96 fps, and for a file
+    at 24 fps (every shared capture, and the default of ``fit-skin --fps``) exactly today's. Over k
+    frames, not one frame scaled by (fps / 24)²: a clip in-betweened linearly has no acceleration
+    at every other frame, and its one-frame steps' median fell twelvefold at 48 fps, not fourfold. Only the ``moving`` (F,) bool frames' steps
     count (:attr:`.held_poses.HeldPoses.moving`, None: all): a held pose's frames step by nothing
     and dragged the median to a tenth (the samba with 5 s held: 29 % on the strongly connected part).
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from skinsynth.pipeline.inputs.clips import Clips
-from skinsynth.pipeline.synthesis.held_poses import find_held_poses, no_held_poses
+from skinsynth.pipeline.synthesis.held_poses import HeldPoses, find_held_poses
 from skinsynth.pipeline.synthesis.motion_graph import (MotionGraph, default_min_segment, frames_off_part, recurrent_frames,
                                                        walk_statistics)
 from skinsynth.pipeline.synthesis.summaries import _ranges
@@ -129,7 +129,7 @@ def test_without_runs_select_held_is_select_transitions():
     rotations, translations = chain(np.arange(120) / 24.0)
     plain, _ = graph_of(rotations, translations, 24)
     again = select_held(plain.D, plain.threshold, 2, 6, 0.95, start=plain.virtual, spread=48, segment=12,
-                        held=no_held_poses(120, 12))
+                        held=HeldPoses(np.zeros((0, 2), np.int64), 12, 120))
     assert np.array_equal(again[0], plain.pairs) and np.array_equal(again[1], plain.costs)
     assert recurrent_frames(120, plain.pairs, segment=12, hidden=np.zeros(120, bool)).mean() == plain.share
 
