@@ -84,6 +84,14 @@ def build_graph(path, output, min_segment, up_axis, walk_clips, no_contacts, plo
     leaves the walks under 90 % of the frames they could play. A capture that never rests on a
     ground has none, and its graph file is the same as with --no-contacts.
 
+    The threshold counts the clip's motion per unit of time (the moving frames' playback steps over
+    about 1/24 s, at the frame rate fit-skin --fps stored), so the same motion gives the same graph
+    at 12, 24, 48 or 96 fps: declare a capture's frame rate when you fit it. A pose held still for a
+    second or more (a performer standing before the dance) is one place in the graph: walks show it
+    for half a second and go on. The summary names the held poses and, per component, the frames
+    a walk can reach but never leave (what follows a one-time event: played once, at the end).
+    docs/motion_graph.md has the rules and why they hold.
+
     A skin fitted to several clips (fit-skin A.npz B.npz) keeps them apart: playback never runs
     from one clip's last frame into the next clip's first, and transitions are found within each
     clip and between clips by the same rule (a gallop that falls into the collapse). The summary

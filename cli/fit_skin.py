@@ -61,7 +61,8 @@ MAX_TRANSFORM_STEPS = 100
               help="--skeleton: start from (1 + this) × --bones bones and merge the redundant ones into their parents "
                    "as the joints are fitted (Le & Deng 2014): more fixed joints, 2-5x the time. Default 0 (off).")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
-@click.option("--fps", default=None, type=FINITE_FLOAT, help="Frame rate, when the input does not carry one (default 24).")
+@click.option("--fps", default=None, type=FINITE_FLOAT, help="Frame rate, when the input does not carry one (default 24). Every later stage counts "
+                   "time in it: build-graph's threshold and held poses, synthesize's blends and segments.")
 @click.option("--meters-per-unit", default=None, type=FINITE_FLOAT,
               help="Units of the input's coordinates (USD metersPerUnit; 0.01 for centimetres). Default: what a "
                    "USD input states, else 1. Every USD written downstream states it again.")
