@@ -187,8 +187,9 @@ def build_graph(rest, faces, bone_indices, bone_weights, rotations, translations
                    up_axis=int(up_axis), posture_weight=float(posture_weight),
                    walk_clips=list(clips.names if walk_clips is None or clips is None else
                                    clips.subset(walk_clips).names) if clips is not None else None)
+    shown = max(2, int(min_segment))  # a held run shows half a second and lasts at least a second (:mod:`.held_poses`)
     held = find_held_poses(rotations, translations, bone_centroids(rest, bone_indices, bone_weights, bones),
-                           float(np.ptp(rest, axis=0).max()), 2 * max(2, int(min_segment)), clips, keep=max(2, int(min_segment)))
+                           float(np.ptp(rest, axis=0).max()), 2 * shown, clips, keep=shown)
     components = [analyse_component([int(b) for b in members], rest, neighbours, bone_indices, bone_weights, rotations,
                                     translations, options, clips, walkable, held, fps)
                   for members in decomposition.components]

@@ -82,7 +82,7 @@ def find_held_poses(rotations, translations, pivots, size, min_frames, clips=Non
                     keep=None):
     """The held runs of a clip (module notes). rotations (F, B, 3, 3), translations (F, B, 3),
     pivots (B, 3) the bones' rest pivots; size: the character's size (the rest pose's largest
-    extent); min_frames: the shortest run (half a second of frames at the defaults); clips: the
+    extent); min_frames: the shortest run (build-graph: a second of frames, twice its min_segment); clips: the
     :class:`.clips.Clips` of the frames (None: one clip; a run never crosses a clip's end);
     keep (None: ``min_frames``): the frames a run shows before its skip. Returns HeldPoses."""
     rotations = np.asarray(rotations, np.float64)

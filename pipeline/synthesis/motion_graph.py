@@ -387,8 +387,8 @@ def frames_off_part(frames, transitions, clips=None, segment=1, hidden=None):
     """Where the frames off the largest strongly connected part lie (issue 63; the graph of
     :func:`recurrent_frames`): ``(on, after, before)``, each (F,) bool: on the part; reached from
     it but with no way back (the far side of a one-way event: walks play them once, at their end);
-    leading into it but never reached from it (a lead-in: walks, which start on the part, never
-    play them). A frame off the part that is neither is cut off from it (hidden frames included)."""
+    leading into it but never reached from it (a lead-in: a walk plays them only where it starts
+    on them, once: :meth:`MotionGraph.start_frames`). A frame off the part that is neither is cut off from it (hidden frames included)."""
     from scipy.sparse.csgraph import breadth_first_order
 
     frames, segment = int(frames), max(1, int(segment))
@@ -623,7 +623,7 @@ def walk_statistics(sources, frames, clips=None, fps=None, held=None):
     out = {"transitions": [], "mean_segment_frames": [], "shortest_segment": [], "coverage": [],
            "distinct_frames": [], "distinct_poses": []}
     pose = np.arange(frames) if held is None else held.representative
-    moving = int(frames) if held is None else int(held.moving.sum())  # a held pose once
+    poses = int(frames) if held is None else int(held.moving.sum())  # the clip's poses, a held pose once
     if fps is not None:
         out["stuck"] = []
     if clips is not None:
@@ -641,7 +641,7 @@ def walk_statistics(sources, frames, clips=None, fps=None, held=None):
         out["distinct_frames"].append(distinct_frames(walks).tolist())
         out["distinct_poses"].append(distinct_frames(pose[walks]).tolist())
         if fps is not None:
-            out["stuck"].append(int(stuck_walks(walks, fps, clip_frames=moving).sum()))
+            out["stuck"].append(int(stuck_walks(walks, fps, clip_frames=poses).sum()))
         if clips is not None:
             shown = np.bincount(clips.clip_of(played), minlength=len(clips))
             out["coverage_per_clip"].append({name: float(shown[c] / clips.frames[c])

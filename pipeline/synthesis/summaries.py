@@ -104,7 +104,7 @@ def graph_summary(output, analysis, seconds):
                          "follows it: no transition leads back), so a walk plays them at most once, in its last 2 s")
         if lead_in:
             lines.append(f"    frames {_ranges(lead_in, clips)} only lead into the strongly connected part (nothing "
-                         "returns to them): walks start on that part and never play them")
+                         "returns to them): a walk plays them only where it starts on them, once")
         components.append({"bones": list(component.bones), "reference": int(t.reference),
                            "transitions": len(t.pairs), "admitted": int(t.admitted), "share": float(t.share),
                            "key_vertices": len(component.key), "reduced_coordinates": int(t.q.shape[1]),
