@@ -279,12 +279,14 @@ def walker_event(fps=24.0, rings=24, segments=10, stand=2.0, walk=4.0, stumble=0
     first pose, walks ``walk`` s at a cycle a second, stumbles once over ``stumble`` s (chest pitched,
     arms thrown up, knees buckled: poses it shows nowhere else) and runs off at ``pace`` cycles a
     second for ``run`` s, leaning into it with longer strides and higher knees (pace and posture
-    ramped over 0.3 s), so that nothing in the run resembles the walk: a part of the clip the
-    stumble leads into and nothing leads back from. Returns walker's (vertices, faces[, rig])."""
+    ramped over 0.3 s from the stumble's height, so that the stumble recovers into the run, never
+    into a walking pose), so that nothing in the run resembles the walk: a one-time event, and a
+    part of the clip it leads into and nothing leads back from. Returns walker's (vertices,
+    faces[, rig])."""
     fps = float(fps)
     seconds = np.arange(int(round((stand + walk + stumble + run) * fps))) / fps
     moving = np.clip(seconds - stand, 0.0, None)
-    ramp = np.clip((moving - walk - stumble) / 0.3, 0.0, 1.0)
+    ramp = np.clip((moving - walk - 0.5 * stumble) / 0.3, 0.0, 1.0)
     speed_gain = np.cumsum(ramp) / fps * (pace - 1.0)  # the extra cycles the run adds
     phase = moving + speed_gain
     into = (seconds - stand - walk) / stumble

@@ -548,11 +548,18 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
     flat valley such as an exact loop, D(i, i+P) = 0 for every i, lists a transition per frame).
     Every surviving candidate with D < T_c is a transition. If fewer than ``coverage`` of the
     frames then lie on the largest strongly connected part of the frame graph
-    (:func:`.motion_graph.recurrent_frames`: walks get trapped or dead-end), further survivors
+    (:func:`.motion_graph.recurrent_frames`: walks get trapped or dead-end), further candidates
     are admitted in order of cost, each only if it enlarges that part, until it holds
     ``coverage`` of the frames or none is left below ``admit_scale`` × T_c (past that a splice
     shows: on the Dem Bones example, whose median step is tiny beside its fast flexes, admitting
-    up to 160 T_c for coverage made 3.7× the input's acceleration).
+    up to 160 T_c for coverage made 3.7× the input's acceleration). Last, in the same way, the
+    candidates below T_c that the spacing rule dropped: spacing says a neighbour is the same
+    choice, but where every transition kept leaves frames off the part, a neighbour as cheap
+    that reaches them is not (issue 63: the gallop at 12 fps, one stride 12 frames, kept (15, 3)
+    and dropped (13, 1), at cost 0, so frames 0–3 only led in). Tried among the survivors, by
+    cost, they crowded a few places with near copies (the dancer's arm component: walks replayed
+    them); tried above T_c too, they added a splice at 9.8 T_c to the samba at 96 fps for 0.6 %
+    more of its arm component's frames, and its walks played fewer of its poses.
 
     ``clips`` (None: one clip), start (F, C) D(i, −(c+1)): j must name a frame that plays on in
     its clip (:meth:`.clips.Clips.valid_j`), and spacing compares only candidates whose i lie in
@@ -603,15 +610,20 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
     share = float(recurrent_frames(frames, every[chosen], clips, segment).mean()) if frames else 0.0
     admitted = 0
     over = kept[(costs[kept] >= limit[kept]) & (costs[kept] < admit_scale * limit[kept])]
+    spared = np.setdiff1d(np.arange(len(every)), kept)  # dropped by the spacing rule (sorted: every[] is by cost)
+    spared = spared[costs[spared] < limit[spared]]
     if clips is not None and len(clips) > 1:
         over = over[np.argsort(costs[over] / limit[over], kind="stable")]  # by cost in units of their T_c
-    for n in over:
+        spared = spared[np.argsort(costs[spared] / limit[spared], kind="stable")]
+    grown = False
+    for n in np.concatenate([over, spared]):  # the spacing rule's survivors first
         if share >= coverage:
             break
         trial = float(recurrent_frames(frames, every[chosen + [n]], clips, segment).mean())
         if trial > share:
             chosen.append(n)
-            share, admitted = trial, admitted + 1
+            share, grown = trial, True
+            admitted += int(costs[n] >= limit[n])
     if clips is not None and len(clips) > 1 and len(every):
         for n in _clip_links(chosen, over, clip_left, clip_entered, len(clips)):
             chosen.append(n)
@@ -620,7 +632,7 @@ def select_transitions(D, threshold, min_gap=2, spacing=0, coverage=0.95, admit_
         for n in _spread(chosen, over, key, i, before, spread):
             chosen.append(n)
             admitted += 1
-    if admitted:
+    if admitted or grown:
         share = float(recurrent_frames(frames, every[chosen], clips, segment).mean())
     chosen = np.asarray(sorted(chosen), dtype=np.int64)  # every[] is sorted by cost already
     return every[chosen].reshape(-1, 2), costs[chosen], admitted, share

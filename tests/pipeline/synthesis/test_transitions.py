@@ -8,7 +8,7 @@ from skinsynth.pipeline.rig.rotations import rotation_exp, rotation_log
 from skinsynth.pipeline.synthesis.transitions import (bone_coordinate_matrix, candidate_transitions, find_transitions,
                                             local_frame_positions, pairwise_squared_distances,
                                             reduced_coordinates, reference_bone, reference_motion,
-                                            transition_costs, transition_threshold)
+                                            select_transitions, transition_costs, transition_threshold)
 
 
 def periodic_motion(period, bones=5, seed=0):
@@ -331,3 +331,26 @@ def test_one_cycle_clip_gets_its_wrap_and_a_clip_played_twice_keeps_its_transiti
     two = find_transitions(model["rotations"], model["translations"], *args)
     kept = select_transitions(two.D, two.threshold, 2, 0, 0.95)[0]
     assert {tuple(x) for x in two.pairs.tolist() if x[1] != -1} == set(map(tuple, kept.tolist()))
+
+
+def test_coverage_admits_a_candidate_the_spacing_rule_dropped_where_it_reaches_frames_off_the_part():
+    # Issue 63: the gallop at 12 fps (two 12-frame strides) kept (15, 3), dropped its neighbour
+    # (13, 1) as "the same choice", and frames 0–3 only led into the part. Costs: a periodic
+    # valley D(i, i ± 12), flat to within the candidates' tolerance (every pair on it a local
+    # minimum), cheapest at frames 3 and 7 of each stride, so that the spacing rule (3 frames)
+    # keeps (15, 3) and (19, 7) and drops every pair that enters frames 1–3.
+    frames, period = 24, 12
+    i = np.arange(frames)
+    phase = 2.0 * np.pi * (i[:, None] - i[None, :]) / period
+    bump = 1e-11 * np.minimum(np.abs((i % period) - 3), np.abs((i % period) - 7)).astype(float)
+    D = 1.0 - np.cos(phase) + bump[:, None] + bump[None, :]
+    np.fill_diagonal(D, 0.0)
+    from skinsynth.pipeline.synthesis.motion_graph import recurrent_frames
+
+    pairs, costs, admitted, share = select_transitions(D, threshold=0.5, min_gap=2, spacing=3, coverage=0.95)
+    kept_first = [tuple(p) for p in pairs[:4]]
+    assert {(3, 15), (15, 3)} <= set(kept_first)  # the cheapest, kept by the spacing rule
+    on_part = recurrent_frames(frames, pairs)
+    # every frame a transition can enter (j ≥ 1: frame j + 1 ≥ 2) lies on the part
+    assert on_part[2:].all() and share >= 22 / 24 - 1e-12
+    assert admitted == 0  # the one added lies below T_c: no admission above it
