@@ -21,14 +21,15 @@ runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``,
   a quarter of their rest length past anything the capture and the fit's playback of it show), the
   worst frame's share of such edges, and the largest vertex acceleration over the input's;
 - feet (issue 35 part 4; every definition in docs/contact.md and
-  ``pipeline/synthesis/contact/measures.py``): on the captures with a ground (``GROUNDED``) and the
+  ``pipeline/mesh/contact_measures.py``): on the captures with a ground (``GROUNDED``) and the
   walker, the first ``--feet`` (16) of the 1,000 animations skinned and measured against the input
   by ``measure_feet``, the function behind ``synthesize --json``'s ``"contact"``: for the input and
   the output the slide of the contact vertices (median and 95th percentile per frame, over the
   height), the share of contact steps sliding over 0.5 % of the height, float and penetration
   during contact, the largest acceleration, and the output/input ratios (``contact``), and the
   same against the input frames replayed along the measured walks (``played``, ``ratios_played``:
-  what synthesis adds at the frames it plays; docs/contact.md);
+  what synthesis adds at the frames it plays; docs/contact.md), and against the fit's own playback of
+  the input (``fit``, ``ratios_fit``: what the rig itself holds; issue 64);
 - ground drift: ``synthesize -n 3 -m 3000``; the lowest vertex of every frame against
   the input's range of lowest vertices, how far it goes below the input's lowest and above the
   input's highest lowest point, each as a share of the character's height (goal ≤ 0.01 each:
@@ -135,7 +136,8 @@ def feet(skin, path, count):
             return {k: rounded(v) for k, v in value.items()}
         return float(f"{value:.4g}") if isinstance(value, float) and np.isfinite(value) else value
 
-    return {"animations": count, **{k: rounded(figures[k]) for k in ("input", "output", "ratios", "played", "ratios_played")}}
+    return {"animations": count, **{k: rounded(figures[k]) for k in ("input", "output", "ratios", "played", "ratios_played",
+                                                                    "fit", "ratios_fit")}}
 
 
 def shape(skin_path, path, count):

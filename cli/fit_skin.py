@@ -60,6 +60,14 @@ MAX_TRANSFORM_STEPS = 100
 @click.option("--surplus-bones", default=0.0, type=FiniteFloatRange(min=0.0),
               help="--skeleton: start from (1 + this) × --bones bones and merge the redundant ones into their parents "
                    "as the joints are fitted (Le & Deng 2014): more fixed joints, 2-5x the time. Default 0 (off).")
+@click.option("--contacts/--no-contacts", default=True, show_default=True,
+              help="Weigh the fit toward the capture's ground contacts (where build-graph's contact finder finds a "
+                   "ground): the vertices near the ground are fitted first, so the rig replays planted feet still. "
+                   "Not with --rig or --skeleton. The summary compares the playback's feet with the capture's. "
+                   "docs/contact.md.")
+@click.option("--contact-weight", default=None, type=FiniteFloatRange(min=0.0),
+              help="--contacts: the extra weight of a near-ground vertex's error (lowered where the near vertices "
+                   "would carry over a fifth of the fit's error). Default 20.")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
 @click.option("--fps", default=None, type=FINITE_FLOAT, help="Frame rate, when the input does not carry one (default 24). Every later stage counts "
                    "time in it: build-graph's threshold and held poses, synthesize's blends and segments.")
@@ -72,8 +80,8 @@ MAX_TRANSFORM_STEPS = 100
 @summary_options
 @user_errors
 def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolerance, patience, device, rest_frame, seed,
-             transform_steps, skeleton, root_bone, max_joint_drift, max_sliding_share, surplus_bones, prim, fps,
-             meters_per_unit, up_axis, start_frame, quiet, as_json):
+             transform_steps, skeleton, root_bone, max_joint_drift, max_sliding_share, surplus_bones, contacts,
+             contact_weight, prim, fps, meters_per_unit, up_axis, start_frame, quiet, as_json):
     """Fit a linear-blend-skinning model with rigid bones to one or more clips of a mesh.
 
     Each INPUT is a clip: a folder or glob of OBJ/PLY/OFF frames (natural frame order), a USD
@@ -93,7 +101,7 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     from skinsynth.formats.model import write_model
     from skinsynth.formats.provenance import provenance_record
     from skinsynth.formats.skin_file import skin_groups
-    from skinsynth.pipeline.skin import finish_fit, fit_rest_pose, fit_rig, skin_summary
+    from skinsynth.pipeline.skin import finish_fit, fit_rest_pose, fit_rig, playback_feet, skin_summary
 
     inputs = list(input_specs) + ([rig] if rig else []) + ([skeleton] if skeleton not in (None, FOUND) else [])
     check_output_path(output, (".h5", ".hdf5"), inputs=inputs)
@@ -103,6 +111,8 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
                                               skeleton, brought)
     bones, rest_frame, diagonal = fit_rest_pose(input_specs[0], sequence.vertices, clips, rig_model, bones, rest_frame,
                                                 max_influences, iterations, root_bone, transform_steps, surplus_bones)
+    ground = _capture_ground(sequence, clips)
+    near = ground[1] if ground is not None and contacts and rig is None and skeleton is None else None
     with Progress(iterations, "", quiet) as bar:
         phases = _Phases(bar, bones, rig, diagonal)
         result, jointed = fit_rig(sequence.vertices, sequence.faces, bones, rig=rig_model,
@@ -111,21 +121,24 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
                                   iterations=iterations, rest_frame=rest_frame, seed=seed, tolerance=tolerance,
                                   patience=patience, joint_steps=transform_steps,
                                   device=None if device == "cpu" else device, diagonal=diagonal, surplus=surplus_bones,
-                                  up_axis=sequence.scene.up_axis, max_sliding_share=max_sliding_share, progress=phases)
+                                  up_axis=sequence.scene.up_axis, max_sliding_share=max_sliding_share, near=near,
+                                  contact_weight=contact_weight, progress=phases)
     seconds = time.perf_counter() - phases.started
     frame_rmse, dq, rest_frames = finish_fit(result, sequence.vertices,
                                               rest_frames=None if rig_model is None else rig_model.bone_rest_frames)
+    feet = None if ground is None else playback_feet(result, sequence.vertices, clips.starts, ground[0])
     scene = sequence.scene
     parameters = dict(bones=bones, rig=rig, max_influences=max_influences, iterations=iterations, tolerance=tolerance,
                       patience=patience, device=device, rest_frame=rest_frame, seed=seed, prim=prim, fps=sequence.fps,
                       transform_steps=transform_steps, skeleton=skeleton, root_bone=root_bone, surplus_bones=surplus_bones,
                       max_joint_drift=max_joint_drift, max_sliding_share=max_sliding_share,
+                      contacts=near is not None, contact_weight=contact_weight,
                       meters_per_unit=scene.meters_per_unit, up_axis=scene.up_axis, start_frame=scene.start_frame)
     record = provenance_record("skin", command_line(), parameters, inputs, tool_version(), seed)
     write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal,
                                             jointed), [record], tool_version())
     report(*skin_summary(output, result, frame_rmse, clips, diagonal, sequence.fps, scene, seconds, device,
-                         phases.history, jointed, sequence.faces), as_json, quiet)
+                         phases.history, jointed, sequence.faces, feet, near, contact_weight), as_json, quiet)
     if result.bones_without_weight:
         click.echo(f"warning: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
                    "has fewer independently moving parts than --bones", err=True)
@@ -195,7 +208,8 @@ class _Phases:
         self.bar, self.diagonal, self.history = bar, diagonal, []
         self.labels = {"fit": f"fit-skin {bones} bones" + (" on the rig" if rig else ""), "prune": "bones merged",
                        "grow": "fit-skin --surplus-bones: the larger free fit", "given": f"fit-skin under the given "
-                       f"skeleton ({bones} bones)", "joints": "fit-skin --skeleton: the rig refitted on its joints"}
+                       f"skeleton ({bones} bones)", "joints": "fit-skin --skeleton: the rig refitted on its joints",
+                       "contacts": "the fit weighed toward the ground contacts"}
         self.started = time.perf_counter()
 
     def __call__(self, phase, length):
@@ -206,6 +220,24 @@ class _Phases:
                 self.history.append((round(time.perf_counter() - self.started, 3), rmse / self.diagonal))
             self.bar.update(1, f"RMSE/diag {rmse / self.diagonal:.2e}")
         return progress
+
+
+def _capture_ground(sequence, clips):
+    """(the up axis's index, near (F, V) bool: the vertices near their clip's ground) where
+    build-graph's contact finder finds a ground in the capture (:func:`~skinsynth.pipeline.synthesis.find_contacts`,
+    a clip without plants has none), else None (a swinging bar, a falling cloth)."""
+    import numpy as np
+
+    from skinsynth.pipeline.skin import near_ground
+    from skinsynth.pipeline.synthesis import find_contacts
+
+    up = "XYZ".index(sequence.scene.up_axis)
+    found = find_contacts(sequence.vertices, sequence.faces, sequence.fps, up, clips)
+    if not found.count:
+        return None
+    starts = clips.starts
+    grounded = np.array([found.planted[a:b].any() for a, b in zip(starts[:-1], starts[1:])])
+    return up, near_ground(sequence.vertices, starts, np.where(grounded, found.ground, np.nan), up, found.height)
 
 
 def _read_given_skeleton(path, bones):

@@ -50,8 +50,8 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
 
 def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, root_bone=None, max_joint_drift=None,
             max_influences=4, iterations=100, rest_frame=0, seed=0, tolerance=0.02, patience=5, joint_steps=0,
-            device=None, diagonal=1.0, surplus=0.0, up_axis="Y", max_sliding_share=None,
-            progress=lambda phase, length: None):
+            device=None, diagonal=1.0, surplus=0.0, up_axis="Y", max_sliding_share=None, near=None,
+            contact_weight=None, progress=lambda phase, length: None):
     """The rig of the examples ``vertices (F, V, 3)`` (faces (T, 3)), fitted as asked.
 
     ``rig``: a skin (rest_vertices (V, 3), bone_indices (V, K), bone_weights (V, K), bones) whose
@@ -64,9 +64,14 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     its RMSE NaN); its chains named from the geometry, ``up_axis`` ("Y" or "Z") up
     (:func:`~skinsynth.pipeline.rig.chain_labels.chain_labels`). The other options are
     :func:`.skin_fit.fit_skin`'s
-    (``joint_steps``: its ``--transform-steps``). ``progress(phase, length)`` is called as each
+    (``joint_steps``: its ``--transform-steps``). ``near`` (F, V) bool: the (frame, vertex) pairs
+    near the capture's ground, whose residuals the free fit then weighs more
+    (:func:`.contact_fit.keep_contacts`, ``contact_weight``: None for its default), so that the
+    rig replays the capture's contacts still (None: no ground, or ``--no-contacts``; not with
+    ``rig``, ``given``, ``find_joints`` or ``surplus``, whose fits start from or keep other bones).
+    ``progress(phase, length)`` is called as each
     phase starts, ``"fit"`` (the free fit or the rig's, ``iterations`` long), ``"joints"`` (the
-    refit on found joints), ``"grow"`` and ``"prune"`` (``surplus``) or ``"given"`` (the fit
+    refit on found joints), ``"contacts"`` (``near``), ``"grow"`` and ``"prune"`` (``surplus``) or ``"given"`` (the fit
     under ``given``), and returns the phase's
     ``progress(iteration, rmse)`` (or None).
 
@@ -107,6 +112,12 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
                     seed=seed, tolerance=tolerance, patience=patience, joint_steps=joint_steps, device=device,
                     progress=progress("fit", iterations))
     if not find_joints:
+        if near is not None:
+            from .contact_fit import CONTACT_ROUNDS, CONTACT_WEIGHT, keep_contacts
+
+            free = keep_contacts(free, vertices, near, CONTACT_WEIGHT if contact_weight is None else contact_weight,
+                                 max_influences=max_influences, device=device,
+                                 progress=progress("contacts", CONTACT_ROUNDS))
         return free, None
     found = find_skeleton(free.rest_vertices, faces, free.bone_indices, free.bone_weights, free.rotations,
                           free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal,
@@ -143,13 +154,16 @@ def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted, vertices=Non
 
 
 def skin_summary(output, fit, frame_rmse, clips, diagonal, fps, scene, seconds, device, history, skeleton=None,
-                 faces=None):
+                 faces=None, feet=None, near=None, contact_weight=None):
     """``fit-skin``'s summary (--json) and its text lines, from a fit (:func:`fit_rig`) and its
     per-frame RMSE (F,) (:func:`.skin_fit.finish_fit`): the error over the rest bounding-box
     ``diagonal``, overall and per clip (``clips``: a :class:`~skinsynth.pipeline.inputs.clips.Clips`),
     the input's ``scene`` (units, up axis, start frame, prim path, as the USD written from it
     states them), the fit's ``history`` [(seconds, RMSE over the diagonal)]; with the
-    ``skeleton`` record (and the mesh's ``faces`` (T, 3)), its joints (:func:`_skeleton_summary`)."""
+    ``skeleton`` record (and the mesh's ``faces`` (T, 3)), its joints (:func:`_skeleton_summary`);
+    with ``feet`` (:func:`.contact_fit.playback_feet`: the capture has a ground), how the playback
+    keeps the capture's feet, and with ``near`` (F, V) (the fit weighed toward them, at
+    ``contact_weight``: None for the default) how many vertices were weighed and how much."""
     frames, bones = fit.rotations.shape[:2]
     count = fit.rest_vertices.shape[0]
     summary = {"output": output, "bones": bones, "vertices": int(count), "frames": int(frames), "fps": fps,
@@ -173,7 +187,37 @@ def skin_summary(output, fit, frame_rmse, clips, diagonal, fps, scene, seconds, 
     if skeleton is not None:
         summary["skeleton"], line = _skeleton_summary(skeleton, fit, faces, diagonal)
         lines.append(line)
+    if feet is not None:
+        summary["contacts"], line = _contacts_summary(feet, near, contact_weight)
+        lines.append(line)
     return summary, lines
+
+
+def _contacts_summary(feet, near, weight):
+    """--json's "contacts" and its text line: the weighting (``near`` (F, V) or None: not weighed)
+    and the playback's feet against the capture's (:func:`.contact_fit.playback_feet`)."""
+    from ..mesh.contact_measures import significant
+    from .contact_fit import CONTACT_WEIGHT, contact_weight
+
+    out = significant(dict(feet))
+    if near is None:
+        out["weighed"] = None
+        how = "not weighed (--no-contacts, --rig or --skeleton)"
+    else:
+        used = contact_weight(float(near.mean()), CONTACT_WEIGHT if weight is None else weight)
+        out["weighed"] = {"vertices": int(near.any(axis=0).sum()), "pair_share": float(near.mean()), "weight": used}
+        how = (f"{out['weighed']['vertices']} vertices near the ground weighed {used:.3g}× more "
+               f"({near.mean():.1%} of the frame-vertex pairs)")
+    c, p = out["capture"], out["playback"]
+
+    def share(side, key):
+        return f"{side[key]:.2%}" if side.get(key) is not None else "n/a"
+
+    line = (f"ground contacts: {how}; the playback's feet against the capture's (shares of the height; "
+            f"docs/contact.md): slide median {share(p, 'slide_median')} ({share(c, 'slide_median')}), 95th percentile "
+            f"{share(p, 'slide_p95')} ({share(c, 'slide_p95')}), steps sliding over 0.5 % {share(p, 'sliding_share')} "
+            f"({share(c, 'sliding_share')})")
+    return out, line
 
 
 def _skeleton_summary(record, fit, faces, diagonal):

@@ -62,23 +62,30 @@ class SkinnedAnimations:
 
 
 def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", block=64, limited=None):
-    """The feet figures (:mod:`.contact.measures`, docs/contact.md) of the input and of the first
+    """The feet figures (:mod:`..mesh.contact_measures`, docs/contact.md) of the input and of the first
     ``count`` synthesized animations, their vertices skinned in blocks of ``block`` frames:
     ``skin`` has examples (Fi, V, 3), rest_vertices, bone_indices, bone_weights; F (A, M, B, 3, 3),
     t (A, M, B, 3), sources (C, A, M); ``starts`` the input's clip starts (C + 1,). An output frame
     is measured against the ground of the clip its first component plays. Returns a dict: height,
-    ground (per clip), input, output (:func:`~.contact.measures.summary`), ratios, and ``played``
+    ground (per clip), input, output (:func:`~..mesh.contact_measures.summary`), ratios, and ``played``
     with ``ratios_played``: the input frames themselves replayed along the first component's walks
     (steps across a seam left out), the reference for what synthesis adds where a walk dwells on
-    part of a clip (:func:`~.contact.measures.played_input`). limited (A, M) uint8 or None
+    part of a clip (:func:`~..mesh.contact_measures.played_input`), and ``fit`` with ``ratios_fit``:
+    the fit's own playback of the input (its bones over the input's frames, measured on the
+    input's grounds; issue 64: synthesis cannot plant what the rig cannot hold, so its feet are
+    judged against the capture and against the rig's replay of it). limited (A, M) uint8 or None
     (:attr:`.synthesis.Synthesis.limited`): where the plants could not hold a foot, reported as
-    ``limits`` (:func:`~.contact.measures.limits_summary`) where any animation has plants."""
-    from .contact.measures import (Steps, character_height, input_steps, limits_summary, measure_frames,
+    ``limits`` (:func:`~..mesh.contact_measures.limits_summary`) where any animation has plants."""
+    from ..mesh.contact_measures import (Steps, character_height, input_steps, limits_summary, measure_frames,
                                    played_input, ratios, steps_of_input, summary)
 
     height = character_height(skin.rest_vertices, up_axis)
     table = input_steps(skin.examples, starts, height, up_axis, block=block)  # the input's, step by step
     measured_in, grounds = steps_of_input(table, starts), table.grounds
+    playback = np.concatenate([lbs(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations[s:s + block],
+                                   skin.translations[s:s + block], device=device)
+                               for s in range(0, skin.rotations.shape[0], block)])
+    fit = summary(steps_of_input(input_steps(playback, starts, height, up_axis, block=block, grounds=grounds), starts))
     clip_of = np.clip(np.searchsorted(np.asarray(starts), np.asarray(sources[0, :count]), side="right") - 1,
                       0, len(grounds) - 1)
     parts = []
@@ -94,7 +101,8 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
     figures_in, figures_out = summary(measured_in), summary(measured)
     played = summary(played_input(table, sources[0, :count], starts))
     figures = {"height": height, "ground": [float(g) for g in grounds], "input": figures_in, "output": figures_out,
-               "ratios": ratios(figures_out, figures_in), "played": played, "ratios_played": ratios(figures_out, played)}
+               "ratios": ratios(figures_out, figures_in), "played": played, "ratios_played": ratios(figures_out, played),
+               "fit": fit, "ratios_fit": ratios(figures_out, fit)}
     if limited is not None:
         figures["limits"] = limits_summary(measured, np.asarray(limited[:count]))
     return figures
@@ -145,10 +153,10 @@ def report_measures(skin, F, t, sources, count, up_axis=1, device="cpu", limited
     """``synthesize --measure-feet``: the feet (:func:`measure_feet`; the input's clips are the
     skin's clip_names and clip_frames) and the shape (:func:`measure_shape`) of the first ``count``
     animations, each timed and reported: {"contact": (its --json object, one text line), "shape": …}
-    (:func:`~.contact.measures.feet_report`, :func:`~.shape.shape_report`); limited, envelope: as
+    (:func:`~..mesh.contact_measures.feet_report`, :func:`~.shape.shape_report`); limited, envelope: as
     :func:`measure_feet` and :func:`measure_shape` take them."""
     from ..inputs.clips import Clips
-    from .contact.measures import feet_report
+    from ..mesh.contact_measures import feet_report
     from .shape import shape_report
 
     starts = Clips(skin.clip_names, skin.clip_frames).starts

@@ -29,7 +29,7 @@ import numpy as np
 from .assembly import assemble, cut_bones, merge_order
 from .collisions import build_obstacles, colliding, vertex_subset
 from .contact.ground import ground_floored, keep_contact, lowest_range, support, support_without
-from .contact.measures import LIMB_CUT, LIMB_HELD
+from ..mesh.contact_measures import LIMB_CUT, LIMB_HELD
 from .contact.patches import patch_vertices
 from .contact.planting import lowest_samples, plant_feet, plant_rig
 from .deformation_gradients import gradient_operator
@@ -449,8 +449,8 @@ class Synthesis:
     replaced (collisions, too similar, failed merges); statistics: per component transitions,
     mean and shortest segment, coverage (and with several clips coverage per clip and
     transitions per pair of clips: :func:`.motion_graph.walk_statistics`); limited (N, M) uint8:
-    where the plants could not hold a foot (:data:`.contact.measures.LIMB_HELD`: a limb held at the edge of
-    its joints' range, :data:`.contact.measures.LIMB_CUT`: its turn cut to keep the skin whole; 0 everywhere without
+    where the plants could not hold a foot (:data:`..mesh.contact_measures.LIMB_HELD`: a limb held at the edge of
+    its joints' range, :data:`..mesh.contact_measures.LIMB_CUT`: its turn cut to keep the skin whole; 0 everywhere without
     plants), what the feet report splits the slide by (:func:`.skinned.measure_feet`)."""
 
     F: np.ndarray

@@ -95,7 +95,8 @@ def test_json_reports_the_feet_of_the_input_and_of_the_first_animations_and_writ
     animations; --measure-feet changes nothing written, and 0 measures nothing."""
     import json
 
-    from skinsynth.pipeline.synthesis.contact.measures import character_height, measure_input, summary
+    from skinsynth.pipeline.mesh.contact_measures import (character_height, clip_ground, contact_steps, measure_input,
+                                                          summary)
 
     common = ("synthesize", bar / "graph.h5", "-n", 5, "-m", 60, "--seed", 1, "--device", "cpu")
     report = json.loads(assert_ok(cli(*common, "-o", tmp_path / "a.h5", "--json", "--measure-feet", 3)).stdout)
@@ -110,9 +111,40 @@ def test_json_reports_the_feet_of_the_input_and_of_the_first_animations_and_writ
         assert contact["input"][key] == pytest.approx(value, rel=1e-4, abs=1e-9), key
     assert set(contact["ratios"]) == {"slide_median", "slide_p95", "sliding_share", "largest_accel"}
     assert contact["ratios"]["largest_accel"] > 0.0
+    # issue 64: against the fit's playback too (its bones over the input's frames, the input's ground)
+    played = lbs_reference(data["rest"], data["idx"], data["w"], data["input_F"], data["input_t"])
+    fit = summary(contact_steps(played, clip_ground(data["examples"]), height))
+    assert set(contact["fit"]) == set(fit) and set(contact["ratios_fit"]) == set(contact["ratios"])
+    for key, value in fit.items():
+        assert contact["fit"][key] == pytest.approx(value, rel=1e-4, abs=1e-9), key
     quiet = json.loads(assert_ok(cli(*common, "-o", tmp_path / "b.h5", "--json", "--measure-feet", 0)).stdout)
     assert "contact" not in quiet
     again = read_synthesis(tmp_path / "b.h5")
     assert np.array_equal(again["F"], data["F"]) and np.array_equal(again["t"], data["t"])
     text = assert_ok(cli(*common, "-o", tmp_path / "c.h5")).stdout
     assert "feet (first 4 animations" in text  # the default
+
+
+def test_fit_skin_weighs_the_ground_contacts_by_default_and_says_how_the_playback_keeps_the_feet(tmp_path):
+    """Issue 64: the planted walker fitted with 6 bones (its feet share bones with its shins). At
+    the defaults the fit is weighed toward the vertices near the ground and its playback slides
+    0.59× the plain fit's at the 95th percentile (test_contact_fit.py has the figures); the
+    summary says so, in --json and in a line, and the same command writes the same file."""
+    import json
+
+    assert_ok(cli("example", "walker", "--planted", "-o", tmp_path / "w.npz", "-q"))
+    summaries = {}
+    for mode, extra in (("contacts", ()), ("plain", ("--no-contacts",))):
+        done = assert_ok(cli("fit-skin", tmp_path / "w.npz", "-o", tmp_path / f"{mode}.h5", "--bones", 6, "--seed", 0,
+                             "--json", *extra))
+        summaries[mode] = json.loads(done.output.strip().splitlines()[-1])
+    ours, plain = summaries["contacts"]["contacts"], summaries["plain"]["contacts"]
+    assert plain["weighed"] is None and ours["weighed"]["vertices"] > 0 and 0.0 < ours["weighed"]["weight"] <= 20.0
+    assert ours["capture"] == plain["capture"]
+    assert ours["playback"]["slide_p95"] < 0.8 * plain["playback"]["slide_p95"]
+    assert summaries["contacts"]["rmse"] < 1.05 * summaries["plain"]["rmse"]
+    line = assert_ok(cli("fit-skin", tmp_path / "w.npz", "-o", tmp_path / "text.h5", "--bones", 6, "--seed", 0)).output
+    assert "ground contacts:" in line and "vertices near the ground weighed" in line
+    with h5py.File(tmp_path / "contacts.h5") as f, h5py.File(tmp_path / "text.h5") as g:  # deterministic
+        assert np.array_equal(f["skin"]["bone_weights"][()], g["skin"]["bone_weights"][()])
+        assert np.array_equal(f["skin"]["rotations"][()], g["skin"]["rotations"][()])

@@ -56,7 +56,7 @@ near-ground ones within 1 % of the height were 2,200 and cost it 1.7 s of a 4 s 
 
 Measuring (shared by the benchmark and the tests): :func:`lowest_heights` and :func:`ground_excess`
 (how far the lowest point leaves the input's range, over the height). How well the feet stay
-planted (slide, float, penetration of the contact vertices) is :mod:`.contact_measures`.
+planted (slide, float, penetration of the contact vertices) is :mod:`...mesh.contact_measures`.
 """
 
 from dataclasses import dataclass

@@ -2,7 +2,7 @@
 mesh rest on the ground.
 
 The ground, per clip: a low percentile of the clip's per-frame lowest heights along the up axis
-(:func:`.contact_measures.clip_ground`, the ground the feet are measured against), not a fixed axis value, so a clip shot a little above or below 0, or
+(:func:`...mesh.contact_measures.clip_ground`, the ground the feet are measured against), not a fixed axis value, so a clip shot a little above or below 0, or
 one whose lowest point dips through the floor for a frame, still finds its floor.
 
 A vertex is *in contact* at a frame when it is near that ground and slow:
@@ -39,7 +39,7 @@ import numpy as np
 from ...inputs.clips import Clips
 from ...errors import OptionError
 from ...mesh.geometry import vertex_normals
-from .measures import clip_ground
+from ...mesh.contact_measures import clip_ground
 from ..graph_options import GraphOptions
 
 _DEFAULT = GraphOptions()

@@ -116,7 +116,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .ground import raised_cosine
-from .measures import character_height
+from ...mesh.contact_measures import character_height
 from ...rig.influence import dense_weights
 from .limb_chains import plant_chains
 from .limb_shape import HALVINGS, limb_seams, no_seams

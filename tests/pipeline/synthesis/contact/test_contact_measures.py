@@ -1,10 +1,10 @@
-"""The feet measures (issue 35 part 4) on closed forms: pipeline/synthesis/contact/measures.py."""
+"""The feet measures (issue 35 part 4) on closed forms: pipeline/mesh/contact_measures.py."""
 
 import numpy as np
 import pytest
 
 from skinsynth.pipeline.inputs.clips import Clips
-from skinsynth.pipeline.synthesis.contact.measures import (BAND, Steps, character_height, clip_ground, contact_steps,
+from skinsynth.pipeline.mesh.contact_measures import (BAND, Steps, character_height, clip_ground, contact_steps,
                                                            input_steps, limits_summary, measure_frames, measure_input,
                                                            played_input, ratios, summary)
 
@@ -168,7 +168,7 @@ def test_summary_and_ratios():
 
 
 def test_the_feet_report_rounds_its_figures_and_says_n_a_where_a_figure_is_missing():
-    from skinsynth.pipeline.synthesis.contact.measures import feet_report
+    from skinsynth.pipeline.mesh.contact_measures import feet_report
 
     side = {"steps": 10, "contact_steps": 0, "largest_accel": 0.123456789}
     figures = {"height": 2.0, "ground": [0.0], "input": dict(side), "seconds": 1.23456,

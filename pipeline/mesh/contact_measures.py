@@ -223,15 +223,17 @@ class InputSteps:
     grounds: np.ndarray
 
 
-def input_steps(vertices, starts, height, up_axis=1, block=64):
+def input_steps(vertices, starts, height, up_axis=1, block=64, grounds=None):
     """The :class:`InputSteps` of an input of one or more clips, vertices (F, V, 3), clip c being
     frames starts[c] … starts[c+1] − 1; no step or second difference crosses from one clip into the
-    next; measured in blocks of ``block`` frames."""
+    next; measured in blocks of ``block`` frames. ``grounds`` (C,): each clip's ground (None: its
+    own, :func:`clip_ground`; a fit's playback is measured on its capture's)."""
     vertices = np.asarray(vertices)
     starts = np.asarray(starts, dtype=np.int64)
     F = vertices.shape[0]
     slide, offset, accel = np.full(F, np.nan), np.full(F, np.nan), np.full(F, np.nan)
-    grounds = np.array([clip_ground(vertices[a:b], up_axis) for a, b in zip(starts[:-1], starts[1:])])
+    grounds = (np.array([clip_ground(vertices[a:b], up_axis) for a, b in zip(starts[:-1], starts[1:])])
+               if grounds is None else np.asarray(grounds, dtype=np.float64))
     for a, b, g in zip(starts[:-1], starts[1:], grounds):
         for start, stop in _blocks(a, b, block):
             rows, s, o, _, acc = _step_table(vertices[start:stop], g, height, up_axis, BAND, None, block)
@@ -266,7 +268,7 @@ def played_input(table, sources, starts):
     25–125, 0.03 % in frames 125–175), so the whole clip's figure is a fair reference only for walks
     that play every frame equally; this one is, for any walk, what the input did at the frames it
     plays."""
-    from ...inputs.clips import Clips
+    from ..inputs.clips import Clips
 
     counts = np.diff(np.asarray(starts, dtype=np.int64))
     clips = Clips(tuple(range(counts.size)), tuple(counts))  # the names play no part
@@ -306,6 +308,7 @@ def feet_report(figures, count):
     figures["seconds"] = round(figures["seconds"], 3)
     contact = {"animations": count, "definitions": "docs/contact.md", **figures}
     i, o, r = figures["input"], figures["output"], figures["ratios"]
+    fit = figures.get("fit") or {}
 
     def share(side, key):
         return f"{side[key]:.2%}" if side.get(key) is not None else "n/a"
@@ -318,10 +321,13 @@ def feet_report(figures, count):
                   f"keep the skin in {held['cut_frames']:.1%}, {held['contact_steps']:.1%} of the contact steps "
                   f"there" + (f" (slide median {share(held, 'slide_median')}, 95th percentile "
                               f"{share(held, 'slide_p95')})" if held.get("slide_median") is not None else ""))
+    def against(key):
+        return f"{share(i, key)}" + (f", the fit's playback {share(fit, key)}" if fit else "")
+
     line = (f"feet (first {count} animations against the input, shares of the height; docs/contact.md): slide "
-            f"median {share(o, 'slide_median')} (input {share(i, 'slide_median')}), 95th percentile "
-            f"{share(o, 'slide_p95')} ({share(i, 'slide_p95')}), steps sliding over 0.5 % {share(o, 'sliding_share')} "
-            f"({share(i, 'sliding_share')}); float p95 {share(o, 'float_p95')} ({share(i, 'float_p95')}), "
+            f"median {share(o, 'slide_median')} (input {against('slide_median')}), 95th percentile "
+            f"{share(o, 'slide_p95')} ({against('slide_p95')}), steps sliding over 0.5 % {share(o, 'sliding_share')} "
+            f"({against('sliding_share')}); float p95 {share(o, 'float_p95')} ({share(i, 'float_p95')}), "
             f"penetration p95 {share(o, 'penetration_p95')} ({share(i, 'penetration_p95')}); "
             f"worst acceleration {accel} the input's{limits}")
     return contact, line
