@@ -113,6 +113,7 @@ def read_skin(path):
         frames = f["examples/clip_frames"][()] if "clip_frames" in f["examples"] else [examples.shape[0]]
         return {"rest": f["mesh/rest_vertices"][()], "indices": f["skin/bone_indices"][()],
                 "weights": f["skin/bone_weights"][()], "examples": examples,
+                "rotations": f["skin/rotations"][()], "translations": f["skin/translations"][()],
                 "starts": np.concatenate([[0], np.cumsum(frames)]).astype(np.int64)}
 
 
@@ -124,7 +125,7 @@ def feet(skin, path, count):
     from skinsynth.pipeline.synthesis import measure_feet
 
     arrays = SimpleNamespace(examples=skin["examples"], rest_vertices=skin["rest"], bone_indices=skin["indices"],
-                             bone_weights=skin["weights"])
+                             bone_weights=skin["weights"], rotations=skin["rotations"], translations=skin["translations"])
     with h5py.File(path, "r") as f:
         sources = f["synthesis/sources"][()]
         count = min(count, sources.shape[1])
