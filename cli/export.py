@@ -8,21 +8,11 @@ import numpy as np
 from skinsynth.formats.animation_source import AnimationSource
 from skinsynth.formats.output_folder import FolderOutputs
 
-from .options import check_max_width, device_option, texture_options, up_axis_option
+from .options import (animation_selection, check_max_width, chosen_animations, device_option, texture_options,
+                      up_axis_option)
 from .common import report, summary_options, user_errors
 from .outputs import (TEXTURES, check_animation_output, check_bone_texture_output, check_texture_output,
                       usd_joint_tree, write_bone_textures, write_gltf, write_textures)
-
-
-def _selection(text):
-    """``N`` or ``A:B`` (animations A to B−1, as ``preview --frames``; either end may be left out)."""
-    first, sep, last = text.partition(":")
-    try:
-        if not sep:
-            return (int(first), int(first) + 1)
-        return (int(first) if first else None, int(last) if last else None)
-    except ValueError:
-        raise click.BadParameter(f"{text!r}: expected N or A:B, e.g. 7 or 0:10") from None
 
 
 @click.command("export")
@@ -31,7 +21,7 @@ def _selection(text):
               help="Output: .usd/.usda/.usdc, .glb (glTF 2.0: the skinned mesh, one clip per animation), .exr for a "
                    "vertex-animation texture, or a folder (ending in /) for an engine-ready one: textures, normals, "
                    "the rest mesh with texel UVs (.obj/.glb), vat.json.")
-@click.option("--animation", "selections", multiple=True, type=_selection, metavar="N|A:B",
+@click.option("--animation", "selections", multiple=True, type=animation_selection, metavar="N|A:B",
               help="Synthesis file: which animations; play .h5: which characters (repeatable; A:B is A to B−1). "
                    "A USD file or an .exr holds one, a .glb or a folder any number.  [default: all]")
 @click.option("--clip", default=None, metavar="NAME",
@@ -96,7 +86,7 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
     check_max_width(max_width)
     device = resolve_device(device)
     with _animations(path, device, clip) as source:
-        chosen = _chosen(source, selections)
+        chosen = chosen_animations(selections, source.count, source.path, source.what)
         kind = kind or ("skel" if source.has_skeleton else "points")
         _check_request(path, output, output_kind, kind, source, chosen, root_motion, max_width)
         written = _write(output, output_kind, kind, source, chosen, half, max_width, quantize, root_motion, up_axis,
@@ -199,25 +189,6 @@ def _check_request(path, output, output_kind, kind, source, chosen, root_motion,
 def _stem(path):
     text = str(path)
     return text[:text.rfind(".")] if "." in text else text
-
-
-def _chosen(source, selections):
-    """The animation indices ``selections`` [(first, last)] name, in the order given, each once;
-    all of them when none is given. OptionError for one out of range."""
-    from skinsynth.pipeline.errors import OptionError
-
-    if not selections:
-        return list(range(source.count))
-    chosen = []
-    for first, last in selections:
-        start = 0 if first is None else first
-        stop = source.count if last is None else last
-        if not (0 <= start < source.count and start < stop <= source.count):
-            given = f"{first}" if last == (first or 0) + 1 and first is not None else \
-                f"{'' if first is None else first}:{'' if last is None else last}"
-            raise OptionError(f"--animation {given}: {source.path} holds {source.what}s 0..{source.count - 1}")
-        chosen += [a for a in range(start, stop) if a not in chosen]
-    return chosen
 
 
 def _no_clips(path, clip, what):

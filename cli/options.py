@@ -32,8 +32,17 @@ FINITE_FLOAT = FiniteFloat()
 
 
 def up_axis_option(help):
-    """``--up-axis Y|Z`` (default None: the input's, as each command says)."""
-    return click.option("--up-axis", type=click.Choice(["Y", "Z"]), default=None, help=help)
+    """``--up-axis Y|Z`` (default None: the input's, as each command says); y and z are accepted too."""
+    return click.option("--up-axis", metavar="[Y|Z]", default=None, callback=_up_axis, help=help)
+
+
+def _up_axis(ctx, param, value):
+    """--up-axis in either case, as "Y" or "Z"."""
+    if value is None:
+        return None
+    if value.upper() not in ("Y", "Z"):
+        raise click.BadParameter(f"{value!r} is not one of 'Y', 'Z'.")
+    return value.upper()
 
 
 def device_option(help, default="auto"):
@@ -99,3 +108,35 @@ def marker_take_options(command):
     for option in reversed(options):
         command = option(command)
     return command
+
+
+def animation_selection(text):
+    """``--animation N`` or ``A:B`` (animations A to B−1, as ``preview --frames``; either end may be
+    left out) -> (first, stop), None for a left-out end."""
+    first, sep, last = text.partition(":")
+    try:
+        if not sep:
+            return (int(first), int(first) + 1)
+        return (int(first) if first else None, int(last) if last else None)
+    except ValueError:
+        raise click.BadParameter(f"{text!r}: expected N or A:B, e.g. 7 or 0:10") from None
+
+
+def chosen_animations(selections, count, path, what="animation"):
+    """The indices ``selections`` [(first, stop)] (:func:`animation_selection`) name among ``count``,
+    in the order given, each once; all of them when none is given. OptionError for one out of range
+    (``path`` holds ``what``s 0..count − 1)."""
+    from skinsynth.pipeline.errors import OptionError
+
+    if not selections:
+        return list(range(count))
+    chosen = []
+    for first, last in selections:
+        start = 0 if first is None else first
+        stop = count if last is None else last
+        if not (0 <= start < count and start < stop <= count):
+            given = f"{first}" if last == (first or 0) + 1 and first is not None else \
+                f"{'' if first is None else first}:{'' if last is None else last}"
+            raise OptionError(f"--animation {given}: {path} holds {what}s 0..{count - 1}")
+        chosen += [a for a in range(start, stop) if a not in chosen]
+    return chosen

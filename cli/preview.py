@@ -10,7 +10,7 @@ from skinsynth.formats.output_file import check_output_path
 from skinsynth.pipeline.runtime.resources import check_memory
 
 from .common import Progress, report, summary_options, user_errors
-from .options import FINITE_FLOAT, up_axis_option
+from .options import FINITE_FLOAT, animation_selection, chosen_animations, up_axis_option
 
 MESH_SUFFIXES = (".npz", ".usd", ".usda", ".usdc")
 #: Frame rates a video may play at: a GIF holds at most 655 s per frame, players show at most 240.
@@ -41,8 +41,9 @@ def _frame_range(text):
 @click.argument("path", type=click.Path())
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Video (.mp4, H.264), animated .gif, or a .png contact sheet of evenly spaced frames.")
-@click.option("--animation", "animations", multiple=True, type=int,
-              help="Synthesis file: the animation to show (repeatable: several in a grid).  [default: 0]")
+@click.option("--animation", "animations", multiple=True, type=animation_selection, metavar="N|A:B",
+              help="Synthesis file: the animation to show (repeatable, or A:B for A to B−1: several in a grid).  "
+                   "[default: 0]")
 @click.option("--clip", default=None, metavar="NAME",
               help="A file with a skin's examples (skin, controls, puppet, graph) that holds several clips: show this "
                    "clip only (--frames then counts its own frames).  [default: every frame; each is named "
@@ -211,7 +212,7 @@ def _model_panels(path, stage, animations, clip, examples, compare, error_scale)
         return _puppet_panels(path, clip, error_scale)
     # only the skin: a synthesis's motions are read one animation at a time below
     skin = read_skin(path, read_model(path, groups=("mesh", "examples", "skin")))
-    panels = _synthesis_panels(path, skin, animations or [0]) if stage == "synthesis" else \
+    panels = _synthesis_panels(path, skin, animations or [(0, 1)]) if stage == "synthesis" else \
         skin_panels(skin, clip, examples, compare, error_scale)
     return panels, skin.fps, skin.scene.up_axis
 
@@ -242,14 +243,11 @@ def _synthesis_panels(path, skin, animations):
     from skinsynth.formats.errors import require_finite
     from skinsynth.formats.synthesis_file import open_motions, read_sources, synthesis_count
     from skinsynth.gpu import lbs_reference
-    from skinsynth.pipeline.errors import OptionError
     from skinsynth.pipeline.view import Panel, walk_captions
 
     clips = _clips_of(skin)
     count = synthesis_count(path)
-    for a in animations:
-        if not 0 <= a < count:
-            raise OptionError(f"--animation {a}: the file holds animations 0..{count - 1}")
+    animations = chosen_animations(animations, count, path)
     chosen = read_sources(path, animations)  # (C, len(animations), M): the shown animations' only
     panels = []
     with open_motions(path) as (F, t):

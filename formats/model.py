@@ -176,6 +176,25 @@ def _read_group(group, summarise_above=None):
     return out
 
 
+#: What a file that is no model file may be, by its suffix, and the command that takes it (issue 68:
+#: ``build-graph capture.npz`` said only "not an HDF5 file").
+_SEQUENCE_SUFFIXES = (".npz", ".obj", ".ply", ".off", ".usd", ".usda", ".usdc", ".usdz")
+_EXPORT_SUFFIXES = (".glb", ".gltf", ".exr", ".png", ".mp4", ".gif", ".json")
+
+
+def _what_it_is(path):
+    """A hint naming what a file that HDF5 cannot open probably is, from its suffix ('' if none)."""
+    suffix = os.path.splitext(str(path))[1].lower()
+    if os.path.isdir(str(path)) or suffix in _SEQUENCE_SUFFIXES:
+        return ("; it looks like a mesh sequence: `skinsynth fit-skin` reads it and writes the .h5 skin file the "
+                "other commands take")
+    if suffix == ".c3d":
+        return "; it looks like a marker take: `skinsynth play PUPPET -c` reads it"
+    if suffix in _EXPORT_SUFFIXES:
+        return "; it looks like an export or a picture skinsynth wrote: the commands read the .h5 files it wrote first"
+    return ""
+
+
 def read_header(path):
     """Return (stage, format_version) of a model file, refusing what is not one."""
     try:
@@ -183,10 +202,12 @@ def read_header(path):
     except FileNotFoundError:
         raise FormatError(path, "no such file") from None
     except OSError:
-        raise FormatError(path, "not an HDF5 file (or unreadable)") from None
+        raise FormatError(path, "not an HDF5 file (or unreadable)" + _what_it_is(path)) from None
     with f:
         if f.attrs.get("format") != FORMAT_NAME:
-            raise FormatError(path, "not a skinsynth model file (no format = 'skinsynth' attribute)")
+            raise FormatError(path, "not a skinsynth model file (no format = 'skinsynth' attribute); if it holds a "
+                                    "mesh sequence, `skinsynth fit-skin` reads it and writes the skin file the other "
+                                    "commands take")
         raw = f.attrs.get("format_version", -1)
         if np.ndim(raw) != 0 or np.asarray(raw).dtype.kind not in "iu":  # 1.5 or "1" is not a version
             raise FormatError(path, f"invalid format_version {np.asarray(raw).tolist()!r}: an integer is needed")

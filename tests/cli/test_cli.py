@@ -346,6 +346,12 @@ def model_missing(folder, data):
     return folder / "nope.h5", ["nope.h5", "no such file"]
 
 
+def model_is_a_capture(folder, data):
+    """A mesh sequence given where a model file is needed: the error names the command that reads it
+    (issue 68: build-graph capture.npz said only "not an HDF5 file")."""
+    return data["bar"], [data["bar"].name, "not an HDF5 file", "mesh sequence", "fit-skin"]
+
+
 def graph_file(folder):
     path = folder / "graph.h5"
     write_model(path, "graph", {"graph": {"reference_bone": np.int64(0), "@threshold": 0.5}}, [], "0")
@@ -357,6 +363,7 @@ MODEL_CASES = {
     "not-hdf5": model_not_hdf5,
     "hdf5-not-skinsynth": model_foreign_hdf5,
     "newer-format-version": model_newer_version,
+    "a-capture": model_is_a_capture,
 }
 
 

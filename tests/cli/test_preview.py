@@ -44,6 +44,7 @@ CASES = [  # (input, extra options, panels, frames)
     ("graph.h5", ("--compare",), 2, 24),
     ("puppet.h5", (), 2, None),
     ("bones.h5", ("--animation", 0, "--animation", 2), 2, 30),
+    ("bones.h5", ("--animation", "0:2"), 2, 30),  # a range, as export takes (issue 68)
 ]
 
 

@@ -91,8 +91,8 @@ def test_array_inputs_take_their_scene_by_option_and_print_the_defaults(tmp_path
     assert_ok(cli("export", tmp_path / "skin.h5", "-o", tmp_path / "out.usda", "--as", "points"))
     stage = assert_stage(tmp_path / "out.usda", frames=12)
     assert stage.GetPrimAtPath("/mesh").IsA(UsdGeom.Mesh)
-    assert_ok(cli("export", tmp_path / "skin.h5", "-o", tmp_path / "y.usda", "--as", "points", "--up-axis", "Y"))
-    assert_stage(tmp_path / "y.usda", frames=12, up_axis="Y")
+    assert_ok(cli("export", tmp_path / "skin.h5", "-o", tmp_path / "y.usda", "--as", "points", "--up-axis", "y"))
+    assert_stage(tmp_path / "y.usda", frames=12, up_axis="Y")  # lower case is the same axis (issue 68)
     assert_user_error(cli("fit-skin", tmp_path / "bar.npz", "-o", tmp_path / "bad.h5", "--bones", 2,
                           "--meters-per-unit", -1), "--meters-per-unit")
 
