@@ -122,10 +122,10 @@ def animation_selection(text):
         raise click.BadParameter(f"{text!r}: expected N or A:B, e.g. 7 or 0:10") from None
 
 
-def chosen_animations(selections, count, path, what="animation"):
+def chosen_animations(selections, count, path, what="animation", once=True):
     """The indices ``selections`` [(first, stop)] (:func:`animation_selection`) name among ``count``,
-    in the order given, each once; all of them when none is given. OptionError for one out of range
-    (``path`` holds ``what``s 0..count − 1)."""
+    in the order given, each once (``once=False``: as often as named, preview's panels); all of them
+    when none is given. OptionError for one out of range (``path`` holds ``what``s 0..count − 1)."""
     from skinsynth.pipeline.errors import OptionError
 
     if not selections:
@@ -138,5 +138,5 @@ def chosen_animations(selections, count, path, what="animation"):
             given = f"{first}" if last == (first or 0) + 1 and first is not None else \
                 f"{'' if first is None else first}:{'' if last is None else last}"
             raise OptionError(f"--animation {given}: {path} holds {what}s 0..{count - 1}")
-        chosen += [a for a in range(start, stop) if a not in chosen]
+        chosen += [a for a in range(start, stop) if not once or a not in chosen]
     return chosen

@@ -247,7 +247,7 @@ def _synthesis_panels(path, skin, animations):
 
     clips = _clips_of(skin)
     count = synthesis_count(path)
-    animations = chosen_animations(animations, count, path)
+    animations = chosen_animations(animations, count, path, once=False)
     chosen = read_sources(path, animations)  # (C, len(animations), M): the shown animations' only
     panels = []
     with open_motions(path) as (F, t):
