@@ -184,6 +184,19 @@ def test_error_plot_writes_a_png(tmp_path):
     assert os.listdir(tmp_path) == ["errors.png"]
 
 
+def test_the_plots_legend_is_the_overall_rms_evaluate_prints():
+    # issue 68: the legend gave the mean of the per-frame RMS, below the overall RMS evaluate prints
+    from skinsynth.formats.plots import series_rms
+    from skinsynth.pipeline.puppet.evaluation import relative_errors
+
+    rng = np.random.default_rng(0)
+    truth = rng.normal(size=(12, 50, 3))
+    predicted = truth + rng.normal(scale=np.linspace(0.01, 0.2, 12)[:, None, None], size=truth.shape)
+    per_frame, overall = relative_errors(predicted, truth, 2.0)
+    assert series_rms(per_frame) == pytest.approx(overall, rel=1e-12)
+    assert np.mean(per_frame) < 0.95 * overall  # what the legend said before: far from it
+
+
 def test_error_plot_refuses_bad_requests(tmp_path):
     with pytest.raises(ValueError, match="png"):
         write_error_plot(tmp_path / "errors.pdf", [0, 1], {"a": [1.0, 2.0]}, "t", "y")
