@@ -156,6 +156,14 @@ def write_contact_timeline_plot(path, planted, sizes, title, clip_starts=None, c
                               fontsize=7, color="red", annotation_clip=False)
     axes.set_xlabel("input frame")
     axes.set_title(title, pad=14.0)  # room for the clip names above the first row
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    keys = [Patch(facecolor="black", edgecolor="grey", label="planted on the ground"),
+            Patch(facecolor="white", edgecolor="grey", label="off the ground")]
+    if clip_starts is not None and len(clip_starts) > 2:
+        keys.append(Line2D([], [], color="red", linewidth=1.0, label="clip boundary"))
+    axes.legend(handles=keys, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
     _save(figure, path)
 
 
