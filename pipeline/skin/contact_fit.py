@@ -46,7 +46,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..rig.rotations import polar_rotation
-from .simplex_qp import solve_simplex_qp
+from .skin_weights import sparse_simplex_weights
 
 #: Share of the height above a clip's ground within which a vertex's residual is weighted.
 NEAR_BAND = 0.02
@@ -88,7 +88,8 @@ def contact_sums(bone_indices, bone_weights, vertices, rest, near, weight, bones
     frames = near.shape[0]
     t, v = np.nonzero(near)
     k = bone_indices.shape[1]
-    used = np.unique(bone_indices[np.unique(v)][bone_weights[np.unique(v)] > 0.0]) if v.size else np.zeros(0, int)
+    touched = np.unique(v)
+    used = np.unique(bone_indices[touched][bone_weights[touched] > 0.0])
     slot = np.full(bones, -1, np.int64)
     slot[used] = np.arange(used.size)
     if not v.size:
@@ -179,18 +180,9 @@ def weighted_vertex_weights(transforms, vertices, rest, near, weight, bone_indic
         current[rows, bone_indices[v]] = bone_weights[v]
         start = current[rows, chosen]
         start = np.where(start.sum(axis=1, keepdims=True) > 0.0, start, 1.0 / c)
-        w = solve_simplex_qp(gram, linear, start=start / start.sum(axis=1, keepdims=True))
-        keep = np.argsort(-w, axis=1, kind="stable")[:, :k]
-        chosen = np.take_along_axis(chosen, keep, axis=1)
-        gram = np.take_along_axis(np.take_along_axis(gram, keep[:, :, None], axis=1), keep[:, None, :], axis=2)
-        linear = np.take_along_axis(linear, keep, axis=1)
-        start = np.take_along_axis(w, keep, axis=1)
-        start = np.where(start.sum(axis=1, keepdims=True) > 0.0, start, 1.0 / k)
-        w = solve_simplex_qp(gram, linear, start=start / start.sum(axis=1, keepdims=True))
-        order = np.argsort(-w, axis=1, kind="stable")
-        out_i[s:s + step] = np.take_along_axis(chosen, order, axis=1)
-        out_w[s:s + step] = np.take_along_axis(w, order, axis=1)
-        fitted = np.einsum("nfib,nb->nfi", np.take_along_axis(Ac, keep[:, None, None, :], axis=3), w)
+        chosen, w, _, _ = sparse_simplex_weights(gram, linear, chosen, start, k, again=True)
+        out_i[s:s + step], out_w[s:s + step] = chosen, w
+        fitted = np.einsum("fnkij,nj,nk->nfi", transforms[:, chosen], u, w)
         out_e[s:s + step] = np.einsum("nfi,nfi->n", fitted - y, fitted - y)
     return ids, out_i, out_w, out_e
 

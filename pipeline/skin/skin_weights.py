@@ -43,6 +43,24 @@ def _select(columns, chosen, weights, linear, gram):
     return pick(chosen), pick(weights), pick(linear), gram
 
 
+def sparse_simplex_weights(gram, linear, chosen, start, k, again=False):
+    """The weights of many vertices over their C candidate bones ``chosen`` (V, C): the simplex QP
+    min ½ wᵀGw − bᵀw (gram (V, C, C), linear (V, C)) from ``start`` (V, C), then the K largest kept
+    (all of them when C == K) and the QP solved again on those (when C == K too with ``again``, as
+    the contact fit does). Returns (chosen, weights, linear, gram), each (V, K) or (V, K, K),
+    columns by decreasing weight (as they come when C == K and not ``again``)."""
+    candidates = chosen.shape[1]
+    weights = solve_simplex_qp(gram, linear, start=start / start.sum(axis=1, keepdims=True))
+    keep = np.argsort(-weights, axis=1, kind="stable")[:, :k]
+    chosen, weights, linear, gram = _select(keep, chosen, weights, linear, gram)
+    if candidates > k or again:
+        start = np.where(weights.sum(axis=1, keepdims=True) > 0.0, weights, 1.0 / k)
+        weights = solve_simplex_qp(gram, linear, start=start / start.sum(axis=1, keepdims=True))
+        order = np.argsort(-weights, axis=1, kind="stable")
+        chosen, weights, linear, gram = _select(order, chosen, weights, linear, gram)
+    return chosen, weights, linear, gram
+
+
 def update_weights(transforms, data, bone_indices, bone_weights, max_influences, candidates=None, solver="compiled",
                    device=None):
     """New sparse weights for fixed transforms.
@@ -80,15 +98,7 @@ def update_weights(transforms, data, bone_indices, bone_weights, max_influences,
         return solve_vertex_weights_warp(*problem, device=device)
     gram = _gram(products, data.homogeneous, chosen)
     linear = projections[rows, chosen]
-    weights = solve_simplex_qp(gram, linear, start=start / start.sum(axis=1, keepdims=True))
-    # Keep the K largest (all of them when C == K), re-solve on those, sorted by decreasing weight.
-    keep = np.argsort(-weights, axis=1, kind="stable")[:, :k]
-    chosen, weights, linear, gram = _select(keep, chosen, weights, linear, gram)
-    if c > k:
-        start = np.where(weights.sum(axis=1, keepdims=True) > 0.0, weights, 1.0 / k)
-        weights = solve_simplex_qp(gram, linear, start=start / start.sum(axis=1, keepdims=True))
-        order = np.argsort(-weights, axis=1, kind="stable")
-        chosen, weights, linear, gram = _select(order, chosen, weights, linear, gram)
+    chosen, weights, linear, gram = sparse_simplex_weights(gram, linear, chosen, start, k)
     # Squared error Σ_t |v̂ − v|² = wᵀGw − 2 bᵀw + Σ_t |v|², from quantities already at hand.
     error = (np.einsum("ij,ijk,ik->i", weights, gram, weights)
              - 2.0 * np.einsum("ij,ij->i", weights, linear) + data.squared_norm)
