@@ -60,15 +60,23 @@ class Timeline:
                 late = 0.0
             step = 1 + int(late * self.fps)  # behind the clock: skip what cannot be shown in time
             due += (step - 1) / self.fps
+            if self.closed.is_set() or not self.playing:  # paused or closed while it waited
+                continue
             try:
                 self.slider.value = (int(self.slider.value) + step) % self.frames
             except Exception as error:  # a page error must not end the loop silently
+                if self.closed.is_set():  # the page closed under it: nothing to say
+                    break
                 self.warn(f"the timeline stopped: {error}")
                 self.playing = False
 
     def close(self):
+        """Stop playing and wait for the loop to end, so that no frame is sent once the server
+        stops (a frame queued on the closed connection ended the loop with a warning)."""
         self.closed.set()
         self.wake.set()
+        if self.thread is not threading.current_thread():
+            self.thread.join(timeout=2.0)
 
 
 def _slider_marks(frames):

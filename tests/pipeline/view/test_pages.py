@@ -102,3 +102,44 @@ def test_marker_lines_run_from_each_marker_to_its_control():
     lines = puppet_page._marker_lines(markers, controls)
     assert lines.dtype == np.float32 and lines.shape == (2, 2, 3)
     assert np.array_equal(lines[:, 0], markers) and np.array_equal(lines[:, 1], controls)
+
+
+
+class _Stopping(_Control):
+    """A slider whose frames take 2 ms on their way and are refused once ``stopped`` is set (a
+    viser server that has stopped)."""
+
+    def __init__(self, stopped, sent):
+        super().__init__()
+        self.stopped, self.sent = stopped, sent
+
+    @_Control.value.setter
+    def value(self, value):
+        time.sleep(0.002)
+        if self.stopped.is_set():
+            raise RuntimeError("Queued a GuiUpdateMessage on a closed connection")
+        self._value = value
+        self.sent.append(value)
+
+
+def test_a_timeline_closed_while_playing_sends_nothing_after_and_says_nothing():
+    """Closing a playing timeline waits for its loop, so no frame goes to a stopped server
+    (``server.open_page`` closes the page, then stops the server): a frame on its way as the server
+    stopped ended the loop with "the timeline stopped: …", a warning for a user who closed the page
+    while it played (and a flaky view test)."""
+    stopped, sent, warned = threading.Event(), [], []
+    server = _Server()
+    server.gui.add_slider = lambda *args, **kwargs: _Stopping(stopped, sent)
+    for _ in range(10):  # the race, several times over
+        stopped.clear()
+        sent.clear()
+        timeline = Timeline(server, 50, 1000.0, lambda frame: None, warned.append)
+        timeline.toggle()
+        deadline = time.monotonic() + 10.0
+        while not sent and time.monotonic() < deadline:
+            time.sleep(0.001)
+        timeline.close()
+        stopped.set()
+        time.sleep(0.01)
+        assert sent and not timeline.thread.is_alive()
+    assert warned == []
