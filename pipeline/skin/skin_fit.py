@@ -43,6 +43,17 @@ class SkinFit:
     bones_without_weight: int = 0
 
 
+
+def converged_line(patience, gain, tolerance, relation):
+    """How a fit says it stopped by its stopping rule: its last ``patience`` iterations changed the
+    RMSE by the share ``gain`` (> 0: it fell), below ``tolerance``. Where they raised it (the
+    weights' sparsity makes the alternation not quite monotone; a fit of exact data ends at the
+    level of rounding, where a rise of 200 % is 1e-6 of the size) that is said as a rise, not as a
+    negative improvement."""
+    if gain < 0.0:
+        return f"converged: the RMSE stopped falling (the last {patience} iterations raised it by {-gain:.2%}; --tolerance)"
+    return f"converged: the last {patience} iterations improved the RMSE by {gain:.2%} ({relation} {tolerance:.2%}; --tolerance)"
+
 def validate_fit_options(frame_count, vertex_count, bones, max_influences, iterations, rest_frame):
     """Raise OptionError for option values no fit can honour."""
     if bones < 1:
@@ -172,8 +183,7 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
         quiet += 1  # iterations since the last reseed
         if quiet > patience and history[-1 - patience] - rmse < tolerance * history[-1 - patience]:
             gain = (history[-1 - patience] - rmse) / history[-1 - patience]
-            stopped = (f"converged: the last {patience} iterations improved the RMSE by {gain:.2%} "
-                       f"(< {tolerance:.2%}; --tolerance)")
+            stopped = converged_line(patience, gain, tolerance, "<")
             converged = True
             break
     totals = np.bincount(bone_indices.ravel(), weights=bone_weights.ravel(), minlength=bones)
@@ -269,8 +279,7 @@ def fit_bones_to_rig(vertices, rest, bone_indices, bone_weights, bones, iteratio
             progress(iteration, rmse)
         if iteration > patience and history[-1 - patience] - rmse <= tolerance * history[-1 - patience]:
             gain = (history[-1 - patience] - rmse) / history[-1 - patience] if history[-1 - patience] else 0.0
-            stopped = (f"converged: the last {patience} iterations improved the RMSE by {gain:.2%} "
-                       f"(≤ {tolerance:.2%}; --tolerance)")
+            stopped = converged_line(patience, gain, tolerance, "≤")
             converged = True
             break
     return SkinFit(

@@ -142,3 +142,14 @@ def test_bone_rest_frames_sit_at_weighted_centroids():
     assert np.allclose(frames[1, :3, 3], [(0.5 * 2) / 1.5, 4 / 1.5, 0])
     assert np.allclose(frames[2, :3, 3], rest.mean(axis=0))  # no weight: mesh centroid
     assert np.allclose(frames[:, :3, :3], np.eye(3))
+
+
+def test_a_fit_whose_last_iterations_raised_the_rmse_says_so():
+    """The stopping rule's line: a rise (an exact fit ending at rounding: the pivot walker's rose
+    218 %, from 3.5e-6 to 1.1e-5) is said as a rise, never as an improvement of −218 %."""
+    from skinsynth.pipeline.skin.skin_fit import converged_line
+
+    rose = converged_line(5, -2.1813, 0.02, "<")
+    assert "raised it by 218.13%" in rose and "-2" not in rose and "improved" not in rose
+    fell = converged_line(5, 0.0123, 0.02, "<")
+    assert fell == "converged: the last 5 iterations improved the RMSE by 1.23% (< 2.00%; --tolerance)"
