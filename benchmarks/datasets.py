@@ -112,7 +112,8 @@ def clip_sets(work):
 #: The generated walkers the benchmarks measure beside the captures: name -> ``skinsynth example
 #: walker`` options (``walker_tempo``: a walk that gets going, no two strides alike).
 WALKERS = {"walker": [], "walker_planted": ["--planted"],
-           "walker_tempo": ["--planted", "--frames", "400", "--cycles", "4", "--tempo", "0.6"]}
+           "walker_tempo": ["--planted", "--frames", "400", "--cycles", "4", "--tempo", "0.6"],
+           "walker_pivot": ["--pivot"]}
 
 
 def walker_inputs(work, names=WALKERS, only=None):

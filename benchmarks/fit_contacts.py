@@ -11,7 +11,8 @@ median and p95 ≤ 1.2× the capture's, sliding steps ≤ max(1.5 × the capture
 
 Cases: the shared captures with a ground (vlasic_samba, vlasic_crane, geomvideo_dance, horse_gallop;
 ``datasets.BONES`` bones), the generated walkers (``walker``: in place, its feet slide as a
-treadmill's; ``walker_planted``: feet that truly plant), and the samba again mirrored (x → −x, the
+treadmill's; ``walker_planted``: feet that truly plant; ``walker_pivot``: a foot that turns on its
+ball), and the samba again mirrored (x → −x, the
 faces' winding turned) and Z up in centimetres (``--up-axis Z --meters-per-unit 0.01``): a rule that
 holds only for one handedness, axis or unit is no rule.
 
@@ -77,7 +78,7 @@ def fit(work, case, path, bones, options):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", required=True, type=pathlib.Path, help="folder for the fits (kept)")
-    parser.add_argument("--only", help="one case (a capture, walker, walker_planted or a samba variant)")
+    parser.add_argument("--only", help="one case (a capture, walker, walker_planted, walker_pivot or a samba variant)")
     args = parser.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
     work = str(args.work)
@@ -87,8 +88,8 @@ def main():
             cases.append((name, path, BONES[name], []))
             if name == "vlasic_samba":
                 cases += [(case, p, BONES[name], options) for case, p, options in variants(work, name, path)]
-    cases += [(name, path, BONES.get(name, 20), []) for name, path in walker_inputs(work, ("walker", "walker_planted"),
-                                                                               only=args.only)]
+    walkers = ("walker", "walker_planted", "walker_pivot")
+    cases += [(name, path, BONES.get(name, 20), []) for name, path in walker_inputs(work, walkers, only=args.only)]
     for case, path, bones, options in cases:
         if args.only in (None, case):
             print(json.dumps(fit(work, case, path, bones, options)), flush=True)

@@ -53,7 +53,9 @@ are components of their own) is measured too, and ``walker_planted`` (``example 
 the same figure walking forward on feet that truly plant, its input's slide 0), the one whose feet
 a synthesis must keep planted (the default walker's own feet slide 3.5 % of its height a frame), and
 ``walker_tempo`` (``--planted --frames 400 --cycles 4 --tempo 0.6``: a walk that gets going, from 0.4
-to 1.6 times its mean speed, so that no two strides are alike, as in a captured walk). ``--synthesize-args`` adds options to every
+to 1.6 times its mean speed, so that no two strides are alike, as in a captured walk), and
+``walker_pivot`` (``--pivot``: the figure turning 180° on the ball of its left foot, its sole
+sweeping round the ball, as a dancer's foot pivots). ``--synthesize-args`` adds options to every
 ``synthesize`` (e.g. ``--no-contact`` for a before/after table).
 
 Built-in procedural stand-ins run only when ../shared/data is absent.
@@ -79,7 +81,7 @@ from datasets import BONES, clip_sets, run, walker_inputs
 UP = 1  # every capture in shared/data is Y up
 #: Captures that rest on a ground (module notes): their feet are measured.
 GROUNDED = {"vlasic_samba", "vlasic_crane", "horse_gallop", "elephant_clips", "horse_clips", "geomvideo_dance", "walker",
-            "walker_planted", "walker_tempo"}
+            "walker_planted", "walker_tempo", "walker_pivot"}
 
 
 def bake(skin, F, t):

@@ -31,9 +31,12 @@ DEFAULTS = {"bending-bar": {"frames": 60, "rings": 40, "segments": 16, "cycles":
 @click.option("--event", is_flag=True,
               help="walker: stand 2 s, walk 4 s, stumble once, run off for 3 s (a one-time event; --frames and "
                    "--cycles follow from --fps).")
+@click.option("--pivot", is_flag=True,
+              help="walker: stand and turn 180° on the ball of the left foot, --cycles times (default 4: two whole "
+                   "turns), 2 s each (--frames follows from --fps).")
 @summary_options
 @user_errors
-def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, event, quiet, as_json):
+def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, event, pivot, quiet, as_json):
     """Write a built-in example mesh sequence (no download needed).
 
     bending-bar: a capped cylinder that bends into an arc and twists over one cycle, the kind of
@@ -50,7 +53,10 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
     on a treadmill); --planted walks forward instead, each stance foot exactly still on the ground
     while the body travels (1.06 units a cycle), so a whole number of cycles loops but for that
     travel. --event makes a clip with a one-time event, as captures have: the walker stands 2 s,
-    walks 4 s, stumbles once and runs off (228 frames at 24 fps).
+    walks 4 s, stumbles once and runs off (228 frames at 24 fps). --pivot makes a foot that turns on
+    the spot: the walker steps in place with its left foot, then turns 180° about that foot's ball
+    while the right foot swings round, the left sole flat on the floor and its ball still; twice
+    per whole turn (192 frames at 24 fps by default, a loop).
 
     \b
     Example:
@@ -58,29 +64,38 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
       skinsynth fit-skin bar.npz -o bar.skin.h5 --bones 8
       skinsynth example walker -o walker.npz
       skinsynth example walker -o walking.npz --planted
+      skinsynth example walker -o pivot.npz --pivot
       skinsynth fit-skin walker.npz -o walker.skin.h5 --bones 12
     """
     from skinsynth.formats.meshseq import write_array_sequence
     from skinsynth.pipeline.inputs.examples import WALKER_EVENT_SECONDS, bending_bar, example_memory, walker, walker_event
+    from skinsynth.pipeline.inputs.pivot_walker import PIVOT_SECONDS, pivot_walker
     from skinsynth.pipeline.runtime.resources import check_memory
 
     defaults = DEFAULTS[name]
     frames = defaults["frames"] if frames is None else frames
     rings = defaults["rings"] if rings is None else rings
     segments = defaults["segments"] if segments is None else segments
-    cycles = defaults["cycles"] if cycles is None else cycles
+    cycles = (4 if pivot else defaults["cycles"]) if cycles is None else cycles
     check_output_path(output, (".npz",))
     if frames < 2 or rings < 2 or segments < 3 or cycles < 1 or not fps > 0:
         fail("--frames and --rings must be at least 2, --segments at least 3, --cycles at least 1, --fps positive")
-    if (planted or tempo or event) and name != "walker":
-        fail("--planted, --tempo and --event are the walker's: the bending bar has no feet")
-    if event and (planted or tempo):
-        fail("--event walks in place at its own pace: it takes neither --planted nor --tempo")
+    if (planted or tempo or event or pivot) and name != "walker":
+        fail("--planted, --tempo, --event and --pivot are the walker's: the bending bar has no feet")
+    if sum((event, pivot, bool(planted or tempo))) > 1:
+        fail("--event and --pivot each move at their own pace: they take neither each other nor --planted or --tempo")
     if event:
         frames = int(round(WALKER_EVENT_SECONDS * fps))
+    per_pivot = int(round(PIVOT_SECONDS * fps))
+    if pivot:
+        if per_pivot < 12:
+            fail(f"--pivot needs at least 12 frames a pivot ({PIVOT_SECONDS:g} s): --fps {fps:g} gives {per_pivot}")
+        frames = cycles * per_pivot
     check_memory(*example_memory(name, frames, rings, segments))
     if event:
         vertices, faces = walker_event(fps=fps, rings=rings, segments=segments)
+    elif pivot:
+        vertices, faces, _ = pivot_walker(pivots=cycles, frames_per_pivot=per_pivot, rings=rings, segments=segments)
     elif name == "walker":
         vertices, faces = walker(frames=frames, cycles=cycles, rings=rings, segments=segments, planted=planted,
                                   tempo=tempo)
@@ -91,6 +106,8 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
     if name == "walker":
         summary["planted"] = planted
         summary["event"] = event
-    report(summary, [f"wrote {output}: {name}{', planted' if planted else ''}{', with an event' if event else ''}, "
+        summary["pivot"] = pivot
+    kind = ", planted" if planted else ", with an event" if event else ", pivoting" if pivot else ""
+    report(summary, [f"wrote {output}: {name}{kind}, "
                      f"{frames} frames, "
                      f"{vertices.shape[1]} vertices"], as_json, quiet)

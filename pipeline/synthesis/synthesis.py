@@ -198,6 +198,8 @@ def keep_input_plants(request, skin, contacts, components):
                                skin.translations, skin.examples, patches, np.asarray(contacts.planted, bool), contacts.ground,
                                clips.starts, skin.fps, bones, request.tree, request.up_axis, samples=sampled,
                                envelope=request.envelope)
+    request.plants.window, request.plants.spread_velocity = request.window, request.spread_velocity
+    request.plants.clips = request.clips  # the splice's: the plants' target heights are spliced alike
     warm_up(request.plants)  # the compiled loops loaded here, once, not in every forked worker
     if request.support is not None:  # the band's floor: the ground the contacts stand on (contact.GROUND_TOLERANCE)
         request.support = ground_floored(request.support, contacts.ground)

@@ -40,7 +40,8 @@ at a time), and the limbs that make them, compiled in :mod:`.limb_reach` (:func:
    A(m) = F_out(m) F_in(src(m))⁻¹ (the identity where the output plays the input unchanged; the
    segment's heading after a seam): the slide error v(m) at each step inside a plant. The height
    error: the input patch's lowest height at the source frame (above its clip's ground, placed on
-   the output's) minus the output patch's lowest point (its skinned sample vertices,
+   the output's), spliced over each seam's window as the splice blends the motion
+   (:func:`target_heights`), minus the output patch's lowest point (its skinned sample vertices,
    :func:`lowest_samples`: a tilted foot lands on its toe, not its centroid).
 3. **A root offset** (the body travels as its planted feet push it): −mean v(m) over the patches
    stepping inside a plant, smoothed (a Gaussian of σ = ``half_life``) and summed into a
@@ -223,7 +224,8 @@ class PlantRig:
     (:func:`turn_reach`; inf for a patch that does not turn); max_turn and turn_bound (radians:
     :data:`MAX_TURN`, :data:`TURN_BOUND`); up_axis; rest (V, 3), bone_indices and bone_weights
     (V, K) the skin; seams: the :class:`.limb_shape.LimbSeams` each limb's turn is checked on (None:
-    no check)."""
+    no check); window, spread_velocity, clips: the splice's (:class:`..synthesis.Request`), which the
+    target heights are spliced with (:func:`target_heights`)."""
 
     planted: np.ndarray
     owner: np.ndarray
@@ -259,6 +261,9 @@ class PlantRig:
     bone_indices: np.ndarray = None
     bone_weights: np.ndarray = None
     seams: object = None
+    window: int = 4
+    spread_velocity: bool = True
+    clips: object = None
 
     @property
     def lift_radius(self):
@@ -460,10 +465,10 @@ def plant_targets(F, t, sources, rig):
     targets = PlantTargets(states=np.zeros((A, P, M), bool), centre=np.zeros((A, P, M, 3)), turn=np.zeros((A, P, M, 3)),
                            correction=np.zeros((A, P, M, 3)), root=np.zeros((A, M, 3)))
     up_columns, lowest_rows = lowest_operator(rig)
-    plant_animations(F, t, src, c(sources[0], np.int64), c(rig.planted, np.bool_), c(rig.bones, np.int64),
-                     centre_operator(rig.rest_terms, rig.weight_terms), up_columns, lowest_rows, sample_counts(rig),
-                     c(rig.anchor_bone, np.int64), c(rig.inverse_in), c(rig.steps_in), c(rig.heights_in),
-                     c(rig.ground), c(rig.orientation_in), c(rig.turn_steps_in), own,
+    plant_animations(F, t, src, c(target_heights(rig, src, sources[0])), c(rig.planted, np.bool_),
+                     c(rig.bones, np.int64), centre_operator(rig.rest_terms, rig.weight_terms), up_columns, lowest_rows,
+                     sample_counts(rig), c(rig.anchor_bone, np.int64), c(rig.inverse_in), c(rig.steps_in),
+                     c(rig.orientation_in), c(rig.turn_steps_in), own,
                      float(rig.decay), gaussian_weights(rig.sigma), float(rig.sigma),
                      raised_cosine(rig.lift_radius), float(rig.max_turn), int(rig.up_axis), int(rig.bridge),
                      int(rig.hold), float(np.exp(-1.0 / rig.memory)), float(rig.bound), int(rig.release),
@@ -471,6 +476,32 @@ def plant_targets(F, t, sources, rig):
                      targets.correction,
                      targets.turn, targets.root)
     return targets
+
+
+def target_heights(rig, src, ground_src):
+    """(A, P, M) the height each patch's lowest point keeps at each output frame (module notes, 2.):
+    the input patch's at its source frame above its clip's ground (``rig.heights_in``), spliced as
+    the splice plays the motion (:func:`..splicing.blend_series` over the same windows: Zheng's 1-D
+    Poisson blend of the heights, the seam's velocity jump spread), placed on the ground of the
+    clip the first component plays (``ground_src`` (A, M), its sources). src (A, P, M) each patch's
+    source frames. The heights themselves jump at a seam between a foot set down and one lifted
+    within the contact band, where the splice blends the foot down over its window: asked to keep
+    the unspliced heights, the limb lifted the landing foot 2.6 % of the height and dropped it in a
+    frame, and its joints, bounded in acceleration, dragged the planted foot (the pivot walker,
+    :func:`...inputs.pivot_walker.pivot_walker`: the pivot's ball 1.5 % of the height off its spot)."""
+    from ..splicing import blend_series, seam_windows
+
+    A, P, M = src.shape
+    frames = rig.heights_in.shape[0]
+    aim = rig.heights_in[src, np.arange(P)[None, :, None]]
+    rotations = np.broadcast_to(np.eye(3), (frames, 1, 3, 3))  # heights have no rotation part
+    for p in range(P):
+        walks = src[:, p]
+        windows = seam_windows(walks, rig.window, rig.clips)
+        animation, frame, _, heights = blend_series(rotations, rig.heights_in[:, p, None, None], walks, windows,
+                                                    spread_velocity=rig.spread_velocity, clips=rig.clips)
+        aim[animation, p, frame] = heights[:, 0, 0]
+    return aim + rig.ground[ground_src][:, None, :]
 
 
 def reach_targets(F, t, targets, rig, held=None, cut=None):

@@ -477,15 +477,16 @@ def _lowest(rows, up_columns, lowest_operator, samples, out):
 
 
 @numba.njit(cache=True, nogil=True)
-def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_columns, lowest_operator, samples,
-                     anchor_slot, inverse_in, steps_in, heights_in, ground, orientation_in, turn_steps_in, own,
+def plant_animations(F, t, src, aim, planted, bones, centre_operator, up_columns, lowest_operator, samples,
+                     anchor_slot, inverse_in, steps_in, orientation_in, turn_steps_in, own,
                      decay, kernel, sigma, lift_kernel, max_turn, up, bridge, hold, keep, bound, release,
                      edge_limit, turn_limit, turn_bound, states, centre_out, correction_out, turn_out, root_out):
     """What keeps the plants of animations F (A, M, B, 3, 3), t (A, M, B, 3) (float32, read only):
     each patch's centroid (after its turn), correction and turn (A, P, M, 3) and the root's offset
     (A, M, 3), written
     into the ``*_out`` arrays for :func:`.limb_reach.reach_animations` to make; src
-    (A, P, M) each patch's source frame, ground_src (A, M) the first component's; the
+    (A, P, M) each patch's source frame, aim (A, P, M) the height its lowest point keeps there
+    (:func:`.planting.target_heights`: the input's, spliced as the motion is); the
     :class:`.planting.PlantRig` tables (own (P, K) the slots in ``bones`` of each patch's own bones,
     padded with −1), the operators of the patches'
     centroids and of their sample vertices' heights (:func:`.planting.centre_operator`,
@@ -667,7 +668,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
             for p in range(P):
                 if state[p, m]:
                     weight[m] += 1.0
-                    level[m] += heights_in[src[a, p, m], p] + ground[ground_src[a, m]] - low[p, m]
+                    level[m] += aim[a, p, m] - low[p, m]
         level = _smooth(level, kernel, False)
         weight = _smooth(weight, kernel, False)
         for m in range(M):
@@ -713,8 +714,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
                     age = _carried(correction[p], state[p], m, last_end, decay, edge_limit, up, acc, age)
                 for d in range(3):
                     correction[p, m, d] = acc[d]
-                target = heights_in[src[a, p, m], p] + ground[ground_src[a, m]]
-                correction[p, m, up] = target - low[p, m] - root[m, up]
+                correction[p, m, up] = aim[a, p, m] - low[p, m] - root[m, up]
                 if m + 1 == M or not state[p, m + 1]:
                     last_end = m
             blend_edges_row(correction[p], state[p], decay, edge_limit, True)
@@ -728,7 +728,7 @@ def plant_animations(F, t, src, ground_src, planted, bones, centre_operator, up_
                 need[m] = 0.0
                 if state[p, m]:
                     continue
-                want = heights_in[src[a, p, m], p] + ground[ground_src[a, m]]
+                want = aim[a, p, m]
                 need[m] = max(0.0, want - (low[p, m] + root[m, up] + correction[p, m, up]))
                 below = below or need[m] > 0.0
             if not below:

@@ -7,7 +7,7 @@ pivot, turn and correction, the root's offset). The compiled loops must match it
 import numpy as np
 
 from skinsynth.pipeline.synthesis.contact.ground import _raise
-from skinsynth.pipeline.synthesis.contact.planting import PlantTargets, centre_operator
+from skinsynth.pipeline.synthesis.contact.planting import PlantTargets, centre_operator, target_heights
 
 
 def plant_targets_reference(F, t, sources, rig, block=16):
@@ -68,7 +68,7 @@ def _plant_block(F, t, sources, rig):
     push = np.stack([_smooth_push(row, rig) for row in push])
     root = np.cumsum(push, axis=1)
     # vertical: the planted patches' mean height error, a normalised smoothing (0 far from plants)
-    target = rig.heights_in[src, patches] + rig.ground[sources[0]][:, None, :]
+    target = target_heights(rig, src, sources[0])  # the input's heights, spliced as the motion is
     lowest = _lowest(F, t, rig)
     error = np.where(state, target - lowest, 0.0)
     weight = gaussian_filter1d(state.sum(axis=1).astype(np.float64), rig.sigma, axis=1, mode="constant")
