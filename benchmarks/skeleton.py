@@ -5,7 +5,8 @@ For each capture in ../shared/data (and the built-in walker) it runs, as a user 
 rig's RMSE over the free fit's at the same bones (``rmse_over_free``), the joints (how many, how
 many inside the mesh by winding number, the largest drift over the rest diagonal), the sliding
 bones (each with its parent and its travel over the diagonal), the free bones hanging from the
-root, the share of non-root bones on fixed joints, the feet (leaf bones whose rest centroid lies
+root, where the root bone's skin is centred (a share of the height: ``root_height``) and the tree's
+depth, the share of non-root bones on fixed joints, the feet (leaf bones whose rest centroid lies
 in the lowest 15 % of the height) with the fixed and sliding joints on each one's path to the
 root, the seconds and the peak memory, and the free fit of the same bones run as its own command
 (``free_seconds``, ``seconds_over_free``: the whole commands'). With ``--surplus S`` the skeleton
@@ -48,6 +49,28 @@ def feet_paths(path, summary):
     return paths
 
 
+def root_place(path, summary):
+    """(height, depth): where the root bone's skin is centred along the up axis, as a share of the
+    height above the lowest point (a human's pelvis: about 0.5), and the tree's depth (bones on the
+    longest path from the root, the root's excluded)."""
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.rig.influence import dense_weights
+
+    skin = read_skin(path)
+    parents = np.asarray(summary["parents"])
+    up = 1 if skin.scene.up_axis == "Y" else 2
+    height = skin.rest_vertices[:, up]
+    weights = dense_weights(skin.bone_indices, skin.bone_weights, skin.bones)[:, summary["root"]]
+    centre = float(weights @ height / weights.sum())
+    depth = 0
+    for bone in range(parents.size):
+        steps, node = 0, bone
+        while parents[node] >= 0:
+            steps, node = steps + 1, parents[node]
+        depth = max(depth, steps)
+    return round((centre - height.min()) / np.ptp(height), 3), depth
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default=None)
@@ -85,7 +108,8 @@ def main():
                 "free_bones": skeleton["free_bones"], "root": skeleton["root"],
                 "fixed_share": round(skeleton["joints"] / max(1, bones - 1), 3),
                 "feet_joints_to_root": feet_paths(out, skeleton), "seconds": round(seconds, 1),
-                "peak_mib": round(peak), "chains": skeleton.get("chains"), **extra}
+                "peak_mib": round(peak), "chains": skeleton.get("chains"),
+                **dict(zip(("root_height", "depth"), root_place(out, skeleton))), **extra}
         print(json.dumps(line), flush=True)
 
 

@@ -16,8 +16,10 @@ Nothing comes from a template; everything from the tree, the rest pose, the skin
    four, across the body's length (the rest pose's largest horizontal spread: a quadruped is
    longer than wide, and its legs, mid-gallop, may spread any way). **Forward** is horizontal
    and across it, its sign: a biped's toes point forward (a sole lies ahead of the ankle above
-   it, :func:`_toes_ahead`); a quadruped's head and neck reach further past its legs' tops than
-   its rump and tail do (the skin's 99th percentile ahead against its 1st behind). **Left** is
+   it, :func:`_toes_ahead`); a quadruped carries more skin past its legs' tops at its head's end
+   (head and neck) than at its tail's (the vertices beyond the front legs' tops against those
+   beyond the hind legs'; by reach instead, the 99th percentile ahead against the 1st behind, a
+   galloping horse's tail outreached its head, and its hind legs were named its forelegs). **Left** is
    up × forward (a figure facing +z with y up has its left at +x): one rule for every
    character, so a mirrored character swaps its labels.
 3. **Ends**: a biped's arms are, on each side, the leaf farthest from the root along the tree
@@ -167,9 +169,9 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
     across /= np.linalg.norm(across)
     forward = np.cross(across, up)
     width = float(np.ptp(rest @ across)) or 1.0
-    if quadruped:  # the head and neck reach further past the legs than the rump and tail do
+    if quadruped:  # more of the skin lies past the legs at the head's end than at the tail's
         ahead, hips_ahead = (rest - middle) @ forward, (hips - middle) @ forward
-        sign = np.sign((np.percentile(ahead, 99) - hips_ahead.max()) - (hips_ahead.min() - np.percentile(ahead, 1)))
+        sign = np.sign(np.count_nonzero(ahead > hips_ahead.max()) - np.count_nonzero(ahead < hips_ahead.min()))
     else:
         sign = np.sign(sum(_toes_ahead(rest[np.isin(owner, paths[f][paths[f].index(top(f, feet)):])], forward,
                                        up_axis, height) for f in feet))

@@ -214,10 +214,10 @@ def test_horse_gallop_skeleton_is_one_tree_of_joints_inside_the_horse_that_hold(
     """fit-skin --skeleton on the 22-bone gallop (issue: joints and a hierarchy, Le & Deng 2014): one
     root; every joint inside the mesh (winding number), drifting at most 2 % of the diagonal on the
     free fit; the jointed rig within 1.5x the free fit's error (measured 1.37x); the hind hooves
-    at least 3 joints from the root (measured 5; the fore hooves 2: a horse's shoulder is no joint,
-    docs/skeleton.md); every joint held by the refitted bones. The bones with no fixed joint (the
+    at least 3 joints from the root (a horse's shoulder is no joint, docs/skeleton.md); every joint
+    held by the refitted bones. The bones with no fixed joint (the
     forelegs' tops) slide on a neighbour, within the travel reported: none hangs free from the root.
-    The four legs are named by what they are (issue 44)."""
+    The four legs and the tail are named by what they are (issues 44, 65)."""
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.mesh.geometry import points_inside
     from skinsynth.pipeline.rig.influence import bone_centroids
@@ -242,21 +242,30 @@ def test_horse_gallop_skeleton_is_one_tree_of_joints_inside_the_horse_that_hold(
                + skin.translations[:, bone] - skin.translations[:, p])
         assert np.abs(gap).max() < 1e-9 * diagonal
     centres = bone_centroids(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
+    # the horse faces +z: its ears are its highest point (z +0.6; its raised tail reaches further, to
+    # z −1.34, and tops out 0.2 lower): docs/skeleton.md, preview --camera side shows the head at +z
+    assert skin.rest_vertices[np.argmax(skin.rest_vertices[:, 1]), 2] > 0.3
     hind = [b for b in range(skin.bones) if b not in parents and centres[b, 1] < 0.15 * np.ptp(skin.rest_vertices[:, 1])
-            + skin.rest_vertices[:, 1].min() and centres[b, 2] > 0.0]  # the horse faces −z
+            + skin.rest_vertices[:, 1].min() and centres[b, 2] < 0.0]
     assert hind
     for bone in hind:
         count = 0
         while parents[bone] >= 0:
             count, bone = count + int(jointed[bone]), parents[bone]
         assert count >= 3
-    # its four legs named from the geometry alone: the front ones at its head's end (−z), the left
-    # ones at −x (left = up × forward: y × −z), each leg's first bone its top
+    # its four legs named from the geometry alone: the front ones at its head's end (+z, ahead of both
+    # hind legs), the left ones at +x (left = up × forward: y × z), the tail at the other end (issue
+    # 65: before, the hind legs were named its forelegs and the tail its neck; its root, the heaviest
+    # bone, is still its head, so no neck chain: issue 65's open point)
     names = skin.skeleton["names"]
-    for leg in ("leg_front_l", "leg_front_r", "leg_back_l", "leg_back_r"):
+    ahead = {}
+    for leg in ("leg_front_l", "leg_front_r", "leg_back_l", "leg_back_r", "tail"):
         bones = [b for b, name in enumerate(names) if name.startswith(leg + "_")]
         assert bones, (leg, names)
-        assert (centres[bones, 2].mean() < -0.2) == ("front" in leg) and (centres[bones, 0].mean() < 0) == leg.endswith("_l")
+        ahead[leg] = centres[bones, 2].mean()
+        assert leg == "tail" or (centres[bones, 0].mean() > 0) == leg.endswith("_l")
+    assert min(ahead["leg_front_l"], ahead["leg_front_r"]) > max(ahead["leg_back_l"], ahead["leg_back_r"])
+    assert ahead["tail"] < -0.3
     # the horse mirrored in x: the same bones named with the other side
     from skinsynth.pipeline.rig.chain_labels import chain_labels
 
