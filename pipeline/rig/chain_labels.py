@@ -3,9 +3,12 @@ geometry alone (issue 44: what Blender's, Unreal's and Godot's retargeters map b
 
 Nothing comes from a template; everything from the tree, the rest pose, the skin and the frames:
 
-1. **Feet**: the leaves of the tree whose skin comes within :data:`FOOT_BAND` of the height of
-   each frame's lowest point in at least :data:`FOOT_FRAMES` of the frames (a gallop's rest frame
-   has two hooves in the air; a hand that touches the floor once is not a foot). Leaves whose
+1. **Feet**: the bones whose skin comes within :data:`FOOT_BAND` of the height of each frame's
+   lowest point in at least :data:`FOOT_FRAMES` of the frames (a gallop's rest frame has two hooves
+   in the air; a hand that touches the floor once is not a foot) and that have no such bone below
+   them in the tree: a leaf, or a foot a bone still hangs from (Zheng's dancer, 27 bones: the
+   spanning tree over the joints' drift hung a calf bone from one foot, and with leaves only one
+   foot was found and nothing named). Leaves whose
    paths meet below :data:`FOOT_SPAN` of the height are one foot (a toe and a heel bone), the one
    farthest from the root along the tree kept. Two feet make a biped, four a quadruped;
    any other count, two legs on one side (or two front legs on one side: a sheet draped on the
@@ -152,8 +155,10 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
         return paths[end][junction(end, others) + 1]
 
     low = rest[:, up_axis].min()
+    on_ground = [b for b in range(bones) if parents[b] >= 0 and grounded(b)]
+    lowest = [b for b in on_ground if not any(b in paths[d][:-1] for d in on_ground)]  # no grounded bone below
     feet = []
-    for leaf in sorted((b for b in leaves if grounded(b)), key=lambda b: -reach[b]):
+    for leaf in sorted(lowest, key=lambda b: -reach[b]):
         if all(centres[paths[leaf][junction(leaf, [f])], up_axis] - low > FOOT_SPAN * height for f in feet):
             feet.append(leaf)
     if len(feet) not in (2, 4):

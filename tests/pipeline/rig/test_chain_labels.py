@@ -91,3 +91,21 @@ def test_a_trunk_that_forks_is_numbered_by_depth_each_name_once():
     names = ["body", "chain_01_joint_00", "chain_01_joint_01", "chain_02_joint_00", "leg_01"]
     named = trunk_names(names, _paths(parents), [(2, "spine"), (3, "spine")])
     assert named == ["body", "spine_01", "spine_03", "spine_02", "leg_01"]
+
+
+def test_a_foot_with_a_bone_hanging_from_it_is_still_a_foot(true_walker):
+    """Issue 65: the tree a free fit's joints give may hang a bone from a foot (Zheng's dancer,
+    27 bones: a calf bone hung from one foot, so only one grounded leaf, and nothing was named).
+    The walker's left shin hung from its left foot, and kept clear of the ground as the dancer's
+    calf is (its skin raised 20 cm in the frames the feet are found on): the foot is still found (no
+    grounded bone below it), the leg named thigh → foot, the shin left with its place name."""
+    vertices, rig, indices, weights = true_walker
+    thigh, shin, foot = (WALKER_PARTS.index(p) for p in ("thigh_l", "shin_l", "foot_l"))
+    parents = rig.parents.copy()
+    parents[foot], parents[shin] = thigh, foot
+    frames = vertices.copy()
+    frames[:, np.argmax(rig.weights, axis=1) == shin, 1] += 0.2
+    names = dict(zip(WALKER_PARTS, chain_labels(parents, rig.joints, rig.rest, indices, weights, 1, frames)))
+    assert names["thigh_l"] == "leg_l_01" and names["foot_l"] == "leg_l_02" and names["shin_l"].startswith("chain_")
+    assert {part: name for part, name in names.items() if part not in ("thigh_l", "shin_l", "foot_l")} == \
+        {part: name for part, name in TRUE_NAMES.items() if part not in ("thigh_l", "shin_l", "foot_l")}
