@@ -51,7 +51,8 @@ MAX_TRANSFORM_STEPS = 100
                    "rest frame's), one bone per joint (--bones may be left out). A bare --skeleton goes after the "
                    "INPUTs or before another option. docs/skeleton.md.")
 @click.option("--root-bone", default=None, type=click.IntRange(min=0),
-              help="--skeleton: the root bone. Default: the bone that carries the most weight (the body).")
+              help="--skeleton: the root bone. Default: a biped's hips (where its legs part), else the tree's "
+                   "centre by skin weight (no part hanging from it holds more than half the skin).")
 @click.option("--max-joint-drift", default=None, type=FiniteFloatRange(min=0.0),
               help="--skeleton: the largest drift of a joint (RMS distance its two bones carry it apart, over the "
                    "rest diagonal) that is fixed; a bone with no such joint slides on its neighbour. Default 0.02.")

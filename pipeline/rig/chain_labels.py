@@ -26,8 +26,9 @@ Nothing comes from a template; everything from the tree, the rest pose, the skin
    up × forward (a figure facing +z with y up has its left at +x): one rule for every
    character, so a mirrored character swaps its labels.
 3. **Ends**: a biped's arms are, on each side, the leaf farthest from the root along the tree
-   that is in no leg and leaves the legs' paths by a bone above the hips (not a bone on a
-   thigh); its head the highest limb near the centre line (within :data:`CENTRE_BAND` of the
+   that is in no leg and whose branch off the legs' paths rises above the hips (not a bone on a
+   thigh, nor a skirt panel hanging from the hips; with the root at the hips the branch's first
+   bone, a spine bone, may be centred lower than the pelvis); its head the highest limb near the centre line (within :data:`CENTRE_BAND` of the
    width) above the shoulders. A quadruped's head is the central leaf farthest ahead, past the
    front legs; its tail the central leaf farthest behind, past the hind legs.
 4. **Chains**: from each end up to the first bone that also carries another end (where the limb
@@ -119,48 +120,81 @@ def _toes_ahead(leg, forward, up_axis, height):
     return float((sole.mean(axis=0) - ankle.mean(axis=0)) @ forward)
 
 
-def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, frames=None, jointed=None):
-    """[str] (B,) each bone's name (module notes), or None where it finds no character's legs.
-
-    parents (B,) (−1 the root); joints (B, 3) rest joints; rest (V, 3); bone_indices /
-    bone_weights (V, K); up_axis 0, 1 or 2; frames (F, V, 3) the input's (None: the rest pose);
-    jointed (B,) as :func:`.skeleton.joint_names` takes it, for the bones no chain names."""
+def _context(parents, joints, rest, bone_indices, bone_weights, up_axis, frames):
+    """What finding the feet needs of a tree as rooted: (centres (B, 3), owner (V,), height, paths,
+    leaves, reach (B,), grounded(bone), junction(end, others))."""
     from .influence import bone_centroids, dense_weights
-    from .skeleton import joint_names
 
-    parents = np.asarray(parents, dtype=np.int64)
-    joints, rest = np.asarray(joints, np.float64), np.asarray(rest, np.float64)
     bones = parents.size
-    up = np.eye(3)[up_axis]
     centres = bone_centroids(rest, bone_indices, bone_weights, bones)
     owner = np.argmax(dense_weights(bone_indices, bone_weights, bones), axis=1)
     height = float(np.ptp(rest[:, up_axis])) or 1.0
     paths = _paths(parents)
-    root = int(np.flatnonzero(parents < 0)[0])
-    reach = _reach(paths, joints, centres)
     leaves = [b for b in range(bones) if not (parents == b).any() and parents[b] >= 0]
     poses = rest[None] if frames is None else np.asarray(frames, dtype=np.float64)
     floor = poses[..., up_axis].min(axis=1)  # (F,)
 
     def grounded(bone):
         mine = owner == bone
-        return mine.any() and np.mean(poses[:, mine, up_axis].min(axis=1) - floor < FOOT_BAND * height) >= FOOT_FRAMES
+        return parents[bone] >= 0 and mine.any() and \
+            np.mean(poses[:, mine, up_axis].min(axis=1) - floor < FOOT_BAND * height) >= FOOT_FRAMES
 
     def junction(end, others):
         """The position on end's path of its deepest bone on another's path (where they part)."""
         return max(k for k, b in enumerate(paths[end][:-1]) if any(b in paths[o] for o in others if o != end))
 
+    return centres, owner, height, paths, leaves, _reach(paths, joints, centres), grounded, junction
+
+
+def _feet(grounded, reach, paths, centres, low, height, up_axis, junction):
+    """The feet (module notes, 1.): the grounded bones with no grounded bone below them, the
+    farthest from the root first, one per group whose paths meet below :data:`FOOT_SPAN` of the
+    height."""
+    on_ground = [b for b in range(len(paths)) if grounded(b)]
+    lowest = [b for b in on_ground if not any(b in paths[d][:-1] for d in on_ground)]
+    feet = []
+    for end in sorted(lowest, key=lambda b: -reach[b]):
+        if all(centres[paths[end][junction(end, [f])], up_axis] - low > FOOT_SPAN * height for f in feet):
+            feet.append(end)
+    return feet
+
+
+def biped_hips(parents, joints, rest, bone_indices, bone_weights, up_axis=1, frames=None):
+    """The bone where a biped's two legs part (its hips, where a retargeter starts a human), or
+    None where the tree has not exactly two feet (module notes, 1.: a quadruped, a bar, a cloth).
+    Found from the tree as rooted (``parents``): from a root in the trunk (the tree's centre,
+    :func:`skinsynth.pipeline.skin.joints.tree_centre`) both legs go down through the hips."""
+    parents = np.asarray(parents, dtype=np.int64)
+    rest = np.asarray(rest, np.float64)
+    centres, _, height, paths, _, reach, grounded, junction = _context(
+        parents, np.asarray(joints, np.float64), rest, bone_indices, bone_weights, up_axis, frames)
+    feet = _feet(grounded, reach, paths, centres, rest[:, up_axis].min(), height, up_axis, junction)
+    if len(feet) != 2:
+        return None
+    return max(set(paths[feet[0]]) & set(paths[feet[1]]), key=lambda k: len(paths[k]))
+
+
+def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, frames=None, jointed=None):
+    """[str] (B,) each bone's name (module notes), or None where it finds no character's legs.
+
+    parents (B,) (−1 the root); joints (B, 3) rest joints; rest (V, 3); bone_indices /
+    bone_weights (V, K); up_axis 0, 1 or 2; frames (F, V, 3) the input's (None: the rest pose);
+    jointed (B,) as :func:`.skeleton.joint_names` takes it, for the bones no chain names."""
+    from .skeleton import joint_names
+
+    parents = np.asarray(parents, dtype=np.int64)
+    joints, rest = np.asarray(joints, np.float64), np.asarray(rest, np.float64)
+    bones = parents.size
+    up = np.eye(3)[up_axis]
+    centres, owner, height, paths, leaves, reach, grounded, junction = _context(
+        parents, joints, rest, bone_indices, bone_weights, up_axis, frames)
+    root = int(np.flatnonzero(parents < 0)[0])
+
     def top(end, others):
         """The first bone of end's chain: the one below where its path parts from the others'."""
         return paths[end][junction(end, others) + 1]
 
-    low = rest[:, up_axis].min()
-    on_ground = [b for b in range(bones) if parents[b] >= 0 and grounded(b)]
-    lowest = [b for b in on_ground if not any(b in paths[d][:-1] for d in on_ground)]  # no grounded bone below
-    feet = []
-    for leaf in sorted(lowest, key=lambda b: -reach[b]):
-        if all(centres[paths[leaf][junction(leaf, [f])], up_axis] - low > FOOT_SPAN * height for f in feet):
-            feet.append(leaf)
+    feet = _feet(grounded, reach, paths, centres, rest[:, up_axis].min(), height, up_axis, junction)
     if len(feet) not in (2, 4):
         return None
     quadruped = len(feet) == 4
@@ -200,7 +234,8 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
     hips_bone = parents[top(feet[0], feet)] if len(feet) == 2 else None
     # ends off the body: not in a leg, and on a biped leaving the legs' paths by a bone above the hips
     rest_leaves = [b for b in leaves if b not in feet and not in_legs.intersection(paths[b])
-                   and (hips_bone is None or centres[top(b, feet), up_axis] > centres[hips_bone, up_axis])]
+                   and (hips_bone is None or max(centres[k, up_axis] for k in paths[b][paths[b].index(top(b, feet)):])
+                        > centres[hips_bone, up_axis])]
     central = [b for b in leaves if b not in feet and abs((centres[b] - middle) @ across) < CENTRE_BAND * width]
     if quadruped:
         front = max((joints[top(f, feet)] - middle) @ forward for f in feet)

@@ -15,7 +15,9 @@ A joint's **drift** is its RMS distance apart over the frames, ‖(R_j − R_k) 
 for bones that truly hinge there. The hierarchy
 (:func:`skeleton_tree`) is the minimum spanning forest of the neighbour graph weighted by
 drift, keeping only pairs whose drift is at most ``max_drift`` (rigid neighbours), rooted at
-the bone that carries the most weight (the body). A group of bones with no rigid neighbour
+the bone that carries the most weight; the fitted skeleton is then hung from the body's centre
+(:func:`hung_from_centre`: a biped's hips, where its legs part, else the tree's centre by skin
+weight; issue 65), which turns the tree round and moves nothing. A group of bones with no rigid neighbour
 path to the root joins the tree at its neighbour all the same: through the pair between it and
 the tree that shares the most skin, by a **sliding joint** (a horse's shoulder has no bony joint;
 a skirt panel slides on the hip). A sliding bone keeps a translation of its own, so the fit is as
@@ -41,8 +43,9 @@ import numpy as np
 
 from ..rig.bone_joints import (JOINT_SPREAD, MAX_JOINT_DRIFT, bone_neighbours, joint_drift,  # noqa: F401 (re-exported)
                                joint_positions)
+from ..rig.chain_labels import biped_hips
 from ..rig.influence import most_influential_bone, weight_sums
-from ..rig.skeleton import depth_first
+from ..rig.skeleton import depth_first, rerooted
 
 #: Largest share of the bones (the root aside) that may slide: a rig an animator poses and a
 #: retargeter maps turns at its joints, and issue 44 asks at least 80 % of them fixed (module notes).
@@ -263,6 +266,54 @@ def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translatio
     points[held] = joints[joint_pair[held]]
     bone_drift = np.where(held, drift[np.maximum(joint_pair, 0)], 0.0)
     return Skeleton(parents=parents, jointed=jointed, joints=points, drift=bone_drift, sliding=sliding)
+
+
+def tree_centre(parents, mass):
+    """The bone at the centre of a tree by mass (mass (B,): each bone's Σ weights): the one whose
+    removal leaves no part with more than half the skin, the least such largest part first, then
+    the heavier bone, then the lower id (the tree's weighted centroid, whichever way it is rooted).
+    A standing human's legs are each about a sixth of its skin and its upper body about half, so
+    its centre lies in the trunk; a quadruped's is its trunk, a bar's its middle; a limb's end only
+    where it carries more than half the skin, as no character's does."""
+    parents = np.asarray(parents, dtype=np.int64)
+    mass = np.asarray(mass, dtype=np.float64)
+    order = depth_first(parents)
+    below = mass.copy()  # each bone's subtree, as rooted
+    for b in order[::-1]:
+        if parents[b] >= 0:
+            below[parents[b]] += below[b]
+    largest_child = np.zeros(parents.size)
+    np.maximum.at(largest_child, parents[parents >= 0], below[parents >= 0])
+    largest = np.maximum(largest_child, below[order[0]] - below)
+    return int(np.lexsort((np.arange(parents.size), -mass, largest))[0])
+
+
+def hung_from_centre(skeleton, drift, rest, bone_indices, bone_weights, frames=None, up_axis=1):
+    """(skeleton, drift (B,)): the found ``skeleton`` (and its joints' ``drift``) hung from the body's
+    centre (module notes): a biped's hips, where its two legs part
+    (:func:`~skinsynth.pipeline.rig.chain_labels.biped_hips`, the feet found on the input's
+    ``frames`` (F, V, 3) with ``up_axis`` up), else :func:`tree_centre`. Only the tree's direction
+    changes: every joint, bone and transform stays (the path from the old root holds fixed joints
+    only, else the skeleton is returned as it is: a sliding joint slides on its parent)."""
+    from ..rig.influence import bone_centroids
+
+    totals = weight_sums(bone_indices, bone_weights, skeleton.bones)
+    centre = tree_centre(skeleton.parents, totals)
+    seen = rerooted(skeleton.parents, centre, skeleton.joints)
+    hips = biped_hips(seen[0], seen[1], rest, bone_indices, bone_weights, up_axis, frames)
+    root = centre if hips is None else int(hips)
+    path = [root]
+    while skeleton.parents[path[-1]] >= 0:
+        path.append(int(skeleton.parents[path[-1]]))
+    if root == skeleton.root or not np.asarray(skeleton.jointed)[path[:-1]].all():
+        return skeleton, drift
+    parents, jointed, joints, bone_drift, moved = rerooted(skeleton.parents, root, skeleton.jointed, skeleton.joints,
+                                                           skeleton.drift, drift)
+    jointed[root] = False
+    joints[root] = bone_centroids(rest, bone_indices, bone_weights, skeleton.bones)[root]
+    bone_drift[root] = moved[root] = 0.0
+    return Skeleton(parents=parents, jointed=jointed, joints=joints, drift=bone_drift, sliding=skeleton.sliding,
+                    names=skeleton.names), moved
 
 
 def given_skeleton(names, parents, positions, free):

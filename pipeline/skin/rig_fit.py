@@ -80,7 +80,7 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     ``surplus``: no free fit of ``bones``), max_drift)."""
     from ..errors import OptionError
     from .jointed_fit import fit_given_skeleton, fit_jointed
-    from .joints import MAX_JOINT_DRIFT, MAX_SLIDING_SHARE, find_skeleton
+    from .joints import MAX_JOINT_DRIFT, MAX_SLIDING_SHARE, find_skeleton, hung_from_centre
     from .skin_fit import fit_bones_to_rig, fit_skin
 
     if (surplus or max_sliding_share is not None) and not find_joints:
@@ -107,7 +107,9 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
                                                device=device, max_drift=max_drift, max_sliding_share=sliding_share,
                                                jointed_iterations=JOINTED_ITERATIONS, diagonal=diagonal,
                                                progress=progress)
-        return fitted, _skeleton_record(skeleton, skeleton.drift, float("nan"), max_drift, fitted, vertices, up_axis)
+        skeleton, drift = hung_from_centre(skeleton, skeleton.drift, fitted.rest_vertices, fitted.bone_indices,
+                                           fitted.bone_weights, vertices, "XYZ".index(up_axis))
+        return fitted, _skeleton_record(skeleton, drift, float("nan"), max_drift, fitted, vertices, up_axis)
     free = fit_skin(vertices, bones, max_influences=max_influences, iterations=iterations, rest_frame=rest_frame,
                     seed=seed, tolerance=tolerance, patience=patience, joint_steps=joint_steps, device=device,
                     progress=progress("fit", iterations))
@@ -125,7 +127,11 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     fitted, skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights, free.rotations,
                                    found, faces=faces, max_influences=max_influences, iterations=JOINTED_ITERATIONS,
                                    progress=progress("joints", JOINTED_ITERATIONS))
-    return fitted, _skeleton_record(skeleton, found.drift, free.rmse, max_drift, fitted, vertices, up_axis)
+    drift = found.drift
+    if root_bone is None:  # fitted from the heaviest bone, hung from the body's centre (issue 65)
+        skeleton, drift = hung_from_centre(skeleton, drift, fitted.rest_vertices, fitted.bone_indices,
+                                           fitted.bone_weights, vertices, "XYZ".index(up_axis))
+    return fitted, _skeleton_record(skeleton, drift, free.rmse, max_drift, fitted, vertices, up_axis)
 
 
 def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted, vertices=None, up_axis="Y"):

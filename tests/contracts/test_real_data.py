@@ -217,7 +217,7 @@ def test_horse_gallop_skeleton_is_one_tree_of_joints_inside_the_horse_that_hold(
     at least 3 joints from the root (a horse's shoulder is no joint, docs/skeleton.md); every joint
     held by the refitted bones. The bones with no fixed joint (the
     forelegs' tops) slide on a neighbour, within the travel reported: none hangs free from the root.
-    The four legs and the tail are named by what they are (issues 44, 65)."""
+    The four legs, the neck and the tail are named by what they are (issues 44, 65)."""
     from skinsynth.formats.skin_file import read_skin
     from skinsynth.pipeline.mesh.geometry import points_inside
     from skinsynth.pipeline.rig.influence import bone_centroids
@@ -254,18 +254,19 @@ def test_horse_gallop_skeleton_is_one_tree_of_joints_inside_the_horse_that_hold(
             count, bone = count + int(jointed[bone]), parents[bone]
         assert count >= 3
     # its four legs named from the geometry alone: the front ones at its head's end (+z, ahead of both
-    # hind legs), the left ones at +x (left = up × forward: y × z), the tail at the other end (issue
-    # 65: before, the hind legs were named its forelegs and the tail its neck; its root, the heaviest
-    # bone, is still its head, so no neck chain: issue 65's open point)
+    # hind legs), the left ones at +x (left = up × forward: y × z), the neck at the head's end and the
+    # tail at the other, the root in the trunk between the legs (issue 65: before, the hind legs were
+    # named its forelegs, its tail its neck, and its root was its head)
     names = skin.skeleton["names"]
     ahead = {}
-    for leg in ("leg_front_l", "leg_front_r", "leg_back_l", "leg_back_r", "tail"):
+    for leg in ("leg_front_l", "leg_front_r", "leg_back_l", "leg_back_r", "neck", "tail"):
         bones = [b for b, name in enumerate(names) if name.startswith(leg + "_")]
         assert bones, (leg, names)
         ahead[leg] = centres[bones, 2].mean()
-        assert leg == "tail" or (centres[bones, 0].mean() > 0) == leg.endswith("_l")
+        assert leg in ("neck", "tail") or (centres[bones, 0].mean() > 0) == leg.endswith("_l")
     assert min(ahead["leg_front_l"], ahead["leg_front_r"]) > max(ahead["leg_back_l"], ahead["leg_back_r"])
-    assert ahead["tail"] < -0.3
+    assert ahead["neck"] > 0.3 > -0.3 > ahead["tail"]
+    assert max(ahead["leg_back_l"], ahead["leg_back_r"]) < centres[skin.skeleton["root"], 2] < ahead["neck"]
     # the horse mirrored in x: the same bones named with the other side
     from skinsynth.pipeline.rig.chain_labels import chain_labels
 

@@ -5,7 +5,7 @@ inside is known."""
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.inputs.examples import walker
+from skinsynth.pipeline.inputs.examples import WALKER_PARTS, walker
 from skinsynth.pipeline.mesh.geometry import points_inside
 from skinsynth.pipeline.mesh.winding import winding_numbers
 from skinsynth.pipeline.rig.rotations import rotation_exp
@@ -97,8 +97,8 @@ def test_the_bones_that_slide_within_the_bound_are_those_whose_joints_drift_most
 def test_a_fitted_walker_whose_shoulders_slide_hangs_its_arms_on_the_chest(tmp_path):
     """fit-skin --skeleton on that walker (10 bones, one per part; fit seed 1; 2 of 9 bones may
     slide: --max-sliding-share 0.25): each fitted bone, named
-    by the part that dominates its vertices, sits in the walker's own tree (the chest, the heaviest,
-    its root); the arms slide on the chest with the circle's up-and-down travel (20 cm), every other
+    by the part that dominates its vertices, sits in the walker's own tree (fitted from the chest, the
+    heaviest, then hung from the pelvis, where its legs part: issue 65); the arms slide on the chest with the circle's up-and-down travel (20 cm), every other
     bone is on a fixed joint; its legs and arms are named by side."""
     from cli_helpers import assert_ok, cli
     from skinsynth.formats.skin_file import read_skin
@@ -117,7 +117,7 @@ def test_a_fitted_walker_whose_shoulders_slide_hangs_its_arms_on_the_chest(tmp_p
     skeleton = skin.skeleton
     true_edges = {frozenset((WALKER_PARTS[c], WALKER_PARTS[p])) for c, p in enumerate(rig.parents) if p >= 0}
     edges = {frozenset((part[c], part[p])) for c, p in enumerate(skeleton["parents"]) if p >= 0}
-    assert edges == true_edges and part[skeleton["root"]] == "chest"
+    assert edges == true_edges and part[skeleton["root"]] == "pelvis"
     sliding = [part[b] for b in np.flatnonzero(skeleton["sliding"])]
     assert sorted(sliding) == ["arm_l", "arm_r"]
     assert all(skeleton["jointed"][b] for b in range(skin.bones) if b != skeleton["root"] and not skeleton["sliding"][b])
@@ -136,6 +136,48 @@ def test_the_root_defaults_to_the_heaviest_bone_and_the_tree_is_the_same(true_wa
     assert found.root == int(np.argmax(rig.weights.sum(axis=0)))
     edges = {frozenset((b, int(p))) for b, p in enumerate(found.parents) if p >= 0}
     assert edges == {frozenset((b, int(p))) for b, p in enumerate(rig.parents) if p >= 0}
+
+
+def test_the_found_tree_is_hung_from_the_walkers_pelvis_and_nothing_moves(true_walker):
+    """Issue 65: a skeleton found from the heaviest bone (the walker's chest: its arms and head on it)
+    is hung from the body's centre: the pelvis, where the legs part (with the frames), and the
+    tree's centre by skin weight (without them, the same bone here); every edge, joint and drift
+    stays, turned round along the path; mirrored, the same."""
+    from skinsynth.pipeline.skin.joints import hung_from_centre
+
+    vertices, faces, rig = true_walker
+    indices, weights = _top_four(rig.weights)
+    found = find_skeleton(rig.rest, faces, indices, weights, rig.rotations, rig.translations)
+    assert found.root == WALKER_PARTS.index("chest")
+    for frames in (vertices, None):
+        hung, drift = hung_from_centre(found, found.drift, rig.rest, indices, weights, frames)
+        assert hung.root == WALKER_PARTS.index("pelvis") and hung.parents.tolist() == rig.parents.tolist()
+        assert hung.jointed.tolist() == [False] + [True] * 9
+        height = np.ptp(vertices[..., 1])
+        assert np.abs(hung.joints[1:] - rig.joints[1:]).max() < 1e-9 * height  # the chest's joint moved to it
+        assert drift.max() < 1e-9
+    flip = np.diag([-1.0, 1.0, 1.0])
+    mirrored = find_skeleton(rig.rest @ flip, faces[:, ::-1], indices, weights, flip @ rig.rotations @ flip,
+                             rig.translations @ flip)
+    assert hung_from_centre(mirrored, mirrored.drift, rig.rest @ flip, indices, weights, vertices @ flip)[0].root == 0
+
+
+def test_the_tree_centre_and_a_rerooted_tree_by_hand():
+    """tree_centre: no part left by the centre holds more than half the mass, whatever the rooting;
+    rerooted: the path from the old root turned round, its per-bone values moved along it."""
+    from skinsynth.pipeline.rig.skeleton import rerooted
+    from skinsynth.pipeline.skin.joints import tree_centre
+
+    chain = np.array([-1, 0, 1, 2, 3])  # a chain of five, rooted at one end
+    assert tree_centre(chain, [1, 1, 1, 1, 1]) == 2
+    assert tree_centre(chain, [3, 1, 1, 1, 1]) == 1  # the heavy end pulls the centre towards it
+    assert tree_centre(chain, [9, 1, 1, 1, 1]) == 0  # heavier than all the rest: the end itself
+    star = np.array([1, -1, 1, 1, 3])  # rooted at 1; bone 4 hangs from 3
+    for root in range(5):  # the same centre from every rooting of the same tree
+        assert tree_centre(rerooted(chain, root)[0], [1, 3, 1, 1, 1]) == 1
+        assert tree_centre(rerooted(star, root)[0], [1, 1, 1, 1, 1]) == 1
+    parents, values = rerooted(chain, 3, np.array([0, 10, 20, 30, 40]))
+    assert parents.tolist() == [1, 2, 3, -1, 3] and values.tolist() == [10, 20, 30, 30, 40]
 
 
 def _two_bones(joint, frames=20, seed=0, axis=None):
