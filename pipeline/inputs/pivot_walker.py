@@ -57,7 +57,7 @@ def pivot_walker(pivots=4, frames_per_pivot=48, turn=np.pi, rings=24, segments=1
     radians (default 180°) about the ball of its left foot, ``pivots`` times, one every
     ``frames_per_pivot`` frames (2 s at 24 fps by default; the turn itself takes 0.7 s).
 
-    Each pivot: both feet rest (a quarter of it); the left foot steps in place, lifted and set down
+    Each pivot: both feet rest (a fifth of it); the left foot steps in place, lifted and set down
     where it stood (the body swayed over the right foot), so the pivot foot's plants begin and end
     as a dancer's do; then the body turns about the vertical through the left foot's ball vertex
     (swayed over the left foot) while the right foot lifts, swings round and sets down. The left

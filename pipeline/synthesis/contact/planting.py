@@ -491,16 +491,16 @@ def target_heights(rig, src, ground_src):
     :func:`...inputs.pivot_walker.pivot_walker`: the pivot's ball 1.5 % of the height off its spot)."""
     from ..splicing import blend_series, seam_windows
 
-    A, P, M = src.shape
-    frames = rig.heights_in.shape[0]
+    P = src.shape[1]
     aim = rig.heights_in[src, np.arange(P)[None, :, None]]
-    rotations = np.broadcast_to(np.eye(3), (frames, 1, 3, 3))  # heights have no rotation part
-    for p in range(P):
-        walks = src[:, p]
-        windows = seam_windows(walks, rig.window, rig.clips)
-        animation, frame, _, heights = blend_series(rotations, rig.heights_in[:, p, None, None], walks, windows,
+    for owner in np.unique(rig.owner):  # the patches one component moves share its walks and seams
+        mine = np.flatnonzero(rig.owner == owner)
+        walks = src[:, mine[0]]
+        rotations = np.broadcast_to(np.eye(3), (rig.heights_in.shape[0], mine.size, 3, 3))  # heights: no turn
+        animation, frame, _, heights = blend_series(rotations, rig.heights_in[:, mine, None], walks,
+                                                    seam_windows(walks, rig.window, rig.clips),
                                                     spread_velocity=rig.spread_velocity, clips=rig.clips)
-        aim[animation, p, frame] = heights[:, 0, 0]
+        aim[animation[:, None], mine[None, :], frame[:, None]] = heights[..., 0]
     return aim + rig.ground[ground_src][:, None, :]
 
 
