@@ -298,3 +298,37 @@ def test_horse_gallop_fitted_under_its_own_skeleton_as_usdskel_keeps_tree_names_
 
     assert tree(given) == tree(found)
     assert given.rmse <= 1.1 * found.rmse
+
+
+@pytest.mark.parametrize("capture", ["samba", "dancer"])
+def test_a_captures_skeleton_mirrored_or_turned_keeps_its_tree_and_root_and_swaps_its_sides(capture, samba_skin,
+                                                                                            dancer_graph):
+    """Issue 65: rules that hold on every character hold on its mirror image and however it faces.
+    The skeleton found on a capture's free fit (joints, tree, the root hung from the hips, the chains
+    named), then on the same fit mirrored in x and turned 40° about the up axis: the same tree and
+    root; mirrored, every left name a right one and back; turned, the same names."""
+    from skinsynth.formats.graph_file import read_graph
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.rig.chain_labels import chain_labels
+    from skinsynth.pipeline.rig.rotations import rotation_exp
+    from skinsynth.pipeline.skin.joints import find_skeleton, hung_from_centre
+
+    skin = read_skin(samba_skin) if capture == "samba" else read_graph(str(dancer_graph)).skin
+
+    def found(transform, faces):
+        rest, frames = skin.rest_vertices @ transform.T, skin.examples @ transform.T
+        R = transform @ skin.rotations.astype(np.float64) @ transform.T
+        t = skin.translations.astype(np.float64) @ transform.T
+        tree = find_skeleton(rest, faces, skin.bone_indices, skin.bone_weights, R, t)
+        tree, _ = hung_from_centre(tree, tree.drift, rest, skin.bone_indices, skin.bone_weights, frames)
+        return tree, chain_labels(tree.parents, tree.joints, rest, skin.bone_indices, skin.bone_weights, 1, frames,
+                                  jointed=tree.jointed)
+
+    tree, names = found(np.eye(3), skin.faces)
+    assert names is not None and {"leg_l_01", "leg_r_01", "arm_l_01", "arm_r_01"} <= set(names)
+    mirrored, mirrored_names = found(np.diag([-1.0, 1.0, 1.0]), skin.faces[:, ::-1])
+    turned, turned_names = found(rotation_exp(np.array([0.0, 0.7, 0.0])), skin.faces)
+    for other in (mirrored, turned):
+        assert other.parents.tolist() == tree.parents.tolist() and other.root == tree.root
+    assert mirrored_names == [n.replace("_l_", "_x_").replace("_r_", "_l_").replace("_x_", "_r_") for n in names]
+    assert turned_names == names
