@@ -62,8 +62,9 @@ def _frame_range(text):
 @click.option("--camera", type=click.Choice(["three-quarter", "front", "side"]), default="three-quarter",
               show_default=True, help="Where the camera stands, looking at the character.")
 @click.option("--framing", type=click.Choice(["auto", "follow", "fixed"]), default="auto", show_default=True,
-              help="fixed: one camera frames the whole animation; follow: it tracks each character's ground position, "
-                   "smoothed; auto: follow a character that travels more than its own size.")
+              help="fixed: one camera frames the whole animation (a crowd's characters, standing apart, each their "
+                   "own, all as far away); follow: it tracks each character's ground position, smoothed; auto: "
+                   "follow a character that travels more than its own size.")
 @click.option("--flat", is_flag=True, help="Flat shading (one normal per face) instead of smooth.")
 @up_axis_option("Up axis.  [default: the file's (USD, skinsynth files), else Y]")
 @click.option("--sheet-frames", default=12, show_default=True, type=click.IntRange(min=1),

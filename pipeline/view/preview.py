@@ -132,7 +132,8 @@ class Preview:
     """Frames of ``panels`` side by side (``columns`` per row), each ``size`` = (W, H) pixels, the
     ground under the lowest point. ``frames`` (M,) which frames to show; ``preset``, ``smooth``,
     ``up_axis`` (1 Y, 2 Z). ``framing`` (:data:`FRAMINGS`): one camera framing every panel's
-    whole animation, or a camera per panel that follows its character's ground track
+    whole animation (or, where the panels' characters stand apart, one per panel centred on its
+    own: :meth:`_fixed_cameras`), or a camera per panel that follows its character's ground track
     (:func:`ground_track`, smoothed over :data:`FOLLOW_SMOOTHING` s at ``fps``), framing the
     character's own extent about that track (the ground's checks then the character's size,
     so the travel shows)."""
@@ -158,13 +159,35 @@ class Preview:
             self.cell = max(float(np.ptp(v[self.frames], axis=1).max()) for v in shown)  # a character's size
             self.camera = None
         else:
-            self.camera = frame_bounds(lower, upper, preset, up_axis=up_axis, aspect=width / height)
-            self.ground = ground_layer(self.camera, width, height, self.level, up_axis, float(np.max(upper - lower)))
+            self.cameras = self._fixed_cameras(shown, lower, upper)
+
+    def _fixed_cameras(self, shown, lower, upper):
+        """[(camera, ground layer)] per panel, framing: one camera for all, framing every panel's whole
+        animation, where their characters share a place (a prediction beside its truth, animations of
+        one synthesis); where they stand apart (a crowd laid out on a grid: their boxes do not
+        overlap), one camera per panel, as far away for every panel (the largest box) and centred on
+        its own character, so a crowd of 16 shows 16 characters each its panel's height, not 16
+        panels of the whole grid (dancers 20 pixels tall)."""
+        width, height = self.size
+        boxes = [(v[self.frames].reshape(-1, 3).min(axis=0), v[self.frames].reshape(-1, 3).max(axis=0)) for v in shown]
+        apart = len(boxes) > 1 and not any(np.all(boxes[i][0] <= boxes[j][1]) and np.all(boxes[j][0] <= boxes[i][1])
+                                           for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
+        if not apart:
+            camera = frame_bounds(lower, upper, self.preset, up_axis=self.up_axis, aspect=width / height)
+            ground = ground_layer(camera, width, height, self.level, self.up_axis, float(np.max(upper - lower)))
+            return [(camera, ground)] * len(shown)
+        half = np.max([high - low for low, high in boxes], axis=0) / 2.0
+        cameras = []
+        for low, high in boxes:
+            centre = (low + high) / 2.0
+            camera = frame_bounds(centre - half, centre + half, self.preset, up_axis=self.up_axis, aspect=width / height)
+            cameras.append((camera, ground_layer(camera, width, height, self.level, self.up_axis, float(2.0 * half.max()))))
+        return cameras
 
     def view(self, panel, m):
         """(camera, ground layer) that show ``panel`` (its index) at frame m."""
         if not self.follow:
-            return self.camera, self.ground
+            return self.cameras[panel]
         width, height = self.size
         centre = self.tracks[panel][m]
         camera = frame_bounds(centre + self.extent[0], centre + self.extent[1], self.preset, up_axis=self.up_axis,

@@ -91,3 +91,31 @@ def test_a_travelling_character_stays_in_frame_and_large_when_followed(up_axis):
     assert not Preview([Panel(still, box.faces, "")], size=(W, H), up_axis=up_axis).follow
     image = movie[0]
     assert image.shape == (H, W, 3)
+
+
+def test_a_crowd_shows_each_character_at_its_panels_height_and_a_comparison_keeps_one_camera():
+    """Issue 68: a play crowd's characters stand apart on a grid; one camera framing them all made
+    each panel show the whole grid and its character a speck. Where the panels' characters stand
+    apart, each panel's camera centres on its own character, all as far away (the largest box);
+    where they share a place (a prediction beside its truth), one camera frames them all."""
+    from skinsynth.pipeline.view.preview import Panel, Preview
+
+    box = trimesh.creation.box(extents=(0.4, 0.4, 0.4))
+    box.vertices[:, 1] += 0.2
+    frames = 8
+    sway = np.zeros((frames, 3))
+    sway[:, 0] = 0.02 * np.sin(np.linspace(0.0, np.pi, frames))
+    grid = [np.array([x, 0.0, z]) for x in (0.0, 6.0) for z in (0.0, 6.0)]  # a crowd: 2 × 2, 15 sizes apart
+    crowd = [Panel(box.vertices[None] + sway[:, None] + place, box.faces, f"character {k}")
+             for k, place in enumerate(grid)]
+    movie = Preview(crowd, size=(W, H), framing="fixed", fps=24.0)
+    for k, panel in enumerate(crowd):
+        camera, _ = movie.view(k, 0)
+        screen = project(panel.vertices[0], camera, W, H)
+        assert (screen[:, :2] >= 0).all() and (screen[:, 0] <= W).all() and (screen[:, 1] <= H).all()
+        assert np.ptp(screen[:, 1]) > 0.5 * H  # its own panel's height, not a speck of the grid
+    sizes = [np.ptp(project(p.vertices[0], movie.view(k, 0)[0], W, H)[:, 1]) for k, p in enumerate(crowd)]
+    assert max(sizes) - min(sizes) < 0.02 * H  # all as far away
+    truth = Panel(crowd[0].vertices + np.array([0.05, 0.0, 0.0]), box.faces, "truth")
+    compared = Preview([crowd[0], truth], size=(W, H), framing="fixed", fps=24.0)
+    assert compared.view(0, 0)[0] is compared.view(1, 0)[0]  # sharing a place: one camera
