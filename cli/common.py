@@ -44,18 +44,37 @@ def user_errors(command):
             stop_if_received()  # a signal whose exception a library swallowed still ends the command
             sys.stdout.flush()  # a full disk or a closed pipe on stdout shows here, not at exit
             return result
-        except ClipError as error:
-            fail(f"{kwargs['path']}: {error}" if kwargs.get("path") else str(error))
-        except (FormatError, OptionError, DeviceError) as error:
-            fail(str(error))
-        except MemoryError:
-            fail("out of memory: the input is too large for this machine at these settings")
         except KeyboardInterrupt as stop:
             interrupted(stop)
-        except OSError as error:
-            _release_stdout()
-            fail(os_error_message(error))
+        except Exception as error:
+            if signalled():  # the signal surfaced as another exception: it is what ended the command
+                interrupted(signalled())
+            if isinstance(error, ClipError):
+                fail(f"{kwargs['path']}: {error}" if kwargs.get("path") else str(error))
+            if isinstance(error, (FormatError, OptionError, DeviceError)):
+                fail(str(error))
+            if isinstance(error, MemoryError):
+                fail("out of memory: the input is too large for this machine at these settings")
+            if isinstance(error, OSError):
+                _release_stdout()
+                fail(os_error_message(error))
+            raise
     return wrapper
+
+
+def signalled():
+    """The first signal this command received (:data:`skinsynth.formats.atomic.RECEIVED`) as the
+    KeyboardInterrupt :func:`interrupted` takes, or None. A signal can surface as another
+    exception than its own: one that lands while Python initialises a C extension (a lazy
+    ``import scipy.spatial``) comes out as ``ImportError: initialization failed``, the signal's
+    exception its cause; the command then ends as interrupted, in one line, not with a traceback."""
+    from skinsynth.formats.atomic import RECEIVED
+
+    if not RECEIVED:
+        return None
+    stop = KeyboardInterrupt(RECEIVED[0])
+    stop.signum = RECEIVED[0]
+    return stop
 
 
 def os_error_message(error):

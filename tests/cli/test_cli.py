@@ -528,6 +528,34 @@ def test_interrupted_write_keeps_existing_output(data, out, monkeypatch):
     assert_folder_holds(out, ["skin.h5"])
 
 
+def test_a_signal_that_surfaces_as_another_error_ends_the_command_as_interrupted(data, out, monkeypatch):
+    """A SIGHUP landing while Python initialises a C extension (a lazy scipy import inside the
+    command) comes out as ``ImportError: initialization failed``, the signal's exception its cause:
+    the command says it was interrupted, in one line, exit 128 + 1, no traceback (it printed one:
+    tests/contracts/test_faults.py caught it once in a whole run)."""
+    import signal
+
+    from skinsynth.formats import model
+    from skinsynth.formats.atomic import Interrupted
+
+    target = out / "skin.h5"
+    target.write_bytes(OLD)
+
+    def import_interrupted(group, contents):
+        try:
+            raise Interrupted(signal.SIGHUP)  # as the handler raises it, recorded
+        except Interrupted as stop:
+            raise ImportError("initialization failed") from stop
+
+    monkeypatch.setattr(model, "_write_group", import_interrupted)
+    result = cli("fit-skin", data["bar"], "-o", target, *FIT)
+    assert result.exit_code == 128 + signal.SIGHUP, result.output
+    assert result.stderr.strip().splitlines()[-1] == "skinsynth: interrupted (SIGHUP); no output written"
+    assert "Traceback" not in result.output and "ImportError" not in result.output
+    assert target.read_bytes() == OLD
+    assert_folder_holds(out, ["skin.h5"])
+
+
 # ---------------------------------------------------------------- determinism
 
 
