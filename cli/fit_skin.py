@@ -210,6 +210,7 @@ class _Phases:
         self.labels = {"fit": f"fit-skin {bones} bones" + (" on the rig" if rig else ""), "prune": "bones merged",
                        "grow": "fit-skin --surplus-bones: the larger free fit", "given": f"fit-skin under the given "
                        f"skeleton ({bones} bones)", "joints": "fit-skin --skeleton: the rig refitted on its joints",
+                       "soft": "fit-skin --skeleton: over the error budget, refitted with its drifting joints sliding",
                        "contacts": "the fit weighed toward the ground contacts"}
         self.started = time.perf_counter()
 

@@ -127,11 +127,30 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     fitted, skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights, free.rotations,
                                    found, faces=faces, max_influences=max_influences, iterations=JOINTED_ITERATIONS,
                                    progress=progress("joints", JOINTED_ITERATIONS))
+    held = found.jointed & (found.drift > max_drift)  # held fixed past the drift by the sliding-share bound
+    if max_sliding_share is None and fitted.rmse > JOINT_BUDGET * free.rmse and held.any():
+        # over the error budget: a soft body, not a skeleton; its drifting joints slide (module notes)
+        loose = find_skeleton(free.rest_vertices, faces, free.bone_indices, free.bone_weights, free.rotations,
+                              free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal,
+                              max_sliding_share=None)
+        soft, soft_skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights,
+                                          free.rotations, loose, faces=faces, max_influences=max_influences,
+                                          iterations=JOINTED_ITERATIONS, progress=progress("soft", JOINTED_ITERATIONS))
+        if soft.rmse < fitted.rmse:
+            fitted, skeleton, found = soft, soft_skeleton, loose
     drift = found.drift
     if root_bone is None:  # fitted from the heaviest bone, hung from the body's centre (issue 65)
         skeleton, drift = hung_from_centre(skeleton, drift, fitted.rest_vertices, fitted.bone_indices,
                                            fitted.bone_weights, vertices, "XYZ".index(up_axis))
     return fitted, _skeleton_record(skeleton, drift, free.rmse, max_drift, fitted, vertices, up_axis)
+
+
+#: The error a jointed rig may cost, over the free fit's: past it, with joints held fixed beyond
+#: ``--max-joint-drift`` by the sliding-share bound, the body is soft (a simulated cow: 2.1× with a
+#: fifth of its bones sliding) and every such joint slides instead, the summary saying so; within
+#: it, a rig an animator poses turns at its joints (issue 65: the shared captures' skeletons cost
+#: 1.14–1.47× the free fit's error).
+JOINT_BUDGET = 1.5
 
 
 def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted, vertices=None, up_axis="Y"):
@@ -232,6 +251,7 @@ def _skeleton_summary(record, fit, faces, diagonal):
     the bones' names and the chains named (:func:`~skinsynth.pipeline.rig.chain_labels.named_chains`)."""
     from ..mesh.geometry import points_inside
     from ..rig.chain_labels import named_chains
+    from .joints import MAX_SLIDING_SHARE
 
     jointed = np.asarray(record["jointed"])
     sliding = np.asarray(record.get("sliding", np.zeros_like(jointed)), bool)
@@ -259,7 +279,12 @@ def _skeleton_summary(record, fit, faces, diagonal):
     held = (f"; {len(summary['held_fixed'])} joint(s) drifting past --max-joint-drift held fixed (bones "
             f"{', '.join(map(str, summary['held_fixed']))}: the --max-sliding-share bound)"
             if summary["held_fixed"] else "")
-    line = (f"skeleton: root bone {summary['root']}, {summary['joints']} fixed joints and {len(summary['sliding'])} "
+    # more than the sliding-share bound slide: the error budget freed them (a soft body), or the user asked
+    summary["soft"] = len(summary["sliding"]) > int(np.floor(MAX_SLIDING_SHARE * (jointed.size - 1) + 1e-9))
+    soft = (f"soft: {len(summary['sliding'])} of its {jointed.size - 1} bones slide (more than a fifth: held as "
+            f"joints they cost more than {JOINT_BUDGET:g}× the free fit's error, or --max-sliding-share asked); "
+            if summary["soft"] else "")
+    line = (f"skeleton: {soft}root bone {summary['root']}, {summary['joints']} fixed joints and {len(summary['sliding'])} "
             f"sliding{f' ({slid} of the diagonal)' if slid else ''} ({summary['joints_inside']} inside the mesh, "
             f"largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
             + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else
