@@ -57,7 +57,9 @@ MAX_TRANSFORM_STEPS = 100
               help="--skeleton: the largest drift of a joint (RMS distance its two bones carry it apart, over the "
                    "rest diagonal) that is fixed; a bone with no such joint slides on its neighbour. Default 0.02.")
 @click.option("--max-sliding-share", default=None, type=FiniteFloatRange(min=0.0, max=1.0),
-              help="--skeleton: the largest share of the bones that may slide (those drifting most). Default 0.2.")
+              help="--skeleton: the largest share of the bones that may slide (those drifting most). Default 0.2, "
+                   "lifted where holding the others costs more than 1.5x the free fit's error (the body is soft: "
+                   "the summary says so); given, it holds.")
 @click.option("--surplus-bones", default=0.0, type=FiniteFloatRange(min=0.0),
               help="--skeleton: start from (1 + this) × --bones bones and merge the redundant ones into their parents "
                    "as the joints are fitted (Le & Deng 2014): more fixed joints, 2-5x the time. Default 0 (off).")
