@@ -293,8 +293,10 @@ def hung_from_centre(skeleton, drift, rest, bone_indices, bone_weights, frames=N
     centre (module notes): a biped's hips, where its two legs part
     (:func:`~skinsynth.pipeline.rig.chain_labels.biped_hips`, the feet found on the input's
     ``frames`` (F, V, 3) with ``up_axis`` up), else :func:`tree_centre`. Only the tree's direction
-    changes: every joint, bone and transform stays (the path from the old root holds fixed joints
-    only, else the skeleton is returned as it is: a sliding joint slides on its parent)."""
+    changes: every joint, bone and transform stays, each joint's kind (fixed, sliding) and drift
+    moving with it along the turned path (a sliding joint's travel is measured afterwards on the tree
+    as it is stored). Where the path crosses a free bone (no joint: it hangs from the root alone) the
+    skeleton is returned as it is."""
     from ..rig.influence import bone_centroids
 
     totals = weight_sums(bone_indices, bone_weights, skeleton.bones)
@@ -305,15 +307,16 @@ def hung_from_centre(skeleton, drift, rest, bone_indices, bone_weights, frames=N
     path = [root]
     while skeleton.parents[path[-1]] >= 0:
         path.append(int(skeleton.parents[path[-1]]))
-    if root == skeleton.root or not np.asarray(skeleton.jointed)[path[:-1]].all():
+    sliding = np.zeros(skeleton.bones, bool) if skeleton.sliding is None else np.asarray(skeleton.sliding, bool)
+    if root == skeleton.root or not (np.asarray(skeleton.jointed) | sliding)[path[:-1]].all():
         return skeleton, drift
-    parents, jointed, joints, bone_drift, moved = rerooted(skeleton.parents, root, skeleton.jointed, skeleton.joints,
-                                                           skeleton.drift, drift)
-    jointed[root] = False
+    parents, jointed, slides, joints, bone_drift, moved = rerooted(skeleton.parents, root, skeleton.jointed, sliding,
+                                                                   skeleton.joints, skeleton.drift, drift)
+    jointed[root] = slides[root] = False
     joints[root] = bone_centroids(rest, bone_indices, bone_weights, skeleton.bones)[root]
     bone_drift[root] = moved[root] = 0.0
-    return Skeleton(parents=parents, jointed=jointed, joints=joints, drift=bone_drift, sliding=skeleton.sliding,
-                    names=skeleton.names), moved
+    return Skeleton(parents=parents, jointed=jointed, joints=joints, drift=bone_drift,
+                    sliding=None if skeleton.sliding is None else slides, names=skeleton.names), moved
 
 
 def given_skeleton(names, parents, positions, free):

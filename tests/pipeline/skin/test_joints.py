@@ -367,3 +367,23 @@ def test_over_the_error_budget_the_drifting_joints_slide_and_the_summary_says_so
         text = assert_ok(cli("fit-skin", tmp_path / "w.npz", "-o", tmp_path / "skin.h5", "--bones", 10, "--seed", 1,
                              "--skeleton")).output
         assert ("skeleton: soft: 2 of its 9 bones slide" in text) == said, text
+
+
+def test_a_tree_hung_across_a_sliding_joint_keeps_the_slide_on_the_same_pair():
+    """hung_from_centre turns the path round across sliding joints too: the walker whose shoulders
+    slide, its tree found from its left arm (``root=``), hung from the pelvis: the true tree, both
+    arms sliding on the chest, every other joint fixed, the joints where the true rig has them."""
+    from skinsynth.pipeline.skin.joints import hung_from_centre
+
+    vertices, faces, rig = walker(rig=True, shoulder_slide=0.1)
+    indices, weights = _top_four(rig.weights)
+    arm = WALKER_PARTS.index("arm_l")
+    found = find_skeleton(rig.rest, faces, indices, weights, rig.rotations, rig.translations, root=arm,
+                          max_sliding_share=0.25)
+    assert found.root == arm and found.sliding.sum() == 2
+    hung, _ = hung_from_centre(found, found.drift, rig.rest, indices, weights, vertices)
+    assert hung.root == 0 and hung.parents.tolist() == rig.parents.tolist()
+    assert np.flatnonzero(hung.sliding).tolist() == [arm, WALKER_PARTS.index("arm_r")]
+    assert hung.jointed.tolist() == [p >= 0 and not s for p, s in zip(rig.parents, hung.sliding)]
+    legs = [WALKER_PARTS.index(p) for p in ("thigh_l", "shin_l", "foot_l", "thigh_r", "shin_r", "foot_r")]
+    assert np.abs(hung.joints[legs] - rig.joints[legs]).max() < 1e-9
