@@ -161,7 +161,7 @@ def _over_budget(found, rmse, free_rmse, max_drift, share, free_to_choose):
     ``max_drift`` by the sliding-share bound: all of them slide (the share lifted: a soft body).
     None held, but room left under the share: the most drifting joints slide, as many as it allows
     (the drift bound lowered to theirs: Zheng's dancer holds every joint within 2 % of the diagonal
-    at 1.58× the free fit's error; its three most drifting joints sliding, 1.37×)."""
+    at 1.58× the free fit's error; its five most drifting joints sliding, 1.27×)."""
     if not free_to_choose or not rmse > JOINT_BUDGET * free_rmse:
         return None
     if (found.jointed & (found.drift > max_drift)).any():
