@@ -70,7 +70,8 @@ MAX_TRANSFORM_STEPS = 100
                    "docs/contact.md.")
 @click.option("--contact-weight", default=None, type=FiniteFloatRange(min=0.0),
               help="--contacts: the extra weight of a near-ground vertex's error (lowered where the near vertices "
-                   "would carry over a fifth of the fit's error). Default 20.")
+                   "would carry over a fifth of the fit's error). Default 20. Refused where no contact fit runs "
+                   "(--no-contacts, --rig, --skeleton).")
 @click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
 @click.option("--fps", default=None, type=FINITE_FLOAT, help="Frame rate, when the input does not carry one (default 24). Every later stage counts "
                    "time in it: build-graph's threshold and held poses, synthesize's blends and segments.")
@@ -109,7 +110,8 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     inputs = list(input_specs) + ([rig] if rig else []) + ([skeleton] if skeleton not in (None, FOUND) else [])
     check_output_path(output, (".h5", ".hdf5"), inputs=inputs)
     bones, tolerance, transform_steps, brought, device = _resolved_options(
-        bones, rig, tolerance, transform_steps, skeleton, root_bone, max_joint_drift, fps, device)
+        bones, rig, tolerance, transform_steps, skeleton, root_bone, max_joint_drift, fps, device, contacts,
+        contact_weight)
     sequence, clips, rig_model = _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig,
                                               skeleton, brought)
     bones, rest_frame, diagonal = fit_rest_pose(input_specs[0], sequence.vertices, clips, rig_model, bones, rest_frame,
@@ -147,7 +149,8 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
                    "has fewer independently moving parts than --bones", err=True)
 
 
-def _resolved_options(bones, rig, tolerance, transform_steps, skeleton, root_bone, max_joint_drift, fps, device):
+def _resolved_options(bones, rig, tolerance, transform_steps, skeleton, root_bone, max_joint_drift, fps, device,
+                      contacts=True, contact_weight=None):
     """Refuse, before reading the clips, options that do not combine or are out of range; read
     ``--skeleton FILE``. Returns (bones, tolerance, transform steps, (Skeleton, the file's
     UsdSkeleton record) of --skeleton FILE or None, the device resolved)."""
@@ -169,6 +172,9 @@ def _resolved_options(bones, rig, tolerance, transform_steps, skeleton, root_bon
         raise OptionError("--root-bone and --max-joint-drift apply only with a bare --skeleton (a skeleton found)")
     if skeleton and rig is not None:
         raise OptionError("--skeleton and --rig do not combine yet: --rig keeps a rig's weights, --skeleton refits them")
+    if contact_weight is not None and (not contacts or rig is not None or skeleton):
+        raise OptionError("--contact-weight weighs the fit toward the ground contacts: it applies with --contacts, not "
+                          "with --no-contacts, --rig or --skeleton")
     brought = None
     if skeleton not in (None, FOUND):
         brought = _read_given_skeleton(skeleton, bones)

@@ -9,7 +9,7 @@ import pytest
 
 from skinsynth.gpu import lbs_reference
 
-from cli_helpers import assert_ok, cli
+from cli_helpers import assert_ok, assert_user_error, cli
 
 
 def read_synthesis(path):
@@ -148,3 +148,15 @@ def test_fit_skin_weighs_the_ground_contacts_by_default_and_says_how_the_playbac
     with h5py.File(tmp_path / "contacts.h5") as f, h5py.File(tmp_path / "text.h5") as g:  # deterministic
         assert np.array_equal(f["skin"]["bone_weights"][()], g["skin"]["bone_weights"][()])
         assert np.array_equal(f["skin"]["rotations"][()], g["skin"]["rotations"][()])
+
+
+def test_a_contact_weight_without_the_contact_fit_is_refused_in_one_line(tmp_path):
+    """--contact-weight weighs the contact fit: with --no-contacts, --rig or --skeleton there is none
+    (it was silently unused), so the command refuses it before reading anything, nothing written."""
+    assert_ok(cli("example", "walker", "--planted", "-o", tmp_path / "w.npz", "-q", "--frames", 12, "--rings", 6,
+                  "--segments", 5))
+    for extra in (("--no-contacts",), ("--skeleton",)):
+        assert_user_error(cli("fit-skin", tmp_path / "w.npz", "-o", tmp_path / "s.h5", "--bones", 4,
+                              "--contact-weight", 5, *extra), "--contact-weight", folder=tmp_path,
+                          keep=["w.npz"])
+    assert_ok(cli("fit-skin", tmp_path / "w.npz", "-o", tmp_path / "s.h5", "--bones", 4, "--contact-weight", 5, "-q"))
