@@ -28,8 +28,8 @@ Nothing comes from a template; everything from the tree, the rest pose, the skin
 3. **Ends**: a biped's arms are, on each side, the leaf farthest from the root along the tree
    that is in no leg and whose branch off the legs' paths rises above the hips (not a bone on a
    thigh, nor a skirt panel hanging from the hips; with the root at the hips the branch's first
-   bone, a spine bone, may be centred lower than the pelvis); its head the highest limb near the centre line (within :data:`CENTRE_BAND` of the
-   width) above the shoulders. A quadruped's head is the central leaf farthest ahead, past the
+   bone, a spine bone, may be centred lower than the pelvis); its head the highest limb near the
+   centre line (within :data:`CENTRE_BAND` of the width) above the shoulders. A quadruped's head is the central leaf farthest ahead, past the
    front legs; its tail the central leaf farthest behind, past the hind legs.
 4. **Chains**: from each end up to the first bone that also carries another end (where the limb
    branches off the body), the bones numbered from the body outwards: ``leg_l_01`` the thigh
@@ -163,15 +163,18 @@ def biped_hips(parents, joints, rest, bone_indices, bone_weights, up_axis=1, fra
     """The bone where a biped's two legs part (its hips, where a retargeter starts a human), or
     None where the tree has not exactly two feet (module notes, 1.: a quadruped, a bar, a cloth).
     Found from the tree as rooted (``parents``): from a root in the trunk (the tree's centre,
-    :func:`skinsynth.pipeline.skin.joints.tree_centre`) both legs go down through the hips."""
+    :func:`.joint_tree.balance_bone`) both legs go down through the hips."""
     parents = np.asarray(parents, dtype=np.int64)
     rest = np.asarray(rest, np.float64)
     centres, _, height, paths, _, reach, grounded, junction = _context(
         parents, np.asarray(joints, np.float64), rest, bone_indices, bone_weights, up_axis, frames)
     feet = _feet(grounded, reach, paths, centres, rest[:, up_axis].min(), height, up_axis, junction)
-    if len(feet) != 2:
-        return None
-    return max(set(paths[feet[0]]) & set(paths[feet[1]]), key=lambda k: len(paths[k]))
+    return _meeting(paths, feet) if len(feet) == 2 else None
+
+
+def _meeting(paths, group):
+    """The deepest bone on every path of the ``group`` of bones: where their limbs branch."""
+    return max(set.intersection(*(set(paths[e]) for e in group)), key=lambda k: len(paths[k]))
 
 
 def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, frames=None, jointed=None):
@@ -271,12 +274,10 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
         chain = paths[end][paths[end].index(top(end, list(ends))):]
         for k, b in enumerate(chain):
             names[b] = f"{stem}_{k + 1:02d}"
-    def meeting(group):  # the deepest bone on every path of the group: where its limbs branch
-        return max(set.intersection(*(set(paths[e]) for e in group)), key=lambda k: len(paths[k]))
-
     arms = [e for e, label in ends.items() if label.startswith("arm")]
-    upper = [parents[top(head, list(ends))]] if head is not None else [meeting(arms)] if len(arms) == 2 else []
+    upper = [parents[top(head, list(ends))]] if head is not None else [_meeting(paths, arms)] if len(arms) == 2 else []
     pairs = [[f for f in feet if ends[f].startswith(end)] for end in ("leg_front", "leg_back")] if quadruped else [feet]
-    stops = [(bone, "spine") for bone in upper] + [(meeting(pair), "spine" if quadruped else "hips") for pair in pairs]
+    stops = [(bone, "spine") for bone in upper] + [(_meeting(paths, pair), "spine" if quadruped else "hips")
+                                                        for pair in pairs]
     names = trunk_names(names, paths, stops)
     return names if len(set(names)) == bones else None  # distinct, as every export needs (never seen otherwise)

@@ -105,19 +105,24 @@ def balance_bone(parents, mass):
     return int(np.argmin(heaviest))
 
 
-def rooted_at(parents, joints, root):
+def rooted_at(parents, joints, root, *also):
     """The same tree (parents (B,), joints (B, 3): each bone's joint with its parent) rooted at
     ``root``: the parents on the way from the old root to it reversed, each joint staying with its
-    pair of bones. Bones outside the tree (−1, not the root) stay outside."""
+    pair of bones, as does each array of ``also`` (B, …: any other value a bone holds for its joint
+    with its parent: fixed or sliding, its drift), returned after the joints. ``root`` keeps its own
+    entries. Bones outside the tree (−1, not the root) stay outside."""
     parents = np.asarray(parents, dtype=np.int64).copy()
     joints = np.asarray(joints, dtype=np.float64).copy()
+    also = [np.array(a, copy=True) for a in also]
     path = [int(root)]
     while parents[path[-1]] >= 0:
         path.append(int(parents[path[-1]]))
     for child, parent in zip(path[:-1][::-1], path[1:][::-1]):  # from the old root down: flip each edge
         parents[parent], joints[parent] = child, joints[child]
+        for a in also:
+            a[parent] = a[child]
     parents[root] = -1
-    return parents, joints
+    return (parents, joints, *also)
 
 
 def in_tree(parents):

@@ -77,25 +77,6 @@ def depth_first(parents):
     return np.array(order, dtype=np.int64)
 
 
-def rerooted(parents, root, *per_bone):
-    """The same tree hung from ``root``: (parents (B,), *per_bone), every edge kept, those on the
-    path from the old root to ``root`` turned round. Each array of ``per_bone`` (B, …) holds a
-    bone's value for its joint with its parent (jointed, joint, drift): along the path it moves to
-    the bone that is now the child; ``root`` keeps its own entry, for the caller to set."""
-    parents = np.asarray(parents, dtype=np.int64).copy()
-    arrays = [np.array(a, copy=True) for a in per_bone]
-    path = [int(root)]
-    while parents[path[-1]] >= 0:
-        path.append(int(parents[path[-1]]))
-    before = [a[path].copy() for a in arrays]
-    parents[path[0]] = -1
-    for k in range(1, len(path)):
-        parents[path[k]] = path[k - 1]
-        for a, old in zip(arrays, before):
-            a[path[k]] = old[k - 1]
-    return (parents, *arrays)
-
-
 def _children(parents):
     """Each bone's children, ascending: [list] (B,)."""
     children = [[] for _ in range(len(parents))]

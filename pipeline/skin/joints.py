@@ -17,8 +17,8 @@ for bones that truly hinge there. The hierarchy
 drift, keeping only pairs whose drift is at most ``max_drift`` (rigid neighbours), rooted at
 the bone that carries the most weight; the fitted skeleton is then hung from the body's centre
 (:func:`hung_from_centre`: a biped's hips, where its legs part, else the tree's centre by skin
-weight; issue 65), which turns the tree round and moves nothing. A group of bones with no rigid neighbour
-path to the root joins the tree at its neighbour all the same: through the pair between it and
+weight, :func:`~skinsynth.pipeline.rig.joint_tree.balance_bone`; issue 65), which turns the tree
+round and moves nothing. A group of bones with no rigid neighbour path to the root joins the tree at its neighbour all the same: through the pair between it and
 the tree that shares the most skin, by a **sliding joint** (a horse's shoulder has no bony joint;
 a skirt panel slides on the hip). A sliding bone keeps a translation of its own, so the fit is as
 free as before, but it hangs from the bone it is attached to, not from the root, and its travel relative
@@ -45,11 +45,18 @@ from ..rig.bone_joints import (JOINT_SPREAD, MAX_JOINT_DRIFT, bone_neighbours, j
                                joint_positions)
 from ..rig.chain_labels import biped_hips
 from ..rig.influence import most_influential_bone, weight_sums
-from ..rig.skeleton import depth_first, rerooted
+from ..rig.joint_tree import balance_bone, rooted_at
+from ..rig.skeleton import depth_first
 
 #: Largest share of the bones (the root aside) that may slide: a rig an animator poses and a
 #: retargeter maps turns at its joints, and issue 44 asks at least 80 % of them fixed (module notes).
 MAX_SLIDING_SHARE = 0.2
+
+
+def sliding_bound(share, bones):
+    """How many of ``bones`` bones may slide at ``share`` (module notes): ⌊share · (B − 1)⌋, the root
+    aside (a hair over, so that 0.2 of 11 bones is 2, not 1.999…)."""
+    return int(np.floor(share * (bones - 1) + 1e-9))
 
 
 @dataclass
@@ -260,7 +267,7 @@ def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translatio
     joints, _ = inside_mesh(joints, np.concatenate([centres[:, None], ends.mean(axis=1, keepdims=True), ends], axis=1),
                             rest, faces)
     drift = joint_drift(rotations, translations, pairs, joints) / diagonal
-    most = None if max_sliding_share is None else int(np.floor(max_sliding_share * (bones - 1) + 1e-9))
+    most = None if max_sliding_share is None else sliding_bound(max_sliding_share, bones)
     parents, jointed, joint_pair, sliding = skeleton_tree(bones, pairs, drift, totals, root, max_drift, contact, most)
     held = jointed | sliding
     points[held] = joints[joint_pair[held]]
@@ -268,41 +275,25 @@ def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translatio
     return Skeleton(parents=parents, jointed=jointed, joints=points, drift=bone_drift, sliding=sliding)
 
 
-def tree_centre(parents, mass):
-    """The bone at the centre of a tree by mass (mass (B,): each bone's Σ weights): the one whose
-    removal leaves no part with more than half the skin, the least such largest part first, then
-    the heavier bone, then the lower id (the tree's weighted centroid, whichever way it is rooted).
-    A standing human's legs are each about a sixth of its skin and its upper body about half, so
-    its centre lies in the trunk; a quadruped's is its trunk, a bar's its middle; a limb's end only
-    where it carries more than half the skin, as no character's does."""
-    parents = np.asarray(parents, dtype=np.int64)
-    mass = np.asarray(mass, dtype=np.float64)
-    order = depth_first(parents)
-    below = mass.copy()  # each bone's subtree, as rooted
-    for b in order[::-1]:
-        if parents[b] >= 0:
-            below[parents[b]] += below[b]
-    largest_child = np.zeros(parents.size)
-    np.maximum.at(largest_child, parents[parents >= 0], below[parents >= 0])
-    largest = np.maximum(largest_child, below[order[0]] - below)
-    return int(np.lexsort((np.arange(parents.size), -mass, largest))[0])
-
-
 def hung_from_centre(skeleton, drift, rest, bone_indices, bone_weights, frames=None, up_axis=1):
     """(skeleton, drift (B,)): the found ``skeleton`` (and its joints' ``drift``) hung from the body's
     centre (module notes): a biped's hips, where its two legs part
     (:func:`~skinsynth.pipeline.rig.chain_labels.biped_hips`, the feet found on the input's
-    ``frames`` (F, V, 3) with ``up_axis`` up), else :func:`tree_centre`. Only the tree's direction
+    ``frames`` (F, V, 3) with ``up_axis`` up), else the tree's centre by skin weight, the bone whose
+    removal leaves no part with more than half the skin
+    (:func:`~skinsynth.pipeline.rig.joint_tree.balance_bone`, where the plants' limbs root the tree
+    too): a standing human's legs are each about a sixth of its skin and its upper body about half,
+    so its centre lies in the trunk; a quadruped's is its trunk; a limb's end only where it carries
+    more than half the skin, as no character's does. Only the tree's direction
     changes: every joint, bone and transform stays, each joint's kind (fixed, sliding) and drift
     moving with it along the turned path (a sliding joint's travel is measured afterwards on the tree
     as it is stored). Where the path crosses a free bone (no joint: it hangs from the root alone) the
     skeleton is returned as it is."""
     from ..rig.influence import bone_centroids
 
-    totals = weight_sums(bone_indices, bone_weights, skeleton.bones)
-    centre = tree_centre(skeleton.parents, totals)
-    seen = rerooted(skeleton.parents, centre, skeleton.joints)
-    hips = biped_hips(seen[0], seen[1], rest, bone_indices, bone_weights, up_axis, frames)
+    centre = balance_bone(skeleton.parents, weight_sums(bone_indices, bone_weights, skeleton.bones))
+    hips = biped_hips(*rooted_at(skeleton.parents, skeleton.joints, centre), rest, bone_indices, bone_weights, up_axis,
+                      frames)
     root = centre if hips is None else int(hips)
     path = [root]
     while skeleton.parents[path[-1]] >= 0:
@@ -310,8 +301,8 @@ def hung_from_centre(skeleton, drift, rest, bone_indices, bone_weights, frames=N
     sliding = np.zeros(skeleton.bones, bool) if skeleton.sliding is None else np.asarray(skeleton.sliding, bool)
     if root == skeleton.root or not (np.asarray(skeleton.jointed) | sliding)[path[:-1]].all():
         return skeleton, drift
-    parents, jointed, slides, joints, bone_drift, moved = rerooted(skeleton.parents, root, skeleton.jointed, sliding,
-                                                                   skeleton.joints, skeleton.drift, drift)
+    parents, joints, jointed, slides, bone_drift, moved = rooted_at(skeleton.parents, skeleton.joints, root,
+                                                                    skeleton.jointed, sliding, skeleton.drift, drift)
     jointed[root] = slides[root] = False
     joints[root] = bone_centroids(rest, bone_indices, bone_weights, skeleton.bones)[root]
     bone_drift[root] = moved[root] = 0.0

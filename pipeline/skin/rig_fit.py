@@ -136,7 +136,8 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
                               max_sliding_share=looser_share)
         again, again_skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights,
                                             free.rotations, loose, faces=faces, max_influences=max_influences,
-                                            iterations=JOINTED_ITERATIONS, progress=progress("soft", JOINTED_ITERATIONS))
+                                            iterations=JOINTED_ITERATIONS,
+                                            progress=progress("soft", JOINTED_ITERATIONS))
         if again.rmse < fitted.rmse:
             fitted, skeleton, found, max_drift = again, again_skeleton, loose, looser_drift
     drift = found.drift
@@ -162,12 +163,14 @@ def _over_budget(found, rmse, free_rmse, max_drift, share, free_to_choose):
     None held, but room left under the share: the most drifting joints slide, as many as it allows
     (the drift bound lowered to theirs: Zheng's dancer holds every joint within 2 % of the diagonal
     at 1.58× the free fit's error; its five most drifting joints sliding, 1.27×)."""
+    from .joints import sliding_bound
+
     if not free_to_choose or not rmse > JOINT_BUDGET * free_rmse:
         return None
     if (found.jointed & (found.drift > max_drift)).any():
         return max_drift, None
     sliding = 0 if found.sliding is None else int(np.count_nonzero(found.sliding))
-    room = int(np.floor(share * (found.bones - 1) + 1e-9)) - sliding
+    room = sliding_bound(share, found.bones) - sliding
     drifts = np.sort(found.drift[found.jointed])[::-1]
     if room <= 0 or drifts.size == 0 or not drifts[0] > 0.0:
         return None
@@ -272,7 +275,7 @@ def _skeleton_summary(record, fit, faces, diagonal):
     the bones' names and the chains named (:func:`~skinsynth.pipeline.rig.chain_labels.named_chains`)."""
     from ..mesh.geometry import points_inside
     from ..rig.chain_labels import named_chains
-    from .joints import MAX_SLIDING_SHARE
+    from .joints import MAX_SLIDING_SHARE, sliding_bound
 
     jointed = np.asarray(record["jointed"])
     sliding = np.asarray(record.get("sliding", np.zeros_like(jointed)), bool)
@@ -301,12 +304,13 @@ def _skeleton_summary(record, fit, faces, diagonal):
             f"{', '.join(map(str, summary['held_fixed']))}: the --max-sliding-share bound)"
             if summary["held_fixed"] else "")
     # more than the sliding-share bound slide: the error budget freed them (a soft body), or the user asked
-    summary["soft"] = len(summary["sliding"]) > int(np.floor(MAX_SLIDING_SHARE * (jointed.size - 1) + 1e-9))
+    summary["soft"] = len(summary["sliding"]) > sliding_bound(MAX_SLIDING_SHARE, jointed.size)
     soft = (f"soft: {len(summary['sliding'])} of its {jointed.size - 1} bones slide (more than a fifth: held as "
             f"joints they cost more than {JOINT_BUDGET:g}× the free fit's error, or --max-sliding-share asked); "
             if summary["soft"] else "")
-    line = (f"skeleton: {soft}root bone {summary['root']}, {summary['joints']} fixed joints and {len(summary['sliding'])} "
-            f"sliding{f' ({slid} of the diagonal)' if slid else ''} ({summary['joints_inside']} inside the mesh, "
+    line = (f"skeleton: {soft}root bone {summary['root']}, {summary['joints']} fixed joints and "
+            f"{len(summary['sliding'])} sliding{f' ({slid} of the diagonal)' if slid else ''} "
+            f"({summary['joints_inside']} inside the mesh, "
             f"largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
             + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else
                "given (--skeleton FILE)" if given else "grown from more bones (--surplus-bones)")

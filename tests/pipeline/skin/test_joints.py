@@ -164,21 +164,22 @@ def test_the_found_tree_is_hung_from_the_walkers_pelvis_and_nothing_moves(true_w
     assert hung_from_centre(mirrored, mirrored.drift, rig.rest @ flip, indices, weights, vertices @ flip)[0].root == 0
 
 
-def test_the_tree_centre_and_a_rerooted_tree_by_hand():
-    """tree_centre: no part left by the centre holds more than half the mass, whatever the rooting;
-    rerooted: the path from the old root turned round, its per-bone values moved along it."""
-    from skinsynth.pipeline.rig.skeleton import rerooted
-    from skinsynth.pipeline.skin.joints import tree_centre
+def test_the_centre_a_tree_is_hung_from_and_its_rerooting_by_hand():
+    """The tree's centre (``joint_tree.balance_bone``): no part left by it holds more than half the
+    mass, whatever the rooting; ``rooted_at`` turns the path from the old root round, each per-bone
+    value (a joint, its kind, its drift) moving with its pair of bones."""
+    from skinsynth.pipeline.rig.joint_tree import balance_bone, rooted_at
 
     chain = np.array([-1, 0, 1, 2, 3])  # a chain of five, rooted at one end
-    assert tree_centre(chain, [1, 1, 1, 1, 1]) == 2
-    assert tree_centre(chain, [3, 1, 1, 1, 1]) == 1  # the heavy end pulls the centre towards it
-    assert tree_centre(chain, [9, 1, 1, 1, 1]) == 0  # heavier than all the rest: the end itself
+    assert balance_bone(chain, [1, 1, 1, 1, 1]) == 2
+    assert balance_bone(chain, [3, 1, 1, 1, 1]) == 1  # the heavy end pulls the centre towards it
+    assert balance_bone(chain, [9, 1, 1, 1, 1]) == 0  # heavier than all the rest: the end itself
     star = np.array([1, -1, 1, 1, 3])  # rooted at 1; bone 4 hangs from 3
+    zero = np.zeros((5, 3))
     for root in range(5):  # the same centre from every rooting of the same tree
-        assert tree_centre(rerooted(chain, root)[0], [1, 3, 1, 1, 1]) == 1
-        assert tree_centre(rerooted(star, root)[0], [1, 1, 1, 1, 1]) == 1
-    parents, values = rerooted(chain, 3, np.array([0, 10, 20, 30, 40]))
+        assert balance_bone(rooted_at(chain, zero, root)[0], [1, 3, 1, 1, 1]) == 1
+        assert balance_bone(rooted_at(star, zero, root)[0], [1, 1, 1, 1, 1]) == 1
+    parents, _, values = rooted_at(chain, zero, 3, np.array([0, 10, 20, 30, 40]))
     assert parents.tolist() == [1, 2, 3, -1, 3] and values.tolist() == [10, 20, 30, 30, 40]
 
 
