@@ -47,8 +47,9 @@ def user_errors(command):
         except KeyboardInterrupt as stop:
             interrupted(stop)
         except Exception as error:
-            if signalled():  # the signal surfaced as another exception: it is what ended the command
-                interrupted(signalled())
+            stop = signalled()
+            if stop is not None:  # the signal surfaced as another exception: it is what ended the command
+                interrupted(stop)
             if isinstance(error, ClipError):
                 fail(f"{kwargs['path']}: {error}" if kwargs.get("path") else str(error))
             if isinstance(error, (FormatError, OptionError, DeviceError)):

@@ -86,8 +86,8 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
         fail("--event and --pivot each move at their own pace: they take neither each other nor --planted or --tempo")
     if event:
         frames = int(round(WALKER_EVENT_SECONDS * fps))
-    per_pivot = int(round(PIVOT_SECONDS * fps))
     if pivot:
+        per_pivot = int(round(PIVOT_SECONDS * fps))
         if per_pivot < 12:
             fail(f"--pivot needs at least 12 frames a pivot ({PIVOT_SECONDS:g} s): --fps {fps:g} gives {per_pivot}")
         frames = cycles * per_pivot

@@ -147,8 +147,8 @@ class Preview:
         self.preset = preset
         shown = [p.vertices[:count] for p in panels]
         self.follow = framing == "follow" or (framing == "auto" and any(travels(v[self.frames]) for v in shown))
-        every = np.concatenate([v[self.frames].reshape(-1, 3) for v in shown])
-        lower, upper = every.min(axis=0), every.max(axis=0)
+        boxes = [(v[self.frames].reshape(-1, 3).min(axis=0), v[self.frames].reshape(-1, 3).max(axis=0)) for v in shown]
+        lower, upper = np.min([low for low, _ in boxes], axis=0), np.max([high for _, high in boxes], axis=0)
         self.level = float(lower[up_axis])
         width, height = size
         if self.follow:
@@ -159,29 +159,31 @@ class Preview:
             self.cell = max(float(np.ptp(v[self.frames], axis=1).max()) for v in shown)  # a character's size
             self.camera = None
         else:
-            self.cameras = self._fixed_cameras(shown, lower, upper)
+            self.cameras = self._fixed_cameras(boxes, lower, upper)
 
-    def _fixed_cameras(self, shown, lower, upper):
+    def _fixed_cameras(self, boxes, lower, upper):
         """[(camera, ground layer)] per panel, framing: one camera for all, framing every panel's whole
         animation, where their characters share a place (a prediction beside its truth, animations of
         one synthesis); where they stand apart (a crowd laid out on a grid: their boxes do not
         overlap), one camera per panel, as far away for every panel (the largest box) and centred on
         its own character, so a crowd of 16 shows 16 characters each its panel's height, not 16
-        panels of the whole grid (dancers 20 pixels tall)."""
+        panels of the whole grid (dancers 20 pixels tall). boxes: each panel's (lowest, highest)
+        corner over the frames shown; lower, upper: all of theirs."""
         width, height = self.size
-        boxes = [(v[self.frames].reshape(-1, 3).min(axis=0), v[self.frames].reshape(-1, 3).max(axis=0)) for v in shown]
         apart = len(boxes) > 1 and not any(np.all(boxes[i][0] <= boxes[j][1]) and np.all(boxes[j][0] <= boxes[i][1])
                                            for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
         if not apart:
             camera = frame_bounds(lower, upper, self.preset, up_axis=self.up_axis, aspect=width / height)
             ground = ground_layer(camera, width, height, self.level, self.up_axis, float(np.max(upper - lower)))
-            return [(camera, ground)] * len(shown)
+            return [(camera, ground)] * len(boxes)
         half = np.max([high - low for low, high in boxes], axis=0) / 2.0
         cameras = []
         for low, high in boxes:
             centre = (low + high) / 2.0
-            camera = frame_bounds(centre - half, centre + half, self.preset, up_axis=self.up_axis, aspect=width / height)
-            cameras.append((camera, ground_layer(camera, width, height, self.level, self.up_axis, float(2.0 * half.max()))))
+            camera = frame_bounds(centre - half, centre + half, self.preset, up_axis=self.up_axis,
+                                  aspect=width / height)
+            cameras.append((camera, ground_layer(camera, width, height, self.level, self.up_axis,
+                                                 float(2.0 * half.max()))))
         return cameras
 
     def view(self, panel, m):
