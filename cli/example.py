@@ -7,22 +7,30 @@ from skinsynth.formats.output_file import check_output_path
 from .options import FiniteFloatRange
 from .common import fail, report, summary_options, user_errors
 
-EXAMPLES = ("bending-bar", "walker")
+EXAMPLES = ("bending-bar", "walker", "humanoid", "quadruped")
+#: The generated characters with known skeletons (pipeline/inputs/characters.py).
+CHARACTER_EXAMPLES = ("humanoid", "quadruped")
+MOTIONS = ("walk", "raise", "crouch", "jump", "graze")
 
 #: Each example's defaults for the options that default per example.
 DEFAULTS = {"bending-bar": {"frames": 60, "rings": 40, "segments": 16, "cycles": 1},
-            "walker": {"frames": 48, "rings": 24, "segments": 10, "cycles": 2}}
+            "walker": {"frames": 48, "rings": 24, "segments": 10, "cycles": 2},
+            "humanoid": {"frames": 48, "rings": 60, "segments": 10, "cycles": 2},
+            "quadruped": {"frames": 48, "rings": 60, "segments": 10, "cycles": 2}}
 
 
 @click.command("example")
 @click.argument("name", type=click.Choice(EXAMPLES))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Sequence file to write (.npz).")
-@click.option("--frames", type=int, show_default="bending-bar 60, walker 48", help="Number of frames.")
-@click.option("--rings", type=int, show_default="bending-bar 40, walker 24",
-              help="Vertex rings along the bar (walker: along each leg; its other tubes as many per unit length).")
-@click.option("--segments", type=int, show_default="bending-bar 16, walker 10", help="Vertices around each ring.")
-@click.option("--cycles", type=int, show_default="bending-bar 1, walker 2",
-              help="Bend-and-twist cycles (walker: gait cycles) over the frames.")
+@click.option("--frames", type=int, show_default="bending-bar 60, walker 48, humanoid and quadruped 48 a motion",
+              help="Number of frames (humanoid, quadruped: of each motion).")
+@click.option("--rings", type=int, show_default="bending-bar 40, walker 24, humanoid and quadruped 60",
+              help="Vertex rings along the bar (walker: along each leg, its other tubes as many per unit length; "
+                   "humanoid, quadruped: per unit length of every bone's tube).")
+@click.option("--segments", type=int, show_default="bending-bar 16, others 10", help="Vertices around each ring.")
+@click.option("--cycles", type=int, show_default="bending-bar 1, others 2",
+              help="Bend-and-twist cycles (walker: gait cycles; humanoid, quadruped: gait cycles of a walk) over the "
+                   "frames.")
 @click.option("--fps", default=24.0, show_default=True, type=FiniteFloatRange(min=0.0, min_open=True, max=1e6), help="Frame rate stored with the sequence.")
 @click.option("--planted", is_flag=True,
               help="walker: walk forward with truly planted feet (legs by inverse kinematics) instead of in place.")
@@ -34,9 +42,15 @@ DEFAULTS = {"bending-bar": {"frames": 60, "rings": 40, "segments": 16, "cycles":
 @click.option("--pivot", is_flag=True,
               help="walker: stand and turn 180° on the ball of the left foot, --cycles times (default 4: two whole "
                    "turns), 2 s each (--frames follows from --fps).")
+@click.option("--limbs", default=1.0, show_default=True, type=FiniteFloatRange(min=0.5, max=2.0),
+              help="humanoid, quadruped: the legs' and arms' length, times the default's (other proportions).")
+@click.option("--motion", "motions", multiple=True, type=click.Choice(MOTIONS),
+              help="humanoid (walk, raise, crouch, jump), quadruped (walk, graze): the motions, in order "
+                   "(repeatable).  [default: all of the character's]")
 @summary_options
 @user_errors
-def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, event, pivot, quiet, as_json):
+def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, event, pivot, limbs, motions, quiet,
+            as_json):
     """Write a built-in example mesh sequence (no download needed).
 
     bending-bar: a capped cylinder that bends into an arc and twists over one cycle, the kind of
@@ -58,6 +72,13 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
     while the right foot swings round, the left sole flat on the floor and its ball still; twice
     per whole turn (192 frames at 24 fps by default, a loop).
 
+    humanoid, quadruped: characters with known skeletons, to check a --skeleton fit against (docs/
+    skeleton.md). One tube per bone, skinned as real skin is at a joint (half and half), posed by
+    their own rig: the humanoid (17 bones, 1.75 tall in an A pose, Y up, facing +z, its left at +x)
+    walks in place, raises its arms over its head, squats and jumps (the feet leave the ground);
+    the quadruped (18 bones, its head at +z) walks and grazes. --frames frames each motion;
+    --limbs lengthens or shortens the legs and arms.
+
     \b
     Example:
       skinsynth example bending-bar -o bar.npz --frames 120
@@ -66,9 +87,12 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
       skinsynth example walker -o walking.npz --planted
       skinsynth example walker -o pivot.npz --pivot
       skinsynth fit-skin walker.npz -o walker.skin.h5 --bones 12
+      skinsynth example humanoid -o humanoid.npz --limbs 1.2
+      skinsynth fit-skin humanoid.npz -o humanoid.skin.h5 --bones 17 --skeleton
     """
     from skinsynth.formats.meshseq import write_array_sequence
     from skinsynth.pipeline.inputs.examples import WALKER_EVENT_SECONDS, bending_bar, example_memory, walker, walker_event
+    from skinsynth.pipeline.inputs.characters import CHARACTERS, character, character_memory
     from skinsynth.pipeline.inputs.pivot_walker import PIVOT_SECONDS, pivot_walker
     from skinsynth.pipeline.runtime.resources import check_memory
 
@@ -81,7 +105,12 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
     if frames < 2 or rings < 2 or segments < 3 or cycles < 1 or not fps > 0:
         fail("--frames and --rings must be at least 2, --segments at least 3, --cycles at least 1, --fps positive")
     if (planted or tempo or event or pivot) and name != "walker":
-        fail("--planted, --tempo, --event and --pivot are the walker's: the bending bar has no feet")
+        fail(f"--planted, --tempo, --event and --pivot are the walker's, not the {name}'s")
+    if name not in CHARACTER_EXAMPLES and (motions or limbs != 1.0):
+        fail("--limbs and --motion are the humanoid's and the quadruped's")
+    unknown = [m for m in motions if name in CHARACTER_EXAMPLES and m not in CHARACTERS[name][1]]
+    if unknown:
+        fail(f"the {name} has no motion {unknown[0]!r}: its motions are {', '.join(CHARACTERS[name][1])}")
     if sum((event, pivot, bool(planted or tempo))) > 1:
         fail("--event and --pivot each move at their own pace: they take neither each other nor --planted or --tempo")
     if event:
@@ -91,8 +120,14 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
         if per_pivot < 12:
             fail(f"--pivot needs at least 12 frames a pivot ({PIVOT_SECONDS:g} s): --fps {fps:g} gives {per_pivot}")
         frames = cycles * per_pivot
-    check_memory(*example_memory(name, frames, rings, segments))
-    if event:
+    if name in CHARACTER_EXAMPLES:
+        check_memory(*character_memory(name, len(motions or CHARACTERS[name][1]) * frames, limbs, rings, segments))
+    else:
+        check_memory(*example_memory(name, frames, rings, segments))
+    if name in CHARACTER_EXAMPLES:
+        vertices, faces, _ = character(name, list(motions) or None, frames, cycles, limbs, rings, segments)
+        frames = len(vertices)
+    elif event:
         vertices, faces = walker_event(fps=fps, rings=rings, segments=segments)
     elif pivot:
         vertices, faces, _ = pivot_walker(pivots=cycles, frames_per_pivot=per_pivot, rings=rings, segments=segments)
@@ -107,6 +142,9 @@ def example(name, output, frames, rings, segments, cycles, fps, planted, tempo, 
         summary["planted"] = planted
         summary["event"] = event
         summary["pivot"] = pivot
+    if name in CHARACTER_EXAMPLES:
+        summary["motions"] = list(motions) or list(CHARACTERS[name][1])
+        summary["limbs"] = limbs
     kind = ", planted" if planted else ", with an event" if event else ", pivoting" if pivot else ""
     report(summary, [f"wrote {output}: {name}{kind}, "
                      f"{frames} frames, "

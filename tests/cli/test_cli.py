@@ -304,6 +304,10 @@ def test_example_bad_options(out):
     assert_user_error(cli("example", "bending-bar", "-o", out / "bar.npz", "--frames", 1), "--frames", folder=out)
     assert_user_error(cli("example", "bending-bar", "-o", out / "bar.npz", "--event"), "--event", folder=out)
     assert_user_error(cli("example", "walker", "-o", out / "w.npz", "--event", "--planted"), "--event", folder=out)
+    assert_user_error(cli("example", "walker", "-o", out / "w.npz", "--limbs", 1.2), "--limbs", folder=out)
+    assert_user_error(cli("example", "quadruped", "-o", out / "q.npz", "--motion", "jump"), "jump", "walk, graze",
+                      folder=out)
+    assert_user_error(cli("example", "humanoid", "-o", out / "h.npz", "--planted"), "humanoid", folder=out)
 
 
 def test_example_walker_with_an_event(out):
@@ -317,6 +321,22 @@ def test_example_walker_with_an_event(out):
         vertices = f["vertices"]
     assert vertices.shape[0] == 114 and np.allclose(vertices, walker_event(fps=12.0)[0], atol=1e-6)
     assert np.ptp(vertices[:24], axis=0).max() == 0.0 and np.ptp(vertices[24:48], axis=0).max() > 0.1
+
+
+def test_example_characters_with_known_skeletons(out):
+    """Issue 65's truth as a user makes it: the humanoid's motions in the order asked, --frames a
+    motion, --limbs its proportions; the sequence is the generator's."""
+    from skinsynth.pipeline.inputs.characters import character
+
+    done = assert_ok(cli("example", "humanoid", "-o", out / "h.npz", "--motion", "crouch", "--motion", "walk",
+                         "--frames", 10, "--limbs", 1.25, "--json"))
+    summary = json.loads(done.stdout)
+    assert summary["frames"] == 20 and summary["motions"] == ["crouch", "walk"] and summary["limbs"] == 1.25
+    with np.load(out / "h.npz") as f:
+        vertices = f["vertices"]
+    assert np.allclose(vertices, character("humanoid", ["crouch", "walk"], 10, limbs=1.25)[0], atol=1e-6)
+    done = assert_ok(cli("example", "quadruped", "-o", out / "q.npz", "--frames", 6, "--json"))
+    assert json.loads(done.stdout)["motions"] == ["walk", "graze"] and json.loads(done.stdout)["frames"] == 12
 
 
 # ---------------------------------------------------------------- bad input: inspect and export
