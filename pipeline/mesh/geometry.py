@@ -57,6 +57,16 @@ def largest_acceleration(vertices, starts=None, block=32):
                 for a, b in zip(starts[:-1], starts[1:]) for m in range(a, b - 2, block)), default=np.nan)
 
 
+def vertex_areas(vertices, faces):
+    """(V,): each vertex's share of the surface, a third of the area of every triangle it is a corner
+    of (vertices (V, 3), faces (T, 3)): how much skin a vertex stands for, whatever the tessellation."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    corners = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    return np.bincount(faces.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(vertices))
+
+
 def mesh_edges(faces):
     """Unique undirected edges (E, 2), lower index first, in order, of triangles faces (T, 3). Each
     edge as one integer (lower · count + higher: the same order) for a 1-D unique, 4–5× faster

@@ -3,7 +3,8 @@
 A jointed skin (``fit-skin --skeleton``) brings its own tree. A free fit has none, so one is found
 as ``fit-skin --skeleton`` finds it (:mod:`.bone_joints`): the bones that meet (share skin or a mesh
 edge), each pair's joint (the point the two bones carry most nearly to the same place over the
-input frames), and the spanning tree of the pairs whose joints drift least (:func:`free_fit_tree`).
+input frames), and the spanning tree of the pairs whose joints drift least, those that barely share
+skin last (:func:`free_fit_tree`, :func:`.bone_joints.spanning_cost`).
 Bones no pair joins to the tree (a prop) stay out of it.
 
 **The body** is where the tree balances: the bone whose removal leaves no part heavier than half
@@ -46,17 +47,17 @@ def skin_joint_tree(rest, faces, bone_indices, bone_weights, rotations, translat
     (F, B, 3, 3) and translations (F, B, 3)): a jointed skin's own (``skeleton``: its (parents,
     joints)), or a free fit's (:func:`free_fit_tree`), rooted where it balances (:func:`balance_bone`)."""
     from ..mesh.geometry import bounding_box_diagonal
-    from .bone_joints import JOINT_SPREAD, bone_neighbours, joint_positions
+    from .bone_joints import JOINT_SPREAD, bone_neighbours, joint_positions, spanning_cost
 
     rest = np.asarray(rest, dtype=np.float64)
     bones = np.asarray(rotations).shape[1]
     pairs, centres, contact = bone_neighbours(rest, faces, bone_indices, bone_weights, bones)
+    mass = weight_sums(bone_indices, bone_weights, bones)
     if skeleton is None:
         points, drift = joint_positions(rotations, translations, pairs, centres, JOINT_SPREAD * bounding_box_diagonal(rest))
-        parents, joints = free_fit_tree(pairs, points, drift, bones)
+        parents, joints = free_fit_tree(pairs, points, spanning_cost(pairs, drift, contact, mass), bones)
     else:
         parents, joints = (np.asarray(a) for a in skeleton)
-    mass = weight_sums(bone_indices, bone_weights, bones)
     parents, joints = rooted_at(parents, joints, balance_bone(parents, mass))
     return JointTree(parents=parents, joints=joints, pairs=pairs, contact=contact, mass=mass)
 
@@ -64,7 +65,8 @@ def skin_joint_tree(rest, faces, bone_indices, bone_weights, rotations, translat
 def free_fit_tree(pairs, points, drift, bones):
     """(parents (B,) with −1 at the root and at bones left out, joints (B, 3) each bone's joint with
     its parent) of a free fit's ``bones``: the spanning tree of the bones that meet (pairs (N, 2),
-    their joints, points (N, 3): :mod:`.bone_joints`) whose joints drift least (drift (N,)), rooted
+    their joints, points (N, 3): :mod:`.bone_joints`) whose joints drift least (drift (N,), or any
+    cost: :func:`.bone_joints.spanning_cost`), rooted
     at its largest part's lowest bone (:func:`rooted_at` moves it). A bone no pair reaches has
     parent −1 besides the root."""
     from scipy.sparse import coo_matrix

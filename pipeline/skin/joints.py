@@ -14,7 +14,10 @@ before its drift is measured. So every joint lies in the body, as a rig's joints
 A joint's **drift** is its RMS distance apart over the frames, ‖(R_j − R_k) p + t_j − t_k‖: zero
 for bones that truly hinge there. The hierarchy
 (:func:`skeleton_tree`) is the minimum spanning forest of the neighbour graph weighted by
-drift, keeping only pairs whose drift is at most ``max_drift`` (rigid neighbours), rooted at
+drift, keeping only pairs whose drift is at most ``max_drift`` (rigid neighbours), the pairs that
+barely share skin taken only where the others leave a part unjoined
+(:func:`~skinsynth.pipeline.rig.bone_joints.spanning_cost`: two bones that brush can hold a
+joint by chance, as two thighs swinging about one hip axis do), rooted at
 the bone that carries the most weight; the fitted skeleton is then hung from the body's centre
 (:func:`hung_from_centre`: a biped's hips, where its legs part, else the tree's centre by skin
 weight, :func:`~skinsynth.pipeline.rig.joint_tree.balance_bone`; issue 65), which turns the tree
@@ -42,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..rig.bone_joints import (JOINT_SPREAD, MAX_JOINT_DRIFT, bone_neighbours, joint_drift,  # noqa: F401 (re-exported)
-                               joint_positions)
+                               joint_positions, spanning_cost)
 from ..rig.chain_labels import biped_hips
 from ..rig.influence import most_influential_bone, weight_sums
 from ..rig.joint_tree import balance_bone, rooted_at
@@ -172,13 +175,16 @@ def _under_skin(points, vertices, faces):
     return under.reshape(len(points), -1, 3)
 
 
-def skeleton_tree(bones, pairs, drift, weight_totals, root=None, max_drift=np.inf, contact=None, max_sliding=None):
+def skeleton_tree(bones, pairs, drift, weight_totals, root=None, max_drift=np.inf, contact=None, max_sliding=None,
+                  cost=None):
     """The hierarchy: (parents (B,) int64, jointed (B,) bool, joint_pair (B,) int64, sliding (B,) bool).
 
     pairs (P, 2), drift (P,): the neighbour pairs and their joints' drift; weight_totals (B,):
     each bone's Σ weights (the root, unless ``root`` is given, is the largest). Pairs with drift
-    above ``max_drift`` are not fixed joints: the minimum spanning forest of the others makes
-    groups of bones held by fixed joints (ties between equal drifts go to the lower pair index;
+    above ``max_drift`` are not fixed joints: the minimum spanning forest of the others, taken in
+    the order of ``cost`` (P,) (default: their drift; :func:`find_skeleton` puts the pairs that
+    barely share skin last, :func:`~skinsynth.pipeline.rig.bone_joints.spanning_cost`), makes
+    groups of bones held by fixed joints (ties between equal costs go to the lower pair index;
     scipy's spanning tree is deterministic). The root's group is the tree's trunk; every other
     group joins the tree through its pair with a bone already in it that shares the most skin
     (``contact`` (P,), :func:`bone_neighbours`; the least drift on a tie, and alone without
@@ -199,8 +205,9 @@ def skeleton_tree(bones, pairs, drift, weight_totals, root=None, max_drift=np.in
     drift = np.asarray(drift, dtype=np.float64)
     totals = np.asarray(weight_totals, dtype=np.float64)
     rigid = np.flatnonzero(drift <= max_drift)
+    cost = drift if cost is None else np.asarray(cost, dtype=np.float64)
     # +1 keeps zero-drift joints as edges (scipy reads a 0 as no edge); the order is unchanged.
-    graph = coo_matrix((drift[rigid] / max(float(drift.max(initial=0.0)), 1e-300) + 1.0,
+    graph = coo_matrix((cost[rigid] / max(float(cost.max(initial=0.0)), 1e-300) + 1.0,
                         (pairs[rigid, 0], pairs[rigid, 1])), shape=(bones, bones)).tocsr()
     forest = minimum_spanning_tree(graph)
     forest = forest + forest.T
@@ -268,7 +275,8 @@ def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translatio
                             rest, faces)
     drift = joint_drift(rotations, translations, pairs, joints) / diagonal
     most = None if max_sliding_share is None else sliding_bound(max_sliding_share, bones)
-    parents, jointed, joint_pair, sliding = skeleton_tree(bones, pairs, drift, totals, root, max_drift, contact, most)
+    parents, jointed, joint_pair, sliding = skeleton_tree(bones, pairs, drift, totals, root, max_drift, contact, most,
+                                                          spanning_cost(pairs, drift, contact, totals))
     held = jointed | sliding
     points[held] = joints[joint_pair[held]]
     bone_drift = np.where(held, drift[np.maximum(joint_pair, 0)], 0.0)

@@ -109,7 +109,7 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
                                                progress=progress)
         skeleton, drift = hung_from_centre(skeleton, skeleton.drift, fitted.rest_vertices, fitted.bone_indices,
                                            fitted.bone_weights, vertices, "XYZ".index(up_axis))
-        return fitted, _skeleton_record(skeleton, drift, float("nan"), max_drift, fitted, vertices, up_axis)
+        return fitted, _skeleton_record(skeleton, drift, float("nan"), max_drift, fitted, vertices, up_axis, faces)
     free = fit_skin(vertices, bones, max_influences=max_influences, iterations=iterations, rest_frame=rest_frame,
                     seed=seed, tolerance=tolerance, patience=patience, joint_steps=joint_steps, device=device,
                     progress=progress("fit", iterations))
@@ -144,7 +144,7 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     if root_bone is None:  # fitted from the heaviest bone, hung from the body's centre (issue 65)
         skeleton, drift = hung_from_centre(skeleton, drift, fitted.rest_vertices, fitted.bone_indices,
                                            fitted.bone_weights, vertices, "XYZ".index(up_axis))
-    return fitted, _skeleton_record(skeleton, drift, free.rmse, max_drift, fitted, vertices, up_axis)
+    return fitted, _skeleton_record(skeleton, drift, free.rmse, max_drift, fitted, vertices, up_axis, faces)
 
 
 #: The error a jointed rig may cost, over the free fit's (:func:`_over_budget`): past it, joints held
@@ -177,20 +177,21 @@ def _over_budget(found, rmse, free_rmse, max_drift, share, free_to_choose):
     return float(drifts[min(room, drifts.size) - 1]) * (1.0 - 1e-9), share
 
 
-def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted, vertices=None, up_axis="Y"):
+def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted, vertices=None, up_axis="Y", faces=None):
     """What /skin/skeleton stores of a fitted :class:`.joints.Skeleton` (docs/format.md); with
     sliding bones, each one's travel over the ``fitted`` frames (its slide's least and largest
     value per axis of its parent's frame, :func:`~skinsynth.pipeline.rig.skeleton.slide_offsets`):
     the bounds every later pose keeps it within. The bones' names: the skeleton's own (a given
-    one's), else, given the examples ``vertices`` (F, V, 3) and the ``up_axis``, its chains named
-    (:func:`~skinsynth.pipeline.rig.chain_labels.chain_labels`; none where it finds no legs)."""
+    one's), else, given the examples ``vertices`` (F, V, 3), the ``up_axis`` and the mesh's ``faces``,
+    its chains named (:func:`~skinsynth.pipeline.rig.chain_labels.chain_labels`; none where it finds no legs)."""
     from ..rig.chain_labels import chain_labels
 
     record = {"parents": skeleton.parents, "jointed": skeleton.jointed, "joints": skeleton.joints, "drift": drift,
               "root": skeleton.root, "free_rmse": free_rmse, "max_drift": max_drift, "names": skeleton.names}
     if skeleton.names is None and vertices is not None:
         record["names"] = chain_labels(skeleton.parents, skeleton.joints, fitted.rest_vertices, fitted.bone_indices,
-                                       fitted.bone_weights, "XYZ".index(up_axis), vertices, jointed=skeleton.jointed)
+                                       fitted.bone_weights, "XYZ".index(up_axis), vertices, jointed=skeleton.jointed,
+                                       faces=faces)
     if skeleton.sliding is not None and skeleton.sliding.any():
         from ..rig.skeleton import slide_offsets
 
