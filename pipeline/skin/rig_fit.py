@@ -235,7 +235,7 @@ def skin_summary(output, fit, frame_rmse, clips, diagonal, fps, scene, seconds, 
         lines.append("clips: " + ", ".join(f"{c['name']} ({c['frames']} frames, RMSE/diag {c['rmse_over_diagonal']:.2e})"
                                            for c in summary["clips"]))
     if skeleton is not None:
-        summary["skeleton"], line = _skeleton_summary(skeleton, fit, faces, diagonal)
+        summary["skeleton"], line = _skeleton_summary(skeleton, fit, faces, diagonal, "XYZ".index(scene.up_axis))
         lines.append(line)
     if feet is not None:
         summary["contacts"], line = _contacts_summary(feet, near, contact_weight)
@@ -270,7 +270,16 @@ def _contacts_summary(feet, near, weight):
     return out, line
 
 
-def _skeleton_summary(record, fit, faces, diagonal):
+#: The travel a sliding joint may have, as a share of the character's height (the rest pose's extent
+#: along the up axis): a shoulder blade slides about 10 cm on a 1.75 m human (6 %), a horse's
+#: shoulder on its trunk about as much. A bone that slides farther on its parent is not on a joint:
+#: skin that moves on its own (a skirt panel, a belly, a simulated body), or a bone the fit spread
+#: over two parts (the generated humanoid fitted with exactly its 17 bones, seed 0: a bone holding
+#: half a shin and a foot slid 53 % of the height); fit-skin names it "loose".
+SLIDE_LIMIT = 0.1
+
+
+def _skeleton_summary(record, fit, faces, diagonal, up_axis=1):
     """--json's "skeleton" and its text line: the joints (how many inside the mesh), the sliding
     bones with their travel, the free bones, the largest drift, the error against the free fit's,
     the bones' names and the chains named (:func:`~skinsynth.pipeline.rig.chain_labels.named_chains`)."""
@@ -283,9 +292,11 @@ def _skeleton_summary(record, fit, faces, diagonal):
     inside = points_inside(np.asarray(record["joints"])[jointed | sliding], fit.rest_vertices, faces)
     free = int((~jointed & ~sliding).sum()) - 1
     travel = np.asarray(record.get("slide_high", 0.0)) - np.asarray(record.get("slide_low", 0.0))
+    height = float(np.ptp(fit.rest_vertices[:, up_axis])) or 1.0
     summary = {"root": int(record["root"]), "joints": int(jointed.sum()), "free_bones": free,
                "sliding": [{"bone": int(b), "parent": int(record["parents"][b]),
-                            "travel_over_diagonal": float(np.linalg.norm(travel[b]) / diagonal)}
+                            "travel_over_diagonal": float(np.linalg.norm(travel[b]) / diagonal),
+                            "travel_over_height": float(np.linalg.norm(travel[b]) / height)}
                            for b in np.flatnonzero(sliding)],
                "parents": [int(p) for p in record["parents"]],
                "joints_inside": int(inside.sum()), "largest_drift": float(np.max(record["drift"], initial=0.0)),
@@ -298,7 +309,15 @@ def _skeleton_summary(record, fit, faces, diagonal):
     ratio = f"{summary['rmse_over_free']:.2f}×" if summary["rmse_over_free"] is not None else "—"
     free_error = f" ({record['free_rmse'] / diagonal:.2e} of the diagonal)" if summary["free_rmse"] else ""
     given = np.isnan(record["max_drift"])  # --skeleton FILE; a found one without free fit: --surplus-bones
-    slid = ", ".join(f"{s['bone']} on {s['parent']} ({s['travel_over_diagonal']:.1%})" for s in summary["sliding"])
+    slid = ", ".join(f"{s['bone']} on {s['parent']} ({s['travel_over_height']:.1%})" for s in summary["sliding"])
+    summary["loose"] = [s["bone"] for s in summary["sliding"] if s["travel_over_height"] > SLIDE_LIMIT]
+    parents = np.asarray(record["parents"])
+    carrying = [b for b in summary["loose"] if (parents == b).any()]
+    loose = (f"; loose: {', '.join(map(str, summary['loose']))} slide past {SLIDE_LIMIT:.0%} of the height on their "
+             f"parents, no joint: skin moving on its own (cloth, soft tissue) or a bone the fit spread over two "
+             f"parts (other --bones or --seed, or --surplus-bones, may joint it)"
+             + (f"; {', '.join(map(str, carrying))} carr{'ies' if len(carrying) == 1 else 'y'} bones below"
+                if carrying else "") if summary["loose"] else "")
     chains = named_chains(summary["names"])
     summary["chains"] = chains
     held = (f"; {len(summary['held_fixed'])} joint(s) drifting past --max-joint-drift held fixed (bones "
@@ -310,11 +329,11 @@ def _skeleton_summary(record, fit, faces, diagonal):
             f"joints they cost more than {JOINT_BUDGET:g}× the free fit's error, or --max-sliding-share asked); "
             if summary["soft"] else "")
     line = (f"skeleton: {soft}root bone {summary['root']}, {summary['joints']} fixed joints and "
-            f"{len(summary['sliding'])} sliding{f' ({slid} of the diagonal)' if slid else ''} "
+            f"{len(summary['sliding'])} sliding{f' ({slid} of the height)' if slid else ''} "
             f"({summary['joints_inside']} inside the mesh, "
             f"largest drift {summary['largest_drift']:.2%} of the diagonal), {free} free bone(s) under the root; "
             + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else
                "given (--skeleton FILE)" if given else "grown from more bones (--surplus-bones)")
-            + held + (f"; chains {', '.join(f'{c} ({n})' for c, n in chains.items())}" if chains
+            + held + loose + (f"; chains {', '.join(f'{c} ({n})' for c, n in chains.items())}" if chains
                       else "; no chains named (no character's legs found)"))
     return summary, line

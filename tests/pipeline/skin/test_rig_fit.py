@@ -63,3 +63,33 @@ class _Rig:
     def __init__(self, fit):
         self.rest_vertices, self.bone_indices, self.bone_weights = fit.rest_vertices, fit.bone_indices, fit.bone_weights
         self.bones = fit.rotations.shape[1]
+
+
+def test_a_slide_past_a_tenth_of_the_height_is_named_loose_in_the_summary_and_its_line():
+    """Issue 65: a sliding joint is a joint that slides a little (``SLIDE_LIMIT``, a tenth of the
+    height); the summary gives each slide's travel over the height and names the bones that slide
+    farther "loose", those carrying bones below them too."""
+    from types import SimpleNamespace
+
+    import trimesh
+
+    from skinsynth.pipeline.skin.rig_fit import SLIDE_LIMIT, _skeleton_summary
+
+    box = trimesh.creation.box(extents=(0.5, 2.0, 0.5))  # 2 tall along y, 0.5 along z
+    fit = SimpleNamespace(rest_vertices=np.asarray(box.vertices), rmse=1.0)
+    low = np.zeros((4, 3))
+    high = np.zeros((4, 3))
+    high[2, 1] = 0.5 * SLIDE_LIMIT * 2.0  # half the limit along y
+    high[3, 2] = 3.0 * SLIDE_LIMIT * 2.0  # three times it along z
+    record = {"parents": np.array([-1, 0, 1, 1]), "jointed": np.array([False, True, False, False]),
+              "joints": np.zeros((4, 3)), "drift": np.zeros(4), "root": 0, "free_rmse": 1.0, "max_drift": 0.02,
+              "sliding": np.array([False, False, True, True]), "slide_low": low, "slide_high": high}
+    summary, line = _skeleton_summary(record, fit, np.asarray(box.faces), diagonal=1.0)
+    assert [s["travel_over_height"] for s in summary["sliding"]] == [0.5 * SLIDE_LIMIT, 3.0 * SLIDE_LIMIT]
+    assert summary["loose"] == [3] and "loose: 3 slide past 10% of the height" in line
+    assert "carr" not in line
+    record["parents"] = np.array([-1, 0, 3, 1])  # the loose bone carries another: said so
+    assert "3 carries bones below" in _skeleton_summary(record, fit, np.asarray(box.faces), diagonal=1.0)[1]
+    # Z up: the height is along z
+    summary, _ = _skeleton_summary(record, fit, np.asarray(box.faces), diagonal=1.0, up_axis=2)
+    assert summary["sliding"][1]["travel_over_height"] == 3.0 * SLIDE_LIMIT * 2.0 / 0.5
