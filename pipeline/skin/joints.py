@@ -48,7 +48,7 @@ from ..rig.bone_joints import (JOINT_SPREAD, MAX_JOINT_DRIFT, bone_neighbours, j
                                joint_positions, spanning_cost)
 from ..rig.chain_labels import biped_hips
 from ..rig.influence import most_influential_bone, weight_sums
-from ..rig.joint_tree import balance_bone, rooted_at
+from ..rig.joint_tree import balance_bone, is_below, rooted_at
 from ..rig.skeleton import depth_first
 
 #: Largest share of the bones (the root aside) that may slide: a rig an animator poses and a
@@ -252,13 +252,16 @@ def skeleton_tree(bones, pairs, drift, weight_totals, root=None, max_drift=np.in
 
 
 def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translations, root=None,
-                  max_drift=MAX_JOINT_DRIFT, spread=JOINT_SPREAD, diagonal=None, max_sliding_share=MAX_SLIDING_SHARE):
+                  max_drift=MAX_JOINT_DRIFT, spread=JOINT_SPREAD, diagonal=None, max_sliding_share=MAX_SLIDING_SHARE,
+                  frames=None, up_axis=1):
     """A :class:`Skeleton` for a free fit: neighbours, joints, drift, tree (module notes).
 
     rest (V, 3), faces (T, 3), bone_indices / bone_weights (V, K), rotations (F, B, 3, 3),
     translations (F, B, 3). ``max_drift`` is a share of ``diagonal`` (default: the rest pose's
     bounding-box diagonal); ``root``: the root bone, default the one carrying the most weight;
-    ``max_sliding_share``: at most ⌊share · (B − 1)⌋ bones slide (module notes; None: any number)."""
+    ``max_sliding_share``: at most ⌊share · (B − 1)⌋ bones slide (module notes; None: any number);
+    ``frames`` (F, V, 3), the input's, with ``up_axis`` up: a biped's limbs that hang down from its
+    head are hung from its spine instead (:func:`limbs_off_the_head`; None: the tree as spanned)."""
     from ..mesh.geometry import bounding_box_diagonal
     from ..rig.influence import bone_centroids
 
@@ -277,10 +280,75 @@ def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translatio
     most = None if max_sliding_share is None else sliding_bound(max_sliding_share, bones)
     parents, jointed, joint_pair, sliding = skeleton_tree(bones, pairs, drift, totals, root, max_drift, contact, most,
                                                           spanning_cost(pairs, drift, contact, totals))
+    if frames is not None:  # a biped's head is the top of its spine: nothing hangs down from it
+        parents, jointed, joint_pair, sliding = limbs_off_the_head(
+            parents, jointed, joint_pair, sliding, pairs, drift, joints, max_drift, rest, bone_indices, bone_weights,
+            frames, up_axis)
     held = jointed | sliding
     points[held] = joints[joint_pair[held]]
     bone_drift = np.where(held, drift[np.maximum(joint_pair, 0)], 0.0)
     return Skeleton(parents=parents, jointed=jointed, joints=points, drift=bone_drift, sliding=sliding)
+
+
+def limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, joints, max_drift, rest, bone_indices,
+                       bone_weights, frames, up_axis=1):
+    """The tree (parents, jointed, joint_pair, sliding: :func:`skeleton_tree`'s; pairs (P, 2), their
+    drift (P,) and joints (P, 3)) with every limb that hangs down from a biped's head hung from the
+    spine below it instead (issue 65: limbs join the trunk). The spine: the path from the hips
+    (:func:`~skinsynth.pipeline.rig.chain_labels.biped_hips`, the feet found on ``frames``, from the
+    tree rooted at its centre) to the head, the bone the topmost vertex of the rest pose holds most
+    (a standing human's crown; hands raised above it are a leaf, from which nothing hangs). A child of the head whose limb is centred below the
+    head's own joint with the spine hangs there by the spanning tree's chance, not by the body's
+    build: the crane's shoulder drifts a little less against the head (1.6 % of the diagonal) than
+    against the chest (2.0 %), all of it soft, and its arm hung from the head, the neck left
+    unnamed. It moves to its neighbour on the spine below the head whose joint drifts least (fixed
+    within ``max_drift``, else sliding). Nothing changes where the tree has no biped's legs, where
+    nothing hangs down from the head, or where such a limb meets no bone of the spine."""
+    from ..rig.influence import bone_centroids, dense_weights
+
+    bones = parents.size
+    centres = bone_centroids(rest, bone_indices, bone_weights, bones)
+    held = np.flatnonzero(joint_pair >= 0)
+    points = centres.copy()
+    points[held] = joints[joint_pair[held]]
+    centred = rooted_at(parents, points, balance_bone(parents, weight_sums(bone_indices, bone_weights, bones)))
+    hips = biped_hips(*centred, rest, bone_indices, bone_weights, up_axis, frames)
+    if hips is None:
+        return parents, jointed, joint_pair, sliding
+    tree = rooted_at(parents, points, int(hips))[0]
+    head = int(dense_weights(bone_indices, bone_weights, bones)[np.argmax(rest[:, up_axis])].argmax())
+    spine = [head]
+    while tree[spine[-1]] >= 0:
+        spine.append(int(tree[spine[-1]]))
+    if len(spine) < 2:
+        return parents, jointed, joint_pair, sliding
+    key = {(int(a), int(b)): p for p, (a, b) in enumerate(pairs)}
+    neck = joints[key[(min(head, spine[1]), max(head, spine[1]))]][up_axis]
+    moved = {}  # child: the pair that now holds it
+    for child in np.flatnonzero(tree == head):
+        limb = [b for b in range(bones) if is_below(tree, b, int(child))]
+        options = [key[(min(child, b), max(child, b))] for b in spine[1:] if (min(child, b), max(child, b)) in key]
+        if centres[limb, up_axis].mean() < neck and options:
+            moved[int(child)] = min(options, key=lambda p: (drift[p], p))
+    if not moved:
+        return parents, jointed, joint_pair, sliding
+    kind = {frozenset((int(b), int(parents[b]))): (int(joint_pair[b]), bool(jointed[b]), bool(sliding[b]))
+            for b in np.flatnonzero(parents >= 0)}
+    for child, pair in moved.items():
+        del kind[frozenset((child, head))]
+        kind[frozenset(int(b) for b in pairs[pair])] = (int(pair), bool(drift[pair] <= max_drift),
+                                                        bool(drift[pair] > max_drift))
+    out = (np.full(bones, -1, np.int64), np.zeros(bones, bool), np.full(bones, -1, np.int64), np.zeros(bones, bool))
+    root = int(np.flatnonzero(parents < 0)[0])
+    stack, seen = [root], {root}
+    while stack:  # the new edges, rooted where the tree was
+        at = stack.pop()
+        for edge in sorted((e for e in kind if at in e and not e <= seen), key=sorted):
+            other = next(iter(edge - {at}))
+            seen.add(other)
+            out[0][other], out[2][other], out[1][other], out[3][other] = at, *kind[edge]
+            stack.append(other)
+    return out
 
 
 def hung_from_centre(skeleton, drift, rest, bone_indices, bone_weights, frames=None, up_axis=1):

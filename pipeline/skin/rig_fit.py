@@ -123,7 +123,7 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
         return free, None
     found = find_skeleton(free.rest_vertices, faces, free.bone_indices, free.bone_weights, free.rotations,
                           free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal,
-                          max_sliding_share=sliding_share)
+                          max_sliding_share=sliding_share, frames=vertices, up_axis="XYZ".index(up_axis))
     fitted, skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights, free.rotations,
                                    found, faces=faces, max_influences=max_influences, iterations=JOINTED_ITERATIONS,
                                    progress=progress("joints", JOINTED_ITERATIONS))
@@ -133,7 +133,7 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
         looser_drift, looser_share = loosened
         loose = find_skeleton(free.rest_vertices, faces, free.bone_indices, free.bone_weights, free.rotations,
                               free.translations, root=root_bone, max_drift=looser_drift, diagonal=diagonal,
-                              max_sliding_share=looser_share)
+                              max_sliding_share=looser_share, frames=vertices, up_axis="XYZ".index(up_axis))
         again, again_skeleton = fit_jointed(vertices, free.rest_vertices, free.bone_indices, free.bone_weights,
                                             free.rotations, loose, faces=faces, max_influences=max_influences,
                                             iterations=JOINTED_ITERATIONS,

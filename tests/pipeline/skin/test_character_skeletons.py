@@ -121,3 +121,51 @@ def test_a_fit_of_the_humanoids_own_bones_is_rooted_at_its_pelvis_with_its_legs_
     assert len(thighs) == 2 and (names[parents[thighs]] == "pelvis").all()
     labels = np.array(skin.skeleton["names"])
     assert labels[names == "thigh_l"].tolist() == ["leg_l_01"] and labels[names == "thigh_r"].tolist() == ["leg_r_01"]
+
+
+def _sparse_tree(body):
+    """The humanoid's true tree as skeleton_tree gives one: (parents, jointed, joint_pair, sliding,
+    pairs (each bone with its parent), drift (zeros), joints (the true joints))."""
+    child = np.flatnonzero(body.parents >= 0)
+    pairs = np.sort(np.stack([child, body.parents[child]], axis=1), axis=1)
+    joint_pair = np.full(len(body.names), -1)
+    joint_pair[child] = np.arange(len(child))
+    jointed = body.parents >= 0
+    return (body.parents.copy(), jointed, joint_pair, np.zeros(len(body.names), bool), pairs,
+            np.zeros(len(child)), body.joints[child])
+
+
+def test_an_arm_hung_from_the_head_by_chance_moves_to_the_spine_below_it():
+    """Issue 65 (limbs join the trunk): the crane's and the samba's shoulders drift a little less
+    against the head than against the chest, and the spanning tree hung an arm from the head. Here
+    the humanoid's tree with its left arm hung from the head (a pair that drifts least): the arm
+    moves to the chest, fixed, every other bone as it was; a quadruped's tree is left alone."""
+    from skinsynth.pipeline.skin.joints import limbs_off_the_head
+
+    vertices, faces, rig = character("humanoid", frames_per_motion=24)
+    body = rig.body
+    parents, jointed, joint_pair, sliding, pairs, drift, joints = _sparse_tree(body)
+    arm, head, chest = body.index("upper_arm_l"), body.index("head"), body.index("chest")
+    pairs = np.vstack([pairs, [min(arm, head), max(arm, head)]])
+    drift = np.append(drift + 0.004, 0.003)  # the head's pair drifts least
+    joints = np.vstack([joints, body.joints[arm]])
+    parents[arm], joint_pair[arm] = head, len(pairs) - 1
+    indices, weights = _sparse(rig.weights)
+    moved = limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, joints, 0.02, rig.rest, indices,
+                               weights, vertices)
+    assert moved[0].tolist() == body.parents.tolist()
+    assert moved[1].tolist() == jointed.tolist() and not moved[3].any()
+    assert pairs[moved[2][arm]].tolist() == sorted([arm, chest])
+    # past the drift bound, the arm slides on the chest
+    slid = limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, joints, 0.0035, rig.rest, indices,
+                              weights, vertices)
+    assert slid[0][arm] == chest and slid[3][arm] and not slid[1][arm]
+    # the head's own tree (nothing hangs down from it) and a quadruped's are left alone
+    kept = limbs_off_the_head(*_sparse_tree(body)[:4], *_sparse_tree(body)[4:], 0.02, rig.rest, indices, weights,
+                              vertices)
+    assert all(np.array_equal(a, b) for a, b in zip(kept, _sparse_tree(body)[:4]))
+    four, _, horse = character("quadruped", frames_per_motion=24)
+    indices, weights = _sparse(horse.weights)
+    tree = _sparse_tree(horse.body)
+    assert all(np.array_equal(a, b) for a, b in zip(
+        limbs_off_the_head(*tree[:4], *tree[4:], 0.02, horse.rest, indices, weights, four), tree[:4]))
