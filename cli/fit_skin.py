@@ -9,7 +9,7 @@ from skinsynth.formats.output_file import check_output_path
 from skinsynth.pipeline.errors import OptionError
 
 from .common import Progress, command_line, report, summary_options, tool_version, user_errors
-from .options import FINITE_FLOAT, FiniteFloatRange, device_option, up_axis_option
+from .options import FINITE_FLOAT, FiniteFloatRange, bone_count, device_option, up_axis_option
 
 #: ``--skeleton`` without a file: find the skeleton.
 FOUND = "found"
@@ -20,8 +20,10 @@ MAX_TRANSFORM_STEPS = 100
 @click.command("fit-skin")
 @click.argument("input_specs", metavar="INPUT...", nargs=-1, required=True)
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Skin model file to write (.h5).")
-@click.option("--bones", "-b", type=int, default=None,
-              help="Number of rigid bones; exactly this many are delivered. Required unless --rig gives them.")
+@click.option("--bones", "-b", default=None, metavar="N|auto", callback=bone_count,
+              help="Number of rigid bones; exactly this many are delivered. Required unless --rig or --skeleton FILE "
+                   "gives them. auto: the elbow of the clip's error against bones (rigid clusters of 1 to 48 bones), "
+                   "said in the summary with the error at the counts around it (docs/own_capture.md).")
 @click.option("--rig", type=click.Path(dir_okay=False), default=None,
               help="A skin file whose rig (rest pose, bones, weights) to keep: only the bone transforms of the "
                    "INPUT clips are solved (Dem Bones' 'solve bones for given weights'), so the new takes drive "
@@ -114,8 +116,9 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
         contact_weight)
     sequence, clips, rig_model = _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig,
                                               skeleton, brought)
-    bones, rest_frame, diagonal = fit_rest_pose(input_specs[0], sequence.vertices, clips, rig_model, bones, rest_frame,
-                                                max_influences, iterations, root_bone, transform_steps, surplus_bones)
+    bones, rest_frame, diagonal, chosen = fit_rest_pose(input_specs[0], sequence.vertices, clips, rig_model, bones,
+                                                        rest_frame, max_influences, iterations, root_bone,
+                                                        transform_steps, surplus_bones)
     ground = _capture_ground(sequence, clips)
     near = ground[1] if ground is not None and contacts and rig is None and skeleton is None else None
     with Progress(iterations, "", quiet) as bar:
@@ -143,7 +146,7 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     write_model(output, "skin", skin_groups(sequence, rest_frame, result, dq, rest_frames, frame_rmse, diagonal,
                                             jointed), [record], tool_version())
     report(*skin_summary(output, result, frame_rmse, clips, diagonal, sequence.fps, scene, seconds, device,
-                         phases.history, jointed, sequence.faces, feet, near, contact_weight), as_json, quiet)
+                         phases.history, jointed, sequence.faces, feet, near, contact_weight, chosen), as_json, quiet)
     if result.bones_without_weight:
         click.echo(f"warning: {result.bones_without_weight} bone(s) ended with no vertex weight: the sequence "
                    "has fewer independently moving parts than --bones", err=True)
@@ -175,6 +178,8 @@ def _resolved_options(bones, rig, tolerance, transform_steps, skeleton, root_bon
     if contact_weight is not None and (not contacts or rig is not None or skeleton):
         raise OptionError("--contact-weight weighs the fit toward the ground contacts: it applies with --contacts, not "
                           "with --no-contacts, --rig or --skeleton")
+    if bones == "auto" and (rig is not None or skeleton not in (None, FOUND)):
+        raise OptionError("--bones auto chooses the count of a new fit: --rig and --skeleton FILE bring their own bones")
     brought = None
     if skeleton not in (None, FOUND):
         brought = _read_given_skeleton(skeleton, bones)

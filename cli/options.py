@@ -45,6 +45,16 @@ def _up_axis(ctx, param, value):
     return value.upper()
 
 
+def bone_count(ctx, param, value):
+    """``--bones N`` (an integer) or ``--bones auto`` (the string "auto"); None when left out."""
+    if value is None or value == "auto":
+        return value
+    try:
+        return int(value)
+    except ValueError:
+        raise click.BadParameter(f"{value!r} is neither a whole number nor 'auto'.") from None
+
+
 def device_option(help, default="auto"):
     """``--device auto|cpu|cuda|cuda:N`` (``skinsynth.gpu.resolve_device`` checks it)."""
     return click.option("--device", default=default, show_default=True, help=help)

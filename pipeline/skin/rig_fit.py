@@ -18,13 +18,16 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
     available, a rest pose with no extent (``first_input`` names the input). With ``rig`` (a
     skin record: ``bones``, ``rest_vertices``) its bones and rest pose. With ``surplus``
     (``--surplus-bones``) the memory and the vertex count are checked for the larger fit, of
-    ``round((1 + surplus) · bones)`` bones."""
+    ``round((1 + surplus) · bones)`` bones. ``bones`` "auto": the count at the elbow of the clips'
+    error against bones (:func:`.bone_count.choose_bone_count`), returned as a fourth value, the
+    :class:`.bone_count.BoneCount` (None otherwise)."""
     from ..errors import OptionError
     from ..mesh.geometry import bounding_box_diagonal
     from ..runtime.resources import check_memory
     from .skin_fit import fit_memory_bytes, validate_fit_options
 
     frames, count = vertices.shape[:2]
+    chosen = None
     if rig is not None:
         if bones is not None and bones != rig.bones:
             raise OptionError(f"--bones {bones} differs from the rig's {rig.bones} bones (leave --bones out with --rig)")
@@ -32,6 +35,14 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
         rest_frame = 0  # the rest pose is the rig's, not one of these frames (docs/format.md: /mesh)
     else:
         rest_frame = clips.frame(rest_frame, "--rest-frame")
+        if bones == "auto":
+            from .bone_count import choose_bone_count
+
+            rest = vertices[rest_frame]
+            if not bounding_box_diagonal(rest) > 0.0:
+                raise OptionError(f"{first_input}: the rest frame has no extent (all vertices coincide)")
+            chosen = choose_bone_count(vertices, rest, bounding_box_diagonal(rest))
+            bones = chosen.count
         validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
         if root_bone is not None and root_bone >= bones:
             raise OptionError(f"--root-bone {root_bone} is not one of the {bones} bones (0..{bones - 1})")
@@ -45,7 +56,7 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
     diagonal = bounding_box_diagonal(rig.rest_vertices if rig is not None else vertices[rest_frame])
     if not diagonal > 0.0:
         raise OptionError(f"{first_input}: the rest frame has no extent (all vertices coincide)")
-    return bones, rest_frame, diagonal
+    return bones, rest_frame, diagonal, chosen
 
 
 def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, root_bone=None, max_joint_drift=None,
@@ -204,7 +215,7 @@ def _skeleton_record(skeleton, drift, free_rmse, max_drift, fitted, vertices=Non
 
 
 def skin_summary(output, fit, frame_rmse, clips, diagonal, fps, scene, seconds, device, history, skeleton=None,
-                 faces=None, feet=None, near=None, contact_weight=None):
+                 faces=None, feet=None, near=None, contact_weight=None, chosen=None):
     """``fit-skin``'s summary (--json) and its text lines, from a fit (:func:`fit_rig`) and its
     per-frame RMSE (F,) (:func:`.skin_fit.finish_fit`): the error over the rest bounding-box
     ``diagonal``, overall and per clip (``clips``: a :class:`~skinsynth.pipeline.inputs.clips.Clips`),
@@ -213,7 +224,9 @@ def skin_summary(output, fit, frame_rmse, clips, diagonal, fps, scene, seconds, 
     ``skeleton`` record (and the mesh's ``faces`` (T, 3)), its joints (:func:`_skeleton_summary`);
     with ``feet`` (:func:`.contact_fit.playback_feet`: the capture has a ground), how the playback
     keeps the capture's feet, and with ``near`` (F, V) (the fit weighed toward them, at
-    ``contact_weight``: None for the default) how many vertices were weighed and how much."""
+    ``contact_weight``: None for the default) how many vertices were weighed and how much; with
+    ``chosen`` (``--bones auto``: a :class:`.bone_count.BoneCount`) the count, its rule and the
+    error of rigid clusters around it."""
     frames, bones = fit.rotations.shape[:2]
     count = fit.rest_vertices.shape[0]
     summary = {"output": output, "bones": bones, "vertices": int(count), "frames": int(frames), "fps": fps,
@@ -231,6 +244,13 @@ def skin_summary(output, fit, frame_rmse, clips, diagonal, fps, scene, seconds, 
              f"({fit.iterations} iterations, {fit.stopped}, {seconds:.1f} s)",
              f"scene: {scene.describe(frames)} at {fps:g} fps (stated again by every USD written "
              "from it; --meters-per-unit, --up-axis, --start-frame override)"]
+    if chosen is not None:
+        around = chosen.near()
+        summary["bone_count"] = {"chosen": chosen.count, "rule": chosen.rule,
+                                 "rigid_cluster_errors": [[k, e] for k, e in around]}
+        lines.append(f"bones: auto chose {chosen.count}, {chosen.rule}; the RMSE of that many rigid clusters over "
+                     f"the diagonal: " + ", ".join(f"{e:.2e} at {k}" for k, e in around)
+                     + " (a finer fit: more bones; docs/own_capture.md)")
     if len(clips) > 1:
         lines.append("clips: " + ", ".join(f"{c['name']} ({c['frames']} frames, RMSE/diag {c['rmse_over_diagonal']:.2e})"
                                            for c in summary["clips"]))

@@ -339,6 +339,24 @@ def test_example_characters_with_known_skeletons(out):
     assert json.loads(done.stdout)["motions"] == ["walk", "graze"] and json.loads(done.stdout)["frames"] == 12
 
 
+def test_fit_skin_bones_auto_chooses_the_walkers_parts_and_says_how(out):
+    """Issue 68: ``--bones auto`` gives the walker its ten parts, and the summary (text and --json)
+    gives the count, the rule and the rigid-cluster error around it; it is refused where the bones
+    are brought (--rig, --skeleton FILE) and a count that is neither a number nor auto is refused."""
+    assert_ok(cli("example", "walker", "-o", out / "walker.npz", "-q"))
+    done = assert_ok(cli("fit-skin", out / "walker.npz", "-o", out / "walker.skin.h5", "--bones", "auto"))
+    assert "bones: auto chose 10, the elbow of the rigid-cluster error curve" in done.stdout
+    summary = json.loads(assert_ok(cli("fit-skin", out / "walker.npz", "-o", out / "again.skin.h5", "--bones", "auto",
+                                       "--json", "-q")).stdout)
+    assert summary["bones"] == 10 and summary["bone_count"]["chosen"] == 10
+    assert [k for k, _ in summary["bone_count"]["rigid_cluster_errors"]] == [8, 9, 10, 11, 12]
+    assert_user_error(cli("fit-skin", out / "walker.npz", "-o", out / "x.h5", "--bones", "many"), "--bones", "auto",
+                      folder=out, keep=["walker.npz", "walker.skin.h5", "again.skin.h5"])
+    assert_user_error(cli("fit-skin", out / "walker.npz", "-o", out / "x.h5", "--bones", "auto", "--rig",
+                          out / "walker.skin.h5"), "--bones auto", "--rig",
+                      folder=out, keep=["walker.npz", "walker.skin.h5", "again.skin.h5"])
+
+
 # ---------------------------------------------------------------- bad input: inspect and export
 
 
