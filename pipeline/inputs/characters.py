@@ -168,11 +168,6 @@ def body_weights(body, rings_per_metre=60, segments=10, blend=0.04):
             np.concatenate([w for _, _, w in parts]))
 
 
-def _ramp(u, start, stop):
-    """0 before ``start``, 1 after ``stop``, smooth between (u: the motion's share of its frames)."""
-    return _smoothstep((u - start) / (stop - start))
-
-
 def _humanoid_walk(u, turns):
     """Walking in place: the legs swing ±0.45 rad, the knees bend in swing, the feet lift their toes;
     the arms swing against the legs, the elbows bend; the spine turns, the head nods."""
@@ -242,7 +237,8 @@ def _humanoid_jump(u, turns):
     point 0.45 above the ground at the top, the toes pointing, the arms swung up), a third landing
     into the crouch and standing up."""
     air = np.clip(3.0 * u - 1.0, 0.0, 1.0)
-    down = 0.6 * np.where(u < 1 / 3, np.sin(3 * np.pi * u) ** 2, np.where(u >= 2 / 3, np.sin(3 * np.pi * (u - 2 / 3)) ** 2, 0.0))
+    down = 0.6 * np.where(u < 1 / 3, np.sin(3 * np.pi * u) ** 2,
+                          np.where(u >= 2 / 3, np.sin(3 * np.pi * (u - 2 / 3)) ** 2, 0.0))
     moves = _crouch(down)
     for side in ("l", "r"):
         moves[f"foot_{side}"].append((0, 0.5 * np.sin(np.pi * air)))
@@ -253,7 +249,8 @@ def _humanoid_jump(u, turns):
 def _quadruped_walk(u, turns):
     """A walk: each leg swings ±0.35 rad in a lateral sequence (hind left, fore left, hind right,
     fore right a quarter cycle apart), the lower leg folding in swing, the hoof flicking; the back
-    bends side to side (0.25 rad) and rolls, the neck and head nod twice a cycle, the tail swings side to side."""
+    bends side to side (0.25 rad) and rolls, the neck and head nod twice a cycle, the tail swings
+    side to side."""
     phi = 2.0 * np.pi * turns * u
     moves = {}
     for (end, side), shift in zip((("back", "l"), ("front", "l"), ("back", "r"), ("front", "r")),
@@ -274,7 +271,8 @@ def _quadruped_walk(u, turns):
 
 def _quadruped_graze(u, turns):
     """The head lowered to the ground and raised (the neck 1.1 rad down, the head 0.6), turning to
-    each side, the back arching down (0.25 rad); the forelegs splay a little, the hind legs shift the weight back, the tail lifts."""
+    each side, the back arching down (0.25 rad); the forelegs splay a little, the hind legs shift the
+    weight back, the tail lifts."""
     down = np.sin(np.pi * u) ** 2
     moves = {"neck": [(0, 1.1 * down), (1, 0.4 * np.sin(2 * np.pi * u))], "head": [(0, 0.6 * down)],
              "trunk_front": [(0, 0.25 * down)], "tail_01": [(0, -0.6 * down)], "tail_02": [(0, -0.4 * down)]}
@@ -307,17 +305,17 @@ def character_memory(kind, frames, limbs=1.0, rings_per_metre=60, segments=10):
     return frames * vertex_count * 3 * 8 * 4, f"{frames} frames of {vertex_count} vertices"
 
 
-def pose_body(body, local, root=None):
+def pose_body(body, local):
     """Forward kinematics: world rotations (F, B, 3, 3) and joints (F, B, 3) of ``body`` posed by
-    its bones' ``local`` rotations (F, B, 3, 3) against their parents (the root's: in the world),
-    the root's joint at ``root`` (F, 3) (default: where it rests)."""
+    its bones' ``local`` rotations (F, B, 3, 3) against their parents (the root's: in the world,
+    about its joint where it rests)."""
     frames = local.shape[0]
     rotations = np.empty_like(local)
     joints = np.empty((frames, len(body.names), 3))
     for b, p in enumerate(body.parents):  # parents come first
         if p < 0:
             rotations[:, b] = local[:, b]
-            joints[:, b] = body.joints[b] if root is None else root
+            joints[:, b] = body.joints[b]
         else:
             rotations[:, b] = rotations[:, p] @ local[:, b]
             joints[:, b] = joints[:, p] + np.einsum("fab,b->fa", rotations[:, p], body.joints[b] - body.joints[p])

@@ -304,7 +304,7 @@ def limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, join
     unnamed. It moves to its neighbour on the spine below the head whose joint drifts least (fixed
     within ``max_drift``, else sliding). Nothing changes where the tree has no biped's legs, where
     nothing hangs down from the head, or where such a limb meets no bone of the spine."""
-    from ..rig.influence import bone_centroids, dense_weights
+    from ..rig.influence import bone_centroids
 
     bones = parents.size
     centres = bone_centroids(rest, bone_indices, bone_weights, bones)
@@ -316,7 +316,8 @@ def limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, join
     if hips is None:
         return parents, jointed, joint_pair, sliding
     tree = rooted_at(parents, points, int(hips))[0]
-    head = int(dense_weights(bone_indices, bone_weights, bones)[np.argmax(rest[:, up_axis])].argmax())
+    top = int(np.argmax(rest[:, up_axis]))
+    head = int(np.asarray(bone_indices)[top][np.argmax(np.asarray(bone_weights)[top])])
     spine = [head]
     while tree[spine[-1]] >= 0:
         spine.append(int(tree[spine[-1]]))

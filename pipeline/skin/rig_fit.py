@@ -38,10 +38,10 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
         if bones == "auto":
             from .bone_count import choose_bone_count
 
-            rest = vertices[rest_frame]
-            if not bounding_box_diagonal(rest) > 0.0:
+            extent = bounding_box_diagonal(vertices[rest_frame])
+            if not extent > 0.0:
                 raise OptionError(f"{first_input}: the rest frame has no extent (all vertices coincide)")
-            chosen = choose_bone_count(vertices, rest, bounding_box_diagonal(rest))
+            chosen = choose_bone_count(vertices, vertices[rest_frame], extent)
             bones = chosen.count
         validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
         if root_bone is not None and root_bone >= bones:
