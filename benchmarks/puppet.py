@@ -9,7 +9,7 @@ in --work; bones as in ``datasets.BONES``), ``select-controls --count 8``, then 
   ``first:N`` with N = 60 % of the frames (extrapolation: the held-out frames come after);
 - ``evaluate --json``: the four rows (kcca with the Poisson translation solver, kcca with the
   regression's translations, PCA blendshapes, direct RBF regression), RMS vertex distance over
-  the held-out frames with the largest rest bounding-box side scaled to 1 (Feng §7);
+  the held-out frames over the rest bounding-box diagonal (Feng §7 reports over its largest side);
 - the choices train-kcca made from data, read back from the puppet file (global motion, kernel
   width, κ per bone, translation prior, pose-space correctives).
 

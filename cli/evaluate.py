@@ -28,8 +28,9 @@ def evaluate(path, as_json, quiet, plot, skinning, pca_components, extrapolate, 
     """Compare the puppet with PCA blendshapes and RBF regression on the held-out example frames.
 
     Each method is driven by the control vertices' positions in the frames the puppet did not
-    train on; errors are RMS vertex distances with the largest side of the rest bounding box
-    scaled to 1 (as Feng §7 reports). The global-motion mode of the puppet is used for all.
+    train on; errors are RMS vertex distances over the rest pose's bounding-box diagonal, as every
+    error skinsynth reports (Feng §7 reports over the box's largest side: multiply by the diagonal
+    over it to compare). The global-motion mode of the puppet is used for all.
     --extrapolate and --hold-out-clip add harder tests, each with a puppet retrained on frames
     that never include the tested ones.
 
@@ -60,6 +61,6 @@ def evaluate(path, as_json, quiet, plot, skinning, pca_components, extrapolate, 
         write_error_plot(plot, result.test_frames, result.per_frame,
                          title=f"{path}: held-out error ({result.notes['global_motion']}, "
                                f"{result.notes['skinning']} skinning)",
-                         ylabel="RMS vertex error / largest bounding-box side")
+                         ylabel="RMS vertex error / rest bounding-box diagonal")
     report(*evaluation_report(path, result, puppet.train_frames, clips, record.training_clips, beyond, unseen, plot),
            as_json, quiet)

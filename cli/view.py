@@ -28,8 +28,8 @@ LOOPBACK = ("127.0.0.1", "localhost", "::1")
               help="Skin file: the error shown full red, as a fraction of the rest pose's bounding-box diagonal.")
 @click.option("--extrapolation-scale", default=None, type=FINITE_FLOAT,
               help="Puppet: the extrapolation indicator turns amber at this distance from the nearest training "
-                   "example and red at twice it (RMS over the controls, the rest box's largest side = 1, as "
-                   "evaluate measures).  [default: the largest gap between a training example and its nearest "
+                   "example and red at twice it (RMS over the controls, the rest box's largest side = 1: a distance "
+                   "between poses, not an error).  [default: the largest gap between a training example and its nearest "
                    "neighbour]")
 @click.option("--record", "record_path", default=None, type=click.Path(dir_okay=False),
               help="Puppet: where the record button saves a drag session (.csv or .npy, a control trajectory "

@@ -1,7 +1,10 @@
 """Held-out evaluation of a puppet against the baselines Feng et al. compare with (§4.3, §7).
 
-Errors are RMS vertex distances on the held-out example frames, with the rest pose scaled so
-that its largest bounding-box side is 1 (Feng §7 reports 0.0108 vs 0.0143 this way). Every
+Errors are RMS vertex distances on the held-out example frames over the rest pose's bounding-box
+diagonal: the one normaliser of every error skinsynth reports (fit-skin's RMSE, preview's and view's
+error colours; issue 68). Feng §7 reports over the largest side of the box instead (0.0108 against
+0.0143): multiply by the diagonal over the largest side (1.11–1.22 on the shared captures, √3 for a
+cube) to compare. Every
 method sees the same control trajectories (the control vertices' positions in the held-out
 frames) and handles global motion the same way as the puppet.
 
@@ -17,7 +20,7 @@ import numpy as np
 
 from .baselines import fit_pca_blendshape, fit_rbf, predict_pca_blendshape, predict_rbf
 from ..errors import OptionError
-from ..mesh.geometry import largest_side
+from ..mesh.geometry import bounding_box_diagonal
 from .puppet import predict_vertices, train_puppet
 
 
@@ -75,7 +78,7 @@ def evaluate_puppet(puppet, examples, test_frames, skinning=None, pca_components
         raise OptionError("no held-out frames: train with --train-frames leaving some examples out")
     truth = examples[test_frames]
     controls = truth[:, puppet.control_indices]
-    scale = largest_side(puppet.rest_vertices)
+    scale = bounding_box_diagonal(puppet.rest_vertices)
     predictions = {}
     if puppet.translations is not None:
         predictions["kcca"] = predict_vertices(puppet, controls, translation_solver=True, skinning=skinning)
@@ -219,7 +222,7 @@ def evaluation_report(path, result, train_frames, clips, training_clips=None, be
     payload = dict(result.overall)
     payload.update(test_frames=[int(f) for f in result.test_frames], train_frames=[int(f) for f in train_frames],
                    per_frame={k: [float(e) for e in v] for k, v in result.per_frame.items()},
-                   clips=list(training_clips or clips.names), **notes)
+                   clips=list(training_clips or clips.names), error_over="rest bounding-box diagonal", **notes)
     if beyond is not None:
         payload["extrapolation"] = dict(beyond.overall, train_frames=beyond.notes["train_frames"],
                                         test_frames=[int(f) for f in beyond.test_frames])
@@ -236,7 +239,8 @@ def evaluation_report(path, result, train_frames, clips, training_clips=None, be
              f"kernel {notes['kernel']}; PCA baseline with {notes['pca_components']} blendshapes"
              + (f"; translation prior {notes['translation_prior']:g}" if notes["translation_prior"] is not None else "")
              + f"; correctives: {notes['correctives'] or 'off'}"
-             + (f"; clips {', '.join(training_clips or clips.names)}" if len(clips) > 1 else ""),
+             + (f"; clips {', '.join(training_clips or clips.names)}" if len(clips) > 1 else "")
+             + "; errors: RMS vertex distance over the rest bounding-box diagonal",
              *_table(result)]
     if "joint_projection_cost" in notes:
         lines.append(f"  the skeleton's joints: play's rig puts the predicted bones back on them, which moves the "

@@ -30,6 +30,30 @@ def test_pipeline_and_evaluate_json(files, tmp_path):
     assert summary["stage"] == "puppet" and [p["stage"] for p in summary["provenance"]] == ["skin", "controls", "puppet"]
 
 
+def test_evaluate_measures_over_the_rest_diagonal_as_fit_skin_and_preview_do(files):
+    """Issue 68: one error normaliser. evaluate's figures are RMS vertex distances over the rest
+    bounding-box diagonal (fit-skin's RMSE and preview's colours use it): RBF's held-out error
+    recomputed here from its own prediction, over the diagonal, is the figure printed; the text
+    says the unit once."""
+    from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.pipeline.mesh.geometry import bounding_box_diagonal
+    from skinsynth.pipeline.puppet import puppet_from_record
+    from skinsynth.pipeline.puppet.baselines import fit_rbf, predict_rbf
+
+    result = json.loads(assert_ok(cli("evaluate", files / "puppet.h5", "--json")).stdout)
+    record, test_frames, skin = read_puppet(files / "puppet.h5")
+    puppet = puppet_from_record(record)
+    examples = np.asarray(skin.examples, np.float64)
+    rbf = fit_rbf(examples[puppet.train_frames], puppet.control_indices, puppet.reference_controls,
+                  global_motion=puppet.global_motion)
+    predicted = predict_rbf(rbf, examples[test_frames][:, puppet.control_indices])
+    rms = np.sqrt(np.mean(np.sum((predicted - examples[test_frames]) ** 2, axis=-1)))
+    assert result["rbf"] == pytest.approx(rms / bounding_box_diagonal(puppet.rest_vertices), rel=1e-9)
+    assert result["error_over"] == "rest bounding-box diagonal"
+    text = assert_ok(cli("evaluate", files / "puppet.h5")).stdout
+    assert text.count("over the rest bounding-box diagonal") == 1
+
+
 def test_translation_prior_given_is_stored_and_used(files, tmp_path):
     assert_ok(cli("train-kcca", files / "controls.h5", "-o", tmp_path / "p5.h5", "--translation-prior", "5", "-q"))
     with h5py.File(tmp_path / "p5.h5") as f:
