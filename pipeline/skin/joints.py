@@ -297,13 +297,14 @@ def limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, join
     spine below it instead (issue 65: limbs join the trunk). The spine: the path from the hips
     (:func:`~skinsynth.pipeline.rig.chain_labels.biped_hips`, the feet found on ``frames``, from the
     tree rooted at its centre) to the head, the bone the topmost vertex of the rest pose holds most
-    (a standing human's crown; hands raised above it are a leaf, from which nothing hangs). A child of the head whose limb is centred below the
-    head's own joint with the spine hangs there by the spanning tree's chance, not by the body's
-    build: the crane's shoulder drifts a little less against the head (1.6 % of the diagonal) than
-    against the chest (2.0 %), all of it soft, and its arm hung from the head, the neck left
-    unnamed. It moves to its neighbour on the spine below the head whose joint drifts least (fixed
-    within ``max_drift``, else sliding). Nothing changes where the tree has no biped's legs, where
-    nothing hangs down from the head, or where such a limb meets no bone of the spine."""
+    (a standing human's crown; hands raised above it are a leaf, from which nothing hangs). A child
+    of the head whose limb is centred below the head's own joint with the spine hangs there by the
+    spanning tree's chance, not by the body's build: the crane's shoulder drifts a little less
+    against the head (1.6 % of the diagonal) than against the chest (2.0 %), all of it soft, and its
+    arm hung from the head, the neck left unnamed. It moves to its neighbour on the spine below the
+    head whose joint drifts least (fixed within ``max_drift``, else sliding). Nothing changes where
+    the tree has no biped's legs, where nothing hangs down from the head (or the head has no joint),
+    or where such a limb meets no bone of the spine."""
     from ..rig.influence import bone_centroids
 
     bones = parents.size
@@ -321,9 +322,9 @@ def limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, join
     spine = [head]
     while tree[spine[-1]] >= 0:
         spine.append(int(tree[spine[-1]]))
-    if len(spine) < 2:
-        return parents, jointed, joint_pair, sliding
     key = {(int(a), int(b)): p for p, (a, b) in enumerate(pairs)}
+    if len(spine) < 2 or (min(head, spine[1]), max(head, spine[1])) not in key:  # no spine, or a free head
+        return parents, jointed, joint_pair, sliding
     neck = joints[key[(min(head, spine[1]), max(head, spine[1]))]][up_axis]
     moved = {}  # child: the pair that now holds it
     for child in np.flatnonzero(tree == head):
