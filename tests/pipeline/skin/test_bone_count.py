@@ -50,3 +50,17 @@ def test_a_characters_count_is_near_its_parts(kind, parts):
     counts, errors = rigid_cluster_errors(vertices, vertices[0], 30, bounding_box_diagonal(vertices[0]))
     assert np.all(np.diff(counts) > 0) and errors[0] > 20.0 * errors[-1]
     assert parts - 3 <= choose_bone_count(vertices, vertices[0], bounding_box_diagonal(vertices[0])).count <= parts
+
+
+@pytest.mark.parametrize("variant", ["48 fps", "Z up in cm", "a still first second", "mirrored"])
+def test_the_count_does_not_hang_on_the_sampling_the_units_or_the_side(variant):
+    """The elbow is read on log errors with both axes scaled, so a units change (a constant factor)
+    or frames added in between or held still do not move it: the walker gets its 10 every way."""
+    vertices = walker(frames=96)[0] if variant == "48 fps" else walker()[0]
+    if variant == "Z up in cm":
+        vertices = 100.0 * vertices @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]).T
+    elif variant == "a still first second":
+        vertices = np.concatenate([np.repeat(vertices[:1], 24, axis=0), vertices])
+    elif variant == "mirrored":
+        vertices = vertices * np.array([-1.0, 1.0, 1.0])
+    assert choose_bone_count(vertices, vertices[0], bounding_box_diagonal(vertices[0])).count == 10
