@@ -14,11 +14,12 @@ chord from its first count to its last (both axes scaled to [0, 1]: the "kneedle
 2011). On a log scale a fixed *share* of error saved per bone is a straight line, so the elbow is
 where the share each bone saves falls most sharply, and a constant factor (the units) moves no
 point: the walker (ten rigid parts, soft knees) gives 10, at 48 fps, Z up in centimetres, with a
-still first second and mirrored alike; the generated humanoid (17 bones, a neck and hands a few centimetres long) 16. A clip that one
-rigid motion reproduces (error under :data:`EXACT` of the diagonal at one bone) gets 1. Captures have
-no sharp elbow (their error falls smoothly, soft tissue and cloth everywhere): the elbow then gives
-the count past which bones buy detail rather than parts (the samba 14, the dancer 12, the gallop
-13): a rig to start from; docs/skeleton.md and the summary say to choose more for a finer fit.
+still first second and mirrored alike; the generated humanoid (17 bones, its neck and hands a few
+centimetres long) 16. A clip that one rigid motion reproduces (error under :data:`EXACT` of the
+diagonal at one bone) gets 1. Captures have no sharp elbow (their error falls smoothly, soft tissue
+and cloth everywhere): the elbow then gives the count past which bones buy detail rather than parts
+(the samba 14, the dancer 12, the gallop 13): a rig to start from; docs/own_capture.md and the
+summary say to choose more for a finer fit.
 """
 
 from dataclasses import dataclass
