@@ -57,6 +57,7 @@ def rigid_cluster_errors(vertices, rest, max_bones, diagonal):
     one split and one relabelling (module notes). A relabelling that empties a cluster gives that
     count again; the lowest error of each count is kept."""
     from .bone_transforms import Trajectories, fit_cluster_transforms, single_bone_errors
+    from .skin_init import relabel, split_off
 
     data = Trajectories(vertices, rest)
     frames, count = data.frames, data.count
@@ -64,9 +65,7 @@ def rigid_cluster_errors(vertices, rest, max_bones, diagonal):
     labels = np.zeros(count, dtype=np.int64)
     clusters, found = 1, {}
     for _ in range(2 * max_bones):  # a split that relabelling undoes is tried again on the next worst
-        errors = single_bone_errors(fit_cluster_transforms(labels, clusters, data), data)
-        used, labels = np.unique(np.argmin(errors, axis=1), return_inverse=True)
-        clusters = used.size
+        labels, clusters = relabel(labels, clusters, data)
         own = single_bone_errors(fit_cluster_transforms(labels, clusters, data), data)[np.arange(count), labels]
         rms = float(np.sqrt(own.sum() / (count * frames))) / diagonal
         found[clusters] = min(found.get(clusters, np.inf), rms)
@@ -74,11 +73,8 @@ def rigid_cluster_errors(vertices, rest, max_bones, diagonal):
             break
         per = np.bincount(labels, weights=own, minlength=clusters)
         per[np.bincount(labels, minlength=clusters) < 2] = -1.0
-        worst = int(np.argmax(per))
-        members = np.flatnonzero(labels == worst)
-        seed = members[np.argmax(own[members])]
-        nearest = members[np.argsort(np.linalg.norm(rest[members] - rest[seed], axis=1), kind="stable")]
-        labels[nearest[: max(1, members.size // 4)]] = clusters
+        members = np.flatnonzero(labels == int(np.argmax(per)))
+        split_off(labels, members, members[np.argmax(own[members])], clusters, rest)
         clusters += 1
     counts = np.array(sorted(found))
     return counts, np.array([found[k] for k in counts])

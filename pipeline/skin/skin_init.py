@@ -21,6 +21,14 @@ import numpy as np
 from .bone_transforms import fit_cluster_transforms, single_bone_errors
 
 
+def split_off(labels, members, seed_vertex, label, rest, neighbourhood=4):
+    """Give ``label`` to the 1/``neighbourhood`` of a cluster's ``members`` nearest (in the rest
+    pose, rest (V, 3)) to ``seed_vertex``, in ``labels`` (V,) in place: a new bone's first cluster."""
+    distance = np.linalg.norm(rest[members] - rest[seed_vertex], axis=1)
+    # Stable sort: ties broken by vertex order, so the split is deterministic given the seed.
+    labels[members[np.argsort(distance, kind="stable")[: max(1, members.size // neighbourhood)]]] = label
+
+
 def _split(labels, n_clusters, errors, order, rest, rng, neighbourhood=4):
     """Split the clusters listed in ``order``; return the new labels and cluster count."""
     labels = labels.copy()
@@ -30,16 +38,12 @@ def _split(labels, n_clusters, errors, order, rest, rng, neighbourhood=4):
             continue
         weight = errors[members]
         prob = weight / weight.sum() if weight.sum() > 0.0 else None
-        seed_vertex = members[rng.choice(members.size, p=prob)]
-        distance = np.linalg.norm(rest[members] - rest[seed_vertex], axis=1)
-        # Stable sort: ties broken by vertex order, so the split is deterministic given the seed.
-        nearest = members[np.argsort(distance, kind="stable")[: max(1, members.size // neighbourhood)]]
-        labels[nearest] = n_clusters
+        split_off(labels, members, members[rng.choice(members.size, p=prob)], n_clusters, rest, neighbourhood)
         n_clusters += 1
     return labels, n_clusters
 
 
-def _relabel(labels, n_clusters, data):
+def relabel(labels, n_clusters, data):
     """k-means step in transform space; returns compacted labels and the surviving count."""
     transforms = fit_cluster_transforms(labels, n_clusters, data)
     labels = np.argmin(single_bone_errors(transforms, data), axis=1)
@@ -70,7 +74,7 @@ def initial_clusters(data, rest, bones, seed=0, rounds=None, kmeans_steps=3):
         order = np.argsort(-cluster_error, kind="stable")[: bones - n_clusters]
         labels, n_clusters = _split(labels, n_clusters, errors, order[cluster_error[order] >= 0.0], rest, rng)
         for _ in range(kmeans_steps):
-            labels, n_clusters = _relabel(labels, n_clusters, data)
+            labels, n_clusters = relabel(labels, n_clusters, data)
     while n_clusters < bones:
         # Largest clusters first: each split is guaranteed to leave two non-empty halves.
         sizes = np.bincount(labels, minlength=n_clusters)
