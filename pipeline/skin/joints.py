@@ -316,7 +316,8 @@ def limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, join
     hips = biped_hips(*centred, rest, bone_indices, bone_weights, up_axis, frames)
     if hips is None:
         return parents, jointed, joint_pair, sliding
-    tree = rooted_at(parents, points, int(hips))[0]
+    root = int(np.flatnonzero(parents < 0)[0])
+    tree, _, fixed, pair_of, slides = rooted_at(parents, points, int(hips), jointed, joint_pair, sliding)
     top = int(np.argmax(rest[:, up_axis]))
     head = int(np.asarray(bone_indices)[top][np.argmax(np.asarray(bone_weights)[top])])
     spine = [head]
@@ -326,31 +327,20 @@ def limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, join
     if len(spine) < 2 or (min(head, spine[1]), max(head, spine[1])) not in key:  # no spine, or a free head
         return parents, jointed, joint_pair, sliding
     neck = joints[key[(min(head, spine[1]), max(head, spine[1]))]][up_axis]
-    moved = {}  # child: the pair that now holds it
+    moved = False
     for child in np.flatnonzero(tree == head):
         limb = [b for b in range(bones) if is_below(tree, b, int(child))]
         options = [key[(min(child, b), max(child, b))] for b in spine[1:] if (min(child, b), max(child, b)) in key]
-        if centres[limb, up_axis].mean() < neck and options:
-            moved[int(child)] = min(options, key=lambda p: (drift[p], p))
+        if centres[limb, up_axis].mean() < neck and options:  # hung, in the tree from the hips, on the spine
+            pair = min(options, key=lambda p: (drift[p], p))
+            tree[child] = pairs[pair][0] if pairs[pair][1] == child else pairs[pair][1]
+            pair_of[child], fixed[child], slides[child] = pair, drift[pair] <= max_drift, drift[pair] > max_drift
+            moved = True
     if not moved:
         return parents, jointed, joint_pair, sliding
-    kind = {frozenset((int(b), int(parents[b]))): (int(joint_pair[b]), bool(jointed[b]), bool(sliding[b]))
-            for b in np.flatnonzero(parents >= 0)}
-    for child, pair in moved.items():
-        del kind[frozenset((child, head))]
-        kind[frozenset(int(b) for b in pairs[pair])] = (int(pair), bool(drift[pair] <= max_drift),
-                                                        bool(drift[pair] > max_drift))
-    out = (np.full(bones, -1, np.int64), np.zeros(bones, bool), np.full(bones, -1, np.int64), np.zeros(bones, bool))
-    root = int(np.flatnonzero(parents < 0)[0])
-    stack, seen = [root], {root}
-    while stack:  # the new edges, rooted where the tree was
-        at = stack.pop()
-        for edge in sorted((e for e in kind if at in e and not e <= seen), key=sorted):
-            other = next(iter(edge - {at}))
-            seen.add(other)
-            out[0][other], out[2][other], out[1][other], out[3][other] = at, *kind[edge]
-            stack.append(other)
-    return out
+    parents, _, jointed, joint_pair, sliding = rooted_at(tree, points, root, fixed, pair_of, slides)  # back
+    jointed[root], joint_pair[root], sliding[root] = False, -1, False
+    return parents, jointed, joint_pair, sliding
 
 
 def hung_from_centre(skeleton, drift, rest, bone_indices, bone_weights, frames=None, up_axis=1):

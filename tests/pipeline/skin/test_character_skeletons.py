@@ -160,6 +160,14 @@ def test_an_arm_hung_from_the_head_by_chance_moves_to_the_spine_below_it():
     slid = limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, joints, 0.0035, rig.rest, indices,
                               weights, vertices)
     assert slid[0][arm] == chest and slid[3][arm] and not slid[1][arm]
+    # a tree spanned from another root (the fit's heaviest bone: here the arm's own hand) comes back so rooted
+    hand = body.index("hand_l")
+    rooted = rooted_at(parents, joints[joint_pair], hand, jointed, joint_pair, sliding)
+    back = limbs_off_the_head(rooted[0], *rooted[2:], pairs, drift, joints, 0.02, rig.rest, indices, weights, vertices)
+    truth = rooted_at(body.parents, joints[joint_pair], hand, body.parents >= 0, moved[2], moved[3])
+    truth[2][hand], truth[3][hand] = False, -1  # the root turns about nothing
+    assert back[0].tolist() == truth[0].tolist() and back[1].tolist() == truth[2].tolist()
+    assert back[2].tolist() == truth[3].tolist() and not back[3].any()
     # the head's own tree (nothing hangs down from it) and a quadruped's are left alone
     kept = limbs_off_the_head(*_sparse_tree(body)[:4], *_sparse_tree(body)[4:], 0.02, rig.rest, indices, weights,
                               vertices)
