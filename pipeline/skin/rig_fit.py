@@ -22,7 +22,6 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
     error against bones (:func:`.bone_count.choose_bone_count`), returned as a fourth value, the
     :class:`.bone_count.BoneCount` (None otherwise)."""
     from ..errors import OptionError
-    from ..mesh.geometry import bounding_box_diagonal
     from ..runtime.resources import check_memory
     from .skin_fit import fit_memory_bytes, validate_fit_options
 
@@ -38,10 +37,8 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
         if bones == "auto":
             from .bone_count import choose_bone_count
 
-            extent = bounding_box_diagonal(vertices[rest_frame])
-            if not extent > 0.0:
-                raise OptionError(f"{first_input}: the rest frame has no extent (all vertices coincide)")
-            chosen = choose_bone_count(vertices, vertices[rest_frame], extent)
+            diagonal = _rest_diagonal(first_input, vertices[rest_frame])
+            chosen = choose_bone_count(vertices, vertices[rest_frame], diagonal)
             bones = chosen.count
         validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
         if root_bone is not None and root_bone >= bones:
@@ -53,10 +50,20 @@ def fit_rest_pose(first_input, vertices, clips, rig, bones, rest_frame, max_infl
                      f"fit-skin --bones {bones} on {count} vertices × {frames} frames"
                      + (f" with --transform-steps {transform_steps}" if transform_steps else "")
                      + (f" grown from {grown} bones (--surplus-bones)" if grown > bones else ""))
-    diagonal = bounding_box_diagonal(rig.rest_vertices if rig is not None else vertices[rest_frame])
+    if chosen is None:
+        diagonal = _rest_diagonal(first_input, rig.rest_vertices if rig is not None else vertices[rest_frame])
+    return bones, rest_frame, diagonal, chosen
+
+
+def _rest_diagonal(first_input, rest):
+    """The rest pose's (V, 3) bounding-box diagonal, refused (OptionError) where it has no extent."""
+    from ..errors import OptionError
+    from ..mesh.geometry import bounding_box_diagonal
+
+    diagonal = bounding_box_diagonal(rest)
     if not diagonal > 0.0:
         raise OptionError(f"{first_input}: the rest frame has no extent (all vertices coincide)")
-    return bones, rest_frame, diagonal, chosen
+    return diagonal
 
 
 def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, root_bone=None, max_joint_drift=None,
