@@ -10,13 +10,15 @@ Builds, as a user would, the samba puppet on the controls of the committed Plug-
   capture's rest pose): the mean vertex error over the capture's frames against that of playing
   the clean controls (``error_ratio``), and without the noise (and ``--filter none``) the largest
   error of the recovered map (``transform_error``, relative).
-- ``held_out``: issue 45's takes of a capture no layout was made for (``vlasic_samba`` and
-  ``vlasic_crane``): 16 markers by farthest-point sampling on the rest mesh, a puppet on them
-  (``select-controls --markers``), and takes written from those vertices at 100 Hz (from 24 fps),
-  in millimetres, turned and moved, played with no neutral frame given: ``clean``, ``noise``
-  (0.1 % of the height), ``gaps`` (5 % of the samples in runs of 1–30 frames, the first sample
-  too), ``both``, ``still_noise`` and ``still_both`` (those takes after a second of the first
-  frame held, as a real take starts in a calibration pose; scored after it); each one's mean
+- ``held_out``: issues 45 and 66's takes of every shared capture of a body (``--captures``:
+  ``vlasic_samba``, ``vlasic_crane``, ``geomvideo_dance``, ``horse_gallop``, ``geomvideo_cow``):
+  16 markers by farthest-point sampling on the rest mesh, a puppet on them (``select-controls
+  --markers``, ``train-kcca``'s defaults), and takes written from those vertices at 100 Hz (from
+  24 fps; between the frames by a smooth curve, or ``--between-frames linear`` as issue 45 wrote
+  them), in millimetres, turned and moved, played with no neutral frame given: ``clean``,
+  ``noise`` (0.1 % of the height), ``gaps`` (5 % of the samples in runs of 1–30 frames, the first
+  sample too), ``both``, and each again as ``still_…`` (after a second of the first frame held, as
+  a real take starts in a calibration pose; scored after it; ``--takes`` picks some); each one's mean
   vertex error over the capture's frames against that of playing the clean control vertices
   (``error_ratio``), and its worst frame's against the clean controls' worst (``worst_ratio``),
   with seed 11; the same over seeds 11–15 (``error_ratio_mean``, ``error_ratio_max``,
@@ -30,6 +32,7 @@ Builds, as a user would, the samba puppet on the controls of the committed Plug-
   process, best of 3: take frames per second.
 
     python benchmarks/markers.py [--work DIR] [--only truth|held_out|take|speed|skeleton]
+        [--captures A,B] [--takes still_clean,…] [--between-frames pchip|linear]
 """
 
 import argparse
@@ -118,6 +121,8 @@ HELD_SEEDS = (11, 12, 13, 14, 15)
 #: ``still_noise``: the noise take with the capture's first frame held this long before it, as a
 #: real take starts in a calibration pose (the shared tennis serve: still for its first second).
 HELD_STILL_SECONDS = 1.0
+#: Every shared capture of a body (issue 66), the fast and the soft ones with the two it was built on.
+HELD_CAPTURES = ("vlasic_samba", "vlasic_crane", "geomvideo_dance", "horse_gallop", "geomvideo_cow")
 
 
 def farthest_points(points, count):
@@ -130,8 +135,10 @@ def farthest_points(points, count):
     return chosen
 
 
-def held_out(work, capture):
-    """Issue 45's held-out takes on ``capture``: one JSON line per variant."""
+def held_out(work, capture, takes=None, smooth=True):
+    """Issue 45's held-out takes on ``capture``: one JSON line per variant (``takes``: those named,
+    None all); ``smooth``: the take between the capture's frames by a smooth curve (PCHIP), else by
+    lines (:func:`mocap_takes.denser`)."""
     from skinsynth.formats.skin_file import read_skin
 
     folder = os.path.join(work, capture)
@@ -161,23 +168,25 @@ def held_out(work, capture):
     clean_mean, clean_worst = errors("clean")
     factor = HELD_RATE / float(skin.fps)
     held = int(round(HELD_STILL_SECONDS * float(skin.fps)))  # capture frames of the still start
-    for name, noise, missing in (("clean", 0.0, 0.0), ("noise", 0.001 * height, 0.0), ("gaps", 0.0, 0.05),
-                                 ("both", 0.001 * height, 0.05), ("still_noise", 0.001 * height, 0.0),
-                                 ("still_both", 0.001 * height, 0.05)):
+    for name, noise, missing in (variant for variant in (("clean", 0.0, 0.0), ("noise", 0.001 * height, 0.0), ("gaps", 0.0, 0.05),
+                                 ("both", 0.001 * height, 0.05), ("still_clean", 0.0, 0.0),
+                                 ("still_noise", 0.001 * height, 0.0), ("still_gaps", 0.0, 0.05),
+                                 ("still_both", 0.001 * height, 0.05)) if takes is None or variant[0] in takes):
         rows = []
         skip = held if name.startswith("still") else 0
         performed = np.concatenate([np.repeat(frames[:1], skip, axis=0), frames])
         for seed in HELD_SEEDS:  # the first is the must-show's take; the others, its noise and gaps drawn again
             points = take_points(performed, factor, HELD_SCALE, HELD_ROTATION, HELD_SHIFT_MM, noise=noise,
-                                 missing=missing, longest=30, seed=seed, keep_first=False)
+                                 missing=missing, longest=30, seed=seed, keep_first=False, smooth=smooth)
             write_c3d(os.path.join(folder, f"take_{name}.c3d"), [f"Dancer:{label}" for label in layout], points,
                       HELD_RATE, units="mm")
             _, _, _, stdout = run(["play", puppet, "-c", f"take_{name}.c3d", "-o", f"take_{name}.h5", "--json"], folder)
             rows.append((*errors(f"take_{name}", skip), json.loads(stdout)["takes"][0]))
-            if name == "clean":
+            if name.endswith("clean"):
                 break  # nothing drawn
         (mean, worst, report), ratios = rows[0], [m / clean_mean for m, _, _ in rows]
         yield {"benchmark": "markers", "case": "held_out", "capture": capture, "take": name,
+               "between_frames": "pchip" if smooth else "linear",
                "markers": HELD_MARKERS, "rate": HELD_RATE, "error_clean": clean_mean / height,
                "error_take": mean / height, "error_ratio": round(mean / clean_mean, 3),
                "worst_ratio": round(worst / clean_worst, 3), "neutral_frame": report["neutral_frame"],
@@ -292,6 +301,11 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", default=None, help="folder kept between runs (the puppet is built once)")
     parser.add_argument("--only", default=None, choices=["truth", "held_out", "take", "speed", "skeleton"])
+    parser.add_argument("--captures", default=",".join(HELD_CAPTURES),
+                        help="held_out: the captures, comma-separated (default: every shared capture of a body)")
+    parser.add_argument("--takes", default=None, help="held_out: only these variants, comma-separated")
+    parser.add_argument("--between-frames", default="pchip", choices=["pchip", "linear"],
+                        help="held_out: how the takes run between the capture's frames (linear: issue 45's takes)")
     options = parser.parse_args()
     if not (SHARED_DATA / "vlasic_samba").is_dir() or not TAKES.is_dir():
         print(json.dumps({"benchmark": "markers", "skipped": f"needs vlasic_samba and mocap_c3d in {SHARED_DATA}"}))
@@ -300,9 +314,10 @@ def main():
     os.makedirs(work, exist_ok=True)
     wanted = (lambda case: options.only in (None, case))
     if wanted("held_out"):
-        for capture in ("vlasic_samba", "vlasic_crane"):
+        for capture in options.captures.split(","):
             if (SHARED_DATA / capture).is_dir():
-                for row in held_out(work, capture):
+                for row in held_out(work, capture, options.takes and options.takes.split(","),
+                                   options.between_frames == "pchip"):
                     print(json.dumps(row), flush=True)
     if wanted("skeleton"):
         print(json.dumps(skeleton(work)), flush=True)

@@ -6,13 +6,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skinsynth.pipeline.puppet.marker_filter import BODY_CUTOFF, cutoff_option
-from skinsynth.pipeline.puppet.marker_gaps import MAX_GAP, rigid_clusters
+from skinsynth.pipeline.puppet.marker_filter import AUTO, cutoff_option
+from skinsynth.pipeline.puppet.marker_gaps import rigid_clusters
 
 #: The options of :func:`skinsynth.cli.options.marker_take_options` and their defaults, by name.
 TAKE_DEFAULTS = {"marker_layout": None, "marker_units": None, "take_up_axis": "Z", "fps": None, "neutral_frame": None,
-             "retarget": "delta", "stabilize": None, "max_gap": MAX_GAP, "min_markers": None, "allow_missing": False,
-             "cutoff": f"{BODY_CUTOFF:g}"}
+             "retarget": "delta", "stabilize": None, "max_gap": None, "min_markers": None, "allow_missing": False,
+             "cutoff": AUTO}
 
 
 @dataclass

@@ -103,14 +103,17 @@ def marker_take_options(command):
         click.option("--stabilize", default=None, metavar="A,B,C",
                      help="C3D: remove each frame's rigid motion of these markers (3 or more, e.g. a face's head "
                           "markers) from every marker."),
-        click.option("--max-gap", default=TAKE_DEFAULTS["max_gap"], show_default=True, type=int,
-                     help="C3D: gaps of at most this many take frames are interpolated; longer ones are filled "
-                          "from the other markers through the puppet's training poses."),
+        click.option("--max-gap", default=TAKE_DEFAULTS["max_gap"], type=int, metavar="FRAMES",
+                     help="C3D: gaps of at most this many take frames are bridged in time (a smoothing spline "
+                          "through the samples around them); longer ones are filled from the other markers "
+                          "through the puppet's training poses  [default: 0.3 s of the take's frames]"),
         click.option("--min-markers", default=None, type=int,
                      help="C3D: a frame seeing fewer markers is held from the last good one  [default: half the "
                           "take's markers, at least 3]"),
-        click.option("--filter", "cutoff", default=TAKE_DEFAULTS["cutoff"], show_default=True, metavar="HZ|none",
-                     help="C3D: the markers' low-pass cut-off (zero-phase Butterworth, docs/mocap.md), or none (the "
+        click.option("--filter", "cutoff", default=TAKE_DEFAULTS["cutoff"], show_default=True,
+                     metavar="HZ|auto|none",
+                     help="C3D: the markers' low-pass cut-off (zero-phase Butterworth, docs/mocap.md): auto chooses "
+                          "it from the take (the one leaving its samples nearest the motion; reported), or none (the "
                           "take raw, its neutral frame as measured)."),
         click.option("--allow-missing", is_flag=True,
                      help="C3D: play a take lacking some of the layout's markers (each frame filled from the others)."),

@@ -15,10 +15,18 @@ def rotation_about(axis, angle):
     return np.eye(3) + np.sin(angle) * cross + (1 - np.cos(angle)) * cross @ cross
 
 
-def denser(frames, factor):
+def denser(frames, factor, smooth=False):
     """frames (F, n, 3) at some rate -> (⌊factor (F − 1)⌋ + 1, n, 3) at factor × it, linear between
-    frames; with a whole factor sample factor·f is frame f exactly (100 Hz from 24 fps: 25/6)."""
+    frames; with a whole factor sample factor·f is frame f exactly (100 Hz from 24 fps: 25/6).
+    ``smooth``: through the frames by a shape-preserving cubic (PCHIP: smooth as a performer's
+    markers are, no overshoot where the take holds still and then moves) instead of a line, which
+    turns sharply at every frame (24 times a second), what no marker does and a filter reads as
+    noise."""
     times = np.arange(int(np.floor((len(frames) - 1) * factor + 1e-9)) + 1) / factor
+    if smooth:
+        from scipy.interpolate import PchipInterpolator
+
+        return PchipInterpolator(np.arange(len(frames)), frames, axis=0)(times)
     low = np.minimum(np.floor(times).astype(int), len(frames) - 1)
     high = np.minimum(low + 1, len(frames) - 1)
     mix = (times - low)[:, None, None]
@@ -39,14 +47,14 @@ def gap_mask(samples, markers, share, longest, seed, keep_first=True):
 
 
 def take_points(frames, factor, scale, rotation, shift_mm, noise=0.0, missing=0.0, longest=30, seed=0,
-                keep_first=True):
+                keep_first=True, smooth=False):
     """A take (T, n, 3) in millimetres, Z up, of a Y-up capture's control positions frames
     (F, n, 3) in metres: ``1000 (scale · rotation @ Y_TO_Z @ x) + shift_mm`` at factor × the
     capture's rate, plus Gaussian noise of ``noise`` metres per coordinate, and ``missing`` of
     the samples NaN in gaps of 1..longest take frames (the first sample kept whole when
-    ``keep_first``)."""
+    ``keep_first``); ``smooth``: between frames as :func:`denser` says."""
     rng = np.random.default_rng(seed + 1)
-    dense = denser(np.asarray(frames, dtype=float), factor)
+    dense = denser(np.asarray(frames, dtype=float), factor, smooth)
     points = 1000.0 * scale * dense @ (rotation @ Y_TO_Z).T + shift_mm
     points += 1000.0 * noise * rng.normal(size=points.shape)
     if missing > 0:

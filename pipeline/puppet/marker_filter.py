@@ -8,6 +8,12 @@ literature (Winter, *Biomechanics and Motor Control of Human Movement*, 4th ed.,
 every coordinate with a Butterworth filter run forward and backward: zero phase lag, so no event
 moves in time.
 
+The cut-off is the take's own (``--filter auto``, the default; :func:`choose_cutoff`): a fast
+dancer's hands need more bandwidth than a slow form's pelvis, and a clean take needs none cut,
+so one figure for every take either blurs the fast or passes the noise of the slow (10 Hz, the
+default before, played the clean held-out takes of Zheng's dancer and of the cow at 1.10× and
+1.05× the clean controls' error; docs/mocap.md).
+
 Here: a second-order Butterworth run forward and backward (:func:`scipy.signal.filtfilt`), its
 cut-off raised by Winter's correction so that after both passes the response is −3 dB at the
 cut-off asked for (:func:`lowpass_response`). The ends are padded by an odd reflection (scipy's
@@ -30,9 +36,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-#: The default cut-off, Hz: the fastest body motions (sport, dance) have energy to about 10 Hz
-#: (Winter §3.4.4; walking is filtered at 6 Hz), and a puppet playing at 24–30 fps shows nothing
-#: above 12–15 Hz. Measured on issue 45's held-out takes (``benchmarks/markers.py --only
+#: A body's bandwidth, Hz, where a take gives none: the smoothing spline over a raw take's gaps
+#: (``--filter none``, :func:`.marker_gaps.fill_short_gaps`). The fastest body motions (sport,
+#: dance) have energy to about 10 Hz (Winter §3.4.4; walking is filtered at 6 Hz), and a puppet
+#: playing at 24–30 fps shows nothing above 12–15 Hz. It was the default cut-off before
+#: ``--filter auto``; measured on issue 45's held-out takes (``benchmarks/markers.py --only
 #: held_out``, with Gustafsson's ends then): 6 Hz cut the crane's kicks (its worst clean frame
 #: 1.65× the clean controls'), 10 Hz 1.21×; the noise take's error 1.12× at 10 Hz, 1.21×
 #: unfiltered (samba). With the reflection's ends, 7 and 8 Hz gave the noise takes nothing over
@@ -51,6 +59,72 @@ ORDER = 2
 PASSES_CORRECTION = (np.sqrt(2.0) - 1.0) ** 0.25
 
 
+#: ``--filter auto``: the cut-off chosen from the take itself (:func:`choose_cutoff`), the default.
+AUTO = "auto"
+#: :func:`choose_cutoff` tries cut-offs from this (Hz) in steps of :data:`CUTOFF_STEP` to the highest
+#: the take's rate allows: no body motion is filtered below 2 Hz (walking: 6 Hz, Winter §3.4.4).
+LOWEST_CUTOFF = 2.0
+CUTOFF_STEP = 0.5
+#: The noise is read where only noise is left above the cut-off: over the cut-offs from this share
+#: of the highest tried up (Winter's straight, noise-only section of the residual). A body's motion
+#: has its energy below about 10 Hz (Winter §3.4.4), under 0.6 of the highest cut-off of any take
+#: sampled at 50 Hz or more (at 100 Hz: 24–40 Hz).
+NOISE_SECTION = 0.6
+
+
+def residual_curve(points, rate, cutoffs):
+    """Winter's residual R(fc) (C,) of points (T, M, 3) (NaN where missing) for each of ``cutoffs``
+    (C,) Hz: the RMS, per coordinate, of each seen sample less its low-passed value
+    (:func:`lowpass_runs`), over the samples of runs long enough to be filtered at fc (NaN where
+    no run is)."""
+    raw = np.asarray(points, dtype=np.float64)
+    seen = ~np.isnan(raw).any(axis=2)
+    residual = np.full(len(cutoffs), np.nan)
+    for k, cutoff in enumerate(cutoffs):  # cut-offs, never samples
+        used = seen & ~unfiltered_samples(seen, rate, cutoff)
+        if used.any():
+            squared = np.sum((raw - lowpass_runs(raw, rate, cutoff)) ** 2, axis=2)
+            residual[k] = np.sqrt(np.mean(squared[used]) / 3.0)
+    return residual
+
+
+def choose_cutoff(points, rate):
+    """The cut-off (Hz) that filters a take's markers points (T, M, 3) (NaN where missing), sampled
+    at ``rate`` Hz, best: the one whose filtered samples lie nearest the motion, by Stein's
+    unbiased estimate of that error (Mallows' C_p for a linear filter), from Winter's residual
+    analysis (§3.4.4.3). The residual R(fc) (:func:`residual_curve`) is the motion the filter cuts
+    plus the noise it removes; where fc is high enough that only noise lies above it, R²(fc) is the
+    noise variance σ² times the share of white noise the filter removes (:func:`noise_gains`), which
+    gives σ (the median over the top :data:`NOISE_SECTION` of the cut-offs; Winter draws a line
+    there instead, which bends away from R near the Nyquist frequency and read the noise 1.5× too
+    high on generated motion). The error of filtering at fc against the motion is then
+    R²(fc) − σ² + 2σ² s(fc), s the filter's weight on the sample itself: the fc minimising it is
+    taken. On generated motion of known bandwidth (2–10 Hz at 100 Hz, noise 0.2–3 mm) it took the
+    best cut-off of the grid or its neighbour, where Winter's crossing (R = σ) took one 1.5–3 Hz
+    lower, cutting motion (tests/pipeline/puppet/test_marker_filter.py); on a clean take it takes a
+    high cut-off that leaves the take all but raw. None where the take is too short or too slow for
+    :data:`LOWEST_CUTOFF`, or sampled too slowly to tell its noise from a body's motion (its noise
+    section would start below :data:`BODY_CUTOFF`: under about 42 Hz; a real optical take runs at
+    50–480 Hz): it is kept raw."""
+    top = np.floor(0.5 * rate * PASSES_CORRECTION / CUTOFF_STEP) * CUTOFF_STEP
+    while top >= LOWEST_CUTOFF and not can_filter(rate, top):
+        top -= CUTOFF_STEP
+    cutoffs = np.arange(LOWEST_CUTOFF, top + 0.5 * CUTOFF_STEP, CUTOFF_STEP)
+    if NOISE_SECTION * top < BODY_CUTOFF:
+        return None
+    residual = residual_curve(points, rate, cutoffs)
+    known = np.isfinite(residual)
+    gains = np.array([noise_gains(rate, float(c), shortest_run(rate, c), 2 * shortest_run(rate, c) + 1)
+                      for c in cutoffs])  # (C, 2): an interior sample's white noise kept, removed
+    section = known & (cutoffs >= NOISE_SECTION * top) & (gains[:, 1] > 0.05)
+    if not section.any():
+        return None
+    variance = float(np.median(residual[section] ** 2 / gains[section, 1]))
+    itself = 0.5 * (1.0 + gains[:, 0] - gains[:, 1])  # the filter's weight on the sample: (1 + kept − removed) / 2
+    risk = np.where(known, residual ** 2 - variance + 2.0 * variance * itself, np.inf)
+    return float(cutoffs[int(np.argmin(risk))])
+
+
 class FilteredTake(NamedTuple):
     """What :func:`filter_take` made of a take: points (T, M, 3), NaN where missing; cutoff (Hz),
     None where the take was kept raw; kept_raw: seen samples left raw in runs too short for the
@@ -64,18 +138,20 @@ class FilteredTake(NamedTuple):
 
 
 def filter_take(points, rate, cutoff, exclude=None):
-    """A take's markers points (T, M, 3) (NaN where missing) low-passed at ``cutoff`` Hz, None for
-    none (:func:`lowpass_runs`), with what :func:`removed_noise` reads of their noise (exclude (T, M):
+    """A take's markers points (T, M, 3) (NaN where missing) low-passed at ``cutoff`` Hz (:data:`AUTO`:
+    the one :func:`choose_cutoff` finds in them), None for none (:func:`lowpass_runs`), with what :func:`removed_noise` reads of their noise (exclude (T, M):
     samples that measured nothing, interpolated ones). Kept raw, reported with cutoff None, where
     the take is too slow for the filter (:func:`can_filter`) or no run of samples is long enough
     (:func:`unfiltered_samples`). -> :class:`FilteredTake`; OptionError for a cut-off ≤ 0."""
     from ..errors import OptionError
 
     raw = np.asarray(points, dtype=np.float64)
+    if isinstance(cutoff, str) and cutoff == AUTO:
+        cutoff = choose_cutoff(raw, rate)
     if cutoff is None:
         return FilteredTake(raw, None, 0, None)
     if not (np.isfinite(cutoff) and cutoff > 0):
-        raise OptionError(f"--filter must be a positive cut-off in Hz or none (got {cutoff:g})")
+        raise OptionError(f"--filter must be a positive cut-off in Hz, auto or none (got {cutoff:g})")
     if not can_filter(rate, cutoff):
         return FilteredTake(raw, None, 0, None)
     seen = ~np.isnan(raw).any(axis=2)
@@ -88,13 +164,16 @@ def filter_take(points, rate, cutoff, exclude=None):
 
 
 def cutoff_option(text):
-    """``play --filter``'s value: a cut-off in Hz (float), or None for "none"; OptionError else."""
+    """``play --filter``'s value: a cut-off in Hz (float), :data:`AUTO` for "auto", or None for
+    "none"; OptionError else."""
     from ..errors import OptionError
 
+    if str(text).strip().lower() == AUTO:
+        return AUTO
     try:
         return None if str(text).strip().lower() == "none" else float(text)
     except ValueError:
-        raise OptionError(f"--filter takes a cut-off in Hz or none (got {text})") from None
+        raise OptionError(f"--filter takes a cut-off in Hz, auto or none (got {text})") from None
 
 
 def _coefficients(rate, cutoff):

@@ -7,13 +7,15 @@ order :func:`drive_from_markers` runs them (each an option of ``play``):
 
 1. **Units and up axis.** Metres to the mesh's units (``metersPerUnit``), the take's up axis (C3D:
    Z) turned onto the puppet's (:func:`up_axis_rotation`).
-2. **Short gaps** (≤ ``max_gap`` take frames, both ends seen) are filled by linear interpolation
-   in time (:func:`.marker_gaps.fill_short_gaps`). Linear, not a spline: a gap of a few frames at 50–120 Hz is
-   a few centimetres of travel, and a spline overshoots at a marker's noisy ends. Then every
-   marker's runs of samples are **low-passed** (``cutoff`` Hz, default
-   :data:`.marker_filter.BODY_CUTOFF`; None keeps them raw): a zero-phase Butterworth along time,
-   as mocap tools filter before anything reads the trajectories (:func:`.marker_filter.filter_take`)
-   — before the neutral frame is read, whose noise would otherwise offset every frame.
+2. **The cut-off** (``cutoff`` Hz; default ``"auto"``, the take's own: the one whose filtered
+   samples lie nearest the motion, :func:`.marker_filter.choose_cutoff`; None keeps the take raw).
+   **Short gaps** (≤ ``max_gap`` take frames, default :data:`.marker_gaps.MAX_GAP_SECONDS` of them,
+   both ends seen) are bridged by a smoothing spline through the samples around them at that
+   bandwidth (:func:`.marker_gaps.fill_short_gaps`): a spinning marker's curve is carried through
+   the gap, where a line cuts its chord, and the spline smooths the noisy ends as the filter will.
+   Then every marker's runs of samples are **low-passed**: a zero-phase Butterworth along time, as
+   mocap tools filter before anything reads the trajectories (:func:`.marker_filter.filter_take`) —
+   before the neutral frame is read, whose noise would otherwise offset every frame.
 3. **Stabilised** (``--stabilize A,B,C``): each frame's rigid motion of three or more markers
    (a face's head markers) relative to the neutral frame is removed from every marker
    (:func:`stabilize_markers`).
@@ -47,9 +49,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import OptionError
-from .marker_gaps import (MAX_GAP, fill_from_training, fill_rigid_clusters, fill_short_gaps, fill_uncertainty,
+from .marker_gaps import (MAX_GAP_SECONDS, fill_from_training, fill_rigid_clusters, fill_short_gaps, fill_uncertainty,
                           join_filled_runs, rigid_onto, training_subspace)
-from .marker_filter import BODY_CUTOFF, ORDER, filter_take
+from .marker_filter import AUTO, ORDER, choose_cutoff, filter_take
 from .marker_neutral import (choose_neutral_frame, neutral_pose, residual_summary, sample_noise,
                              shrink_neutral_residual)
 
@@ -74,7 +76,8 @@ class MarkerDrive:
     subspace: {marker index: take frames filled that way}; held: take frames held from the last
     good one; min_markers: the rule used for ``held``;
     cutoff: the low-pass cut-off applied (Hz), None where the take was kept raw (too slow for it, or
-    no run of samples long enough); kept_raw: samples of a filtered take left raw, their runs too
+    no run of samples long enough); chosen: whether the take chose it (``"auto"``); max_gap: the
+    longest gap bridged in time (take frames); kept_raw: samples of a filtered take left raw, their runs too
     short (:func:`.marker_filter.shortest_run`); neutral: the
     neutral frame's residual from the rest controls ("residual", root mean square over the
     markers, mesh units), the noise in it ("noise"), the share kept ("kept",
@@ -98,6 +101,8 @@ class MarkerDrive:
     held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     min_markers: int = 3
     cutoff: float = None
+    chosen: bool = False
+    max_gap: int = 0
     uncertainty: np.ndarray = field(default_factory=lambda: np.zeros(0))
     neutral: dict = field(default_factory=dict)
     kept_raw: int = 0
@@ -210,7 +215,7 @@ def layout_order(vertices, positions, rest_vertices, control_indices):
 
 def drive_from_markers(points, rate, fps, reference, training, *, meters_per_unit=1.0, take_up="Z", puppet_up="Y",
                        offsets=None, normals=None, neutral_frame=None, retarget="delta", stabilize=(),
-                       max_gap=MAX_GAP, min_markers=None, labels=None, cutoff=BODY_CUTOFF, bones=None):
+                       max_gap=None, min_markers=None, labels=None, cutoff=AUTO, bones=None):
     """A take's markers as the puppet's controls (the module's steps 1–7).
 
     points (T, n, 3) metres, the markers in the puppet's control order, NaN where missing; rate
@@ -222,8 +227,10 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     is filled every frame from the others); stabilize: marker indices; min_markers: a frame seeing
     fewer is held (default half the markers the take has, at least 3); labels (n,): the markers' names
     in messages (default their numbers);
-    cutoff: the low-pass cut-off in Hz (step 2), None for none; a take too slow for it (its
-    Nyquist frequency below the filter's) is kept raw, ``MarkerDrive.cutoff`` None; bones (n,):
+    cutoff: the low-pass cut-off in Hz (step 2), ``"auto"`` the take's own, None for none; a take
+    too slow for it (its Nyquist frequency below the filter's) is kept raw, ``MarkerDrive.cutoff``
+    None (``MarkerDrive.chosen``: whether the take chose it); max_gap: the longest gap (take frames)
+    bridged in time (None: :data:`.marker_gaps.MAX_GAP_SECONDS` of them); bones (n,):
     the bone each marker rides rigidly (:func:`.marker_gaps.rigid_clusters`, −1 none), whose clusters fill
     their gaps first (:func:`.marker_gaps.fill_rigid_clusters`); None: no such fill.
     -> :class:`MarkerDrive`; OptionError (one line) for an option the take cannot satisfy."""
@@ -235,7 +242,12 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
     turn = up_axis_rotation(take_up, puppet_up) / meters_per_unit  # metres, take up -> mesh units, puppet up
     local = points @ turn.T
     noise = sample_noise(local)
-    local, interpolated = fill_short_gaps(local, max_gap)
+    chosen = isinstance(cutoff, str) and cutoff == AUTO
+    if chosen:
+        cutoff = choose_cutoff(local, rate)
+    if max_gap is None:
+        max_gap = int(np.floor(MAX_GAP_SECONDS * rate + 1e-9))
+    local, interpolated = fill_short_gaps(local, max_gap, rate, cutoff)
     filtered = filter_take(local, rate, cutoff, exclude=interpolated)
     local, cutoff = filtered.points, filtered.cutoff
     present = ~np.isnan(local).any(axis=2).all(axis=0)  # (n,) the markers the take has (seen at all)
@@ -276,6 +288,7 @@ def drive_from_markers(points, rate, fps, reference, training, *, meters_per_uni
                        translation=translation, neutral_frame=int(neutral_frame),
                        interpolated=_frames_by_marker(interpolated), subspace=_frames_by_marker(by_subspace),
                        rigid=_frames_by_marker(by_cluster), held=held, min_markers=min_markers, cutoff=cutoff,
+                       chosen=chosen, max_gap=max_gap,
                        uncertainty=uncertainty, kept_raw=filtered.kept_raw, neutral=neutral)
 
 
@@ -283,7 +296,7 @@ def _check_drive_options(retarget, max_gap, fps, min_markers, count):
     """OptionError (one line) for a value of :func:`drive_from_markers` no take can satisfy."""
     if retarget not in RETARGETS:
         raise OptionError(f"--retarget must be one of {', '.join(RETARGETS)} (got {retarget})")
-    if max_gap < 0:
+    if max_gap is not None and max_gap < 0:
         raise OptionError(f"--max-gap must be ≥ 0 frames (got {max_gap})")
     if not (np.isfinite(fps) and fps > 0):
         raise OptionError(f"--fps must be a positive number (got {fps})")
@@ -359,9 +372,10 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
                "transform": {"scale": drive.scale, "rotation": drive.rotation.tolist(),
                              "translation": drive.translation.tolist()},
                "filled": filled, "held_frames": frame_ranges(drive.held), "min_markers": drive.min_markers,
-               "filter": ({"cutoff_hz": drive.cutoff, "order": ORDER, "passes": 2,
-                           "samples_kept_raw": drive.kept_raw} if drive.cutoff is not None
+               "filter": ({"cutoff_hz": drive.cutoff, "chosen": "auto" if drive.chosen else "given", "order": ORDER,
+                           "passes": 2, "samples_kept_raw": drive.kept_raw} if drive.cutoff is not None
                           else "none"),
+               "max_gap_frames": drive.max_gap,
                "fill_uncertainty": {"per_frame": [round(float(u), 6) for u in drive.uncertainty],
                                     "worst": float(drive.uncertainty.max(initial=0.0)),
                                     "uncertain_frames": frame_ranges(np.flatnonzero(drive.uncertainty
@@ -376,8 +390,8 @@ def take_report(path, take, matched, labels, drive, fps, retarget):
              + (f" (of the neutral frame's residual {drive.neutral['residual']:.3g}, its noise about "
                 f"{drive.neutral['noise']:.3g}, {drive.neutral['kept']:.0%} kept), "
                 if drive.neutral.get("kept", 1.0) < 1.0 else ", ")
-             + (f"low-passed at {drive.cutoff:g} Hz" + (f" ({drive.kept_raw} samples in runs too short for it kept "
-                                                        "raw)" if drive.kept_raw else "")
+             + (f"low-passed at {drive.cutoff:g} Hz" + (" (chosen from the take: --filter auto)" if drive.chosen else "")
+                + (f" ({drive.kept_raw} samples in runs too short for it kept raw)" if drive.kept_raw else "")
                 if drive.cutoff is not None else "not filtered")]
     if matched.unmatched:
         lines.append(f"{name}: labels not in the layout, ignored: {', '.join(matched.unmatched)}")

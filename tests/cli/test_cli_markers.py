@@ -153,12 +153,18 @@ def test_the_take_is_low_passed_by_default_and_reported(puppet, tmp_path):
     folder, labels, picks = puppet
     take, _ = _take(folder, labels, picks, "filtered.c3d")
     runs, neutral, frame = {}, {}, {}
-    for name, extra in (("default", []), ("raw", ["--filter", "none"]), ("three", ["--filter", "3"])):
-        summary = json.loads(assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / f"{name}.h5",
-                                           "--json", *extra)).stdout)["takes"][0]
+    for name, extra in (("default", []), ("raw", ["--filter", "none"]), ("three", ["--filter", "3"]),
+                        ("ten", ["--filter", "10"])):
+        result = assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / f"{name}.h5", "--json",
+                               *extra))
+        summary = json.loads(result.stdout)["takes"][0]
         runs[name], neutral[name] = summary["filter"], summary["neutral_residual"]
         frame[name] = summary["neutral_frame"]
-    assert runs["default"] == {"cutoff_hz": 10.0, "order": 2, "passes": 2, "samples_kept_raw": 0}
+    # the default chooses the cut-off from the take: a clean take's is high (nothing to stop), and it says so
+    assert runs["default"]["chosen"] == "auto" and 15.0 <= runs["default"]["cutoff_hz"] <= 40.0
+    said = assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / "said.h5"))
+    assert f"low-passed at {runs['default']['cutoff_hz']:g} Hz (chosen from the take" in said.stdout + said.stderr
+    assert runs["ten"] == {"cutoff_hz": 10.0, "chosen": "given", "order": 2, "passes": 2, "samples_kept_raw": 0}
     assert runs["raw"] == "none"
     # the neutral frame's residual and the noise in it: none known on a raw take, which keeps it whole
     assert set(neutral["default"]) == {"residual", "noise", "kept", "frames"}
@@ -170,7 +176,7 @@ def test_the_take_is_low_passed_by_default_and_reported(puppet, tmp_path):
         raw, cut = a["vertices"][()], b["vertices"][()]
         assert np.abs(raw - cut).max() > 0.01 * np.ptp(raw[..., 1])  # the strides cut at 3 Hz (9 % of the height)
     assert_user_error(cli("play", folder / "puppet.h5", "-c", take, "--filter", "low", "-o", tmp_path / "x.h5"),
-                      "--filter takes a cut-off in Hz or none", folder=tmp_path,
+                      "--filter takes a cut-off in Hz, auto or none", folder=tmp_path,
                       keep=[p.name for p in tmp_path.iterdir()])
 
 

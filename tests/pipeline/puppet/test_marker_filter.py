@@ -1,12 +1,13 @@
 """pipeline.puppet.marker_filter: the zero-phase Butterworth's response against its closed form
 and on sinusoids, its ends on moving markers, runs filtered on their own (a run too short for the
 filter kept raw), the noise it keeps and removes against the response's integral and against
-known white noise, and a take too slow for the cut-off kept raw."""
+known white noise, a take too slow for the cut-off kept raw, and the cut-off a take chooses
+(``--filter auto``) against the best one on motion of known bandwidth and noise."""
 
 import numpy as np
 import pytest
 
-from skinsynth.pipeline.puppet.marker_filter import (BODY_CUTOFF, PASSES_CORRECTION, can_filter, lowpass,
+from skinsynth.pipeline.puppet.marker_filter import (BODY_CUTOFF, PASSES_CORRECTION, can_filter, choose_cutoff, lowpass,
                                                      lowpass_response, lowpass_runs, noise_gains, removed_noise,
                                                      shortest_run)
 from skinsynth.pipeline.puppet.markers import drive_from_markers
@@ -52,18 +53,19 @@ def test_a_take_too_slow_for_the_cut_off_is_kept_raw():
     shapes = rest + 0.1 * rng.normal(size=(20, 6, 3))
     raw = drive_from_markers(shapes, rate=15.0, fps=15.0, reference=rest, training=shapes, take_up="Y", puppet_up="Y",
                              cutoff=None)
-    slow = drive_from_markers(shapes, rate=15.0, fps=15.0, reference=rest, training=shapes, take_up="Y",
-                              puppet_up="Y")
-    assert slow.cutoff is None and np.array_equal(slow.controls, raw.controls)
+    for cutoff in (BODY_CUTOFF, "auto"):  # too slow for 10 Hz; too slow to tell noise from motion
+        slow = drive_from_markers(shapes, rate=15.0, fps=15.0, reference=rest, training=shapes, take_up="Y",
+                                  puppet_up="Y", cutoff=cutoff)
+        assert slow.cutoff is None and np.array_equal(slow.controls, raw.controls)
     # 20 samples at 60 Hz: shorter than the filter's reach (24), so nothing is filtered, and it says so
     short = drive_from_markers(shapes, rate=60.0, fps=60.0, reference=rest, training=shapes, take_up="Y",
-                               puppet_up="Y")
+                               puppet_up="Y", cutoff=BODY_CUTOFF)
     assert short.cutoff is None and np.array_equal(short.controls, raw.controls)
     whole = rest + 0.1 * rng.normal(size=(60, 6, 3))
     longer = whole.copy()
     longer[20:50, 2] = np.nan  # marker 2 seen for 20 samples, then 10: both runs kept raw
     filtered = drive_from_markers(longer, rate=60.0, fps=60.0, reference=rest, training=whole, take_up="Y",
-                                  puppet_up="Y", max_gap=0)
+                                  puppet_up="Y", max_gap=0, cutoff=BODY_CUTOFF)
     unfiltered = drive_from_markers(longer, rate=60.0, fps=60.0, reference=rest, training=whole, take_up="Y",
                                     puppet_up="Y", max_gap=0, cutoff=None)
     assert filtered.cutoff == BODY_CUTOFF and filtered.kept_raw == 30
@@ -174,3 +176,47 @@ def test_the_noise_left_in_a_weighted_sum_of_filtered_samples_is_what_white_nois
     measured = np.var(sums @ draws[first:first + 50], axis=1)
     np.testing.assert_allclose(predicted, measured, rtol=0.1)  # 4000 draws: the variance to about 2 %
     np.testing.assert_allclose(combined_noise_gain(rate, None, first, sums, length), [1 / 50, 2 / 25])
+
+
+def _band_limited(band, noise, seed, samples=1000, rate=100.0):
+    """(noisy, motion) (samples, 2, 3) at ``rate``: two markers moving by 8 sinusoids per coordinate
+    of 0.2–``band`` Hz (0.05 m / (1 + f)), plus white noise of ``noise`` metres per coordinate."""
+    rng = np.random.default_rng(seed)
+    time = np.arange(samples) / rate
+    frequencies = rng.uniform(0.2, band, size=(8, 6))
+    phases = rng.uniform(0.0, 2 * np.pi, size=(8, 6))
+    motion = np.sum(0.05 / (1 + frequencies) * np.sin(2 * np.pi * frequencies * time[:, None, None] + phases),
+                    axis=1).reshape(samples, 2, 3)
+    return motion + noise * rng.normal(size=motion.shape), motion
+
+
+@pytest.mark.parametrize("band, noise", [(2.0, 0.001), (5.0, 0.001), (8.0, 0.001), (5.0, 0.003), (10.0, 0.0005)])
+def test_the_chosen_cut_off_passes_the_motion_and_stops_the_noise(band, noise):
+    """Issue 66: ``--filter auto`` on trajectories of known bandwidth and noise. Against the error
+    of every cut-off of the grid (brute force, the motion known): the chosen one is above the
+    motion's band (it passes the motion), its error within 10 % of the best one's (measured: the
+    best or its neighbour), and under 0.7 of the raw noise (it stops the noise)."""
+    noisy, motion = _band_limited(band, noise, seed=int(band * 10 + noise * 1e4))
+    inside = slice(100, -100)  # the ends: the filter's reflection, alike for every cut-off
+
+    def error(cutoff):
+        return float(np.sqrt(np.mean((lowpass_runs(noisy, 100.0, cutoff) - motion)[inside] ** 2)))
+
+    grid = np.arange(2.0, 40.5, 0.5)
+    best = min(error(c) for c in grid)
+    chosen = choose_cutoff(noisy, 100.0)
+    assert chosen > band
+    assert error(chosen) <= 1.1 * best
+    assert error(chosen) < 0.7 * noise
+
+
+def test_a_clean_take_is_left_all_but_raw_and_a_slow_one_raw():
+    """No noise: the cut-off chosen is far above the motion (5 Hz: over 20 Hz), and the take
+    comes through within 1e-5 m (0.05 m of motion); a take sampled below about 42 Hz cannot tell noise from a body's
+    motion and is kept raw (None)."""
+    clean, motion = _band_limited(5.0, 0.0, seed=9)
+    chosen = choose_cutoff(clean, 100.0)
+    assert chosen > 20.0
+    assert np.abs(lowpass_runs(clean, 100.0, chosen) - motion)[100:-100].max() < 1e-5
+    assert choose_cutoff(clean[::3], 100.0 / 3) is None
+    assert choose_cutoff(clean[::2], 50.0) is not None

@@ -52,15 +52,16 @@ def test_up_axis_rotation_is_proper_and_turns_up():
     assert np.allclose(up_axis_rotation("Y", "Z") @ turn, np.eye(3))
 
 
-def test_short_gaps_interpolate_linear_motion_exactly_and_leave_long_and_edge_gaps():
-    time = np.arange(40, dtype=float)
-    points = np.stack([np.stack([time, 2 * time, -time], axis=1)] * 3, axis=1)  # (40, 3, 3) linear
+def test_short_gaps_bridge_quadratic_motion_exactly_and_leave_long_and_edge_gaps():
+    time = np.arange(40, dtype=float) / 100.0
+    points = np.stack([np.stack([time, 2 * time ** 2, -time + time ** 2], axis=1)] * 3, axis=1)  # (40, 3, 3)
     holed = points.copy()
     holed[5:9, 0] = np.nan  # 4 frames: filled
     holed[10:25, 1] = np.nan  # 15 frames: too long
     holed[:3, 2] = np.nan  # at the start: no frame before it
-    filled, mask = fill_short_gaps(holed, max_gap=10)
-    assert np.abs(filled[5:9, 0] - points[5:9, 0]).max() < 1e-12 and mask[5:9, 0].all()
+    for cutoff in (4.0, 10.0, None):  # a stiff spline, a loose one, a raw take's: a parabola goes through unbent
+        filled, mask = fill_short_gaps(holed, 10, 100.0, cutoff)
+        assert np.abs(filled[5:9, 0] - points[5:9, 0]).max() < 1e-9 and mask[5:9, 0].all()
     assert np.isnan(filled[10:25, 1]).all() and np.isnan(filled[:3, 2]).all()
     assert mask.sum() == 4
 
