@@ -45,8 +45,9 @@ from .outputs import (TEXTURES, check_animation_output, check_bone_texture_outpu
               help="Grid spacing between characters on the ground plane (default 1.5 × the largest rest bounding-box side).")
 @click.option("--translation-solver/--no-translation-solver", default=True, show_default=True,
               help="Recompute bone translations with the Poisson solve (needs a puppet trained with it).")
-@click.option("--ik/--no-ik", default=True, show_default=True, help="A puppet of a jointed skin (fit-skin --skeleton): "
-              "frames beyond its examples follow the controls with the skeleton (docs/mocap.md).")
+@click.option("--ik/--no-ik", default=True, show_default=True, help="Frames beyond the puppet's examples follow the "
+              "controls with a skeleton (a jointed skin's own, fit-skin --skeleton; a free skin's found from its "
+              "bones) instead of the kernel CCA's extrapolation (docs/mocap.md).")
 @device_option("auto, cpu, cuda or cuda:N.")
 @click.option("--threads", default=0, type=int, help="CPU threads for the kernels (default: all cores).")
 @up_axis_option("Ground plane and USD up axis (default: the input's, as fit-skin recorded it).")
@@ -97,7 +98,7 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     # before any output is written: writing is the last step (a signal after it would say "interrupted"
     # of a complete file)
     extrapolation = play_extrapolation(puppet, skin.examples, control_files, trajectories)
-    poses = example_poses(puppet, skin) if ik else None  # None unless the skin is jointed
+    poses = example_poses(puppet, skin, _free_skeleton(skin)) if ik else None
     vertices, seconds, beyond = play_characters(puppet, controls.reshape(-1, *controls.shape[2:]), device, skinning,
                                                 translation_solver, threads, poses)
     vertices = vertices.reshape(characters, frames, -1, 3) + offsets[:, None, None, :].astype(np.float32)
@@ -107,6 +108,17 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
                                   extrapolation, [(take.summary, take.lines) for take in takes], morph,
                                   0 if puppet.correctives is None else len(puppet.correctives.offsets), beyond)
     report(summary, lines, as_json, quiet)
+
+
+def _free_skeleton(skin):
+    """A free skin's skeleton for the frames beyond its examples (the joints its bones keep best,
+    ``pipeline.skin.free_skin_skeleton``), None for a jointed skin (its own)."""
+    if skin.skeleton is not None:
+        return None
+    from skinsynth.pipeline.skin import free_skin_skeleton
+
+    return free_skin_skeleton(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
+                              skin.translations, skin.examples, "XYZ".index(skin.scene.up_axis))
 
 
 def _check_puppet(path, output, output_kind, kind, puppet, skinning, translation_solver):

@@ -1,6 +1,11 @@
-"""A puppet of a jointed skin played outside its examples (issue 45): where the controls go beyond
-what the puppet was trained on, its skeleton follows them by inverse kinematics instead of the
-kernel CCA's extrapolation, and carries the nearest examples' own deformation.
+"""A puppet played outside its examples (issues 45, 66): where the controls go beyond what the
+puppet was trained on, a skeleton follows them by inverse kinematics instead of the kernel CCA's
+extrapolation, and carries the nearest examples' own deformation. A jointed skin's skeleton
+(``fit-skin --skeleton``), or for a free skin the one its bones keep best (``play`` finds it as
+``fit-skin --skeleton`` does before it refits: :func:`skinsynth.pipeline.skin.find_skeleton`):
+the free skin's bones hold their joints within a few per cent of the body, so skinning them on
+their joints keeps the body whole (issue 66: the docs' own free samba puppet stretched its arm thin
+across the head under the serve, edge strain 2.2× its own samba's at the 99th percentile).
 
 Kernel CCA (Feng §4) is a regression: between its examples it predicts the bones well (and no
 better skeleton replaces it: holding its bones on their joints costs the samba 1.4× its held-out
@@ -11,9 +16,18 @@ joints, their translations from the Poisson solve pulled apart by the controls. 
 1. How far it goes: the extrapolation d, the RMS distance of its controls, in place, to the
    nearest training example over the rest box's largest side (``play --json``'s measure,
    :mod:`skinsynth.pipeline.rig.extrapolation`), against the scale s, the largest gap between
-   training examples. The blend α = smoothstep((d − s) / s): 0 inside the examples' spread (the
-   kernel CCA's prediction, bit for bit), 1 at twice it (the skeleton), the ``view`` indicator's
-   green, amber and red.
+   training examples. The blend α = smoothstep((d − s/2) / s) (:data:`BLEND_START`): 0 within half
+   the examples' largest gap (the kernel CCA's prediction, bit for bit), 1 from 1.5 s (the
+   skeleton), the ``view`` indicator's green, amber and red. From s (issue 45) the kernel CCA had
+   torn the body already where the skeleton took over: under the real serve the free samba's
+   puppet broke its skin on 69 of 524 frames, all blended less than half, and the jointed samba's
+   largest edge strain was 2.0× its own samba's (the serve aligned in its still start); from s/2
+   none broke and the largest was 0.74×. The price, on the frames of the captures themselves that
+   the puppets did not train on: a few lie past s/2 and blend a little (the samba's 8 of 131, the
+   walker's 4 of 24, the bending bar's 6 of 18), their error against the capture 0.9–3.6 % more on
+   the samba's and the bar's, 16 % on the walker's four (its held-out frames 4 % on the whole).
+   Telling torn frames apart otherwise — by one control's distance from the examples, or by the
+   predicted bones parting at their joints — tripped on held-out frames as well, and mended fewer.
 2. The examples it is near: weights over the training examples, w_i ∝ exp(−(d_i² − d_min²) /
    (2 s²)) (the nearest dominates; two at about the same distance share, so the pose never
    jumps when the nearest changes). Their fitted bones (the skin's jointed fit at those frames,
@@ -51,6 +65,9 @@ from ..rig.rotations import polar_rotation, rigid_to_dual_quaternion, rotation_e
 #: skin 1.07× / 1.79× its own samba's (p99 / largest; 2.0: 0.97× / 1.15×); 4.0 gains little
 #: (0.92× / 1.13×). A relative weight (per bone reach), so it holds for any size and proportions.
 SKELETON_PRIOR = 2.0
+#: The blend starts at this share of the extrapolation scale (the examples' largest gap) and is
+#: whole one scale later (module notes, 1.).
+BLEND_START = 0.5
 #: Frames solved at once (bounds the Jacobians, (CHUNK, 3 n_c, 3 (B + 1 + S)), and the offsets).
 CHUNK = 256
 
@@ -65,7 +82,7 @@ class ExamplePoses:
     (n_p, 3, 3), frame_translations (n_p, 3) their control frames (world -> in place); rotations
     (n_p, B, 3, 3), root (n_p, 3), slides (n_p, S, 3) the skin's bones at those frames; offsets
     (n_p, V, 3) their exact rest offsets; unit the rest box's largest side; scale the extrapolation
-    scale."""
+    scale; found: the skeleton was found for a free skin (play's report)."""
 
     rig: JointedRig
     training: np.ndarray
@@ -77,18 +94,21 @@ class ExamplePoses:
     offsets: np.ndarray
     unit: float
     scale: float
+    found: bool = False
 
 
-def example_poses(puppet, skin):
-    """:class:`ExamplePoses` of a puppet trained on a jointed skin, or None when the skin has no
-    skeleton. skin: the puppet's skin as read (``skeleton``, its /skin/skeleton; ``rotations`` (F,
-    B, 3, 3), ``translations`` (F, B, 3), ``examples`` (F, V, 3): its fitted bones and frames, of
-    which the puppet's training frames are taken)."""
+def example_poses(puppet, skin, skeleton=None):
+    """:class:`ExamplePoses` of a puppet, or None when it has no skeleton. skin: the puppet's skin
+    as read (``skeleton``, its /skin/skeleton; ``rotations`` (F, B, 3, 3), ``translations`` (F, B,
+    3), ``examples`` (F, V, 3): its fitted bones and frames, of which the puppet's training frames
+    are taken); skeleton: a free skin's found one (``parents`` (B,), ``jointed`` (B,), ``joints``
+    (B, 3)), where the skin has none of its own."""
     from ..mesh.geometry import largest_side
 
-    if skin.skeleton is None:
+    skeleton = skin.skeleton if skin.skeleton is not None else skeleton
+    if skeleton is None:
         return None
-    skeleton, rotations, translations, examples = skin.skeleton, skin.rotations, skin.translations, skin.examples
+    rotations, translations, examples = skin.rotations, skin.translations, skin.examples
 
     frames = puppet.train_frames
     controls = np.asarray(examples[frames][:, puppet.control_indices], dtype=np.float64)
@@ -105,12 +125,14 @@ def example_poses(puppet, skin):
     unit = largest_side(puppet.rest_vertices)
     return ExamplePoses(rig=rig, training=training, frame_rotations=frame_r, frame_translations=frame_t,
                         rotations=bones_r, root=bones_t[:, rig.root], slides=rig.slides(bones_r, bones_t),
-                        offsets=offsets, unit=unit, scale=extrapolation_scale(training, unit))
+                        offsets=offsets, unit=unit, scale=extrapolation_scale(training, unit),
+                        found=skin.skeleton is None)
 
 
 def skeleton_blend(distances, scale):
-    """α (N,) of extrapolations distances (N,): smoothstep((d − s) / s), 0 within s, 1 from 2 s."""
-    x = np.clip((np.asarray(distances, dtype=np.float64) - scale) / max(scale, 1e-12), 0.0, 1.0)
+    """α (N,) of extrapolations distances (N,): smoothstep((d − b s) / s), b = :data:`BLEND_START`:
+    0 within b s, 1 from (1 + b) s."""
+    x = np.clip((np.asarray(distances, dtype=np.float64) - BLEND_START * scale) / max(scale, 1e-12), 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
 
 
@@ -118,13 +140,15 @@ def skeleton_blend(distances, scale):
 class BeyondExamples:
     """The skeleton path's frames of a trajectory of N frames: alpha (N,) each frame's blend; for
     the M frames with α > 0, rows (M,), and the bones and rest offsets to skin them linearly with:
-    rotations (M, B, 3, 3), translations (M, B, 3), offsets (M, V, 3) (None when M = 0)."""
+    rotations (M, B, 3, 3), translations (M, B, 3), offsets (M, V, 3) (None when M = 0); found: the
+    skeleton was found for a free skin."""
 
     alpha: np.ndarray
     rows: np.ndarray
     rotations: np.ndarray | None
     translations: np.ndarray | None
     offsets: np.ndarray | None
+    found: bool = False
 
 
 def jointed_frames(puppet, poses, controls, translation_solver=True, prior_weight=SKELETON_PRIOR):
@@ -145,9 +169,9 @@ def jointed_frames(puppet, poses, controls, translation_solver=True, prior_weigh
             parts.append(_blended_bones(puppet, poses, chunk[rows], world[rows], distances[rows], nearest[rows],
                                         alpha[start + rows], translation_solver, prior_weight))
     if not moving:
-        return BeyondExamples(alpha, np.zeros(0, np.int64), None, None, None)
+        return BeyondExamples(alpha, np.zeros(0, np.int64), None, None, None, poses.found)
     rotations, translations, offsets = (np.concatenate([part[k] for part in parts]) for k in range(3))
-    return BeyondExamples(alpha, np.concatenate(moving), rotations, translations, offsets)
+    return BeyondExamples(alpha, np.concatenate(moving), rotations, translations, offsets, poses.found)
 
 
 def _blended_bones(puppet, poses, controls, world, distances, nearest, alpha, translation_solver, prior_weight):
@@ -197,11 +221,13 @@ def play_beyond_examples(puppet, poses, controls, vertices, device, translation_
     return beyond
 
 
-def skeleton_summary(alpha):
-    """play's report of the skeleton path: (JSON entry, text line) of the blends α (N,)."""
+def skeleton_summary(alpha, found=False):
+    """play's report of the skeleton path: (JSON entry, text line) of the blends α (N,); found: the
+    skeleton was found for a free skin."""
     moving = int(np.sum(alpha > 0.0))
     entry = {"frames_beyond": moving, "frames_skeleton": int(np.sum(alpha >= 1.0)), "mean_blend": float(alpha.mean()),
-             "prior_weight": SKELETON_PRIOR}
+             "prior_weight": SKELETON_PRIOR, "skeleton": "found for the free skin" if found else "the skin's"}
+    whose = "a skeleton found for the free skin (the joints its bones keep best)" if found else "the skin's skeleton"
     return entry, (f"skeleton: {moving} of {len(alpha)} frames beyond the examples' spread follow the controls with "
-                   f"the skin's skeleton ({entry['frames_skeleton']} wholly, mean blend {alpha.mean():.2f}; "
+                   f"{whose} ({entry['frames_skeleton']} wholly, mean blend {alpha.mean():.2f}; "
                    "--no-ik plays the kernel CCA's extrapolation)")

@@ -41,6 +41,17 @@ STILL_NOISE = 4.0
 #: held-out takes, which start in mid-motion: 60–90 ms at 100 Hz), too short for its mean to be
 #: told from a drift; a quarter second of stillness is a pose held.
 STILL_SHORTEST = 0.25
+#: A take that begins in a held pose is aligned there (:func:`held_start`): real takes begin in the
+#: performer's calibration pose, the one meant to match the character's (the shared tennis serve:
+#: its first second, then the serve; closest to the samba puppet's rest pose over the whole take
+#: was frame 810, mid-serve, its residual 0.087 against 0.094 in the held start: both are the
+#: performer's build, not the pose). Held: every marker within this share of the body's size (the
+#: largest side of the markers' box) of where it was at the take's first frame seeing them all —
+#: a person standing sways a few centimetres (the serve's first second: 1.7 % of its size), a
+#: take in motion leaves that in a tenth of a second.
+HELD_SWAY = 0.03
+#: …for at least this long (seconds): a calibration pose is held for a second or more.
+HELD_SHORTEST = 0.5
 
 
 def sample_noise(points):
@@ -102,7 +113,10 @@ def closest_to_rest(points, targets, present, noise=0.0, gains=None, variances=N
 
 def choose_neutral_frame(points, targets, present, noise, rate, cutoff, variances, frame=None, labels=None):
     """The take frame the take is aligned at (:func:`.markers.drive_from_markers`'s step 4):
-    ``frame`` (the user's ``--neutral-frame``) checked, or :func:`closest_to_rest` of points
+    ``frame`` (the user's ``--neutral-frame``) checked; where the take begins in a held pose
+    (:func:`held_start`), the middle frame of it (farthest from where the performer settles into
+    it and leaves it; the pose is then read over the frames it is held, :func:`neutral_pose`); else
+    :func:`closest_to_rest` of points
     (T, M, 3) (filtered at ``cutoff`` Hz, None: raw; ``variances`` (M,) their noise per coordinate,
     :func:`.marker_filter.removed_noise`) to targets (M, 3) over the ``present`` (M,) markers.
     OptionError (one line; markers named by ``labels``) when no frame sees every marker the take
@@ -113,7 +127,9 @@ def choose_neutral_frame(points, targets, present, noise, rate, cutoff, variance
     if frame is None:
         gains = (lambda at: frame_gains(points, rate, cutoff, at)) if cutoff is not None else None
         within = int(np.ceil(QUIET_PERIODS * rate / cutoff)) if cutoff is not None else 0
-        frame = closest_to_rest(points, targets, present, noise, gains, variances, within)
+        held = held_start(points, present, rate)  # a take beginning in a held pose is aligned in its middle
+        frame = sum(held) // 2 if held else closest_to_rest(points, targets, present, noise, gains, variances,
+                                                             within)
         if frame is None:
             raise OptionError("no frame of the take sees every marker it has (after filling short gaps): give "
                               "--neutral-frame a frame that does, or --max-gap more frames")
@@ -130,6 +146,25 @@ def choose_neutral_frame(points, targets, present, noise, rate, cutoff, variance
         raise OptionError(f"the take's {int(present.sum())} markers at its neutral frame {frame} do not span "
                           "a plane (3 not in a line are needed to align it)")
     return int(frame)
+
+
+def held_start(points, present, rate):
+    """(first, stop): the frames of the pose a take begins in (stop exclusive), or None where it
+    begins in motion: from the
+    first frame of points (T, M, 3) seeing every ``present`` (M,) marker, the frames while each
+    marker seen stays within :data:`HELD_SWAY` of the markers' size of where it was there, if that
+    lasts :data:`HELD_SHORTEST` or more (``rate`` Hz)."""
+    complete = np.flatnonzero(~np.isnan(points[:, present]).any(axis=(1, 2)))
+    if not complete.size or present.sum() < 3:
+        return None
+    first = int(complete[0])
+    start = points[first, present]
+    size = float(np.ptp(start, axis=0).max())
+    with np.errstate(invalid="ignore"):
+        moved = np.linalg.norm(points[first:, present] - start, axis=2)  # (T', M), NaN where unseen
+        away = np.nanmax(np.where(np.isnan(moved), 0.0, moved), axis=1) > HELD_SWAY * size
+    stop = first + (int(np.argmax(away)) if away.any() else len(away))
+    return (first, stop) if stop - first >= HELD_SHORTEST * rate else None
 
 
 def still_window(points, frame, present, noise, rate):

@@ -148,7 +148,7 @@ def play_characters(puppet, controls, device, skinning=None, translation_solver=
     :class:`~.jointed_play.BeyondExamples` or None). Both
     skinnings run the whole run-time path in warp kernels (:class:`DevicePlayer`, ``threads`` CPU
     threads, 0: all cores). The kernels are compiled (or loaded) on a one-frame warm-up first,
-    outside the time. poses: a jointed skin's :class:`~.jointed_play.ExamplePoses`, or None: the
+    outside the time. poses: the skeleton's :class:`~.jointed_play.ExamplePoses`, or None: the
     frames beyond the examples played by its skeleton (:mod:`.jointed_play`). Rig outputs take the
     world bones from :func:`character_bones`."""
     from .jointed_play import play_beyond_examples
@@ -184,7 +184,7 @@ def play_summary(characters, frames, seconds, device, skinning, translation_solv
     if beyond is not None:
         from .jointed_play import skeleton_summary
 
-        summary["skeleton"], line = skeleton_summary(beyond.alpha)
+        summary["skeleton"], line = skeleton_summary(beyond.alpha, beyond.found)
         lines.append(line)
     if morph is not None:
         summary.update(morph_targets=len(morph[0]), morph_target_error=morph[2])

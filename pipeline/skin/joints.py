@@ -378,6 +378,20 @@ def hung_from_centre(skeleton, drift, rest, bone_indices, bone_weights, frames=N
                     sliding=None if skeleton.sliding is None else slides, names=skeleton.names), moved
 
 
+def free_skin_skeleton(rest, faces, bone_indices, bone_weights, rotations, translations, frames, up_axis=1):
+    """The skeleton a free skin's bones keep best, for ``play`` to pose it beyond its examples
+    (:mod:`skinsynth.pipeline.puppet.jointed_play`): :func:`find_skeleton` of its bones (rest (V,
+    3), faces (T, 3), bone_indices / bone_weights (V, K), rotations (F, B, 3, 3), translations
+    (F, B, 3)), hung from the body's centre (:func:`hung_from_centre`; frames (F, V, 3) its
+    examples, ``up_axis`` up), as ``fit-skin --skeleton`` finds it before it refits the bones on
+    it: {"parents" (B,), "jointed" (B,) (a sliding bone is loose), "joints" (B, 3)}."""
+    found = find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translations, frames=frames,
+                          up_axis=up_axis)
+    found, _ = hung_from_centre(found, found.drift, rest, bone_indices, bone_weights, frames, up_axis)
+    return {"parents": np.asarray(found.parents), "jointed": np.asarray(found.jointed, bool),
+            "joints": np.asarray(found.joints, np.float64)}
+
+
 def given_skeleton(names, parents, positions, free):
     """A :class:`Skeleton` from a rig the user brings (a UsdSkel ``Skeleton``: joint ``names``
     (J,) as paths, ``parents`` (J,) −1 at the top, bind ``positions`` (J, 3), ``free`` (J,) bool):

@@ -279,8 +279,9 @@ def test_a_real_take_played_on_the_samba_as_gltf_is_valid_and_three_js_plays_it(
     """Issue 37: the samba puppet driven by the real take with its 145-frame gap, as .glb."""
     folder, _ = samba_marker_puppet
     take = shared_data / "mocap_c3d" / "kinematics_tennis_serve_nan.c3d"
-    for out in ("take.glb", "take.h5"):
-        assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / out, "-q"))
+    for out in ("take.glb", "take.h5"):  # --no-ik: a glTF skin carries bones, not the deformation the skeleton
+        # path adds to the points beyond the examples (docs/mocap.md)
+        assert_ok(cli("play", folder / "puppet.h5", "-c", take, "-o", tmp_path / out, "-q", "--no-ik"))
     report = validate(tmp_path / "take.glb")
     assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
     with h5py.File(tmp_path / "take.h5") as f:

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from skinsynth.pipeline.puppet.marker_filter import BODY_CUTOFF, lowpass_runs, removed_noise
-from skinsynth.pipeline.puppet.marker_neutral import closest_to_rest, frame_gains, shrink_neutral_residual
+from skinsynth.pipeline.puppet.marker_neutral import (choose_neutral_frame, closest_to_rest, frame_gains, held_start,
+                                                     shrink_neutral_residual)
 
 
 def test_the_shrinkage_is_james_steins_on_the_standardised_residual():
@@ -161,3 +162,40 @@ def test_a_marker_lost_while_the_pose_is_held_is_read_over_the_frames_it_is_seen
     assert np.sqrt(np.mean((pose - rest) ** 2)) < 1.5 * np.sqrt(np.mean((whole - rest) ** 2))
     assert gains[4] > 1.2 * whole_gains[4] and gains[9] > 1.2 * whole_gains[9]  # 70 samples, not 100: 1.4x
     assert gains.max() < 0.05
+
+
+def _calibration_then_motion(rate=50.0, held=1.2, seed=0):
+    """A take (T, 8, 3) in metres: a standing pose (not the rest pose) held for ``held`` seconds
+    with a slow sway of 1.5 cm, then 4 s of motion swinging from it through the rest pose (at 0.36 s
+    into the motion, and again later); and the rest pose (8, 3)."""
+    rng = np.random.default_rng(seed)
+    rest = rng.normal(size=(8, 3)) * 0.4 + [0.0, 1.0, 0.0]
+    calibration = rest + 0.15 * rng.normal(size=(8, 3))
+    time = np.arange(int((held + 4.0) * rate)) / rate
+    sway = 0.015 * np.sin(2 * np.pi * 0.4 * time)[:, None, None] * np.array([1.0, 0.0, 0.0])
+    after = np.maximum(time - held, 0.0)[:, None, None]
+    return rest + np.cos(2 * np.pi * 0.7 * after) * (calibration - rest) + sway, rest
+
+
+def test_a_take_beginning_in_a_held_pose_is_aligned_there():
+    """Issue 66: real takes begin in the performer's calibration pose, and the shared serve was
+    aligned mid-serve (frame 810, the pose nearest the puppet's rest pose over the whole take):
+    a take that begins in a held pose (every marker within 3 % of the body's size, a standing
+    sway, for half a second or more) is aligned in it, though a later frame of the motion comes
+    nearer the rest pose; one that begins in motion, or holds still too briefly, is aligned where
+    it comes nearest the rest pose, as before."""
+    points, rest = _calibration_then_motion()
+    present = np.ones(8, bool)
+    first, stop = held_start(points, present, 50.0)
+    assert first == 0 and 60 <= stop <= 70  # 1.2 s held, then the swing leaves it
+    everywhere = closest_to_rest(points, rest, present)
+    assert everywhere > 80  # the motion passes nearer the rest pose
+    chosen = choose_neutral_frame(points, rest, present, 0.0, 50.0, None, None)
+    assert chosen == stop // 2  # its middle
+    brief, _ = _calibration_then_motion(held=0.3)
+    assert held_start(brief, present, 50.0) is None
+    assert choose_neutral_frame(brief, rest, present, 0.0, 50.0, None, None) == closest_to_rest(brief, rest, present)
+    assert held_start(points[80:], present, 50.0) is None  # in motion from its first frame
+    late = points.copy()
+    late[:10, 3] = np.nan  # a marker seen only from frame 10: the held pose counted from there
+    assert held_start(late, present, 50.0)[0] == 10
