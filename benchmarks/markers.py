@@ -26,8 +26,10 @@ Builds, as a user would, the samba puppet on the controls of the committed Plug-
 - ``take``: each real take in ../shared/data/mocap_c3d played to .glb and .usdc: frames, NaN,
   the extrapolation per frame (mean, worst), the markers filled and frames held.
 - ``skeleton``: the serve on the samba puppet of its ``--skeleton`` fit (``train-kcca``'s
-  defaults): edge strain (p99, largest) against the same puppet on its own samba controls, with
-  ``--ik`` (the skeleton beyond the examples) and ``--no-ik``; the held-out frames it touches.
+  defaults), then (``documented``) on the free one docs/mocap.md builds (``--correctives off``):
+  edge strain (p99, largest) against the same puppet on its own samba controls, with ``--ik``
+  (the skeleton beyond the examples; a free skin's found for it) and ``--no-ik``, the broken
+  frames, the take frame it was aligned at; the held-out frames it touches.
 - ``speed``: reading, aligning, filling and playing the 1,092-frame take at its own 50 Hz, in
   process, best of 3: take frames per second.
 
@@ -240,32 +242,47 @@ def speed(work, puppet):
             "frames_per_second": round(best[2] / best[0], 1), "threads": os.cpu_count()}
 
 
-def edge_strain(skin, vertices):
-    """(p99, largest) of |edge length / rest length − 1| over every edge and frame of vertices (F, V, 3)."""
+def _strains(skin, vertices):
+    """|edge length / rest length − 1| (F, E) of every edge and frame of vertices (F, V, 3)."""
     from skinsynth.pipeline.mesh.geometry import mesh_edges
 
     edges = mesh_edges(skin.faces)
     rest = np.linalg.norm(skin.rest_vertices[edges[:, 0]] - skin.rest_vertices[edges[:, 1]], axis=1)
-    strain = np.abs(np.linalg.norm(vertices[:, edges[:, 0]] - vertices[:, edges[:, 1]], axis=2) / rest - 1.0)
+    return np.abs(np.linalg.norm(vertices[:, edges[:, 0]] - vertices[:, edges[:, 1]], axis=2) / rest - 1.0)
+
+
+def edge_strain(skin, vertices):
+    """(p99, largest) of |edge length / rest length − 1| over every edge and frame of vertices (F, V, 3)."""
+    strain = _strains(skin, vertices)
     return float(np.percentile(strain, 99)), float(strain.max())
 
 
-def skeleton(work):
-    """Issue 45's serve on the samba puppet of its --skeleton fit (train-kcca defaults): edge strain
-    of the serve against the same puppet on its own samba controls, with the skeleton beyond the
-    examples (--ik) and without; how far the played controls are from the take's; the held-out
-    frames the skeleton path touches (none: evaluate's error is the same puppet's)."""
+def broken_frames(skin, vertices):
+    """Issue 66's broken frames of vertices (F, V, 3): those with more than 0.5 % of the edges
+    stretched past their largest strain in the capture by a quarter of their rest length."""
+    worst = _strains(skin, np.asarray(skin.examples, np.float64)).max(axis=0)
+    return int(np.sum((_strains(skin, vertices) > worst + 0.25).mean(axis=1) > 0.005))
+
+
+def skeleton(work, documented=False):
+    """Issue 45's serve on the samba puppet of its --skeleton fit (train-kcca defaults), or with
+    ``documented`` issue 66's on the puppet docs/mocap.md builds (the free fit, train-kcca
+    --correctives off): edge strain of the serve against the same puppet on its own samba controls,
+    with the skeleton beyond the examples (--ik; a free skin's found for it) and without, the
+    broken frames (:func:`broken_frames`) and where the take was aligned; how far the played
+    controls are from the take's; the held-out frames the skeleton path touches."""
     from skinsynth.cli.marker_take import take_controls
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.pipeline.puppet import puppet_from_record
 
-    folder = os.path.join(work, "skeleton")
+    folder = os.path.join(work, "documented" if documented else "skeleton")
     os.makedirs(folder, exist_ok=True)
     if not os.path.exists(os.path.join(folder, "puppet.h5")):
         run(["fit-skin", str(SHARED_DATA / "vlasic_samba" / "vlasic_samba.npz"), "-o", "skin.h5", "--bones", "22",
-             "--skeleton", "-q"], folder)
+             *([] if documented else ["--skeleton"]), "-q"], folder)
         run(["select-controls", "skin.h5", "-o", "controls.h5", "--markers", str(LAYOUT), "-q"], folder)
-        run(["train-kcca", "controls.h5", "-o", "puppet.h5", "-q"], folder)
+        run(["train-kcca", "controls.h5", "-o", "puppet.h5", *(["--correctives", "off"] if documented else []), "-q"],
+            folder)
     record, _, skin = read_puppet(os.path.join(folder, "puppet.h5"))
     model = puppet_from_record(record)
     layout = list(json.loads(LAYOUT.read_text()).values())
@@ -275,7 +292,8 @@ def skeleton(work):
     np.save(os.path.join(folder, "held.npy"), skin.examples[held][:, layout])
     take = str(TAKES / "kinematics_tennis_serve_nan.c3d")
     targets = take_controls(take, model, record, skin, {}, "puppet.h5").controls
-    row = {"benchmark": "markers", "case": "skeleton", "take": "kinematics_tennis_serve_nan.c3d"}
+    row = {"benchmark": "markers", "case": "documented" if documented else "skeleton",
+           "take": "kinematics_tennis_serve_nan.c3d"}
     for flag in ("--ik", "--no-ik"):
         strains = {}
         for name, source in (("own", "own.npy"), ("serve", take), ("held", "held.npy")):
@@ -287,6 +305,8 @@ def skeleton(work):
             if name == "serve":  # how far the played control vertices are from the take's controls
                 miss = np.linalg.norm(vertices[:, layout] - targets, axis=2).mean() / height
                 row[f"serve_seconds{flag}"], row[f"serve_control_miss{flag}"] = summary["seconds"], round(miss, 4)
+                row[f"serve_broken_frames{flag}"] = broken_frames(skin, vertices)
+                row["neutral_frame"] = summary["takes"][0]["neutral_frame"]
                 if flag == "--ik":
                     row["serve_frames_beyond"] = summary["skeleton"]["frames_beyond"]
             if name == "held" and flag == "--ik":
@@ -321,6 +341,7 @@ def main():
                     print(json.dumps(row), flush=True)
     if wanted("skeleton"):
         print(json.dumps(skeleton(work)), flush=True)
+        print(json.dumps(skeleton(work, documented=True)), flush=True)
     if options.only in ("held_out", "skeleton"):
         return
     _, puppet = samba_puppet(work)

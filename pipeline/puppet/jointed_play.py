@@ -16,18 +16,17 @@ joints, their translations from the Poisson solve pulled apart by the controls. 
 1. How far it goes: the extrapolation d, the RMS distance of its controls, in place, to the
    nearest training example over the rest box's largest side (``play --json``'s measure,
    :mod:`skinsynth.pipeline.rig.extrapolation`), against the scale s, the largest gap between
-   training examples. The blend α = smoothstep((d − s/2) / s) (:data:`BLEND_START`): 0 within half
-   the examples' largest gap (the kernel CCA's prediction, bit for bit), 1 from 1.5 s (the
-   skeleton), the ``view`` indicator's green, amber and red. From s (issue 45) the kernel CCA had
-   torn the body already where the skeleton took over: under the real serve the free samba's
-   puppet broke its skin on 69 of 524 frames, all blended less than half, and the jointed samba's
-   largest edge strain was 2.0× its own samba's (the serve aligned in its still start); from s/2
-   none broke and the largest was 0.74×. The price, on the frames of the captures themselves that
-   the puppets did not train on: a few lie past s/2 and blend a little (the samba's 8 of 131, the
-   walker's 4 of 24, the bending bar's 6 of 18), their error against the capture 0.9–3.6 % more on
-   the samba's and the bar's, 16 % on the walker's four (its held-out frames 4 % on the whole).
-   Telling torn frames apart otherwise — by one control's distance from the examples, or by the
-   predicted bones parting at their joints — tripped on held-out frames as well, and mended fewer.
+   training examples. The blend α = smoothstep((d − s) / (s/2)) (:data:`BLEND_WIDTH`): 0 inside
+   the examples' spread (the kernel CCA's prediction, bit for bit), 1 from 1.5 s (the skeleton),
+   the ``view`` indicator's green, amber and red. Whole at 2 s (issue 45), the blend left the
+   kernel CCA's tearing in the frames it still weighed most: under the real serve the free samba's
+   puppet broke its skin on 69 of 524 frames (an edge stretched past its largest strain in the
+   capture by a quarter of its rest length on more than 0.5 % of the edges), the jointed samba's
+   on 85, its largest edge strain 2.0× its own samba's (the serve aligned in its still start);
+   whole at 1.5 s, 7 and 28, 0.97×. Starting it earlier (at s/2) mended all the free puppet's
+   frames but blended held-out frames of the captures themselves, and noisy takes of them: the
+   crane's held-out take with noise and gaps played 1.12× the clean controls' error, against
+   1.03× (a quarter of s narrower, 5 and 19 broken frames, left for the next turn).
 2. The examples it is near: weights over the training examples, w_i ∝ exp(−(d_i² − d_min²) /
    (2 s²)) (the nearest dominates; two at about the same distance share, so the pose never
    jumps when the nearest changes). Their fitted bones (the skin's jointed fit at those frames,
@@ -65,9 +64,9 @@ from ..rig.rotations import polar_rotation, rigid_to_dual_quaternion, rotation_e
 #: skin 1.07× / 1.79× its own samba's (p99 / largest; 2.0: 0.97× / 1.15×); 4.0 gains little
 #: (0.92× / 1.13×). A relative weight (per bone reach), so it holds for any size and proportions.
 SKELETON_PRIOR = 2.0
-#: The blend starts at this share of the extrapolation scale (the examples' largest gap) and is
-#: whole one scale later (module notes, 1.).
-BLEND_START = 0.5
+#: The blend starts at the extrapolation scale (the examples' largest gap) and is whole this share
+#: of it later (module notes, 1.).
+BLEND_WIDTH = 0.5
 #: Frames solved at once (bounds the Jacobians, (CHUNK, 3 n_c, 3 (B + 1 + S)), and the offsets).
 CHUNK = 256
 
@@ -130,9 +129,9 @@ def example_poses(puppet, skin, skeleton=None):
 
 
 def skeleton_blend(distances, scale):
-    """α (N,) of extrapolations distances (N,): smoothstep((d − b s) / s), b = :data:`BLEND_START`:
-    0 within b s, 1 from (1 + b) s."""
-    x = np.clip((np.asarray(distances, dtype=np.float64) - BLEND_START * scale) / max(scale, 1e-12), 0.0, 1.0)
+    """α (N,) of extrapolations distances (N,): smoothstep((d − s) / (w s)), w = :data:`BLEND_WIDTH`:
+    0 within s, 1 from (1 + w) s."""
+    x = np.clip((np.asarray(distances, dtype=np.float64) - scale) / max(BLEND_WIDTH * scale, 1e-12), 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
 
 

@@ -30,7 +30,7 @@ def files(stage_files, tmp_path_factory):
 
 def test_play_h5_matches_the_numpy_reference(files, tmp_path, device):
     report = json.loads(assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o",
-                                      tmp_path / "v.h5", "--json", "--device", device, "--no-ik")).stdout)  # the kernel CCA's playback against its reference: --no-ik (frames past half the examples' gap follow the skeleton path, tests/cli/test_cli_jointed_play.py)
+                                      tmp_path / "v.h5", "--json", "--device", device)).stdout)
     assert report["frames"] == 24 and report["characters"] == 1
     assert report["seconds"] > 0 and report["frames_per_second"] > 0
     played = h5py.File(tmp_path / "v.h5")["vertices"][()]
@@ -42,9 +42,8 @@ def test_play_h5_matches_the_numpy_reference(files, tmp_path, device):
 
 
 def test_usd_skel_plays_back_the_same_vertices(files, tmp_path):
-    assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", tmp_path / "v.h5", "--device", "cpu",
-                  "--no-ik"))  # the kernel CCA's playback against its reference: --no-ik (frames past half the examples' gap follow the skeleton path, tests/cli/test_cli_jointed_play.py)
-    assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", tmp_path / "p.usdc", "--no-ik"))
+    assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", tmp_path / "v.h5", "--device", "cpu"))
+    assert_ok(cli("play", files / "puppet.h5", "-c", files / "bar.npz", "-o", tmp_path / "p.usdc"))
     played = h5py.File(tmp_path / "v.h5")["vertices"][()]
     (_, skinned), = read_skel_characters(tmp_path / "p.usdc")  # UsdSkel's own DQ skinning
     scale = np.ptp(played[0], axis=0).max()

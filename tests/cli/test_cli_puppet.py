@@ -174,7 +174,7 @@ def test_a_linear_puppet_is_evaluated_and_played_linearly_by_default(files, tmp_
     puppet = puppet_from_record(record)
     np.save(tmp_path / "c.npy", skin.examples[:, puppet.control_indices])
     played = json.loads(assert_ok(cli("play", linear, "-c", tmp_path / "c.npy", "-o", tmp_path / "p.h5",
-                                      "--json", "--no-ik")).stdout)  # the kernel CCA's playback against its reference: --no-ik (frames past half the examples' gap follow the skeleton path, tests/cli/test_cli_jointed_play.py)
+                                      "--json")).stdout)
     assert played["skinning"] == "linear"
     vertices = read_played_characters(str(tmp_path / "p.h5"))[1][0]  # (F, V, 3)
     expected = predict_vertices(puppet, skin.examples[:, puppet.control_indices], skinning="linear")

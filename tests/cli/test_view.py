@@ -273,11 +273,11 @@ def non_blank(png, box=None):
     return float(np.mean(colors != np.argmax(np.bincount(colors))))
 
 
-def played(files, tmp_path, puppet, controls, name="t"):
+def played(files, tmp_path, puppet, controls, name="t", *extra):
     """``skinsynth play`` of a control trajectory (F, n_c, 3): its vertices (F, V, 3)."""
     np.save(tmp_path / f"{name}.npy", np.asarray(controls, dtype=np.float64))
     assert_ok(cli("play", puppet, "-c", tmp_path / f"{name}.npy", "-o", tmp_path / f"{name}.h5", "--device", "cpu",
-                  "-q", "--no-ik"))  # the page shows the kernel CCA's prediction; play's skeleton path is its own
+                  "-q", *extra))
     return h5py.File(tmp_path / f"{name}.h5")["vertices"][()].reshape(len(controls), -1, 3)
 
 
@@ -432,7 +432,7 @@ def test_a_recorded_session_played_by_play_is_what_the_page_showed(files, browse
         finally:
             page.close()
     baked = tmp_path / "session.h5"
-    assert_ok(cli("play", files / "puppet.h5", "-c", session, "-o", baked, "--device", "cpu", "-q", "--no-ik"))
+    assert_ok(cli("play", files / "puppet.h5", "-c", session, "-o", baked, "--device", "cpu", "-q"))
     frames = h5py.File(baked)["vertices"][()]
     assert len(frames) >= 2 * len(shown)  # at 24 fps, each pose held ≥ 150 ms
     # every frame played is a mesh the page showed, in the order shown, and every one shown is played
@@ -470,7 +470,9 @@ def test_a_trajectory_plays_play_s_frames_and_their_indicator(files, tmp_path):
     trajectory = training[np.arange(12) % len(training)] + rng.normal(scale=0.04 * diagonal,
                                                                       size=(12, *training.shape[1:]))
     trajectory[7] += 0.5 * diagonal * (rng.random(trajectory[7].shape) - 0.5)  # one frame far off the training poses
-    expected = played(files, tmp_path, files / "puppet.h5", trajectory, "trajectory")  # writes trajectory.npy
+    # writes trajectory.npy; --no-ik: the page shows the kernel CCA's prediction, and frame 7, far beyond the
+    # examples, play would pose with the skeleton found for the free skin (docs/mocap.md; the page does not yet)
+    expected = played(files, tmp_path, files / "puppet.h5", trajectory, "trajectory", "--no-ik")
     view, details = puppet_view(files / "puppet.h5", device="cpu", controls_path=tmp_path / "trajectory.npy")
     assert details["trajectory"]["frames"] == 12 and details["trajectory"]["fps"] == skin.fps
     puppet = puppet_from_record(record)

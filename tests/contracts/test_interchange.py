@@ -170,8 +170,7 @@ def test_play_linear_skinning_is_what_usdskel_plays_and_the_reference_computes(c
 
     puppet_path = tmp_path / "corrected.h5"
     assert_ok(cli("train-kcca", chain / "controls.h5", "-o", puppet_path, "-q", "--correctives", "1e-4"))
-    args = ["play", puppet_path, "-c", chain / "capture.usda", "--skinning", "linear", "--device", "cpu", "--no-ik"]
-    # the kernel CCA's playback against its reference: --no-ik (frames past half the examples' gap follow the skeleton path, tests/cli/test_cli_jointed_play.py)
+    args = ["play", puppet_path, "-c", chain / "capture.usda", "--skinning", "linear", "--device", "cpu"]
     assert_ok(cli(*args, "-o", tmp_path / "linear.h5"))
     skel = assert_ok(cli(*args, "-o", tmp_path / "linear.usda"))
     assert "warning" not in skel.stderr

@@ -181,7 +181,7 @@ def test_a_take_beginning_in_a_held_pose_is_aligned_there():
     """Issue 66: real takes begin in the performer's calibration pose, and the shared serve was
     aligned mid-serve (frame 810, the pose nearest the puppet's rest pose over the whole take):
     a take that begins in a held pose (every marker within 3 % of the body's size, a standing
-    sway, for half a second or more) is aligned in it, though a later frame of the motion comes
+    sway, for a second or more) is aligned in it, though a later frame of the motion comes
     nearer the rest pose; one that begins in motion, or holds still too briefly, is aligned where
     it comes nearest the rest pose, as before."""
     points, rest = _calibration_then_motion()
@@ -192,7 +192,7 @@ def test_a_take_beginning_in_a_held_pose_is_aligned_there():
     assert everywhere > 80  # the motion passes nearer the rest pose
     chosen = choose_neutral_frame(points, rest, present, 0.0, 50.0, None, None)
     assert chosen == stop // 2  # its middle
-    brief, _ = _calibration_then_motion(held=0.3)
+    brief, _ = _calibration_then_motion(held=0.7)
     assert held_start(brief, present, 50.0) is None
     assert choose_neutral_frame(brief, rest, present, 0.0, 50.0, None, None) == closest_to_rest(brief, rest, present)
     assert held_start(points[80:], present, 50.0) is None  # in motion from its first frame
