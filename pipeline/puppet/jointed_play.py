@@ -23,7 +23,7 @@ joints, their translations from the Poisson solve pulled apart by the controls. 
    puppet broke its skin on 69 of 524 frames (an edge stretched past its largest strain in the
    capture by a quarter of its rest length on more than 0.5 % of the edges), the jointed samba's
    on 85, its largest edge strain 2.0× its own samba's (the serve aligned in its still start);
-   whole at 1.5 s, 7 and 28, 0.97×. Starting it earlier (at s/2) mended all the free puppet's
+   whole at 1.5 s, 7 and 25, 1.13×. Starting it earlier (at s/2) mended all the free puppet's
    frames but blended held-out frames of the captures themselves, and noisy takes of them: the
    crane's held-out take with noise and gaps played 1.12× the clean controls' error, against
    1.03× (a quarter of s narrower, 5 and 19 broken frames, left for the next turn).

@@ -112,17 +112,31 @@ def choose_cutoff(points, rate):
     cutoffs = np.arange(LOWEST_CUTOFF, top + 0.5 * CUTOFF_STEP, CUTOFF_STEP)
     if NOISE_SECTION * top < BODY_CUTOFF:
         return None
-    residual = residual_curve(points, rate, cutoffs)
+    coarse = cutoffs[::2]  # every other cut-off first, then the two beside the best (the risk is smooth)
+    residual = residual_curve(points, rate, coarse)
     known = np.isfinite(residual)
-    gains = np.array([noise_gains(rate, float(c), shortest_run(rate, c), 2 * shortest_run(rate, c) + 1)
-                      for c in cutoffs])  # (C, 2): an interior sample's white noise kept, removed
-    section = known & (cutoffs >= NOISE_SECTION * top) & (gains[:, 1] > 0.05)
+    gains = _interior_gains(rate, coarse)
+    section = known & (coarse >= NOISE_SECTION * top) & (gains[:, 1] > 0.05)
     if not section.any():
         return None
     variance = float(np.median(residual[section] ** 2 / gains[section, 1]))
-    itself = 0.5 * (1.0 + gains[:, 0] - gains[:, 1])  # the filter's weight on the sample: (1 + kept − removed) / 2
-    risk = np.where(known, residual ** 2 - variance + 2.0 * variance * itself, np.inf)
-    return float(cutoffs[int(np.argmin(risk))])
+
+    def risk(residual, gains):
+        itself = 0.5 * (1.0 + gains[:, 0] - gains[:, 1])  # the filter's weight on the sample: (1 + kept − removed) / 2
+        return np.where(np.isfinite(residual), residual ** 2 - variance + 2.0 * variance * itself, np.inf)
+
+    best = float(coarse[int(np.argmin(risk(residual, gains)))])
+    beside = np.array([c for c in (best - CUTOFF_STEP, best + CUTOFF_STEP) if cutoffs[0] <= c <= cutoffs[-1]])
+    tried = np.concatenate([[best], beside])
+    residual = np.concatenate([[residual[int(np.argmin(np.abs(coarse - best)))]], residual_curve(points, rate, beside)])
+    return float(tried[int(np.argmin(risk(residual, _interior_gains(rate, tried))))])
+
+
+def _interior_gains(rate, cutoffs):
+    """(C, 2): the white noise an interior sample keeps and has removed at each of ``cutoffs``
+    (:func:`noise_gains`)."""
+    return np.array([noise_gains(rate, float(c), shortest_run(rate, c), 2 * shortest_run(rate, c) + 1)
+                     for c in cutoffs]).reshape(-1, 2)
 
 
 class FilteredTake(NamedTuple):
@@ -139,7 +153,8 @@ class FilteredTake(NamedTuple):
 
 def filter_take(points, rate, cutoff, exclude=None):
     """A take's markers points (T, M, 3) (NaN where missing) low-passed at ``cutoff`` Hz (:data:`AUTO`:
-    the one :func:`choose_cutoff` finds in them), None for none (:func:`lowpass_runs`), with what :func:`removed_noise` reads of their noise (exclude (T, M):
+    the one :func:`choose_cutoff` finds in them), None for none (:func:`lowpass_runs`), with what
+    :func:`removed_noise` reads of their noise (exclude (T, M):
     samples that measured nothing, interpolated ones). Kept raw, reported with cutoff None, where
     the take is too slow for the filter (:func:`can_filter`) or no run of samples is long enough
     (:func:`unfiltered_samples`). -> :class:`FilteredTake`; OptionError for a cut-off ≤ 0."""
@@ -176,7 +191,10 @@ def cutoff_option(text):
         raise OptionError(f"--filter takes a cut-off in Hz, auto or none (got {text})") from None
 
 
+@functools.lru_cache(maxsize=256)
 def _coefficients(rate, cutoff):
+    """The Butterworth's (b, a) at ``cutoff`` Hz of ``rate`` Hz (cached: :func:`choose_cutoff` asks each
+    one of every marker's runs)."""
     from scipy.signal import butter
 
     return butter(ORDER, cutoff / PASSES_CORRECTION, btype="low", fs=rate)
@@ -214,7 +232,10 @@ def lowpass_runs(points, rate, cutoff):
 
     points = np.array(points, dtype=np.float64)
     seen = ~np.isnan(points).any(axis=2)
-    for marker in range(points.shape[1]):  # markers, never vertices
+    whole = seen.all(axis=0)  # the markers seen throughout: one run each, filtered together
+    if whole.any():
+        points[:, whole] = lowpass(points[:, whole], rate, cutoff)
+    for marker in np.flatnonzero(~whole):  # markers, never vertices
         for start, end in zip(*runs(seen[:, marker])):
             points[start:end, marker] = lowpass(points[start:end, marker], rate, cutoff)
     return points

@@ -66,7 +66,8 @@ def fill_short_gaps(points, max_gap, rate, cutoff):
     """points (T, M, 3) sampled at ``rate`` Hz, NaN where missing -> (filled copy, filled (T, M)
     bool): every gap of at most ``max_gap`` frames with a seen frame on both sides bridged by
     :func:`smoothing_spline_gap` at the take's bandwidth ``cutoff`` Hz (None, a take kept raw:
-    :data:`.marker_filter.BODY_CUTOFF`), in the world's frame or the body's (:func:`_bridged`). Gaps at the take's start or end, or longer, stay NaN
+    :data:`.marker_filter.BODY_CUTOFF`), in the world's frame or the body's (:func:`_bridged`). Gaps
+    at the take's start or end, or longer, stay NaN
     (:func:`fill_from_training` takes them)."""
     from .marker_filter import BODY_CUTOFF
 
@@ -88,7 +89,8 @@ def fill_short_gaps(points, max_gap, rate, cutoff):
 def _bridged(points, missing, marker, start, end, reach, stiffness, stride):
     """The gap [start, end) of ``marker`` (points (T, M, 3), missing (T, M)) bridged by
     :func:`smoothing_spline_gap` in the frame where its seen path around the gap is smoother
-    (:func:`roughness`, samples ``stride`` apart): the world's, or the body's, the rigid motion of the other markers seen
+    (:func:`roughness`, samples ``stride`` apart): the world's, or the body's, the rigid motion of the
+    other markers seen
     throughout (:func:`rigid_onto`, each weighed by its nearness: a Gaussian of its distance from
     the marker as the gap begins, as wide as the median one, so a hand is carried by the arm and
     chest more than by the feet). A spin turns the world path, not the body's: a hand hidden for

@@ -43,9 +43,9 @@ STILL_NOISE = 4.0
 STILL_SHORTEST = 0.25
 #: A take that begins in a held pose is aligned there (:func:`held_start`): real takes begin in the
 #: performer's calibration pose, the one meant to match the character's (the shared tennis serve:
-#: its first second, then the serve; closest to the samba puppet's rest pose over the whole take
-#: was frame 810, mid-serve, its residual 0.087 against 0.094 in the held start: both are the
-#: performer's build, not the pose). Held: every marker within this share of the body's size (the
+#: its first 1.5 s, then the serve; closest to the samba puppet's rest pose over the whole take
+#: was frame 810, mid-serve, its residual 0.087 against 0.091 at frame 52 of the held start:
+#: both are the performer's build, not the pose). Held: every marker within this share of the body's size (the
 #: largest side of the markers' box) of where it was at the take's first frame seeing them all —
 #: a person standing sways a few centimetres (the serve's first second: 1.7 % of its size), a
 #: take in motion leaves that in a tenth of a second.
@@ -116,10 +116,8 @@ def closest_to_rest(points, targets, present, noise=0.0, gains=None, variances=N
 
 def choose_neutral_frame(points, targets, present, noise, rate, cutoff, variances, frame=None, labels=None):
     """The take frame the take is aligned at (:func:`.markers.drive_from_markers`'s step 4):
-    ``frame`` (the user's ``--neutral-frame``) checked; where the take begins in a held pose
-    (:func:`held_start`), the middle frame of it (farthest from where the performer settles into
-    it and leaves it; the pose is then read over the frames it is held, :func:`neutral_pose`); else
-    :func:`closest_to_rest` of points
+    ``frame`` (the user's ``--neutral-frame``) checked, or :func:`closest_to_rest` (among the
+    frames of the pose the take begins in, where it begins in one: :func:`held_start`) of points
     (T, M, 3) (filtered at ``cutoff`` Hz, None: raw; ``variances`` (M,) their noise per coordinate,
     :func:`.marker_filter.removed_noise`) to targets (M, 3) over the ``present`` (M,) markers.
     OptionError (one line; markers named by ``labels``) when no frame sees every marker the take
@@ -128,11 +126,11 @@ def choose_neutral_frame(points, targets, present, noise, rate, cutoff, variance
 
     frames = len(points)
     if frame is None:
-        gains = (lambda at: frame_gains(points, rate, cutoff, at)) if cutoff is not None else None
         within = int(np.ceil(QUIET_PERIODS * rate / cutoff)) if cutoff is not None else 0
-        held = held_start(points, present, rate)  # a take beginning in a held pose is aligned in its middle
-        frame = sum(held) // 2 if held else closest_to_rest(points, targets, present, noise, gains, variances,
-                                                             within)
+        first, stop = held_start(points, present, rate) or (0, frames)  # a held start: aligned in it
+        gains = (lambda at: frame_gains(points, rate, cutoff, first + at)) if cutoff is not None else None
+        frame = closest_to_rest(points[first:stop], targets, present, noise, gains, variances, within)
+        frame = None if frame is None else first + frame
         if frame is None:
             raise OptionError("no frame of the take sees every marker it has (after filling short gaps): give "
                               "--neutral-frame a frame that does, or --max-gap more frames")

@@ -191,7 +191,7 @@ def test_a_take_beginning_in_a_held_pose_is_aligned_there():
     everywhere = closest_to_rest(points, rest, present)
     assert everywhere > 80  # the motion passes nearer the rest pose
     chosen = choose_neutral_frame(points, rest, present, 0.0, 50.0, None, None)
-    assert chosen == stop // 2  # its middle
+    assert chosen < stop  # in it
     brief, _ = _calibration_then_motion(held=0.7)
     assert held_start(brief, present, 50.0) is None
     assert choose_neutral_frame(brief, rest, present, 0.0, 50.0, None, None) == closest_to_rest(brief, rest, present)
