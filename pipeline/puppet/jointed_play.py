@@ -2,7 +2,7 @@
 puppet was trained on, a skeleton follows them by inverse kinematics instead of the kernel CCA's
 extrapolation, and carries the nearest examples' own deformation. A jointed skin's skeleton
 (``fit-skin --skeleton``), or for a free skin the one its bones keep best (``play`` finds it as
-``fit-skin --skeleton`` does before it refits: :func:`skinsynth.pipeline.skin.find_skeleton`):
+``fit-skin --skeleton`` does before it refits: ``pipeline.skin.free_skin_skeleton``):
 the free skin's bones hold their joints within a few per cent of the body, so skinning them on
 their joints keeps the body whole (issue 66: the docs' own free samba puppet stretched its arm thin
 across the head under the serve, edge strain 2.2× its own samba's at the 99th percentile).

@@ -45,8 +45,9 @@ STILL_SHORTEST = 0.25
 #: performer's calibration pose, the one meant to match the character's (the shared tennis serve:
 #: its first 1.5 s, then the serve; closest to the samba puppet's rest pose over the whole take
 #: was frame 810, mid-serve, its residual 0.087 against 0.091 at frame 52 of the held start:
-#: both are the performer's build, not the pose). Held: every marker within this share of the body's size (the
-#: largest side of the markers' box) of where it was at the take's first frame seeing them all —
+#: both are the performer's build, not the pose). Held: every marker within this share of the
+#: body's size (the largest side of the markers' box) of where it was at the take's first frame
+#: seeing them all —
 #: a person standing sways a few centimetres (the serve's first second: 1.7 % of its size), a
 #: take in motion leaves that in a tenth of a second.
 HELD_SWAY = 0.03
@@ -151,19 +152,17 @@ def choose_neutral_frame(points, targets, present, noise, rate, cutoff, variance
 
 def held_start(points, present, rate):
     """(first, stop): the frames of the pose a take begins in (stop exclusive), or None where it
-    begins in motion: from the
-    first frame of points (T, M, 3) seeing every ``present`` (M,) marker, the frames while each
-    marker seen stays within :data:`HELD_SWAY` of the markers' size of where it was there, if that
-    lasts :data:`HELD_SHORTEST` or more (``rate`` Hz)."""
+    begins in motion: from the first frame of points (T, M, 3) seeing every ``present`` (M,)
+    marker, the frames while each marker seen stays within :data:`HELD_SWAY` of the markers' size
+    of where it was there, if that lasts :data:`HELD_SHORTEST` or more (``rate`` Hz)."""
     complete = np.flatnonzero(~np.isnan(points[:, present]).any(axis=(1, 2)))
     if not complete.size or present.sum() < 3:
         return None
     first = int(complete[0])
     start = points[first, present]
     size = float(np.ptp(start, axis=0).max())
-    with np.errstate(invalid="ignore"):
-        moved = np.linalg.norm(points[first:, present] - start, axis=2)  # (T', M), NaN where unseen
-        away = np.nanmax(np.where(np.isnan(moved), 0.0, moved), axis=1) > HELD_SWAY * size
+    moved = np.linalg.norm(points[first:, present] - start, axis=2)  # (T', M), NaN where unseen
+    away = np.where(np.isnan(moved), 0.0, moved).max(axis=1) > HELD_SWAY * size
     stop = first + (int(np.argmax(away)) if away.any() else len(away))
     return (first, stop) if stop - first >= HELD_SHORTEST * rate else None
 
