@@ -152,8 +152,8 @@ class FilteredTake(NamedTuple):
 
 
 def filter_take(points, rate, cutoff, exclude=None):
-    """A take's markers points (T, M, 3) (NaN where missing) low-passed at ``cutoff`` Hz (:data:`AUTO`:
-    the one :func:`choose_cutoff` finds in them), None for none (:func:`lowpass_runs`), with what
+    """A take's markers points (T, M, 3) (NaN where missing) low-passed at ``cutoff`` Hz (``--filter
+    auto`` chooses it first, :func:`choose_cutoff`), None for none (:func:`lowpass_runs`), with what
     :func:`removed_noise` reads of their noise (exclude (T, M):
     samples that measured nothing, interpolated ones). Kept raw, reported with cutoff None, where
     the take is too slow for the filter (:func:`can_filter`) or no run of samples is long enough
@@ -161,8 +161,6 @@ def filter_take(points, rate, cutoff, exclude=None):
     from ..errors import OptionError
 
     raw = np.asarray(points, dtype=np.float64)
-    if isinstance(cutoff, str) and cutoff == AUTO:
-        cutoff = choose_cutoff(raw, rate)
     if cutoff is None:
         return FilteredTake(raw, None, 0, None)
     if not (np.isfinite(cutoff) and cutoff > 0):
