@@ -59,8 +59,11 @@ def quiet_interruptions(unraisable, default=sys.__unraisablehook__):
     """``sys.unraisablehook``: a signal's :class:`Interrupted` raised where Python cannot raise it
     (a weakref callback, a ``__del__``) is recorded and stops the command at its next check
     (:func:`stop_if_received`), so Python's "Exception ignored in …" traceback would only be noise
-    on stderr; anything else goes to the default hook."""
-    if not isinstance(unraisable.exc_value, Interrupted):
+    on stderr. Once a signal has been received the command is ending, and what a finaliser then
+    fails on is the signal's doing too (an llvmlite object the signal left half closed raises
+    ``AttributeError`` when collected at exit), so it is quiet as well; before any signal,
+    anything else goes to the default hook."""
+    if not isinstance(unraisable.exc_value, Interrupted) and not RECEIVED:
         default(unraisable)
 
 
