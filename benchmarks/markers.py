@@ -26,10 +26,12 @@ Builds, as a user would, the samba puppet on the controls of the committed Plug-
 - ``take``: each real take in ../shared/data/mocap_c3d played to .glb and .usdc: frames, NaN,
   the extrapolation per frame (mean, worst), the markers filled and frames held.
 - ``skeleton``: the serve on the samba puppet of its ``--skeleton`` fit (``train-kcca``'s
-  defaults), then (``documented``) on the free one docs/mocap.md builds (``--correctives off``):
+  defaults), then (``documented``) on the free one docs/mocap.md builds (``train-kcca``'s
+  defaults) and (``documented_gltf``) the one it builds for glTF (``--correctives off``):
   edge strain (p99, largest) against the same puppet on its own samba controls, with ``--ik``
   (the skeleton beyond the examples; a free skin's found for it) and ``--no-ik``, the broken
-  frames, the take frame it was aligned at; the held-out frames it touches.
+  frames (of the serve, and of the puppet's own samba: its floor), the take frame it was aligned
+  at; the held-out frames it touches.
 - ``speed``: reading, aligning, filling and playing the 1,092-frame take at its own 50 Hz, in
   process, best of 3: take frames per second.
 
@@ -183,10 +185,12 @@ def held_out(work, capture, takes=None, smooth=True):
             write_c3d(os.path.join(folder, f"take_{name}.c3d"), [f"Dancer:{label}" for label in layout], points,
                       HELD_RATE, units="mm")
             _, _, _, stdout = run(["play", puppet, "-c", f"take_{name}.c3d", "-o", f"take_{name}.h5", "--json"], folder)
-            rows.append((*errors(f"take_{name}", skip), json.loads(stdout)["takes"][0]))
+            summary = json.loads(stdout)
+            rows.append((*errors(f"take_{name}", skip), summary["takes"][0],
+                         summary.get("skeleton", {}).get("frames_torn", 0)))
             if name.endswith("clean"):
                 break  # nothing drawn
-        (mean, worst, report), ratios = rows[0], [m / clean_mean for m, _, _ in rows]
+        (mean, worst, report, _), ratios = rows[0], [m / clean_mean for m, _, _, _ in rows]
         yield {"benchmark": "markers", "case": "held_out", "capture": capture, "take": name,
                "between_frames": "pchip" if smooth else "linear",
                "markers": HELD_MARKERS, "rate": HELD_RATE, "error_clean": clean_mean / height,
@@ -195,9 +199,10 @@ def held_out(work, capture, takes=None, smooth=True):
                "neutral_kept": round(report["neutral_residual"]["kept"], 3),
                "neutral_frames": report["neutral_residual"]["frames"],
                "samples_filled": int(sum(v["frames"] for v in report["filled"].values())),
+               "frames_torn_max": max(torn for _, _, _, torn in rows),
                "seeds": list(HELD_SEEDS[:len(rows)]), "error_ratio_mean": round(float(np.mean(ratios)), 3),
                "error_ratio_max": round(float(np.max(ratios)), 3),
-               "worst_ratio_max": round(float(max(w for _, w, _ in rows)) / clean_worst, 3)}
+               "worst_ratio_max": round(float(max(w for _, w, _, _ in rows)) / clean_worst, 3)}
 
 
 def real_takes(work, puppet):
@@ -242,49 +247,52 @@ def speed(work, puppet):
             "frames_per_second": round(best[2] / best[0], 1), "threads": os.cpu_count()}
 
 
-def _strains(skin, vertices):
-    """|edge length / rest length − 1| (F, E) of every edge and frame of vertices (F, V, 3)."""
-    from skinsynth.pipeline.mesh.geometry import mesh_edges
+def edge_strain(envelope, vertices):
+    """(p99, largest) of |edge length / rest length − 1| over every edge and frame of vertices (F, V, 3)
+    (envelope: the capture's :class:`~skinsynth.pipeline.mesh.shape.ShapeEnvelope`, its edges)."""
+    from skinsynth.pipeline.mesh.shape import edge_strain as strains
 
-    edges = mesh_edges(skin.faces)
-    rest = np.linalg.norm(skin.rest_vertices[edges[:, 0]] - skin.rest_vertices[edges[:, 1]], axis=1)
-    return np.abs(np.linalg.norm(vertices[:, edges[:, 0]] - vertices[:, edges[:, 1]], axis=2) / rest - 1.0)
-
-
-def edge_strain(skin, vertices):
-    """(p99, largest) of |edge length / rest length − 1| over every edge and frame of vertices (F, V, 3)."""
-    strain = _strains(skin, vertices)
+    strain = strains(vertices, envelope.edges, envelope.rest_lengths)
     return float(np.percentile(strain, 99)), float(strain.max())
 
 
-def broken_frames(skin, vertices):
+def broken_frames(envelope, vertices):
     """Issue 66's broken frames of vertices (F, V, 3): those with more than 0.5 % of the edges
-    stretched past their largest strain in the capture by a quarter of their rest length."""
-    worst = _strains(skin, np.asarray(skin.examples, np.float64)).max(axis=0)
-    return int(np.sum((_strains(skin, vertices) > worst + 0.25).mean(axis=1) > 0.005))
+    stretched past their largest strain in the capture by a quarter of their rest length (the capture
+    alone: ``envelope``, ``shape_envelope(skin.examples, skin.faces)``)."""
+    return int(np.sum(envelope.broken(vertices)))
 
 
-def skeleton(work, documented=False):
-    """Issue 45's serve on the samba puppet of its --skeleton fit (train-kcca defaults), or with
-    ``documented`` issue 66's on the puppet docs/mocap.md builds (the free fit, train-kcca
+#: The samba puppets of the ``skeleton`` case: folder -> (fit-skin's options, train-kcca's options).
+SKELETON_PUPPETS = {"skeleton": (["--skeleton"], []), "documented": ([], []),
+                    "documented_gltf": ([], ["--correctives", "off"])}
+
+
+def skeleton(work, kind="skeleton"):
+    """The serve on a samba puppet (:data:`SKELETON_PUPPETS`): issue 45's of its --skeleton fit
+    (train-kcca defaults); issue 66's on the one docs/mocap.md builds (``documented``: the free
+    fit, train-kcca's defaults) and on the one it builds for glTF (``documented_gltf``:
     --correctives off): edge strain of the serve against the same puppet on its own samba controls,
     with the skeleton beyond the examples (--ik; a free skin's found for it) and without, the
-    broken frames (:func:`broken_frames`) and where the take was aligned; how far the played
-    controls are from the take's; the held-out frames the skeleton path touches."""
+    broken frames (:func:`broken_frames`; on its own samba too: the puppet's own floor) and where
+    the take was aligned; how far the played controls are from the take's; the held-out frames the
+    skeleton path touches (beyond the examples, and torn: ``play --json``'s skeleton entry)."""
     from skinsynth.cli.marker_take import take_controls
     from skinsynth.formats.puppet_file import read_puppet
+    from skinsynth.pipeline.mesh.shape import shape_envelope
     from skinsynth.pipeline.puppet import puppet_from_record
 
-    folder = os.path.join(work, "documented" if documented else "skeleton")
+    folder = os.path.join(work, kind)
     os.makedirs(folder, exist_ok=True)
+    fit_options, kcca_options = SKELETON_PUPPETS[kind]
     if not os.path.exists(os.path.join(folder, "puppet.h5")):
         run(["fit-skin", str(SHARED_DATA / "vlasic_samba" / "vlasic_samba.npz"), "-o", "skin.h5", "--bones", "22",
-             *([] if documented else ["--skeleton"]), "-q"], folder)
+             *fit_options, "-q"], folder)
         run(["select-controls", "skin.h5", "-o", "controls.h5", "--markers", str(LAYOUT), "-q"], folder)
-        run(["train-kcca", "controls.h5", "-o", "puppet.h5", *(["--correctives", "off"] if documented else []), "-q"],
-            folder)
+        run(["train-kcca", "controls.h5", "-o", "puppet.h5", *kcca_options, "-q"], folder)
     record, _, skin = read_puppet(os.path.join(folder, "puppet.h5"))
     model = puppet_from_record(record)
+    envelope = shape_envelope(skin.examples, skin.faces)
     layout = list(json.loads(LAYOUT.read_text()).values())
     height = float(np.ptp(skin.rest_vertices[:, 1]))
     held = np.setdiff1d(np.arange(len(skin.examples)), model.train_frames)
@@ -292,8 +300,8 @@ def skeleton(work, documented=False):
     np.save(os.path.join(folder, "held.npy"), skin.examples[held][:, layout])
     take = str(TAKES / "kinematics_tennis_serve_nan.c3d")
     targets = take_controls(take, model, record, skin, {}, "puppet.h5").controls
-    row = {"benchmark": "markers", "case": "documented" if documented else "skeleton",
-           "take": "kinematics_tennis_serve_nan.c3d"}
+    row = {"benchmark": "markers", "case": kind, "take": "kinematics_tennis_serve_nan.c3d",
+           "fit_options": fit_options, "train_kcca_options": kcca_options}
     for flag in ("--ik", "--no-ik"):
         strains = {}
         for name, source in (("own", "own.npy"), ("serve", take), ("held", "held.npy")):
@@ -301,16 +309,16 @@ def skeleton(work, documented=False):
                                         folder)
             summary = json.loads(stdout)
             vertices = played(os.path.join(folder, f"{name}{flag}.h5"))
-            strains[name] = edge_strain(skin, vertices)
+            strains[name] = edge_strain(envelope, vertices)
+            row[f"{name}_broken_frames{flag}"] = broken_frames(envelope, vertices)
             if name == "serve":  # how far the played control vertices are from the take's controls
                 miss = np.linalg.norm(vertices[:, layout] - targets, axis=2).mean() / height
                 row[f"serve_seconds{flag}"], row[f"serve_control_miss{flag}"] = summary["seconds"], round(miss, 4)
-                row[f"serve_broken_frames{flag}"] = broken_frames(skin, vertices)
                 row["neutral_frame"] = summary["takes"][0]["neutral_frame"]
-                if flag == "--ik":
-                    row["serve_frames_beyond"] = summary["skeleton"]["frames_beyond"]
-            if name == "held" and flag == "--ik":
-                row["held_out_frames_beyond"] = summary["skeleton"]["frames_beyond"]
+                row[f"serve_worst_frame_share{flag}"] = round(float(envelope.beyond_share(vertices).max()), 4)
+            if flag == "--ik":
+                row[f"{name}_frames_beyond"] = summary["skeleton"]["frames_beyond"]
+                row[f"{name}_frames_torn"] = summary["skeleton"]["frames_torn"]
         row[f"own_strain{flag}"] = [round(v, 3) for v in strains["own"]]
         row[f"serve_strain{flag}"] = [round(v, 3) for v in strains["serve"]]
         row[f"strain_ratio{flag}"] = [round(a / b, 3) for a, b in zip(strains["serve"], strains["own"])]
@@ -340,8 +348,8 @@ def main():
                                    options.between_frames == "pchip"):
                     print(json.dumps(row), flush=True)
     if wanted("skeleton"):
-        print(json.dumps(skeleton(work)), flush=True)
-        print(json.dumps(skeleton(work, documented=True)), flush=True)
+        for kind in SKELETON_PUPPETS:
+            print(json.dumps(skeleton(work, kind)), flush=True)
     if options.only in ("held_out", "skeleton"):
         return
     _, puppet = samba_puppet(work)

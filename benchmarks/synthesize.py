@@ -16,7 +16,7 @@ runs it, with default options: ``fit-skin`` (cached in --work), ``build-graph``,
 - components, transitions per component, mean segment length (output frames between seams of
   one component), coverage (the smallest share, over components, of input frames that the
   1,000 walks play; goal ≥ 0.9);
-- shape (issue 62; docs/contact.md, ``pipeline/synthesis/shape.py``): over the same first ``--feet``
+- shape (issue 62; docs/contact.md, ``pipeline/mesh/shape.py``): over the same first ``--feet``
   animations, on every capture, the share of broken frames (more than 0.5 % of their edges strained
   a quarter of their rest length past anything the capture and the fit's playback of it show), the
   worst frame's share of such edges, and the largest vertex acceleration over the input's;

@@ -47,7 +47,8 @@ from .outputs import (TEXTURES, check_animation_output, check_bone_texture_outpu
               help="Recompute bone translations with the Poisson solve (needs a puppet trained with it).")
 @click.option("--ik/--no-ik", default=True, show_default=True, help="Frames beyond the puppet's examples follow the "
               "controls with a skeleton (a jointed skin's own, fit-skin --skeleton; a free skin's found from its "
-              "bones) instead of the kernel CCA's extrapolation (docs/mocap.md).")
+              "bones) instead of the kernel CCA's extrapolation, and so do frames near them whose skin the "
+              "prediction tears (docs/mocap.md).")
 @device_option("auto, cpu, cuda or cuda:N.")
 @click.option("--threads", default=0, type=int, help="CPU threads for the kernels (default: all cores).")
 @up_axis_option("Ground plane and USD up axis (default: the input's, as fit-skin recorded it).")
@@ -98,9 +99,9 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     # before any output is written: writing is the last step (a signal after it would say "interrupted"
     # of a complete file)
     extrapolation = play_extrapolation(puppet, skin.examples, control_files, trajectories)
-    poses = example_poses(puppet, skin, _free_skeleton(skin)) if ik else None
+    poses = example_poses(puppet, skin, _free_skeleton(skin), device) if ik else None
     vertices, seconds, beyond = play_characters(puppet, controls.reshape(-1, *controls.shape[2:]), device, skinning,
-                                                translation_solver, threads, poses)
+                                                translation_solver, threads, poses, frames, skin.fps)
     vertices = vertices.reshape(characters, frames, -1, 3) + offsets[:, None, None, :].astype(np.float32)
     morph = _write(output, output_kind, kind, path, skin, puppet, controls, vertices, offsets, up_axis, skinning,
                    translation_solver, half, max_width, folders, beyond)

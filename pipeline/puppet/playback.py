@@ -142,14 +142,16 @@ class DevicePlayer:
         return vertices
 
 
-def play_characters(puppet, controls, device, skinning=None, translation_solver=True, threads=0, poses=None):
+def play_characters(puppet, controls, device, skinning=None, translation_solver=True, threads=0, poses=None,
+                    clip_frames=None, fps=None):
     """Every vertex of every frame of controls (C·F, n_c, 3) played through the puppet on
     ``device``: (vertices (C·F, V, 3) float32, seconds of compute, the skeleton path's
     :class:`~.jointed_play.BeyondExamples` or None). Both
     skinnings run the whole run-time path in warp kernels (:class:`DevicePlayer`, ``threads`` CPU
     threads, 0: all cores). The kernels are compiled (or loaded) on a one-frame warm-up first,
     outside the time. poses: the skeleton's :class:`~.jointed_play.ExamplePoses`, or None: the
-    frames beyond the examples played by its skeleton (:mod:`.jointed_play`). Rig outputs take the
+    frames beyond the examples played by its skeleton (:mod:`.jointed_play`), and with ``fps`` the
+    frames it tears (controls: characters of ``clip_frames`` each, None: one). Rig outputs take the
     world bones from :func:`character_bones`."""
     from .jointed_play import play_beyond_examples
 
@@ -158,7 +160,7 @@ def play_characters(puppet, controls, device, skinning=None, translation_solver=
     started = time.perf_counter()
     vertices = player.play(controls, threads or os.cpu_count() or 1)
     beyond = None if poses is None else play_beyond_examples(puppet, poses, controls, vertices, device,
-                                                             translation_solver)
+                                                             translation_solver, clip_frames, fps)
     return vertices, time.perf_counter() - started, beyond
 
 
@@ -184,8 +186,8 @@ def play_summary(characters, frames, seconds, device, skinning, translation_solv
     if beyond is not None:
         from .jointed_play import skeleton_summary
 
-        summary["skeleton"], line = skeleton_summary(beyond.alpha, beyond.found)
-        lines.append(line)
+        summary["skeleton"], skeleton_lines = skeleton_summary(beyond)
+        lines += skeleton_lines
     if morph is not None:
         summary.update(morph_targets=len(morph[0]), morph_target_error=morph[2])
         lines.append(f"correctives: {shapes} shapes as {len(morph[0])} morph target(s), "

@@ -34,7 +34,7 @@ def tiny_rig():
     examples = lbs_reference(rest, indices, weights, rotations, translations)
     planted = np.ones((frames, 1), bool)
     from ..rig.joint_tree import skin_joint_tree
-    from .shape import shape_envelope
+    from ..mesh.shape import shape_envelope
 
     tree = skin_joint_tree(rest, faces, indices, weights, rotations, translations)
     return planting.plant_rig(rest, indices, weights, rotations, translations, examples, [np.array([11, 23])], planted,
@@ -45,7 +45,7 @@ def tiny_rig():
 def compile_loops():
     """Compile (or load from numba's cache) synthesize's numba loops; returns
     :func:`skinsynth.pipeline.runtime.compiled.compile_run`'s report."""
-    from . import shape
+    from ..mesh import shape
     from .contact import limb_reach, limb_shape, planting, planting_loops
 
     def exercise():

@@ -11,9 +11,9 @@ not see it; the shape measure does.
 So each transition is spliced once on its own (:func:`transition_walks`: the frames before i and
 after it, the window's length and one more on each side), with the synthesis's own options, the
 component's bones skinned on the vertices they carry alone, and the walk's frames measured against
-the capture's edges (:class:`.shape.ShapeEnvelope`): a transition is *tearing* when any of those
+the capture's edges (:class:`..mesh.shape.ShapeEnvelope`): a transition is *tearing* when any of those
 frames has more edges beyond than a broken frame of the whole mesh has
-(:data:`.shape.BROKEN_SHARE` of all its edges). A synthesis walks the others
+(:data:`..mesh.shape.BROKEN_SHARE` of all its edges). A synthesis walks the others
 (:func:`.synthesis.prepare_synthesis`), unless refusing them would leave a component fewer than
 :data:`KEEP_PLAYABLE` of the frames it could play for ever from: it then keeps its transitions,
 and says so. A transition between clips is a clip's way in or out (a gallop into its collapse): a
@@ -51,7 +51,7 @@ def transition_walks(pairs, window, clips):
 def tearing_transitions(component, skin, envelope, request, pivots, lbs):
     """(T,) bool: which of a component's transitions (``component.transitions.pairs``) tear the body
     when spliced (module notes). skin: rest_vertices, bone_indices, bone_weights (V, K), rotations
-    (F, B, 3, 3), translations (F, B, 3); envelope: the capture's :class:`.shape.ShapeEnvelope`;
+    (F, B, 3, 3), translations (F, B, 3); envelope: the capture's :class:`..mesh.shape.ShapeEnvelope`;
     request: the synthesis's (window, blend, alignment, spread velocity, clips: the splice it runs); pivots (B, 3) the bones' blend pivots; lbs: linear blend skinning, (rest, indices, weights,
     F, t) -> vertices (:func:`skinsynth.gpu.lbs`)."""
     from ..inputs.clips import Clips

@@ -109,11 +109,11 @@ def measure_feet(skin, F, t, sources, starts, count, up_axis=1, device="cpu", bl
 
 
 def capture_envelope(skin, skinning, block=64):
-    """The :class:`.shape.ShapeEnvelope` of a skin's capture: its frames (examples (Fi, V, 3), faces)
+    """The :class:`..mesh.shape.ShapeEnvelope` of a skin's capture: its frames (examples (Fi, V, 3), faces)
     and the fit's playback of them (rest_vertices, bone_indices, bone_weights, rotations and
     translations), skinned in blocks of ``block`` frames by ``skinning`` (rest, indices, weights,
     rotations, translations) -> vertices (:func:`skinsynth.gpu.lbs`, or its numpy reference)."""
-    from .shape import shape_envelope
+    from ..mesh.shape import shape_envelope
 
     fit = skin.rotations.shape[0]
 
@@ -131,7 +131,7 @@ def measure_shape(skin, F, t, count, device="cpu", block=64, envelope=None):
     examples (Fi, V, 3), faces, rest_vertices, bone_indices, bone_weights, rotations and translations
     (the fit, whose playback of the capture the envelope takes in); F (A, M, B, 3, 3), t (A, M, B, 3).
     Returns a dict: frames measured, broken_frames and broken_share (frames with more than
-    :data:`.shape.BROKEN_SHARE` of their edges beyond), worst_frame (the largest share of one frame's
+    :data:`..mesh.shape.BROKEN_SHARE` of their edges beyond), worst_frame (the largest share of one frame's
     edges beyond), margin and broken_edge_share (the definitions' constants). envelope: the
     capture's, where the synthesis already made it (:func:`.synthesis.skin_envelope`), or None."""
     if envelope is None:
@@ -153,11 +153,10 @@ def report_measures(skin, F, t, sources, count, up_axis=1, device="cpu", limited
     """``synthesize --measure-feet``: the feet (:func:`measure_feet`; the input's clips are the
     skin's clip_names and clip_frames) and the shape (:func:`measure_shape`) of the first ``count``
     animations, each timed and reported: {"contact": (its --json object, one text line), "shape": …}
-    (:func:`~..mesh.contact_measures.feet_report`, :func:`~.shape.shape_report`); limited, envelope: as
+    (:func:`~..mesh.contact_measures.feet_report`, :func:`shape_report`); limited, envelope: as
     :func:`measure_feet` and :func:`measure_shape` take them."""
     from ..inputs.clips import Clips
     from ..mesh.contact_measures import feet_report
-    from .shape import shape_report
 
     starts = Clips(skin.clip_names, skin.clip_frames).starts
     started = time.perf_counter()
@@ -201,3 +200,17 @@ def acceleration_plots(skin, F, t, sources, count, device, clips=None):
         peak = f"{np.max(ratio[1:-1]):.2f}× the input's" if len(ratio) > 2 else "none (under 3 frames)"
         yield AccelerationPlot(sources[:, a], ratio, f"animation {a}: {seams} seams, largest acceleration {peak}",
                                mask)
+
+
+def shape_report(figures, count):
+    """The report of :func:`measure_shape`'s figures of the
+    first ``count`` animations (with the ``seconds`` they took): (the --json "shape" object, one text
+    line; definitions in docs/contact.md)."""
+    shape = {"animations": count, "definitions": "docs/contact.md", **figures,
+             "broken_share": round(figures["broken_share"], 6), "worst_frame": round(figures["worst_frame"], 6),
+             "seconds": round(figures["seconds"], 3)}
+    line = (f"shape (first {count} animations against the capture; docs/contact.md): {figures['broken_frames']} of "
+            f"{figures['frames']} frames broken ({figures['broken_share']:.2%}; more than "
+            f"{figures['broken_edge_share']:.1%} of their edges strained {figures['margin']:g} of their length past "
+            f"the capture's and its fit's), worst frame {figures['worst_frame']:.2%} of its edges")
+    return shape, line

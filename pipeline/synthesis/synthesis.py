@@ -269,7 +269,7 @@ def _skinning(*bones):
 
 
 def skin_envelope(skin):
-    """The :class:`.shape.ShapeEnvelope` of ``skin``'s capture and its fit's playback of it."""
+    """The :class:`..mesh.shape.ShapeEnvelope` of ``skin``'s capture and its fit's playback of it."""
     from .skinned import capture_envelope
 
     return capture_envelope(skin, _skinning)
@@ -367,7 +367,7 @@ class Request:
     tree: the skin's joint tree (:class:`~skinsynth.pipeline.rig.joint_tree.JointTree`, :func:`skin_tree`),
     whose joints the plants turn a limb at (:mod:`.contact.limb_chains`), or None.
 
-    envelope: the capture's :class:`.shape.ShapeEnvelope` (:func:`skin_envelope`), which the plants'
+    envelope: the capture's :class:`..mesh.shape.ShapeEnvelope` (:func:`skin_envelope`), which the plants'
     limbs (:mod:`.contact.limb_shape`) and the seams (:mod:`.seam_shape`) keep to, or None.
 
     contact: keep the merged rig's lowest point within the input's range (:mod:`.contact`);

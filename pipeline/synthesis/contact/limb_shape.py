@@ -22,7 +22,7 @@ Why :data:`LIMB_TEAR` is a thousandth of a limb's checked seams (one edge of 1,0
 past its envelope (a turn of a degree at a joint the capture holds at its extreme) should not cut a
 plant; a limb's seams are at most a third of the mesh's edges (the samba's legs 9,120 and 9,814 of
 its 29,907; the dancer's 5,527 and 4,284 of 21,177), so four limbs at that share stay far under what
-breaks a frame (:data:`..shape.BROKEN_SHARE`, 0.5 %), with room for a splice's own strain. Measured
+breaks a frame (:data:`...mesh.shape.BROKEN_SHARE`, 0.5 %), with room for a splice's own strain. Measured
 at 20 × 600, seed 3 (``benchmarks/synthesize.py``), every seam checked: on the horse's clips (its
 gallop's hips turned by 48° after a plant of its collapse) 1.05 % of the frames were broken with no
 check, 0.32 % with no seam allowed, 0.22 % with a thousandth, 0.40–0.51 % with 0.0025; the dancer,
@@ -59,7 +59,7 @@ class LimbSeams:
     """The edges each of L limbs' turns can strain (:func:`limb_seams`), padded with −1: vertices
     (L, S) their ends' ids; edges (L, E, 2) each edge's ends as places in its limb's ``vertices``;
     lengths (L, E) rest lengths (a zero one replaced by the mean edge's, with one (L, E) 0 there,
-    as :func:`..shape.edge_strain` measures it); allowance (L, E) the envelope plus its margin;
+    as :func:`...mesh.shape.edge_strain` measures it); allowance (L, E) the envelope plus its margin;
     masks (L, E) the maps each edge's ends are carried by (bit 0 the body, bit i + 1 the limb's
     joint i): an edge spans joint i when it has both i's bit and its parent's (or the body's);
     budget (L,): how many of them each limb's turn may tear (``tear`` of its seams, rounded down)."""
@@ -77,7 +77,7 @@ def limb_seams(limb_joints, bone_joint, bone_indices, bone_weights, envelope, te
     """The :class:`LimbSeams` of limbs (limb_joints (L, n), −1 padded, as
     :meth:`.planting.PlantRig.limbs`) whose joints carry bones as bone_joint (B,) says (each bone's
     last joint, −1: none); bone_indices, bone_weights (V, K) the skin; envelope: the capture's
-    :class:`..shape.ShapeEnvelope` (edges, rest_lengths, envelope, margin). A vertex moves with one
+    :class:`...mesh.shape.ShapeEnvelope` (edges, rest_lengths, envelope, margin). A vertex moves with one
     joint's map when every bone weighing on it has that last joint in the limb (or none: the body);
     an edge is a seam when its ends are not carried by the same map. Of a limb's seams at most
     ``most`` are kept, evenly spaced in edge order (:data:`SEAM_EDGES`). tear: the share of the kept

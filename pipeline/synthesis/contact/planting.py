@@ -321,7 +321,7 @@ def plant_rig(rest, bone_indices, bone_weights, rotations, translations, example
     the sample vertex ids (P, S) of :func:`lowest_samples` when the caller has them already
     (None: found here); tree: the skin's :class:`~skinsynth.pipeline.rig.joint_tree.JointTree`, which
     the limbs are found on (:func:`.limb_chains.plant_chains`); turn_bound (degrees, :data:`TURN_BOUND`);
-    envelope: the capture's :class:`..shape.ShapeEnvelope`, which the limbs' turns keep to
+    envelope: the capture's :class:`...mesh.shape.ShapeEnvelope`, which the limbs' turns keep to
     (:mod:`.limb_shape`; None: unchecked)."""
     from ...mesh.geometry import largest_acceleration
     from ...rig.rotations import polar_rotation

@@ -1,10 +1,10 @@
-"""The shape measure (issue 62: :mod:`skinsynth.pipeline.synthesis.shape`): a torn frame is found, the
+"""The shape measure (issue 62: :mod:`skinsynth.pipeline.mesh.shape`): a torn frame is found, the
 capture itself never is, and the verdict does not depend on the character's size or frame rate."""
 
 import numpy as np
 
 from skinsynth.pipeline.inputs.examples import bending_bar
-from skinsynth.pipeline.synthesis.shape import BROKEN_SHARE, MARGIN, edge_strain, shape_envelope
+from skinsynth.pipeline.mesh.shape import BROKEN_SHARE, MARGIN, edge_strain, shape_envelope
 
 
 def _bar():

@@ -7,7 +7,7 @@ import numpy as np
 
 from skinsynth.gpu import lbs_reference
 from skinsynth.pipeline.synthesis.contact.limb_shape import limb_seams, seam_tears
-from skinsynth.pipeline.synthesis.shape import ShapeEnvelope, edge_strain
+from skinsynth.pipeline.mesh.shape import ShapeEnvelope, edge_strain
 
 from test_limb_reach import _leg_pose, _reach, _sole
 

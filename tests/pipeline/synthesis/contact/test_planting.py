@@ -217,7 +217,7 @@ def test_large_corrections_keep_every_joint_and_the_shape(walker_graph):
     rigidly, all the bones hung below one joint by the same motion (so their lengths and the skin
     between them are kept), every limb joint's two bones carry its point as far apart as before (to
     1e-6 of the height: the joints hold), and the body keeps its shape against the capture
-    (:mod:`skinsynth.pipeline.synthesis.shape`: no broken frame, no frame past 2 % of its edges)."""
+    (:mod:`skinsynth.pipeline.mesh.shape`: no broken frame, no frame past 2 % of its edges)."""
     from skinsynth.gpu import lbs
     from skinsynth.pipeline.synthesis.skinned import capture_envelope
 

@@ -1,5 +1,5 @@
-"""Whether a synthesized body keeps its shape: edge strain against what the capture itself shows
-(issue 62).
+"""Whether a body keeps its shape: edge strain against what the capture itself shows (issue 62:
+a synthesis's frames; issue 66: a puppet's beyond its examples, ``pipeline.puppet.jointed_play``).
 
 Smooth motion and planted feet say nothing of the body's *shape*: a correction that moves two
 neighbouring bones apart creases the skin between them, and acceleration or slide figures do not
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..mesh.geometry import mesh_edges
+from .geometry import mesh_edges
 
 #: How far past its envelope (a share of its rest length) an edge's strain must be to be beyond.
 MARGIN = 0.25
@@ -110,17 +110,3 @@ def shape_envelope(examples, faces, playback=(), block=64, margin=MARGIN, broken
             envelope = np.maximum(envelope, edge_strain(frames, edges, rest_lengths).max(axis=0))
     return ShapeEnvelope(edges=edges, rest_lengths=rest_lengths, envelope=envelope, margin=margin,
                          broken_share=broken_share)
-
-
-def shape_report(figures, count):
-    """The report of :func:`~skinsynth.pipeline.synthesis.skinned.measure_shape`'s figures of the
-    first ``count`` animations (with the ``seconds`` they took): (the --json "shape" object, one text
-    line; definitions in docs/contact.md)."""
-    shape = {"animations": count, "definitions": "docs/contact.md", **figures,
-             "broken_share": round(figures["broken_share"], 6), "worst_frame": round(figures["worst_frame"], 6),
-             "seconds": round(figures["seconds"], 3)}
-    line = (f"shape (first {count} animations against the capture; docs/contact.md): {figures['broken_frames']} of "
-            f"{figures['frames']} frames broken ({figures['broken_share']:.2%}; more than "
-            f"{figures['broken_edge_share']:.1%} of their edges strained {figures['margin']:g} of their length past "
-            f"the capture's and its fit's), worst frame {figures['worst_frame']:.2%} of its edges")
-    return shape, line
