@@ -75,10 +75,11 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
-    from skinsynth.pipeline.puppet import (character_offsets, example_poses, play_characters, play_extrapolation,
+    from skinsynth.pipeline.puppet import (character_offsets, play_characters, play_extrapolation,
                                            play_summary, puppet_from_record)
 
     from .marker_take import check_take_options
+    from .skeleton_poses import skeleton_poses
 
     check_take_options(control_files, take_options)
     folders = FolderOutputs([path, *control_files], [output])
@@ -99,7 +100,7 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
     # before any output is written: writing is the last step (a signal after it would say "interrupted"
     # of a complete file)
     extrapolation = play_extrapolation(puppet, skin.examples, control_files, trajectories)
-    poses = example_poses(puppet, skin, _free_skeleton(skin), device) if ik else None
+    poses = skeleton_poses(puppet, skin, device) if ik else None
     vertices, seconds, beyond = play_characters(puppet, controls.reshape(-1, *controls.shape[2:]), device, skinning,
                                                 translation_solver, threads, poses, frames, skin.fps)
     vertices = vertices.reshape(characters, frames, -1, 3) + offsets[:, None, None, :].astype(np.float32)
@@ -109,17 +110,6 @@ def play(path, control_files, output, instances, kind, skinning, half, max_width
                                   extrapolation, [(take.summary, take.lines) for take in takes], morph,
                                   0 if puppet.correctives is None else len(puppet.correctives.offsets), beyond)
     report(summary, lines, as_json, quiet)
-
-
-def _free_skeleton(skin):
-    """A free skin's skeleton for the frames beyond its examples (the joints its bones keep best,
-    ``pipeline.skin.free_skin_skeleton``), None for a jointed skin (its own)."""
-    if skin.skeleton is not None:
-        return None
-    from skinsynth.pipeline.skin import free_skin_skeleton
-
-    return free_skin_skeleton(skin.rest_vertices, skin.faces, skin.bone_indices, skin.bone_weights, skin.rotations,
-                              skin.translations, skin.examples, "XYZ".index(skin.scene.up_axis))
 
 
 def _check_puppet(path, output, output_kind, kind, puppet, skinning, translation_solver):

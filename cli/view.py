@@ -38,12 +38,15 @@ LOOPBACK = ("127.0.0.1", "localhost", "::1")
               help="Puppet: a control trajectory to play on the page (a timeline; any file play reads: CSV, .npy, a "
                    "mesh sequence, or a motion-capture take .c3d, its markers drawn beside their controls; "
                    "docs/mocap.md).")
+@click.option("--ik/--no-ik", default=True, show_default=True, help="Puppet: poses beyond its examples follow the "
+              "controls with a skeleton, and frames whose skin the prediction tears are mended, as play does "
+              "(docs/mocap.md); --no-ik shows the kernel CCA's prediction alone.")
 @device_option("Puppet: where the run-time path runs (auto, cpu, cuda or cuda:N), as play.")
 @marker_take_options
 @summary_options
 @user_errors
-def view(path, port, host, no_open, animation, error_scale, extrapolation_scale, record_path, controls_path, device,
-         as_json, quiet, **take_options):
+def view(path, port, host, no_open, animation, error_scale, extrapolation_scale, record_path, controls_path, ik,
+         device, as_json, quiet, **take_options):
     """Look at PATH in a web browser: a page served on this machine until Ctrl-C.
 
     PATH: a puppet (train-kcca: drag its control points; every move is play's own prediction;
@@ -73,7 +76,7 @@ def view(path, port, host, no_open, animation, error_scale, extrapolation_scale,
         raise OptionError(f"--extrapolation-scale must be positive (got {extrapolation_scale})")
     check_take_options([controls_path] if controls_path else [], take_options)
     kind, scene, details, motions = _read(path, animation, error_scale, extrapolation_scale, record_path, device,
-                                          controls_path, take_options)
+                                          controls_path, take_options, ik)
     lines = details.pop("lines", [])  # a take's, said before the URL
     if host not in LOOPBACK:
         _warn(f"--host {host}: anyone who can reach this machine on the network can open the page"
@@ -97,7 +100,7 @@ def _warn(message):
 
 
 def _read(path, animation, error_scale, extrapolation_scale, record_path, device, controls_path=None,
-          take_options=None):
+          take_options=None, ik=True):
     """(kind, the page's view record, summary details, an open synthesis file or None)."""
     from skinsynth.formats.errors import FormatError
     from skinsynth.formats.model import read_header
@@ -110,7 +113,7 @@ def _read(path, animation, error_scale, extrapolation_scale, record_path, device
             stage = None  # not a skinsynth model file: a sequence or play's characters
         if stage == "puppet":
             return ("puppet", *puppet_view(path, extrapolation_scale, record_path, device, controls_path,
-                                           take_options), None)
+                                           take_options, ik), None)
         if controls_path is not None:
             raise OptionError(f"--controls plays a trajectory on a puppet (train-kcca's file), and {path} is "
                               f"{'a ' + repr(stage) + ' file' if stage else 'a sequence'}")
@@ -126,17 +129,20 @@ def _read(path, animation, error_scale, extrapolation_scale, record_path, device
 
 
 def puppet_view(path, extrapolation_scale=None, record_path=None, device="auto", controls_path=None,
-                take_options=None):
+                take_options=None, ik=True):
     """The puppet page's :class:`~skinsynth.pipeline.view.pages.PuppetView` of the puppet at ``path``
     and its summary details (with ``lines``, a take's text, said before the URL); controls_path:
     a trajectory it plays (any file play reads; a .c3d take read with ``take_options``,
-    ``marker_take_options``'s values by name)."""
+    ``marker_take_options``'s values by name), every frame as play plays it; ik: as play's --ik
+    (a dragged pose beyond the examples on the skeleton; a trajectory's torn frames mended)."""
     from skinsynth.formats.puppet_file import read_puppet
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.mesh.geometry import largest_side
-    from skinsynth.pipeline.puppet import DevicePlayer, host_inputs, puppet_from_record
+    from skinsynth.pipeline.puppet import DevicePlayer, host_inputs, play_beyond_examples, puppet_from_record
     from skinsynth.pipeline.view import PuppetView
     from skinsynth.pipeline.view import extrapolation_scale as default_scale
+
+    from .skeleton_poses import skeleton_poses
 
     record, _, skin = read_puppet(path)
     puppet = puppet_from_record(record)
@@ -147,11 +153,25 @@ def puppet_view(path, extrapolation_scale=None, record_path=None, device="auto",
     trajectory, played = (None, {}) if controls_path is None else _trajectory(
         controls_path, path, record, puppet, skin, take_options or {}, in_place, unit)
     # uploaded once, warm for every move; as play: the solver whenever the puppet has one
-    player = DevicePlayer(puppet, device, translation_solver=puppet.translations is not None)
+    solver = puppet.translations is not None
+    player = DevicePlayer(puppet, device, translation_solver=solver)
+    poses = skeleton_poses(puppet, skin, device) if ik else None
+
+    def play_path(controls, fps=None):
+        """World controls (N, n_c, 3) -> vertices (N, V, 3) float32: play's path (its torn frames
+        mended where ``fps`` is given: a trajectory's)."""
+        vertices = player.play(np.asarray(controls, dtype=np.float64))
+        if poses is not None:
+            play_beyond_examples(puppet, poses, np.asarray(controls, dtype=np.float64), vertices, device, solver,
+                                 fps=fps)
+        return vertices
 
     def predict(controls):
         """World controls (n_c, 3) -> vertices (V, 3) float32: play's path, one frame."""
-        return player.play(np.asarray(controls)[None])[0]
+        return play_path(np.asarray(controls)[None])[0]
+
+    if trajectory is not None:
+        trajectory.vertices = play_path(trajectory.controls, trajectory.fps)
 
     predict(training[0])  # compile or load the kernels now
     scale = extrapolation_scale or default_scale(in_place, unit)

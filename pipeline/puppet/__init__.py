@@ -9,7 +9,7 @@ Public: select_controls, selection_summary, train_puppet, training_summary, pred
 ControlKernel, KERNELS, TranslationOperator, Correctives, evaluate_puppet, evaluate_extrapolation,
 extrapolation_split, clip_hold_out_split, evaluate_clip_hold_out, evaluate_hold_outs, evaluation_report, instance_trajectories, host_inputs, play_extrapolation, world_bones, character_offsets, play_summary, character_bones, play_characters, DevicePlayer,
 drive_from_markers, MarkerDrive, take_report, layout_order (a motion-capture take as the controls, :mod:`.markers`),
-example_poses (a jointed skin's skeleton beyond the examples, :mod:`.jointed_play`).
+example_poses, play_beyond_examples (a skeleton beyond the examples, torn frames mended, :mod:`.jointed_play`).
 """
 
 from .._lazy import lazy_exports
@@ -23,6 +23,7 @@ _EXPORTS = {"select_controls": "controls", "selection_summary": "controls", "tra
             "evaluate_clip_hold_out": "evaluation", "evaluate_hold_outs": "evaluation",
             "evaluation_report": "evaluation", "instance_trajectories": "playback", "host_inputs": "playback", "play_characters": "playback", "DevicePlayer": "playback",
             "world_bones": "playback", "drive_from_markers": "markers", "MarkerDrive": "markers", "character_offsets": "playback", "take_report": "markers", "layout_order": "markers", "play_summary": "playback", "character_bones": "playback",
-            "play_extrapolation": "playback", "example_poses": "jointed_play"}
+            "play_extrapolation": "playback", "example_poses": "jointed_play",
+            "play_beyond_examples": "jointed_play"}
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

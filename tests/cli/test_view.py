@@ -457,8 +457,9 @@ def shown_distance(content):
 
 def test_a_trajectory_plays_play_s_frames_and_their_indicator(files, tmp_path):
     """view --controls .npy, the page driven without a browser (``open_page``): each frame the
-    slider shows is play's prediction of that frame, the handles on its controls, its indicator
-    the one ``extrapolation_distances`` gives every frame."""
+    slider shows is play's of that frame (frame 7, far beyond the examples, on the skeleton found
+    for the free skin, as play poses it; --no-ik, the kernel CCA's prediction as play --no-ik),
+    the handles on its controls, its indicator the one ``extrapolation_distances`` gives every frame."""
     from skinsynth.cli.view import puppet_view
     from skinsynth.pipeline.view import open_page
     from skinsynth.pipeline.mesh.geometry import largest_side
@@ -470,9 +471,11 @@ def test_a_trajectory_plays_play_s_frames_and_their_indicator(files, tmp_path):
     trajectory = training[np.arange(12) % len(training)] + rng.normal(scale=0.04 * diagonal,
                                                                       size=(12, *training.shape[1:]))
     trajectory[7] += 0.5 * diagonal * (rng.random(trajectory[7].shape) - 0.5)  # one frame far off the training poses
-    # writes trajectory.npy; --no-ik: the page shows the kernel CCA's prediction, and frame 7, far beyond the
-    # examples, play would pose with the skeleton found for the free skin (docs/mocap.md; the page does not yet)
-    expected = played(files, tmp_path, files / "puppet.h5", trajectory, "trajectory", "--no-ik")
+    expected = played(files, tmp_path, files / "puppet.h5", trajectory, "trajectory")  # writes trajectory.npy
+    extrapolated = played(files, tmp_path, files / "puppet.h5", trajectory, "no_ik", "--no-ik")
+    assert np.abs(expected[7] - extrapolated[7]).max() > 0.01 * diagonal  # frame 7 is on the skeleton
+    alone, _ = puppet_view(files / "puppet.h5", device="cpu", controls_path=tmp_path / "trajectory.npy", ik=False)
+    assert np.abs(alone.trajectory.vertices - extrapolated).max() <= 1e-5 * diagonal
     view, details = puppet_view(files / "puppet.h5", device="cpu", controls_path=tmp_path / "trajectory.npy")
     assert details["trajectory"]["frames"] == 12 and details["trajectory"]["fps"] == skin.fps
     puppet = puppet_from_record(record)

@@ -36,7 +36,8 @@ class PuppetPage:
         self.frame, self.on_frame = (None, False) if self.trajectory is None else (0, True)
         self.shown_controls, self.shown_frame = self.controls.copy(), None
         self.recording = None  # [(seconds, controls (n_c, 3))] while recording
-        vertices = view.predict(self.controls)
+        vertices = view.predict(self.controls) if self.trajectory is None or self.trajectory.vertices is None \
+            else self.trajectory.vertices[0]
         takes = self.trajectory is not None and self.trajectory.markers is not None
         frame_camera(server, np.concatenate([vertices, self.controls]
                                              + ([self.trajectory.markers[0]] if takes else [])), view.up_axis)
@@ -143,6 +144,8 @@ class PuppetPage:
         up front, and the handles moved there; a take's markers of frame ``frame``, lines to the
         controls."""
         view, trajectory = self.view, self.trajectory
+        if vertices is None and on_frame and trajectory.vertices is not None:
+            vertices = trajectory.vertices[frame]  # as play plays it
         vertices = view.predict(controls) if vertices is None else vertices
         if on_frame:
             distance, nearest = float(trajectory.distances[frame]), int(trajectory.nearest[frame])

@@ -16,7 +16,9 @@ class TrajectoryView:
     extrapolation, ``scenes.extrapolation_distances`` computed once for every frame; name (the
     file, for the panel); a motion-capture take's markers (F, n_c, 3), aligned into the puppet's
     space, marker i on control i, with their labels (n_c,) and the take's start_time (seconds of
-    frame 0); markers None for any other trajectory."""
+    frame 0); markers None for any other trajectory; vertices (F, V, 3) float32: every frame as
+    ``play`` plays it (its skeleton beyond the examples, its torn frames mended), shown on the
+    trajectory's frames (None: each predicted as shown)."""
 
     controls: np.ndarray
     fps: float
@@ -26,6 +28,7 @@ class TrajectoryView:
     markers: np.ndarray = None
     labels: tuple = ()
     start_time: float = 0.0
+    vertices: np.ndarray = None
 
 
 @dataclass
