@@ -74,7 +74,9 @@ MAX_TRANSFORM_STEPS = 100
               help="--contacts: the extra weight of a near-ground vertex's error (lowered where the near vertices "
                    "would carry over a fifth of the fit's error). Default 20. Refused where no contact fit runs "
                    "(--no-contacts, --rig, --skeleton).")
-@click.option("--prim", default=None, help="USD input: path of the mesh prim (default: first time-sampled mesh).")
+@click.option("--prim", default=None, help="USD, Alembic or FBX input: the mesh to read (a USD prim path, an Alembic "
+              "object path such as /Body/BodyShape, an FBX object name; default: USD's first time-sampled mesh, the "
+              "only mesh of an .abc or .fbx; docs/blender.md).")
 @click.option("--fps", default=None, type=FINITE_FLOAT, help="Frame rate, when the input does not carry one (default 24). Every later stage counts "
                    "time in it: build-graph's threshold and held poses, synthesize's blends and segments.")
 @click.option("--meters-per-unit", default=None, type=FINITE_FLOAT,

@@ -1,7 +1,8 @@
 """Example animations on disk: one mesh, fixed topology, vertex positions per frame.
 
 Accepted inputs: a folder of OBJ/PLY/OFF frame files, a glob of them, a USD file with a
-time-sampled mesh, or an ``.npz``/``.h5`` file holding ``vertices (F, V, 3)`` and
+time-sampled mesh, an Alembic (``.abc``) or FBX (``.fbx``) animation (read through Blender:
+:mod:`.blender`), or an ``.npz``/``.h5`` file holding ``vertices (F, V, 3)`` and
 ``faces (T, 3)`` (optional scalar ``fps``).
 """
 
@@ -22,6 +23,7 @@ from skinsynth.formats.scene import Scene
 FRAME_EXTENSIONS = (".obj", ".ply", ".off")
 USD_EXTENSIONS = (".usd", ".usda", ".usdc")
 ARRAY_EXTENSIONS = (".npz", ".h5", ".hdf5")
+BLENDER_EXTENSIONS = (".abc", ".fbx")  # read through Blender (formats/blender.py)
 DEFAULT_FPS = 24.0
 
 
@@ -55,8 +57,8 @@ def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = N
     if fps is not None and not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be a positive number, got {fps}")
     ext = os.path.splitext(spec)[1].lower()
-    if prim is not None and ext not in USD_EXTENSIONS:
-        raise FormatError(spec, "a prim path applies only to USD input")
+    if prim is not None and ext not in USD_EXTENSIONS + BLENDER_EXTENSIONS:
+        raise FormatError(spec, "a prim path applies only to USD, Alembic and FBX input")
 
     # An existing path wins over a glob reading, so folders named like "take[1]" still work.
     if os.path.isdir(spec):
@@ -72,6 +74,11 @@ def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = N
         sequence = sequence_from_arrays(spec, *read_points_cache(spec, prim))
         sequence = replace(sequence, scene=read_scene(spec, prim),
                            face_uvs=checked_face_uvs(spec, read_face_uvs(spec, prim), sequence.faces))
+    elif ext in BLENDER_EXTENSIONS:
+        from skinsynth.formats.blender import read_blender_sequence
+
+        vertices, faces, rate, scene = read_blender_sequence(spec, prim, fps)
+        sequence = replace(sequence_from_arrays(spec, vertices, faces, rate), scene=Scene(**scene))
     elif ext == ".npz":
         sequence = _read_npz(spec)
     elif ext in (".h5", ".hdf5"):
@@ -80,7 +87,7 @@ def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = N
         raise FormatError(spec, "a single frame is not a sequence; give the folder or a glob of the frames")
     else:
         raise FormatError(spec, f"unknown extension {ext or '(none)'!r}; expected a folder, a glob, "
-                                f"{'/'.join(USD_EXTENSIONS + ARRAY_EXTENSIONS)}")
+                                f"{'/'.join(USD_EXTENSIONS + BLENDER_EXTENSIONS + ARRAY_EXTENSIONS)}")
 
     if fps is not None:
         sequence = replace(sequence, fps=float(fps))

@@ -236,8 +236,8 @@ def test_error_glob_matching_a_non_frame_file(tmp_path):
 
 
 def test_error_unknown_extension_and_single_frame(tmp_path):
-    (tmp_path / "a.fbx").write_text("x")
-    assert_format_error(tmp_path / "a.fbx", tmp_path / "a.fbx", "unknown extension")
+    (tmp_path / "a.stl").write_text("x")
+    assert_format_error(tmp_path / "a.stl", tmp_path / "a.stl", "unknown extension")
     write_obj(tmp_path / "one.obj", SQUARE)
     assert_format_error(tmp_path / "one.obj", tmp_path / "one.obj", "single frame")
 

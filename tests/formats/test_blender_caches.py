@@ -1,0 +1,184 @@
+"""Alembic and FBX read through Blender (formats/blender.py, issue 67): caches a DCC writes (Blender
+itself, tests/formats/blender_writer.py) read back to the capture, with their frame rate, units, up
+axis and mesh name; two meshes chosen by path; fit-skin on a cache as on the arrays; and every way
+it can go wrong refused in one line: a file Blender cannot read, no mesh, a topology that changes,
+no Blender, Blender crashing or hanging.
+
+The round trips need Blender's Python (``bpy``): ``SKINSYNTH_BLENDER``, or the ``.venv-blender``
+``make test`` installs (``make blender``); they skip without one. The refusals without Blender run
+everywhere."""
+
+import json
+import os
+import pathlib
+import stat
+import subprocess
+
+import numpy as np
+import pytest
+
+from cli_helpers import assert_ok, assert_user_error, cli
+from skinsynth.formats.meshseq import read_mesh_sequence, write_array_sequence
+from skinsynth.pipeline.inputs.examples import bending_bar
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+WRITER = pathlib.Path(__file__).with_name("blender_writer.py")
+
+
+def _blender_python():
+    named = os.environ.get("SKINSYNTH_BLENDER")
+    if named and os.path.basename(named).lower().startswith("python"):
+        return named
+    beside = ROOT / ".venv-blender" / "bin" / "python"
+    return str(beside) if beside.is_file() else None
+
+
+BLENDER = _blender_python()
+needs_blender = pytest.mark.skipif(BLENDER is None, reason="no Python with bpy: make blender (or SKINSYNTH_BLENDER)")
+
+
+@pytest.fixture
+def blender(monkeypatch):
+    monkeypatch.setenv("SKINSYNTH_BLENDER", BLENDER)
+    return BLENDER
+
+
+@pytest.fixture(scope="module")
+def bar(tmp_path_factory):
+    """A 12-frame bending bar at 30 fps (Y up, metres) as arrays."""
+    folder = tmp_path_factory.mktemp("blender_bar")
+    vertices, faces = bending_bar(frames=12, rings=8, segments=6)
+    write_array_sequence(folder / "bar.npz", vertices, faces, 30.0)
+    return folder / "bar.npz"
+
+
+def written(capture, output, **options):
+    """``capture`` (.npz) written by Blender to ``output`` (.abc/.fbx) with the writer's options."""
+    run = subprocess.run([BLENDER, str(WRITER), str(capture), str(output), json.dumps(options)],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and os.path.isfile(output), run.stderr[-3000:]
+    return output
+
+
+def _in_the_files_axes(vertices, up):
+    """Y-up capture coordinates as a file with ``up`` holds them (Z up: (x, −z, y))."""
+    return vertices if up == "Y" else np.stack([vertices[..., 0], -vertices[..., 2], vertices[..., 1]], axis=-1)
+
+
+@needs_blender
+@pytest.mark.parametrize("name, options, unit, up", [
+    ("bar.abc", {}, 1.0, "Y"),
+    ("bar_cm.fbx", {}, 0.01, "Y"),  # Blender's default FBX: centimetres, Y up
+    ("bar_cm_z.fbx", {"up": "Z"}, 0.01, "Z"),  # a cm, Z-up, 30 fps cache
+    ("bar_m.fbx", {"unit": "m"}, 1.0, "Y"),
+])
+def test_a_cache_blender_writes_reads_back_to_the_capture(blender, bar, tmp_path, name, options, unit, up):
+    capture = np.load(bar)
+    cache = written(bar, tmp_path / name, fps=30, **options)
+    sequence = read_mesh_sequence(cache)
+    diagonal = np.linalg.norm(np.ptp(capture["vertices"][0], axis=0))
+    assert sequence.vertices.shape == capture["vertices"].shape and sequence.fps == 30.0
+    assert sequence.scene.meters_per_unit == unit and sequence.scene.up_axis == up
+    assert sequence.scene.prim_path == ("/Body/BodyShape" if name.endswith(".abc") else "Body")
+    placed = sequence.vertices * unit  # metres, in the file's axes
+    assert np.abs(placed - _in_the_files_axes(capture["vertices"], up)).max() <= 1e-6 * diagonal
+    assert np.array_equal(np.sort(sequence.faces, axis=1), np.sort(capture["faces"], axis=1))
+
+
+@needs_blender
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["horse.abc", "horse.fbx"])
+def test_fit_skin_on_a_cache_gives_the_skin_of_the_capture(blender, shared_data, tmp_path, name):
+    """The shared horse gallop written by Blender, read back to its vertices (1e-6 of the
+    diagonal), and fit-skin on it gives the fit of the capture's .npz: the vertices differ by
+    float32 rounding only, and the fit's error agrees to 1e-6 of the diagonal; the rate kept."""
+    capture = shared_data / "horse_gallop" / "horse_gallop.npz"
+    if not capture.exists():
+        pytest.skip(f"the horse gallop is needed at {capture}")
+    cache = written(capture, tmp_path / name, fps=24, unit="m")
+    frames = np.load(capture)["vertices"]
+    sequence = read_mesh_sequence(cache)
+    diagonal = np.linalg.norm(np.ptp(frames[0], axis=0))
+    assert sequence.vertices.shape == frames.shape and sequence.fps == 24.0
+    assert np.abs(sequence.vertices * sequence.scene.meters_per_unit - frames).max() <= 1e-6 * diagonal
+    fits = {}
+    for source, out in ((capture, "npz.h5"), (cache, "cache.h5")):
+        fits[out] = json.loads(assert_ok(cli("fit-skin", source, "-o", tmp_path / out, "--bones", 12, "--seed", 0,
+                                             "--json")).stdout)
+    assert abs(fits["cache.h5"]["rmse_over_diagonal"] - fits["npz.h5"]["rmse_over_diagonal"]) <= 1e-6
+    assert fits["cache.h5"]["fps"] == 24.0 and fits["cache.h5"]["frames"] == len(frames)
+
+
+@needs_blender
+def test_two_meshes_are_chosen_by_path(blender, bar, tmp_path):
+    cache = written(bar, tmp_path / "two.abc", fps=30, second=True)
+    refused = assert_user_error(cli("fit-skin", cache, "-o", tmp_path / "s.h5", "--bones", 2, "-q"))
+    assert "2 meshes (/Body/BodyShape, /Prop/PropShape): choose one with --prim" in refused
+    assert read_mesh_sequence(cache, prim="/Body/BodyShape").vertices.shape[1] == 50
+    assert read_mesh_sequence(cache, prim="/Prop/PropShape").vertices.shape[1] == 3
+    missing = assert_user_error(cli("fit-skin", cache, "--prim", "/Nope", "-o", tmp_path / "s.h5", "--bones", 2, "-q"))
+    assert "no mesh '/Nope' (it has /Body/BodyShape, /Prop/PropShape)" in missing
+    assert not (tmp_path / "s.h5").exists()
+
+
+@needs_blender
+def test_what_blender_cannot_read_is_one_line(blender, bar, tmp_path):
+    whole = written(bar, tmp_path / "whole.abc", fps=30)
+    cut = tmp_path / "cut.abc"
+    cut.write_bytes(whole.read_bytes()[:len(whole.read_bytes()) // 2])
+    text = tmp_path / "text.abc"
+    text.write_text("not an archive\n")
+    empty = tmp_path / "empty.abc"
+    empty.write_bytes(b"")
+    nothing = written(bar, tmp_path / "nothing.fbx", fps=30, empty=True)
+    growing = written(bar, tmp_path / "growing.abc", fps=30, build=True)
+    not_fbx = tmp_path / "text.fbx"
+    not_fbx.write_text("; FBX 7.4.0 project file, truncated\n")
+    for source, needle in ((cut, "cut.abc: "), (text, "not an Alembic archive"), (empty, "empty file"),
+                           (nothing, "no mesh in it"), (growing, "the mesh's topology changes at frame"),
+                           (not_fbx, "text.fbx: ")):
+        line = assert_user_error(cli("fit-skin", source, "-o", tmp_path / "s.h5", "--bones", 2, "-q"))
+        assert needle in line, line
+    assert not (tmp_path / "s.h5").exists()
+
+
+def _fake_blender(folder, body):
+    """A stand-in for Blender's Python: a shell script named python."""
+    script = folder / "python"
+    script.write_text("#!/bin/sh\n" + body + "\n")
+    script.chmod(script.stat().st_mode | stat.S_IXUSR)
+    return script
+
+
+@pytest.mark.parametrize("body, needle", [
+    ("kill -SEGV $$", "Blender failed reading it (exit status -11"),
+    ("echo 'Error: EXCEPTION_ACCESS_VIOLATION' >&2; exit 1", "(exit status 1: Error: EXCEPTION_ACCESS_VIOLATION)"),
+    ("sleep 30", "Blender did not finish reading it within 1 s (SKINSYNTH_BLENDER_TIMEOUT)"),
+])
+def test_blender_crashing_or_hanging_is_one_line(tmp_path, monkeypatch, body, needle):
+    monkeypatch.setenv("SKINSYNTH_BLENDER", str(_fake_blender(tmp_path, body)))
+    monkeypatch.setenv("SKINSYNTH_BLENDER_TIMEOUT", "1")
+    cache = tmp_path / "take.abc"
+    cache.write_bytes(b"Ogawa" + bytes(64))
+    line = assert_user_error(cli("fit-skin", cache, "-o", tmp_path / "s.h5", "--bones", 2, "-q"))
+    assert line.startswith(f"skinsynth: error: {cache}: ") and needle in line, line
+    assert not (tmp_path / "s.h5").exists()
+
+
+def test_without_blender_reading_abc_or_fbx_says_what_to_install(tmp_path, monkeypatch):
+    monkeypatch.delenv("SKINSYNTH_BLENDER", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path))  # no blender on it
+    from skinsynth.formats import blender
+
+    monkeypatch.setattr(blender.importlib.util, "find_spec", lambda name: None)  # and no bpy here
+    for name in ("take.abc", "take.fbx"):
+        (tmp_path / name).write_bytes(b"Ogawa" + bytes(64))
+        line = assert_user_error(cli("fit-skin", tmp_path / name, "-o", tmp_path / "s.h5", "--bones", 2, "-q"))
+        assert "without Blender: Blender reads .abc and .fbx here: pip install bpy" in line
+        assert "SKINSYNTH_BLENDER" in line
+    missing = _fake_blender(tmp_path, "exit 0")
+    missing.unlink()
+    monkeypatch.setenv("SKINSYNTH_BLENDER", str(missing))
+    line = assert_user_error(cli("fit-skin", tmp_path / "take.abc", "-o", tmp_path / "s.h5", "--bones", 2, "-q"))
+    assert "cannot run Blender" in line
+    assert not (tmp_path / "s.h5").exists()
