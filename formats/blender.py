@@ -16,6 +16,7 @@ refused in one line that says what to install.
 import importlib.util
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -72,22 +73,44 @@ def read_blender_sequence(path, mesh=None, fps=None):
         arguments = [os.path.abspath(path), output, mesh or "", "" if fps is None else repr(float(fps))]
         command = [executable, _READER, *arguments] if kind == "python" else \
             [executable, "--background", "--factory-startup", "--python", _READER, "--", *arguments]
-        try:
-            run = subprocess.run(command, capture_output=True, text=True, timeout=timeout,
-                                 stdin=subprocess.DEVNULL, cwd=folder)
-        except subprocess.TimeoutExpired:
-            raise FormatError(path, f"Blender did not finish reading it within {timeout:g} s "
-                                    "(SKINSYNTH_BLENDER_TIMEOUT)") from None
-        except OSError as error:
-            raise FormatError(path, f"cannot run Blender ({executable}: {error.strerror or error}): "
-                                    f"{_INSTALL}") from None
-        said = [line for line in run.stderr.splitlines() if line.startswith("SKINSYNTH: ")]
+        returncode, stderr = _run(path, command, folder, timeout, executable)
+        said = [line for line in stderr.splitlines() if line.startswith("SKINSYNTH: ")]
         if said:
             raise FormatError(path, said[-1][len("SKINSYNTH: "):])
-        if run.returncode != 0 or not os.path.isfile(output):
-            last = next((line for line in reversed(run.stderr.splitlines()) if line.strip()), "no message")
-            raise FormatError(path, f"Blender failed reading it (exit status {run.returncode}: {last.strip()})")
+        if returncode != 0 or not os.path.isfile(output):
+            last = next((line for line in reversed(stderr.splitlines()) if line.strip()), "no message")
+            raise FormatError(path, f"Blender failed reading it (exit status {returncode}: {last.strip()})")
         with np.load(output) as frames:
             scene = {"meters_per_unit": float(frames["meters_per_unit"]), "up_axis": str(frames["up_axis"]),
                      "start_frame": float(frames["start_frame"]), "prim_path": str(frames["mesh"])}
             return frames["vertices"], frames["faces"], float(frames["fps"]), scene
+
+
+def _run(path, command, folder, timeout, executable):
+    """Run Blender in a process group of its own: (exit status, stderr). Past ``timeout`` seconds,
+    or when the command itself is stopped (a signal), the whole group is killed, so no Blender
+    outlives the command."""
+    try:
+        process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                   stdin=subprocess.DEVNULL, cwd=folder, start_new_session=True)
+    except OSError as error:
+        raise FormatError(path, f"cannot run Blender ({executable}: {error.strerror or error}): {_INSTALL}") from None
+    try:
+        _, stderr = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        _kill(process)
+        raise FormatError(path, f"Blender did not finish reading it within {timeout:g} s "
+                                "(SKINSYNTH_BLENDER_TIMEOUT)") from None
+    except BaseException:
+        _kill(process)
+        raise
+    return process.returncode, stderr
+
+
+def _kill(process):
+    """Kill ``process``'s whole group and reap it."""
+    try:
+        os.killpg(process.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    process.communicate()

@@ -153,7 +153,7 @@ def _fake_blender(folder, body):
 @pytest.mark.parametrize("body, needle", [
     ("kill -SEGV $$", "Blender failed reading it (exit status -11"),
     ("echo 'Error: EXCEPTION_ACCESS_VIOLATION' >&2; exit 1", "(exit status 1: Error: EXCEPTION_ACCESS_VIOLATION)"),
-    ("sleep 30", "Blender did not finish reading it within 1 s (SKINSYNTH_BLENDER_TIMEOUT)"),
+    ("sleep 30 & wait", "Blender did not finish reading it within 1 s (SKINSYNTH_BLENDER_TIMEOUT)"),  # a child too
 ])
 def test_blender_crashing_or_hanging_is_one_line(tmp_path, monkeypatch, body, needle):
     monkeypatch.setenv("SKINSYNTH_BLENDER", str(_fake_blender(tmp_path, body)))
