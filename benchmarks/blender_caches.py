@@ -4,13 +4,14 @@
   and to .fbx (metres), as a user's DCC would (tests/formats/blender_writer.py: a shape key per
   frame), then read back by skinsynth: the largest vertex error over the diagonal, frames, rate,
   units, up axis, the seconds Blender took to write it and skinsynth to read it.
+- ``export_speed``: ``export``'s Alembic writer on the same bar: seconds, the error read back.
 - ``speed``: a generated 10,000-vertex, 1,000-frame cache (a bending bar) read from .abc and .fbx:
   seconds, frames per second, the peak memory of Blender and of the reading process against the
   output's size (read in a fresh process).
 
 Needs a Python with bpy: SKINSYNTH_BLENDER, else ../.venv-blender (make blender).
 
-    python benchmarks/blender_caches.py [--work DIR] [--only round_trip|speed] [--captures A,B]
+    python benchmarks/blender_caches.py [--work DIR] [--only round_trip|speed|export_speed] [--captures A,B]
 """
 
 import argparse
@@ -123,10 +124,32 @@ def speed(work, python):
                           "threads": os.cpu_count()}), flush=True)
 
 
+def export_speed(work):
+    """``export``'s Alembic writer (formats/blender.write_alembic) on the 10,000-vertex, 1,000-frame
+    bar: seconds, and the largest error of the cache read back over the diagonal."""
+    from skinsynth.formats.blender import write_alembic
+    from skinsynth.formats.meshseq import read_mesh_sequence
+    from skinsynth.formats.scene import Scene
+    from skinsynth.pipeline.inputs.examples import bending_bar
+
+    vertices, faces = bending_bar(frames=1000, rings=250, segments=40)
+    out = pathlib.Path(work, "exported.abc")
+    started = time.perf_counter()
+    write_alembic(out, vertices, faces, 30.0, Scene())
+    seconds = time.perf_counter() - started
+    back = read_mesh_sequence(str(out))
+    diagonal = float(np.linalg.norm(np.ptp(vertices[0], axis=0)))
+    print(json.dumps({"benchmark": "blender_caches", "case": "export_speed", "format": "abc",
+                      "frames": len(vertices), "vertices": int(vertices.shape[1]), "write_seconds": round(seconds, 2),
+                      "frames_per_second": round(len(vertices) / seconds, 1),
+                      "error_over_diagonal": float(np.abs(back.vertices - vertices).max()) / diagonal,
+                      "file_mib": round(out.stat().st_size / 2 ** 20, 1), "threads": os.cpu_count()}), flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", default=None, help="folder for the caches (default: a temporary one)")
-    parser.add_argument("--only", default=None, choices=["round_trip", "speed"])
+    parser.add_argument("--only", default=None, choices=["round_trip", "speed", "export_speed"])
     parser.add_argument("--captures", default=None, help="round_trip: only these captures (file stems), comma-separated")
     options = parser.parse_args()
     python = blender_python()
@@ -143,6 +166,8 @@ def main():
             print(json.dumps({"benchmark": "blender_caches", "case": "round_trip", "skipped": f"no {SHARED_DATA}"}))
     if options.only in (None, "speed"):
         speed(work, python)
+    if options.only in (None, "export_speed"):
+        export_speed(work)
 
 
 if __name__ == "__main__":

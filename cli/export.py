@@ -18,9 +18,10 @@ from .outputs import (TEXTURES, check_animation_output, check_bone_texture_outpu
 @click.command("export")
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(),
-              help="Output: .usd/.usda/.usdc, .glb (glTF 2.0: the skinned mesh, one clip per animation), .exr for a "
-                   "vertex-animation texture, or a folder (ending in /) for an engine-ready one: textures, normals, "
-                   "the rest mesh with texel UVs (.obj/.glb), vat.json.")
+              help="Output: .usd/.usda/.usdc, .glb (glTF 2.0: the skinned mesh, one clip per animation), .abc (an "
+                   "Alembic point cache, through Blender), .exr for a vertex-animation texture, or a folder (ending "
+                   "in /) for an engine-ready one: textures, normals, the rest mesh with texel UVs (.obj/.glb), "
+                   "vat.json.")
 @click.option("--animation", "selections", multiple=True, type=animation_selection, metavar="N|A:B",
               help="Synthesis file: which animations; play .h5: which characters (repeatable; A:B is A to B−1). "
                    "A USD file or an .exr holds one, a .glb or a folder any number.  [default: all]")
@@ -44,8 +45,8 @@ from .outputs import (TEXTURES, check_animation_output, check_bone_texture_outpu
 @device_option("Where the skinning kernel runs: auto, cpu, cuda or cuda:N.")
 @texture_options("Textures only: store 16-bit half floats instead of 32-bit.",
                  "EXR only: texture width limit; vertices wrap to more rows.")
-@up_axis_option("USD stage up axis; for .glb, the axis the input is up along (glTF is Y up).  [default: the input's, "
-                "as fit-skin recorded it]")
+@up_axis_option("USD stage up axis; for .glb and .abc, the axis the input is up along (glTF and Alembic are Y "
+                "up).  [default: the input's, as fit-skin recorded it]")
 @summary_options
 @user_errors
 def export(path, output, selections, clip, kind, root_motion, quantize, device, half, max_width, up_axis, quiet,
@@ -61,9 +62,10 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
 
     At the input's units, up axis, time codes and mesh prim path (as fit-skin recorded them): as
     UsdSkel (--as skel: joints, bind/rest transforms, animation and joint weights, so animators
-    get curves), as a time-sampled mesh (--as points), or as an OpenEXR vertex-animation texture
-    (.exr: per-vertex offsets from the rest pose, one row block per frame, bounds in the header;
-    a folder holds every animation chosen, one clip each).
+    get curves), as a time-sampled mesh (--as points), as an Alembic point cache (.abc, for Houdini
+    and Maya, written by Blender's exporter: docs/blender.md), or as an OpenEXR vertex-animation
+    texture (.exr: per-vertex offsets from the rest pose, one row block per frame, bounds in the
+    header; a folder holds every animation chosen, one clip each).
 
     \b
     Examples:
@@ -72,13 +74,21 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
       skinsynth export skin.h5 -o skin.usda --as points
       skinsynth export skin.h5 -o skin_vat.exr --half
       skinsynth export bones.h5 --animation 7 -o walk_7.usdc
+      skinsynth export bones.h5 --animation 7 -o walk_7.abc
       skinsynth export bones.h5 --animation 0:16 -o crowd_vat/
     """
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
 
     folders = FolderOutputs([path], [output])
-    output_kind = check_animation_output(output, ("usd", "gltf", "exr", "folder"), [path], folders)
+    output_kind = check_animation_output(output, ("usd", "gltf", "exr", "abc", "folder"), [path], folders)
+    if output_kind == "abc" and kind not in (None, "points"):
+        raise OptionError(f"{output}: an Alembic file is a point cache (--as points); for a skeleton write UsdSkel "
+                          "(.usdc) or glTF (.glb)")
+    if output_kind == "abc":
+        from skinsynth.formats.blender import check_blender
+
+        check_blender(output, "write")
     if kind == "bones" and output_kind != "folder":
         raise OptionError(f"--as bones writes a folder of bone-animation textures: end -o with / (-o {_stem(output)}/)")
     if quantize is not None and output_kind != "gltf":
@@ -87,7 +97,7 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
     device = resolve_device(device)
     with _animations(path, device, clip) as source:
         chosen = chosen_animations(selections, source.count, source.path, source.what)
-        kind = kind or ("skel" if source.has_skeleton else "points")
+        kind = kind or ("skel" if source.has_skeleton and output_kind != "abc" else "points")
         _check_request(path, output, output_kind, kind, source, chosen, root_motion, max_width)
         written = _write(output, output_kind, kind, source, chosen, half, max_width, quantize, root_motion, up_axis,
                          folders)
@@ -109,6 +119,10 @@ def _write(output, output_kind, kind, source, chosen, half, max_width, quantize,
             ((source.names[a], source.vertices(a)) for a in chosen)  # a folder: a texture per clip
         write_textures(output, output_kind, source.rest_vertices, source.faces, frames, source.fps,
                        source.scene, half, max_width, folders.guard(output))
+    elif output_kind == "abc":
+        from skinsynth.formats.blender import write_alembic
+
+        write_alembic(output, source.vertices(chosen[0]), source.faces, source.fps, source.scene, up_axis)
     elif kind == "skel":
         from skinsynth.formats.usd import write_skel_cache
 
@@ -139,7 +153,8 @@ def _summary(output, output_kind, kind, source, chosen, clip, half, bytes_per_an
     or clips; with --as bones, the texels per animation against a vertex-animation folder's."""
     to_exr = output_kind in TEXTURES
     what = "bone-animation texture" if kind == "bones" else "vertex-animation texture" if to_exr else \
-        "glTF" if output_kind == "gltf" else ("UsdSkel" if kind == "skel" else "point cache")
+        "glTF" if output_kind == "gltf" else "Alembic point cache" if output_kind == "abc" else \
+        ("UsdSkel" if kind == "skel" else "point cache")
     joints = int(source.skin.rotations.shape[1]) + 1 if what in ("UsdSkel", "glTF") else None  # bones and the root
     summary = {"output": output, "frames": int(source.frames), "vertices": int(source.rest_vertices.shape[0]),
                "kind": what, "joints": joints, "animations": [int(a) for a in chosen],

@@ -1,4 +1,5 @@
-"""Alembic (``.abc``) and FBX (``.fbx``) mesh animations read through Blender (issue 67).
+"""Alembic (``.abc``) and FBX (``.fbx``) mesh animations read through Blender, and Alembic point
+caches written through it (issue 67).
 
 No maintained Python package reads Alembic, and the FBX readers most used outside Autodesk's are
 Blender's; so skinsynth asks Blender. :mod:`.blender_reader` runs in Blender's own Python, in a
@@ -28,7 +29,8 @@ from .errors import FormatError
 #: Seconds Blender may take to read a file before it is stopped (``SKINSYNTH_BLENDER_TIMEOUT``).
 TIMEOUT = 600.0
 _READER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "blender_reader.py")
-_INSTALL = ("Blender reads .abc and .fbx here: pip install bpy (its wheel is for Python 3.11), or set "
+_WRITER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "blender_writer.py")
+_INSTALL = ("skinsynth reads and writes them through Blender: pip install bpy (its wheel is for Python 3.11), or set "
             "SKINSYNTH_BLENDER to a Blender executable or to a Python that imports bpy (make blender makes one)")
 
 
@@ -52,6 +54,12 @@ def _kind(path):
     return ("python" if name.startswith("python") else "blender"), path
 
 
+def check_blender(path, doing="read"):
+    """Refuse, before any work, an .abc or .fbx to ``doing`` ("read", "write") with no Blender found."""
+    if find_blender() is None:
+        raise FormatError(path, f"cannot {doing} {os.path.splitext(str(path))[1]} without Blender: {_INSTALL}")
+
+
 def read_blender_sequence(path, mesh=None, fps=None):
     """An ``.abc`` or ``.fbx`` file's animated mesh -> (vertices (F, V, 3), faces (T, 3), fps, scene
     fields {meters_per_unit, up_axis, start_frame, prim_path}); mesh: the Alembic object path or
@@ -59,10 +67,8 @@ def read_blender_sequence(path, mesh=None, fps=None):
     FormatError (one line naming the file) for a file Blender cannot read, no Blender, a crash or
     a time limit passed."""
     path = os.fspath(path)
-    found = find_blender()
-    if found is None:
-        raise FormatError(path, f"cannot read {os.path.splitext(path)[1]} without Blender: {_INSTALL}")
-    kind, executable = found
+    check_blender(path)
+    kind, executable = find_blender()
     if not os.path.isfile(path):
         raise FormatError(path, "no such file")
     if os.path.getsize(path) == 0:
@@ -86,7 +92,52 @@ def read_blender_sequence(path, mesh=None, fps=None):
             return frames["vertices"], frames["faces"], float(frames["fps"]), scene
 
 
-def _run(path, command, folder, timeout, executable):
+def write_alembic(path, vertices, faces, fps, scene, up_axis=None):
+    """Write vertices (F, V, 3) (faces (T, 3), ``fps``, in ``scene``'s units, axes and frames; up_axis:
+    the output's, None the scene's) to ``path`` as an Alembic point cache through Blender's exporter
+    (:mod:`.blender_writer`), atomically. Alembic has no units: the numbers are written as they are;
+    it is Y up by convention, so a Z-up animation is turned as Blender turns its own world
+    ((x, y, z) -> (x, z, −y)) and reads back Y up. FormatError without Blender or when it fails."""
+    from .atomic import atomic_output
+
+    path = os.fspath(path)
+    check_blender(path, "write")
+    kind, executable = find_blender()
+    up = up_axis or scene.up_axis
+    frames = np.asarray(vertices, dtype=np.float64)
+    world = np.stack([frames[..., 0], -frames[..., 2], frames[..., 1]], axis=-1) if up == "Y" else frames
+    name = os.path.basename(str(scene.prim_path).rstrip("/")) or "mesh"
+    timeout = float(os.environ.get("SKINSYNTH_BLENDER_TIMEOUT", TIMEOUT))
+    with tempfile.TemporaryDirectory(prefix="skinsynth-blender-") as folder:
+        inputs, cache = os.path.join(folder, "frames.npz"), os.path.join(folder, "frames.pc2")
+        np.savez(inputs, rest=world[0], faces=np.asarray(faces, dtype=np.int64), fps=np.float64(fps),
+                 start_frame=np.float64(scene.start_frame), name=name, frames=np.int64(len(world)))
+        _write_pc2(cache, world, scene.start_frame, fps)
+        with atomic_output(path, expected_bytes=int(world.size * 4 * 2 + (1 << 20)), interruptible=True) as temporary:
+            arguments = [inputs, cache, os.path.abspath(temporary)]
+            command = [executable, _WRITER, *arguments] if kind == "python" else \
+                [executable, "--background", "--factory-startup", "--python", _WRITER, "--", *arguments]
+            returncode, stderr = _run(path, command, folder, timeout, executable, "writing")
+            said = [line for line in stderr.splitlines() if line.startswith("SKINSYNTH: ")]
+            if said or returncode != 0 or not os.path.isfile(temporary) or os.path.getsize(temporary) == 0:
+                last = said[-1][len("SKINSYNTH: "):] if said else \
+                    next((line for line in reversed(stderr.splitlines()) if line.strip()), "no message").strip()
+                raise FormatError(path, f"Blender failed writing it (exit status {returncode}: {last})")
+
+
+def _write_pc2(path, frames, start_frame, fps):
+    """frames (F, V, 3) as a PC2 point cache (what Blender's Mesh Cache modifier reads): the
+    12-byte signature, version 1, points, start frame, sample rate (1: a sample a frame), samples;
+    then every frame's points, float32 little-endian."""
+    header = np.zeros(1, dtype=[("signature", "S12"), ("version", "<i4"), ("points", "<i4"), ("start", "<f4"),
+                                ("rate", "<f4"), ("samples", "<i4")])
+    header[0] = (b"POINTCACHE2\0", 1, frames.shape[1], float(start_frame), 1.0, frames.shape[0])
+    with open(path, "wb") as stream:
+        stream.write(header.tobytes())
+        stream.write(np.ascontiguousarray(frames, dtype="<f4").tobytes())
+
+
+def _run(path, command, folder, timeout, executable, doing="reading"):
     """Run Blender in a process group of its own: (exit status, stderr). Past ``timeout`` seconds,
     or when the command itself is stopped (a signal), the whole group is killed, so no Blender
     outlives the command."""
@@ -99,7 +150,7 @@ def _run(path, command, folder, timeout, executable):
         _, stderr = process.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
         _kill(process)
-        raise FormatError(path, f"Blender did not finish reading it within {timeout:g} s "
+        raise FormatError(path, f"Blender did not finish {doing} it within {timeout:g} s "
                                 "(SKINSYNTH_BLENDER_TIMEOUT)") from None
     except BaseException:
         _kill(process)

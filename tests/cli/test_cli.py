@@ -466,7 +466,7 @@ def test_stage_without_skin(inputs, out):
                           "graph.h5", "'graph'", "/skin", "fit-skin", folder=out)
 
 
-@pytest.mark.parametrize("name", ["anim.obj", "anim.abc", "anim", "anim.exr.gz"])
+@pytest.mark.parametrize("name", ["anim.obj", "anim.ma", "anim", "anim.exr.gz"])
 def test_export_output_extension(data, out, name):
     assert_user_error(cli("export", data["skin"], "-o", out / name), name, ".usd", ".exr", folder=out)
 

@@ -174,7 +174,7 @@ def test_without_blender_reading_abc_or_fbx_says_what_to_install(tmp_path, monke
     for name in ("take.abc", "take.fbx"):
         (tmp_path / name).write_bytes(b"Ogawa" + bytes(64))
         line = assert_user_error(cli("fit-skin", tmp_path / name, "-o", tmp_path / "s.h5", "--bones", 2, "-q"))
-        assert "without Blender: Blender reads .abc and .fbx here: pip install bpy" in line
+        assert "without Blender: skinsynth reads and writes them through Blender: pip install bpy" in line
         assert "SKINSYNTH_BLENDER" in line
     missing = _fake_blender(tmp_path, "exit 0")
     missing.unlink()
@@ -182,3 +182,50 @@ def test_without_blender_reading_abc_or_fbx_says_what_to_install(tmp_path, monke
     line = assert_user_error(cli("fit-skin", tmp_path / "take.abc", "-o", tmp_path / "s.h5", "--bones", 2, "-q"))
     assert "cannot run Blender" in line
     assert not (tmp_path / "s.h5").exists()
+
+
+# -- Alembic out: export -o X.abc --------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def bar_skin(bar, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("blender_skin")
+    assert_ok(cli("fit-skin", bar, "-o", folder / "skin.h5", "--bones", 4, "--seed", 0, "-q"))
+    return folder / "skin.h5"
+
+
+@needs_blender
+@pytest.mark.parametrize("up", [None, "Z"])
+def test_export_writes_an_alembic_point_cache_blender_reads_back(blender, bar_skin, tmp_path, up):
+    """export -o X.abc: the skin's reconstruction as Blender's exporter writes it, read back by
+    Blender to 1e-6 of the diagonal, with its frames, rate and start frame (Alembic is Y up: a
+    --up-axis Z export comes back turned as Blender turns it)."""
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.gpu import lbs_reference
+
+    out = tmp_path / "bar.abc"
+    summary = json.loads(assert_ok(cli("export", bar_skin, "-o", out, "--json", *(["--up-axis", up] if up else [])))
+                         .stdout)
+    assert summary["kind"] == "Alembic point cache" and os.listdir(tmp_path) == ["bar.abc"]
+    skin = read_skin(bar_skin)
+    expected = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
+                             skin.translations)
+    if up == "Z":  # written as Blender writes its Z-up world: (x, y, z) -> (x, z, -y), read back Y up
+        expected = np.stack([expected[..., 0], expected[..., 2], -expected[..., 1]], axis=-1)
+    sequence = read_mesh_sequence(out)
+    diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
+    assert sequence.vertices.shape == expected.shape and sequence.fps == skin.fps
+    assert sequence.scene.start_frame == skin.scene.start_frame and sequence.scene.up_axis == "Y"
+    assert np.abs(sequence.vertices - expected).max() <= 1e-6 * diagonal
+    assert np.array_equal(np.sort(sequence.faces, axis=1), np.sort(skin.faces, axis=1))
+
+
+def test_export_to_alembic_without_blender_is_refused_before_any_work(bar_skin, tmp_path, monkeypatch):
+    monkeypatch.delenv("SKINSYNTH_BLENDER", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path))
+    from skinsynth.formats import blender
+
+    monkeypatch.setattr(blender.importlib.util, "find_spec", lambda name: None)
+    line = assert_user_error(cli("export", bar_skin, "-o", tmp_path / "bar.abc"), folder=tmp_path)
+    assert "cannot write .abc without Blender" in line
+    refused = assert_user_error(cli("export", bar_skin, "-o", tmp_path / "bar.abc", "--as", "skel"), folder=tmp_path)
+    assert "an Alembic file is a point cache" in refused
