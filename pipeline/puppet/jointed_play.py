@@ -336,12 +336,6 @@ def beyond_shares(envelope, vertices):
                            for start in range(0, len(vertices), CHUNK)] or [np.zeros(0)])
 
 
-def torn_frames(envelope, vertices):
-    """(N,) bool: the frames of vertices (N, V, 3) with more than :data:`TORN_SHARE` of their edges
-    beyond the envelope."""
-    return beyond_shares(envelope, vertices) > TORN_SHARE
-
-
 def torn_floor(levels, clip_frames, fps):
     """The skeleton's least α (N,) around torn frames (levels (N,): each frame's α, 0 where it is
     not torn; bools for 1) of clips ``clip_frames`` long at ``fps``: a torn frame's level there,

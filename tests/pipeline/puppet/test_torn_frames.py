@@ -7,7 +7,7 @@ import pytest
 
 from skinsynth.pipeline.mesh.shape import BROKEN_SHARE, MARGIN, shape_envelope
 from skinsynth.pipeline.puppet.jointed_play import (CHUNK, TORN_RAMP_SECONDS, TORN_SHARE, BeyondExamples, _merged,
-                                                    smoothstep, torn_floor, torn_frames)
+                                                    beyond_shares, smoothstep, torn_floor)
 
 
 def _grid(n=21):
@@ -30,7 +30,7 @@ def test_a_frame_is_torn_past_half_the_share_that_breaks_one_in_every_chunk_of_f
     torn_at, clear_at = CHUNK + 7, 5
     frames[torn_at, lifted[:2], 2] = 3.0
     frames[clear_at, lifted[0], 2] = 0.3
-    torn = torn_frames(envelope, frames)
+    torn = beyond_shares(envelope, frames) > TORN_SHARE
     assert np.flatnonzero(torn).tolist() == [torn_at]
     assert envelope.beyond_share(frames[[torn_at]])[0] == pytest.approx(10 / 1240)
     assert TORN_SHARE == 0.5 * BROKEN_SHARE and MARGIN == 0.25
