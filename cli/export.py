@@ -18,10 +18,10 @@ from .outputs import (TEXTURES, check_animation_output, check_bone_texture_outpu
 @click.command("export")
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(),
-              help="Output: .usd/.usda/.usdc, .glb (glTF 2.0: the skinned mesh, one clip per animation), .abc (an "
-                   "Alembic point cache, through Blender), .exr for a vertex-animation texture, or a folder (ending "
-                   "in /) for an engine-ready one: textures, normals, the rest mesh with texel UVs (.obj/.glb), "
-                   "vat.json.")
+              help="Output: .usd/.usda/.usdc, .glb (glTF 2.0: the skinned mesh, one clip per animation), .fbx (the "
+                   "skinned mesh, its skeleton's tree or a flat rig) or .abc (an Alembic point cache), both through "
+                   "Blender, .exr for a vertex-animation texture, or a folder (ending in /) for an engine-ready one: "
+                   "textures, normals, the rest mesh with texel UVs (.obj/.glb), vat.json.")
 @click.option("--animation", "selections", multiple=True, type=animation_selection, metavar="N|A:B",
               help="Synthesis file: which animations; play .h5: which characters (repeatable; A:B is A to B−1). "
                    "A USD file or an .exr holds one, a .glb or a folder any number.  [default: all]")
@@ -75,17 +75,21 @@ def export(path, output, selections, clip, kind, root_motion, quantize, device, 
       skinsynth export skin.h5 -o skin_vat.exr --half
       skinsynth export bones.h5 --animation 7 -o walk_7.usdc
       skinsynth export bones.h5 --animation 7 -o walk_7.abc
+      skinsynth export skin.h5 -o rig.fbx
       skinsynth export bones.h5 --animation 0:16 -o crowd_vat/
     """
     from skinsynth.gpu import resolve_device
     from skinsynth.pipeline.errors import OptionError
 
     folders = FolderOutputs([path], [output])
-    output_kind = check_animation_output(output, ("usd", "gltf", "exr", "abc", "folder"), [path], folders)
+    output_kind = check_animation_output(output, ("usd", "gltf", "exr", "abc", "fbx", "folder"), [path], folders)
     if output_kind == "abc" and kind not in (None, "points"):
-        raise OptionError(f"{output}: an Alembic file is a point cache (--as points); for a skeleton write UsdSkel "
-                          "(.usdc) or glTF (.glb)")
-    if output_kind == "abc":
+        raise OptionError(f"{output}: an Alembic file is a point cache (--as points); for a skeleton write FBX, "
+                          "UsdSkel (.usdc) or glTF (.glb)")
+    if output_kind == "fbx" and kind not in (None, "skel"):
+        raise OptionError(f"{output}: an FBX file is a skinned mesh (--as skel); for a point cache write Alembic "
+                          "(.abc) or USD (.usdc --as points)")
+    if output_kind in ("abc", "fbx"):
         from skinsynth.formats.blender import check_blender
 
         check_blender(output, "write")
@@ -123,6 +127,10 @@ def _write(output, output_kind, kind, source, chosen, half, max_width, quantize,
         from skinsynth.formats.blender import write_alembic
 
         write_alembic(output, source.vertices(chosen[0]), source.faces, source.fps, source.scene, up_axis)
+    elif output_kind == "fbx":
+        from skinsynth.formats.blender import write_fbx
+
+        write_fbx(output, source.skin, *source.motions(chosen[0]), up_axis)
     elif kind == "skel":
         from skinsynth.formats.usd import write_skel_cache
 
@@ -154,8 +162,10 @@ def _summary(output, output_kind, kind, source, chosen, clip, half, bytes_per_an
     to_exr = output_kind in TEXTURES
     what = "bone-animation texture" if kind == "bones" else "vertex-animation texture" if to_exr else \
         "glTF" if output_kind == "gltf" else "Alembic point cache" if output_kind == "abc" else \
+        "FBX skin" if output_kind == "fbx" else \
         ("UsdSkel" if kind == "skel" else "point cache")
-    joints = int(source.skin.rotations.shape[1]) + 1 if what in ("UsdSkel", "glTF") else None  # bones and the root
+    joints = int(source.skin.rotations.shape[1]) + 1 if what in ("UsdSkel", "glTF") else \
+        int(source.skin.rotations.shape[1]) if what == "FBX skin" else None  # bones, and the root of USD's and glTF's
     summary = {"output": output, "frames": int(source.frames), "vertices": int(source.rest_vertices.shape[0]),
                "kind": what, "joints": joints, "animations": [int(a) for a in chosen],
                "names": [name for a in chosen for name in source.part_names(a)]
@@ -187,7 +197,8 @@ def _check_request(path, output, output_kind, kind, source, chosen, root_motion,
         raise OptionError(f"{output}: {len(chosen)} {source.what}s chosen, and a {output_kind.upper()} file holds "
                           f"one: give --animation N, or a .glb or a folder (-o {_stem(output)}/) for several")
     if not source.has_skeleton:
-        needs = "a glTF skin" if output_kind == "gltf" else "bone textures" if kind == "bones" else \
+        needs = "a glTF skin" if output_kind == "gltf" else "an FBX skin" if output_kind == "fbx" else \
+            "bone textures" if kind == "bones" else \
             "--as skel" if kind == "skel" and output_kind == "usd" else None
         if needs:
             raise OptionError(f"{path}: {needs} needs a skeleton, and the {source.what}s of a played file are "

@@ -1,7 +1,8 @@
 """The one registry of animation outputs that ``export``, ``play`` and ``synthesize`` write, chosen
 by the path (like trimesh's exchange registry): a USD cache, one OpenEXR vertex-animation texture,
 an HDF5 vertex animation, a glTF binary (.glb) skinned mesh with its clips, an Alembic point cache
-(.abc, through Blender), or an engine-ready VAT folder (a path ending in a separator).
+or a skinned FBX (.abc, .fbx, through Blender), or an engine-ready VAT folder (a path ending in a
+separator).
 
 Each command says which kinds it writes; the registry checks an output before any work (its
 suffix, that it is no input, the folder rules of :mod:`skinsynth.formats.output_folder`, the
@@ -19,7 +20,7 @@ from .options import check_max_width
 
 #: kind: the suffixes it is written to ("folder": a path ending in a separator).
 KINDS = {"usd": (".usd", ".usda", ".usdc"), "exr": (".exr",), "h5": (".h5", ".hdf5"), "gltf": (".glb",),
-         "abc": (".abc",), "folder": (os.sep,)}
+         "abc": (".abc",), "fbx": (".fbx",), "folder": (os.sep,)}
 TEXTURES = ("exr", "folder")
 
 

@@ -98,31 +98,68 @@ def write_alembic(path, vertices, faces, fps, scene, up_axis=None):
     (:mod:`.blender_writer`), atomically. Alembic has no units: the numbers are written as they are;
     it is Y up by convention, so a Z-up animation is turned as Blender turns its own world
     ((x, y, z) -> (x, z, −y)) and reads back Y up. FormatError without Blender or when it fails."""
-    from .atomic import atomic_output
-
     path = os.fspath(path)
     check_blender(path, "write")
-    kind, executable = find_blender()
     up = up_axis or scene.up_axis
     frames = np.asarray(vertices, dtype=np.float64)
     world = np.stack([frames[..., 0], -frames[..., 2], frames[..., 1]], axis=-1) if up == "Y" else frames
     name = os.path.basename(str(scene.prim_path).rstrip("/")) or "mesh"
-    timeout = float(os.environ.get("SKINSYNTH_BLENDER_TIMEOUT", TIMEOUT))
     with tempfile.TemporaryDirectory(prefix="skinsynth-blender-") as folder:
         inputs, cache = os.path.join(folder, "frames.npz"), os.path.join(folder, "frames.pc2")
         np.savez(inputs, rest=world[0], faces=np.asarray(faces, dtype=np.int64), fps=np.float64(fps),
                  start_frame=np.float64(scene.start_frame), name=name, frames=np.int64(len(world)))
         _write_pc2(cache, world, scene.start_frame, fps)
-        with atomic_output(path, expected_bytes=int(world.size * 4 * 2 + (1 << 20)), interruptible=True) as temporary:
-            arguments = [inputs, cache, os.path.abspath(temporary)]
-            command = [executable, _WRITER, *arguments] if kind == "python" else \
-                [executable, "--background", "--factory-startup", "--python", _WRITER, "--", *arguments]
-            returncode, stderr = _run(path, command, folder, timeout, executable, "writing")
-            said = [line for line in stderr.splitlines() if line.startswith("SKINSYNTH: ")]
-            if said or returncode != 0 or not os.path.isfile(temporary) or os.path.getsize(temporary) == 0:
-                last = said[-1][len("SKINSYNTH: "):] if said else \
-                    next((line for line in reversed(stderr.splitlines()) if line.strip()), "no message").strip()
-                raise FormatError(path, f"Blender failed writing it (exit status {returncode}: {last})")
+        _exported(path, [inputs, cache], folder, int(world.size * 4 * 2 + (1 << 20)))
+
+
+def write_fbx(path, skin, rotations, translations, up_axis=None):
+    """Write a skin's mesh and bones, moved by rotations (F, B, 3, 3) and translations (F, B, 3)
+    (each bone's world motion, as linear blend skinning applies it), to ``path`` as a skinned FBX
+    through Blender's exporter (:mod:`.blender_writer`), atomically: an armature whose bones are the
+    skin's skeleton (its tree and joint names) or, for a free skin, a flat rig at its bones' rest
+    centres; every frame baked; in the skin's units and frames, ``up_axis`` (None: the skin's) the
+    file's. FormatError without Blender or when it fails."""
+    check_blender(path, "write")
+    up = up_axis or skin.scene.up_axis
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]) if up == "Y" else np.eye(3)
+    rotations = np.einsum("ij,fbjk,lk->fbil", turn, np.asarray(rotations, dtype=np.float64), turn)
+    translations = np.asarray(translations, dtype=np.float64) @ turn.T
+    bones = rotations.shape[1]
+    if skin.skeleton is not None:
+        parents, joints = np.asarray(skin.skeleton["parents"]), np.asarray(skin.skeleton["joints"], dtype=np.float64)
+        stored = skin.skeleton.get("names") if hasattr(skin.skeleton, "get") else None
+        names = [str(n) for n in stored] if stored is not None else [f"bone_{b:02d}" for b in range(bones)]
+    else:
+        parents, joints = -np.ones(bones, np.int64), np.asarray(skin.bone_rest_frames, np.float64)[:, :3, 3]
+        names = [f"bone_{b:02d}" for b in range(bones)]
+    with tempfile.TemporaryDirectory(prefix="skinsynth-blender-") as folder:
+        inputs = os.path.join(folder, "skin.npz")
+        np.savez(inputs, rest=np.asarray(skin.rest_vertices, np.float64) @ turn.T, faces=np.asarray(skin.faces),
+                 bone_indices=np.asarray(skin.bone_indices), bone_weights=np.asarray(skin.bone_weights, np.float64),
+                 parents=parents, joints=joints @ turn.T, names=np.array(names), rotations=rotations,
+                 translations=translations, fps=np.float64(skin.fps), start_frame=np.float64(skin.scene.start_frame),
+                 name=os.path.basename(str(skin.scene.prim_path).rstrip("/")) or "mesh", up_axis=up,
+                 meters_per_unit=np.float64(skin.scene.meters_per_unit))
+        _exported(path, [inputs], folder, int(rotations.size * 8 + skin.rest_vertices.size * 16 + (1 << 20)))
+
+
+def _exported(path, arguments, folder, expected_bytes):
+    """Run :mod:`.blender_writer` with ``arguments`` and a temporary output beside ``path``, then
+    rename it into place; FormatError (one line) when Blender fails."""
+    from .atomic import atomic_output
+
+    kind, executable = find_blender()
+    timeout = float(os.environ.get("SKINSYNTH_BLENDER_TIMEOUT", TIMEOUT))
+    with atomic_output(path, expected_bytes=expected_bytes, interruptible=True) as temporary:
+        arguments = [*arguments, os.path.abspath(temporary)]
+        command = [executable, _WRITER, *arguments] if kind == "python" else \
+            [executable, "--background", "--factory-startup", "--python", _WRITER, "--", *arguments]
+        returncode, stderr = _run(path, command, folder, timeout, executable, "writing")
+        said = [line for line in stderr.splitlines() if line.startswith("SKINSYNTH: ")]
+        if said or returncode != 0 or not os.path.isfile(temporary) or os.path.getsize(temporary) == 0:
+            last = said[-1][len("SKINSYNTH: "):] if said else \
+                next((line for line in reversed(stderr.splitlines()) if line.strip()), "no message").strip()
+            raise FormatError(path, f"Blender failed writing it (exit status {returncode}: {last})")
 
 
 def _write_pc2(path, frames, start_frame, fps):
