@@ -144,7 +144,8 @@ def _fbx_settings(source):
                 if group.id == b"Properties70":
                     values.update({p.props[0]: p.props[-1] for p in group.elems if p.props})
     up = "XYZ"[int(values.get(b"UpAxis", 1))]
-    return {"up": up, "metres": float(values.get(b"UnitScaleFactor", 1.0)) / 100.0}
+    # six significant digits: Blender writes the factor from its float32 scene scale (0.99999998 for 1)
+    return {"up": up, "metres": float(f"{float(values.get(b'UnitScaleFactor', 1.0)):.6g}") / 100.0}
 
 
 def _animated_range(bpy, scene):

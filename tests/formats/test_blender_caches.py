@@ -272,6 +272,23 @@ def test_export_fbx_of_a_jointed_skin_is_an_armature_blender_plays_as_skinsynth(
 
 
 @needs_blender
+def test_export_fbx_keeps_a_centimetre_z_up_skin_as_it_is(blender, jointed_skins, tmp_path):
+    """The walker's fit recorded Z up in centimetres, as FBX: the file states centimetres and Z up,
+    and Blender plays it back in them to 1e-6 of the diagonal."""
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.gpu import lbs_reference
+
+    assert_ok(cli("export", jointed_skins / "zup.h5", "-o", tmp_path / "zup.fbx", "-q"))
+    skin = read_skin(jointed_skins / "zup.h5")
+    played = read_mesh_sequence(tmp_path / "zup.fbx")
+    assert played.scene.meters_per_unit == 0.01 and played.scene.up_axis == "Z"
+    expected = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations,
+                             skin.translations)
+    diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
+    assert np.abs(played.vertices - expected).max() <= 1e-6 * diagonal
+
+
+@needs_blender
 def test_export_fbx_of_a_synthesis_plays_as_its_point_cache(blender, jointed_skins, tmp_path):
     """A synthesized animation as FBX (the skin's bones, moved as synthesize moves them) plays in
     Blender as skinsynth's own USD point cache of it does, to 1e-4 of the diagonal; --as points to
@@ -289,3 +306,37 @@ def test_export_fbx_of_a_synthesis_plays_as_its_point_cache(blender, jointed_ski
     refused = assert_user_error(cli("export", tmp_path / "bones.h5", "--animation", 0, "-o", tmp_path / "w.fbx",
                                     "--as", "points"))
     assert "an FBX file is a skinned mesh" in refused and not (tmp_path / "w.fbx").exists()
+
+
+def _three_positions(fbx, fps, frames, tmp_path):
+    """three.js's FBXLoader playing ``fbx`` at ``frames`` (tests/contracts/js/fbx_three.mjs): (frames, corners, 3),
+    a vertex per triangle corner, in face order."""
+    import shutil
+
+    js = ROOT / "tests" / "contracts" / "js"
+    if shutil.which("node") is None or not (js / "node_modules" / "three").is_dir():
+        pytest.skip("node and tests/contracts/js/node_modules (three) are needed: run make setup")
+    out = tmp_path / "three.bin"
+    run = subprocess.run(["node", str(js / "fbx_three.mjs"), str(fbx), str(out), str(fps), *map(str, frames)],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return np.fromfile(out, dtype=np.float32).reshape(len(frames), -1, 3)
+
+
+@needs_blender
+def test_three_js_fbx_loader_plays_the_exported_fbx_as_skinsynth(blender, jointed_skins, tmp_path):
+    """The walker's jointed skin as FBX, played by three.js (FBXLoader, AnimationMixer, CPU skinning)
+    at its first, middle and last frames: within 1e-4 of the diagonal of skinsynth's own linear
+    blend skinning (the samba's measured 5.3e-7)."""
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.gpu import lbs_reference
+
+    assert_ok(cli("export", jointed_skins / "skin.h5", "-o", tmp_path / "walker.fbx", "-q"))
+    skin = read_skin(jointed_skins / "skin.h5")
+    frames = [0, len(skin.rotations) // 2, len(skin.rotations) - 1]
+    played = _three_positions(tmp_path / "walker.fbx", skin.fps, frames, tmp_path)
+    expected = lbs_reference(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.rotations[frames],
+                             skin.translations[frames])[:, skin.faces.ravel()]
+    diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
+    assert played.shape == expected.shape
+    assert np.abs(played - expected).max() <= 1e-4 * diagonal
