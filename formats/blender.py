@@ -117,8 +117,8 @@ def write_fbx(path, skin, rotations, translations, up_axis=None):
     (each bone's world motion, as linear blend skinning applies it), to ``path`` as a skinned FBX
     through Blender's exporter (:mod:`.blender_writer`), atomically: an armature whose bones are the
     skin's skeleton (its tree and joint names) or, for a free skin, a flat rig at its bones' rest
-    centres; every frame baked; in the skin's units and frames, ``up_axis`` (None: the skin's) the
-    file's. FormatError without Blender or when it fails."""
+    centres; every frame baked; the mesh's material UVs where the skin has them; in the skin's
+    units and frames, ``up_axis`` (None: the skin's) the file's. FormatError without Blender or when it fails."""
     check_blender(path, "write")
     up = up_axis or skin.scene.up_axis
     turn = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]) if up == "Y" else np.eye(3)
@@ -139,7 +139,8 @@ def write_fbx(path, skin, rotations, translations, up_axis=None):
                  parents=parents, joints=joints @ turn.T, names=np.array(names), rotations=rotations,
                  translations=translations, fps=np.float64(skin.fps), start_frame=np.float64(skin.scene.start_frame),
                  name=os.path.basename(str(skin.scene.prim_path).rstrip("/")) or "mesh", up_axis=up,
-                 meters_per_unit=np.float64(skin.scene.meters_per_unit))
+                 meters_per_unit=np.float64(skin.scene.meters_per_unit),
+                 **({} if skin.face_uvs is None else {"face_uvs": np.asarray(skin.face_uvs, np.float64)}))
         _exported(path, [inputs], folder, int(rotations.size * 8 + skin.rest_vertices.size * 16 + (1 << 20)))
 
 

@@ -8,7 +8,8 @@ an Alembic point cache, or a skinned mesh as FBX, with Blender's exporters
 SKIN.npz (FBX): ``rest (V, 3)``, ``faces (T, 3)``, ``bone_indices``, ``bone_weights (V, K)``,
 ``parents (B,)`` (−1: a root; all −1: a flat rig), ``joints (B, 3)``, ``names (B,)``, ``rotations
 (F, B, 3, 3)``, ``translations (F, B, 3)`` (each bone's world motion from the rest pose, as linear
-blend skinning applies it), ``fps``, ``start_frame``, ``name``, ``up_axis``, ``meters_per_unit``;
+blend skinning applies it), ``fps``, ``start_frame``, ``name``, ``up_axis``, ``meters_per_unit``,
+``face_uvs (T, 3, 2)`` where the mesh has material UVs;
 everything in Blender's world (Z up). An armature gets a bone per skinsynth bone at its joint
 (parents as given), the mesh its vertex groups and an Armature modifier, and each bone, every
 frame, the pose that moves its rest frame as skinsynth's bone moves the vertices
@@ -86,6 +87,8 @@ def main_fbx(inputs, output):
     rest_matrices = np.array([np.array(armature.bones[names[b]].matrix_local) for b in range(bones)])
     mesh = bpy.data.meshes.new(str(data["name"]) + "Shape")
     mesh.from_pydata(rest.tolist(), [], faces.tolist())
+    if "face_uvs" in data:  # each face corner's (u, v), in the faces' order: Blender's loops
+        mesh.uv_layers.new(name="UVMap").data.foreach_set("uv", np.asarray(data["face_uvs"]).ravel())
     body = bpy.data.objects.new(str(data["name"]), mesh)
     scene.collection.objects.link(body)
     body.parent = rig

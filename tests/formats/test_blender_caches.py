@@ -340,3 +340,21 @@ def test_three_js_fbx_loader_plays_the_exported_fbx_as_skinsynth(blender, jointe
     diagonal = np.linalg.norm(np.ptp(skin.rest_vertices, axis=0))
     assert played.shape == expected.shape
     assert np.abs(played - expected).max() <= 1e-4 * diagonal
+
+
+@needs_blender
+def test_the_fbx_carries_the_meshs_uvs(blender, tmp_path):
+    """A skin fitted to OBJ frames with material UVs (tests/uv_meshes.py): its FBX carries them,
+    and three.js reads each face corner's (u, v) as the skin has it."""
+    from uv_meshes import uv_bar, write_obj_frames
+
+    from skinsynth.formats.skin_file import read_skin
+
+    write_obj_frames(tmp_path / "frames", *uv_bar())
+    assert_ok(cli("fit-skin", tmp_path / "frames", "-o", tmp_path / "skin.h5", "--bones", 4, "--iterations", 4, "-q"))
+    assert_ok(cli("export", tmp_path / "skin.h5", "-o", tmp_path / "uv.fbx", "-q"))
+    skin = read_skin(tmp_path / "skin.h5")
+    assert skin.face_uvs is not None
+    _three_positions(tmp_path / "uv.fbx", skin.fps, [0], tmp_path)
+    uvs = np.fromfile(tmp_path / "three.bin.uv", dtype=np.float32).reshape(-1, 2)
+    assert np.abs(uvs - skin.face_uvs.reshape(-1, 2)).max() <= 1e-6

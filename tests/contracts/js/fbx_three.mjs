@@ -32,5 +32,7 @@ for (const frame of frames) {
   }
 }
 fs.writeFileSync(output, Buffer.from(out.buffer));
+const uv = mesh.geometry.attributes.uv;  // each corner's (u, v), beside the positions as OUT.uv
+if (uv) fs.writeFileSync(output + ".uv", Buffer.from(new Float32Array(uv.array).buffer));
 console.log(JSON.stringify({ clips: scene.animations.map((c) => c.name), vertices: count,
   duration: scene.animations[0].duration }));
