@@ -291,8 +291,8 @@ def test_export_fbx_keeps_a_centimetre_z_up_skin_as_it_is(blender, jointed_skins
 @needs_blender
 def test_export_fbx_of_a_synthesis_plays_as_its_point_cache(blender, jointed_skins, tmp_path):
     """A synthesized animation as FBX (the skin's bones, moved as synthesize moves them) plays in
-    Blender as skinsynth's own USD point cache of it does, to 1e-4 of the diagonal; --as points to
-    an .fbx is refused before any work."""
+    Blender and in three.js as skinsynth's own USD point cache of it does, to 1e-4 of the diagonal;
+    --as points to an .fbx is refused before any work."""
     assert_ok(cli("build-graph", jointed_skins / "skin.h5", "-o", tmp_path / "graph.h5", "-q"))
     assert_ok(cli("synthesize", tmp_path / "graph.h5", "-o", tmp_path / "bones.h5", "-n", 1, "-m", 40, "--seed", 0,
                   "-q"))
@@ -303,9 +303,20 @@ def test_export_fbx_of_a_synthesis_plays_as_its_point_cache(blender, jointed_ski
     diagonal = np.linalg.norm(np.ptp(cache.vertices[0], axis=0))
     assert played.vertices.shape == cache.vertices.shape == (40, cache.vertices.shape[1], 3)
     assert np.abs(played.vertices * played.scene.meters_per_unit - cache.vertices).max() <= 1e-4 * diagonal
+    frames = [0, 20, 39]  # three.js plays it so too
+    corners = read_skin_faces(tmp_path / "bones.h5")
+    three = _three_positions(tmp_path / "walk.fbx", cache.fps, frames, tmp_path)
+    assert np.abs(three - cache.vertices[frames][:, corners]).max() <= 1e-4 * diagonal
     refused = assert_user_error(cli("export", tmp_path / "bones.h5", "--animation", 0, "-o", tmp_path / "w.fbx",
                                     "--as", "points"))
     assert "an FBX file is a skinned mesh" in refused and not (tmp_path / "w.fbx").exists()
+
+
+def read_skin_faces(path):
+    """The face corners' vertex ids (3T,) of the skin a model file carries."""
+    from skinsynth.formats.skin_file import read_skin
+
+    return np.asarray(read_skin(path).faces).ravel()
 
 
 def _three_positions(fbx, fps, frames, tmp_path):
