@@ -116,8 +116,9 @@ def fit_skin(input_specs, output, bones, rig, max_influences, iterations, tolera
     bones, tolerance, transform_steps, brought, device = _resolved_options(
         bones, rig, tolerance, transform_steps, skeleton, root_bone, max_joint_drift, fps, device, contacts,
         contact_weight)
-    sequence, clips, rig_model = _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig,
-                                              skeleton, brought)
+    with Progress(0, "", quiet) as reading:
+        sequence, clips, rig_model = _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig,
+                                                  skeleton, brought, _reading_progress(reading))
     bones, rest_frame, diagonal, chosen = fit_rest_pose(input_specs[0], sequence.vertices, clips, rig_model, bones,
                                                         rest_frame, max_influences, iterations, root_bone,
                                                         transform_steps, surplus_bones)
@@ -196,7 +197,22 @@ def _resolved_options(bones, rig, tolerance, transform_steps, skeleton, root_bon
             (1 if rig else 0) if transform_steps is None else transform_steps, brought, device)
 
 
-def _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig, skeleton, brought):
+def _reading_progress(bar):
+    """progress(clip, done, total) for :func:`~skinsynth.formats.clip_inputs.read_clips`: a bar per
+    clip Blender reads (an .abc or .fbx), labelled with it."""
+    shown = {}
+
+    def progress(clip, done, total):
+        if clip not in shown:
+            bar.restart(total, f"reading {clip} (Blender)")
+            shown[clip] = 0
+        bar.update(done - shown[clip])
+        shown[clip] = done
+
+    return progress
+
+
+def _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, rig, skeleton, brought, progress=None):
     """The INPUT clips (a MeshSequence, its scene as the options override it), their
     :class:`Clips`, and the skin of ``--rig`` (None without); refused unless ``--rig`` is the
     clips' mesh, and ``--skeleton FILE`` (``brought``) in their units and up axis, its joints on
@@ -205,7 +221,7 @@ def _read_inputs(input_specs, prim, fps, meters_per_unit, up_axis, start_frame, 
     from skinsynth.formats.usd import check_skeleton_placement, check_skeleton_scene
     from skinsynth.pipeline.inputs.clips import Clips
 
-    sequence = read_clips(input_specs, prim=prim, fps=fps)
+    sequence = read_clips(input_specs, prim=prim, fps=fps, progress=progress)
     try:
         sequence = replace(sequence, scene=sequence.scene.overridden(meters_per_unit, up_axis, start_frame))
     except ValueError as error:

@@ -16,11 +16,14 @@ refused in one line that says what to install.
 
 import importlib.util
 import os
+import queue
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 
 import numpy as np
 
@@ -60,10 +63,11 @@ def check_blender(path, doing="read"):
         raise FormatError(path, f"cannot {doing} {os.path.splitext(str(path))[1]} without Blender: {_INSTALL}")
 
 
-def read_blender_sequence(path, mesh=None, fps=None):
+def read_blender_sequence(path, mesh=None, fps=None, progress=None):
     """An ``.abc`` or ``.fbx`` file's animated mesh -> (vertices (F, V, 3), faces (T, 3), fps, scene
     fields {meters_per_unit, up_axis, start_frame, prim_path}); mesh: the Alembic object path or
-    FBX object name (None: the only mesh); fps: read at this rate (None: the file's own).
+    FBX object name (None: the only mesh); fps: read at this rate (None: the file's own);
+    progress(done, total): called as Blender reads the frames.
     FormatError (one line naming the file) for a file Blender cannot read, no Blender, a crash or
     a time limit passed."""
     path = os.fspath(path)
@@ -79,7 +83,7 @@ def read_blender_sequence(path, mesh=None, fps=None):
         arguments = [os.path.abspath(path), output, mesh or "", "" if fps is None else repr(float(fps))]
         command = [executable, _READER, *arguments] if kind == "python" else \
             [executable, "--background", "--factory-startup", "--python", _READER, "--", *arguments]
-        returncode, stderr = _run(path, command, folder, timeout, executable)
+        returncode, stderr = _run(path, command, folder, timeout, executable, progress=progress)
         said = [line for line in stderr.splitlines() if line.startswith("SKINSYNTH: ")]
         if said:
             raise FormatError(path, said[-1][len("SKINSYNTH: "):])
@@ -175,31 +179,64 @@ def _write_pc2(path, frames, start_frame, fps):
         stream.write(np.ascontiguousarray(frames, dtype="<f4").tobytes())
 
 
-def _run(path, command, folder, timeout, executable, doing="reading"):
-    """Run Blender in a process group of its own: (exit status, stderr). Past ``timeout`` seconds,
-    or when the command itself is stopped (a signal), the whole group is killed, so no Blender
-    outlives the command."""
+def _run(path, command, folder, timeout, executable, doing="reading", progress=None):
+    """Run Blender in a process group of its own: (exit status, stderr less its progress lines).
+    Past ``timeout`` seconds, or when the command itself is stopped (a signal), the whole group is
+    killed, so no Blender outlives the command. progress(done, total): called here, in this thread,
+    for each frame the reader reports (``SKINSYNTH-FRAME done total`` on its stderr)."""
     try:
         process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                    stdin=subprocess.DEVNULL, cwd=folder, start_new_session=True)
     except OSError as error:
         raise FormatError(path, f"cannot run Blender ({executable}: {error.strerror or error}): {_INSTALL}") from None
+    lines, frames = [], queue.Queue()
+
+    def pump():  # stderr read as it comes: a full pipe would stall Blender
+        for line in process.stderr:
+            (frames.put if line.startswith("SKINSYNTH-FRAME ") else lines.append)(line)
+
+    reader = threading.Thread(target=pump, daemon=True, name="skinsynth-blender-stderr")
+    reader.start()
+    deadline = time.monotonic() + timeout
     try:
-        _, stderr = process.communicate(timeout=timeout)
+        while True:
+            try:
+                process.wait(timeout=min(0.2, max(deadline - time.monotonic(), 0.0)))
+                break
+            except subprocess.TimeoutExpired:
+                if time.monotonic() >= deadline:
+                    raise
+            finally:
+                _report(frames, progress)
     except subprocess.TimeoutExpired:
-        _kill(process)
+        _kill(process, reader)
         raise FormatError(path, f"Blender did not finish {doing} it within {timeout:g} s "
                                 "(SKINSYNTH_BLENDER_TIMEOUT)") from None
     except BaseException:
-        _kill(process)
+        _kill(process, reader)
         raise
-    return process.returncode, stderr
+    reader.join()
+    process.stderr.close()
+    _report(frames, progress)
+    return process.returncode, "".join(lines)
 
 
-def _kill(process):
-    """Kill ``process``'s whole group and reap it."""
+def _report(frames, progress):
+    """Hand the frames reported so far to ``progress`` (the latest only)."""
+    latest = None
+    while not frames.empty():
+        latest = frames.get_nowait()
+    if latest is not None and progress is not None:
+        done, total = (int(x) for x in latest.split()[1:3])
+        progress(done, total)
+
+
+def _kill(process, reader):
+    """Kill ``process``'s whole group, reap it, and let its stderr's reader end."""
     try:
         os.killpg(process.pid, signal.SIGKILL)
     except (ProcessLookupError, PermissionError):
         pass
-    process.communicate()
+    process.wait()
+    reader.join(timeout=5)
+    process.stderr.close()

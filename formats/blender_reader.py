@@ -208,6 +208,7 @@ def _frames(bpy, scene, target, first, last):
                           f"{len(these)} face corners; frame {first}: {vertices.shape[1]}, {len(corners)})")
         matrix = _snapped(np.array(evaluated.matrix_world, dtype=np.float64))
         vertices[index] = points.reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
+        print(f"SKINSYNTH-FRAME {index + 1} {count}", file=sys.stderr, flush=True)  # skinsynth's progress bar
     return vertices, faces
 
 

@@ -13,6 +13,7 @@ is refused in one line naming both files. The sequence is the clips' frames in t
 the scene, prim path and material UVs are the first clip's.
 """
 
+import functools
 import glob
 import os
 import re
@@ -65,15 +66,17 @@ def clip_names(specs):
     return names, [spec for _, spec in pairs]
 
 
-def read_clips(specs, prim=None, fps=None):
+def read_clips(specs, prim=None, fps=None, progress=None):
     """Read ``specs`` (one or more clip inputs) -> a MeshSequence of every frame, with
     ``clip_names`` and ``clip_frames`` set. Clips of different meshes, rates or scenes raise
-    FormatError naming the file and the first difference (module notes)."""
+    FormatError naming the file and the first difference (module notes). progress(name, done,
+    total): called as Blender reads an ``.abc``/``.fbx`` clip's frames."""
     names, inputs = clip_names(specs)
     if len(set(names)) != len(names):
         twice = next(n for n in names if names.count(n) > 1)
         raise FormatError(inputs[names.index(twice)], f"two clips are named {twice!r}; name them as NAME=INPUT")
-    sequences = [read_mesh_sequence(spec, prim=prim, fps=fps) for spec in inputs]
+    sequences = [read_mesh_sequence(spec, prim=prim, fps=fps, progress=None if progress is None else
+                                    functools.partial(progress, name)) for name, spec in zip(names, inputs)]
     first = sequences[0]
     for other in sequences[1:]:
         _require_same_mesh(first, other)

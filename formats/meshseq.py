@@ -46,11 +46,12 @@ class MeshSequence:
     clip_frames: tuple | None = None
 
 
-def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = None) -> MeshSequence:
+def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = None, progress=None) -> MeshSequence:
     """Read an example animation from a folder, glob, USD file or array file.
 
     ``prim`` picks the USD mesh (default: the first Mesh with time-sampled points); ``fps``
-    overrides the frame rate stored in the file (frame files and arrays without one: 24).
+    overrides the frame rate stored in the file (frame files and arrays without one: 24);
+    ``progress(done, total)``: called as Blender reads an ``.abc``/``.fbx``'s frames.
     Bad input raises FormatError naming the file (for frame files, the first offending frame).
     """
     spec = os.fspath(spec)
@@ -77,7 +78,7 @@ def read_mesh_sequence(spec: str, prim: str | None = None, fps: float | None = N
     elif ext in BLENDER_EXTENSIONS:
         from skinsynth.formats.blender import read_blender_sequence
 
-        vertices, faces, rate, scene = read_blender_sequence(spec, prim, fps)
+        vertices, faces, rate, scene = read_blender_sequence(spec, prim, fps, progress)
         sequence = replace(sequence_from_arrays(spec, vertices, faces, rate), scene=Scene(**scene))
     elif ext == ".npz":
         sequence = _read_npz(spec)

@@ -75,7 +75,9 @@ def _in_the_files_axes(vertices, up):
 def test_a_cache_blender_writes_reads_back_to_the_capture(blender, bar, tmp_path, name, options, unit, up):
     capture = np.load(bar)
     cache = written(bar, tmp_path / name, fps=30, **options)
-    sequence = read_mesh_sequence(cache)
+    reported = []  # the progress Blender reports, frame by frame (fit-skin's bar)
+    sequence = read_mesh_sequence(cache, progress=lambda done, total: reported.append((done, total)))
+    assert reported and reported[-1] == (12, 12) and all(a <= b for (a, _), (b, _) in zip(reported, reported[1:]))
     diagonal = np.linalg.norm(np.ptp(capture["vertices"][0], axis=0))
     assert sequence.vertices.shape == capture["vertices"].shape and sequence.fps == 30.0
     assert sequence.scene.meters_per_unit == unit and sequence.scene.up_axis == up
