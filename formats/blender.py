@@ -1,10 +1,11 @@
 """Alembic (``.abc``) and FBX (``.fbx``) mesh animations read through Blender, and Alembic point
-caches written through it (issue 67).
+caches and skinned FBX written through it (issue 67).
 
 No maintained Python package reads Alembic, and the FBX readers most used outside Autodesk's are
 Blender's; so skinsynth asks Blender. :mod:`.blender_reader` runs in Blender's own Python, in a
 subprocess (a crash or a hang of Blender stays there: a time limit, its exit status turned into
-one line), and hands the frames back in an ``.npz`` in a temporary folder.
+one line), and hands the frames back in an ``.npz`` in a temporary folder; :mod:`.blender_writer`
+writes, the same way.
 
 Which Blender: ``SKINSYNTH_BLENDER`` names either a Blender executable (``blender``, run as
 ``--background --factory-startup --python``) or a Python that can ``import bpy`` (the ``bpy``
@@ -57,6 +58,19 @@ def _kind(path):
     return ("python" if name.startswith("python") else "blender"), path
 
 
+def _timeout(path):
+    """``SKINSYNTH_BLENDER_TIMEOUT`` (seconds, default :data:`TIMEOUT`); FormatError for a value that is no
+    positive number."""
+    text = os.environ.get("SKINSYNTH_BLENDER_TIMEOUT")
+    try:
+        seconds = TIMEOUT if text is None else float(text)
+    except ValueError:
+        seconds = float("nan")
+    if not (np.isfinite(seconds) and seconds > 0):
+        raise FormatError(path, f"SKINSYNTH_BLENDER_TIMEOUT must be a positive number of seconds (got {text!r})")
+    return seconds
+
+
 def check_blender(path, doing="read"):
     """Refuse, before any work, an .abc or .fbx to ``doing`` ("read", "write") with no Blender found."""
     if find_blender() is None:
@@ -77,7 +91,7 @@ def read_blender_sequence(path, mesh=None, fps=None, progress=None):
         raise FormatError(path, "no such file")
     if os.path.getsize(path) == 0:
         raise FormatError(path, "empty file")
-    timeout = float(os.environ.get("SKINSYNTH_BLENDER_TIMEOUT", TIMEOUT))
+    timeout = _timeout(path)
     with tempfile.TemporaryDirectory(prefix="skinsynth-blender-") as folder:
         output = os.path.join(folder, "frames.npz")
         arguments = [os.path.abspath(path), output, mesh or "", "" if fps is None else repr(float(fps))]
@@ -154,7 +168,7 @@ def _exported(path, arguments, folder, expected_bytes):
     from .atomic import atomic_output
 
     kind, executable = find_blender()
-    timeout = float(os.environ.get("SKINSYNTH_BLENDER_TIMEOUT", TIMEOUT))
+    timeout = _timeout(path)
     with atomic_output(path, expected_bytes=expected_bytes, interruptible=True) as temporary:
         arguments = [*arguments, os.path.abspath(temporary)]
         command = [executable, _WRITER, *arguments] if kind == "python" else \

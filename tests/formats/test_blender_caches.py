@@ -167,6 +167,15 @@ def test_blender_crashing_or_hanging_is_one_line(tmp_path, monkeypatch, body, ne
     assert not (tmp_path / "s.h5").exists()
 
 
+def test_a_time_limit_that_is_no_number_is_one_line(tmp_path, monkeypatch):
+    monkeypatch.setenv("SKINSYNTH_BLENDER", str(_fake_blender(tmp_path, "exit 0")))
+    monkeypatch.setenv("SKINSYNTH_BLENDER_TIMEOUT", "soon")
+    cache = tmp_path / "take.abc"
+    cache.write_bytes(b"Ogawa" + bytes(64))
+    line = assert_user_error(cli("fit-skin", cache, "-o", tmp_path / "s.h5", "--bones", 2, "-q"))
+    assert "SKINSYNTH_BLENDER_TIMEOUT must be a positive number of seconds (got 'soon')" in line
+
+
 def test_without_blender_reading_abc_or_fbx_says_what_to_install(tmp_path, monkeypatch):
     monkeypatch.delenv("SKINSYNTH_BLENDER", raising=False)
     monkeypatch.setenv("PATH", str(tmp_path))  # no blender on it
