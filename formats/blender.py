@@ -86,24 +86,18 @@ def read_blender_sequence(path, mesh=None, fps=None, progress=None):
     a time limit passed."""
     path = os.fspath(path)
     check_blender(path)
-    kind, executable = find_blender()
     if not os.path.isfile(path):
         raise FormatError(path, "no such file")
     if os.path.getsize(path) == 0:
         raise FormatError(path, "empty file")
-    timeout = _timeout(path)
     with tempfile.TemporaryDirectory(prefix="skinsynth-blender-") as folder:
         output = os.path.join(folder, "frames.npz")
         arguments = [os.path.abspath(path), output, mesh or "", "" if fps is None else repr(float(fps))]
-        command = [executable, _READER, *arguments] if kind == "python" else \
-            [executable, "--background", "--factory-startup", "--python", _READER, "--", *arguments]
-        returncode, stderr = _run(path, command, folder, timeout, executable, progress=progress)
-        said = [line for line in stderr.splitlines() if line.startswith("SKINSYNTH: ")]
+        returncode, said, last = _in_blender(path, _READER, arguments, folder, "reading", progress)
         if said:
-            raise FormatError(path, said[-1][len("SKINSYNTH: "):])
+            raise FormatError(path, said)
         if returncode != 0 or not os.path.isfile(output):
-            last = next((line for line in reversed(stderr.splitlines()) if line.strip()), "no message")
-            raise FormatError(path, f"Blender failed reading it (exit status {returncode}: {last.strip()})")
+            raise FormatError(path, f"Blender failed reading it (exit status {returncode}: {last})")
         with np.load(output) as frames:
             scene = {"meters_per_unit": float(frames["meters_per_unit"]), "up_axis": str(frames["up_axis"]),
                      "start_frame": float(frames["start_frame"]), "prim_path": str(frames["mesh"])}
@@ -167,18 +161,25 @@ def _exported(path, arguments, folder, expected_bytes):
     rename it into place; FormatError (one line) when Blender fails."""
     from .atomic import atomic_output
 
-    kind, executable = find_blender()
-    timeout = _timeout(path)
     with atomic_output(path, expected_bytes=expected_bytes, interruptible=True) as temporary:
-        arguments = [*arguments, os.path.abspath(temporary)]
-        command = [executable, _WRITER, *arguments] if kind == "python" else \
-            [executable, "--background", "--factory-startup", "--python", _WRITER, "--", *arguments]
-        returncode, stderr = _run(path, command, folder, timeout, executable, "writing")
-        said = [line for line in stderr.splitlines() if line.startswith("SKINSYNTH: ")]
+        returncode, said, last = _in_blender(path, _WRITER, [*arguments, os.path.abspath(temporary)], folder,
+                                             "writing")
         if said or returncode != 0 or not os.path.isfile(temporary) or os.path.getsize(temporary) == 0:
-            last = said[-1][len("SKINSYNTH: "):] if said else \
-                next((line for line in reversed(stderr.splitlines()) if line.strip()), "no message").strip()
-            raise FormatError(path, f"Blender failed writing it (exit status {returncode}: {last})")
+            raise FormatError(path, f"Blender failed writing it (exit status {returncode}: {said or last})")
+
+
+def _in_blender(path, script, arguments, folder, doing, progress=None):
+    """Run ``script`` (:mod:`.blender_reader` or :mod:`.blender_writer`) with ``arguments`` in the
+    Blender :func:`find_blender` finds (:func:`_run`): (exit status, the script's own one-line
+    complaint after ``SKINSYNTH:`` or None, Blender's last line on stderr)."""
+    kind, executable = find_blender()
+    command = [executable, script, *arguments] if kind == "python" else \
+        [executable, "--background", "--factory-startup", "--python", script, "--", *arguments]
+    returncode, stderr = _run(path, command, folder, _timeout(path), executable, doing, progress)
+    lines = stderr.splitlines()
+    said = next((line[len("SKINSYNTH: "):] for line in reversed(lines) if line.startswith("SKINSYNTH: ")), None)
+    last = next((line.strip() for line in reversed(lines) if line.strip()), "no message")
+    return returncode, said, last
 
 
 def _write_pc2(path, frames, start_frame, fps):

@@ -57,7 +57,7 @@ def main(argv):
     scene = bpy.context.scene
     if source.lower().endswith(".abc"):
         rate = float(fps) if fps else _alembic_rate(source)
-        _set_rate(scene, rate)
+        set_rate(scene, rate)
         result = bpy.ops.wm.alembic_import(filepath=source, set_frame_range=True, validate_meshes=False,
                                            always_add_cache_reader=True)
         if "FINISHED" not in result:
@@ -73,7 +73,7 @@ def main(argv):
         up, to_metres = settings["up"], settings["metres"]
         up = "Z" if up == "X" else up  # an X-up file is read in Blender's Z-up world
         if fps:
-            _set_rate(scene, float(fps))
+            set_rate(scene, float(fps))
         rate = scene.render.fps / scene.render.fps_base
         paths = {obj.name: obj.name for obj in scene.objects if obj.type == "MESH"}
         first, last = _animated_range(bpy, scene)
@@ -89,7 +89,7 @@ def main(argv):
              meshes=np.array(sorted(paths.values())))
 
 
-def _set_rate(scene, rate):
+def set_rate(scene, rate):
     """The scene's frame rate as an integer over a base (29.97 as 30000 / 1001)."""
     if not (np.isfinite(rate) and rate > 0):
         raise Refused(f"the frame rate must be positive (got {rate})")

@@ -25,9 +25,13 @@ scene frame, writing the rate it ran at (``FramesPerTimeUnit``). A problem: one 
 after ``SKINSYNTH:``, exit status 3.
 """
 
+import os
 import sys
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # run beside the reader: its frame-rate rule
+from blender_reader import set_rate  # noqa: E402
 
 
 def main(frames_path, cache_path, output):
@@ -36,7 +40,7 @@ def main(frames_path, cache_path, output):
     data = np.load(frames_path)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    _set_rate(scene, float(data["fps"]))
+    set_rate(scene, float(data["fps"]))
     name = str(data["name"]) or "mesh"
     mesh = bpy.data.meshes.new(name + "Shape")
     mesh.from_pydata(np.asarray(data["rest"]).tolist(), [], np.asarray(data["faces"]).tolist())
@@ -64,7 +68,7 @@ def main_fbx(inputs, output):
     data = np.load(inputs)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    _set_rate(scene, float(data["fps"]))
+    set_rate(scene, float(data["fps"]))
     scene.unit_settings.scale_length = float(data["meters_per_unit"])
     rest, faces = np.asarray(data["rest"]), np.asarray(data["faces"])
     parents, joints, names = np.asarray(data["parents"]), np.asarray(data["joints"]), [str(n) for n in data["names"]]
@@ -129,14 +133,6 @@ def main_fbx(inputs, output):
     if "FINISHED" not in result:
         print("SKINSYNTH: Blender's FBX exporter did not finish", file=sys.stderr)
         sys.exit(3)
-
-
-def _set_rate(scene, rate):
-    """The scene's frame rate as an integer over a base (29.97 as 30000 / 1001)."""
-    for base in (1, 1001, 1000):
-        if abs(rate * base - round(rate * base)) < 1e-6 * rate * base and round(rate * base) <= 32767:
-            break
-    scene.render.fps, scene.render.fps_base = int(round(rate * base)), float(base)
 
 
 if __name__ == "__main__":
