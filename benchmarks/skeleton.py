@@ -71,6 +71,74 @@ def root_place(path, summary):
     return round((centre - height.min()) / np.ptp(height), 3), depth
 
 
+#: The chains a character of each kind has (issue 65's must-show: humans legs, arms, spine, neck/head;
+#: four legs fore and hind).
+EXPECTED = {"biped": ("arm_l", "arm_r", "leg_l", "leg_r", "neck", "spine"),
+            "quadruped": ("leg_back_l", "leg_back_r", "leg_front_l", "leg_front_r")}
+TRUNK = ("body", "spine", "hips")
+
+
+def chain_checks(path):
+    """What issue 65 asks of the named chains, checked on the skin at ``path`` (None where nothing is named):
+    ``kind`` (biped or quadruped, by the legs named), ``missing`` (chains of :data:`EXPECTED` not named),
+    ``off_trunk`` (``chain<-parent``: a limb chain whose first bone does not hang from the trunk, body, spine
+    or hips), ``empty`` (named bones that dominate no vertex), ``sides`` (whether each side's chains lie on
+    that side of the body's centre line: every left chain's skin on one side, every right one's on the other)
+    (on four legs, left is up × forward, forward from the hind legs' tops to the front ones'; on two, the
+    arms on the side of the leg of their side, from the line between the legs' tops), on two legs ``head_top``
+    (the neck's last bone centred above every arm's first joint) and, on four legs,
+    ``head_front`` (the neck's end nearer the front legs' tops than the hind ones') and ``tail_back``; the largest slide over the height (``slide_over_height``)."""
+    from skinsynth.formats.skin_file import read_skin
+    from skinsynth.pipeline.rig.chain_labels import chain_tops, named_chains
+    from skinsynth.pipeline.rig.influence import bone_centroids, dense_weights
+
+    skin = read_skin(path)
+    names, parents = skin.skeleton.get("names"), np.asarray(skin.skeleton["parents"])
+    up = 1 if skin.scene.up_axis == "Y" else 2
+    height = float(np.ptp(skin.rest_vertices[:, up]))
+    sliding = np.asarray(skin.skeleton["sliding"], bool)
+    slide = float(np.max(np.asarray(skin.skeleton["slide_high"]) - np.asarray(skin.skeleton["slide_low"]),
+                         initial=0.0, where=sliding[:, None])) / height if sliding.any() else 0.0
+    checks = {"slide_over_height": round(slide, 3)}
+    if not names:
+        return checks
+    chains, tops = named_chains(names), chain_tops(names)
+    kind = "quadruped" if "leg_front_l" in chains or "leg_back_l" in chains else "biped"
+    owner = dense_weights(skin.bone_indices, skin.bone_weights, skin.bones).argmax(axis=1)
+    centres = bone_centroids(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
+    joints = np.asarray(skin.skeleton["joints"])
+    members = {c: [b for b, n in enumerate(names) if n.rsplit("_", 1)[0] == c] for c in chains}
+    off = [f"{c}<-{names[parents[b]]}" for c, b in tops.items() if not c.startswith(TRUNK) and parents[b] >= 0
+           and not names[parents[b]].startswith(TRUNK)]
+    empty = [n for b, n in enumerate(names) if not n.startswith("chain_") and not (owner == b).any()]
+    checks.update(kind=kind, missing=[c for c in EXPECTED[kind] if c not in chains], off_trunk=off, empty=empty)
+    lefts = [c for c in chains if c.endswith("_l")]
+    rights = [c for c in chains if c.endswith("_r")]
+    skin_of = {c: skin.rest_vertices[np.isin(owner, members[c])].mean(axis=0) for c in lefts + rights}
+    upward = np.eye(3)[up]
+    if kind == "quadruped" and len(lefts) + len(rights) == 4:  # left is up × forward, forward towards the forelegs
+        front = np.mean([joints[tops[c]] for c in chains if c.startswith("leg_front")], axis=0)
+        back = np.mean([joints[tops[c]] for c in chains if c.startswith("leg_back")], axis=0)
+        left, middle = np.cross(upward, front - back), (front + back) / 2.0
+        checks["sides"] = bool(all((skin_of[c] - middle) @ left > 0 for c in lefts)
+                               and all((skin_of[c] - middle) @ left < 0 for c in rights))
+    elif kind == "biped" and {"leg_l", "leg_r"} <= set(chains):  # each arm on its own leg's side of the hips
+        left = joints[tops["leg_l"]] - joints[tops["leg_r"]]
+        left -= (left @ upward) * upward
+        middle = (joints[tops["leg_l"]] + joints[tops["leg_r"]]) / 2.0
+        checks["sides"] = bool(all((skin_of[c] - middle) @ left > 0 for c in lefts)
+                               and all((skin_of[c] - middle) @ left < 0 for c in rights))
+    if kind == "biped" and "neck" in chains:  # the head above the shoulders
+        checks["head_top"] = bool(all(centres[members["neck"][-1]][up] > joints[tops[c]][up] for c in chains
+                                      if c.startswith("arm")))
+    if kind == "quadruped" and len(lefts) + len(rights) == 4:
+        for chain, label, nearer, other in (("neck", "head_front", front, back), ("tail", "tail_back", back, front)):
+            if chain in chains:
+                end = centres[members[chain][-1]]
+                checks[label] = bool(np.linalg.norm(end - nearer) < np.linalg.norm(end - other))
+    return checks
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default=None)
@@ -109,7 +177,7 @@ def main():
                 "fixed_share": round(skeleton["joints"] / max(1, bones - 1), 3),
                 "feet_joints_to_root": feet_paths(out, skeleton), "seconds": round(seconds, 1),
                 "peak_mib": round(peak), "chains": skeleton.get("chains"),
-                **dict(zip(("root_height", "depth"), root_place(out, skeleton))), **extra}
+                **dict(zip(("root_height", "depth"), root_place(out, skeleton))), **chain_checks(out), **extra}
         print(json.dumps(line), flush=True)
 
 

@@ -99,6 +99,7 @@ def main():
     parser.add_argument("--seeds", default="0,1,2")
     parser.add_argument("--limbs", default="0.8,1,1.3")
     parser.add_argument("--work", default=None, help="folder kept between runs")
+    parser.add_argument("--fit", default="", help="more fit-skin options, e.g. '--surplus-bones 0.5'")
     options = parser.parse_args()
     work = options.work or tempfile.mkdtemp(prefix="skeleton_truth_")
     os.makedirs(work, exist_ok=True)
@@ -112,11 +113,13 @@ def main():
             for seed in (int(s) for s in options.seeds.split(",")):
                 out = os.path.join(work, f"{kind}_{limbs:g}_{seed}.skeleton.h5")
                 seconds, _, _, stdout = run(["fit-skin", source, "-o", out, "--bones", str(len(rig.body.names)),
-                                             "--seed", str(seed), "--skeleton", "--json", "-q"], work)
+                                             "--seed", str(seed), "--skeleton", "--json", "-q", *options.fit.split()],
+                                            work)
                 summary = json.loads(stdout)
                 line = {"character": kind, "limbs": limbs, "seed": seed, "bones": len(rig.body.names),
                         **against_truth(out, rig, vertices),
-                        "rmse_over_free": round(summary["skeleton"]["rmse_over_free"], 3), "seconds": round(seconds, 1)}
+                        "rmse_over_free": summary["skeleton"]["rmse_over_free"] and round(summary["skeleton"]["rmse_over_free"], 3),
+                        "rmse_over_diagonal": float(f"{summary['rmse_over_diagonal']:.3g}"), "seconds": round(seconds, 1)}
                 print(json.dumps(line), flush=True)
 
 

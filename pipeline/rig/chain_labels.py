@@ -4,17 +4,29 @@ geometry alone (issue 44: what Blender's, Unreal's and Godot's retargeters map b
 Nothing comes from a template; everything from the tree, the rest pose, the skin and the frames:
 
 1. **Feet**: the bones whose skin comes within :data:`FOOT_BAND` of the height of each frame's
-   lowest point in at least :data:`FOOT_FRAMES` of the frames (a gallop's rest frame has two hooves
-   in the air; a hand that touches the floor once is not a foot) and that have no such bone below
-   them in the tree: a leaf, or a foot a bone still hangs from (Zheng's dancer, 27 bones: the
-   spanning tree over the joints' drift hung a calf bone from one foot, and with leaves only one
-   foot was found and nothing named). Leaves whose
-   paths meet below :data:`FOOT_SPAN` of the height are one foot (a toe and a heel bone), the one
-   farthest from the root along the tree kept. Two feet make a biped, four a quadruped;
-   any other count, two legs on one side (or two front legs on one side: a sheet draped on the
-   ground, a horse lying down), or a leg whose top stands less than :data:`LEG_HEIGHT` of the
-   height above its foot at rest, and no chain is named (:func:`chain_labels` returns None):
-   nothing is named rather than named wrong.
+   lowest point in at least :data:`FOOT_FRAMES` of the frames the body stands in (a gallop's rest
+   frame has two hooves in the air; a hand that touches the floor once is not a foot) and that have
+   no such bone below them in the tree: a leaf, or a foot a bone still hangs from (Zheng's dancer,
+   27 bones: the spanning tree over the joints' drift hung a calf bone from one foot, and with
+   leaves only one foot was found and nothing named). **The frames it stands in** are those at
+   least :data:`UPRIGHT` (two thirds) of its tallest frame's height: lying, collapsed or tucked,
+   a body touches the floor with its side, its belly or its knees, which says nothing of its feet
+   (the horse collapse touches it with 13 of its 20 bones over its 53 frames; counted there, every
+   leaf was a foot). Standing, a human is its full height (arms raised, taller: 1.25× it, so
+   standing with them down is 0.8 of the tallest and still counts), a horse grazing 0.8 of it, a
+   deep squat or a horse on its knees under two thirds; every shared capture that stands
+   throughout has all its frames at 0.88 or more of its tallest, so nothing changes for them.
+   Leaves whose paths meet below :data:`FOOT_SPAN` of the height are one foot (a toe and a heel
+   bone), the one farthest from the root along the tree kept. Two feet make a biped, four a
+   quadruped; any other count, two legs on one side (or two front legs on one side: a sheet
+   draped on the ground, a horse lying down), a leg whose top stands less than :data:`LEG_HEIGHT`
+   of the height above its foot at rest, legs whose
+   bones mostly slide (fewer than half on fixed joints: a soft body, whose parts slide on each
+   other, has no legs; the simulated cow was named a biped), or legs with no thickness (their
+   skin's smallest spread under :data:`LIMB_THICKNESS` of its largest: a sheet cut like a figure;
+   every leg of every shared capture and generated character is 0.13–0.26, the cloth sheet's 0),
+   and no chain is named (:func:`chain_labels` returns None): nothing is named rather than named
+   wrong.
 2. **Across** (left–right): two legs, the horizontal line between the tops of their chains;
    four, across the body's length (the rest pose's largest horizontal spread: a quadruped is
    longer than wide, and its legs, mid-gallop, may spread any way). **Forward** is horizontal
@@ -35,9 +47,16 @@ Nothing comes from a template; everything from the tree, the rest pose, the skin
 3. **Ends**: a biped's arms are, on each side, the leaf farthest from the root along the tree
    that is in no leg and whose branch off the legs' paths rises above the hips (not a bone on a
    thigh, nor a skirt panel hanging from the hips; with the root at the hips the branch's first
-   bone, a spine bone, may be centred lower than the pelvis); its head the highest limb near the
-   centre line (within :data:`CENTRE_BAND` of the width) above the shoulders. A quadruped's head is the central leaf farthest ahead, past the
-   front legs; its tail the central leaf farthest behind, past the hind legs.
+   bone, a spine bone, may be centred lower than the pelvis); its head the highest limb above the
+   shoulders near the centre line, within :data:`CENTRE_BAND` (a fifth) of the width (the span
+   across the hips, arms included) of the legs' middle: a head sits between the shoulders, but
+   not on the line between the feet when the body leans or the head tilts (Zheng's dancer's head
+   stood 0.13 of the width aside, was taken for no end, and its chest bone was named an arm).
+   A quadruped's head is the end farthest ahead past its front legs, its tail the one farthest
+   behind past its hind legs, off the body (no leg's): a quadruped's head is where it is going,
+   wherever its neck turns (within a tenth of the width of the legs' middle, the rule before, the
+   generated quadruped's head turned aside at rest and its tail behind a trunk bent sideways were
+   neither named).
 4. **Chains**: from each end up to the first bone that also carries another end (where the limb
    branches off the body), the bones numbered from the body outwards: ``leg_l_01`` the thigh
    (``leg_front_l_01``… on four legs), ``arm_r_02``, ``neck_01`` (its last bone the head),
@@ -54,14 +73,20 @@ import numpy as np
 FOOT_BAND = 0.05
 #: Share of the frames in which a foot's skin comes that close to the ground.
 FOOT_FRAMES = 0.1
+#: Frames whose height (along up) is below this share of the tallest frame's are not standing
+#: (lying, collapsed, tucked): their ground contacts say nothing of the feet (module notes, 1.).
+UPRIGHT = 2.0 / 3.0
 #: Grounded leaves whose paths meet in a bone this low (share of the height, its centroid above
 #: the lowest point) are one foot (a toe and a heel bone meet in the foot or the shin; two legs
 #: meet at the hips, near half the height; a knee is at about a quarter).
 FOOT_SPAN = 0.2
 #: How far (share of the height) a leg's top stands above its foot's lowest point at rest.
 LEG_HEIGHT = 0.2
+#: A leg's skin is a limb's, round its bones: its smallest spread (standard deviation at rest) at
+#: least this share of its largest (module notes, 1.).
+LIMB_THICKNESS = 0.05
 #: Share of the width (across) within which an end counts as on the centre line.
-CENTRE_BAND = 0.1
+CENTRE_BAND = 0.2
 
 
 def _paths(parents):
@@ -127,6 +152,12 @@ def _toes_ahead(leg, forward, up_axis, height):
     return float((sole.mean(axis=0) - ankle.mean(axis=0)) @ forward)
 
 
+def _round(points):
+    """Whether skin ``points`` (N, 3) has a limb's thickness (:data:`LIMB_THICKNESS`), not a sheet's."""
+    spread = np.sqrt(np.maximum(np.linalg.eigvalsh(np.cov(points.T)), 0.0)) if len(points) > 3 else np.zeros(3)
+    return spread[0] >= LIMB_THICKNESS * spread[-1]
+
+
 def _context(parents, joints, rest, bone_indices, bone_weights, up_axis, frames):
     """What finding the feet needs of a tree as rooted: (centres (B, 3), owner (V,), height, paths,
     leaves, reach (B,), grounded(bone), junction(end, others))."""
@@ -139,6 +170,8 @@ def _context(parents, joints, rest, bone_indices, bone_weights, up_axis, frames)
     paths = _paths(parents)
     leaves = [b for b in range(bones) if not (parents == b).any() and parents[b] >= 0]
     poses = rest[None] if frames is None else np.asarray(frames, dtype=np.float64)
+    tall = np.ptp(poses[..., up_axis], axis=1)
+    poses = poses[tall >= UPRIGHT * tall.max()]  # the frames it stands in
     floor = poses[..., up_axis].min(axis=1)  # (F,)
 
     def grounded(bone):
@@ -243,22 +276,24 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
         ends[f] = "leg" + where + side(f)
     legs_stand = all(joints[top(f, feet)][up_axis] - rest[owner == f, up_axis].min(initial=np.inf) > LEG_HEIGHT * height
                      for f in feet)
-    if len(set(ends.values())) < len(feet) or not legs_stand:
-        return None  # two legs on one side, or a leg not standing under the body: no character's legs
     for f in feet:
         in_legs.update(paths[f][paths[f].index(top(f, feet)):])
+    legs = [paths[f][paths[f].index(top(f, feet)):] for f in feet]
+    turning = jointed is None or all(np.mean(np.asarray(jointed)[leg]) >= 0.5 for leg in legs)
+    if len(set(ends.values())) < len(feet) or not legs_stand or not turning \
+            or not _round(rest[np.isin(owner, list(in_legs))]):
+        return None  # two legs on one side, a leg not standing under the body, sliding or flat "legs"
     hips_bone = parents[top(feet[0], feet)] if len(feet) == 2 else None
     # ends off the body: not in a leg, and on a biped leaving the legs' paths by a bone above the hips
     rest_leaves = [b for b in leaves if b not in feet and not in_legs.intersection(paths[b])
                    and (hips_bone is None or max(centres[k, up_axis] for k in paths[b][paths[b].index(top(b, feet)):])
                         > centres[hips_bone, up_axis])]
-    central = [b for b in leaves if b not in feet and abs((centres[b] - middle) @ across) < CENTRE_BAND * width]
     if quadruped:
         front = max((joints[top(f, feet)] - middle) @ forward for f in feet)
-        head = max((b for b in central if b in rest_leaves and (centres[b] - middle) @ forward > front),
+        head = max((b for b in rest_leaves if (centres[b] - middle) @ forward > front),
                    key=lambda b: (centres[b] - middle) @ forward, default=None)
         behind = min((joints[top(f, feet)] - middle) @ forward for f in feet)
-        tail = min((b for b in central if b in rest_leaves and (centres[b] - middle) @ forward < behind),
+        tail = min((b for b in rest_leaves if (centres[b] - middle) @ forward < behind),
                    key=lambda b: (centres[b] - middle) @ forward, default=None)
         if tail is not None:
             ends[tail] = "tail"

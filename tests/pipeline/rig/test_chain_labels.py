@@ -109,3 +109,66 @@ def test_a_foot_with_a_bone_hanging_from_it_is_still_a_foot(true_walker):
     assert names["thigh_l"] == "leg_l_01" and names["foot_l"] == "leg_l_02" and names["shin_l"].startswith("chain_")
     assert {part: name for part, name in names.items() if part not in ("thigh_l", "shin_l", "foot_l")} == \
         {part: name for part, name in TRUE_NAMES.items() if part not in ("thigh_l", "shin_l", "foot_l")}
+
+
+def test_frames_lying_down_make_no_feet(true_walker):
+    """Issue 65 (a lying pose that stands up; the horse collapse): the walker's frames followed by as
+    many of it lying on its left side, its left arm on the floor. Counted over every frame, that arm
+    touches the ground often enough to be a foot and nothing was named; the feet are found in the
+    frames it stands in (at least ``UPRIGHT`` of its tallest frame's height), so it keeps its names."""
+    from skinsynth.pipeline.rig import chain_labels as labels
+
+    vertices, rig, indices, weights = true_walker
+    on_its_side = vertices @ rotation_exp(np.array([0.0, 0.0, -np.pi / 2])).T  # its left (+x) down
+    on_its_side[..., 1] -= on_its_side[..., 1].min(axis=1, keepdims=True)
+    frames = np.concatenate([vertices, on_its_side])
+    names = chain_labels(rig.parents, rig.joints, rig.rest, indices, weights, 1, frames)
+    assert dict(zip(WALKER_PARTS, names)) == TRUE_NAMES
+    every = labels.UPRIGHT
+    try:
+        labels.UPRIGHT = 0.0  # every frame counted: the rule this one replaced
+        assert chain_labels(rig.parents, rig.joints, rig.rest, indices, weights, 1, frames) is None
+    finally:
+        labels.UPRIGHT = every
+
+
+def test_flat_legs_are_no_legs(true_walker):
+    """A sheet cut like a figure (the walker flattened to no depth) has two grounded ends and a top,
+    but no limbs: a leg's skin is round its bones (``LIMB_THICKNESS``). The Houdini cloth sheet,
+    fitted from more bones, was named as a biped with legs of 7 and 11 bones before."""
+    vertices, rig, indices, weights = true_walker
+    flat = np.diag([1.0, 1.0, 0.0])
+    assert chain_labels(rig.parents, rig.joints @ flat, rig.rest @ flat, indices, weights, 1, vertices @ flat) is None
+
+
+def test_legs_that_slide_are_no_legs(true_walker):
+    """A soft body's bones slide on each other (the simulated cow: every joint sliding): legs turn at
+    their joints, so a tree whose legs' bones mostly slide names nothing (the cow's was named a biped)."""
+    vertices, rig, indices, weights = true_walker
+    jointed = rig.parents >= 0
+    assert chain_labels(rig.parents, rig.joints, rig.rest, indices, weights, 1, vertices, jointed=jointed) is not None
+    legs = [WALKER_PARTS.index(p) for p in ("thigh_l", "shin_l", "thigh_r", "shin_r")]
+    jointed[legs] = False
+    assert chain_labels(rig.parents, rig.joints, rig.rest, indices, weights, 1, vertices, jointed=jointed) is None
+
+
+@pytest.mark.parametrize("kind,part", [("quadruped", "head"), ("humanoid", "head")])
+def test_a_head_turned_aside_at_rest_is_still_the_head(kind, part):
+    """Issue 65: the rest pose a fit picks may have the head turned or tilted aside (a grazing
+    quadruped's neck turned, a dancer leaning): its end is no longer on the line between the legs.
+    The generated characters' true trees, posed at the frame whose head stands farthest aside, keep
+    their names: a quadruped's head and tail are the ends farthest ahead and behind its legs, a
+    biped's head the highest end between its shoulders (``CENTRE_BAND`` of the width; Zheng's
+    dancer's head, 0.13 of the width aside, was taken for no end and its chest named an arm)."""
+    from skinsynth.pipeline.inputs.characters import character
+    from skinsynth.pipeline.rig.influence import bone_centroids
+
+    vertices, faces, rig = character(kind, frames_per_motion=24)
+    indices = np.argsort(-rig.weights, axis=1, kind="stable")[:, :4]
+    weights = np.take_along_axis(rig.weights, indices, axis=1)
+    head = rig.body.index(part)
+    aside = [abs(bone_centroids(frame, indices, weights, len(rig.body.names))[head, 0]) for frame in vertices]
+    frame = int(np.argmax(aside))
+    joints = np.einsum("bij,bj->bi", rig.rotations[frame], rig.body.joints) + rig.translations[frame]
+    names = chain_labels(rig.body.parents, joints, vertices[frame], indices, weights, 1, vertices, faces=faces)
+    assert names == list(rig.names)
