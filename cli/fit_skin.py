@@ -242,7 +242,8 @@ class _Phases:
                        "grow": "fit-skin --surplus-bones: the larger free fit", "given": f"fit-skin under the given "
                        f"skeleton ({bones} bones)", "joints": "fit-skin --skeleton: the rig refitted on its joints",
                        "soft": "fit-skin --skeleton: over the error budget, refitted with its drifting joints sliding",
-                       "contacts": "the fit weighed toward the ground contacts"}
+                       "contacts": "the fit weighed toward the ground contacts",
+                       "helpers": "fit-skin --skeleton: bones that dominate no vertex put where the fit lacks one"}
         self.started = time.perf_counter()
 
     def __call__(self, phase, length):

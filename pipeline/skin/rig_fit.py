@@ -75,7 +75,8 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     ``rig``: a skin (rest_vertices (V, 3), bone_indices (V, K), bone_weights (V, K), bones) whose
     rig is kept, only the bone transforms solved; ``given``: a :class:`.joints.Skeleton` to fit
     under (one bone per joint; the rest pose is frame ``rest_frame``); ``find_joints``: after the
-    free fit of ``bones`` bones, find its joints (``root_bone``, ``max_joint_drift`` over the rest
+    free fit of ``bones`` bones (its bones that dominate no vertex put where it lacks one, unless
+    ``root_bone`` numbers them: :mod:`.helper_bones`), find its joints (``root_bone``, ``max_joint_drift`` over the rest
     ``diagonal``, at most ``max_sliding_share`` of the bones sliding: None for
     :data:`.joints.MAX_SLIDING_SHARE`) and refit so that they hold; with ``surplus`` > 0, grown from more bones and
     pruned instead (:func:`.bone_pruning.fit_pruned_skeleton`; no free fit of ``bones`` then,
@@ -88,7 +89,8 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
     rig replays the capture's contacts still (None: no ground, or ``--no-contacts``; not with
     ``rig``, ``given``, ``find_joints`` or ``surplus``, whose fits start from or keep other bones).
     ``progress(phase, length)`` is called as each
-    phase starts, ``"fit"`` (the free fit or the rig's, ``iterations`` long), ``"joints"`` (the
+    phase starts, ``"fit"`` (the free fit or the rig's, ``iterations`` long), ``"helpers"`` (the free
+    fit again from its helper bones reseeded, :mod:`.helper_bones`), ``"joints"`` (the
     refit on found joints), ``"contacts"`` (``near``), ``"grow"`` and ``"prune"`` (``surplus``) or ``"given"`` (the fit
     under ``given``), and returns the phase's
     ``progress(iteration, rmse)`` (or None).
@@ -139,6 +141,17 @@ def fit_rig(vertices, faces, bones, rig=None, given=None, find_joints=False, roo
                                  max_influences=max_influences, device=device,
                                  progress=progress("contacts", CONTACT_ROUNDS))
         return free, None
+    if root_bone is None:  # a bone that dominates no vertex is put where the fit lacks one (.helper_bones)
+        from .helper_bones import HELPER_ROUNDS, reseed_helpers
+
+        steps = []  # the phase is shown only where a helper is reseeded
+
+        def refit(start):
+            steps.append(steps[-1] if steps else progress("helpers", HELPER_ROUNDS * iterations))
+            return fit_skin(vertices, bones, max_influences=max_influences, iterations=iterations,
+                            rest_frame=rest_frame, seed=seed, tolerance=tolerance, patience=patience,
+                            joint_steps=joint_steps, device=device, progress=steps[-1], start=start)
+        free = reseed_helpers(free, vertices, refit)
     found = find_skeleton(free.rest_vertices, faces, free.bone_indices, free.bone_weights, free.rotations,
                           free.translations, root=root_bone, max_drift=max_drift, diagonal=diagonal,
                           max_sliding_share=sliding_share, frames=vertices, up_axis="XYZ".index(up_axis))

@@ -132,7 +132,7 @@ def _bone_sweep(device):
 def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, seed=0,
              tolerance=0.02, patience=5, candidates=None, sweeps=1, joint_steps=0, joint_max_bones=JOINT_MAX_BONES,
              progress=None,
-             device=None):
+             device=None, start=None):
     """Fit an LBS model with ``bones`` rigid bones to ``vertices (F, V, 3)``.
 
     Stopping rule: once the last ``patience`` iterations together improved the RMSE by less
@@ -154,10 +154,14 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
     validate_fit_options(frames, count, bones, max_influences, iterations, rest_frame)
     rest = vertices[rest_frame]
     data = Trajectories(vertices, rest)
-    labels = initial_clusters(data, rest, bones, seed=seed)
-    transforms = fit_cluster_transforms(labels, bones, data)
-    bone_indices = labels[:, None].astype(np.int32)
-    bone_weights = np.ones((count, 1))
+    if start is None:
+        labels = initial_clusters(data, rest, bones, seed=seed)
+        transforms = fit_cluster_transforms(labels, bones, data)
+        bone_indices = labels[:, None].astype(np.int32)
+        bone_weights = np.ones((count, 1))
+    else:  # go on from a rig: (bone_indices (V, K), bone_weights (V, K), transforms (F, B, 3, 4))
+        bone_indices, bone_weights, transforms = start
+        labels = bone_indices[np.arange(count), np.argmax(bone_weights, axis=1)].astype(np.int64)
 
     sweep = _bone_sweep(device)
 

@@ -102,7 +102,9 @@ def test_a_fit_of_the_humanoids_own_bones_is_rooted_at_its_pelvis_with_its_legs_
     """``skinsynth example humanoid`` then ``fit-skin --bones 17 --skeleton`` (seed 0), as a user runs
     them: before the joints that share skin came first, the tree ran thigh → thigh → pelvis and was
     rooted at a thigh, like the held-out jumping person's at a shin. Now the root stands for the
-    pelvis (shares most skin with it), each thigh hangs from it and each leg is named on its side."""
+    pelvis (shares most skin with it), each thigh hangs from it and each leg is named on its side; and
+    every part has a bone of its own (its free fit's two helper bones, blending between others, are
+    put where a part had none: before, its right hand was merged into its forearm)."""
     from cli_helpers import assert_ok, cli
 
     from skinsynth.formats.skin_file import read_skin
@@ -115,6 +117,7 @@ def test_a_fit_of_the_humanoids_own_bones_is_rooted_at_its_pelvis_with_its_legs_
     skin = read_skin(tmp_path / "humanoid.skin.h5")
     stands = (dense_weights(skin.bone_indices, skin.bone_weights, 17).T @ rig.weights).argmax(axis=1)
     names = np.array(rig.body.names)[stands]
+    assert np.unique(stands).size == 17  # no part merged away (helper bones reseeded: helper_bones)
     parents = np.asarray(skin.skeleton["parents"])
     assert names[parents < 0].tolist() == ["pelvis"]
     thighs = np.flatnonzero(np.isin(names, ["thigh_l", "thigh_r"]))
