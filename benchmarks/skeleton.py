@@ -9,7 +9,8 @@ root, where the root bone's skin is centred (a share of the height: ``root_heigh
 depth, the share of non-root bones on fixed joints, the feet (leaf bones whose rest centroid lies
 in the lowest 15 % of the height) with the fixed and sliding joints on each one's path to the
 root, the seconds and the peak memory, and the free fit of the same bones run as its own command
-(``free_seconds``, ``seconds_over_free``: the whole commands'). With ``--surplus S`` the skeleton
+(``free_seconds``, ``seconds_over_free``: the whole commands'; ``rmse_over_free_command``: the error over
+that command's, where ``rmse_over_free`` is over the free fit inside ``--skeleton``, its helper bones reseeded). With ``--surplus S`` the skeleton
 is grown from (1 + S) times the bones and pruned (``--surplus-bones``), its error over that free
 fit's.
 
@@ -107,7 +108,8 @@ def chain_checks(path):
     owner = dense_weights(skin.bone_indices, skin.bone_weights, skin.bones).argmax(axis=1)
     centres = bone_centroids(skin.rest_vertices, skin.bone_indices, skin.bone_weights, skin.bones)
     joints = np.asarray(skin.skeleton["joints"])
-    members = {c: [b for b, n in enumerate(names) if n.rsplit("_", 1)[0] == c] for c in chains}
+    members = {c: sorted((b for b, n in enumerate(names) if n.rsplit("_", 1)[0] == c), key=lambda b: names[b])
+               for c in chains}  # each chain's bones from the body outwards
     off = [f"{c}<-{names[parents[b]]}" for c, b in tops.items() if not c.startswith(TRUNK) and parents[b] >= 0
            and not names[parents[b]].startswith(TRUNK)]
     empty = [n for b, n in enumerate(names) if not n.startswith("chain_") and not (owner == b).any()]
@@ -128,6 +130,9 @@ def chain_checks(path):
         middle = (joints[tops["leg_l"]] + joints[tops["leg_r"]]) / 2.0
         checks["sides"] = bool(all((skin_of[c] - middle) @ left > 0 for c in lefts)
                                and all((skin_of[c] - middle) @ left < 0 for c in rights))
+    # each leg goes down from its top: no bone of it centred 5 % of the height above the one before
+    checks["legs_climb"] = [c for c in chains if c.startswith("leg") and
+                            np.any(np.diff(centres[members[c], up]) > 0.05 * height)]
     if kind == "biped" and "neck" in chains:  # the head above the shoulders
         checks["head_top"] = bool(all(centres[members["neck"][-1]][up] > joints[tops[c]][up] for c in chains
                                       if c.startswith("arm")))
@@ -162,7 +167,8 @@ def main():
         # the free fit of the same bones, as its own command: the time the skeleton is measured against
         free_seconds, _, _, free_out = run(["fit-skin", source, "-o", os.path.join(work, f"{name}.free.h5"),
                                             "--bones", str(bones), "--json", "-q"], work)
-        extra = {"free_seconds": round(free_seconds, 1), "seconds_over_free": round(seconds / free_seconds, 2)}
+        extra = {"free_seconds": round(free_seconds, 1), "seconds_over_free": round(seconds / free_seconds, 2),
+                 "rmse_over_free_command": round(summary["rmse"] / json.loads(free_out)["rmse"], 3)}
         if options.surplus:  # no free fit of these bones inside the command: the one above
             skeleton["free_rmse"] = json.loads(free_out)["rmse"]
             skeleton["rmse_over_free"] = summary["rmse"] / skeleton["free_rmse"]
