@@ -241,6 +241,23 @@ def samba_skin(shared_data, tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def crane_skin(shared_data, tmp_path_factory):
+    """The shared crane fitted as a user fits it (``fit-skin --bones 22 --seed 0``), once per run:
+    its skin file. Read it, never change it. Skips when the capture is absent."""
+    from cli_helpers import assert_ok, cli
+
+    capture = shared_data / "vlasic_crane" / "vlasic_crane.npz"
+    if not capture.is_file():
+        pytest.skip(f"{capture} is absent")
+
+    def fit(out):
+        assert_ok(cli("fit-skin", capture, "-o", out / "skin.h5", "--bones", 22, "--seed", 0, "-q"))
+
+    built_once(tmp_path_factory, "crane_skin", fit)
+    return run_folder(tmp_path_factory) / "crane_skin" / "skin.h5"
+
+
+@pytest.fixture(scope="session")
 def dancer_graph(shared_data, tmp_path_factory):
     """Zheng's own dancer (``geomvideo_dance``) fitted and analysed as a user would (``fit-skin
     --bones 27 --seed 0``, ``build-graph`` at its defaults: four components), once per run: its

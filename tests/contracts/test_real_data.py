@@ -300,7 +300,7 @@ def test_horse_gallop_fitted_under_its_own_skeleton_as_usdskel_keeps_tree_names_
     assert given.rmse <= 1.1 * found.rmse
 
 
-@pytest.mark.parametrize("capture", ["samba", "dancer", "horse"])
+@pytest.mark.parametrize("capture", ["samba", "crane", "dancer", "horse"])
 def test_a_captures_skeleton_mirrored_or_turned_keeps_its_tree_and_root_and_swaps_its_sides(capture, request):
     """Issue 65: rules that hold on every character hold on its mirror image and however it faces.
     The skeleton found on a capture's free fit (joints, tree, the root hung from the hips, the chains
@@ -317,7 +317,7 @@ def test_a_captures_skeleton_mirrored_or_turned_keeps_its_tree_and_root_and_swap
     if capture == "dancer":
         skin = read_graph(str(request.getfixturevalue("dancer_graph"))).skin
     else:
-        skin = read_skin(request.getfixturevalue("samba_skin") if capture == "samba"
+        skin = read_skin(request.getfixturevalue(f"{capture}_skin") if capture in ("samba", "crane")
                          else request.getfixturevalue("horse_clips")[1])
 
     def found(transform, faces):
