@@ -383,5 +383,6 @@ def _skeleton_summary(record, fit, faces, diagonal, up_axis=1):
             + (f"RMSE {ratio} the free fit's{free_error}" if summary["free_rmse"] else
                "given (--skeleton FILE)" if given else "grown from more bones (--surplus-bones)")
             + held + loose + (f"; chains {', '.join(f'{c} ({n})' for c, n in chains.items())}" if chains
-                      else "; no chains named (no character's legs found)"))
+                      else "; no chains named (no character's legs found: two or four feet it stands on, "
+                           "each leg turning at fixed joints, its skin round; docs/skeleton.md)"))
     return summary, line
