@@ -223,38 +223,33 @@ def horse_skeleton(shared_data, tmp_path_factory):
     return run_folder(tmp_path_factory) / "horse_skeleton" / "horse.h5", summary
 
 
-@pytest.fixture(scope="session")
-def samba_skin(shared_data, tmp_path_factory):
-    """The shared samba fitted as a user fits it (``fit-skin --bones 22 --seed 0``), once per run:
-    its skin file. Read it, never change it. Skips when the capture is absent."""
+def _capture_skin(shared_data, tmp_path_factory, capture):
+    """The shared ``capture`` (vlasic_samba, vlasic_crane) fitted as a user fits it (``fit-skin --bones 22
+    --seed 0``), once per run: its skin file. Skips when the capture is absent."""
     from cli_helpers import assert_ok, cli
 
-    capture = shared_data / "vlasic_samba" / "vlasic_samba.npz"
-    if not capture.is_file():
-        pytest.skip(f"{capture} is absent")
+    source = shared_data / capture / f"{capture}.npz"
+    if not source.is_file():
+        pytest.skip(f"{source} is absent")
 
     def fit(out):
-        assert_ok(cli("fit-skin", capture, "-o", out / "skin.h5", "--bones", 22, "--seed", 0, "-q"))
+        assert_ok(cli("fit-skin", source, "-o", out / "skin.h5", "--bones", 22, "--seed", 0, "-q"))
 
-    built_once(tmp_path_factory, "samba_skin", fit)
-    return run_folder(tmp_path_factory) / "samba_skin" / "skin.h5"
+    key = f"{capture.split('_')[-1]}_skin"
+    built_once(tmp_path_factory, key, fit)
+    return run_folder(tmp_path_factory) / key / "skin.h5"
+
+
+@pytest.fixture(scope="session")
+def samba_skin(shared_data, tmp_path_factory):
+    """The shared samba's skin file (:func:`_capture_skin`). Read it, never change it."""
+    return _capture_skin(shared_data, tmp_path_factory, "vlasic_samba")
 
 
 @pytest.fixture(scope="session")
 def crane_skin(shared_data, tmp_path_factory):
-    """The shared crane fitted as a user fits it (``fit-skin --bones 22 --seed 0``), once per run:
-    its skin file. Read it, never change it. Skips when the capture is absent."""
-    from cli_helpers import assert_ok, cli
-
-    capture = shared_data / "vlasic_crane" / "vlasic_crane.npz"
-    if not capture.is_file():
-        pytest.skip(f"{capture} is absent")
-
-    def fit(out):
-        assert_ok(cli("fit-skin", capture, "-o", out / "skin.h5", "--bones", 22, "--seed", 0, "-q"))
-
-    built_once(tmp_path_factory, "crane_skin", fit)
-    return run_folder(tmp_path_factory) / "crane_skin" / "skin.h5"
+    """The shared crane's skin file (:func:`_capture_skin`). Read it, never change it."""
+    return _capture_skin(shared_data, tmp_path_factory, "vlasic_crane")
 
 
 @pytest.fixture(scope="session")
