@@ -276,9 +276,9 @@ def chain_labels(parents, joints, rest, bone_indices, bone_weights, up_axis=1, f
         ends[f] = "leg" + where + side(f)
     legs_stand = all(joints[top(f, feet)][up_axis] - rest[owner == f, up_axis].min(initial=np.inf) > LEG_HEIGHT * height
                      for f in feet)
-    for f in feet:
-        in_legs.update(paths[f][paths[f].index(top(f, feet)):])
     legs = [paths[f][paths[f].index(top(f, feet)):] for f in feet]
+    for leg in legs:
+        in_legs.update(leg)
     turning = jointed is None or all(np.mean(np.asarray(jointed)[leg]) >= 0.5 for leg in legs)
     if len(set(ends.values())) < len(feet) or not legs_stand or not turning \
             or not _round(rest[np.isin(owner, list(in_legs))]):

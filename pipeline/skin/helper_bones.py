@@ -49,11 +49,11 @@ def reseeded_layout(fit, vertices):
     worst vertex (module notes), one helper after the other (the vertices given to one are no
     longer the worst for the next), or None where every bone dominates a vertex."""
     bones = fit.rotations.shape[1]
-    dense, transforms, errors = vertex_errors(fit, vertices)
-    owner = np.argmax(dense, axis=1)
+    owner = np.argmax(dense_weights(fit.bone_indices, fit.bone_weights, bones), axis=1)
     helpers = np.flatnonzero(np.bincount(owner, minlength=bones) == 0)
-    if helpers.size == 0:
+    if helpers.size == 0:  # the model's error is needed only where a helper is moved
         return None
+    dense, transforms, errors = vertex_errors(fit, vertices)
     rest = fit.rest_vertices
     data = Trajectories(vertices, rest)
     transforms = transforms.copy()

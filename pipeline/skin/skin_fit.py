@@ -142,7 +142,9 @@ def fit_skin(vertices, bones, max_influences=4, iterations=100, rest_frame=0, se
     (horse: 1.60e-3 of the diagonal at the stop, 1.54e-3 after 60; each iteration costs as much
     as the last). ``fit.stopped`` says which rule ended the fit. ``candidates`` bones are
     considered per vertex in the weight solve (default 2·max_influences). ``progress`` is
-    called as ``progress(iteration, rmse)`` after each iteration. Returns :class:`SkinFit`.
+    called as ``progress(iteration, rmse)`` after each iteration. ``start``: (bone_indices (V, K),
+    bone_weights (V, K), transforms (F, B, 3, 4)), a rig to go on from instead of the clustering
+    (``seed`` then unused; :mod:`.helper_bones`). Returns :class:`SkinFit`.
 
     The weight solve and the bone sweep run compiled on every core (:mod:`.vertex_weights`,
     :mod:`.transform_sweep`), or with ``device`` (a warp device, e.g. "cuda:0") as warp kernels
