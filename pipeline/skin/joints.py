@@ -284,6 +284,7 @@ def find_skeleton(rest, faces, bone_indices, bone_weights, rotations, translatio
         parents, jointed, joint_pair, sliding = limbs_off_the_head(
             parents, jointed, joint_pair, sliding, pairs, drift, joints, max_drift, rest, bone_indices, bone_weights,
             frames, up_axis)
+    parents, joint_pair = through_the_bone_between(parents, jointed, joint_pair, pairs, drift, max_drift, points)
     held = jointed | sliding
     points[held] = joints[joint_pair[held]]
     bone_drift = np.where(held, drift[np.maximum(joint_pair, 0)], 0.0)
@@ -341,6 +342,52 @@ def limbs_off_the_head(parents, jointed, joint_pair, sliding, pairs, drift, join
     parents, _, jointed, joint_pair, sliding = rooted_at(tree, points, root, fixed, pair_of, slides)  # back
     jointed[root], joint_pair[root], sliding[root] = False, -1, False
     return parents, jointed, joint_pair, sliding
+
+
+#: Where a bone's skin must be centred, along the way from its parent's centroid to its sibling's, to be
+#: the bone between them (:func:`through_the_bone_between`): past the first and before the last fifth of the
+#: way, and at most a quarter of its length off it.
+BETWEEN_SPAN = (0.2, 0.8)
+BETWEEN_OFF = 0.25
+
+
+def through_the_bone_between(parents, jointed, joint_pair, pairs, drift, max_drift, centres):
+    """(parents, joint_pair): the tree (:func:`skeleton_tree`'s; pairs (P, 2) and their drift (P,)) with each
+    chain passing through the bone between (issue 65: every bone's parent). Where bone h hangs from p by a
+    fixed joint and a sibling n (another child of p, a leaf) has its skin centred on the way from p's
+    skin to h's (``centres`` (B, 3); :data:`BETWEEN_SPAN`, :data:`BETWEEN_OFF`) and meets h with a joint
+    that holds (drift within ``max_drift``), n is the link between them the spanning tree skipped: h
+    hangs from n instead. A bone's skin lies between its parent's and its child's along a chain; a
+    leaf beside a link, its skin in the link's middle, is that link's middle bone: the generated
+    humanoid's neck, left a leaf of the chest beside the chest → head link (the neck barely turns
+    against the head: the two joints drift alike, and the tree took the chest's), its spine beside
+    pelvis → chest. Repeated until nothing moves (a bone at most once per round). The shared
+    captures' trees have no such leaf (none moves)."""
+    parents, joint_pair = np.array(parents, copy=True), np.array(joint_pair, copy=True)
+    centres = np.asarray(centres, dtype=np.float64)
+    key = {(int(a), int(b)): p for p, (a, b) in enumerate(np.asarray(pairs, dtype=np.int64).reshape(-1, 2))}
+    for _ in range(parents.size):
+        moved = False
+        for bone in np.flatnonzero(np.asarray(jointed, dtype=bool) & (parents >= 0)):
+            parent = parents[bone]
+            way = centres[bone] - centres[parent]
+            length = float(np.linalg.norm(way))
+            best = None
+            for other in np.flatnonzero(parents == parent):
+                pair = key.get((min(other, bone), max(other, bone)))
+                if other == bone or pair is None or (parents == other).any() or not drift[pair] <= max_drift:
+                    continue
+                along = float((centres[other] - centres[parent]) @ way) / max(length * length, 1e-300)
+                off = float(np.linalg.norm(centres[other] - centres[parent] - along * way))
+                if BETWEEN_SPAN[0] < along < BETWEEN_SPAN[1] and off < BETWEEN_OFF * length and \
+                        (best is None or off < best[0]):
+                    best = (off, other, pair)
+            if best is not None:
+                parents[bone], joint_pair[bone] = best[1], best[2]
+                moved = True
+        if not moved:
+            break
+    return parents, joint_pair
 
 
 def hung_from_centre(skeleton, drift, rest, bone_indices, bone_weights, frames=None, up_axis=1):

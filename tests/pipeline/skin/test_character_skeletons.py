@@ -180,3 +180,29 @@ def test_an_arm_hung_from_the_head_by_chance_moves_to_the_spine_below_it():
     tree = _sparse_tree(horse.body)
     assert all(np.array_equal(a, b) for a, b in zip(
         limbs_off_the_head(*tree[:4], *tree[4:], 0.02, horse.rest, indices, weights, four), tree[:4]))
+
+
+def test_a_chain_passes_through_the_bone_between():
+    """Issue 65 (every bone's parent): on the generated humanoid's fits the neck, which barely turns
+    against the head, was left a leaf of the chest and the head hung from the chest beside it. Here
+    the true tree so changed: the head hangs from the neck again, its joint the pair's; the true tree
+    and a pair whose joint does not hold are left as they are."""
+    from skinsynth.pipeline.rig.influence import bone_centroids
+    from skinsynth.pipeline.skin.joints import through_the_bone_between
+
+    _, _, rig = character("humanoid", frames_per_motion=24)
+    body = rig.body
+    parents, jointed, joint_pair, _, pairs, drift, _ = _sparse_tree(body)
+    indices, weights = _sparse(rig.weights)
+    centres = bone_centroids(rig.rest, indices, weights, len(body.names))
+    kept = through_the_bone_between(parents, jointed, joint_pair, pairs, drift, 0.02, centres)
+    assert kept[0].tolist() == parents.tolist() and kept[1].tolist() == joint_pair.tolist()
+    head, neck, chest = body.index("head"), body.index("neck"), body.index("chest")
+    pairs = np.vstack([pairs, [min(head, chest), max(head, chest)]])
+    drift = np.append(drift, 0.0)
+    skipped, skipped_pair = parents.copy(), joint_pair.copy()
+    skipped[head], skipped_pair[head] = chest, len(pairs) - 1
+    mended = through_the_bone_between(skipped, jointed, skipped_pair, pairs, drift, 0.02, centres)
+    assert mended[0].tolist() == parents.tolist() and mended[1].tolist() == joint_pair.tolist()
+    drift[joint_pair[head]] = 0.05  # the neck-head joint does not hold: the head stays on the chest
+    assert through_the_bone_between(skipped, jointed, skipped_pair, pairs, drift, 0.02, centres)[0][head] == chest
