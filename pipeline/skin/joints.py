@@ -361,8 +361,8 @@ def through_the_bone_between(parents, jointed, joint_pair, pairs, drift, max_dri
     leaf beside a link, its skin in the link's middle, is that link's middle bone: the generated
     humanoid's neck, left a leaf of the chest beside the chest → head link (the neck barely turns
     against the head: the two joints drift alike, and the tree took the chest's), its spine beside
-    pelvis → chest. Repeated until nothing moves (a bone at most once per round). The shared
-    captures' trees have no such leaf (none moves)."""
+    pelvis → chest. Repeated until nothing moves (a bone at most once per round). Of the shared
+    captures only the cloth sheet's tree has such a leaf (its error 1.29× → 1.30× the free fit's)."""
     parents, joint_pair = np.array(parents, copy=True), np.array(joint_pair, copy=True)
     centres = np.asarray(centres, dtype=np.float64)
     key = {(int(a), int(b)): p for p, (a, b) in enumerate(np.asarray(pairs, dtype=np.int64).reshape(-1, 2))}
