@@ -15,18 +15,25 @@ def humanoid_fit():
     return vertices, rig, fit_skin(vertices, len(rig.body.names), seed=0)
 
 
+@pytest.fixture(scope="module")
+def reseeded(humanoid_fit):
+    """The humanoid's fit with its helper bones reseeded (seed 0, as the fit)."""
+    vertices, _, fit = humanoid_fit
+    return reseed_helpers(fit, vertices, lambda start: fit_skin(vertices, 17, seed=0, start=start))
+
+
 def _helpers(fit, vertices):
     dense, _, _ = vertex_errors(fit, vertices)
     return int(np.count_nonzero(np.bincount(dense.argmax(axis=1), minlength=dense.shape[1]) == 0))
 
 
-def test_the_humanoids_helper_bones_go_where_its_parts_lack_one(humanoid_fit):
+def test_the_humanoids_helper_bones_go_where_its_parts_lack_one(humanoid_fit, reseeded):
     """The generated humanoid fitted with its own 17 bones (seed 0): the free fit spends two bones
     blending between others and merges two parts; reseeded, every bone dominates skin of its own and
     the error falls (measured 4.8×; the exact rig's is 0)."""
     vertices, rig, fit = humanoid_fit
     assert _helpers(fit, vertices) >= 1
-    again = reseed_helpers(fit, vertices, lambda start: fit_skin(vertices, 17, seed=0, start=start))
+    again = reseeded
     assert _helpers(again, vertices) < _helpers(fit, vertices)
     assert again.rmse < 0.5 * fit.rmse
     # each true part has a fitted bone standing for it more often than before
@@ -53,10 +60,10 @@ def test_a_reseeded_layout_is_a_skin_and_the_helper_takes_the_worst_fitted_skin(
     assert (dense.argmax(axis=1)[owner == first] == worst).all()
 
 
-def test_a_fit_without_helpers_is_kept_as_it_is(humanoid_fit):
+def test_a_fit_without_helpers_is_kept_as_it_is(humanoid_fit, reseeded):
     """Seed 0's reseeded fit has no helper left: nothing is refitted, the fit comes back as it is."""
-    vertices, _, fit = humanoid_fit
-    again = reseed_helpers(fit, vertices, lambda start: fit_skin(vertices, 17, seed=0, start=start))
+    vertices, _, _ = humanoid_fit
+    again = reseeded
     assert _helpers(again, vertices) == 0 and reseeded_layout(again, vertices) is None
     calls = []
     assert reseed_helpers(again, vertices, calls.append) is again and not calls
