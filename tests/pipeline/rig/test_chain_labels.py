@@ -172,3 +172,15 @@ def test_a_head_turned_aside_at_rest_is_still_the_head(kind, part):
     joints = np.einsum("bij,bj->bi", rig.rotations[frame], rig.body.joints) + rig.translations[frame]
     names = chain_labels(rig.body.parents, joints, vertices[frame], indices, weights, 1, vertices, faces=faces)
     assert names == list(rig.names)
+
+
+def test_the_names_do_not_depend_on_how_the_clip_is_sampled(true_walker):
+    """The feet are counted over shares of the frames the body stands in: the walker played at twice
+    its rate (frames in-betweened) or after three seconds held still is named the same."""
+    vertices, rig, indices, weights = true_walker
+    doubled = np.empty((2 * len(vertices) - 1,) + vertices.shape[1:])
+    doubled[0::2], doubled[1::2] = vertices, (vertices[:-1] + vertices[1:]) / 2.0
+    still = np.concatenate([np.repeat(vertices[:1], 72, axis=0), vertices])
+    for frames in (doubled, still):
+        assert dict(zip(WALKER_PARTS, chain_labels(rig.parents, rig.joints, rig.rest, indices, weights, 1, frames))) \
+            == TRUE_NAMES
