@@ -33,14 +33,13 @@ HELPER_ROUNDS = 3
 
 
 def vertex_errors(fit, vertices):
-    """(dense weights (V, B), transforms (F, B, 3, 4), each vertex's squared error summed over the
-    frames (V,)) of a fit (:class:`.skin_fit.SkinFit`) of ``vertices`` (F, V, 3)."""
-    bones = fit.rotations.shape[1]
-    dense = dense_weights(fit.bone_indices, fit.bone_weights, bones)
-    transforms = np.concatenate([fit.rotations, fit.translations[..., None]], axis=-1)
-    homogeneous = np.concatenate([fit.rest_vertices, np.ones((len(fit.rest_vertices), 1))], axis=1)
-    model = np.einsum("fbxy,vb,vy->fvx", transforms, dense, homogeneous, optimize=True)
-    return dense, transforms, ((vertices - model) ** 2).sum(axis=(0, 2))
+    """(V,): each vertex's squared error over the frames of a fit (:class:`.skin_fit.SkinFit`) of
+    ``vertices`` (F, V, 3), its skin played by the project's LBS (``gpu.lbs_reference``, as
+    :func:`.skin_fit.finish_fit` measures a fit)."""
+    from skinsynth.gpu import lbs_reference
+
+    model = lbs_reference(fit.rest_vertices, fit.bone_indices, fit.bone_weights, fit.rotations, fit.translations)
+    return ((vertices - model) ** 2).sum(axis=(0, 2))
 
 
 def reseeded_layout(fit, vertices):
@@ -49,11 +48,13 @@ def reseeded_layout(fit, vertices):
     worst vertex (module notes), one helper after the other (the vertices given to one are no
     longer the worst for the next), or None where every bone dominates a vertex."""
     bones = fit.rotations.shape[1]
-    owner = np.argmax(dense_weights(fit.bone_indices, fit.bone_weights, bones), axis=1)
+    dense = dense_weights(fit.bone_indices, fit.bone_weights, bones)
+    owner = np.argmax(dense, axis=1)
     helpers = np.flatnonzero(np.bincount(owner, minlength=bones) == 0)
     if helpers.size == 0:  # the model's error is needed only where a helper is moved
         return None
-    dense, transforms, errors = vertex_errors(fit, vertices)
+    errors = vertex_errors(fit, vertices)
+    transforms = np.concatenate([fit.rotations, fit.translations[..., None]], axis=-1)
     rest = fit.rest_vertices
     data = Trajectories(vertices, rest)
     transforms = transforms.copy()

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from skinsynth.pipeline.inputs.characters import character
+from skinsynth.pipeline.rig.influence import dense_weights
 from skinsynth.pipeline.skin.helper_bones import reseed_helpers, reseeded_layout, vertex_errors
 from skinsynth.pipeline.skin.skin_fit import fit_skin
 
@@ -23,7 +24,7 @@ def reseeded(humanoid_fit):
 
 
 def _helpers(fit, vertices):
-    dense, _, _ = vertex_errors(fit, vertices)
+    dense = dense_weights(fit.bone_indices, fit.bone_weights, fit.rotations.shape[1])
     return int(np.count_nonzero(np.bincount(dense.argmax(axis=1), minlength=dense.shape[1]) == 0))
 
 
@@ -37,8 +38,6 @@ def test_the_humanoids_helper_bones_go_where_its_parts_lack_one(humanoid_fit, re
     assert _helpers(again, vertices) < _helpers(fit, vertices)
     assert again.rmse < 0.5 * fit.rmse
     # each true part has a fitted bone standing for it more often than before
-    from skinsynth.pipeline.rig.influence import dense_weights
-
     def represented(f):
         return np.unique((dense_weights(f.bone_indices, f.bone_weights, 17).T @ rig.weights).argmax(axis=1)).size
 
@@ -47,7 +46,7 @@ def test_the_humanoids_helper_bones_go_where_its_parts_lack_one(humanoid_fit, re
 
 def test_a_reseeded_layout_is_a_skin_and_the_helper_takes_the_worst_fitted_skin(humanoid_fit):
     vertices, _, fit = humanoid_fit
-    dense, _, errors = vertex_errors(fit, vertices)
+    dense, errors = dense_weights(fit.bone_indices, fit.bone_weights, 17), vertex_errors(fit, vertices)
     helpers = np.flatnonzero(np.bincount(dense.argmax(axis=1), minlength=17) == 0)
     worst = np.argmax(np.bincount(dense.argmax(axis=1), weights=errors, minlength=17))
     indices, weights, transforms = reseeded_layout(fit, vertices)
