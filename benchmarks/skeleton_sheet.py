@@ -16,17 +16,13 @@ import json
 import re
 
 import numpy as np
+from skeleton_truth import chain_of
 
 COLOURS = {"leg_l": (0.9, 0.2, 0.2), "leg_r": (0.2, 0.3, 0.9), "leg_front_l": (0.9, 0.2, 0.2),
            "leg_front_r": (0.2, 0.3, 0.9), "leg_back_l": (0.95, 0.6, 0.6), "leg_back_r": (0.55, 0.65, 0.95),
            "arm_l": (0.95, 0.6, 0.1), "arm_r": (0.1, 0.75, 0.8), "neck": (0.2, 0.7, 0.2), "tail": (0.6, 0.2, 0.7),
            "trunk": (0.55, 0.55, 0.55)}
 UNNAMED = (0.95, 0.95, 0.95)
-
-
-def chain_of(name):
-    """``leg_l_02`` → ``leg_l``; the trunk's bones → ``trunk``."""
-    return "trunk" if name == "body" or name.startswith(("spine_", "hips_")) else re.sub(r"_\d+$", "", name)
 
 
 def panel(skin, preset, size=480):

@@ -34,7 +34,7 @@ import numpy as np
 from datasets import run
 
 
-def _chain(name):
+def chain_of(name):
     """The chain a joint name belongs to: ``leg_l_02`` → ``leg_l``; ``body`` and ``spine_*`` → ``trunk``."""
     if name == "body" or name.startswith(("spine_", "hips_")):
         return "trunk"
@@ -80,7 +80,7 @@ def against_truth(path, rig, vertices):
             distances.append(np.linalg.norm(joints[b] - true_joints[top]) / height)
     names = skin.skeleton.get("names")
     named = bool(names) and any(re.match(r"(leg|arm|neck|tail)_", n) for n in names)
-    right_names = [bool(names) and _chain(names[b]) == _chain(rig.names[stands[b]]) for b in range(skin.bones)]
+    right_names = [bool(names) and chain_of(names[b]) == chain_of(rig.names[stands[b]]) for b in range(skin.bones)]
     centre = {"humanoid": ("pelvis",), "quadruped": ("trunk_back", "trunk_front")}
     kind = "humanoid" if "pelvis" in body.names else "quadruped"
     return {"root": body.names[stands[root]], "root_right": body.names[stands[root]] in centre[kind],
