@@ -156,10 +156,11 @@ def test_legs_that_slide_are_no_legs(true_walker):
 def test_a_head_turned_aside_at_rest_is_still_the_head(kind, part):
     """Issue 65: the rest pose a fit picks may have the head turned or tilted aside (a grazing
     quadruped's neck turned, a dancer leaning): its end is no longer on the line between the legs.
-    The generated characters' true trees, posed at the frame whose head stands farthest aside, keep
-    their names: a quadruped's head and tail are the ends farthest ahead and behind its legs, a
-    biped's head the highest end between its shoulders (``CENTRE_BAND`` of the width; Zheng's
-    dancer's head, 0.13 of the width aside, was taken for no end and its chest named an arm)."""
+    The generated characters' true trees, posed with the head aside, keep their names: a quadruped's
+    head and tail are the ends farthest ahead and behind its legs (posed where its head stands
+    farthest aside), a biped's head the highest end between its shoulders (``CENTRE_BAND``, a fifth
+    of the width; posed where its head stands nearest 0.13 of the width aside, as Zheng's dancer's,
+    which was taken for no end and its chest named an arm at a tenth: far from either bound)."""
     from skinsynth.pipeline.inputs.characters import character
     from skinsynth.pipeline.rig.influence import bone_centroids
 
@@ -167,9 +168,20 @@ def test_a_head_turned_aside_at_rest_is_still_the_head(kind, part):
     indices = np.argsort(-rig.weights, axis=1, kind="stable")[:, :4]
     weights = np.take_along_axis(rig.weights, indices, axis=1)
     head = rig.body.index(part)
-    aside = [abs(bone_centroids(frame, indices, weights, len(rig.body.names))[head, 0]) for frame in vertices]
-    frame = int(np.argmax(aside))
-    joints = np.einsum("bij,bj->bi", rig.rotations[frame], rig.body.joints) + rig.translations[frame]
+    posed = np.einsum("fbij,bj->fbi", rig.rotations, rig.body.joints) + rig.translations  # (F, B, 3)
+    centres = np.stack([bone_centroids(frame, indices, weights, len(rig.body.names)) for frame in vertices])
+    if kind == "quadruped":
+        frame = int(np.argmax(np.abs(centres[:, head, 0])))
+    else:  # the head's offset from the hips' middle across them, over the width along that line
+        thighs = posed[:, [rig.body.index("thigh_l"), rig.body.index("thigh_r")]]
+        across = thighs[:, 0] - thighs[:, 1]
+        across[:, 1] = 0.0
+        across /= np.linalg.norm(across, axis=1, keepdims=True)
+        aside = np.abs(np.einsum("fx,fx->f", centres[:, head] - thighs.mean(axis=1), across))
+        width = np.ptp(np.einsum("fvx,fx->fv", vertices, across), axis=1)
+        frame = int(np.argmin(np.abs(aside / width - 0.13)))
+        assert 0.12 < aside[frame] / width[frame] < 0.14
+    joints = posed[frame]
     names = chain_labels(rig.body.parents, joints, vertices[frame], indices, weights, 1, vertices, faces=faces)
     assert names == list(rig.names)
 
